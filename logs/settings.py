@@ -1,0 +1,180 @@
+"""Strict reading of TOML settings: every error names the file, the key and what was wrong.
+
+Both kinds of file (rover config, scenario) are read through ``Table``; each package turns the tables it
+owns into frozen dataclasses with a ``from_table`` constructor. Unknown keys are errors, so a typo never
+silently falls back to a default.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any, TypeVar
+
+T = TypeVar("T")
+
+
+class ConfigError(ValueError):
+    """A settings file is missing, malformed, or holds a value we cannot use."""
+
+    def __init__(self, source: str, key: str, problem: str) -> None:
+        self.source = source
+        self.key = key
+        self.problem = problem
+        where = f"{source}: {key}" if key else source
+        super().__init__(f"{where}: {problem}")
+
+
+def load_toml(path: str | Path) -> Table:
+    """Read a TOML file into a root ``Table``; raises ``ConfigError`` naming the file on any failure."""
+    source = str(path)
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(source, "", "file not found") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise ConfigError(source, "", f"cannot read file: {err}") from err
+    return parse_toml(text, source)
+
+
+def parse_toml(text: str, source: str) -> Table:
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise ConfigError(source, "", f"not valid TOML: {err}") from err
+    return Table(data, source, "")
+
+
+class Table:
+    """A TOML table with typed, range-checked getters. Call ``finish()`` to reject unknown keys."""
+
+    def __init__(self, data: dict[str, Any], source: str, prefix: str) -> None:
+        self._data = data
+        self.source = source
+        self.prefix = prefix
+        self._used: set[str] = set()
+
+    # --- helpers -------------------------------------------------------------------------------
+    def key_path(self, key: str) -> str:
+        return f"{self.prefix}.{key}" if self.prefix else key
+
+    def error(self, key: str, problem: str) -> ConfigError:
+        return ConfigError(self.source, self.key_path(key), problem)
+
+    def has(self, key: str) -> bool:
+        return key in self._data
+
+    def keys(self) -> Iterator[str]:
+        return iter(self._data)
+
+    def _raw(self, key: str, default: Any) -> Any:
+        self._used.add(key)
+        if key in self._data:
+            return self._data[key]
+        if default is _REQUIRED:
+            raise self.error(key, "required key is missing")
+        return default
+
+    # --- typed getters -------------------------------------------------------------------------
+    def number(
+        self, key: str, default: Any = None, *, lo: float | None = None, hi: float | None = None
+    ) -> float:
+        value = self._raw(key, _REQUIRED if default is None else default)
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise self.error(key, f"expected a number, got {type(value).__name__} {value!r}")
+        number = float(value)
+        if not math.isfinite(number):
+            raise self.error(key, f"expected a finite number, got {number}")
+        if lo is not None and number < lo:
+            raise self.error(key, f"must be >= {lo}, got {number}")
+        if hi is not None and number > hi:
+            raise self.error(key, f"must be <= {hi}, got {number}")
+        return number
+
+    def integer(self, key: str, default: Any = None, *, lo: int | None = None, hi: int | None = None) -> int:
+        value = self._raw(key, _REQUIRED if default is None else default)
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.error(key, f"expected an integer, got {type(value).__name__} {value!r}")
+        if lo is not None and value < lo:
+            raise self.error(key, f"must be >= {lo}, got {value}")
+        if hi is not None and value > hi:
+            raise self.error(key, f"must be <= {hi}, got {value}")
+        return value
+
+    def text(self, key: str, default: Any = None, *, choices: Sequence[str] | None = None) -> str:
+        value = self._raw(key, _REQUIRED if default is None else default)
+        if not isinstance(value, str):
+            raise self.error(key, f"expected a string, got {type(value).__name__} {value!r}")
+        if choices is not None and value not in choices:
+            raise self.error(key, f"must be one of {', '.join(map(repr, choices))}, got {value!r}")
+        return value
+
+    def flag(self, key: str, default: Any = None) -> bool:
+        value = self._raw(key, _REQUIRED if default is None else default)
+        if not isinstance(value, bool):
+            raise self.error(key, f"expected true or false, got {value!r}")
+        return value
+
+    def point(self, key: str, default: Any = None) -> tuple[float, float]:
+        """An ``[x, y]`` pair of finite numbers."""
+        value = self._raw(key, _REQUIRED if default is None else default)
+        if (
+            not isinstance(value, list | tuple)
+            or len(value) != 2
+            or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
+            or not all(math.isfinite(float(v)) for v in value)
+        ):
+            raise self.error(key, f"expected [x, y] with two finite numbers, got {value!r}")
+        return float(value[0]), float(value[1])
+
+    def numbers(self, key: str, default: Any = None, *, length: int | None = None) -> list[float]:
+        value = self._raw(key, _REQUIRED if default is None else default)
+        if not isinstance(value, list) or not all(
+            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(float(v)) for v in value
+        ):
+            raise self.error(key, f"expected a list of finite numbers, got {value!r}")
+        if length is not None and len(value) != length:
+            raise self.error(key, f"expected {length} numbers, got {len(value)}")
+        return [float(v) for v in value]
+
+    def integers(self, key: str, default: Any = None, *, length: int | None = None) -> list[int]:
+        value = self._raw(key, _REQUIRED if default is None else default)
+        if not isinstance(value, list) or not all(isinstance(v, int) and not isinstance(v, bool) for v in value):
+            raise self.error(key, f"expected a list of integers, got {value!r}")
+        if length is not None and len(value) != length:
+            raise self.error(key, f"expected {length} integers, got {len(value)}")
+        return list(value)
+
+    def table(self, key: str, *, optional: bool = False) -> Table:
+        """A sub-table; with ``optional`` a missing one reads as empty (all defaults)."""
+        value = self._raw(key, {} if optional else _REQUIRED)
+        if not isinstance(value, dict):
+            raise self.error(key, f"expected a table, got {type(value).__name__}")
+        return Table(value, self.source, self.key_path(key))
+
+    def tables(self, key: str, *, optional: bool = True) -> list[Table]:
+        """An array of tables (``[[key]]``)."""
+        value = self._raw(key, [] if optional else _REQUIRED)
+        if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+            raise self.error(key, "expected an array of tables ([[...]])")
+        return [Table(v, self.source, f"{self.key_path(key)}[{i}]") for i, v in enumerate(value)]
+
+    def raw(self, key: str, default: Any = None) -> Any:
+        """The value as TOML gave it, for callers that validate it themselves."""
+        return self._raw(key, _REQUIRED if default is None else default)
+
+    def finish(self) -> None:
+        """Reject keys nobody asked for: they are typos or settings this version does not know."""
+        unknown = sorted(set(self._data) - self._used)
+        if unknown:
+            raise self.error(unknown[0], f"unknown key (known here: {', '.join(sorted(self._used)) or 'none'})")
+
+
+class _Required:
+    def __repr__(self) -> str:
+        return "<required>"
+
+
+_REQUIRED: Any = _Required()

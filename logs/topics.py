@@ -1,0 +1,362 @@
+"""The topic registry: every MCAP channel and Zenoh key the stack uses, with its JSON schema.
+
+Topic names are the contract between the parts (ARCHITECTURE.md, "Topics"). Where a Foxglove well-known
+schema fits, its name and fields are used so a trial opens in Foxglove without plugins; our extra fields
+ride along beside Foxglove's (Foxglove ignores fields it does not know).
+
+Conventions for every message: ``timestamp`` is ``{"sec", "nsec"}`` from the component's clock; positions
+are local ENU metres (x east, y north, z up) in frame ``"enu"``; angles in radians, yaw counter-clockwise
+from east; speeds in m/s.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+JsonSchema = dict[str, Any]
+
+CAN_FRAMES = "can/frames"
+MAVLINK_RAW = "mavlink/raw"
+SENSORS_GPS = "sensors/gps"
+SENSORS_IMU = "sensors/imu"
+WHEELS_STATUS = "wheels/status"
+WHEELS_COMMAND = "wheels/command"
+ESTIMATOR_POSE = "estimator/pose"
+ESTIMATOR_INNOVATIONS = "estimator/innovations"
+NAVIGATOR_MAP = "navigator/map"
+NAVIGATOR_PATH = "navigator/path"
+NAVIGATOR_STATE = "navigator/state"
+SAFETY_EVENTS = "safety/events"
+LOG = "log"
+TRUTH_POSE = "truth/pose"
+TRUTH_WHEELS = "truth/wheels"
+TRUTH_STABILITY = "truth/stability"
+TRUTH_CONTACTS = "truth/contacts"
+
+ENU_FRAME = "enu"
+
+
+@dataclass(frozen=True)
+class TopicSpec:
+    name: str
+    schema_name: str
+    schema: JsonSchema
+    description: str
+
+
+def _obj(properties: dict[str, JsonSchema], required: list[str] | None = None) -> JsonSchema:
+    return {"type": "object", "properties": properties, "required": required or list(properties)}
+
+
+_NUM: JsonSchema = {"type": "number"}
+_INT: JsonSchema = {"type": "integer"}
+_STR: JsonSchema = {"type": "string"}
+_BOOL: JsonSchema = {"type": "boolean"}
+_TIME = _obj({"sec": _INT, "nsec": _INT})
+_VEC3 = _obj({"x": _NUM, "y": _NUM, "z": _NUM})
+_QUAT = _obj({"x": _NUM, "y": _NUM, "z": _NUM, "w": _NUM})
+_POSE = _obj({"position": _VEC3, "orientation": _QUAT})
+
+
+def _nums(n: int | None = None) -> JsonSchema:
+    schema: JsonSchema = {"type": "array", "items": _NUM}
+    if n is not None:
+        schema["minItems"] = n
+        schema["maxItems"] = n
+    return schema
+
+
+def _array(items: JsonSchema) -> JsonSchema:
+    return {"type": "array", "items": items}
+
+
+_POSE_IN_FRAME_FIELDS: dict[str, JsonSchema] = {"timestamp": _TIME, "frame_id": _STR, "pose": _POSE}
+
+_SPECS = [
+    TopicSpec(
+        CAN_FRAMES,
+        "rover.CanFrame",
+        _obj(
+            {
+                "timestamp": _TIME,
+                "direction": {"type": "string", "enum": ["tx", "rx"]},
+                "id": _INT,
+                "extended": _BOOL,
+                "dlc": _INT,
+                "data": {"type": "string", "description": "payload as lowercase hex"},
+            }
+        ),
+        "Every CAN frame the companion sent (tx) or received (rx), raw.",
+    ),
+    TopicSpec(
+        MAVLINK_RAW,
+        "rover.MavlinkFrame",
+        _obj(
+            {
+                "timestamp": _TIME,
+                "direction": {"type": "string", "enum": ["tx", "rx"]},
+                "msgid": _INT,
+                "name": _STR,
+                "sysid": _INT,
+                "compid": _INT,
+                "data": {"type": "string", "description": "the whole MAVLink frame, base64"},
+            }
+        ),
+        "Every MAVLink frame the companion sent or received, raw bytes.",
+    ),
+    TopicSpec(
+        SENSORS_GPS,
+        "foxglove.LocationFix",
+        _obj(
+            {
+                "timestamp": _TIME,
+                "frame_id": _STR,
+                "latitude": _NUM,
+                "longitude": _NUM,
+                "altitude": _NUM,
+                "position_covariance": _nums(9),
+                "position_covariance_type": _INT,
+                "fix_type": _INT,
+                "satellites": _INT,
+                "eph_m": _NUM,
+            }
+        ),
+        "Decoded GPS_RAW_INT: WGS84 degrees and metres; covariance in m^2 (ENU).",
+    ),
+    TopicSpec(
+        SENSORS_IMU,
+        "rover.Imu",
+        _obj({"timestamp": _TIME, "frame_id": _STR, "angular_velocity": _VEC3, "linear_acceleration": _VEC3}),
+        "Decoded IMU: body-frame rad/s and m/s^2 (x forward, y left, z up).",
+    ),
+    TopicSpec(
+        WHEELS_STATUS,
+        "rover.WheelStatus",
+        _obj(
+            {
+                "timestamp": _TIME,
+                "wheels": _array(
+                    _obj(
+                        {
+                            "controller_id": _INT,
+                            "erpm": _NUM,
+                            "speed_mps": _NUM,
+                            "motor_current_a": _NUM,
+                            "input_current_a": _NUM,
+                            "duty": _NUM,
+                            "input_voltage_v": _NUM,
+                            "tachometer": _NUM,
+                        }
+                    )
+                ),
+            }
+        ),
+        "Latest decoded VESC status of the six wheels, in wheel order (left front/mid/rear, right f/m/r).",
+    ),
+    TopicSpec(
+        WHEELS_COMMAND,
+        "rover.WheelCommand",
+        _obj(
+            {
+                "timestamp": _TIME,
+                "speed_mps": _nums(6),
+                "erpm": _nums(6),
+                "body_speed_mps": _NUM,
+                "body_yaw_rate_rps": _NUM,
+            }
+        ),
+        "Six wheel commands, in wheel order, and the body motion they were mixed from.",
+    ),
+    TopicSpec(
+        ESTIMATOR_POSE,
+        "foxglove.PoseInFrame",
+        _obj(
+            {
+                **_POSE_IN_FRAME_FIELDS,
+                "yaw_rad": _NUM,
+                "speed_mps": _NUM,
+                "yaw_rate_rps": _NUM,
+                "state_names": _array(_STR),
+                "covariance": _nums(),
+                "healthy": _BOOL,
+            }
+        ),
+        "EKF estimate in ENU; covariance is the full state covariance, row-major, order as state_names.",
+    ),
+    TopicSpec(
+        ESTIMATOR_INNOVATIONS,
+        "rover.Innovation",
+        _obj(
+            {
+                "timestamp": _TIME,
+                "sensor": _STR,
+                "innovation": _nums(),
+                "nis": _NUM,
+                "accepted": _BOOL,
+            }
+        ),
+        "One measurement update: residual, normalised innovation squared, gate decision.",
+    ),
+    TopicSpec(
+        NAVIGATOR_MAP,
+        "foxglove.Grid",
+        _obj(
+            {
+                "timestamp": _TIME,
+                "frame_id": _STR,
+                "pose": _POSE,
+                "column_count": _INT,
+                "cell_size": _obj({"x": _NUM, "y": _NUM}),
+                "row_stride": _INT,
+                "cell_stride": _INT,
+                "fields": _array(_obj({"name": _STR, "offset": _INT, "type": _INT})),
+                "data": {"type": "string", "description": "base64"},
+            }
+        ),
+        "The terrain map the planner believes: float32 elevation, class and obstacle layers.",
+    ),
+    TopicSpec(
+        NAVIGATOR_PATH,
+        "foxglove.PosesInFrame",
+        _obj(
+            {
+                "timestamp": _TIME,
+                "frame_id": _STR,
+                "poses": _array(_POSE),
+                "cost": _NUM,
+                "length_m": _NUM,
+            }
+        ),
+        "The current planned path in ENU, start to goal.",
+    ),
+    TopicSpec(
+        NAVIGATOR_STATE,
+        "rover.NavigatorState",
+        _obj(
+            {
+                "timestamp": _TIME,
+                "mode": _STR,
+                "goal": _obj({"x": _NUM, "y": _NUM}),
+                "cross_track_error_m": _NUM,
+                "speed_limit_mps": _NUM,
+                "speed_limit_reason": _STR,
+                "target_speed_mps": _NUM,
+                "target_yaw_rate_rps": _NUM,
+            }
+        ),
+        "Navigator mode, goal, cross-track error, speed limit and the reason for it.",
+    ),
+    TopicSpec(
+        SAFETY_EVENTS,
+        "rover.SafetyEvent",
+        _obj({"timestamp": _TIME, "kind": _STR, "severity": _STR, "detail": _STR}),
+        "Safety and link events (mode transitions, faults, recoveries) with their cause.",
+    ),
+    TopicSpec(
+        LOG,
+        "foxglove.Log",
+        _obj({"timestamp": _TIME, "level": _INT, "message": _STR, "name": _STR, "file": _STR, "line": _INT}),
+        "Log lines. level: 1 debug, 2 info, 3 warning, 4 error, 5 fatal (Foxglove's enum).",
+    ),
+    TopicSpec(
+        TRUTH_POSE,
+        "foxglove.PoseInFrame",
+        _obj(
+            {
+                **_POSE_IN_FRAME_FIELDS,
+                "yaw_rad": _NUM,
+                "roll_rad": _NUM,
+                "pitch_rad": _NUM,
+                "speed_mps": _NUM,
+                "yaw_rate_rps": _NUM,
+                "terrain": _STR,
+            }
+        ),
+        "Simulation only: the true pose of the rover.",
+    ),
+    TopicSpec(
+        TRUTH_WHEELS,
+        "rover.TruthWheels",
+        _obj(
+            {
+                "timestamp": _TIME,
+                "wheels": _array(
+                    _obj(
+                        {
+                            "surface_speed_mps": _NUM,
+                            "slip": _NUM,
+                            "normal_force_n": _NUM,
+                            "current_a": _NUM,
+                        }
+                    )
+                ),
+                "battery_voltage_v": _NUM,
+                "energy_wh": _NUM,
+            }
+        ),
+        "Simulation only: per-wheel slip ratio, normal force, current; battery and energy used.",
+    ),
+    TopicSpec(
+        TRUTH_STABILITY,
+        "rover.TruthStability",
+        _obj(
+            {
+                "timestamp": _TIME,
+                "roll_rad": _NUM,
+                "pitch_rad": _NUM,
+                "roll_margin_rad": _NUM,
+                "pitch_margin_rad": _NUM,
+                "rollover": _BOOL,
+            }
+        ),
+        "Simulation only: tilt and the margin left before tip-over (negative = rolled over).",
+    ),
+    TopicSpec(
+        TRUTH_CONTACTS,
+        "rover.Contact",
+        _obj(
+            {
+                "timestamp": _TIME,
+                "kind": {"type": "string", "enum": ["collision", "rollover"]},
+                "obstacle_id": _STR,
+                "x": _NUM,
+                "y": _NUM,
+            }
+        ),
+        "Simulation only: a collision with an obstacle or a rollover, once per event.",
+    ),
+]
+
+TOPICS: dict[str, TopicSpec] = {spec.name: spec for spec in _SPECS}
+
+
+def spec(topic: str) -> TopicSpec:
+    try:
+        return TOPICS[topic]
+    except KeyError:
+        raise KeyError(f"unknown topic {topic!r}; known topics: {', '.join(sorted(TOPICS))}") from None
+
+
+def stamp(t_ns: int) -> dict[str, int]:
+    """Foxglove time from integer nanoseconds."""
+    return {"sec": t_ns // 1_000_000_000, "nsec": t_ns % 1_000_000_000}
+
+
+def stamp_ns(timestamp: dict[str, int]) -> int:
+    return int(timestamp["sec"]) * 1_000_000_000 + int(timestamp["nsec"])
+
+
+def planar_pose(x: float, y: float, yaw: float, z: float = 0.0) -> dict[str, Any]:
+    """Foxglove pose of a planar position and a yaw about +z."""
+    half = 0.5 * yaw
+    return {
+        "position": {"x": x, "y": y, "z": z},
+        "orientation": {"x": 0.0, "y": 0.0, "z": math.sin(half), "w": math.cos(half)},
+    }
+
+
+def yaw_of(pose: dict[str, Any]) -> float:
+    q = pose["orientation"]
+    return 2.0 * math.atan2(float(q["z"]), float(q["w"]))
