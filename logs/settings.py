@@ -141,7 +141,9 @@ class Table:
 
     def integers(self, key: str, default: Any = None, *, length: int | None = None) -> list[int]:
         value = self._raw(key, _REQUIRED if default is None else default)
-        if not isinstance(value, list) or not all(isinstance(v, int) and not isinstance(v, bool) for v in value):
+        if not isinstance(value, list) or not all(
+            isinstance(v, int) and not isinstance(v, bool) for v in value
+        ):
             raise self.error(key, f"expected a list of integers, got {value!r}")
         if length is not None and len(value) != length:
             raise self.error(key, f"expected {length} integers, got {len(value)}")
@@ -169,7 +171,9 @@ class Table:
         """Reject keys nobody asked for: they are typos or settings this version does not know."""
         unknown = sorted(set(self._data) - self._used)
         if unknown:
-            raise self.error(unknown[0], f"unknown key (known here: {', '.join(sorted(self._used)) or 'none'})")
+            raise self.error(
+                unknown[0], f"unknown key (known here: {', '.join(sorted(self._used)) or 'none'})"
+            )
 
 
 class _Required:

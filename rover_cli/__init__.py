@@ -1,1 +1,1 @@
-"""rover_cli"""
+"""The ``rover`` command: argument parsing only; the work happens in the packages."""

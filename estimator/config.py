@@ -1,0 +1,124 @@
+"""Estimator settings: a frozen dataclass, validated when built, read strictly from ``[estimator]``."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+from estimator.errors import EstimatorSetupError
+from estimator.geodesy import Datum
+from logs.settings import Table
+
+# Settings that must be strictly positive (noise levels and lengths): a zero would make a matrix singular.
+_POSITIVE = (
+    "gps_noise_m",
+    "gyro_noise_rps",
+    "odom_speed_noise_mps",
+    "odom_yaw_rate_noise_rps",
+    "accel_process_noise",
+    "yaw_accel_process_noise",
+    "gyro_bias_walk",
+    "track_m",
+    "skid_factor",
+    "healthy_position_std_m",
+    "heading_init_distance_m",
+    "slip_threshold_rps",
+)
+
+
+@dataclass(frozen=True)
+class EstimatorConfig:
+    """Noise levels, gate and vehicle geometry of the rover EKF.
+
+    Attributes
+    ----------
+    gps_noise_m : float
+        Horizontal GPS std (m, per axis) used when a fix carries no ``eph``, and the floor under ``eph``.
+    gyro_noise_rps : float
+        Gyro z std, rad/s.
+    odom_speed_noise_mps, odom_yaw_rate_noise_rps : float
+        Wheel odometry std of body speed (m/s) and yaw rate (rad/s) when the wheels do not slip.
+    accel_process_noise : float
+        Random walk on speed, m/s^2 (std of the white acceleration driving it).
+    yaw_accel_process_noise : float
+        Random walk on yaw rate, rad/s^2.
+    gyro_bias_walk : float
+        Random walk on the gyro bias, rad/s per sqrt(s).
+    gate_probability : float
+        Chi-square gate on every update: a measurement whose NIS exceeds ``chi2.ppf(p, dim)`` is rejected.
+    track_m, skid_factor : float
+        Skid-steer odometry: yaw rate = (v_right - v_left) / (track_m * skid_factor).
+    healthy_position_std_m : float
+        The estimate is healthy while the largest position std (m) stays below this.
+    heading_init_distance_m : float
+        With no heading given, GPS displacement (m) the rover must cover before yaw is taken from its track.
+    slip_threshold_rps : float
+        |odometry yaw rate - gyro yaw rate| (rad/s) above which odometry noise is inflated (wheels slipping).
+    gps_reset_after_rejections : int
+        After this many GPS fixes gated out in a row the filter believes GPS and re-anchors its position.
+    datum_lat_deg, datum_lon_deg, datum_alt_m : float | None
+        ENU origin; if absent the first good GPS fix sets it.
+    """
+
+    gps_noise_m: float = 0.5
+    gyro_noise_rps: float = 0.01
+    odom_speed_noise_mps: float = 0.05
+    odom_yaw_rate_noise_rps: float = 0.05
+    accel_process_noise: float = 0.5
+    yaw_accel_process_noise: float = 1.0
+    gyro_bias_walk: float = 1e-4
+    gate_probability: float = 0.9995
+    track_m: float = 0.55
+    skid_factor: float = 1.6
+    healthy_position_std_m: float = 2.0
+    heading_init_distance_m: float = 5.0
+    slip_threshold_rps: float = 0.15
+    gps_reset_after_rejections: int = 25
+    datum_lat_deg: float | None = None
+    datum_lon_deg: float | None = None
+    datum_alt_m: float | None = None
+
+    def __post_init__(self) -> None:
+        for name in _POSITIVE:
+            value = getattr(self, name)
+            if not math.isfinite(value) or value <= 0.0:
+                raise EstimatorSetupError(name, f"must be a finite number > 0, got {value}")
+        if not 0.5 <= self.gate_probability < 1.0:
+            raise EstimatorSetupError(
+                "gate_probability", f"must be in [0.5, 1) (e.g. 0.9995), got {self.gate_probability}"
+            )
+        if self.gps_reset_after_rejections < 1:
+            raise EstimatorSetupError(
+                "gps_reset_after_rejections", f"must be >= 1, got {self.gps_reset_after_rejections}"
+            )
+        if (self.datum_lat_deg is None) != (self.datum_lon_deg is None):
+            raise EstimatorSetupError("datum_lat_deg", "give both datum_lat_deg and datum_lon_deg or neither")
+        if self.datum_lat_deg is None and self.datum_alt_m is not None:
+            raise EstimatorSetupError("datum_alt_m", "datum_alt_m needs datum_lat_deg and datum_lon_deg")
+        _ = self.datum  # validates the datum values
+
+    @property
+    def datum(self) -> Datum | None:
+        """The configured ENU origin, or None when the first good fix should set it."""
+        if self.datum_lat_deg is None or self.datum_lon_deg is None:
+            return None
+        return Datum(self.datum_lat_deg, self.datum_lon_deg, self.datum_alt_m or 0.0)
+
+    @classmethod
+    def from_table(cls, table: Table) -> EstimatorConfig:
+        """Read the ``[estimator]`` table; unknown keys and bad values raise ``ConfigError`` naming it."""
+        values: dict[str, float | int | None] = {}
+        for f in fields(cls):
+            default = f.default
+            if f.name == "gps_reset_after_rejections":
+                values[f.name] = table.integer(f.name, default)
+            elif default is None:
+                values[f.name] = table.number(f.name) if table.has(f.name) else None
+            else:
+                assert isinstance(default, float)
+                values[f.name] = table.number(f.name, default)
+        table.finish()
+        try:
+            return cls(**values)  # type: ignore[arg-type]
+        except EstimatorSetupError as err:
+            raise table.error(err.field, err.problem) from err

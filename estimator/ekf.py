@@ -1,0 +1,302 @@
+"""The rover EKF: planar pose, speed, yaw rate and gyro bias, with a chi-square gate on every update.
+
+State ``x`` (shape (6,)), in order (``STATE_NAMES``)::
+
+    x_m, y_m          position, local ENU metres
+    yaw_rad           heading, radians CCW from east, wrapped to (-pi, pi]
+    speed_mps         body forward speed, m/s (negative when reversing)
+    yaw_rate_rps      body yaw rate, rad/s
+    gyro_bias_rps     additive bias of the z gyro, rad/s
+
+Motion model: constant speed and yaw rate over ``dt``, position advanced along the mid-interval heading
+(second-order accurate; dt is at most a few tens of ms between sensor samples).
+
+Why not ``filterpy.kalman.ExtendedKalmanFilter.update``: it applies every measurement unconditionally (the
+gate must see ``S`` *before* the state changes), fixes ``dim_z`` at construction although our sensors have 1
+or 2 dimensions, and deep-copies ``z`` on every call. The update below is the same Joseph-form EKF update
+with an angle-wrapping residual, plus the gate, and it allocates only small arrays.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.stats import chi2
+
+from estimator.angles import wrap_angle
+from estimator.config import EstimatorConfig
+from estimator.errors import EstimatorOperationError
+
+STATE_NAMES: tuple[str, ...] = ("x_m", "y_m", "yaw_rad", "speed_mps", "yaw_rate_rps", "gyro_bias_rps")
+X, Y, YAW, SPEED, YAW_RATE, BIAS = range(6)
+DIM_X = 6
+
+# Prior on the states nobody measured yet at initialisation: a rover starting up is nearly still.
+_INITIAL_SPEED_STD_MPS = 1.0
+_INITIAL_YAW_RATE_STD_RPS = 0.5
+_INITIAL_BIAS_STD_RPS = 0.05
+
+Array = NDArray[np.float64]
+
+
+def _rows(*selected: int) -> Array:
+    """A constant measurement matrix picking the given states."""
+    h = np.zeros((len(selected), DIM_X))
+    for row, column in enumerate(selected):
+        h[row, column] = 1.0
+    return h
+
+
+_H_POSITION = _rows(X, Y)
+_H_HEADING = _rows(YAW)
+_H_ODOMETRY = _rows(SPEED, YAW_RATE)
+_H_GYRO = np.array([[0.0, 0.0, 0.0, 0.0, 1.0, 1.0]])  # the gyro sees yaw rate + bias
+
+
+@dataclass(frozen=True)
+class Innovation:
+    """One measurement update.
+
+    Attributes
+    ----------
+    sensor : str
+        "gps", "gyro", "odometry" or "heading".
+    residual : tuple of float
+        z - h(x) in measurement units (angles wrapped), before the update.
+    nis : float
+        Normalised innovation squared, y^T S^-1 y (dimensionless; chi-square with dim(z) dof if consistent).
+    accepted : bool
+        False when the gate refused the measurement; the state was then left untouched.
+    """
+
+    sensor: str
+    residual: tuple[float, ...]
+    nis: float
+    accepted: bool
+
+
+class RoverEkf:
+    """Extended Kalman filter for a skid-steer rover in the plane.
+
+    Parameters
+    ----------
+    config : EstimatorConfig
+        Process noise, default sensor noise and the gate probability. Read once here.
+    """
+
+    def __init__(self, config: EstimatorConfig) -> None:
+        self._config = config
+        self._x: Array = np.zeros(DIM_X)
+        self._p: Array = np.eye(DIM_X)
+        self._t_ns: int | None = None
+        self._identity: Array = np.eye(DIM_X)
+        # Process noise intensities (per second) on speed, yaw rate and bias: random walks.
+        self._q_rate: Array = np.array(
+            [config.accel_process_noise**2, config.yaw_accel_process_noise**2, config.gyro_bias_walk**2]
+        )
+        # Gate thresholds computed once per measurement dimension.
+        self._gate = {dim: float(chi2.ppf(config.gate_probability, dim)) for dim in (1, 2)}
+        self._r_gyro: Array = np.array([[config.gyro_noise_rps**2]])
+        self._f: Array = np.eye(DIM_X)  # reused Jacobian buffer; only the motion entries change
+
+    # --- state access --------------------------------------------------------------------------
+    @property
+    def initialised(self) -> bool:
+        return self._t_ns is not None
+
+    @property
+    def t_ns(self) -> int:
+        """Time of the current estimate, ns."""
+        return self._require_time()
+
+    @property
+    def x(self) -> Array:
+        """A copy of the state, shape (6,)."""
+        return self._x.copy()
+
+    @property
+    def covariance(self) -> Array:
+        """A copy of the state covariance, shape (6, 6), units of the state squared."""
+        return self._p.copy()
+
+    def state(self, index: int) -> float:
+        """One state value without copying the vector."""
+        return float(self._x[index])
+
+    def position_std_m(self) -> float:
+        """Std (m) of the position along its worst direction."""
+        return position_std_m(self._p)
+
+    # --- set-up --------------------------------------------------------------------------------
+    def initialise(
+        self, x_m: float, y_m: float, yaw_rad: float, t_ns: int, position_std_m: float, yaw_std_rad: float
+    ) -> None:
+        """Start (or restart) the filter at a position and heading; speed and yaw rate start at zero."""
+        _check_finite("initialise", x_m=x_m, y_m=y_m, yaw_rad=yaw_rad)
+        _check_std("initialise", position_std_m=position_std_m, yaw_std_rad=yaw_std_rad)
+        self._x[:] = (x_m, y_m, wrap_angle(yaw_rad), 0.0, 0.0, 0.0)
+        self._p[:] = np.diag(
+            [
+                position_std_m**2,
+                position_std_m**2,
+                yaw_std_rad**2,
+                _INITIAL_SPEED_STD_MPS**2,
+                _INITIAL_YAW_RATE_STD_RPS**2,
+                _INITIAL_BIAS_STD_RPS**2,
+            ]
+        )
+        self._t_ns = t_ns
+
+    def reset_heading(self, yaw_rad: float, yaw_std_rad: float) -> None:
+        """Replace the heading by an independent estimate, dropping its correlations with the rest."""
+        self._require_time()
+        _check_finite("reset_heading", yaw_rad=yaw_rad)
+        _check_std("reset_heading", yaw_std_rad=yaw_std_rad)
+        self._x[YAW] = wrap_angle(yaw_rad)
+        self._p[YAW, :] = 0.0
+        self._p[:, YAW] = 0.0
+        self._p[YAW, YAW] = yaw_std_rad**2
+
+    def reset_position(self, x_m: float, y_m: float, position_std_m: float) -> None:
+        """Re-anchor the position (e.g. after GPS was gated out too long), dropping its correlations."""
+        self._require_time()
+        _check_finite("reset_position", x_m=x_m, y_m=y_m)
+        _check_std("reset_position", position_std_m=position_std_m)
+        self._x[X], self._x[Y] = x_m, y_m
+        self._p[(X, Y), :] = 0.0
+        self._p[:, (X, Y)] = 0.0
+        self._p[X, X] = self._p[Y, Y] = position_std_m**2
+
+    # --- prediction ----------------------------------------------------------------------------
+    def predict(self, t_ns: int) -> None:
+        """Advance the estimate to ``t_ns``; a time at or before the current one changes nothing."""
+        dt_ns = t_ns - self._require_time()
+        if dt_ns <= 0:
+            return
+        dt = dt_ns * 1e-9
+        x = self._x
+        v, w = x[SPEED], x[YAW_RATE]
+        heading = x[YAW] + 0.5 * w * dt
+        cos_h, sin_h = math.cos(heading), math.sin(heading)
+        step = v * dt
+        x[X] += step * cos_h
+        x[Y] += step * sin_h
+        x[YAW] = wrap_angle(x[YAW] + w * dt)
+
+        f = self._f
+        f[X, YAW] = -step * sin_h
+        f[X, SPEED] = dt * cos_h
+        f[X, YAW_RATE] = -step * sin_h * 0.5 * dt
+        f[Y, YAW] = step * cos_h
+        f[Y, SPEED] = dt * sin_h
+        f[Y, YAW_RATE] = step * cos_h * 0.5 * dt
+        f[YAW, YAW_RATE] = dt
+        p = f @ self._p @ f.T
+        p[(SPEED, YAW_RATE, BIAS), (SPEED, YAW_RATE, BIAS)] += self._q_rate * dt
+        self._p = p
+        self._t_ns = t_ns
+
+    def predicted(self, t_ns: int) -> tuple[Array, Array]:
+        """State and covariance extrapolated to ``t_ns`` without changing the filter (copies)."""
+        saved_x, saved_p, saved_t = self._x.copy(), self._p.copy(), self._t_ns
+        try:
+            self.predict(t_ns)
+            return self._x.copy(), self._p.copy()
+        finally:
+            self._x, self._p, self._t_ns = saved_x, saved_p, saved_t
+
+    # --- measurement updates -------------------------------------------------------------------
+    def update_position(self, x_m: float, y_m: float, std_m: float, *, gated: bool = True) -> Innovation:
+        """GPS position in ENU metres with a per-axis std (m).
+
+        ``gated=False`` skips the gate: for when the covariance is known not to be trustworthy (heading
+        still unknown), so the gate would refuse good fixes.
+        """
+        _check_finite("update_position", x_m=x_m, y_m=y_m)
+        _check_std("update_position", std_m=std_m)
+        y = np.array([x_m - self._x[X], y_m - self._x[Y]])
+        r = np.diag([std_m**2, std_m**2])
+        return self._update("gps", y, _H_POSITION, r, gated=gated)
+
+    def update_gyro(self, z_rps: float) -> Innovation:
+        """Body z gyro, rad/s: measures yaw rate + bias."""
+        _check_finite("update_gyro", z_rps=z_rps)
+        y = np.array([z_rps - self._x[YAW_RATE] - self._x[BIAS]])
+        return self._update("gyro", y, _H_GYRO, self._r_gyro)
+
+    def update_odometry(
+        self, speed_mps: float, yaw_rate_rps: float, speed_std_mps: float, yaw_rate_std_rps: float
+    ) -> Innovation:
+        """Wheel odometry: body speed (m/s) and yaw rate (rad/s) with their std."""
+        _check_finite("update_odometry", speed_mps=speed_mps, yaw_rate_rps=yaw_rate_rps)
+        _check_std("update_odometry", speed_std_mps=speed_std_mps, yaw_rate_std_rps=yaw_rate_std_rps)
+        y = np.array([speed_mps - self._x[SPEED], yaw_rate_rps - self._x[YAW_RATE]])
+        r = np.diag([speed_std_mps**2, yaw_rate_std_rps**2])
+        return self._update("odometry", y, _H_ODOMETRY, r)
+
+    def update_heading(self, yaw_rad: float, std_rad: float) -> Innovation:
+        """An absolute heading (compass, dual-antenna GPS), radians CCW from east."""
+        _check_finite("update_heading", yaw_rad=yaw_rad)
+        _check_std("update_heading", std_rad=std_rad)
+        y = np.array([wrap_angle(yaw_rad - self._x[YAW])])
+        return self._update("heading", y, _H_HEADING, np.array([[std_rad**2]]))
+
+    def _update(self, sensor: str, y: Array, h: Array, r: Array, *, gated: bool = True) -> Innovation:
+        """Gate, then Joseph-form update; ``y`` is the residual z - h(x), angles already wrapped."""
+        self._require_time()
+        p_ht = self._p @ h.T
+        s = h @ p_ht + r
+        s_inv = _inverse_small(s)
+        nis = float(y @ s_inv @ y)
+        residual = tuple(float(v) for v in y)
+        if not math.isfinite(nis) or (gated and nis > self._gate[len(y)]):
+            return Innovation(sensor, residual, nis, accepted=False)
+        k = p_ht @ s_inv
+        self._x += k @ y
+        self._x[YAW] = wrap_angle(self._x[YAW])
+        i_kh = self._identity - k @ h
+        # Joseph form keeps P symmetric positive definite even with rounding; then symmetrise what's left.
+        p = i_kh @ self._p @ i_kh.T + k @ r @ k.T
+        self._p = 0.5 * (p + p.T)
+        return Innovation(sensor, residual, nis, accepted=True)
+
+    def _require_time(self) -> int:
+        if self._t_ns is None:
+            raise EstimatorOperationError(
+                "the EKF is not initialised yet; call initialise() (the estimator does on the first GPS fix)"
+            )
+        return self._t_ns
+
+
+def position_std_m(covariance: Array) -> float:
+    """Sqrt of the largest eigenvalue of the 2x2 position block of a (6, 6) covariance, metres."""
+    a, b, c = covariance[X, X], covariance[X, Y], covariance[Y, Y]
+    # Closed-form eigenvalue of a symmetric 2x2: cheaper than eigvalsh in a hot loop.
+    largest = 0.5 * (a + c) + math.sqrt(max(0.25 * (a - c) ** 2 + b * b, 0.0))
+    return math.sqrt(max(float(largest), 0.0))
+
+
+def _inverse_small(s: Array) -> Array:
+    """Inverse of a 1x1 or 2x2 innovation covariance in closed form (np.linalg.inv costs more to call)."""
+    if s.shape == (1, 1):
+        return np.array([[1.0 / s[0, 0]]])
+    if s.shape == (2, 2):
+        a, b, c, d = s[0, 0], s[0, 1], s[1, 0], s[1, 1]
+        det = a * d - b * c
+        return np.array([[d, -b], [-c, a]]) / det
+    return np.linalg.inv(s).astype(np.float64)
+
+
+def _check_finite(where: str, **values: float) -> None:
+    for name, value in values.items():
+        if not math.isfinite(value):
+            raise EstimatorOperationError(f"{where}: {name} must be finite, got {value}")
+
+
+def _check_std(where: str, **values: float) -> None:
+    for name, value in values.items():
+        if not math.isfinite(value) or value <= 0.0:
+            raise EstimatorOperationError(f"{where}: {name} must be a finite std > 0, got {value}")

@@ -1,0 +1,65 @@
+"""What the estimator hands the navigator, and its ``estimator/pose`` message."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from estimator.ekf import STATE_NAMES
+from logs.topics import ENU_FRAME, planar_pose, stamp
+
+
+@dataclass(frozen=True, eq=False)  # eq would compare the covariance array elementwise and fail
+class PoseEstimate:
+    """The fused estimate at ``t_ns``.
+
+    Attributes
+    ----------
+    x, y : float
+        Position, local ENU metres.
+    yaw : float
+        Heading, radians CCW from east, in (-pi, pi].
+    speed : float
+        Forward speed, m/s.
+    yaw_rate : float
+        Yaw rate, rad/s.
+    covariance : ndarray, shape (6, 6)
+        Full state covariance, order as ``ekf.STATE_NAMES``.
+    healthy : bool
+        Initialised and the worst-direction position std below ``healthy_position_std_m``.
+    t_ns : int
+        Time of the estimate, clock ns.
+    heading_known : bool
+        False until a heading was given or learnt from motion; until then ``yaw`` is a placeholder.
+    position_std_m : float
+        Worst-direction position std, metres.
+    """
+
+    x: float
+    y: float
+    yaw: float
+    speed: float
+    yaw_rate: float
+    covariance: NDArray[np.float64]
+    healthy: bool
+    t_ns: int
+    heading_known: bool
+    position_std_m: float
+
+
+def pose_message(pose: PoseEstimate) -> dict[str, Any]:
+    """The ``estimator/pose`` message (foxglove.PoseInFrame plus our fields), see ``logs.topics``."""
+    return {
+        "timestamp": stamp(pose.t_ns),
+        "frame_id": ENU_FRAME,
+        "pose": planar_pose(pose.x, pose.y, pose.yaw),
+        "yaw_rad": pose.yaw,
+        "speed_mps": pose.speed,
+        "yaw_rate_rps": pose.yaw_rate,
+        "state_names": list(STATE_NAMES),
+        "covariance": [float(v) for v in pose.covariance.ravel()],
+        "healthy": pose.healthy,
+    }

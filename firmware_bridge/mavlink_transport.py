@@ -1,0 +1,177 @@
+"""Byte transports for MAVLink: an in-memory pipe for lockstep, and loopback-guarded UDP.
+
+Every transport is non-blocking: ``read()`` returns whatever has arrived (``b""`` if nothing), so a
+lockstep loop never waits on a socket.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import logging
+import socket
+from typing import Protocol
+
+from firmware_bridge.errors import BridgeOperationError, BridgeSetupError
+
+logger = logging.getLogger(__name__)
+
+_MAX_DATAGRAM = 65535
+
+
+class Transport(Protocol):
+    def write(self, data: bytes) -> None: ...
+
+    def read(self) -> bytes: ...
+
+    def close(self) -> None: ...
+
+
+class MemoryPipe:
+    """One direction of an in-memory byte stream: what is written is read back in order, once."""
+
+    def __init__(self) -> None:
+        self._buffer = bytearray()
+
+    def push(self, data: bytes) -> None:
+        self._buffer += data
+
+    def take(self) -> bytes:
+        data = bytes(self._buffer)
+        self._buffer.clear()
+        return data
+
+
+class PipeEnd:
+    """One end of a ``memory_pipe_pair``: writes go to the peer, reads come from it."""
+
+    def __init__(self, incoming: MemoryPipe, outgoing: MemoryPipe) -> None:
+        self._incoming = incoming
+        self._outgoing = outgoing
+        self._closed = False
+
+    def write(self, data: bytes) -> None:
+        if self._closed:
+            raise BridgeOperationError("write on a closed memory pipe end")
+        self._outgoing.push(data)
+
+    def read(self) -> bytes:
+        if self._closed:
+            return b""
+        return self._incoming.take()
+
+    def close(self) -> None:
+        self._closed = True
+
+
+def memory_pipe_pair() -> tuple[PipeEnd, PipeEnd]:
+    """Two connected ends; deterministic, no threads, no sockets."""
+    a_to_b, b_to_a = MemoryPipe(), MemoryPipe()
+    return PipeEnd(b_to_a, a_to_b), PipeEnd(a_to_b, b_to_a)
+
+
+def _resolve_host(host: str, allow_remote: bool, connection: str) -> str:
+    """The IPv4 address to use for ``host``; refuses anything off this machine unless allowed."""
+    if host == "localhost":
+        return "127.0.0.1"
+    try:
+        address = ipaddress.IPv4Address(host)
+    except ValueError:
+        if not allow_remote:
+            raise BridgeSetupError(
+                f"{connection!r}: host {host!r} is not a loopback IPv4 address; use 127.0.0.1, or set "
+                "allow_remote on the real vehicle"
+            ) from None
+        try:
+            return socket.gethostbyname(host)
+        except OSError as err:
+            raise BridgeSetupError(f"{connection!r}: cannot resolve host {host!r}: {err}") from err
+    if not address.is_loopback and not allow_remote:
+        raise BridgeSetupError(
+            f"{connection!r}: {host} is not a loopback address; MAVLink stays on 127.0.0.1 unless "
+            "allow_remote is set (real vehicle only)"
+        )
+    return str(address)
+
+
+class UdpTransport:
+    """MAVLink over UDP. ``udpin`` binds and replies to the last sender; ``udpout`` sends to the address."""
+
+    def __init__(self, mode: str, host: str, port: int, *, allow_remote: bool = False) -> None:
+        connection = f"{mode}:{host}:{port}"
+        if mode not in ("udpin", "udpout"):
+            raise BridgeSetupError(f"{connection!r}: UDP mode must be udpin or udpout")
+        if not 0 <= port <= 65535 or (mode == "udpout" and port == 0):
+            raise BridgeSetupError(f"{connection!r}: port {port} is out of range")
+        address = _resolve_host(host, allow_remote, connection)
+        self._socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self._socket.setblocking(False)
+        self._peer: tuple[str, int] | None = None
+        try:
+            if mode == "udpin":
+                self._socket.bind((address, port))
+            else:
+                self._peer = (address, port)
+        except OSError as err:
+            self._socket.close()
+            raise BridgeSetupError(f"{connection!r}: cannot bind: {err}") from err
+        self._closed = False
+        self.dropped_writes = 0
+
+    @property
+    def local_address(self) -> tuple[str, int]:
+        """Where this end listens (for udpin with port 0, the port the OS picked)."""
+        host, port = self._socket.getsockname()[:2]
+        return str(host), int(port)
+
+    def write(self, data: bytes) -> None:
+        if self._closed:
+            raise BridgeOperationError("write on a closed UDP transport")
+        if self._peer is None:
+            # udpin has nobody to talk to until the first datagram arrives.
+            self.dropped_writes += 1
+            return
+        try:
+            self._socket.sendto(data, self._peer)
+        except OSError as err:
+            raise BridgeOperationError(f"UDP send to {self._peer[0]}:{self._peer[1]} failed: {err}") from err
+
+    def read(self) -> bytes:
+        if self._closed:
+            return b""
+        chunks: list[bytes] = []
+        while True:
+            try:
+                data, sender = self._socket.recvfrom(_MAX_DATAGRAM)
+            except BlockingIOError:
+                break
+            except OSError as err:
+                # e.g. ICMP port unreachable from a udpout peer that is not up yet: not fatal.
+                logger.debug("UDP receive failed: %s", err)
+                break
+            chunks.append(data)
+            self._peer = (str(sender[0]), int(sender[1]))
+        return b"".join(chunks)
+
+    def close(self) -> None:
+        if not self._closed:
+            self._closed = True
+            self._socket.close()
+
+
+def open_transport(connection: str, *, allow_remote: bool = False) -> Transport:
+    """A transport from a connection string as MAVLink users know them: ``udpin:HOST:PORT`` etc."""
+    if connection == "memory":
+        raise BridgeSetupError(
+            "the 'memory' MAVLink connection cannot be opened by name; build it with memory_pipe_pair()"
+        )
+    scheme, _, rest = connection.partition(":")
+    if scheme in ("udpin", "udpout"):
+        host, sep, port_text = rest.rpartition(":")
+        if not sep or not host or not port_text.isdigit():
+            raise BridgeSetupError(f"MAVLink connection {connection!r} must look like {scheme}:HOST:PORT")
+        return UdpTransport(scheme, host, int(port_text), allow_remote=allow_remote)
+    if scheme in ("tcp", "tcpin", "serial") or connection.startswith("/dev/"):
+        raise BridgeSetupError(f"MAVLink connection {connection!r}: not supported yet; use udpin: or udpout:")
+    raise BridgeSetupError(
+        f"unknown MAVLink connection {connection!r}; expected udpin:HOST:PORT, udpout:HOST:PORT or memory"
+    )

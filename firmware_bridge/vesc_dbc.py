@@ -1,0 +1,197 @@
+"""The VESC CAN protocol as data, and the DBC text generated from it.
+
+Facts from the VESC firmware documentation (see ../shared/reference/vesc_can.md): 29-bit extended ids
+``(command_id << 8) | controller_id``, big-endian signed fields, value = raw / scale. The shipped
+``vesc_6wheel.dbc`` is ``generate_dbc(DEFAULT_CONTROLLER_IDS)``; a test keeps the two identical.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from decimal import ROUND_DOWN, Context, Decimal
+from importlib import resources
+
+import cantools
+import cantools.database
+
+from firmware_bridge.errors import BridgeSetupError
+
+DEFAULT_CONTROLLER_IDS: tuple[int, ...] = (1, 2, 3, 4, 5, 6)
+SHIPPED_DBC_NAME = "vesc_6wheel.dbc"
+
+# DBC marks a 29-bit frame id by setting bit 31 of the number written in the file.
+_DBC_EXTENDED_FLAG = 0x8000_0000
+_COMPANION_NODE = "COMPANION"
+_VESC_NODE = "VESC"
+
+
+@dataclass(frozen=True)
+class VescSignal:
+    """One big-endian signed integer field: value = raw / scale."""
+
+    name: str
+    start_byte: int
+    length_bytes: int
+    scale: int
+    unit: str = ""
+
+
+@dataclass(frozen=True)
+class VescMessage:
+    kind: str
+    command_id: int
+    length: int
+    from_controller: bool
+    signals: tuple[VescSignal, ...]
+
+
+VESC_MESSAGES: tuple[VescMessage, ...] = (
+    VescMessage("SET_DUTY", 0, 4, False, (VescSignal("duty", 0, 4, 100000),)),
+    VescMessage("SET_CURRENT", 1, 4, False, (VescSignal("current", 0, 4, 1000, "A"),)),
+    VescMessage("SET_CURRENT_BRAKE", 2, 4, False, (VescSignal("current", 0, 4, 1000, "A"),)),
+    VescMessage("SET_RPM", 3, 4, False, (VescSignal("erpm", 0, 4, 1, "rpm"),)),
+    VescMessage(
+        "STATUS",
+        9,
+        8,
+        True,
+        (
+            VescSignal("erpm", 0, 4, 1, "rpm"),
+            VescSignal("current", 4, 2, 10, "A"),
+            VescSignal("duty", 6, 2, 1000),
+        ),
+    ),
+    VescMessage(
+        "STATUS_2",
+        14,
+        8,
+        True,
+        (VescSignal("amp_hours", 0, 4, 10000, "Ah"), VescSignal("amp_hours_charged", 4, 4, 10000, "Ah")),
+    ),
+    VescMessage(
+        "STATUS_3",
+        15,
+        8,
+        True,
+        (VescSignal("watt_hours", 0, 4, 10000, "Wh"), VescSignal("watt_hours_charged", 4, 4, 10000, "Wh")),
+    ),
+    VescMessage(
+        "STATUS_4",
+        16,
+        8,
+        True,
+        (
+            VescSignal("temp_fet", 0, 2, 10, "degC"),
+            VescSignal("temp_motor", 2, 2, 10, "degC"),
+            VescSignal("current_in", 4, 2, 10, "A"),
+            VescSignal("pid_pos", 6, 2, 50, "deg"),
+        ),
+    ),
+    # The firmware sends 8 bytes: tachometer, input voltage, then two reserved bytes.
+    VescMessage(
+        "STATUS_5",
+        27,
+        8,
+        True,
+        (VescSignal("tacho", 0, 4, 6, "erev"), VescSignal("voltage_in", 4, 2, 10, "V")),
+    ),
+)
+
+MESSAGES_BY_KIND: dict[str, VescMessage] = {m.kind: m for m in VESC_MESSAGES}
+
+
+def frame_id(command_id: int, controller_id: int) -> int:
+    """The 29-bit CAN id of a VESC command or status for one controller."""
+    return (command_id << 8) | controller_id
+
+
+def message_name(kind: str, controller_id: int) -> str:
+    return f"VESC_{kind}_C{controller_id}"
+
+
+# Decimal arithmetic keeps the file free of binary float artefacts (3276.7000000000003); rounding the
+# limits toward zero keeps every value inside them encodable.
+_DIGITS = Context(prec=17)
+_LIMIT_DIGITS = Context(prec=17, rounding=ROUND_DOWN)
+
+
+def _number(value: Decimal) -> str:
+    """A DBC number written positionally (no exponent), without trailing zeros."""
+    text = format(value, "f")
+    if "." in text:
+        text = text.rstrip("0").rstrip(".")
+    return text
+
+
+def _signal_line(signal: VescSignal, receiver: str) -> str:
+    bits = 8 * signal.length_bytes
+    # Motorola (@0) signals are located by their most significant bit, numbered as in Intel order.
+    start_bit = 8 * signal.start_byte + 7
+    scale = Decimal(signal.scale)
+    factor = _DIGITS.divide(Decimal(1), scale)
+    low = _LIMIT_DIGITS.divide(Decimal(-(1 << (bits - 1))), scale)
+    high = _LIMIT_DIGITS.divide(Decimal((1 << (bits - 1)) - 1), scale)
+    return (
+        f" SG_ {signal.name} : {start_bit}|{bits}@0- ({_number(factor)},0) "
+        f'[{_number(low)}|{_number(high)}] "{signal.unit}" {receiver}'
+    )
+
+
+def _check_ids(controller_ids: Sequence[int]) -> None:
+    if not controller_ids:
+        raise BridgeSetupError("no VESC controller ids given; pass e.g. [1, 2, 3, 4, 5, 6]")
+    if len(set(controller_ids)) != len(controller_ids):
+        raise BridgeSetupError(f"VESC controller ids must be distinct, got {list(controller_ids)}")
+    for cid in controller_ids:
+        if isinstance(cid, bool) or not isinstance(cid, int) or not 0 <= cid <= 255:
+            raise BridgeSetupError(f"VESC controller id must be an integer 0..255, got {cid!r}")
+
+
+def generate_dbc(controller_ids: Sequence[int]) -> str:
+    """DBC text describing every VESC message for each controller id, in the order given."""
+    _check_ids(controller_ids)
+    lines = [
+        'VERSION ""',
+        "",
+        "NS_ :",
+        "",
+        "BS_:",
+        "",
+        f"BU_: {_COMPANION_NODE} {_VESC_NODE}",
+        "",
+    ]
+    for cid in controller_ids:
+        for message in VESC_MESSAGES:
+            sender, receiver = (
+                (_VESC_NODE, _COMPANION_NODE) if message.from_controller else (_COMPANION_NODE, _VESC_NODE)
+            )
+            dbc_id = frame_id(message.command_id, cid) | _DBC_EXTENDED_FLAG
+            lines.append(f"BO_ {dbc_id} {message_name(message.kind, cid)}: {message.length} {sender}")
+            lines.extend(_signal_line(signal, receiver) for signal in message.signals)
+            lines.append("")
+    comment = "VESC CAN protocol, generated by firmware_bridge.vesc_dbc.generate_dbc"
+    lines.append(f'CM_ "{comment} for controller ids {" ".join(map(str, controller_ids))}";')
+    return "\n".join(lines) + "\n"
+
+
+def load_vesc_database(
+    controller_ids: Sequence[int] = DEFAULT_CONTROLLER_IDS,
+) -> cantools.database.can.Database:
+    """The cantools database for these controllers: the shipped file for the default ids."""
+    _check_ids(controller_ids)
+    try:
+        if tuple(controller_ids) == DEFAULT_CONTROLLER_IDS:
+            path = resources.files("firmware_bridge").joinpath(SHIPPED_DBC_NAME)
+            with resources.as_file(path) as dbc_path:
+                database = cantools.database.load_file(str(dbc_path), database_format="dbc")
+        else:
+            database = cantools.database.load_string(generate_dbc(controller_ids), database_format="dbc")
+    except (cantools.database.UnsupportedDatabaseFormatError, cantools.database.Error, OSError) as err:
+        raise BridgeSetupError(
+            f"cannot load the VESC DBC for controller ids {list(controller_ids)}: {err}; "
+            "regenerate firmware_bridge/vesc_6wheel.dbc with generate_dbc()"
+        ) from err
+    if not isinstance(database, cantools.database.can.Database):
+        raise BridgeSetupError("the VESC DBC did not load as a CAN database")
+    return database

@@ -1,0 +1,252 @@
+"""A simulated autopilot: the rover's MAVLink 2 peer in HIL, reporting GPS and IMU from the true state.
+
+It speaks MAVLink's conventions on the wire: GPS_RAW_INT in degE7 / mm / cm / cdeg (course as a compass
+bearing), SCALED_IMU in mrad/s and mG in the FRD body frame (x forward, y right, z down). The truth it is
+given uses ours: ENU metres, yaw counter-clockwise from east, FLU body axes.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pymap3d
+from pymavlink.dialects.v20 import common as mavlink2
+
+from firmware_bridge.errors import BridgeOperationError
+from firmware_bridge.mavlink_transport import Transport
+from logs.clock import Clock, to_ns
+
+logger = logging.getLogger(__name__)
+
+_MPS2_TO_MG = 1000.0 / 9.80665
+_RAD_TO_MRAD = 1000.0
+_INT16_MAX = 32767
+_UINT16_KNOWN_MAX = 65534  # 65535 means "unknown" in GPS_RAW_INT
+_FIX_3D = 3
+_SATELLITES = 12
+
+
+@dataclass(frozen=True)
+class AutopilotTruth:
+    """The true state the autopilot's sensors measure (ENU metres, radians CCW from east, FLU body axes).
+
+    ``accel_body_mps2`` is specific force as an IMU measures it: at rest on level ground (0, 0, +9.81).
+    """
+
+    x_m: float
+    y_m: float
+    z_m: float
+    yaw_rad: float
+    speed_mps: float
+    yaw_rate_rps: float
+    accel_body_mps2: tuple[float, float, float]
+    roll_rad: float = 0.0
+    pitch_rad: float = 0.0  # nose up positive, as MAVLink's ATTITUDE
+
+
+class _TransportFile:
+    def __init__(self, transport: Transport) -> None:
+        self._transport = transport
+
+    def write(self, data: bytes) -> None:
+        self._transport.write(bytes(data))
+
+
+def _int16(value: float) -> int:
+    return max(-_INT16_MAX, min(_INT16_MAX, round(value)))
+
+
+class SimAutopilot:
+    """Sends HEARTBEAT, GPS_RAW_INT, SCALED_IMU and ATTITUDE at their rates, on the ``clock``'s schedule."""
+
+    def __init__(
+        self,
+        transport: Transport,
+        clock: Clock,
+        rng: np.random.Generator,
+        *,
+        datum_lat_deg: float,
+        datum_lon_deg: float,
+        datum_alt_m: float,
+        gps_rate_hz: float = 5.0,
+        imu_rate_hz: float = 50.0,
+        attitude_rate_hz: float = 10.0,
+        heartbeat_rate_hz: float = 1.0,
+        gps_noise_m: float = 0.5,
+        gyro_noise_rps: float = 0.005,
+        accel_noise_mps2: float = 0.05,
+        heading_noise_rad: float = 0.035,
+        system_id: int = 1,
+        component_id: int = 1,
+    ) -> None:
+        for name, rate in (
+            ("gps_rate_hz", gps_rate_hz),
+            ("imu_rate_hz", imu_rate_hz),
+            ("attitude_rate_hz", attitude_rate_hz),
+            ("heartbeat_rate_hz", heartbeat_rate_hz),
+        ):
+            if not (math.isfinite(rate) and rate > 0):
+                raise ValueError(f"SimAutopilot {name} must be a positive number, got {rate}")
+        for name, sigma in (
+            ("gps_noise_m", gps_noise_m),
+            ("gyro_noise_rps", gyro_noise_rps),
+            ("accel_noise_mps2", accel_noise_mps2),
+            ("heading_noise_rad", heading_noise_rad),
+        ):
+            if not (math.isfinite(sigma) and sigma >= 0):
+                raise ValueError(f"SimAutopilot {name} must be >= 0, got {sigma}")
+        self._transport = transport
+        self._clock = clock
+        self._rng = rng
+        self._datum = (datum_lat_deg, datum_lon_deg, datum_alt_m)
+        self._gps_noise_m = gps_noise_m
+        self._gyro_noise_rps = gyro_noise_rps
+        self._accel_noise_mps2 = accel_noise_mps2
+        self._heading_noise_rad = heading_noise_rad
+        self._mav = mavlink2.MAVLink(_TransportFile(transport), system_id, component_id)
+        self._mav.robust_parsing = True
+        self._periods_ns = {
+            "heartbeat": to_ns(1.0 / heartbeat_rate_hz),
+            "gps": to_ns(1.0 / gps_rate_hz),
+            "imu": to_ns(1.0 / imu_rate_hz),
+            "attitude": to_ns(1.0 / attitude_rate_hz),
+        }
+        now = clock.now_ns()
+        self._next_ns = dict.fromkeys(self._periods_ns, now)
+        self.sent: dict[str, int] = dict.fromkeys(self._periods_ns, 0)
+        self.send_errors = 0
+        self.heartbeats_received = 0
+        self.last_heartbeat: Any = None
+        self.bad_frames_received = 0
+
+    # --- sending -------------------------------------------------------------------------------
+    def step(self, truth: AutopilotTruth) -> None:
+        """Send whatever is due at the clock's now, in a fixed order: heartbeat, GPS, IMU, attitude."""
+        now = self._clock.now_ns()
+        if self._due("heartbeat", now):
+            self._send(
+                "heartbeat",
+                self._mav.heartbeat_encode(
+                    mavlink2.MAV_TYPE_GROUND_ROVER,
+                    mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA,
+                    0,
+                    0,
+                    mavlink2.MAV_STATE_ACTIVE,
+                ),
+            )
+        if self._due("gps", now):
+            self._send("gps", self._gps_message(truth, now))
+        if self._due("imu", now):
+            self._send("imu", self._imu_message(truth, now))
+        if self._due("attitude", now):
+            self._send("attitude", self._attitude_message(truth, now))
+
+    def _due(self, stream: str, now: int) -> bool:
+        due = self._next_ns[stream]
+        if now < due:
+            return False
+        following = due + self._periods_ns[stream]
+        # Keep the cadence; after a long pause resume from now rather than sending a burst.
+        self._next_ns[stream] = following if following > now else now + self._periods_ns[stream]
+        return True
+
+    def _send(self, stream: str, msg: Any) -> None:
+        try:
+            self._mav.send(msg)
+        except (BridgeOperationError, OSError) as err:
+            self.send_errors += 1
+            logger.debug("simulated autopilot: cannot send %s: %s", msg.get_type(), err)
+            return
+        self.sent[stream] += 1
+
+    def _gps_message(self, truth: AutopilotTruth, now: int) -> Any:
+        # Always draw the same numbers per fix so the random stream does not depend on the truth values.
+        noise = self._rng.normal(0.0, 1.0, 3) * np.array([1.0, 1.0, 2.0]) * self._gps_noise_m
+        lat, lon, alt = pymap3d.enu2geodetic(
+            truth.x_m + float(noise[0]),
+            truth.y_m + float(noise[1]),
+            truth.z_m + float(noise[2]),
+            *self._datum,
+        )
+        speed = truth.speed_mps
+        heading = truth.yaw_rad if speed >= 0 else truth.yaw_rad + math.pi
+        bearing_deg = math.degrees(math.pi / 2.0 - heading) % 360.0
+        eph_cm = min(_UINT16_KNOWN_MAX, round(self._gps_noise_m * 100.0))
+        return self._mav.gps_raw_int_encode(
+            now // 1_000,
+            _FIX_3D,
+            round(float(lat) * 1e7),
+            round(float(lon) * 1e7),
+            round(float(alt) * 1e3),
+            eph_cm,
+            eph_cm * 2,
+            min(_UINT16_KNOWN_MAX, round(abs(speed) * 100.0)),
+            round(bearing_deg * 100.0) % 36000,
+            _SATELLITES,
+        )
+
+    def _attitude_message(self, truth: AutopilotTruth, now: int) -> Any:
+        # The AHRS heading (compass-aided) wanders by a few degrees; NED yaw is clockwise from north.
+        yaw_ned = math.pi / 2.0 - (truth.yaw_rad + float(self._rng.normal(0.0, self._heading_noise_rad)))
+        yaw_ned = math.atan2(math.sin(yaw_ned), math.cos(yaw_ned))
+        return self._mav.attitude_encode(
+            (now // 1_000_000) % (1 << 32),
+            truth.roll_rad,
+            truth.pitch_rad,  # both conventions: nose up positive, right side down positive roll
+            yaw_ned,
+            0.0,
+            0.0,
+            -truth.yaw_rate_rps,
+        )
+
+    def _imu_message(self, truth: AutopilotTruth, now: int) -> Any:
+        gyro_noise = self._rng.normal(0.0, self._gyro_noise_rps, 3)
+        accel_noise = self._rng.normal(0.0, self._accel_noise_mps2, 3)
+        ax, ay, az = truth.accel_body_mps2
+        # A skid-steer rover on the ground: body rates other than yaw are left to the noise.
+        gyro_flu = (float(gyro_noise[0]), float(gyro_noise[1]), truth.yaw_rate_rps + float(gyro_noise[2]))
+        accel_flu = (ax + float(accel_noise[0]), ay + float(accel_noise[1]), az + float(accel_noise[2]))
+        # FLU -> FRD: y and z change sign.
+        return self._mav.scaled_imu_encode(
+            (now // 1_000_000) % (1 << 32),
+            _int16(accel_flu[0] * _MPS2_TO_MG),
+            _int16(-accel_flu[1] * _MPS2_TO_MG),
+            _int16(-accel_flu[2] * _MPS2_TO_MG),
+            _int16(gyro_flu[0] * _RAD_TO_MRAD),
+            _int16(-gyro_flu[1] * _RAD_TO_MRAD),
+            _int16(-gyro_flu[2] * _RAD_TO_MRAD),
+            0,
+            0,
+            0,
+        )
+
+    # --- receiving -----------------------------------------------------------------------------
+    def poll(self) -> int:
+        """Read what the companion sent; count its heartbeats. Returns the number of frames parsed."""
+        data = self._transport.read()
+        if not data:
+            return 0
+        count = 0
+        pending = data
+        while True:
+            try:
+                msg = self._mav.parse_char(pending)
+            except mavlink2.MAVError as err:  # robust parsing should prevent this; never crash the sim
+                self.bad_frames_received += 1
+                logger.debug("simulated autopilot: unparsable input: %s", err)
+                break
+            pending = b""
+            if msg is None:
+                break
+            if isinstance(msg, mavlink2.MAVLink_bad_data):
+                self.bad_frames_received += 1
+                continue
+            count += 1
+            if msg.get_type() == "HEARTBEAT":
+                self.heartbeats_received += 1
+                self.last_heartbeat = msg
+        return count

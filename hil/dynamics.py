@@ -1,0 +1,432 @@
+"""The simulated rover body on the TRUE terrain: a planar rigid body driven by six velocity-controlled wheels.
+
+The model, per step of ``dt`` (semi-implicit Euler, no randomness):
+
+* The terrain under the rover gives roll and pitch (``TerrainMap.tilt_at`` at its heading), the friction
+  coefficient μ and rolling resistance crr of its class, and the wheel normal forces
+  (``navigator.vehicle.wheel_normal_forces``, with the last step's acceleration for weight transfer).
+* Longitudinal: the wheels pull the body toward the mean commanded surface speed ``v_cmd`` within a time
+  constant ``tau``. The drive force they would need,
+  ``F_req = m (v_cmd − v) / max(tau, dt) + m g sin(pitch) + F_rr``, is limited by traction ``|F| <= μ ΣN``.
+  Rolling resistance ``F_rr = crr ΣN`` opposes the wheels' turning and vanishes when they are locked.
+  So with locked wheels on a slope steeper than ``atan μ`` the body slides down at the paper's
+  ``a = g (sin θ − μ cos θ)``; with wheels spinning uphill it slides back unless ``tan θ <= μ − crr``.
+* Yaw: follows the commanded ``(v_right − v_left) / (track × skid_factor)`` with a first-order lag, its
+  angular acceleration limited by the traction left over after driving (``(μ ΣN − |F|) × track/2 / I_z``).
+* No lateral slip (the body moves along its heading); horizontal displacement is ``v cos(pitch) dt``.
+* Rollover when a stability margin (``navigator.vehicle.stability_margins``, lateral acceleration ``v ω``
+  included) goes negative: latched, the rover stays stopped.
+* Collision when the footprint circle (``footprint_radius_m``) would overlap an obstacle cell or cross the
+  map edge: the move is refused and the rover stopped (it may still turn in place and back away). Reported
+  once per entry in ``DynamicsStep.collided_obstacle``; ``collided`` is true for as long as it touches.
+* Motors: wheel torque ``F r`` -> motor current ``F r / (gear k_t)``; duty ``(k_t ω_motor + I R) / V``;
+  electrical power ``k_t I ω_motor + I² R`` per motor (no regeneration) integrates to energy.
+
+Body axes: x forward, y left, z up; pitch positive nose up, roll positive when the right side is lower.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from navigator.terrain import TerrainMap
+from navigator.terrain_classes import TERRAIN_CLASSES, TerrainClass
+from navigator.vehicle import G, VehicleParams, stability_margins, wheel_normal_forces
+
+# Below this mean wheel surface speed rolling resistance fades out linearly (it needs the wheels turning).
+_ROLLING_SPEED_EPS_MPS = 0.05
+# Within this distance of an obstacle the footprint counts as touching it.
+_CONTACT_TOLERANCE_M = 1e-3
+_CONTACT_BISECTIONS = 16
+# Slip ratios use at least this speed as denominator, so a wheel at rest does not divide by zero.
+_SLIP_SPEED_EPS_MPS = 0.05
+
+
+class DynamicsError(ValueError):
+    """The simulated body was given something it cannot use (bad time step, wheel speeds, start pose)."""
+
+
+@dataclass(frozen=True)
+class DynamicsStep:
+    """What one step produced. Per-wheel tuples are in wheel order (LF LM LR RF RM RR)."""
+
+    x: float
+    y: float
+    yaw: float
+    speed_mps: float
+    yaw_rate_rps: float
+    roll_rad: float
+    pitch_rad: float
+    terrain_class: int
+    terrain_name: str
+    wheel_speeds_mps: tuple[float, ...]  # wheel surface speeds applied this step
+    slip: tuple[float, ...]  # (surface − ground speed) / max(|surface|, |ground|), in [-1, 1]
+    normal_forces_n: tuple[float, ...]
+    traction_forces_n: tuple[float, ...]  # forward force of each tyre on the ground contact
+    motor_currents_a: tuple[float, ...]
+    duty: tuple[float, ...]
+    longitudinal_accel_mps2: float
+    lateral_accel_mps2: float
+    specific_force_body_mps2: tuple[float, float, float]  # what an IMU measures, gravity included
+    roll_margin_rad: float
+    pitch_margin_rad: float
+    rollover: bool  # latched: true from the step it tipped over onwards
+    rollover_started: bool  # true only on the step it tipped over
+    collided: bool  # the footprint touches an obstacle / the map edge, or a move into one was refused
+    collided_obstacle: bool  # true only on the step a contact began
+    collision_with: str  # "obstacle", "boundary" or "" (no contact)
+    energy_wh: float  # electrical energy used by the six motors so far
+    battery_current_a: float  # motor power / battery voltage this step
+
+
+class RoverDynamics:
+    """The rover body on the true terrain, stepped with the wheel speeds the simulated motors achieve."""
+
+    def __init__(
+        self,
+        terrain: TerrainMap,
+        params: VehicleParams,
+        classes: dict[int, TerrainClass] = TERRAIN_CLASSES,
+        *,
+        x: float,
+        y: float,
+        yaw: float,
+        motor_torque_constant_nm_per_a: float = 0.07,  # k_t, ~136 rpm/V: 1.5 m/s at ~19 V back-EMF
+        gear_ratio: float = 20.0,  # motor turns per wheel turn
+        winding_resistance_ohm: float = 0.1,
+        drive_time_constant_s: float = 0.1,
+        yaw_time_constant_s: float = 0.15,
+    ) -> None:
+        for name, value in (
+            ("motor_torque_constant_nm_per_a", motor_torque_constant_nm_per_a),
+            ("gear_ratio", gear_ratio),
+            ("drive_time_constant_s", drive_time_constant_s),
+            ("yaw_time_constant_s", yaw_time_constant_s),
+        ):
+            if not (math.isfinite(value) and value > 0.0):
+                raise DynamicsError(f"{name} must be a finite number > 0, got {value}")
+        if not (math.isfinite(winding_resistance_ohm) and winding_resistance_ohm >= 0.0):
+            raise DynamicsError(f"winding_resistance_ohm must be >= 0, got {winding_resistance_ohm}")
+        if not all(math.isfinite(v) for v in (x, y, yaw)) or not terrain.contains(x, y):
+            raise DynamicsError(f"start pose ({x}, {y}, yaw {yaw}) must be finite and on the map")
+        missing = sorted(set(np.unique(terrain.terrain_class).tolist()) - set(classes))
+        if missing:
+            raise DynamicsError(f"terrain classes {missing} on the map have no entry in the class table")
+        self._terrain = terrain
+        self._params = params
+        self._classes = classes
+        self._k_t = motor_torque_constant_nm_per_a
+        self._gear = gear_ratio
+        self._resistance = winding_resistance_ohm
+        self._tau_drive = drive_time_constant_s
+        self._tau_yaw = yaw_time_constant_s
+        # Yaw inertia of a uniform box the size of the footprint.
+        self._inertia_z = params.mass_kg * (params.footprint_length_m**2 + params.footprint_width_m**2) / 12.0
+
+        self._x, self._y, self._yaw = float(x), float(y), _wrap(float(yaw))
+        self._speed = 0.0
+        self._yaw_rate = 0.0
+        self._accel = 0.0
+        self._roll, self._pitch = terrain.tilt_at(self._x, self._y, self._yaw)
+        self._energy_j = 0.0
+        self._rolled_over = False
+        self._in_contact = self._clearance(self._x, self._y)[0] < params.footprint_radius_m
+
+    # --- state ------------------------------------------------------------------------------------
+    @property
+    def x(self) -> float:
+        return self._x
+
+    @property
+    def y(self) -> float:
+        return self._y
+
+    @property
+    def yaw(self) -> float:
+        return self._yaw
+
+    @property
+    def speed(self) -> float:
+        """Speed along the heading (m/s, along the ground)."""
+        return self._speed
+
+    @property
+    def yaw_rate(self) -> float:
+        return self._yaw_rate
+
+    @property
+    def roll(self) -> float:
+        return self._roll
+
+    @property
+    def pitch(self) -> float:
+        return self._pitch
+
+    @property
+    def energy_j(self) -> float:
+        return self._energy_j
+
+    @property
+    def energy_wh(self) -> float:
+        return self._energy_j / 3600.0
+
+    @property
+    def rolled_over(self) -> bool:
+        return self._rolled_over
+
+    @property
+    def terrain(self) -> TerrainMap:
+        return self._terrain
+
+    def set_terrain(self, terrain: TerrainMap) -> None:
+        """Swap in a new true terrain (e.g. moved obstacles); it must cover the rover's position."""
+        if not terrain.contains(self._x, self._y):
+            raise DynamicsError(f"new terrain does not cover the rover at ({self._x:.2f}, {self._y:.2f})")
+        self._terrain = terrain
+
+    # --- stepping ---------------------------------------------------------------------------------
+    def step(
+        self, dt_s: float, wheel_surface_speeds: Sequence[float], battery_voltage_v: float
+    ) -> DynamicsStep:
+        """Advance ``dt_s`` seconds with the six wheels turning at ``wheel_surface_speeds`` (m/s)."""
+        if not (math.isfinite(dt_s) and dt_s > 0.0):
+            raise DynamicsError(f"time step must be a finite number of seconds > 0, got {dt_s}")
+        if len(wheel_surface_speeds) != 6:
+            raise DynamicsError(
+                f"expected 6 wheel speeds (LF LM LR RF RM RR), got {len(wheel_surface_speeds)}"
+            )
+        wheels = np.asarray(wheel_surface_speeds, dtype=np.float64)
+        if not np.all(np.isfinite(wheels)):
+            raise DynamicsError(f"wheel speeds must be finite, got {wheels.tolist()}")
+        if not math.isfinite(battery_voltage_v):
+            raise DynamicsError(f"battery voltage must be finite, got {battery_voltage_v}")
+
+        p = self._params
+        class_id = self._terrain.class_at(self._x, self._y)
+        ground = self._classes[class_id]
+        roll, pitch = self._terrain.tilt_at(self._x, self._y, self._yaw)
+        if self._rolled_over:
+            return self._rolled_over_step(dt_s, wheels, class_id, ground, roll, pitch)
+
+        normals = wheel_normal_forces(p, roll, pitch, self._accel, self._speed * self._yaw_rate)
+        normal_total = float(normals.sum())
+        traction_limit = ground.friction_mu * normal_total
+
+        # Longitudinal: reach the commanded speed within tau, as far as traction allows.
+        left_cmd, right_cmd = float(wheels[:3].mean()), float(wheels[3:].mean())
+        v_cmd = 0.5 * (left_cmd + right_cmd)
+        gravity_along = -p.mass_kg * G * math.sin(pitch)
+        rolling = -ground.rolling_resistance * normal_total * _clip(v_cmd / _ROLLING_SPEED_EPS_MPS, 1.0)
+        required = p.mass_kg * (v_cmd - self._speed) / max(self._tau_drive, dt_s) - gravity_along - rolling
+        drive = _clip(required, traction_limit)
+        accel = (drive + gravity_along + rolling) / p.mass_kg
+
+        # Yaw: first-order lag toward the skid-steer kinematic rate, limited by the traction left over.
+        yaw_rate_cmd = (right_cmd - left_cmd) / p.effective_track_m
+        spare = max(0.0, traction_limit - abs(drive))
+        max_yaw_accel = spare * (p.track_m / 2.0) / self._inertia_z
+        yaw_accel = _clip((yaw_rate_cmd - self._yaw_rate) / max(self._tau_yaw, dt_s), max_yaw_accel)
+
+        speed = self._speed + accel * dt_s
+        yaw_rate = self._yaw_rate + yaw_accel * dt_s
+        mean_speed = 0.5 * (self._speed + speed)
+        heading = self._yaw + 0.5 * (self._yaw_rate + yaw_rate) * 0.5 * dt_s
+        new_x = self._x + mean_speed * math.cos(pitch) * math.cos(heading) * dt_s
+        new_y = self._y + mean_speed * math.cos(pitch) * math.sin(heading) * dt_s
+        new_yaw = _wrap(self._yaw + 0.5 * (self._yaw_rate + yaw_rate) * dt_s)
+
+        # Contact: refuse a move that pushes the footprint further into an obstacle or over the edge.
+        radius = p.footprint_radius_m
+        old_clearance, _ = self._clearance(self._x, self._y)
+        new_clearance, new_kind = self._clearance(new_x, new_y)
+        blocked = new_clearance < radius and new_clearance < old_clearance
+        if blocked:
+            new_x, new_y = self._advance_to_contact(new_x, new_y, old_clearance >= radius)
+            new_clearance, new_kind = self._clearance(new_x, new_y)
+            accel = (0.0 - self._speed) / dt_s
+            speed = 0.0
+        touching = blocked or new_clearance < radius + _CONTACT_TOLERANCE_M
+        contact_began = touching and not self._in_contact
+        self._in_contact = touching
+
+        self._x, self._y, self._yaw = new_x, new_y, new_yaw
+        self._speed, self._yaw_rate, self._accel = speed, yaw_rate, accel
+        self._roll, self._pitch = self._terrain.tilt_at(new_x, new_y, new_yaw)
+        lateral = speed * yaw_rate
+        roll_margin, pitch_margin = stability_margins(p, self._roll, self._pitch, lateral)
+        rollover_started = min(roll_margin, pitch_margin) < 0.0
+        if rollover_started:
+            self._rolled_over = True
+            self._speed = self._yaw_rate = self._accel = 0.0
+
+        # Wheels: split the drive force between the sides (the difference turns the body), then by load.
+        side_difference = self._inertia_z * yaw_accel / p.track_m
+        side_force = np.array([0.5 * drive - side_difference, 0.5 * drive + side_difference])
+        traction = np.concatenate([_share(side_force[0], normals[:3]), _share(side_force[1], normals[3:])])
+        ground_speed = speed + np.array([-1.0] * 3 + [1.0] * 3) * yaw_rate * p.effective_track_m / 2.0
+        slip = _slip(wheels, ground_speed)
+        currents, duty, power = self._motors(wheels, traction, battery_voltage_v)
+        self._energy_j += power * dt_s
+
+        return DynamicsStep(
+            x=self._x,
+            y=self._y,
+            yaw=self._yaw,
+            speed_mps=self._speed,
+            yaw_rate_rps=self._yaw_rate,
+            roll_rad=self._roll,
+            pitch_rad=self._pitch,
+            terrain_class=class_id,
+            terrain_name=ground.name,
+            wheel_speeds_mps=tuple(wheels.tolist()),
+            slip=tuple(slip.tolist()),
+            normal_forces_n=tuple(normals.tolist()),
+            traction_forces_n=tuple(traction.tolist()),
+            motor_currents_a=tuple(currents.tolist()),
+            duty=tuple(duty.tolist()),
+            longitudinal_accel_mps2=accel,
+            lateral_accel_mps2=lateral,
+            specific_force_body_mps2=self._specific_force(accel, lateral),
+            roll_margin_rad=roll_margin,
+            pitch_margin_rad=pitch_margin,
+            rollover=self._rolled_over,
+            rollover_started=rollover_started,
+            collided=touching,
+            collided_obstacle=contact_began,
+            collision_with=new_kind if touching else "",
+            energy_wh=self.energy_wh,
+            battery_current_a=power / battery_voltage_v if battery_voltage_v > 0.0 else 0.0,
+        )
+
+    # --- pieces -----------------------------------------------------------------------------------
+    def _rolled_over_step(
+        self, dt_s: float, wheels: np.ndarray, class_id: int, ground: TerrainClass, roll: float, pitch: float
+    ) -> DynamicsStep:
+        """On its side the rover goes nowhere; wheels spin in the air with no load, no current."""
+        zeros = (0.0,) * 6
+        roll_margin, pitch_margin = stability_margins(self._params, roll, pitch)
+        return DynamicsStep(
+            x=self._x,
+            y=self._y,
+            yaw=self._yaw,
+            speed_mps=0.0,
+            yaw_rate_rps=0.0,
+            roll_rad=self._roll,
+            pitch_rad=self._pitch,
+            terrain_class=class_id,
+            terrain_name=ground.name,
+            wheel_speeds_mps=tuple(wheels.tolist()),
+            slip=zeros,
+            normal_forces_n=zeros,
+            traction_forces_n=zeros,
+            motor_currents_a=zeros,
+            duty=zeros,
+            longitudinal_accel_mps2=0.0,
+            lateral_accel_mps2=0.0,
+            specific_force_body_mps2=self._specific_force(0.0, 0.0),
+            roll_margin_rad=roll_margin,
+            pitch_margin_rad=pitch_margin,
+            rollover=True,
+            rollover_started=False,
+            collided=self._in_contact,
+            collided_obstacle=False,
+            collision_with="",
+            energy_wh=self.energy_wh,
+            battery_current_a=0.0,
+        )
+
+    def _specific_force(self, accel: float, lateral: float) -> tuple[float, float, float]:
+        """Acceleration minus gravity in body axes (x fwd, y left, z up): (0, 0, +g) at rest on the level."""
+        cos_pitch = math.cos(self._pitch)
+        return (
+            accel + G * math.sin(self._pitch),
+            lateral + G * cos_pitch * math.sin(self._roll),
+            G * cos_pitch * math.cos(self._roll),
+        )
+
+    def _motors(
+        self, wheels: np.ndarray, traction: np.ndarray, battery_voltage_v: float
+    ) -> tuple[np.ndarray, np.ndarray, float]:
+        """(motor currents A, duty cycles, total electrical power W) for the wheel forces and speeds."""
+        radius = self._params.wheel_radius_m
+        currents = traction * radius / (self._gear * self._k_t)
+        motor_rate = wheels / radius * self._gear  # rad/s
+        back_emf = self._k_t * motor_rate
+        if battery_voltage_v > 0.0:
+            duty = np.clip((back_emf + currents * self._resistance) / battery_voltage_v, -1.0, 1.0)
+        else:
+            duty = np.zeros(6)
+        power = np.maximum(back_emf * currents + currents * currents * self._resistance, 0.0)
+        return currents, duty, float(power.sum())
+
+    def _advance_to_contact(self, new_x: float, new_y: float, clear_now: bool) -> tuple[float, float]:
+        """The furthest point along this step's move that keeps the footprint clear (bisection).
+
+        Stopping at the contact rather than where the step began means a rover pushing on an obstacle stays
+        in touch with it instead of creeping up to it again and again.
+        """
+        if not clear_now:
+            return self._x, self._y  # already overlapping (e.g. an obstacle appeared on it): stay put
+        radius = self._params.footprint_radius_m
+        lo, hi = 0.0, 1.0
+        for _ in range(_CONTACT_BISECTIONS):
+            mid = 0.5 * (lo + hi)
+            x = self._x + mid * (new_x - self._x)
+            y = self._y + mid * (new_y - self._y)
+            if self._clearance(x, y)[0] >= radius:
+                lo = mid
+            else:
+                hi = mid
+        return self._x + lo * (new_x - self._x), self._y + lo * (new_y - self._y)
+
+    def _clearance(self, x: float, y: float) -> tuple[float, str]:
+        """Distance from (x, y) to the nearest obstacle cell or map edge (capped), and which one it is."""
+        terrain = self._terrain
+        res = terrain.resolution_m
+        ox, oy = terrain.origin_xy
+        width, height = terrain.size_m
+        reach = self._params.footprint_radius_m + res
+        edge = min(x - ox, ox + width - x, y - oy, oy + height - y)
+        rows, cols = terrain.shape
+        c0 = max(math.floor((x - reach - ox) / res), 0)
+        c1 = min(math.floor((x + reach - ox) / res) + 1, cols)
+        r0 = max(math.floor((y - reach - oy) / res), 0)
+        r1 = min(math.floor((y + reach - oy) / res) + 1, rows)
+        nearest = reach
+        if c0 < c1 and r0 < r1:
+            window = terrain.obstacles[r0:r1, c0:c1]
+            if window.any():
+                cell_rows, cell_cols = np.nonzero(window)
+                left = ox + (c0 + cell_cols) * res
+                bottom = oy + (r0 + cell_rows) * res
+                dx = np.maximum(np.maximum(left - x, x - (left + res)), 0.0)
+                dy = np.maximum(np.maximum(bottom - y, y - (bottom + res)), 0.0)
+                nearest = min(reach, float(np.hypot(dx, dy).min()))
+        if edge < nearest:
+            return edge, "boundary"
+        return nearest, "obstacle"
+
+
+def _wrap(angle: float) -> float:
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def _clip(value: float, limit: float) -> float:
+    return max(-limit, min(limit, value))
+
+
+def _share(force: float, loads: np.ndarray) -> np.ndarray:
+    """Split a side's force over its wheels in proportion to their normal load."""
+    total = float(loads.sum())
+    if total <= 0.0:
+        return np.full(loads.shape, force / loads.size)
+    return force * loads / total
+
+
+def _slip(surface: np.ndarray, ground: np.ndarray) -> np.ndarray:
+    scale = np.maximum(np.maximum(np.abs(surface), np.abs(ground)), _SLIP_SPEED_EPS_MPS)
+    return np.clip((surface - ground) / scale, -1.0, 1.0)

@@ -1,0 +1,44 @@
+"""Wiring for lockstep HIL in one process: both ends of the CAN bus and of the MAVLink link.
+
+The onboard side gets exactly what it gets on the rover (a python-can ``Bus`` and a MAVLink transport); the
+simulator holds the other ends. CAN uses python-can's ``virtual`` interface on a channel name private to
+this trial, MAVLink an in-memory byte pipe, so frames cross as real bytes and nothing touches a network.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+import can
+
+from firmware_bridge.can_link import CanConfig, open_bus
+from firmware_bridge.mavlink_transport import PipeEnd, memory_pipe_pair
+
+_channel_numbers = itertools.count()
+
+
+@dataclass
+class LockstepWires:
+    onboard_bus: can.BusABC
+    sim_bus: can.BusABC
+    onboard_mavlink: PipeEnd
+    sim_mavlink: PipeEnd
+
+
+@contextmanager
+def lockstep_wires(can_config: CanConfig) -> Iterator[LockstepWires]:
+    """Open a private virtual CAN channel and a MAVLink byte pipe; shut both CAN ends on exit."""
+    channel = f"{can_config.channel}-lockstep-{next(_channel_numbers)}"
+    onboard_config = dataclasses.replace(can_config, interface="virtual", channel=channel)
+    onboard_bus = open_bus(onboard_config)
+    sim_bus = open_bus(onboard_config)
+    onboard_pipe, sim_pipe = memory_pipe_pair()
+    try:
+        yield LockstepWires(onboard_bus, sim_bus, onboard_pipe, sim_pipe)
+    finally:
+        onboard_bus.shutdown()
+        sim_bus.shutdown()

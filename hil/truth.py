@@ -1,0 +1,106 @@
+"""Ground truth from the simulator onto the truth/* topics: pose, wheels, stability, contacts."""
+
+from __future__ import annotations
+
+import math
+
+from hil.battery import Battery
+from hil.dynamics import DynamicsStep, RoverDynamics
+from hil.scenario import Scenario
+from logs import topics
+from logs.sink import MessageSink
+
+
+class TruthRecorder:
+    """Publishes the true state at the recording rate and each contact (collision, rollover) once."""
+
+    def __init__(self, sink: MessageSink, scenario: Scenario) -> None:
+        self._sink = sink
+        self._scenario = scenario
+        self._in_collision = False
+        self._rollover_reported = False
+
+    def on_step(
+        self, now: int, body: RoverDynamics, step: DynamicsStep, battery: Battery, *, record_state: bool
+    ) -> None:
+        self._contacts(now, body, step)
+        if not record_state:
+            return
+        stamp = topics.stamp(now)
+        terrain = self._scenario.terrain
+        self._sink.publish(
+            topics.TRUTH_POSE,
+            now,
+            {
+                "timestamp": stamp,
+                "frame_id": topics.ENU_FRAME,
+                "pose": topics.planar_pose(body.x, body.y, body.yaw, terrain.elevation_at(body.x, body.y)),
+                "yaw_rad": body.yaw,
+                "roll_rad": step.roll_rad,
+                "pitch_rad": step.pitch_rad,
+                "speed_mps": body.speed,
+                "yaw_rate_rps": body.yaw_rate,
+                "terrain": step.terrain_name,
+            },
+        )
+        self._sink.publish(
+            topics.TRUTH_WHEELS,
+            now,
+            {
+                "timestamp": stamp,
+                "wheels": [
+                    {
+                        "surface_speed_mps": float(step.wheel_speeds_mps[i]),
+                        "slip": float(step.slip[i]),
+                        "normal_force_n": float(step.normal_forces_n[i]),
+                        "current_a": float(step.motor_currents_a[i]),
+                    }
+                    for i in range(6)
+                ],
+                "battery_voltage_v": battery.voltage_v,
+                "energy_wh": battery.energy_wh,
+            },
+        )
+        self._sink.publish(
+            topics.TRUTH_STABILITY,
+            now,
+            {
+                "timestamp": stamp,
+                "roll_rad": step.roll_rad,
+                "pitch_rad": step.pitch_rad,
+                "roll_margin_rad": step.roll_margin_rad,
+                "pitch_margin_rad": step.pitch_margin_rad,
+                "rollover": bool(step.rollover),
+            },
+        )
+
+    def _contacts(self, now: int, body: RoverDynamics, step: DynamicsStep) -> None:
+        if step.collided and not self._in_collision:
+            self._publish_contact(now, "collision", self._nearest_obstacle(body.x, body.y), body)
+        self._in_collision = step.collided
+        if step.rollover and not self._rollover_reported:
+            self._rollover_reported = True
+            self._publish_contact(now, "rollover", "", body)
+
+    def _publish_contact(self, now: int, kind: str, obstacle_id: str, body: RoverDynamics) -> None:
+        self._sink.publish(
+            topics.TRUTH_CONTACTS,
+            now,
+            {
+                "timestamp": topics.stamp(now),
+                "kind": kind,
+                "obstacle_id": obstacle_id,
+                "x": body.x,
+                "y": body.y,
+            },
+        )
+
+    def _nearest_obstacle(self, x: float, y: float) -> str:
+        """The scenario obstacle whose edge is closest, or "terrain" (map walls, map boundary)."""
+        best_id, best_gap = "terrain", math.inf
+        for obstacle in self._scenario.obstacles:
+            gap = math.hypot(obstacle.x - x, obstacle.y - y) - obstacle.radius_m
+            if gap < best_gap:
+                best_id, best_gap = obstacle.id, gap
+        reach = 1.5 * max(1.0, self._scenario.terrain.resolution_m)
+        return best_id if best_gap < reach else "terrain"

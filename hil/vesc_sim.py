@@ -1,0 +1,216 @@
+"""Six simulated VESC motor controllers: the far end of the rover's CAN bus in HIL.
+
+Each controller obeys only frames carrying its own id, follows SET_RPM with a first-order motor response,
+stops when commands stop arriving (the firmware's command timeout), and sends STATUS / STATUS_4 /
+STATUS_5 on a schedule read from the clock, in wheel order, so a lockstep run is deterministic.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Sequence
+
+import can
+
+from firmware_bridge.errors import BridgeError, FrameError
+from firmware_bridge.vesc import WHEEL_COUNT, VescCodec, VescFrame
+from logs.clock import Clock, to_ns
+
+logger = logging.getLogger(__name__)
+
+_IDLE_TEMPERATURE_C = 25.0
+_STATUS_CURRENT_LIMIT_A = 3000.0  # the int16 / 10 field holds +-3276.7 A
+
+
+class SimVescBank:
+    """Six VESCs on ``bus``, in the wheel order of ``codec.profile.controller_ids``."""
+
+    def __init__(
+        self,
+        bus: can.BusABC,
+        codec: VescCodec,
+        clock: Clock,
+        *,
+        status_rate_hz: float = 50.0,
+        slow_status_rate_hz: float = 10.0,
+        command_timeout_s: float = 0.5,
+        motor_time_constant_s: float = 0.05,
+        max_erpm: float = 30_000.0,
+        input_voltage_v: float = 24.0,
+    ) -> None:
+        for name, value in (
+            ("status_rate_hz", status_rate_hz),
+            ("slow_status_rate_hz", slow_status_rate_hz),
+            ("command_timeout_s", command_timeout_s),
+            ("motor_time_constant_s", motor_time_constant_s),
+            ("max_erpm", max_erpm),
+        ):
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"SimVescBank {name} must be a positive number, got {value}")
+        self._bus = bus
+        self._codec = codec
+        self._clock = clock
+        self.profile = codec.profile
+        self._ids = codec.profile.controller_ids
+        self._wheel_of = {cid: i for i, cid in enumerate(self._ids)}
+        self._status_period_ns = to_ns(1.0 / status_rate_hz)
+        self._slow_period_ns = to_ns(1.0 / slow_status_rate_hz)
+        self._timeout_ns = to_ns(command_timeout_s)
+        self._tau_s = motor_time_constant_s
+        self._max_erpm = max_erpm
+        now = clock.now_ns()
+        self._next_status_ns = now
+        self._next_slow_ns = now
+        self._targets = [0.0] * WHEEL_COUNT
+        self._erpm = [0.0] * WHEEL_COUNT
+        self._tacho_erev = [0.0] * WHEEL_COUNT
+        self._last_command_ns: list[int | None] = [None] * WHEEL_COUNT
+        self._motor_current_a = [0.0] * WHEEL_COUNT
+        self._input_voltage_v = input_voltage_v
+        self.commands_applied = 0
+        self.timeouts = 0
+        self.ignored_frames = 0  # valid traffic not for us (other ids, other kinds)
+        self.bad_frames = 0  # frames we could not decode
+        self.send_errors = 0
+
+    # --- commands in ---------------------------------------------------------------------------
+    def poll(self) -> int:
+        """Drain the bus and apply the commands addressed to our controllers; returns frames read."""
+        now = self._clock.now_ns()
+        count = 0
+        while True:
+            try:
+                msg = self._bus.recv(timeout=0)
+            except can.CanError as err:
+                logger.debug("simulated VESC bank: receive failed: %s", err)
+                break
+            if msg is None:
+                break
+            count += 1
+            if msg.is_error_frame:
+                continue
+            try:
+                frame = self._codec.decode(msg)
+            except FrameError as err:
+                if err.reason == "unknown_id":
+                    self.ignored_frames += 1
+                else:
+                    self.bad_frames += 1
+                    logger.debug("simulated VESC bank: rejected frame: %s", err)
+                continue
+            self._apply(frame, now)
+        return count
+
+    def _apply(self, frame: VescFrame, now_ns: int) -> None:
+        wheel = self._wheel_of[frame.controller_id]
+        values = frame.values
+        if frame.kind == "SET_RPM":
+            target = max(-self._max_erpm, min(self._max_erpm, values["erpm"]))
+        elif frame.kind == "SET_DUTY":
+            target = max(-1.0, min(1.0, values["duty"])) * self._max_erpm
+        elif frame.kind == "SET_CURRENT_BRAKE" or (frame.kind == "SET_CURRENT" and values["current"] == 0.0):
+            target = 0.0
+        else:
+            # Our own status echoed back, or current control, which this speed-only model does not have.
+            self.ignored_frames += 1
+            return
+        self._targets[wheel] = target
+        self._last_command_ns[wheel] = now_ns
+        self.commands_applied += 1
+
+    # --- physics -------------------------------------------------------------------------------
+    def step(self, dt_s: float) -> None:
+        """Advance the motors by ``dt_s`` seconds, then send whatever status is due at the clock's now."""
+        if not (math.isfinite(dt_s) and dt_s >= 0):
+            raise ValueError(f"SimVescBank.step needs a finite dt_s >= 0, got {dt_s}")
+        now = self._clock.now_ns()
+        blend = 1.0 - math.exp(-dt_s / self._tau_s)
+        for i in range(WHEEL_COUNT):
+            last = self._last_command_ns[i]
+            if last is not None and now - last > self._timeout_ns:
+                # Firmware behaviour: no command within the timeout => release the motor (brake current 0).
+                self._targets[i] = 0.0
+                self._last_command_ns[i] = None
+                self.timeouts += 1
+                logger.debug("simulated VESC %d: command timeout, stopping", self._ids[i])
+            before = self._erpm[i]
+            after = before + (self._targets[i] - before) * blend
+            self._erpm[i] = after
+            # Trapezoid over the step; erev = ERPM x minutes.
+            self._tacho_erev[i] += 0.5 * (before + after) * dt_s / 60.0
+        self._send_due_status(now)
+
+    def set_electrical(self, motor_currents_a: Sequence[float], input_voltage_v: float) -> None:
+        """Loads from the physics engine, reported in the next status frames."""
+        if len(motor_currents_a) != WHEEL_COUNT:
+            raise ValueError(f"need {WHEEL_COUNT} motor currents in wheel order, got {len(motor_currents_a)}")
+        self._motor_current_a = [_clamp_current(c) for c in motor_currents_a]
+        self._input_voltage_v = input_voltage_v if math.isfinite(input_voltage_v) else 0.0
+
+    # --- status out ----------------------------------------------------------------------------
+    def _duty(self, wheel: int) -> float:
+        return max(-1.0, min(1.0, self._erpm[wheel] / self._max_erpm))
+
+    def _send_due_status(self, now: int) -> None:
+        if now >= self._next_status_ns:
+            self._next_status_ns = _next_due(self._next_status_ns, self._status_period_ns, now)
+            for i, cid in enumerate(self._ids):
+                self._send(
+                    "STATUS",
+                    cid,
+                    erpm=round(self._erpm[i]),
+                    current=self._motor_current_a[i],
+                    duty=self._duty(i),
+                )
+        if now >= self._next_slow_ns:
+            self._next_slow_ns = _next_due(self._next_slow_ns, self._slow_period_ns, now)
+            for i, cid in enumerate(self._ids):
+                current = self._motor_current_a[i]
+                self._send(
+                    "STATUS_4",
+                    cid,
+                    temp_fet=_IDLE_TEMPERATURE_C,
+                    temp_motor=_IDLE_TEMPERATURE_C,
+                    current_in=current * abs(self._duty(i)),
+                    pid_pos=0.0,
+                )
+                self._send(
+                    "STATUS_5", cid, tacho=_wrap_tacho(self._tacho_erev[i]), voltage_in=self._input_voltage_v
+                )
+
+    def _send(self, kind: str, controller_id: int, **values: float) -> None:
+        try:
+            self._bus.send(self._codec.encode(kind, controller_id, **values))
+        except (can.CanError, BridgeError) as err:
+            self.send_errors += 1
+            logger.debug("simulated VESC %d: cannot send %s: %s", controller_id, kind, err)
+
+    # --- accessors -----------------------------------------------------------------------------
+    def wheel_speeds_mps(self) -> list[float]:
+        return [self.profile.speed_from_erpm(e) for e in self._erpm]
+
+    def targets_erpm(self) -> list[float]:
+        return list(self._targets)
+
+    def erpm(self) -> list[float]:
+        return list(self._erpm)
+
+
+def _next_due(previous_due: int, period: int, now: int) -> int:
+    """Keep a fixed cadence, but after a long pause resume from now instead of sending a burst."""
+    due = previous_due + period
+    return due if due > now else now + period
+
+
+def _clamp_current(current_a: float) -> float:
+    if not math.isfinite(current_a):
+        return 0.0
+    return max(-_STATUS_CURRENT_LIMIT_A, min(_STATUS_CURRENT_LIMIT_A, current_a))
+
+
+def _wrap_tacho(erev: float) -> float:
+    """The firmware's tachometer is an int32 of steps (6 per erev) that wraps; so does ours."""
+    steps = round(erev * 6.0)
+    steps = (steps + (1 << 31)) % (1 << 32) - (1 << 31)
+    return steps / 6.0

@@ -1,0 +1,381 @@
+"""Trial metrics computed from one MCAP recording alone (the paper's path accuracy, obstacle-avoidance
+success and rollovers, plus energy, distance, duration and tracking error).
+
+Exact definitions and tolerances: docs/metrics.md. Absent data never raises: the metric is ``None`` and
+the topic or metadata key goes into ``missing``; unusable values are skipped and described in ``problems``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections import Counter
+from collections.abc import Iterator
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from logs.reader import ReadStats, RecordedMessage, RecordedMetadata, Source, read_entries
+from logs.topics import (
+    ESTIMATOR_POSE,
+    NAVIGATOR_PATH,
+    NAVIGATOR_STATE,
+    TRUTH_CONTACTS,
+    TRUTH_POSE,
+    WHEELS_STATUS,
+)
+
+SCENARIO_METADATA = "scenario"
+DEFAULT_PATH_TOLERANCE_M = 0.5
+DEFAULT_ENCOUNTER_MARGIN_M = 1.5
+ARRIVED_MODE = "ARRIVED"
+DECIMALS = 6
+# Distances compared with a tolerance get this much slack so float noise cannot flip a boundary case.
+DISTANCE_EPSILON_M = 1e-9
+_J_PER_WH = 3600.0
+_POINT_BLOCK = 1024  # points per vectorised distance block: bounds memory at block x path segments
+
+_TOPICS = (TRUTH_POSE, ESTIMATOR_POSE, NAVIGATOR_PATH, NAVIGATOR_STATE, TRUTH_CONTACTS, WHEELS_STATUS)
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class TrialMetrics:
+    trajectory_topic: str | None
+    duration_s: float | None
+    distance_m: float | None
+    path_tolerance_m: float
+    path_accuracy_pct: float | None
+    encounter_margin_m: float
+    obstacles_encountered: int | None
+    obstacles_avoided: int | None
+    obstacle_avoidance_success_pct: float | None
+    collisions: int | None
+    rollovers: int | None
+    energy_wh: float | None
+    energy_wh_per_m: float | None
+    goal_reached: bool | None
+    final_distance_to_goal_m: float | None
+    cross_track_error_rms_m: float | None
+    cross_track_error_max_m: float | None
+    truncated: bool = False
+    skipped_messages: int = 0
+    missing: tuple[str, ...] = ()
+    problems: tuple[str, ...] = field(default=())
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-able dict; floats rounded to ``DECIMALS`` so the output is stable across runs."""
+        return {key: _plain(value) for key, value in asdict(self).items()}
+
+    def write_json(self, path: str | Path) -> None:
+        target = Path(path)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.write_text(json.dumps(self.to_dict(), indent=2, sort_keys=True) + "\n", encoding="utf-8")
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, float):
+        return round(value, DECIMALS) + 0.0 if math.isfinite(value) else None  # + 0.0 turns -0.0 into 0.0
+    if isinstance(value, list | tuple):
+        return [_plain(item) for item in value]
+    return value
+
+
+# --- what is gathered from the file ------------------------------------------------------------
+@dataclass
+class _Trial:
+    poses: dict[str, list[tuple[int, float, float]]] = field(default_factory=dict)
+    paths: list[tuple[int, FloatArray]] = field(default_factory=list)
+    states: list[tuple[int, dict[str, Any]]] = field(default_factory=list)
+    contacts: list[dict[str, Any]] = field(default_factory=list)
+    power: list[tuple[int, float]] = field(default_factory=list)
+    scenario: dict[str, str] | None = None
+    seen: set[str] = field(default_factory=set)
+    rejected: Counter[str] = field(default_factory=Counter)
+
+
+def _gather(source: Source, stats: ReadStats) -> _Trial:
+    trial = _Trial()
+    for entry in read_entries(source, topics=_TOPICS, stats=stats):
+        if isinstance(entry, RecordedMetadata):
+            if entry.name == SCENARIO_METADATA:
+                trial.scenario = entry.data
+        elif isinstance(entry, RecordedMessage):
+            trial.seen.add(entry.topic)
+            try:
+                _take(trial, entry)
+            except (KeyError, TypeError, ValueError, IndexError):
+                trial.rejected[entry.topic] += 1
+    return trial
+
+
+def _finite(value: Any) -> float:
+    number = float(value)
+    if not math.isfinite(number):
+        raise ValueError(f"non-finite value {value!r}")
+    return number
+
+
+def _take(trial: _Trial, entry: RecordedMessage) -> None:
+    topic, t_ns, message = entry.topic, entry.log_time_ns, entry.message
+    if topic in (TRUTH_POSE, ESTIMATOR_POSE):
+        position = message["pose"]["position"]
+        trial.poses.setdefault(topic, []).append((t_ns, _finite(position["x"]), _finite(position["y"])))
+    elif topic == NAVIGATOR_PATH:
+        points = [(_finite(p["position"]["x"]), _finite(p["position"]["y"])) for p in message["poses"]]
+        trial.paths.append((t_ns, np.asarray(points, dtype=np.float64).reshape(-1, 2)))
+    elif topic == NAVIGATOR_STATE:
+        if not isinstance(message.get("mode"), str):
+            raise ValueError("navigator/state without a mode")
+        trial.states.append((t_ns, message))
+    elif topic == TRUTH_CONTACTS:
+        if message["kind"] not in ("collision", "rollover"):
+            raise ValueError(f"unknown contact kind {message['kind']!r}")
+        trial.contacts.append(message)
+    elif topic == WHEELS_STATUS:
+        wheels = message["wheels"]
+        if not wheels:
+            raise ValueError("wheels/status without wheels")
+        watts = sum(_finite(w["input_voltage_v"]) * _finite(w["input_current_a"]) for w in wheels)
+        trial.power.append((t_ns, watts))
+
+
+# --- geometry ----------------------------------------------------------------------------------
+def distances_to_polyline(points: FloatArray, polyline: FloatArray) -> FloatArray:
+    """Shortest distance (m) from each of ``points`` (K, 2) to the polyline ``polyline`` (M >= 1, 2)."""
+    if len(polyline) == 1:
+        return np.asarray(np.hypot(*(points - polyline[0]).T), dtype=np.float64)
+    start = polyline[:-1]  # (S, 2)
+    along = polyline[1:] - start
+    length_sq = np.einsum("ij,ij->i", along, along)
+    safe_length_sq = np.where(length_sq > 0.0, length_sq, 1.0)  # zero-length segment: its start point
+    result = np.empty(len(points), dtype=np.float64)
+    for first in range(0, len(points), _POINT_BLOCK):
+        block = points[first : first + _POINT_BLOCK]
+        offset = block[:, None, :] - start[None, :, :]  # (B, S, 2)
+        fraction = np.clip(np.einsum("bsk,sk->bs", offset, along) / safe_length_sq, 0.0, 1.0)
+        fraction = np.where(length_sq > 0.0, fraction, 0.0)
+        gap = offset - fraction[:, :, None] * along[None, :, :]
+        result[first : first + _POINT_BLOCK] = np.sqrt(np.einsum("bsk,bsk->bs", gap, gap)).min(axis=1)
+    return result
+
+
+# --- the metrics -------------------------------------------------------------------------------
+@dataclass
+class _Notes:
+    missing: list[str] = field(default_factory=list)
+    problems: list[str] = field(default_factory=list)
+
+
+def compute_metrics(source: Source) -> TrialMetrics:
+    """All trial metrics from one recording (a path or a binary stream); see docs/metrics.md."""
+    stats = ReadStats()
+    trial = _gather(source, stats)
+    notes = _Notes()
+    for topic, count in sorted(trial.rejected.items()):
+        notes.problems.append(f"{topic}: {count} message(s) without usable values skipped")
+    if stats.truncated:
+        notes.problems.append("recording is cut short; metrics cover the part before the cut")
+
+    scenario = trial.scenario
+    if scenario is None:
+        notes.missing.append(f"metadata:{SCENARIO_METADATA}")
+        scenario = {}
+    tolerance = _scenario_length(scenario, "path_tolerance_m", DEFAULT_PATH_TOLERANCE_M, notes)
+    margin = _scenario_length(scenario, "encounter_margin_m", DEFAULT_ENCOUNTER_MARGIN_M, notes)
+
+    trajectory_topic, times, xy = _trajectory(trial, notes)
+    has_trajectory = len(times) > 0
+    steps = np.hypot(*np.diff(xy, axis=0).T) if len(xy) > 1 else np.zeros(0)
+    distance = float(steps.sum()) if has_trajectory else None
+    duration = (int(times[-1]) - int(times[0])) / 1e9 if has_trajectory else None
+
+    collisions, rollovers = _contact_counts(trial, trajectory_topic, notes)
+    encountered, avoided, success = _obstacle_avoidance(trial, scenario, xy, margin, notes)
+    energy = _energy_wh(trial, notes)
+    goal_reached, goal_distance = _goal(trial, xy, notes)
+    xte_rms, xte_max = _cross_track(trial)
+
+    return TrialMetrics(
+        trajectory_topic=trajectory_topic,
+        duration_s=duration,
+        distance_m=distance,
+        path_tolerance_m=tolerance,
+        path_accuracy_pct=_path_accuracy(trial, times, xy, steps, tolerance, notes),
+        encounter_margin_m=margin,
+        obstacles_encountered=encountered,
+        obstacles_avoided=avoided,
+        obstacle_avoidance_success_pct=success,
+        collisions=collisions,
+        rollovers=rollovers,
+        energy_wh=energy,
+        energy_wh_per_m=energy / distance if energy is not None and distance else None,
+        goal_reached=goal_reached,
+        final_distance_to_goal_m=goal_distance,
+        cross_track_error_rms_m=xte_rms,
+        cross_track_error_max_m=xte_max,
+        truncated=stats.truncated,
+        skipped_messages=stats.skipped + sum(trial.rejected.values()),
+        missing=tuple(notes.missing),
+        problems=tuple(notes.problems),
+    )
+
+
+def _scenario_length(scenario: dict[str, str], key: str, default: float, notes: _Notes) -> float:
+    text = scenario.get(key)
+    if text is None:
+        return default
+    try:
+        value = _finite(text)
+    except ValueError:
+        value = -1.0
+    if value < 0.0:
+        notes.problems.append(
+            f"metadata {SCENARIO_METADATA}.{key}={text!r} is not a length >= 0; used {default}"
+        )
+        return default
+    return value
+
+
+def _trajectory(trial: _Trial, notes: _Notes) -> tuple[str | None, NDArray[np.int64], FloatArray]:
+    for topic in (TRUTH_POSE, ESTIMATOR_POSE):
+        samples = trial.poses.get(topic)
+        if samples:
+            order = sorted(range(len(samples)), key=lambda i: samples[i][0])  # stable: file order on ties
+            times = np.array([samples[i][0] for i in order], dtype=np.int64)
+            xy = np.array([samples[i][1:] for i in order], dtype=np.float64)
+            return topic, times, xy
+    notes.missing.append(f"{TRUTH_POSE} or {ESTIMATOR_POSE}")
+    return None, np.zeros(0, dtype=np.int64), np.zeros((0, 2), dtype=np.float64)
+
+
+def _path_accuracy(
+    trial: _Trial,
+    times: NDArray[np.int64],
+    xy: FloatArray,
+    steps: FloatArray,
+    tolerance: float,
+    notes: _Notes,
+) -> float | None:
+    if not trial.paths:
+        notes.missing.append(NAVIGATOR_PATH)
+        return None
+    if len(xy) < 2:
+        return None
+    paths = sorted(trial.paths, key=lambda item: item[0])
+    path_times = np.array([t for t, _ in paths], dtype=np.int64)
+    # The path in force for a segment is the latest path logged at or before the segment's end sample.
+    in_force = np.searchsorted(path_times, times[1:], side="right") - 1
+    midpoints = 0.5 * (xy[:-1] + xy[1:])
+    counted = 0.0
+    within = 0.0
+    for index in np.unique(in_force):
+        if index < 0 or len(paths[int(index)][1]) == 0:
+            continue  # no path in force yet (or an empty one): not counted either way
+        mask = in_force == index
+        counted += float(steps[mask].sum())
+        near = distances_to_polyline(midpoints[mask], paths[int(index)][1]) <= tolerance + DISTANCE_EPSILON_M
+        within += float(steps[mask][near].sum())
+    if counted <= 0.0:
+        return None
+    return 100.0 * within / counted
+
+
+def _contact_counts(
+    trial: _Trial, trajectory_topic: str | None, notes: _Notes
+) -> tuple[int | None, int | None]:
+    # No contact message at all is normal in simulation (the channel only appears with the first event);
+    # a real run has no truth, so there the counts are unknown.
+    if TRUTH_CONTACTS not in trial.seen and trajectory_topic != TRUTH_POSE:
+        notes.missing.append(TRUTH_CONTACTS)
+        return None, None
+    kinds = Counter(str(contact["kind"]) for contact in trial.contacts)
+    return kinds["collision"], kinds["rollover"]
+
+
+def _obstacle_avoidance(
+    trial: _Trial, scenario: dict[str, str], xy: FloatArray, margin: float, notes: _Notes
+) -> tuple[int | None, int | None, float | None]:
+    text = scenario.get("obstacles_json")
+    if text is None:
+        notes.missing.append(f"metadata:{SCENARIO_METADATA}.obstacles_json")
+        return None, None, None
+    obstacles = list(_obstacles(text, notes))
+    if len(xy) == 0:
+        return None, None, None
+    encountered = 0
+    avoided = 0
+    hit = {str(c.get("obstacle_id")) for c in trial.contacts if c["kind"] == "collision"}
+    for obstacle_id, centre, radius in obstacles:
+        closest = float(distances_to_polyline(centre[None, :], xy)[0])
+        if closest <= radius + margin + DISTANCE_EPSILON_M:
+            encountered += 1
+            avoided += obstacle_id not in hit
+    if TRUTH_CONTACTS in notes.missing:
+        return encountered, None, None
+    return encountered, avoided, (100.0 * avoided / encountered if encountered else None)
+
+
+def _obstacles(text: str, notes: _Notes) -> Iterator[tuple[str, FloatArray, float]]:
+    try:
+        items = json.loads(text)
+        if not isinstance(items, list):
+            raise ValueError("not a JSON list")
+    except ValueError as err:
+        notes.problems.append(f"metadata {SCENARIO_METADATA}.obstacles_json is unusable: {err}")
+        return
+    for position, item in enumerate(items):
+        try:
+            centre = np.array([_finite(item["x"]), _finite(item["y"])], dtype=np.float64)
+            radius = _finite(item["radius"])
+            yield str(item["id"]), centre, radius
+        except (KeyError, TypeError, ValueError) as err:
+            notes.problems.append(f"obstacles_json[{position}] skipped: {err!r}")
+
+
+def _energy_wh(trial: _Trial, notes: _Notes) -> float | None:
+    if WHEELS_STATUS not in trial.seen:
+        notes.missing.append(WHEELS_STATUS)
+        return None
+    samples = sorted(trial.power, key=lambda item: item[0])
+    if len(samples) < 2:
+        notes.problems.append(f"{WHEELS_STATUS}: energy needs at least two usable samples")
+        return None
+    times_s = np.array([t for t, _ in samples], dtype=np.float64) / 1e9
+    watts = np.array([p for _, p in samples], dtype=np.float64)
+    joules = float(np.sum(0.5 * (watts[1:] + watts[:-1]) * np.diff(times_s)))  # trapezoid rule
+    return joules / _J_PER_WH
+
+
+def _goal(trial: _Trial, xy: FloatArray, notes: _Notes) -> tuple[bool | None, float | None]:
+    if not trial.states:
+        notes.missing.append(NAVIGATOR_STATE)
+        return None, None
+    reached = trial.states[-1][1]["mode"] == ARRIVED_MODE
+    if len(xy) == 0:
+        return reached, None
+    for _, state in reversed(trial.states):
+        goal = state.get("goal")
+        try:
+            gx, gy = _finite(goal["x"]), _finite(goal["y"])
+        except (KeyError, TypeError, ValueError):
+            continue
+        return reached, math.hypot(float(xy[-1, 0]) - gx, float(xy[-1, 1]) - gy)
+    return reached, None
+
+
+def _cross_track(trial: _Trial) -> tuple[float | None, float | None]:
+    errors = []
+    for _, state in trial.states:
+        try:
+            errors.append(_finite(state["cross_track_error_m"]))
+        except (KeyError, TypeError, ValueError):
+            continue
+    if not errors:
+        return None, None
+    values = np.array(errors, dtype=np.float64)
+    return float(np.sqrt(np.mean(values**2))), float(np.max(np.abs(values)))

@@ -1,0 +1,321 @@
+"""Reading MCAP recordings, including files cut short by a crash or a full disk.
+
+The reader walks the data section front to back and never seeks, so it reads a file that is still being
+written, a pipe, or a file whose summary and footer were never written. Record framing (opcode + length)
+is read here so that a cut is told apart from damage: a record whose bytes end early is the cut (stop,
+warn, keep everything before it); a record that is complete but does not parse is damage (``LogReadError``).
+Record bodies are parsed with the ``mcap`` library's record classes.
+
+Only our own recordings are in scope: JSON messages (``logs.recorder``). A message whose payload is not a
+JSON object is skipped and counted in ``ReadStats``, never raised.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import struct
+import zlib
+from collections.abc import Collection, Iterator
+from contextlib import ExitStack
+from dataclasses import dataclass, field
+from io import BytesIO
+from pathlib import Path
+from typing import Any, BinaryIO
+
+import zstandard
+from mcap.data_stream import ReadDataStream
+from mcap.exceptions import McapError
+from mcap.opcode import Opcode
+from mcap.records import Attachment, Channel, Chunk, McapRecord, Message, Metadata
+
+from logs.errors import LogReadError
+
+logger = logging.getLogger(__name__)
+
+Source = str | Path | BinaryIO
+
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+_FRAME_HEAD = struct.Struct("<BQ")  # opcode uint8, record length uint64
+# A damaged length field must not make us try to allocate terabytes; no record of ours comes near this.
+MAX_RECORD_BYTES = 1 << 30
+_READ_PIECE = 1 << 20  # read big records in pieces so memory follows the bytes really present
+_MAX_WARNINGS = 10  # per read: the first few malformed messages are logged, the rest only counted
+
+
+@dataclass(frozen=True)
+class RecordedMessage:
+    topic: str
+    log_time_ns: int
+    message: dict[str, Any]
+
+
+@dataclass(frozen=True)
+class RecordedMetadata:
+    name: str
+    data: dict[str, str]
+
+
+@dataclass(frozen=True)
+class RecordedAttachment:
+    name: str
+    media_type: str
+    log_time_ns: int
+    data: bytes = field(repr=False)
+
+
+Entry = RecordedMessage | RecordedMetadata | RecordedAttachment
+
+
+@dataclass
+class ReadStats:
+    """What one read went through; pass one in to learn about skipped messages and cut files."""
+
+    messages: int = 0
+    malformed: int = 0  # payload not a JSON object
+    unknown_channel: int = 0  # message on a channel whose record was never seen
+    not_json: int = 0  # channel with another message encoding
+    truncated: bool = False
+    complete: bool = False  # the data section ended with its DataEnd record
+
+    @property
+    def skipped(self) -> int:
+        return self.malformed + self.unknown_channel + self.not_json
+
+
+# --- public readers ----------------------------------------------------------------------------
+def read_entries(
+    source: Source,
+    *,
+    topics: Collection[str] | None = None,
+    messages: bool = True,
+    stats: ReadStats | None = None,
+) -> Iterator[Entry]:
+    """Messages, metadata and attachments in file order, in one pass.
+
+    ``topics`` limits the messages to those topics; ``messages=False`` skips them all without
+    decompressing chunks (fast for metadata and attachments). Raises ``LogReadError`` for a file that is
+    missing, not MCAP or damaged; a cut file ends the iteration early with a warning.
+    """
+    stats = stats if stats is not None else ReadStats()
+    wanted = frozenset(topics) if topics is not None else None
+    channels: dict[int, Channel] = {}
+    with ExitStack() as stack:
+        stream, name = _open(source, stack)
+        for record in _records(stream, name, stats, decode_chunks=messages):
+            if isinstance(record, Message):
+                if messages:
+                    decoded = _decode(record, channels, wanted, stats, name)
+                    if decoded is not None:
+                        yield decoded
+            elif isinstance(record, Channel):
+                channels[record.id] = record
+            elif isinstance(record, Metadata):
+                yield RecordedMetadata(record.name, dict(record.metadata))
+            elif isinstance(record, Attachment):
+                yield RecordedAttachment(record.name, record.media_type, record.log_time, record.data)
+
+
+def read_messages(
+    source: Source, topics: Collection[str] | None = None, *, stats: ReadStats | None = None
+) -> Iterator[RecordedMessage]:
+    """Decoded messages in file order (log-time order within our recordings)."""
+    for entry in read_entries(source, topics=topics, stats=stats):
+        if isinstance(entry, RecordedMessage):
+            yield entry
+
+
+def read_metadata(source: Source) -> dict[str, dict[str, str]]:
+    """Metadata records by name; a later record of the same name replaces an earlier one."""
+    return {
+        entry.name: entry.data
+        for entry in read_entries(source, messages=False)
+        if isinstance(entry, RecordedMetadata)
+    }
+
+
+def read_attachments(source: Source) -> dict[str, bytes]:
+    """Attachment contents by name; a later attachment of the same name replaces an earlier one."""
+    return {
+        entry.name: entry.data
+        for entry in read_entries(source, messages=False)
+        if isinstance(entry, RecordedAttachment)
+    }
+
+
+def topic_counts(source: Source) -> dict[str, int]:
+    """Number of messages per topic (payloads are not decoded), sorted by topic."""
+    counts: dict[str, int] = {}
+    channels: dict[int, str] = {}
+    with ExitStack() as stack:
+        stream, name = _open(source, stack)
+        for record in _records(stream, name, ReadStats(), decode_chunks=True):
+            if isinstance(record, Message):
+                topic = channels.get(record.channel_id)
+                if topic is not None:
+                    counts[topic] = counts.get(topic, 0) + 1
+            elif isinstance(record, Channel):
+                channels[record.id] = record.topic
+    return dict(sorted(counts.items()))
+
+
+# --- decoding ----------------------------------------------------------------------------------
+def _decode(
+    record: Message,
+    channels: dict[int, Channel],
+    wanted: frozenset[str] | None,
+    stats: ReadStats,
+    name: str,
+) -> RecordedMessage | None:
+    channel = channels.get(record.channel_id)
+    if channel is None:
+        stats.unknown_channel += 1
+        _warn(stats, "%s: message on unknown channel %d skipped", name, record.channel_id)
+        return None
+    if wanted is not None and channel.topic not in wanted:
+        return None
+    if channel.message_encoding != "json":
+        stats.not_json += 1
+        encoding = channel.message_encoding
+        _warn(stats, "%s: %s uses encoding %r, not json; skipped", name, channel.topic, encoding)
+        return None
+    try:
+        message = json.loads(record.data)
+    except (ValueError, UnicodeDecodeError) as err:
+        message = err
+    if not isinstance(message, dict):
+        stats.malformed += 1
+        _warn(
+            stats,
+            "%s: %s message at %d ns is not a JSON object (%s); skipped",
+            name,
+            channel.topic,
+            record.log_time,
+            message if isinstance(message, Exception) else type(message).__name__,
+        )
+        return None
+    stats.messages += 1
+    return RecordedMessage(channel.topic, record.log_time, message)
+
+
+def _warn(stats: ReadStats, fmt: str, *args: object) -> None:
+    if stats.skipped <= _MAX_WARNINGS:
+        logger.warning(fmt, *args)
+
+
+# --- framing -----------------------------------------------------------------------------------
+def _open(source: Source, stack: ExitStack) -> tuple[BinaryIO, str]:
+    if isinstance(source, str | Path):
+        try:
+            # closed by the caller's ExitStack when the reading generator finishes or is dropped
+            stream: BinaryIO = stack.enter_context(Path(source).open("rb"))  # noqa: SIM115
+        except OSError as err:
+            raise LogReadError(f"cannot open recording {source}: {err}") from err
+        return stream, str(source)
+    return source, str(getattr(source, "name", "<stream>"))
+
+
+def _read_up_to(stream: BinaryIO, size: int, name: str) -> bytes:
+    """Up to ``size`` bytes; fewer only at the end of the stream."""
+    pieces: list[bytes] = []
+    remaining = size
+    try:
+        while remaining > 0:
+            piece = stream.read(min(remaining, _READ_PIECE))
+            if not piece:
+                break
+            pieces.append(piece)
+            remaining -= len(piece)
+    except OSError as err:
+        raise LogReadError(f"cannot read recording {name}: {err}") from err
+    return b"".join(pieces)
+
+
+def _records(stream: BinaryIO, name: str, stats: ReadStats, *, decode_chunks: bool) -> Iterator[McapRecord]:
+    """Records of the data section, chunks opened up; stops at DataEnd or, with a warning, at a cut."""
+    magic = _read_up_to(stream, len(MCAP_MAGIC), name)
+    if magic != MCAP_MAGIC:
+        if MCAP_MAGIC.startswith(magic):
+            _cut(stats, name, "inside the file magic")
+            return
+        raise LogReadError(f"{name} is not an MCAP file (it starts with {magic!r}); pass an .mcap recording")
+    offset = len(MCAP_MAGIC)
+    while True:
+        head = _read_up_to(stream, _FRAME_HEAD.size, name)
+        if len(head) < _FRAME_HEAD.size:
+            _cut(stats, name, f"at byte {offset + len(head)}, before the end of the data section")
+            return
+        opcode, length = _FRAME_HEAD.unpack(head)
+        if length > MAX_RECORD_BYTES:
+            raise LogReadError(
+                f"{name} is damaged: record at byte {offset} claims {length} bytes (opcode {opcode:#x})"
+            )
+        body = _read_up_to(stream, length, name)
+        if len(body) < length:
+            _cut(stats, name, f"inside the record at byte {offset} ({len(body)} of {length} bytes present)")
+            return
+        if opcode == Opcode.DATA_END:
+            stats.complete = True
+            return  # the summary section repeats what we have already read
+        if opcode == Opcode.CHUNK and not decode_chunks:
+            pass
+        else:
+            yield from _parse(opcode, body, name, offset)
+        offset += _FRAME_HEAD.size + length
+
+
+def _cut(stats: ReadStats, name: str, where: str) -> None:
+    stats.truncated = True
+    logger.warning("%s is cut short %s; read everything before the cut", name, where)
+
+
+_PLAIN_RECORDS: dict[int, Any] = {
+    Opcode.CHANNEL: Channel,
+    Opcode.METADATA: Metadata,
+    Opcode.ATTACHMENT: Attachment,
+}
+
+
+def _parse(opcode: int, body: bytes, name: str, offset: int) -> list[McapRecord]:
+    """The records one complete frame holds: none (skipped kinds), one, or a chunk's contents."""
+    if opcode not in (Opcode.MESSAGE, Opcode.CHUNK) and opcode not in _PLAIN_RECORDS:
+        return []  # header, schema, indexes: nothing we need
+    try:
+        data = ReadDataStream(BytesIO(body))
+        if opcode == Opcode.MESSAGE:
+            return [Message.read(data, len(body))]
+        if opcode == Opcode.CHUNK:
+            return _chunk_records(Chunk.read(data), name, offset)
+        return [_PLAIN_RECORDS[opcode].read(data)]
+    except LogReadError:
+        raise
+    except (McapError, struct.error, UnicodeDecodeError, ValueError, zstandard.ZstdError) as err:
+        raise LogReadError(f"{name} is damaged: record at byte {offset} (opcode {opcode:#x}): {err}") from err
+
+
+def _chunk_records(chunk: Chunk, name: str, offset: int) -> list[McapRecord]:
+    if chunk.compression == "zstd":
+        data = zstandard.ZstdDecompressor().decompress(chunk.data, max_output_size=chunk.uncompressed_size)
+    elif chunk.compression == "":
+        data = chunk.data
+    else:
+        raise LogReadError(
+            f"{name}: chunk at byte {offset} uses {chunk.compression!r} compression; "
+            "only zstd and uncompressed recordings are supported"
+        )
+    if chunk.uncompressed_crc != 0 and zlib.crc32(data) != chunk.uncompressed_crc:
+        raise LogReadError(f"{name} is damaged: chunk at byte {offset} fails its CRC check")
+    records: list[McapRecord] = []
+    position = 0
+    while position < len(data):
+        if position + _FRAME_HEAD.size > len(data):
+            raise LogReadError(f"{name} is damaged: chunk at byte {offset} ends inside a record header")
+        opcode, length = _FRAME_HEAD.unpack_from(data, position)
+        start = position + _FRAME_HEAD.size
+        end = start + length
+        if end > len(data):
+            raise LogReadError(f"{name} is damaged: chunk at byte {offset} ends inside a record")
+        if opcode in (Opcode.MESSAGE, Opcode.CHANNEL):
+            records.extend(_parse(opcode, data[start:end], name, offset))
+        position = end
+    return records

@@ -1,0 +1,253 @@
+"""Live telemetry over Zenoh: the same topics and JSON payloads as the MCAP recording.
+
+Key space: ``rover/<rover_id>/<topic>`` (e.g. ``rover/r1/estimator/pose``). The payload is exactly the
+bytes the recorder writes for that message (compact JSON, NaN as null, encoding ``application/json``), so a
+ground station decodes both the same way. The log time travels in the sample's *attachment*: 8 bytes,
+little-endian signed int64 nanoseconds from the publisher's clock. It is not folded into the payload, so
+payloads stay byte-identical to the recording.
+
+The default Zenoh config ships as ``logs/zenoh_default.json5`` (peer mode, loopback listen endpoint,
+multicast scouting and gossip off); ``ZenohSettings`` from the rover config override its endpoints.
+Telemetry never stops the rover: a failed put is counted and logged, not raised.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import struct
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+from importlib import resources
+from typing import Any
+
+import zenoh
+
+from logs.errors import TelemetryError, TelemetrySetupError
+from logs.recorder import encode_message
+from logs.settings import Table
+from logs.sink import Message
+from logs.topics import TOPICS
+
+logger = logging.getLogger(__name__)
+
+DEFAULT_CONFIG_RESOURCE = "zenoh_default.json5"
+KEY_PREFIX = "rover"
+_LOG_TIME = struct.Struct("<q")
+_MODES = ("peer", "client")
+_FORBIDDEN_IN_ID = set("/*$?#")
+_MAX_WARNINGS = 10
+
+
+@dataclass(frozen=True)
+class ZenohSettings:
+    """The ``[zenoh]`` table of the rover config. ``rover_id`` is the caller's (it names the key space)."""
+
+    enabled: bool = False
+    mode: str = "peer"
+    listen: tuple[str, ...] = ("tcp/127.0.0.1:0",)
+    connect: tuple[str, ...] = ()
+    multicast_scouting: bool = False
+
+    @classmethod
+    def from_table(cls, table: Table, *, finish: bool = True) -> ZenohSettings:
+        """Read and check the table; ``finish=False`` when the caller keeps its own keys in it."""
+        defaults = cls()
+        settings = cls(
+            enabled=table.flag("enabled", defaults.enabled),
+            mode=table.text("mode", defaults.mode, choices=_MODES),
+            listen=_endpoints(table, "listen", defaults.listen),
+            connect=_endpoints(table, "connect", defaults.connect),
+            multicast_scouting=table.flag("multicast_scouting", defaults.multicast_scouting),
+        )
+        if settings.mode == "client" and not settings.connect:
+            raise table.error("connect", "client mode needs at least one endpoint to connect to (a router)")
+        if finish:
+            table.finish()
+        return settings
+
+
+def _endpoints(table: Table, key: str, default: tuple[str, ...]) -> tuple[str, ...]:
+    value = table.raw(key, list(default))
+    if not isinstance(value, list) or not all(isinstance(item, str) for item in value):
+        raise table.error(key, f"expected a list of endpoints like ['tcp/127.0.0.1:7447'], got {value!r}")
+    for item in value:
+        protocol, slash, address = item.partition("/")
+        if not protocol or not slash or not address:
+            raise table.error(key, f"endpoint {item!r} is not '<protocol>/<address>' ('tcp/127.0.0.1:7447')")
+    return tuple(value)
+
+
+def zenoh_config(settings: ZenohSettings) -> zenoh.Config:
+    """The shipped default config with the settings' mode, endpoints and scouting choice written over it."""
+    try:
+        text = resources.files("logs").joinpath(DEFAULT_CONFIG_RESOURCE).read_text(encoding="utf-8")
+        config = zenoh.Config.from_json5(text)
+        config.insert_json5("mode", json.dumps(settings.mode))
+        config.insert_json5("listen/endpoints", json.dumps(list(settings.listen)))
+        config.insert_json5("connect/endpoints", json.dumps(list(settings.connect)))
+        config.insert_json5("scouting/multicast/enabled", json.dumps(settings.multicast_scouting))
+    except (OSError, zenoh.ZError) as err:
+        raise TelemetrySetupError(
+            f"cannot build the Zenoh config from the shipped {DEFAULT_CONFIG_RESOURCE}: {err}"
+        ) from err
+    return config
+
+
+def open_session(settings: ZenohSettings) -> zenoh.Session:
+    """Open a Zenoh session as configured; the caller closes it (``session.close()``)."""
+    config = zenoh_config(settings)
+    try:
+        return zenoh.open(config)
+    except zenoh.ZError as err:
+        raise TelemetrySetupError(
+            f"cannot open a Zenoh session (listen={list(settings.listen)}, "
+            f"connect={list(settings.connect)}): {err}; check the [zenoh] endpoints in the rover config"
+        ) from err
+
+
+def key_prefix(rover_id: str) -> str:
+    if not rover_id or _FORBIDDEN_IN_ID & set(rover_id):
+        raise TelemetrySetupError(
+            f"rover_id {rover_id!r} cannot name a Zenoh key: use a non-empty id without / * $ ? #"
+        )
+    return f"{KEY_PREFIX}/{rover_id}"
+
+
+class ZenohTelemetry:
+    """``MessageSink`` publishing each message to ``rover/<rover_id>/<topic>``.
+
+    The session is the caller's: ``close()`` undeclares our publishers, not the session. One publisher per
+    topic, declared on first use.
+    """
+
+    def __init__(self, session: zenoh.Session, rover_id: str) -> None:
+        self._session = session
+        self._prefix = key_prefix(rover_id)
+        self._publishers: dict[str, zenoh.Publisher] = {}
+        self._closed = False
+        self.published = 0
+        self.failures = 0
+
+    def publish(self, topic: str, log_time_ns: int, message: Message) -> None:
+        if self._closed:
+            raise TelemetryError(f"telemetry {self._prefix} is closed; cannot publish {topic!r}")
+        publisher = self._publishers.get(topic)
+        if publisher is None:
+            publisher = self._declare(topic)
+            if publisher is None:
+                return
+        try:
+            payload = encode_message(message)
+        except (TypeError, ValueError) as err:
+            raise TelemetryError(f"{topic} at {log_time_ns} ns: message cannot be encoded: {err}") from err
+        try:
+            publisher.put(payload, attachment=_LOG_TIME.pack(log_time_ns))
+        except (zenoh.ZError, struct.error) as err:
+            self._failed("put on %s failed: %s", topic, err)
+            return
+        self.published += 1
+
+    def _declare(self, topic: str) -> zenoh.Publisher | None:
+        if topic not in TOPICS:
+            known = ", ".join(sorted(TOPICS))
+            raise TelemetryError(f"cannot publish unknown topic {topic!r}; known topics: {known}")
+        try:
+            publisher = self._session.declare_publisher(
+                f"{self._prefix}/{topic}", encoding=zenoh.Encoding.APPLICATION_JSON
+            )
+        except zenoh.ZError as err:
+            self._failed("cannot declare a publisher for %s: %s", topic, err)
+            return None
+        self._publishers[topic] = publisher
+        return publisher
+
+    def _failed(self, fmt: str, *args: object) -> None:
+        self.failures += 1
+        if self.failures <= _MAX_WARNINGS:
+            logger.warning(fmt, *args)
+
+    def close(self) -> None:
+        """Undeclare the publishers. Safe to call twice."""
+        if self._closed:
+            return
+        self._closed = True
+        for publisher in self._publishers.values():
+            try:
+                publisher.undeclare()
+            except zenoh.ZError as err:
+                logger.debug("undeclaring %s failed: %s", publisher.key_expr, err)
+        self._publishers.clear()
+
+
+@dataclass(frozen=True)
+class TelemetrySample:
+    topic: str
+    log_time_ns: int
+    message: dict[str, Any]
+
+
+class TelemetrySubscription:
+    """A subscriber on ``rover/<rover_id>/**``; samples that do not decode are counted, not raised."""
+
+    def __init__(
+        self, session: zenoh.Session, rover_id: str, callback: Callable[[TelemetrySample], None]
+    ) -> None:
+        self._prefix = key_prefix(rover_id) + "/"
+        self._callback = callback
+        self._lock = threading.Lock()  # zenoh calls back on its own threads
+        self.received = 0
+        self.rejected = 0
+        self._closed = False
+        try:
+            self._subscriber = session.declare_subscriber(self._prefix + "**", self._on_sample)
+        except zenoh.ZError as err:
+            raise TelemetrySetupError(f"cannot subscribe to {self._prefix}**: {err}") from err
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        key = str(sample.key_expr)
+        try:
+            decoded = self._decode(key, sample)
+        except (ValueError, UnicodeDecodeError, struct.error) as err:
+            with self._lock:
+                self.rejected += 1
+                rejected = self.rejected
+            if rejected <= _MAX_WARNINGS:
+                logger.warning("telemetry sample on %s rejected: %s", key, err)
+            return
+        with self._lock:
+            self.received += 1
+        try:
+            self._callback(decoded)
+        except Exception:  # a broken callback must not kill zenoh's delivery thread
+            logger.exception("telemetry callback failed on %s", key)
+
+    def _decode(self, key: str, sample: zenoh.Sample) -> TelemetrySample:
+        if not key.startswith(self._prefix):
+            raise ValueError(f"key outside {self._prefix}")
+        attachment = sample.attachment
+        if attachment is None:
+            raise ValueError("no log-time attachment")
+        (log_time_ns,) = _LOG_TIME.unpack(attachment.to_bytes())
+        message = json.loads(sample.payload.to_bytes())
+        if not isinstance(message, dict):
+            raise ValueError(f"payload is a JSON {type(message).__name__}, not an object")
+        return TelemetrySample(key[len(self._prefix) :], log_time_ns, message)
+
+    def close(self) -> None:
+        """Stop receiving. Safe to call twice."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._subscriber.undeclare()
+        except zenoh.ZError as err:
+            logger.debug("undeclaring the subscriber on %s failed: %s", self._prefix, err)
+
+
+def subscribe(
+    session: zenoh.Session, rover_id: str, callback: Callable[[TelemetrySample], None]
+) -> TelemetrySubscription:
+    """Receive a rover's telemetry; ``callback`` runs on a Zenoh thread, so keep it short."""
+    return TelemetrySubscription(session, rover_id, callback)

@@ -1,0 +1,88 @@
+"""The rover config (``rover.toml``): one file, one section per part, validated on load.
+
+Each section is parsed by the dataclass of the package that owns it; this module only assembles them and
+keeps shared quantities single-sourced (the estimator's odometry kinematics take the vehicle's track and
+skid factor, so the two cannot disagree).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+
+from estimator.config import EstimatorConfig
+from firmware_bridge.can_link import CanConfig
+from firmware_bridge.mavlink_link import MavlinkConfig
+from firmware_bridge.vesc import VescProfile
+from logs.settings import Table, load_toml
+from logs.telemetry import ZenohSettings
+from navigator.follower import FollowerConfig
+from navigator.vehicle import VehicleParams
+
+HEURISTICS = ("octile", "euclidean", "manhattan")
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """A* settings: heuristic name, extra obstacle inflation beyond the footprint (m)."""
+
+    heuristic: str = "octile"
+    inflation_m: float = 0.1
+
+    @classmethod
+    def from_table(cls, table: Table) -> PlannerConfig:
+        config = cls(
+            heuristic=table.text("heuristic", cls.heuristic, choices=HEURISTICS),
+            inflation_m=table.number("inflation_m", cls.inflation_m, lo=0.0, hi=10.0),
+        )
+        table.finish()
+        return config
+
+
+@dataclass(frozen=True)
+class RoverConfig:
+    rover_id: str
+    control_rate_hz: float
+    vehicle: VehicleParams
+    vesc: VescProfile
+    can: CanConfig
+    mavlink: MavlinkConfig
+    zenoh: ZenohSettings
+    estimator: EstimatorConfig
+    planner: PlannerConfig
+    follower: FollowerConfig
+    source: str = "<defaults>"
+
+
+def load_rover_config(path: str | Path) -> RoverConfig:
+    """Read and validate a rover config file; raises ``logs.settings.ConfigError`` naming file and key."""
+    return rover_config_from_table(load_toml(path))
+
+
+def rover_config_from_table(root: Table) -> RoverConfig:
+    rover_id = root.text("rover_id", "rover1")
+    if not rover_id or not all(c.isalnum() or c in "-_" for c in rover_id):
+        raise root.error(
+            "rover_id", f"use letters, digits, '-' and '_' only (it becomes a Zenoh key), got {rover_id!r}"
+        )
+    control_rate_hz = root.number("control_rate_hz", 50.0, lo=1.0, hi=1000.0)
+    vehicle = VehicleParams.from_table(root.table("vehicle", optional=True))
+    vesc = VescProfile.from_table(root.table("vesc", optional=True), wheel_radius_m=vehicle.wheel_radius_m)
+    estimator = EstimatorConfig.from_table(root.table("estimator", optional=True))
+    estimator = dataclasses.replace(estimator, track_m=vehicle.track_m, skid_factor=vehicle.skid_factor)
+    config = RoverConfig(
+        rover_id=rover_id,
+        control_rate_hz=control_rate_hz,
+        vehicle=vehicle,
+        vesc=vesc,
+        can=CanConfig.from_table(root.table("can", optional=True)),
+        mavlink=MavlinkConfig.from_table(root.table("mavlink", optional=True)),
+        zenoh=ZenohSettings.from_table(root.table("zenoh", optional=True)),
+        estimator=estimator,
+        planner=PlannerConfig.from_table(root.table("planner", optional=True)),
+        follower=FollowerConfig.from_table(root.table("follower", optional=True)),
+        source=root.source,
+    )
+    root.finish()
+    return config

@@ -1,0 +1,203 @@
+"""Pure pursuit path following for a skid-steer rover: speed and yaw-rate commands toward a lookahead point.
+
+Geometry (Coulter, "Implementation of the Pure Pursuit Path Tracking Algorithm", CMU-RI-TR-92-01): the arc
+through the rover tangent to its heading and through a point ``L`` ahead at bearing ``alpha`` off the
+heading has curvature ``kappa = 2 sin(alpha) / L``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from logs.settings import Table
+from navigator.errors import ParameterError
+
+REASON_MAX_SPEED = "max_speed"
+REASON_CURVATURE = "curvature"
+REASON_GOAL_APPROACH = "goal_approach"
+REASON_TURN_IN_PLACE = "turn_in_place"
+
+
+@dataclass(frozen=True)
+class FollowerConfig:
+    """Tuning of the pure-pursuit follower (SI units)."""
+
+    lookahead_m: float = 1.2
+    lookahead_gain_s: float = 0.5  # lookahead grows with speed: L = lookahead_m + gain * |speed|
+    max_speed_mps: float = 1.0
+    max_yaw_rate_rps: float = 1.2
+    max_lateral_accel_mps2: float = 1.0
+    goal_tolerance_m: float = 0.5
+    slowdown_radius_m: float = 2.0
+    turn_in_place_rad: float = math.radians(60.0)  # target further off the heading: stop and turn
+    min_speed_mps: float = 0.1  # creep speed near the goal, so the approach slowdown still arrives
+
+    def __post_init__(self) -> None:
+        for field in fields(self):
+            value = getattr(self, field.name)
+            lower_ok = value >= 0.0 if field.name in ("lookahead_gain_s", "min_speed_mps") else value > 0.0
+            if not isinstance(value, int | float) or not math.isfinite(value) or not lower_ok:
+                raise ParameterError(
+                    f"follower setting {field.name} must be a finite number > 0, got {value!r}"
+                )
+        if self.turn_in_place_rad > math.pi:
+            raise ParameterError(f"follower turn_in_place_rad must be <= pi, got {self.turn_in_place_rad}")
+        if self.min_speed_mps > self.max_speed_mps:
+            raise ParameterError("follower min_speed_mps must not exceed max_speed_mps")
+
+    @classmethod
+    def from_table(cls, table: Table) -> FollowerConfig:
+        """Read a ``[follower]`` table; every key optional, unknown keys are errors (ConfigError)."""
+        defaults = cls()
+        values: dict[str, float] = {}
+        for field in fields(cls):
+            upper = math.pi if field.name == "turn_in_place_rad" else None
+            value = table.number(field.name, getattr(defaults, field.name), lo=0.0, hi=upper)
+            if value == 0.0 and field.name not in ("lookahead_gain_s", "min_speed_mps"):
+                raise table.error(field.name, "must be > 0")
+            values[field.name] = value
+        if values["min_speed_mps"] > values["max_speed_mps"]:
+            raise table.error("min_speed_mps", f"must not exceed max_speed_mps ({values['max_speed_mps']})")
+        table.finish()
+        return cls(**values)
+
+
+@dataclass(frozen=True)
+class FollowCommand:
+    speed_mps: float
+    yaw_rate_rps: float
+    cross_track_error_m: float  # signed distance to the path, positive when the rover is left of it
+    speed_limit_mps: float
+    speed_limit_reason: str  # "max_speed", "curvature", "goal_approach" or "turn_in_place"
+    arrived: bool
+
+
+def _wrap(angle: float) -> float:
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+class PurePursuit:
+    """Stateful follower: remembers how far along the current path the rover has got (never backwards).
+
+    Passing a different path to ``command`` starts over at its beginning.
+    """
+
+    def __init__(self, config: FollowerConfig) -> None:
+        self._config = config
+        self._path: np.ndarray | None = None
+        self._arc: np.ndarray = np.zeros(1)  # cumulative length at each vertex
+        self._segment = 0
+        self._progress_m = 0.0
+
+    @property
+    def config(self) -> FollowerConfig:
+        return self._config
+
+    def reset(self) -> None:
+        self._path = None
+        self._segment = 0
+        self._progress_m = 0.0
+
+    def command(self, x: float, y: float, yaw: float, speed: float, path: np.ndarray) -> FollowCommand:
+        """Command for a rover at (x, y) heading ``yaw`` (ENU, rad) moving at ``speed`` along ``path``.
+
+        ``path``: ``(n, 2)`` ENU metres, n >= 1. ParameterError for a malformed path or non-finite pose.
+        """
+        cfg = self._config
+        if not all(math.isfinite(v) for v in (x, y, yaw, speed)):
+            raise ParameterError(f"rover pose must be finite, got x={x}, y={y}, yaw={yaw}, speed={speed}")
+        points = self._adopt(path)
+        lookahead = cfg.lookahead_m + cfg.lookahead_gain_s * abs(speed)
+
+        projection, cross_track = self._project(points, x, y, lookahead)
+        total = float(self._arc[-1])
+        goal = points[-1]
+        distance_to_goal = math.hypot(goal[0] - x, goal[1] - y)
+        remaining = max(total - projection, 0.0)
+        if distance_to_goal <= cfg.goal_tolerance_m and remaining <= max(lookahead, cfg.goal_tolerance_m):
+            return FollowCommand(0.0, 0.0, cross_track, 0.0, REASON_GOAL_APPROACH, True)
+
+        target = self._point_at(points, projection + lookahead)
+        bearing_error = _wrap(math.atan2(target[1] - y, target[0] - x) - yaw)
+        if abs(bearing_error) > cfg.turn_in_place_rad:
+            yaw_rate = math.copysign(cfg.max_yaw_rate_rps, bearing_error)
+            return FollowCommand(0.0, yaw_rate, cross_track, 0.0, REASON_TURN_IN_PLACE, False)
+
+        chord = max(math.hypot(target[0] - x, target[1] - y), 1e-6)
+        curvature = 2.0 * math.sin(bearing_error) / chord
+        limits = [(cfg.max_speed_mps, REASON_MAX_SPEED)]
+        if abs(curvature) > 1e-9:
+            turn_limit = min(
+                math.sqrt(cfg.max_lateral_accel_mps2 / abs(curvature)), cfg.max_yaw_rate_rps / abs(curvature)
+            )
+            limits.append((turn_limit, REASON_CURVATURE))
+        approach = max(distance_to_goal, remaining)
+        limits.append(
+            (
+                max(cfg.min_speed_mps, cfg.max_speed_mps * approach / cfg.slowdown_radius_m),
+                REASON_GOAL_APPROACH,
+            )
+        )
+        # The first (in listed order) of the smallest limits names the reason.
+        limit, reason = min(limits, key=lambda item: item[0])
+        return FollowCommand(limit, limit * curvature, cross_track, limit, reason, False)
+
+    # --- path bookkeeping -------------------------------------------------------------------------
+    def _adopt(self, path: np.ndarray) -> np.ndarray:
+        points = np.asarray(path, dtype=np.float64)
+        if points.ndim != 2 or points.shape[1] != 2 or points.shape[0] < 1:
+            raise ParameterError(
+                f"path must be an (n, 2) array of ENU points with n >= 1, got {points.shape}"
+            )
+        if not np.all(np.isfinite(points)):
+            raise ParameterError("path holds non-finite points")
+        if self._path is None or self._path.shape != points.shape or not np.array_equal(self._path, points):
+            self._path = points.copy()
+            lengths = np.hypot(*np.diff(points, axis=0).T) if len(points) > 1 else np.zeros(0)
+            self._arc = np.concatenate([[0.0], np.cumsum(lengths)])
+            self._segment = 0
+            self._progress_m = 0.0
+        return self._path
+
+    def _project(self, points: np.ndarray, x: float, y: float, lookahead: float) -> tuple[float, float]:
+        """Arc length of the rover's projection on the path and its signed cross-track error.
+
+        Only segments from the current one up to a window ahead are searched, so a path that doubles back
+        near itself cannot make the projection jump; the chosen segment index never decreases.
+        """
+        if len(points) == 1:
+            return 0.0, 0.0
+        window_end = self._progress_m + 2.0 * lookahead + 1.0
+        last = int(np.searchsorted(self._arc, window_end, side="right"))
+        first = self._segment
+        last = min(max(last, first + 1), len(points) - 1)
+        starts = points[first:last]
+        ends = points[first + 1 : last + 1]
+        deltas = ends - starts
+        lengths_sq = np.maximum(np.sum(deltas * deltas, axis=1), 1e-12)
+        offsets = np.array([x, y]) - starts
+        t = np.clip(np.sum(offsets * deltas, axis=1) / lengths_sq, 0.0, 1.0)
+        nearest = starts + t[:, np.newaxis] * deltas
+        distances = np.hypot(*(np.array([x, y]) - nearest).T)
+        best = int(np.argmin(distances))
+        self._segment = first + best
+        length = math.sqrt(float(lengths_sq[best]))
+        projection = float(self._arc[self._segment]) + float(t[best]) * length
+        self._progress_m = max(self._progress_m, projection)
+        direction = deltas[best] / length
+        offset = np.array([x, y]) - nearest[best]
+        cross_track = float(direction[0] * offset[1] - direction[1] * offset[0])
+        return projection, cross_track
+
+    def _point_at(self, points: np.ndarray, arc_m: float) -> np.ndarray:
+        """The path point ``arc_m`` along the path (clamped to its ends)."""
+        if len(points) == 1 or arc_m >= self._arc[-1]:
+            return points[-1]
+        index = int(np.searchsorted(self._arc, arc_m, side="right")) - 1
+        index = min(max(index, 0), len(points) - 2)
+        span = float(self._arc[index + 1] - self._arc[index])
+        fraction = 0.0 if span <= 0.0 else (arc_m - float(self._arc[index])) / span
+        return points[index] + fraction * (points[index + 1] - points[index])

@@ -1,0 +1,124 @@
+"""World-frame planning: ENU points -> map cells -> A* over the traversability grid -> ENU waypoints."""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from navigator.astar import HEURISTICS, astar
+from navigator.costs import CostModel
+from navigator.errors import PlanningError, TerrainError
+from navigator.terrain import TerrainMap
+from navigator.terrain_classes import TERRAIN_CLASSES, TerrainClass
+from navigator.vehicle import VehicleParams
+
+_log = logging.getLogger(__name__)
+
+ESCAPE_RADIUS_M = 1.5
+
+
+@dataclass(frozen=True)
+class Path:
+    """A planned path in local ENU.
+
+    ``points``: ``(n, 2)`` metres, first the start position, last the goal position, cell centres between.
+    ``cost``: the A* cost times the map resolution (cost-weighted metres). ``length_m``: polyline length.
+    """
+
+    points: np.ndarray
+    cost: float
+    length_m: float
+    expanded: int
+
+
+class Planner:
+    """Plans over one terrain map with the vehicle parameters the navigator believes; caches the cost grid."""
+
+    def __init__(
+        self,
+        terrain: TerrainMap,
+        params: VehicleParams,
+        *,
+        heuristic: str = "octile",
+        inflation_m: float = 0.1,
+        classes: dict[int, TerrainClass] = TERRAIN_CLASSES,
+        cost_model: CostModel | None = None,
+    ) -> None:
+        if heuristic not in HEURISTICS:
+            raise PlanningError(f"unknown heuristic {heuristic!r}; choose one of {', '.join(HEURISTICS)}")
+        self._params = params
+        self._classes = classes
+        self._heuristic = heuristic
+        self._cost_model = cost_model or CostModel(inflation_m=inflation_m)
+        self._terrain = terrain
+        self._cost = self._cost_model.grid(terrain, params, classes)
+
+    @property
+    def terrain(self) -> TerrainMap:
+        return self._terrain
+
+    @property
+    def cost_grid(self) -> np.ndarray:
+        """The cached ``(rows, cols)`` cost grid (read-only view)."""
+        view = self._cost.view()
+        view.setflags(write=False)
+        return view
+
+    def update_obstacles(self, mask: np.ndarray) -> None:
+        """Add obstacle cells (bool, map shape) and recompute the cost grid."""
+        self._terrain = self._terrain.with_obstacles(mask)
+        self._cost = self._cost_model.grid(self._terrain, self._params, self._classes)
+
+    def plan(self, start_xy: tuple[float, float], goal_xy: tuple[float, float]) -> Path:
+        """Path from ``start_xy`` to ``goal_xy`` (ENU metres); PlanningError / NoPathError when impossible.
+
+        A rover whose estimated position lies in the clearance band around an obstacle (estimation noise,
+        or it was pushed there) starts from the nearest free cell within ``ESCAPE_RADIUS_M``: the path then
+        leads it out of the band. Inside an obstacle cell itself there is no such escape.
+        """
+        start_cell = self._escape(self._cell(start_xy, "start"))
+        goal_cell = self._cell(goal_xy, "goal")
+        result = astar(self._cost, start_cell, goal_cell, self._heuristic)
+        centres = [self._terrain.center_of(row, col) for row, col in result.cells]
+        # The ends are the exact positions asked for, not their cell centres.
+        inner = centres[1:-1]
+        points = np.array([tuple(map(float, start_xy)), *inner, tuple(map(float, goal_xy))], dtype=np.float64)
+        length = float(np.sum(np.hypot(*np.diff(points, axis=0).T)))
+        path = Path(points, result.cost * self._terrain.resolution_m, length, result.expanded)
+        _log.debug(
+            "planned %d points, %.1f m, cost %.1f, %d cells expanded",
+            len(points),
+            length,
+            path.cost,
+            path.expanded,
+        )
+        return path
+
+    def _escape(self, cell: tuple[int, int]) -> tuple[int, int]:
+        row, col = cell
+        if np.isfinite(self._cost[row, col]) or self._terrain.obstacles[row, col]:
+            return cell
+        reach = int(np.ceil(ESCAPE_RADIUS_M / self._terrain.resolution_m))
+        rows = slice(max(0, row - reach), row + reach + 1)
+        cols = slice(max(0, col - reach), col + reach + 1)
+        window = self._cost[rows, cols]
+        free_rows, free_cols = np.nonzero(np.isfinite(window))
+        if free_rows.size == 0:
+            return cell  # A* reports the lethal start with its own clear error
+        rr = free_rows + rows.start
+        cc = free_cols + cols.start
+        nearest = int(np.argmin((rr - row) ** 2 + (cc - col) ** 2))
+        _log.info(
+            "start cell %s is inside a clearance band; starting from free cell %s",
+            cell,
+            (rr[nearest], cc[nearest]),
+        )
+        return int(rr[nearest]), int(cc[nearest])
+
+    def _cell(self, xy: tuple[float, float], what: str) -> tuple[int, int]:
+        try:
+            return self._terrain.cell_of(float(xy[0]), float(xy[1]))
+        except TerrainError as err:
+            raise PlanningError(f"{what} position is not on the map: {err}") from err

@@ -1,0 +1,341 @@
+"""The terrain map: elevation, terrain class and obstacle layers on one regular grid in local ENU.
+
+Cell ``(row, col)`` covers ``x in [ox + col*res, ox + (col+1)*res)`` and ``y in [oy + row*res, ...)``:
+rows run north (y), columns run east (x), and row 0 is the southern edge. Elevation samples sit at cell
+centres; between centres it is bilinear.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from navigator.errors import TerrainError
+from navigator.terrain_classes import TERRAIN_CLASSES
+
+MAZE_WALL = 1
+MAZE_OPEN = 2
+
+
+def _frozen(array: np.ndarray) -> np.ndarray:
+    copy = np.array(array, copy=True)
+    copy.setflags(write=False)
+    return copy
+
+
+@dataclass(frozen=True, eq=False)
+class TerrainMap:
+    """Immutable terrain layers; construct through the loaders or directly (validated either way).
+
+    Layers (all ``(rows, cols)``): ``elevation_m`` float64 metres up, ``terrain_class`` uint8 ids from
+    ``TERRAIN_CLASSES``, ``obstacles`` bool (True = something the rover must not touch).
+    """
+
+    elevation_m: np.ndarray
+    terrain_class: np.ndarray
+    obstacles: np.ndarray
+    resolution_m: float
+    origin_xy: tuple[float, float] = (0.0, 0.0)
+    _grad_x: np.ndarray = field(init=False, repr=False)
+    _grad_y: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.resolution_m, int | float) or not (
+            math.isfinite(self.resolution_m) and self.resolution_m > 0.0
+        ):
+            raise TerrainError(f"terrain resolution_m must be a finite number > 0, got {self.resolution_m!r}")
+        if len(self.origin_xy) != 2 or not all(math.isfinite(float(v)) for v in self.origin_xy):
+            raise TerrainError(f"terrain origin_xy must be two finite numbers, got {self.origin_xy!r}")
+        elevation = np.asarray(self.elevation_m, dtype=np.float64)
+        if elevation.ndim != 2 or elevation.size == 0:
+            raise TerrainError(f"elevation layer must be a non-empty 2-D array, got shape {elevation.shape}")
+        if not np.all(np.isfinite(elevation)):
+            row, col = np.argwhere(~np.isfinite(elevation))[0]
+            raise TerrainError(f"elevation layer holds a non-finite value at cell (row {row}, col {col})")
+        classes = np.asarray(self.terrain_class)
+        obstacles = np.asarray(self.obstacles)
+        for name, layer in (("terrain_class", classes), ("obstacles", obstacles)):
+            if layer.shape != elevation.shape:
+                raise TerrainError(
+                    f"{name} layer has shape {layer.shape} but the elevation layer has {elevation.shape}; "
+                    "all layers must share one grid"
+                )
+        if not np.issubdtype(classes.dtype, np.integer):
+            raise TerrainError(f"terrain_class layer must hold integer class ids, got dtype {classes.dtype}")
+        unknown = ~np.isin(classes, list(TERRAIN_CLASSES))
+        if np.any(unknown):
+            row, col = np.argwhere(unknown)[0]
+            raise TerrainError(
+                f"unknown terrain class {int(classes[row, col])} at cell (row {row}, col {col}); "
+                f"known ids: {sorted(TERRAIN_CLASSES)}"
+            )
+        if obstacles.dtype != np.bool_:
+            if not np.all(np.isin(obstacles, (0, 1))):
+                raise TerrainError("obstacles layer must be boolean (or 0/1)")
+            obstacles = obstacles.astype(bool)
+        set_ = object.__setattr__  # frozen dataclass: normalise the layers once, here
+        set_(self, "resolution_m", float(self.resolution_m))
+        set_(self, "origin_xy", (float(self.origin_xy[0]), float(self.origin_xy[1])))
+        set_(self, "elevation_m", _frozen(elevation))
+        set_(self, "terrain_class", _frozen(classes.astype(np.uint8)))
+        set_(self, "obstacles", _frozen(obstacles))
+        grad_y, grad_x = _gradient(elevation, self.resolution_m)
+        set_(self, "_grad_x", _frozen(grad_x))
+        set_(self, "_grad_y", _frozen(grad_y))
+
+    # --- geometry ---------------------------------------------------------------------------------
+    @property
+    def shape(self) -> tuple[int, int]:
+        rows, cols = self.elevation_m.shape
+        return int(rows), int(cols)
+
+    @property
+    def size_m(self) -> tuple[float, float]:
+        """(width east, height north) in metres."""
+        rows, cols = self.shape
+        return cols * self.resolution_m, rows * self.resolution_m
+
+    def contains(self, x: float, y: float) -> bool:
+        width, height = self.size_m
+        dx, dy = x - self.origin_xy[0], y - self.origin_xy[1]
+        return 0.0 <= dx < width and 0.0 <= dy < height
+
+    def cell_of(self, x: float, y: float) -> tuple[int, int]:
+        """(row, col) of the cell holding the point; TerrainError when it is off the map."""
+        if not (math.isfinite(x) and math.isfinite(y)) or not self.contains(x, y):
+            width, height = self.size_m
+            ox, oy = self.origin_xy
+            raise TerrainError(
+                f"point ({x:.3f}, {y:.3f}) is off the map, which covers x [{ox}, {ox + width}) "
+                f"and y [{oy}, {oy + height})"
+            )
+        rows, cols = self.shape
+        col = min(int((x - self.origin_xy[0]) // self.resolution_m), cols - 1)
+        row = min(int((y - self.origin_xy[1]) // self.resolution_m), rows - 1)
+        return row, col
+
+    def center_of(self, row: int, col: int) -> tuple[float, float]:
+        rows, cols = self.shape
+        if not (0 <= row < rows and 0 <= col < cols):
+            raise TerrainError(f"cell (row {row}, col {col}) is outside the {rows} x {cols} map")
+        return (
+            self.origin_xy[0] + (col + 0.5) * self.resolution_m,
+            self.origin_xy[1] + (row + 0.5) * self.resolution_m,
+        )
+
+    # --- queries ----------------------------------------------------------------------------------
+    def class_at(self, x: float, y: float) -> int:
+        return int(self.terrain_class[self.cell_of(x, y)])
+
+    def elevation_at(self, x: float, y: float) -> float:
+        """Bilinear elevation between cell centres (held constant past the outer centres)."""
+        self.cell_of(x, y)  # raises when off the map
+        return self._bilinear(self.elevation_m, x, y)
+
+    def slope_gradient(self) -> tuple[np.ndarray, np.ndarray]:
+        """(dz/dx, dz/dy) per cell, dimensionless, central differences with spacing ``resolution_m``."""
+        return self._grad_x, self._grad_y
+
+    def tilt_at(self, x: float, y: float, yaw: float) -> tuple[float, float]:
+        """(roll, pitch) in rad of a rover at (x, y) heading ``yaw``, resting on the local terrain plane.
+
+        With the gradient (bilinear between centres) resolved into a forward slope ``s_f`` and a leftward
+        slope ``s_l``: ``pitch = atan(s_f)`` (nose up positive) and
+        ``roll = atan2(s_l, sqrt(1 + s_f^2))`` (positive when the ground rises to the left, i.e. the right
+        side is lower). These are the exact yaw-pitch-roll angles of a body lying on that plane.
+        """
+        self.cell_of(x, y)
+        gx = self._bilinear(self._grad_x, x, y)
+        gy = self._bilinear(self._grad_y, x, y)
+        cos_yaw, sin_yaw = math.cos(yaw), math.sin(yaw)
+        slope_forward = gx * cos_yaw + gy * sin_yaw
+        slope_left = -gx * sin_yaw + gy * cos_yaw
+        pitch = math.atan(slope_forward)
+        roll = math.atan2(slope_left, math.sqrt(1.0 + slope_forward * slope_forward))
+        return roll, pitch
+
+    def with_obstacles(self, extra_mask: np.ndarray) -> TerrainMap:
+        """A copy with ``extra_mask`` (bool, map shape) added to the obstacle layer."""
+        extra = np.asarray(extra_mask)
+        if extra.shape != self.obstacles.shape:
+            raise TerrainError(f"obstacle mask has shape {extra.shape}, the map has {self.obstacles.shape}")
+        return TerrainMap(
+            self.elevation_m, self.terrain_class, self.obstacles | extra.astype(bool), self.resolution_m,
+            self.origin_xy,
+        )  # fmt: skip
+
+    def _bilinear(self, layer: np.ndarray, x: float, y: float) -> float:
+        rows, cols = self.shape
+        fx = min(max((x - self.origin_xy[0]) / self.resolution_m - 0.5, 0.0), cols - 1.0)
+        fy = min(max((y - self.origin_xy[1]) / self.resolution_m - 0.5, 0.0), rows - 1.0)
+        c0, r0 = int(fx), int(fy)
+        c1, r1 = min(c0 + 1, cols - 1), min(r0 + 1, rows - 1)
+        tx, ty = fx - c0, fy - r0
+        south = (1.0 - tx) * layer[r0, c0] + tx * layer[r0, c1]
+        north = (1.0 - tx) * layer[r1, c0] + tx * layer[r1, c1]
+        return float((1.0 - ty) * south + ty * north)
+
+
+def _gradient(elevation: np.ndarray, resolution_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """(dz/dy, dz/dx); np.gradient needs two samples along an axis, a single row/column is flat."""
+    zeros = np.zeros_like(elevation)
+    rows, cols = elevation.shape
+    grad_y = np.gradient(elevation, resolution_m, axis=0) if rows > 1 else zeros
+    grad_x = np.gradient(elevation, resolution_m, axis=1) if cols > 1 else zeros
+    return grad_y, grad_x
+
+
+# --- loaders -------------------------------------------------------------------------------------------
+def from_maze(
+    matrix: Sequence[Sequence[int]] | np.ndarray,
+    cell_size_m: float,
+    terrain_class: int = 0,
+    *,
+    resolution_m: float | None = None,
+    origin_xy: tuple[float, float] = (0.0, 0.0),
+) -> TerrainMap:
+    """The paper's maze (1 = wall, 2 = open) as a flat map; matrix row 0 is the southern edge.
+
+    Each maze cell becomes ``cell_size_m`` of ground, split into grid cells of ``resolution_m``
+    (default: one grid cell per maze cell; it must divide ``cell_size_m``).
+    """
+    try:
+        maze = np.array(matrix, dtype=np.int64)
+    except (TypeError, ValueError) as err:
+        raise TerrainError(f"maze matrix must be a rectangular list of integers: {err}") from err
+    if maze.ndim != 2 or maze.size == 0:
+        raise TerrainError(f"maze matrix must be a non-empty rectangle of rows, got shape {maze.shape}")
+    bad = ~np.isin(maze, (MAZE_WALL, MAZE_OPEN))
+    if np.any(bad):
+        row, col = np.argwhere(bad)[0]
+        raise TerrainError(
+            f"maze cell (row {row}, col {col}) holds {int(maze[row, col])}; "
+            f"only {MAZE_WALL} (wall) and {MAZE_OPEN} (open) are allowed"
+        )
+    if not (math.isfinite(cell_size_m) and cell_size_m > 0.0):
+        raise TerrainError(f"maze cell_size_m must be > 0, got {cell_size_m}")
+    resolution = cell_size_m if resolution_m is None else resolution_m
+    ratio = cell_size_m / resolution if resolution > 0.0 else math.nan
+    if not math.isfinite(ratio) or abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+        raise TerrainError(
+            f"maze resolution_m {resolution_m} must be > 0 and divide cell_size_m {cell_size_m} evenly"
+        )
+    upsample = round(ratio)
+    walls = np.kron(maze == MAZE_WALL, np.ones((upsample, upsample), dtype=bool))
+    return TerrainMap(
+        elevation_m=np.zeros(walls.shape),
+        terrain_class=np.full(walls.shape, terrain_class, dtype=np.int64),
+        obstacles=walls,
+        resolution_m=resolution,
+        origin_xy=origin_xy,
+    )
+
+
+def _load_layer(path: str | Path, name: str) -> np.ndarray:
+    try:
+        layer = np.load(path, allow_pickle=False)
+    except FileNotFoundError as err:
+        raise TerrainError(f"{name} layer file {str(path)!r} not found") from err
+    except (OSError, ValueError) as err:
+        raise TerrainError(f"{name} layer file {str(path)!r} is not a readable .npy array: {err}") from err
+    if not isinstance(layer, np.ndarray) or layer.ndim != 2:
+        raise TerrainError(f"{name} layer file {str(path)!r} must hold one 2-D array")
+    return layer
+
+
+def load_npy_layers(
+    elevation: str | Path | None = None,
+    classes: str | Path | None = None,
+    obstacles: str | Path | None = None,
+    *,
+    resolution_m: float,
+    origin: tuple[float, float] = (0.0, 0.0),
+    base_class: int = 0,
+) -> TerrainMap:
+    """A map from ``.npy`` layers; a missing layer is flat / ``base_class`` / obstacle-free."""
+    loaded = {
+        name: _load_layer(path, name)
+        for name, path in (("elevation", elevation), ("classes", classes), ("obstacles", obstacles))
+        if path is not None
+    }
+    if not loaded:
+        raise TerrainError("load_npy_layers needs at least one layer file to know the map's shape")
+    shape = next(iter(loaded.values())).shape
+    class_layer = loaded.get("classes", np.full(shape, base_class, dtype=np.int64))
+    if "classes" in loaded and np.issubdtype(class_layer.dtype, np.floating):
+        if not np.all(np.isfinite(class_layer)) or not np.all(class_layer == np.round(class_layer)):
+            raise TerrainError(f"classes layer {str(classes)!r} must hold whole-number class ids")
+        class_layer = class_layer.astype(np.int64)
+    return TerrainMap(
+        elevation_m=loaded.get("elevation", np.zeros(shape)),
+        terrain_class=class_layer,
+        obstacles=loaded.get("obstacles", np.zeros(shape, dtype=bool)),
+        resolution_m=resolution_m,
+        origin_xy=origin,
+    )
+
+
+def procedural(
+    shape: tuple[int, int],
+    resolution_m: float,
+    rng: np.random.Generator,
+    base_class: int = 0,
+    hill_height_m: float = 0.5,
+    hill_count: int = 4,
+    class_patch_count: int = 0,
+    *,
+    patch_classes: Sequence[int] | None = None,
+    hill_radius_m: tuple[float, float] = (2.0, 6.0),
+    patch_radius_m: tuple[float, float] = (1.0, 3.0),
+    origin_xy: tuple[float, float] = (0.0, 0.0),
+) -> TerrainMap:
+    """Seeded smooth hills (a sum of Gaussian bumps) on ``base_class`` ground with disc patches of others.
+
+    Each hill: centre uniform on the map, sigma uniform in ``hill_radius_m``, height uniform in
+    ``[0.5, 1] x hill_height_m``. Each patch: a disc of radius uniform in ``patch_radius_m`` of a class
+    drawn from ``patch_classes`` (default: every class but the base). Same rng state => same map.
+    """
+    rows, cols = shape
+    if rows < 1 or cols < 1:
+        raise TerrainError(f"procedural terrain shape must be at least 1 x 1, got {shape}")
+    if hill_count < 0 or class_patch_count < 0 or hill_height_m < 0.0:
+        raise TerrainError("procedural hill_count, class_patch_count and hill_height_m must be >= 0")
+    if base_class not in TERRAIN_CLASSES:
+        raise TerrainError(f"unknown base terrain class {base_class}; known ids: {sorted(TERRAIN_CLASSES)}")
+    ox, oy = origin_xy
+    xs = ox + (np.arange(cols) + 0.5) * resolution_m
+    ys = oy + (np.arange(rows) + 0.5) * resolution_m
+    grid_x, grid_y = np.meshgrid(xs, ys)
+    width, height = cols * resolution_m, rows * resolution_m
+
+    elevation = np.zeros(shape)
+    for _ in range(hill_count):
+        cx, cy = ox + rng.uniform(0.0, width), oy + rng.uniform(0.0, height)
+        sigma = rng.uniform(*hill_radius_m)
+        peak = rng.uniform(0.5, 1.0) * hill_height_m
+        elevation += peak * np.exp(-((grid_x - cx) ** 2 + (grid_y - cy) ** 2) / (2.0 * sigma**2))
+
+    classes = np.full(shape, base_class, dtype=np.int64)
+    choices = [c for c in (patch_classes or TERRAIN_CLASSES) if c != base_class]
+    for _ in range(class_patch_count if choices else 0):
+        cx, cy = ox + rng.uniform(0.0, width), oy + rng.uniform(0.0, height)
+        radius = rng.uniform(*patch_radius_m)
+        patch_class = choices[int(rng.integers(len(choices)))]
+        classes[(grid_x - cx) ** 2 + (grid_y - cy) ** 2 <= radius**2] = patch_class
+
+    return TerrainMap(elevation, classes, np.zeros(shape, dtype=bool), resolution_m, origin_xy)
+
+
+def disc_mask(terrain: TerrainMap, x: float, y: float, radius: float) -> np.ndarray:
+    """Cells whose centre lies within ``radius`` of (x, y); at least the cell holding (x, y) if on the map."""
+    rows, cols = terrain.shape
+    xs = terrain.origin_xy[0] + (np.arange(cols) + 0.5) * terrain.resolution_m
+    ys = terrain.origin_xy[1] + (np.arange(rows) + 0.5) * terrain.resolution_m
+    mask = (xs[np.newaxis, :] - x) ** 2 + (ys[:, np.newaxis] - y) ** 2 <= radius**2
+    if terrain.contains(x, y):
+        mask[terrain.cell_of(x, y)] = True
+    return mask

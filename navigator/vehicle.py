@@ -1,0 +1,180 @@
+"""The rover's body and the paper's physics, written once.
+
+The planner calls these functions with the parameters it *believes*, the simulator (``hil.dynamics``)
+with the *true* ones, so a mismatch between assumed and real terrain can be simulated.
+
+Conventions (body axes x forward, y left, z up):
+
+* ``pitch`` is positive **nose up**; ``roll`` is positive when the **right side is lower** (a right-hand
+  rotation about the forward axis lifts the left side). Note that nose-up pitch is a *negative* right-hand
+  rotation about the left (y) axis; we keep the spec's "nose up positive" because it reads naturally for
+  slopes.
+* Wheel order: ``[left front, left middle, left rear, right front, right middle, right rear]``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from logs.settings import Table
+from navigator.errors import ParameterError
+
+G = 9.81  # m/s^2
+
+# Axle positions along the body x axis in units of half the wheelbase: front, middle, rear.
+_AXLE_X_UNITS = (1.0, 0.0, -1.0)
+
+
+@dataclass(frozen=True)
+class VehicleParams:
+    """Geometry and mass of the six-wheeled skid-steer rover (SI units)."""
+
+    mass_kg: float = 45.0
+    cg_height_m: float = 0.30
+    wheelbase_m: float = 0.70  # front to rear axle; the middle axle sits halfway
+    track_m: float = 0.55  # left to right wheel centres
+    wheel_radius_m: float = 0.11
+    max_wheel_speed_mps: float = 1.5
+    footprint_length_m: float = 0.90
+    footprint_width_m: float = 0.70
+    # Skid-steer turns need more wheel-speed difference than the geometric track suggests (the tyres scrub
+    # sideways); effective track = track x skid_factor. Mixing, odometry and the simulator all use it.
+    skid_factor: float = 1.6
+
+    def __post_init__(self) -> None:
+        for field in fields(self):
+            value = getattr(self, field.name)
+            if not isinstance(value, int | float) or not math.isfinite(value) or value <= 0.0:
+                raise ParameterError(
+                    f"vehicle parameter {field.name} must be a finite number > 0, got {value!r}"
+                )
+        if self.skid_factor < 1.0:
+            raise ParameterError(
+                f"vehicle parameter skid_factor must be >= 1 (skidding only widens the track), "
+                f"got {self.skid_factor}"
+            )
+
+    @classmethod
+    def from_table(cls, table: Table) -> VehicleParams:
+        """Read a ``[vehicle]`` table; every key optional, unknown keys are errors (ConfigError)."""
+        defaults = cls()
+        values: dict[str, float] = {}
+        for field in fields(cls):
+            lower = 1.0 if field.name == "skid_factor" else 0.0
+            value = table.number(field.name, getattr(defaults, field.name), lo=lower)
+            if value <= 0.0:
+                raise table.error(field.name, f"must be > 0, got {value}")
+            values[field.name] = value
+        table.finish()
+        return cls(**values)
+
+    @property
+    def effective_track_m(self) -> float:
+        return self.track_m * self.skid_factor
+
+    @property
+    def footprint_radius_m(self) -> float:
+        """Radius of the circle around the footprint rectangle (half its diagonal)."""
+        return 0.5 * math.hypot(self.footprint_length_m, self.footprint_width_m)
+
+    @property
+    def tip_roll_rad(self) -> float:
+        """Static side tilt at which the centre of gravity is above the downhill wheels."""
+        return math.atan((self.track_m / 2.0) / self.cg_height_m)
+
+    @property
+    def tip_pitch_rad(self) -> float:
+        """Static fore/aft tilt at which the centre of gravity is above the downhill (end) axle."""
+        return math.atan((self.wheelbase_m / 2.0) / self.cg_height_m)
+
+
+def slope_acceleration(theta_rad: float, mu: float) -> float:
+    """The paper's law ``a = g (sin θ − μ cos θ)`` along a slope of angle θ, in m/s².
+
+    Positive means a body resting on friction μ slides down the slope with that acceleration; zero or
+    negative means friction can hold it (the caller treats it as no motion).
+    """
+    return G * (math.sin(theta_rad) - mu * math.cos(theta_rad))
+
+
+def max_climbable_slope_rad(mu: float, rolling_resistance: float, margin_rad: float = 0.0) -> float:
+    """Steepest slope the rover can drive up: traction μN must beat gravity and rolling resistance.
+
+    ``μ m g cos θ >= m g sin θ + crr m g cos θ``  <=>  ``tan θ <= μ − crr``; minus ``margin_rad``,
+    never negative.
+    """
+    return max(0.0, math.atan(max(0.0, mu - rolling_resistance)) - margin_rad)
+
+
+def _axle_fractions(moment_rear: float, total: float, half_wheelbase: float) -> np.ndarray:
+    """Share of ``total`` normal load on the front, middle and rear axles.
+
+    The load varies linearly along the body (a rigid chassis on equally stiff wheels) and balances the
+    pitching moment ``moment_rear`` (N·m, positive loads the rear). An axle that would carry a negative load
+    lifts: it is dropped and the rest re-balance, so the last axle standing carries everything (that is the
+    tip-over point ``tan θ = (wheelbase/2) / h``).
+    """
+    xs = np.array(_AXLE_X_UNITS) * half_wheelbase
+    in_contact = np.ones(3, dtype=bool)
+    loads = np.zeros(3)
+    if total <= 0.0:
+        return loads
+    while True:
+        x = xs[in_contact]
+        n = x.size
+        if n == 1:
+            loads[in_contact] = total
+            return loads
+        # N_i = a + b x_i with sum N_i = total and sum N_i x_i = -moment_rear.
+        sx, sxx = float(x.sum()), float((x * x).sum())
+        det = n * sxx - sx * sx
+        a = (total * sxx + moment_rear * sx) / det
+        b = (-moment_rear * n - sx * total) / det
+        contact_loads = a + b * x
+        if np.all(contact_loads >= 0.0):
+            loads[:] = 0.0
+            loads[in_contact] = contact_loads
+            return loads
+        # Lift the axle with the most negative load and re-balance on the others.
+        lifted = np.flatnonzero(in_contact)[int(np.argmin(contact_loads))]
+        in_contact[lifted] = False
+
+
+def wheel_normal_forces(
+    params: VehicleParams, roll_rad: float, pitch_rad: float, ax_mps2: float = 0.0, ay_mps2: float = 0.0
+) -> np.ndarray:
+    """Normal force on each wheel (N, wheel order), from the slope and the body's acceleration.
+
+    Total load ``m g cos(roll) cos(pitch)`` (the slope-normal part of gravity). Load moves to the rear by
+    ``m h (g sin(pitch) + ax) / ...`` and to the right by ``m h (g cos(pitch) sin(roll) + ay) / track``,
+    where ``ax`` is the forward and ``ay`` the leftward acceleration of the body (a left turn loads the
+    right side). Sides split the load linearly and clamp at zero when a side lifts; axles per
+    ``_axle_fractions``. The sum is always the total load (until the whole rover is airborne: never here).
+    """
+    m, h = params.mass_kg, params.cg_height_m
+    total = m * G * math.cos(roll_rad) * math.cos(pitch_rad)
+    if total <= 0.0:
+        return np.zeros(6)
+    moment_rear = m * h * (G * math.sin(pitch_rad) + ax_mps2)
+    moment_right = m * h * (G * math.cos(pitch_rad) * math.sin(roll_rad) + ay_mps2)
+    right_share = min(1.0, max(0.0, 0.5 + moment_right / (params.track_m * total)))
+    axle_share = _axle_fractions(moment_rear, total, params.wheelbase_m / 2.0) / total
+    left = (1.0 - right_share) * axle_share * total
+    right = right_share * axle_share * total
+    return np.concatenate([left, right])
+
+
+def stability_margins(
+    params: VehicleParams, roll_rad: float, pitch_rad: float, lateral_accel_mps2: float = 0.0
+) -> tuple[float, float]:
+    """(roll margin, pitch margin) in rad: tip angle minus the effective tilt; < 0 means tip-over.
+
+    The effective roll tilt adds the lateral acceleration as an equivalent tilt ``atan(a_lat / g)``
+    (a left turn, ``a_lat > 0``, tips the rover over its right wheels, like a positive roll). Roll and
+    pitch are checked separately (the rover's support polygon is treated as a rectangle's two axes).
+    """
+    effective_roll = roll_rad + math.atan(lateral_accel_mps2 / G)
+    return params.tip_roll_rad - abs(effective_roll), params.tip_pitch_rad - abs(pitch_rad)

@@ -1,0 +1,100 @@
+"""``rover hil ...``: lockstep trials on the simulator."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console
+from rich.table import Table as RichTable
+
+from logs.settings import ConfigError, parse_toml
+from navigator.config import RoverConfig, load_rover_config, rover_config_from_table
+
+DEFAULT_TRIALS_DIR = Path("logs/trials")
+
+
+def register(families: Any) -> None:
+    hil = families.add_parser("hil", help="hardware-in-the-loop simulation")
+    commands = hil.add_subparsers(dest="command", required=True, metavar="SUBCOMMAND")
+    trial = commands.add_parser("trial", help="run one lockstep HIL trial and report its metrics")
+    trial.add_argument("scenario", type=Path, help="scenario TOML file")
+    trial.add_argument("--seed", type=int, default=None, help="random seed (default: the scenario's)")
+    trial.add_argument("--config", type=Path, default=None, help="rover config TOML (default: built-in)")
+    trial.add_argument("--out", type=Path, default=None, help="output directory (default: logs/trials/<run>)")
+    trial.add_argument("--no-telemetry", action="store_true", help="do not publish on Zenoh")
+    trial.set_defaults(handler=run_trial_command)
+
+
+def load_config(path: Path | None) -> RoverConfig:
+    if path is None:
+        return rover_config_from_table(parse_toml("", "<built-in defaults>"))
+    return load_rover_config(path)
+
+
+def _unique_run_dir(base: Path, name: str) -> Path:
+    candidate = base / name
+    counter = 2
+    while candidate.exists():
+        candidate = base / f"{name}-{counter}"
+        counter += 1
+    return candidate
+
+
+def run_trial_command(args: argparse.Namespace) -> int:
+    from hil.scenario import load_scenario
+    from hil.trial import run_trial
+    from logs.telemetry import ZenohTelemetry, open_session
+
+    console = Console()
+    try:
+        scenario = load_scenario(args.scenario)
+        config = load_config(args.config)
+    except ConfigError as err:
+        console.print(f"[red]error:[/red] {err}")
+        return 2
+    seed = scenario.seed if args.seed is None else args.seed
+    out_dir = args.out or _unique_run_dir(DEFAULT_TRIALS_DIR, f"{scenario.name}-seed{seed}")
+
+    session = None
+    telemetry = None
+    if config.zenoh.enabled and not args.no_telemetry:
+        session = open_session(config.zenoh)
+        telemetry = ZenohTelemetry(session, config.rover_id)
+    started = time.perf_counter()
+    try:
+        with console.status(f"running {scenario.name} (seed {seed}) ..."):
+            result = run_trial(scenario, config, out_dir, seed=seed, telemetry=telemetry)
+    finally:
+        if telemetry is not None:
+            telemetry.close()
+        if session is not None:
+            session.close()
+    wall_s = time.perf_counter() - started
+
+    metrics = result.metrics
+    table = RichTable(title=f"{scenario.name}, seed {seed}: {result.end_reason}")
+    table.add_column("metric")
+    table.add_column("value", justify="right")
+    rows = [
+        ("path accuracy (%)", _fmt(metrics.path_accuracy_pct, "{:.1f}")),
+        ("obstacle-avoidance success (%)", _fmt(metrics.obstacle_avoidance_success_pct, "{:.1f}")),
+        ("rollovers", _fmt(metrics.rollovers, "{}")),
+        ("collisions", _fmt(metrics.collisions, "{}")),
+        ("energy (Wh)", _fmt(metrics.energy_wh, "{:.3f}")),
+        ("distance (m)", _fmt(metrics.distance_m, "{:.2f}")),
+        ("duration (s)", _fmt(metrics.duration_s, "{:.2f}")),
+        ("goal reached", _fmt(metrics.goal_reached, "{}")),
+        ("real-time factor", f"{result.simulated_s / wall_s:.1f}x"),
+    ]
+    for name, value in rows:
+        table.add_row(name, value)
+    console.print(table)
+    console.print(f"recording: {result.mcap_path}\nmetrics:   {result.metrics_path}")
+    return 0
+
+
+def _fmt(value: object, pattern: str) -> str:
+    return "n/a" if value is None else pattern.format(value)

@@ -1,0 +1,138 @@
+import can
+import pytest
+
+from firmware_bridge.can_link import CanConfig, CanLink, open_bus
+from firmware_bridge.errors import BridgeOperationError, BridgeSetupError
+from logs.clock import SimClock
+from logs.settings import ConfigError, parse_toml
+from logs.sink import MemorySink
+from logs.topics import CAN_FRAMES, WHEELS_STATUS
+from tests.firmware_bridge.virtual_can import TEST_PROFILE, make_codec, virtual_bus_pair
+
+
+@pytest.fixture
+def buses(request):
+    with virtual_bus_pair(request.node.name) as pair:
+        yield pair
+
+
+def make_link(bus, clock=None, sink=None):
+    return CanLink(bus, make_codec(), clock or SimClock(), sink if sink is not None else MemorySink())
+
+
+def ext(can_id: int, data: bytes) -> can.Message:
+    return can.Message(arbitration_id=can_id, is_extended_id=True, data=data, dlc=len(data))
+
+
+def test_send_wheel_speeds_sends_six_set_rpm_frames_and_records_them(buses):
+    ours, theirs = buses
+    clock, sink = SimClock(5_000_000_000), MemorySink()
+    link = make_link(ours, clock, sink)
+    sent = link.send_wheel_speeds([1.0, 1.0, 1.0, -0.5, -0.5, 0.0])
+    expected = round(TEST_PROFILE.erpm_from_speed(1.0))
+    assert sent[:3] == [expected] * 3
+    assert sent[5] == 0.0
+    received = [theirs.recv(timeout=0) for _ in range(6)]
+    assert [m.arbitration_id for m in received] == [(3 << 8) | cid for cid in range(1, 7)]
+    assert int.from_bytes(received[0].data, "big", signed=True) == expected
+    records = [(t, m) for topic, t, m in sink.records if topic == CAN_FRAMES]
+    assert len(records) == 6
+    t, first = records[0]
+    assert t == 5_000_000_000
+    assert first == {
+        "timestamp": {"sec": 5, "nsec": 0},
+        "direction": "tx",
+        "id": 0x301,
+        "extended": True,
+        "dlc": 4,
+        "data": bytes(received[0].data).hex(),
+    }
+    assert link.counters.tx == 6
+
+
+def test_non_finite_speed_stops_that_wheel_and_is_counted(buses):
+    link = make_link(buses[0])
+    sent = link.send_wheel_speeds([float("nan"), 1.0, 1.0, 1.0, 1.0, float("inf")])
+    assert sent[0] == 0.0 and sent[5] == 0.0
+    assert link.counters.bad_commands == 2
+    with pytest.raises(BridgeOperationError, match="6 wheel speeds"):
+        link.send_wheel_speeds([1.0, 2.0])
+
+
+def test_poll_counts_bad_frames_and_keeps_good_status(buses):
+    ours, theirs = buses
+    clock, sink = SimClock(1_000), MemorySink()
+    link = make_link(ours, clock, sink)
+    theirs.send(ext((9 << 8) | 42, bytes(8)))  # unknown controller
+    theirs.send(ext((9 << 8) | 1, bytes(6)))  # wrong DLC
+    theirs.send(can.Message(arbitration_id=0x7, is_extended_id=False, data=b"\x00"))  # standard id
+    theirs.send(can.Message(is_error_frame=True, arbitration_id=0, is_extended_id=True))
+    theirs.send(ext((9 << 8) | 2, bytes.fromhex("000004d2007b01f4")))
+    theirs.send(ext((27 << 8) | 2, bytes.fromhex("00000258 00f5 0000")))
+    assert link.poll() == 6
+    counters = link.counters.as_dict()
+    assert counters["unknown_id"] == 2
+    assert counters["wrong_dlc"] == 1
+    assert counters["bus_errors"] == 1
+    assert counters["rx"] == 5
+    wheel = link.readings()[1]
+    assert wheel.erpm == 1234.0
+    assert wheel.motor_current_a == pytest.approx(12.3)
+    assert wheel.duty == pytest.approx(0.5)
+    assert wheel.speed_mps == pytest.approx(TEST_PROFILE.speed_from_erpm(1234))
+    assert wheel.tachometer == pytest.approx(100.0)
+    assert wheel.input_voltage_v == pytest.approx(24.5)
+    assert wheel.last_status_ns == 1_000
+    assert link.readings()[0].last_status_ns is None
+    statuses = sink.on(WHEELS_STATUS)
+    assert len(statuses) == 1
+    assert [w["controller_id"] for w in statuses[0]["wheels"]] == [1, 2, 3, 4, 5, 6]
+    assert statuses[0]["wheels"][1]["erpm"] == 1234.0
+    assert [m["direction"] for m in sink.on(CAN_FRAMES)] == ["rx"] * 5
+    # nothing more to read: no frames, no new status message
+    assert link.poll() == 0
+    assert len(sink.on(WHEELS_STATUS)) == 1
+
+
+def test_readings_are_copies(buses):
+    link = make_link(buses[0])
+    link.readings()[0].erpm = 99.0
+    assert link.readings()[0].erpm == 0.0
+
+
+def test_close_sends_zero_once_then_shuts_down_and_is_idempotent(buses):
+    ours, theirs = buses
+    with make_link(ours) as link:
+        link.send_wheel_speeds([1.0] * 6)
+    link.close()
+    frames = []
+    while (msg := theirs.recv(timeout=0)) is not None:
+        frames.append(msg)
+    assert len(frames) == 12
+    assert all(bytes(m.data) == bytes(4) for m in frames[6:])
+    # the bus is shut: a later send fails, is counted, and does not raise
+    link.send_wheel_speeds([0.0] * 6)
+    assert link.counters.bus_errors == 6
+
+
+def test_can_config_from_table_and_open_bus(request):
+    table = parse_toml(f'interface = "virtual"\nchannel = "cfg-{request.node.name}"', "rover.toml")
+    config = CanConfig.from_table(table)
+    assert config.bitrate == 1_000_000 and config.command_rate_hz == 50.0
+    bus = open_bus(config)
+    try:
+        assert bus.channel_info
+    finally:
+        bus.shutdown()
+    with pytest.raises(ConfigError, match="interface"):
+        CanConfig.from_table(parse_toml('interface = "pcan"', "rover.toml"))
+    with pytest.raises(ConfigError, match="bitrat"):
+        CanConfig.from_table(parse_toml("bitrat = 500000", "rover.toml"))
+    with pytest.raises(BridgeSetupError, match="interface"):
+        CanConfig(interface="kvaser")
+
+
+def test_open_bus_wraps_python_can_errors():
+    # This machine has no SocketCAN at all; elsewhere the interface name does not exist. Either way:
+    with pytest.raises(BridgeSetupError, match="socketcan:no-such-can9"):
+        open_bus(CanConfig(interface="socketcan", channel="no-such-can9"))

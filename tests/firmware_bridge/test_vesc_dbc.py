@@ -1,0 +1,44 @@
+from pathlib import Path
+
+import cantools
+import pytest
+
+import firmware_bridge
+from firmware_bridge.errors import BridgeSetupError
+from firmware_bridge.vesc_dbc import DEFAULT_CONTROLLER_IDS, generate_dbc, load_vesc_database
+
+SHIPPED = Path(firmware_bridge.__file__).parent / "vesc_6wheel.dbc"
+
+
+def test_shipped_dbc_equals_generated_for_default_ids():
+    assert SHIPPED.read_text(encoding="ascii") == generate_dbc(list(DEFAULT_CONTROLLER_IDS))
+
+
+def test_default_database_has_every_message_with_extended_ids():
+    db = load_vesc_database()
+    rpm = db.get_message_by_name("VESC_SET_RPM_C1")
+    assert rpm.frame_id == (3 << 8) | 1
+    assert rpm.is_extended_frame
+    assert rpm.length == 4
+    status5 = db.get_message_by_name("VESC_STATUS_5_C6")
+    assert status5.frame_id == (27 << 8) | 6
+    signal = status5.get_signal_by_name("tacho")
+    assert signal.byte_order == "big_endian" and signal.is_signed
+    assert signal.scale == pytest.approx(1 / 6)
+    assert db.get_message_by_name("VESC_STATUS_4_C3").get_signal_by_name("current_in").unit == "A"
+    assert len(db.messages) == 6 * 9
+
+
+def test_other_ids_generate_their_own_database():
+    db = load_vesc_database([10, 11, 12, 13, 14, 255])
+    assert db.get_message_by_name("VESC_STATUS_C255").frame_id == (9 << 8) | 255
+    with pytest.raises(KeyError):
+        db.get_message_by_name("VESC_STATUS_C1")
+    # and the text is plain DBC cantools reads on its own
+    assert cantools.database.load_string(generate_dbc([7]), database_format="dbc").messages
+
+
+@pytest.mark.parametrize("ids", [[], [1, 1], [256], [-1]])
+def test_bad_controller_ids_are_setup_errors(ids):
+    with pytest.raises(BridgeSetupError, match="controller id"):
+        generate_dbc(ids)

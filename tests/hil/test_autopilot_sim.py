@@ -1,0 +1,121 @@
+import base64
+import math
+
+import numpy as np
+import pymap3d
+import pytest
+from pymavlink.dialects.v20 import common as mavlink2
+
+from firmware_bridge.mavlink_link import GpsFix, ImuSample, MavlinkLink
+from firmware_bridge.mavlink_transport import memory_pipe_pair
+from hil.autopilot_sim import AutopilotTruth, SimAutopilot
+from logs.clock import SimClock, to_ns
+from logs.sink import MemorySink
+from logs.topics import MAVLINK_RAW, SENSORS_GPS
+
+DATUM = (47.0, 8.0, 400.0)
+DT_S = 0.01
+
+
+def make_pair(seed=1, **kwargs):
+    clock, sink = SimClock(), MemorySink()
+    companion_end, autopilot_end = memory_pipe_pair()
+    link = MavlinkLink(companion_end, clock, sink)
+    sim = SimAutopilot(
+        autopilot_end,
+        clock,
+        np.random.default_rng(seed),
+        datum_lat_deg=DATUM[0],
+        datum_lon_deg=DATUM[1],
+        datum_alt_m=DATUM[2],
+        **kwargs,
+    )
+    return clock, sink, link, sim
+
+
+def run(clock, link, sim, truth, seconds):
+    readings = []
+    for _ in range(round(seconds / DT_S)):
+        sim.step(truth)
+        readings += link.poll()
+        clock.advance(to_ns(DT_S))
+    return readings
+
+
+# Driving north-east at 1 m/s (yaw 45 deg CCW from east), turning left at 0.2 rad/s, level.
+TRUTH = AutopilotTruth(
+    x_m=30.0,
+    y_m=-40.0,
+    z_m=2.0,
+    yaw_rad=math.pi / 4,
+    speed_mps=1.0,
+    yaw_rate_rps=0.2,
+    accel_body_mps2=(0.1, 0.2, 9.80665),
+)
+
+
+def test_gps_and_imu_arrive_at_their_rates_in_our_units():
+    clock, sink, link, sim = make_pair(gps_noise_m=0.0, gyro_noise_rps=0.0, accel_noise_mps2=0.0)
+    readings = run(clock, link, sim, TRUTH, 1.0)
+    fixes = [r for r in readings if isinstance(r, GpsFix)]
+    imus = [r for r in readings if isinstance(r, ImuSample)]
+    assert len(fixes) == 5
+    assert len(imus) == 50
+    east, north, up = pymap3d.geodetic2enu(fixes[0].lat_deg, fixes[0].lon_deg, fixes[0].alt_m, *DATUM)
+    assert (east, north, up) == pytest.approx((30.0, -40.0, 2.0), abs=0.02)  # degE7 / mm quantisation
+    assert fixes[0].fix_type == 3 and fixes[0].satellites == 12
+    assert fixes[0].speed_mps == pytest.approx(1.0)
+    assert fixes[0].course_rad == pytest.approx(math.pi / 4, abs=1e-3)
+    assert imus[0].gyro_xyz_rps == pytest.approx((0.0, 0.0, 0.2), abs=1e-3)
+    assert imus[0].accel_xyz_mps2 == pytest.approx((0.1, 0.2, 9.80665), abs=0.01)
+    assert link.last_heartbeat_ns == 0
+    assert link.counters.bad_frames == 0
+    assert sink.on(SENSORS_GPS)[0]["eph_m"] == 0.0
+
+
+def test_recorded_raw_frames_parse_with_a_fresh_pymavlink_parser():
+    clock, sink, link, sim = make_pair()
+    run(clock, link, sim, TRUTH, 0.5)
+    raw = sink.on(MAVLINK_RAW)
+    assert {r["name"] for r in raw} == {"HEARTBEAT", "GPS_RAW_INT", "SCALED_IMU", "ATTITUDE"}
+    parser = mavlink2.MAVLink(None)
+    for record in raw:
+        (msg,) = parser.parse_buffer(base64.b64decode(record["data"]))
+        assert msg.get_type() == record["name"]
+        assert msg.get_msgId() == record["msgid"]
+        assert (msg.get_srcSystem(), msg.get_srcComponent()) == (record["sysid"], record["compid"])
+        assert record["direction"] == "rx"
+    assert len(raw) == 1 + 3 + 25 + 5  # heartbeat 1 Hz, GPS 5 Hz, IMU 50 Hz, attitude 10 Hz for 0.5 s
+
+
+def test_gps_noise_has_the_configured_size_and_is_seeded():
+    def fixes(seed):
+        clock, _, link, sim = make_pair(seed=seed, gps_noise_m=0.5, gps_rate_hz=50.0)
+        return [r for r in run(clock, link, sim, TRUTH, 4.0) if isinstance(r, GpsFix)]
+
+    first = fixes(7)
+    assert [(f.lat_deg, f.lon_deg) for f in first] == [(f.lat_deg, f.lon_deg) for f in fixes(7)]
+    assert [(f.lat_deg, f.lon_deg) for f in first] != [(f.lat_deg, f.lon_deg) for f in fixes(8)]
+    east = np.array([pymap3d.geodetic2enu(f.lat_deg, f.lon_deg, f.alt_m, *DATUM)[0] for f in first])
+    assert len(east) == 200
+    assert east.mean() == pytest.approx(30.0, abs=0.15)
+    assert east.std() == pytest.approx(0.5, rel=0.2)
+    assert first[0].eph_m == pytest.approx(0.5)
+
+
+def test_autopilot_hears_the_companion_heartbeat():
+    _, _, link, sim = make_pair()
+    link.send_heartbeat()
+    link.send_heartbeat()
+    assert sim.poll() == 2
+    assert sim.heartbeats_received == 2
+    assert sim.last_heartbeat.type == mavlink2.MAV_TYPE_ONBOARD_CONTROLLER
+    assert sim.poll() == 0
+
+
+def test_reversing_reports_course_opposite_to_yaw():
+    clock, _, link, sim = make_pair(gps_noise_m=0.0)
+    reverse = AutopilotTruth(0.0, 0.0, 0.0, 0.0, -0.5, 0.0, (0.0, 0.0, 9.80665))
+    fix = next(r for r in run(clock, link, sim, reverse, 0.1) if isinstance(r, GpsFix))
+    assert fix.speed_mps == pytest.approx(0.5)
+    assert abs(fix.course_rad) == pytest.approx(math.pi, abs=1e-3)

@@ -1,0 +1,173 @@
+import math
+
+import numpy as np
+import pytest
+
+from hil.dynamics import DynamicsError, RoverDynamics
+from navigator.follower import FollowerConfig, PurePursuit
+from navigator.mixing import mix_skid_steer
+from navigator.planner import Planner
+from navigator.terrain import TerrainMap, from_maze
+from navigator.terrain_classes import TERRAIN_CLASSES, TerrainClass
+from navigator.vehicle import G, VehicleParams, max_climbable_slope_rad
+
+PARAMS = VehicleParams()
+DT = 0.01
+VOLTS = 24.0
+MAZE = [[1, 1, 1, 1, 1, 1], [1, 2, 2, 1, 1, 1], [1, 2, 1, 1, 1, 1], [1, 2, 1, 2, 2, 1], [1, 1, 1, 2, 1, 1]]
+
+
+def plane(grade_x=0.0, grade_y=0.0, size=(80, 80), res=0.25, class_id=0, obstacles=None):
+    rows, cols = size
+    xs = (np.arange(cols) + 0.5) * res
+    ys = (np.arange(rows) + 0.5) * res
+    elevation = grade_x * xs[np.newaxis, :] + grade_y * ys[:, np.newaxis]
+    return TerrainMap(
+        elevation,
+        np.full(size, class_id, np.uint8),
+        np.zeros(size, bool) if obstacles is None else obstacles,
+        res,
+    )
+
+
+def run(body, wheels, seconds):
+    return [body.step(DT, wheels, VOLTS) for _ in range(round(seconds / DT))]
+
+
+def test_drives_straight_and_turns_at_the_skid_steer_rate():
+    body = RoverDynamics(plane(), PARAMS, x=5.0, y=10.0, yaw=0.0)
+    steps = run(body, [1.0] * 6, 3.0)
+    assert body.speed == pytest.approx(1.0, abs=1e-3)
+    assert body.x > 7.0 and body.y == pytest.approx(10.0)
+    assert steps[-1].specific_force_body_mps2 == pytest.approx((0.0, 0.0, G), abs=1e-3)
+    body = RoverDynamics(plane(), PARAMS, x=10.0, y=10.0, yaw=0.0)
+    run(body, [-0.4] * 3 + [0.4] * 3, 2.0)
+    assert body.yaw_rate == pytest.approx(0.8 / PARAMS.effective_track_m, rel=1e-3)
+    assert body.speed == pytest.approx(0.0, abs=1e-9)
+
+
+def test_locked_wheels_slide_down_at_the_papers_rate():
+    theta = math.radians(20.0)
+    mu = 0.1
+    ice = {0: TerrainClass(0, "ice", mu, 0.02, 1.0, "test")}
+    body = RoverDynamics(
+        plane(grade_x=math.tan(theta)), PARAMS, ice, x=10.0, y=10.0, yaw=0.0
+    )  # facing uphill
+    steps = run(body, [0.0] * 6, 0.6)
+    accel = (steps[-1].speed_mps - steps[9].speed_mps) / ((len(steps) - 10) * DT)
+    expected = G * (math.sin(theta) - mu * math.cos(theta))
+    assert accel == pytest.approx(-expected, rel=1e-6)  # backwards, down the slope
+    assert body.x < 10.0
+    # The same slope with grippy ground holds the rover still.
+    held = RoverDynamics(plane(grade_x=math.tan(theta)), PARAMS, x=10.0, y=10.0, yaw=0.0)
+    run(held, [0.0] * 6, 1.0)
+    assert held.x == pytest.approx(10.0) and held.speed == pytest.approx(0.0)
+
+
+def test_cannot_climb_past_tan_mu_minus_crr():
+    firm = TERRAIN_CLASSES[0]
+    limit = max_climbable_slope_rad(firm.friction_mu, firm.rolling_resistance)
+    too_steep = RoverDynamics(plane(grade_x=math.tan(limit) + 0.04), PARAMS, x=10.0, y=10.0, yaw=0.0)
+    steps = run(too_steep, [1.0] * 6, 3.0)
+    assert too_steep.x < 10.0  # wheels spin, it slides back
+    assert max(s.slip[0] for s in steps[-10:]) == pytest.approx(1.0)
+    climbable = RoverDynamics(plane(grade_x=math.tan(limit) - 0.06), PARAMS, x=10.0, y=10.0, yaw=0.0)
+    run(climbable, [1.0] * 6, 3.0)
+    assert climbable.x > 10.5
+    assert climbable.pitch == pytest.approx(math.atan(math.tan(limit) - 0.06))
+
+
+def test_normal_forces_and_currents_on_a_slope():
+    theta = math.radians(15.0)
+    body = RoverDynamics(plane(grade_x=math.tan(theta)), PARAMS, x=10.0, y=10.0, yaw=0.0)
+    steps = run(body, [0.5] * 6, 2.0)
+    last = steps[-1]
+    assert sum(last.normal_forces_n) == pytest.approx(PARAMS.mass_kg * G * math.cos(theta), rel=1e-9)
+    assert last.normal_forces_n[2] > last.normal_forces_n[0]  # rear wheels carry more uphill
+    # Steady climb: traction balances gravity and rolling resistance.
+    crr = TERRAIN_CLASSES[0].rolling_resistance
+    expected_drive = PARAMS.mass_kg * G * (math.sin(theta) + crr * math.cos(theta))
+    assert sum(last.traction_forces_n) == pytest.approx(expected_drive, rel=1e-3)
+    assert all(c > 0.0 for c in last.motor_currents_a)
+    assert all(0.0 < d < 1.0 for d in last.duty)
+    assert last.energy_wh > 0.0 and last.specific_force_body_mps2[0] == pytest.approx(
+        G * math.sin(theta), rel=1e-3
+    )
+
+
+@pytest.mark.parametrize(("degrees", "tips"), [(45.0, True), (40.0, False)])
+def test_static_tilt_and_rollover(degrees, tips):
+    assert math.degrees(PARAMS.tip_roll_rad) == pytest.approx(42.5, abs=0.1)
+    # Heading east across a slope that rises to the north (the rover's left): roll = slope angle.
+    body = RoverDynamics(plane(grade_y=math.tan(math.radians(degrees))), PARAMS, x=10.0, y=10.0, yaw=0.0)
+    steps = run(body, [0.0] * 6, 0.2)
+    assert body.roll == pytest.approx(math.radians(degrees))
+    assert steps[-1].rollover is tips
+    assert sum(s.rollover_started for s in steps) == (1 if tips else 0)
+    if tips:
+        run(body, [1.0] * 6, 1.0)  # latched: it goes nowhere
+        assert body.x == 10.0 and body.speed == 0.0
+
+
+def test_collision_with_an_obstacle_is_reported_once_and_not_entered():
+    obstacles = np.zeros((80, 80), bool)
+    obstacles[:, 60:] = True  # a wall at x >= 15 m
+    body = RoverDynamics(plane(obstacles=obstacles), PARAMS, x=12.0, y=10.0, yaw=0.0)
+    steps = run(body, [1.0] * 6, 6.0)
+    assert sum(s.collided_obstacle for s in steps) == 1
+    assert steps[-1].collided and steps[-1].collision_with == "obstacle"
+    assert body.x <= 15.0 - PARAMS.footprint_radius_m + 1e-9
+    assert body.x > 15.0 - PARAMS.footprint_radius_m - 0.05
+    # Backing away ends the contact; driving in again is a new one.
+    steps = run(body, [-0.5] * 6, 1.0) + run(body, [1.0] * 6, 2.0)
+    assert not steps[50].collided
+    assert sum(s.collided_obstacle for s in steps) == 1
+
+
+def test_leaving_the_map_is_a_boundary_collision():
+    body = RoverDynamics(plane(size=(40, 40)), PARAMS, x=5.0, y=5.0, yaw=math.pi)
+    steps = run(body, [1.0] * 6, 8.0)
+    assert steps[-1].collision_with == "boundary"
+    assert body.x >= PARAMS.footprint_radius_m - 1e-9
+
+
+def test_deterministic():
+    terrain = plane(grade_x=0.1, grade_y=-0.05)
+    wheels = [0.8, 0.8, 0.8, 1.0, 1.0, 1.0]
+    first = run(RoverDynamics(terrain, PARAMS, x=8.0, y=8.0, yaw=0.3), wheels, 2.0)
+    second = run(RoverDynamics(terrain, PARAMS, x=8.0, y=8.0, yaw=0.3), wheels, 2.0)
+    assert first == second
+
+
+def test_bad_input_is_a_typed_error():
+    body = RoverDynamics(plane(), PARAMS, x=5.0, y=5.0, yaw=0.0)
+    with pytest.raises(DynamicsError, match="time step"):
+        body.step(0.0, [0.0] * 6, VOLTS)
+    with pytest.raises(DynamicsError, match="6 wheel speeds"):
+        body.step(DT, [0.0] * 5, VOLTS)
+    with pytest.raises(DynamicsError, match="finite"):
+        body.step(DT, [0.0] * 5 + [math.nan], VOLTS)
+    with pytest.raises(DynamicsError, match="on the map"):
+        RoverDynamics(plane(), PARAMS, x=-1.0, y=5.0, yaw=0.0)
+
+
+def test_closed_loop_through_the_paper_maze():
+    """Planner, follower, mixing and the body together: the rover reaches the goal without touching a wall."""
+    terrain = from_maze(MAZE, 3.0, resolution_m=0.25)
+    path = Planner(terrain, PARAMS).plan((7.5, 4.5), (4.5, 10.5))
+    body = RoverDynamics(terrain, PARAMS, x=7.5, y=4.5, yaw=math.pi)
+    follower = PurePursuit(FollowerConfig())
+    wheels = [0.0] * 6
+    contacts = 0
+    arrived = False
+    for tick in range(3000):
+        if tick % 2 == 0:  # control at 50 Hz, physics at 100 Hz
+            cmd = follower.command(body.x, body.y, body.yaw, body.speed, path.points)
+            assert abs(cmd.cross_track_error_m) < 1.0
+            if cmd.arrived:
+                arrived = True
+                break
+            wheels = mix_skid_steer(cmd.speed_mps, cmd.yaw_rate_rps, PARAMS)
+        contacts += body.step(DT, wheels, VOLTS).collided_obstacle
+    assert arrived and contacts == 0
+    assert math.hypot(body.x - 4.5, body.y - 10.5) <= FollowerConfig().goal_tolerance_m

@@ -1,0 +1,108 @@
+import can
+import pytest
+
+from firmware_bridge.can_link import CanLink
+from hil.vesc_sim import SimVescBank
+from logs.clock import SimClock, to_ns
+from logs.sink import MemorySink
+from logs.topics import CAN_FRAMES, WHEELS_STATUS
+from tests.firmware_bridge.virtual_can import TEST_PROFILE, make_codec, virtual_bus_pair
+
+DT_S = 0.01
+
+
+@pytest.fixture
+def buses(request):
+    with virtual_bus_pair(request.node.name) as pair:
+        yield pair
+
+
+def run(link, sim, clock, seconds, speeds=None):
+    """Lockstep: command (if given), simulate, read status; 100 Hz."""
+    for _ in range(round(seconds / DT_S)):
+        if speeds is not None:
+            link.send_wheel_speeds(speeds)
+        sim.poll()
+        clock.advance(to_ns(DT_S))
+        sim.step(DT_S)
+        link.poll()
+
+
+def make_pair(buses, clock, sink, **sim_kwargs):
+    companion_bus, sim_bus = buses
+    link = CanLink(companion_bus, make_codec(), clock, sink)
+    sim = SimVescBank(sim_bus, make_codec(), clock, **sim_kwargs)
+    return link, sim
+
+
+def test_commands_reach_the_motors_and_status_comes_back(buses):
+    clock, sink = SimClock(), MemorySink()
+    link, sim = make_pair(buses, clock, sink)
+    speeds = [0.5, 0.5, 0.5, -0.3, -0.3, -0.3]
+    sim.set_electrical([2.0] * 6, 25.2)
+    run(link, sim, clock, 1.0, speeds)
+    expected = [round(TEST_PROFILE.erpm_from_speed(s)) for s in speeds]
+    assert sim.targets_erpm() == expected
+    assert sim.wheel_speeds_mps() == pytest.approx(speeds, abs=1e-3)
+    readings = link.readings()
+    assert [r.controller_id for r in readings] == [1, 2, 3, 4, 5, 6]
+    assert [r.speed_mps for r in readings] == pytest.approx(speeds, abs=2e-3)
+    assert readings[0].motor_current_a == pytest.approx(2.0)
+    assert readings[0].input_voltage_v == pytest.approx(25.2)
+    assert readings[0].duty == pytest.approx(expected[0] / 30_000, abs=2e-3)
+    assert readings[0].input_current_a == pytest.approx(2.0 * expected[0] / 30_000, abs=0.1)
+    # roughly 0.5 m/s for ~1 s, less the spin-up: tachometer counts electrical revolutions
+    assert readings[0].tachometer == pytest.approx(TEST_PROFILE.erpm_from_speed(0.5) / 60 * 0.95, rel=0.05)
+    assert readings[3].tachometer < 0
+    statuses = sink.on(WHEELS_STATUS)
+    assert 45 <= len(statuses) <= 55  # STATUS at 50 Hz
+    assert statuses[-1]["wheels"][0]["speed_mps"] == pytest.approx(0.5, abs=2e-3)
+    errors = {k: v for k, v in link.counters.as_dict().items() if k not in ("tx", "rx")}
+    assert errors == dict.fromkeys(errors, 0)
+    assert sim.bad_frames == 0 and sim.ignored_frames == 0
+    # 6 STATUS at 50 Hz + 12 slow at 10 Hz for 1 s, all recorded as rx
+    rx = [m for m in sink.on(CAN_FRAMES) if m["direction"] == "rx"]
+    assert len(rx) == link.counters.rx == pytest.approx(6 * 50 + 12 * 10, abs=18)
+
+
+def test_command_timeout_stops_the_motors(buses):
+    clock, sink = SimClock(), MemorySink()
+    link, sim = make_pair(buses, clock, sink, command_timeout_s=0.5)
+    run(link, sim, clock, 0.5, [1.0] * 6)
+    assert sim.wheel_speeds_mps() == pytest.approx([1.0] * 6, abs=0.01)
+    run(link, sim, clock, 0.45)  # silence, but within the timeout: still driving
+    assert sim.targets_erpm()[0] > 0
+    assert sim.timeouts == 0
+    run(link, sim, clock, 0.5)  # past the timeout
+    assert sim.targets_erpm() == [0.0] * 6
+    assert sim.timeouts == 6
+    assert max(abs(s) for s in sim.wheel_speeds_mps()) < 0.01
+    assert max(abs(r.speed_mps) for r in link.readings()) < 0.01
+
+
+def test_frames_for_other_controllers_are_ignored_and_bad_frames_counted(buses):
+    companion_bus, sim_bus = buses
+    clock = SimClock()
+    sim = SimVescBank(sim_bus, make_codec(), clock)
+    companion_bus.send(can.Message(arbitration_id=(3 << 8) | 77, data=bytes.fromhex("00001000")))
+    companion_bus.send(can.Message(arbitration_id=(3 << 8) | 1, data=bytes.fromhex("0000")))
+    companion_bus.send(can.Message(arbitration_id=(3 << 8) | 2, data=bytes.fromhex("00001000")))
+    companion_bus.send(can.Message(arbitration_id=(2 << 8) | 3, data=bytes.fromhex("00000000")))
+    assert sim.poll() == 4
+    assert sim.ignored_frames == 1
+    assert sim.bad_frames == 1
+    assert sim.targets_erpm() == [0.0, 4096.0, 0.0, 0.0, 0.0, 0.0]
+    assert sim.commands_applied == 2
+
+
+def test_lockstep_run_is_deterministic(request):
+    def one_run(label):
+        with virtual_bus_pair(label) as pair:
+            clock, sink = SimClock(), MemorySink()
+            link, sim = make_pair(pair, clock, sink)
+            run(link, sim, clock, 0.3, [0.2, 0.4, 0.6, -0.2, -0.4, -0.6])
+            return sink.records
+
+    first, second = one_run(request.node.name + "a"), one_run(request.node.name + "b")
+    assert first == second
+    assert len(first) > 100

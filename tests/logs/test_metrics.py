@@ -1,0 +1,224 @@
+"""Trial metrics on small hand-computable recordings."""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+from logs.clock import to_ns
+from logs.metrics import TrialMetrics, compute_metrics, distances_to_polyline
+from logs.recorder import McapRecorder
+from logs.topics import (
+    ESTIMATOR_POSE,
+    NAVIGATOR_PATH,
+    NAVIGATOR_STATE,
+    TRUTH_CONTACTS,
+    TRUTH_POSE,
+    WHEELS_STATUS,
+    planar_pose,
+    stamp,
+)
+
+# One sample per second. Segments 3..6 leave the straight path y=0 by 1-2 m (off, tolerance 0.5):
+#   on:  (0,0)-(1,0)-(2,0)-(3,0)                  3 m
+#   off: (3,0)-(3,2)-(4,2)-(5,2)-(5,0)            2+1+1+2 = 6 m (midpoints 1 m or 2 m from the path)
+#   on:  (5,0)-(6,0)-...-(10,0)                   5 m
+# => path accuracy = 100 * 8 / 14 %.
+TRAJECTORY = [(0, 0), (1, 0), (2, 0), (3, 0), (3, 2), (4, 2), (5, 2), (5, 0)] + [(x, 0) for x in range(6, 11)]
+OBSTACLES = [
+    {"id": "A", "x": 4.0, "y": 5.0, "radius": 0.5},  # 3 m from (4,2): beyond 0.5+1.5, not encountered
+    {"id": "B", "x": 8.0, "y": 1.0, "radius": 0.5},  # 1 m away: encountered, and hit (collision below)
+    {"id": 7, "x": 9.0, "y": -1.2, "radius": 0.3},  # 1.2 m away: encountered, avoided
+]
+
+
+def _pose(t_ns: int, x: float, y: float) -> dict:
+    return {"timestamp": stamp(t_ns), "frame_id": "enu", "pose": planar_pose(x, y, 0.0)}
+
+
+def _path(t_ns: int, points: list[tuple[float, float]]) -> dict:
+    poses = [planar_pose(x, y, 0.0) for x, y in points]
+    return {"timestamp": stamp(t_ns), "frame_id": "enu", "poses": poses, "cost": 1.0, "length_m": 10.0}
+
+
+def _state(t_ns: int, mode: str, xte: float, goal: tuple[float, float] | None = (10.0, 0.5)) -> dict:
+    return {
+        "timestamp": stamp(t_ns),
+        "mode": mode,
+        "goal": None if goal is None else {"x": goal[0], "y": goal[1]},
+        "cross_track_error_m": xte,
+    }
+
+
+def _wheels(t_ns: int, current_a: float) -> dict:
+    wheel = {"input_voltage_v": 24.0, "input_current_a": current_a}
+    return {"timestamp": stamp(t_ns), "wheels": [dict(wheel) for _ in range(6)]}
+
+
+def _contact(t_ns: int, kind: str, obstacle_id: str) -> dict:
+    return {"timestamp": stamp(t_ns), "kind": kind, "obstacle_id": obstacle_id, "x": 0.0, "y": 0.0}
+
+
+def _sim_trial(pose_topic: str = TRUTH_POSE, scenario: dict[str, str] | None = None) -> bytes:
+    buffer = io.BytesIO()
+    with McapRecorder(buffer, chunk_size=2048) as rec:
+        rec.add_metadata(
+            "scenario",
+            scenario
+            if scenario is not None
+            else {"path_tolerance_m": "0.5", "obstacles_json": json.dumps(OBSTACLES)},
+        )
+        rec.publish(NAVIGATOR_PATH, 0, _path(0, [(0.0, 0.0), (10.0, 0.0)]))
+        for i, (x, y) in enumerate(TRAJECTORY):
+            t = to_ns(float(i))
+            rec.publish(pose_topic, t, _pose(t, x, y))
+            if i < 3:
+                rec.publish(WHEELS_STATUS, t, _wheels(t, 1.0 if i < 2 else 2.0))
+        rec.publish(NAVIGATOR_STATE, to_ns(1.0), _state(to_ns(1.0), "DRIVING", 0.3))
+        rec.publish(NAVIGATOR_STATE, to_ns(5.0), _state(to_ns(5.0), "DRIVING", -0.4))
+        rec.publish(NAVIGATOR_STATE, to_ns(12.0), _state(to_ns(12.0), "ARRIVED", 0.0))
+        contact = {
+            "timestamp": stamp(to_ns(9.0)),
+            "kind": "collision",
+            "obstacle_id": "B",
+            "x": 8.0,
+            "y": 0.6,
+        }
+        rec.publish(TRUTH_CONTACTS, to_ns(9.0), contact)
+        rollover = {
+            "timestamp": stamp(to_ns(10.0)),
+            "kind": "rollover",
+            "obstacle_id": "",
+            "x": 9.0,
+            "y": 0.0,
+        }
+        rec.publish(TRUTH_CONTACTS, to_ns(10.0), rollover)
+    return buffer.getvalue()
+
+
+def test_hand_computed_metrics() -> None:
+    metrics = compute_metrics(io.BytesIO(_sim_trial()))
+    assert metrics.trajectory_topic == TRUTH_POSE
+    assert metrics.distance_m == pytest.approx(14.0)
+    assert metrics.duration_s == pytest.approx(12.0)
+    assert metrics.path_tolerance_m == 0.5
+    assert metrics.path_accuracy_pct == pytest.approx(100.0 * 8.0 / 14.0)
+    assert (metrics.obstacles_encountered, metrics.obstacles_avoided) == (2, 1)
+    assert metrics.obstacle_avoidance_success_pct == pytest.approx(50.0)
+    assert (metrics.collisions, metrics.rollovers) == (1, 1)
+    # 6 wheels x 24 V x (1, 1, 2) A at t = 0, 1, 2 s: trapezoid 144 J + 216 J = 360 J = 0.1 Wh
+    assert metrics.energy_wh == pytest.approx(0.1)
+    assert metrics.energy_wh_per_m == pytest.approx(0.1 / 14.0)
+    assert metrics.goal_reached is True
+    assert metrics.final_distance_to_goal_m == pytest.approx(0.5)
+    assert metrics.cross_track_error_rms_m == pytest.approx(math.sqrt(0.25 / 3.0))
+    assert metrics.cross_track_error_max_m == pytest.approx(0.4)
+    assert metrics.missing == () and metrics.problems == ()
+    assert not metrics.truncated
+
+
+def test_tolerance_from_metadata_changes_the_share() -> None:
+    scenario = {"path_tolerance_m": "1.5", "obstacles_json": "[]"}
+    metrics = compute_metrics(io.BytesIO(_sim_trial(scenario=scenario)))
+    # midpoints 1 m off now count (3,1) and (5,1): 2 + 2 m more within => 12 / 14
+    assert metrics.path_accuracy_pct == pytest.approx(100.0 * 12.0 / 14.0)
+    assert metrics.obstacles_encountered == 0 and metrics.obstacle_avoidance_success_pct is None
+
+
+def test_the_path_in_force_is_the_latest_at_or_before_each_sample() -> None:
+    buffer = io.BytesIO()
+    with McapRecorder(buffer) as rec:
+        rec.publish(NAVIGATOR_PATH, 0, _path(0, [(0.0, 0.0), (10.0, 0.0)]))
+        rec.publish(NAVIGATOR_PATH, to_ns(2.0), _path(to_ns(2.0), [(0.0, 3.0), (10.0, 3.0)]))
+        for i in range(4):
+            rec.publish(TRUTH_POSE, to_ns(float(i)), _pose(to_ns(float(i)), float(i), 0.0))
+    metrics = compute_metrics(io.BytesIO(buffer.getvalue()))
+    # segment ending at t=1 s follows path 1 (on); those ending at t=2 s and t=3 s follow path 2 (3 m off)
+    assert metrics.path_accuracy_pct == pytest.approx(100.0 / 3.0)
+
+
+def test_real_run_falls_back_to_estimator_pose_and_lists_missing_data() -> None:
+    buffer = io.BytesIO()
+    with McapRecorder(buffer) as rec:
+        for i, (x, y) in enumerate([(0.0, 0.0), (3.0, 4.0)]):
+            rec.publish(ESTIMATOR_POSE, to_ns(float(i)), _pose(to_ns(float(i)), x, y))
+    metrics = compute_metrics(io.BytesIO(buffer.getvalue()))
+    assert metrics.trajectory_topic == ESTIMATOR_POSE
+    assert metrics.distance_m == pytest.approx(5.0)
+    assert metrics.path_accuracy_pct is None and metrics.energy_wh is None and metrics.goal_reached is None
+    assert metrics.collisions is None and metrics.rollovers is None
+    assert set(metrics.missing) == {
+        "metadata:scenario",
+        "metadata:scenario.obstacles_json",
+        NAVIGATOR_PATH,
+        TRUTH_CONTACTS,
+        WHEELS_STATUS,
+        NAVIGATOR_STATE,
+    }
+
+
+def test_empty_recording_gives_all_none_without_raising() -> None:
+    buffer = io.BytesIO()
+    McapRecorder(buffer).close()
+    metrics = compute_metrics(io.BytesIO(buffer.getvalue()))
+    assert metrics.trajectory_topic is None and metrics.distance_m is None and metrics.duration_s is None
+    assert f"{TRUTH_POSE} or {ESTIMATOR_POSE}" in metrics.missing
+
+
+def test_simulation_without_contacts_counts_zero() -> None:
+    buffer = io.BytesIO()
+    with McapRecorder(buffer) as rec:
+        rec.publish(TRUTH_POSE, 0, _pose(0, 0.0, 0.0))
+    metrics = compute_metrics(io.BytesIO(buffer.getvalue()))
+    assert (metrics.collisions, metrics.rollovers) == (0, 0)
+    assert TRUTH_CONTACTS not in metrics.missing
+
+
+def test_bad_values_are_reported_not_raised() -> None:
+    scenario = {"path_tolerance_m": "-3", "obstacles_json": "{oops"}
+    buffer = io.BytesIO(_sim_trial(scenario=scenario))
+    metrics = compute_metrics(buffer)
+    assert metrics.path_tolerance_m == 0.5  # fell back to the default
+    assert metrics.obstacles_encountered is not None and metrics.obstacles_encountered == 0
+    assert any("path_tolerance_m" in p for p in metrics.problems)
+    assert any("obstacles_json" in p for p in metrics.problems)
+
+
+def test_to_dict_rounds_and_write_json_is_stable(tmp_path: Path) -> None:
+    data = _sim_trial()
+    metrics = compute_metrics(io.BytesIO(data))
+    as_dict = metrics.to_dict()
+    assert as_dict["path_accuracy_pct"] == round(100.0 * 8.0 / 14.0, 6)
+    assert as_dict["missing"] == []
+    first, second = tmp_path / "a" / "m.json", tmp_path / "b.json"
+    metrics.write_json(first)
+    compute_metrics(io.BytesIO(data)).write_json(second)
+    assert first.read_bytes() == second.read_bytes()
+    assert json.loads(first.read_text())["collisions"] == 1
+    assert isinstance(metrics, TrialMetrics)
+
+
+def test_metrics_from_a_file_path(tmp_path: Path) -> None:
+    path = tmp_path / "trial.mcap"
+    path.write_bytes(_sim_trial())
+    assert compute_metrics(path) == compute_metrics(io.BytesIO(_sim_trial()))
+
+
+def test_distances_to_polyline() -> None:
+    import numpy as np
+
+    polyline = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0]])
+    points = np.array([[5.0, 2.0], [-3.0, 4.0], [12.0, 5.0], [10.0, 10.0]])
+    assert distances_to_polyline(points, polyline) == pytest.approx([2.0, 5.0, 2.0, 0.0])
+    assert distances_to_polyline(points[:1], polyline[:1]) == pytest.approx([math.hypot(5.0, 2.0)])
+
+
+def test_cut_recording_is_flagged() -> None:
+    data = _sim_trial()
+    metrics = compute_metrics(io.BytesIO(data[: len(data) // 4]))  # the summary is the latter half
+    assert metrics.truncated
+    assert any("cut short" in p for p in metrics.problems)

@@ -1,0 +1,238 @@
+"""MCAP recording and reading: round trips, metadata, attachments, cut files, damaged and foreign files."""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+from mcap.writer import Writer
+
+from logs.errors import LogReadError, RecordingError
+from logs.reader import (
+    ReadStats,
+    RecordedMessage,
+    read_attachments,
+    read_messages,
+    read_metadata,
+    topic_counts,
+)
+from logs.recorder import McapRecorder, encode_message
+from logs.topics import LOG, NAVIGATOR_STATE, SAFETY_EVENTS, TRUTH_POSE, planar_pose, stamp
+
+
+def _log(i: int) -> dict:
+    return {"timestamp": stamp(i), "level": 2, "message": f"line {i}", "name": "t", "file": "f.py", "line": i}
+
+
+def _pose(i: int) -> dict:
+    return {"timestamp": stamp(i), "frame_id": "enu", "pose": planar_pose(0.1 * i, -0.2 * i, 0.01 * i)}
+
+
+def _expected(n: int = 400) -> list[tuple[str, int, dict]]:
+    """Interleaved topics, log times strictly increasing."""
+    out: list[tuple[str, int, dict]] = []
+    for i in range(n):
+        t = 1_000_000 * i + 7
+        out.append((TRUTH_POSE, t, _pose(t)))
+        if i % 3 == 0:
+            out.append((LOG, t, _log(t)))
+        if i % 50 == 0:
+            out.append(
+                (SAFETY_EVENTS, t, {"timestamp": stamp(t), "kind": "k", "severity": "info", "detail": "é"})
+            )
+    return out
+
+
+def _record(output: object, expected: list[tuple[str, int, dict]], chunk_size: int = 4096) -> None:
+    with McapRecorder(output, chunk_size=chunk_size) as recorder:  # type: ignore[arg-type]
+        for topic, t, message in expected:
+            recorder.publish(topic, t, message)
+        recorder.add_metadata("scenario", {"name": "flat", "path_tolerance_m": "0.5"})
+        recorder.add_metadata("seed", {"seed": "42"})
+        recorder.add_attachment("scenario.toml", "application/toml", b"[world]\nsize = 10\n", 5)
+        assert recorder.message_count == len(expected)
+
+
+def _as_tuples(messages: list[RecordedMessage]) -> list[tuple[str, int, dict]]:
+    return [(m.topic, m.log_time_ns, m.message) for m in messages]
+
+
+@pytest.fixture(scope="module")
+def recording() -> tuple[bytes, list[tuple[str, int, dict]]]:
+    expected = _expected()
+    buffer = io.BytesIO()
+    _record(buffer, expected)
+    return buffer.getvalue(), expected
+
+
+def test_round_trip_through_bytesio(recording: tuple[bytes, list]) -> None:
+    data, expected = recording
+    stats = ReadStats()
+    assert _as_tuples(list(read_messages(io.BytesIO(data), stats=stats))) == expected
+    assert stats.complete and not stats.truncated and stats.skipped == 0
+    assert stats.messages == len(expected)
+
+
+def test_round_trip_through_file_with_new_parent_folders(tmp_path: Path) -> None:
+    expected = _expected(120)
+    path = tmp_path / "trials" / "deep" / "run.mcap"
+    _record(path, expected, chunk_size=256 * 1024)
+    assert _as_tuples(list(read_messages(path))) == expected
+    assert _as_tuples(list(read_messages(str(path)))) == expected
+    assert read_metadata(path)["seed"] == {"seed": "42"}
+
+
+def test_topic_filter_and_counts(recording: tuple[bytes, list]) -> None:
+    data, expected = recording
+    only_logs = list(read_messages(io.BytesIO(data), topics=[LOG]))
+    assert _as_tuples(only_logs) == [e for e in expected if e[0] == LOG]
+    counts = topic_counts(io.BytesIO(data))
+    assert counts == {LOG: 134, SAFETY_EVENTS: 8, TRUTH_POSE: 400}
+
+
+def test_metadata_and_attachments_round_trip(recording: tuple[bytes, list]) -> None:
+    data, _ = recording
+    assert read_metadata(io.BytesIO(data)) == {
+        "scenario": {"name": "flat", "path_tolerance_m": "0.5"},
+        "seed": {"seed": "42"},
+    }
+    assert read_attachments(io.BytesIO(data)) == {"scenario.toml": b"[world]\nsize = 10\n"}
+
+
+def test_file_is_standard_mcap_with_schemas_and_per_channel_sequences(recording: tuple[bytes, list]) -> None:
+    data, _ = recording
+    reader = make_reader(io.BytesIO(data))
+    summary = reader.get_summary()
+    assert summary is not None
+    topics = {channel.topic: channel for channel in summary.channels.values()}
+    assert topics[TRUTH_POSE].message_encoding == "json"
+    schema = summary.schemas[topics[TRUTH_POSE].schema_id]
+    assert schema.encoding == "jsonschema" and schema.name == "foxglove.PoseInFrame"
+    assert json.loads(schema.data)["properties"]["pose"]["type"] == "object"
+    sequences: dict[str, list[int]] = {}
+    for _, channel, message in reader.iter_messages():
+        sequences.setdefault(channel.topic, []).append(message.sequence)
+        assert message.publish_time == message.log_time
+    assert sequences[SAFETY_EVENTS] == list(range(8))
+    assert sequences[LOG] == list(range(134))
+
+
+@pytest.mark.parametrize("fraction", [0.0, 0.001, 0.004, 0.1, 0.37, 0.5, 0.81, 0.99])
+def test_cut_file_reads_the_complete_prefix_without_raising(
+    recording: tuple[bytes, list], fraction: float
+) -> None:
+    data, expected = recording
+    cut = int(len(data) * fraction)
+    stats = ReadStats()
+    got = _as_tuples(list(read_messages(io.BytesIO(data[:cut]), stats=stats)))
+    assert got == expected[: len(got)]  # a prefix, in order, payloads intact
+    # A cut inside the summary section (after DataEnd) loses nothing: every message is there.
+    assert stats.truncated != stats.complete
+    assert stats.truncated or got == expected
+    if fraction >= 0.5:
+        assert len(got) > 0.3 * len(expected)  # small chunks: only the tail is lost
+
+
+def test_cut_file_keeps_metadata_written_before_the_cut(tmp_path: Path) -> None:
+    buffer = io.BytesIO()
+    recorder = McapRecorder(buffer, chunk_size=1024)
+    recorder.add_metadata("scenario", {"name": "early"})
+    for topic, t, message in _expected(50):
+        recorder.publish(topic, t, message)
+    recorder.flush()
+    data = buffer.getvalue()  # never closed: no summary, no footer, like a crash
+    assert read_metadata(io.BytesIO(data)) == {"scenario": {"name": "early"}}
+    assert len(list(read_messages(io.BytesIO(data)))) == recorder.message_count
+
+
+def test_non_mcap_file_raises_naming_the_file(tmp_path: Path) -> None:
+    path = tmp_path / "notes.mcap"
+    path.write_text("this is not an mcap file\n")
+    with pytest.raises(LogReadError, match=r"notes\.mcap"):
+        list(read_messages(path))
+    with pytest.raises(LogReadError, match="not an MCAP file"):
+        read_metadata(path)
+
+
+def test_missing_file_raises_log_read_error(tmp_path: Path) -> None:
+    with pytest.raises(LogReadError, match=r"nowhere\.mcap"):
+        topic_counts(tmp_path / "nowhere.mcap")
+
+
+def test_damaged_chunk_raises_log_read_error(recording: tuple[bytes, list]) -> None:
+    data, _ = recording
+    damaged = bytearray(data)
+    middle = len(damaged) // 3
+    for i in range(middle, middle + 16):
+        damaged[i] ^= 0xFF
+    with pytest.raises(LogReadError, match="damaged"):
+        list(read_messages(io.BytesIO(bytes(damaged))))
+
+
+def test_malformed_json_payload_is_skipped_and_counted() -> None:
+    buffer = io.BytesIO()
+    writer = Writer(buffer)
+    writer.start()
+    schema = writer.register_schema("rover.X", "jsonschema", b"{}")
+    channel = writer.register_channel(LOG, "json", schema)
+    writer.add_message(channel, 1, b'{"a": 1}', 1)
+    writer.add_message(channel, 2, b"{not json", 2)
+    writer.add_message(channel, 3, b"[1, 2]", 3)
+    writer.add_message(channel, 4, b'{"b": 2}', 4)
+    writer.finish()
+    stats = ReadStats()
+    got = list(read_messages(io.BytesIO(buffer.getvalue()), stats=stats))
+    assert [(m.log_time_ns, m.message) for m in got] == [(1, {"a": 1}), (4, {"b": 2})]
+    assert stats.malformed == 2 and stats.messages == 2
+
+
+def test_nan_and_numpy_values_are_encoded_deterministically() -> None:
+    message = {"a": float("nan"), "b": [1.0, float("inf")], "c": np.float32(2.5), "d": np.array([1, 2])}
+    assert encode_message(message) == b'{"a":null,"b":[1.0,null],"c":2.5,"d":[1,2]}'
+    assert encode_message({"e": np.array([np.nan])}) == b'{"e":[null]}'
+    buffer = io.BytesIO()
+    with McapRecorder(buffer) as recorder:
+        recorder.publish(NAVIGATOR_STATE, 10, {"cross_track_error_m": math.nan, "mode": "DRIVING"})
+    (got,) = read_messages(io.BytesIO(buffer.getvalue()))
+    assert got.message == {"cross_track_error_m": None, "mode": "DRIVING"}
+
+
+def test_recorder_rejects_unknown_topics_bad_values_and_use_after_close() -> None:
+    recorder = McapRecorder(io.BytesIO())
+    with pytest.raises(RecordingError, match="unknown topic"):
+        recorder.publish("no/such/topic", 0, {})
+    with pytest.raises(RecordingError, match="cannot be encoded"):
+        recorder.publish(LOG, 0, {"x": object()})
+    with pytest.raises(RecordingError, match="log_time_ns"):
+        recorder.publish(LOG, -1, _log(0))
+    with pytest.raises(RecordingError, match="strings"):
+        recorder.add_metadata("bad", {"k": 1})  # type: ignore[dict-item]
+    recorder.close()
+    recorder.close()  # idempotent
+    with pytest.raises(RecordingError, match="closed"):
+        recorder.publish(LOG, 0, _log(0))
+    with pytest.raises(RecordingError, match="compression"):
+        McapRecorder(io.BytesIO(), compression="lz77")
+
+
+def test_same_inputs_give_identical_bytes() -> None:
+    first, second = io.BytesIO(), io.BytesIO()
+    _record(first, _expected(60))
+    _record(second, _expected(60))
+    assert first.getvalue() == second.getvalue()
+
+
+@pytest.mark.parametrize("cut", [1, 3, 8, 12, 17, 40])
+def test_cut_in_the_first_bytes_reads_nothing_and_warns(
+    recording: tuple[bytes, list], cut: int, caplog: pytest.LogCaptureFixture
+) -> None:
+    data, _ = recording
+    stats = ReadStats()
+    assert list(read_messages(io.BytesIO(data[:cut]), stats=stats)) == []
+    assert stats.truncated
+    assert "cut short" in caplog.text

@@ -1,0 +1,180 @@
+"""Zenoh telemetry: settings, the shipped config, and two sessions talking over loopback."""
+
+from __future__ import annotations
+
+import json
+import socket
+import threading
+from collections.abc import Iterator
+
+import pytest
+import zenoh
+
+from logs.errors import TelemetryError, TelemetrySetupError
+from logs.recorder import encode_message
+from logs.settings import ConfigError, parse_toml
+from logs.telemetry import (
+    TelemetrySample,
+    ZenohSettings,
+    ZenohTelemetry,
+    open_session,
+    subscribe,
+    zenoh_config,
+)
+from logs.topics import LOG, NAVIGATOR_STATE, stamp
+
+WAIT_S = 10.0
+
+
+def _free_loopback_port() -> int:
+    # Ask the OS for a free port; the tiny window before zenoh binds it is acceptable in a test.
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+def test_defaults_are_local_and_quiet() -> None:
+    settings = ZenohSettings()
+    assert not settings.enabled and settings.mode == "peer" and not settings.multicast_scouting
+    config = zenoh_config(settings)
+    assert json.loads(config.get_json("scouting/multicast/enabled")) is False
+    assert json.loads(config.get_json("scouting/gossip/enabled")) is False
+    assert json.loads(config.get_json("mode")) == "peer"
+    assert json.loads(config.get_json("listen/endpoints")) == ["tcp/127.0.0.1:0"]
+
+
+def test_settings_from_table_override_the_shipped_config() -> None:
+    absent = parse_toml("", "rover.toml").table("zenoh", optional=True)
+    assert ZenohSettings.from_table(absent) == ZenohSettings()  # no [zenoh] table: defaults
+    text = '[zenoh]\nenabled = true\nmode = "client"\nconnect = ["tcp/127.0.0.1:7447"]\n'
+    root = parse_toml(text, "rover.toml")
+    settings = ZenohSettings.from_table(root.table("zenoh"))
+    assert settings.enabled and settings.connect == ("tcp/127.0.0.1:7447",)
+    config = zenoh_config(settings)
+    assert json.loads(config.get_json("connect/endpoints")) == ["tcp/127.0.0.1:7447"]
+    assert json.loads(config.get_json("mode")) == "client"
+
+
+@pytest.mark.parametrize(
+    ("text", "key"),
+    [
+        ('mode = "router"', "zenoh.mode"),
+        ('listen = "tcp/127.0.0.1:0"', "zenoh.listen"),
+        ('connect = ["127.0.0.1:7447"]', "zenoh.connect"),
+        ('mode = "client"', "zenoh.connect"),
+        ("colour = 3", "zenoh.colour"),
+    ],
+)
+def test_bad_settings_name_the_key(text: str, key: str) -> None:
+    table = parse_toml(f"[zenoh]\n{text}\n", "rover.toml").table("zenoh")
+    with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
+        ZenohSettings.from_table(table)
+
+
+def test_bad_rover_id_is_a_setup_error() -> None:
+    with pytest.raises(TelemetrySetupError, match="rover_id"):
+        ZenohTelemetry(None, "r/1")  # type: ignore[arg-type]
+
+
+@pytest.fixture
+def sessions() -> Iterator[tuple[zenoh.Session, zenoh.Session]]:
+    port = _free_loopback_port()
+    endpoint = f"tcp/127.0.0.1:{port}"
+    rover = open_session(ZenohSettings(enabled=True, listen=(endpoint,)))
+    try:
+        station = open_session(ZenohSettings(enabled=True, listen=(), connect=(endpoint,)))
+    except BaseException:
+        rover.close()
+        raise
+    try:
+        yield rover, station
+    finally:
+        station.close()
+        rover.close()
+
+
+class _Collector:
+    """Collects samples from zenoh's thread; tests wait on its condition, never sleep."""
+
+    def __init__(self) -> None:
+        self.samples: list[TelemetrySample] = []
+        self._changed = threading.Condition()
+
+    def __call__(self, sample: TelemetrySample) -> None:
+        with self._changed:
+            self.samples.append(sample)
+            self._changed.notify_all()
+
+    def wait_for(self, predicate: object, timeout: float) -> bool:
+        with self._changed:
+            return self._changed.wait_for(lambda: predicate(self.samples), timeout)  # type: ignore[operator]
+
+
+def test_loopback_stream_delivers_same_payloads_and_log_times(
+    sessions: tuple[zenoh.Session, zenoh.Session],
+) -> None:
+    rover, station = sessions
+    collector = _Collector()
+    subscription = subscribe(station, "r1", collector)
+    telemetry = ZenohTelemetry(rover, "r1")
+    try:
+        # Discovery takes a moment: repeat a probe until one arrives (each wait is bounded).
+        for attempt in range(int(WAIT_S / 0.05)):
+            telemetry.publish(LOG, attempt, {"probe": attempt})
+            if collector.wait_for(lambda samples: len(samples) > 0, 0.05):
+                break
+        else:
+            pytest.fail("the station never received a probe over loopback")
+
+        sent = [
+            (NAVIGATOR_STATE, 1_000 + i, {"timestamp": stamp(1_000 + i), "mode": "DRIVING", "xte": i / 7})
+            for i in range(20)
+        ]
+        sent.append((NAVIGATOR_STATE, 5_000, {"mode": "ARRIVED", "xte": float("nan")}))
+        for topic, t, message in sent:
+            telemetry.publish(topic, t, message)
+
+        def got_all(samples: list[TelemetrySample]) -> bool:
+            return sum(s.topic == NAVIGATOR_STATE for s in samples) == len(sent)
+
+        assert collector.wait_for(got_all, WAIT_S)
+        received = [s for s in collector.samples if s.topic == NAVIGATOR_STATE]
+        assert [(s.topic, s.log_time_ns) for s in received] == [(t, ns) for t, ns, _ in sent]
+        for sample, (_, _, message) in zip(received, sent, strict=True):
+            assert encode_message(sample.message) == encode_message(message)
+        assert received[-1].message["xte"] is None  # NaN travels as null, as in the recording
+        assert subscription.rejected == 0
+        assert telemetry.failures == 0 and telemetry.published == len(sent) + attempt + 1
+        with pytest.raises(TelemetryError, match="unknown topic"):
+            telemetry.publish("no/such/topic", 0, {})
+    finally:
+        telemetry.close()
+        telemetry.close()
+        subscription.close()
+        subscription.close()
+    with pytest.raises(TelemetryError, match="closed"):
+        telemetry.publish(LOG, 0, {})
+
+
+def test_station_rejects_samples_without_log_time(sessions: tuple[zenoh.Session, zenoh.Session]) -> None:
+    rover, station = sessions
+    collector = _Collector()
+    subscription = subscribe(station, "r2", collector)
+    rejected = threading.Event()
+    try:
+        for _ in range(int(WAIT_S / 0.05)):
+            rover.put("rover/r2/log", b'{"a": 1}')  # no attachment: a foreign publisher
+            rover.put("rover/r2/log", b"not json", attachment=(7).to_bytes(8, "little"))
+            if subscription.rejected >= 2:
+                rejected.set()
+                break
+            collector.wait_for(lambda samples: False, 0.05)
+        assert rejected.is_set()
+        assert collector.samples == []
+    finally:
+        subscription.close()
+
+
+def test_open_session_reports_unusable_endpoint() -> None:
+    with pytest.raises(TelemetrySetupError, match="listen"):
+        open_session(ZenohSettings(enabled=True, listen=("tcp/256.1.1.1:0",)))

@@ -1,0 +1,98 @@
+import math
+
+import numpy as np
+import pytest
+
+from logs.settings import ConfigError, parse_toml
+from navigator.errors import ParameterError
+from navigator.follower import FollowerConfig, PurePursuit
+
+
+def drive(follower, path, x, y, yaw, seconds, dt=0.05):
+    """A trivial kinematic rover that does exactly what it is told (unicycle)."""
+    speed = 0.0
+    history = []
+    for _ in range(round(seconds / dt)):
+        cmd = follower.command(x, y, yaw, speed, path)
+        history.append((x, y, yaw, cmd))
+        if cmd.arrived:
+            break
+        speed = cmd.speed_mps
+        yaw += cmd.yaw_rate_rps * dt
+        x += speed * math.cos(yaw) * dt
+        y += speed * math.sin(yaw) * dt
+    return history
+
+
+def test_converges_onto_a_straight_line_from_an_offset():
+    path = np.array([[0.0, 0.0], [10.0, 0.0], [25.0, 0.0]])
+    follower = PurePursuit(FollowerConfig())
+    history = drive(follower, path, 0.0, 1.5, 0.0, seconds=40.0)
+    errors = [cmd.cross_track_error_m for *_, cmd in history]
+    assert errors[0] == pytest.approx(1.5)  # left of the path is positive
+    assert max(abs(e) for e in errors) <= 1.5 + 1e-9  # bounded: never further off than at the start
+    assert min(errors) > -0.2  # little overshoot to the other side
+    late = [abs(e) for (x, *_, cmd), e in zip(history, errors, strict=True) if x > 8.0]
+    assert max(late) < 0.05
+    assert history[-1][3].arrived
+    assert math.hypot(history[-1][0] - 25.0, history[-1][1]) <= FollowerConfig().goal_tolerance_m
+    assert all(abs(cmd.yaw_rate_rps) <= 1.2 + 1e-9 for *_, cmd in history)
+
+
+def test_right_of_path_is_negative_and_limits_are_named():
+    path = np.array([[0.0, 0.0], [20.0, 0.0]])
+    gentle = FollowerConfig(max_lateral_accel_mps2=0.3)
+    cmd = PurePursuit(gentle).command(5.0, -0.5, 0.0, 0.5, path)
+    assert cmd.cross_track_error_m == pytest.approx(-0.5)
+    assert cmd.yaw_rate_rps > 0.0  # steer left, back to the path
+    assert cmd.speed_limit_reason == "curvature"
+    curvature = cmd.yaw_rate_rps / cmd.speed_mps
+    assert cmd.speed_mps == pytest.approx(math.sqrt(0.3 / curvature))
+    straight = PurePursuit(FollowerConfig()).command(5.0, 0.0, 0.0, 0.5, path)
+    assert straight.speed_limit_reason == "max_speed" and straight.speed_mps == pytest.approx(1.0)
+    near_end = PurePursuit(FollowerConfig()).command(19.0, 0.0, 0.0, 0.5, path)
+    assert near_end.speed_limit_reason == "goal_approach" and near_end.speed_mps == pytest.approx(0.5)
+
+
+def test_turns_in_place_when_the_path_is_behind():
+    path = np.array([[0.0, 0.0], [-10.0, 0.0]])
+    cmd = PurePursuit(FollowerConfig()).command(0.0, 0.0, 0.0, 0.0, path)
+    assert cmd.speed_mps == 0.0 and cmd.speed_limit_reason == "turn_in_place"
+    assert abs(cmd.yaw_rate_rps) == pytest.approx(1.2)
+
+
+def test_progress_never_jumps_back_on_a_hairpin():
+    # Out east along y=0, back west along y=1.0: the return leg passes close to the start.
+    path = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 1.0], [0.0, 1.0]])
+    follower = PurePursuit(FollowerConfig(lookahead_m=0.8, lookahead_gain_s=0.0))
+    for x in np.arange(0.0, 10.0, 0.5):
+        follower.command(float(x), 0.0, 0.0, 0.5, path)
+    for x in np.arange(10.0, 1.0, -0.5):
+        follower.command(float(x), 1.0, math.pi, 0.5, path)
+    # Back near the start: the out leg (y=0) is 0.4 m away, the return leg 0.6 m; it keeps the return leg.
+    cmd = follower.command(1.0, 0.4, math.pi, 0.5, path)
+    assert cmd.cross_track_error_m == pytest.approx(0.6)  # measured from the return leg (left of it)
+    assert cmd.yaw_rate_rps < 0.0 or cmd.speed_limit_reason == "turn_in_place"
+
+
+def test_a_new_path_starts_over_and_bad_paths_are_rejected():
+    follower = PurePursuit(FollowerConfig())
+    first = np.array([[0.0, 0.0], [10.0, 0.0]])
+    for x in range(10):
+        follower.command(float(x), 0.0, 0.0, 1.0, first)
+    second = np.array([[0.0, 5.0], [10.0, 5.0]])
+    cmd = follower.command(0.0, 4.0, 0.0, 0.0, second)
+    assert cmd.cross_track_error_m == pytest.approx(-1.0)
+    with pytest.raises(ParameterError):
+        follower.command(0.0, 0.0, 0.0, 0.0, np.zeros((3, 3)))
+    with pytest.raises(ParameterError):
+        follower.command(math.nan, 0.0, 0.0, 0.0, first)
+
+
+def test_config_from_table():
+    cfg = FollowerConfig.from_table(parse_toml("lookahead_m = 2.0\nmax_speed_mps = 0.8\n", "rover.toml"))
+    assert cfg.lookahead_m == 2.0 and cfg.max_speed_mps == 0.8 and cfg.goal_tolerance_m == 0.5
+    with pytest.raises(ConfigError, match="look_ahead"):
+        FollowerConfig.from_table(parse_toml("look_ahead = 2.0\n", "rover.toml"))
+    with pytest.raises(ConfigError, match="max_speed_mps"):
+        FollowerConfig.from_table(parse_toml("max_speed_mps = 0\n", "rover.toml"))

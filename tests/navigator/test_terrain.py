@@ -1,0 +1,130 @@
+import math
+
+import numpy as np
+import pytest
+
+from navigator.errors import TerrainError
+from navigator.terrain import TerrainMap, disc_mask, from_maze, load_npy_layers, procedural
+
+MAZE = [[1, 1, 1, 1, 1, 1], [1, 2, 2, 1, 1, 1], [1, 2, 1, 1, 1, 1], [1, 2, 1, 2, 2, 1], [1, 1, 1, 2, 1, 1]]
+
+
+def flat(rows=4, cols=6, res=0.5, origin=(10.0, -2.0)):
+    return TerrainMap(
+        np.zeros((rows, cols)),
+        np.zeros((rows, cols), dtype=np.uint8),
+        np.zeros((rows, cols), bool),
+        res,
+        origin,
+    )
+
+
+def test_cell_geometry():
+    terrain = flat()
+    assert terrain.shape == (4, 6)
+    assert terrain.cell_of(10.0, -2.0) == (0, 0)
+    assert terrain.cell_of(12.74, -0.9) == (2, 5)
+    assert terrain.center_of(2, 5) == (12.75, -0.75)
+    assert terrain.contains(12.99, -0.01) and not terrain.contains(13.0, -1.0)
+    with pytest.raises(TerrainError, match="off the map"):
+        terrain.cell_of(9.99, 0.0)
+    with pytest.raises(TerrainError):
+        terrain.center_of(4, 0)
+
+
+def test_validation_errors():
+    good = np.zeros((3, 3))
+    with pytest.raises(TerrainError, match="shape"):
+        TerrainMap(good, np.zeros((3, 2), np.uint8), np.zeros((3, 3), bool), 1.0)
+    nan = good.copy()
+    nan[1, 2] = np.nan
+    with pytest.raises(TerrainError, match=r"row 1, col 2"):
+        TerrainMap(nan, np.zeros((3, 3), np.uint8), np.zeros((3, 3), bool), 1.0)
+    with pytest.raises(TerrainError, match="unknown terrain class 9"):
+        TerrainMap(good, np.full((3, 3), 9, np.uint8), np.zeros((3, 3), bool), 1.0)
+    with pytest.raises(TerrainError, match="resolution"):
+        TerrainMap(good, np.zeros((3, 3), np.uint8), np.zeros((3, 3), bool), 0.0)
+
+
+def test_layers_are_read_only():
+    terrain = flat()
+    with pytest.raises(ValueError):
+        terrain.elevation_m[0, 0] = 1.0
+
+
+def test_maze_orientation_and_errors():
+    maze = from_maze(MAZE, 2.0)
+    assert maze.shape == (5, 6)
+    assert maze.obstacles[0].all()  # row 0 = southern wall
+    assert not maze.obstacles[1, 1] and not maze.obstacles[4, 3]
+    assert maze.cell_of(7.0, 9.0) == (4, 3)  # x picks the column, y the row
+    assert maze.obstacles[maze.cell_of(3.0, 9.0)]  # matrix row 4, col 1 is a wall
+    fine = from_maze(MAZE, 3.0, resolution_m=0.5)
+    assert fine.shape == (30, 36)
+    assert not fine.obstacles[fine.cell_of(4.5, 4.5)]  # maze cell (1, 1)
+    assert fine.obstacles[fine.cell_of(4.5, 1.4)]  # maze cell (0, 1)
+    bad = [row[:] for row in MAZE]
+    bad[2][3] = 7
+    with pytest.raises(TerrainError, match=r"row 2, col 3\) holds 7"):
+        from_maze(bad, 1.0)
+    with pytest.raises(TerrainError, match="divide"):
+        from_maze(MAZE, 1.0, resolution_m=0.3)
+
+
+def test_elevation_and_tilt_on_a_plane():
+    rows, cols, res = 20, 30, 0.5
+    xs = (np.arange(cols) + 0.5) * res
+    ys = (np.arange(rows) + 0.5) * res
+    elevation = 0.3 * xs[np.newaxis, :] - 0.1 * ys[:, np.newaxis]
+    terrain = TerrainMap(elevation, np.zeros((rows, cols), np.uint8), np.zeros((rows, cols), bool), res)
+    assert terrain.elevation_at(5.1, 4.2) == pytest.approx(0.3 * 5.1 - 0.1 * 4.2)
+    grad_x, grad_y = terrain.slope_gradient()
+    np.testing.assert_allclose(grad_x, 0.3)
+    np.testing.assert_allclose(grad_y, -0.1)
+    roll, pitch = terrain.tilt_at(5.0, 5.0, 0.0)  # heading east: uphill, ground falls to the left
+    assert pitch == pytest.approx(math.atan(0.3))
+    assert roll < 0.0  # left side lower
+    roll, pitch = terrain.tilt_at(5.0, 5.0, math.pi / 2.0)  # heading north: downhill slightly, west is left
+    assert pitch == pytest.approx(math.atan(-0.1))
+    assert roll == pytest.approx(math.atan2(-0.3, math.sqrt(1.0 + 0.01)))
+    # On any heading the slope-normal component of gravity is the same.
+    for yaw in np.linspace(-3.0, 3.0, 7):
+        roll, pitch = terrain.tilt_at(5.0, 5.0, yaw)
+        assert math.cos(roll) * math.cos(pitch) == pytest.approx(1.0 / math.sqrt(1.0 + 0.09 + 0.01))
+
+
+def test_procedural_is_seeded():
+    def make(seed):
+        return procedural((40, 50), 0.25, np.random.default_rng(seed), 1, 0.6, 4, class_patch_count=5)
+
+    a, b, c = make(3), make(3), make(4)
+    np.testing.assert_array_equal(a.elevation_m, b.elevation_m)
+    np.testing.assert_array_equal(a.terrain_class, b.terrain_class)
+    assert not np.array_equal(a.elevation_m, c.elevation_m)
+    assert a.elevation_m.max() > 0.1 and a.elevation_m.max() <= 0.6 * 4
+    assert set(np.unique(a.terrain_class)) > {1}
+
+
+def test_disc_mask_and_with_obstacles():
+    terrain = flat(rows=10, cols=10, res=1.0, origin=(0.0, 0.0))
+    mask = disc_mask(terrain, 5.0, 5.0, 1.0)
+    assert mask.sum() == 4  # the four cells whose centres are 0.71 m away
+    tiny = disc_mask(terrain, 2.2, 7.7, 0.1)
+    assert tiny.sum() == 1 and tiny[7, 2]
+    blocked = terrain.with_obstacles(mask)
+    assert blocked.obstacles.sum() == 4 and terrain.obstacles.sum() == 0
+
+
+def test_load_npy_layers(tmp_path):
+    elevation = np.arange(12, dtype=float).reshape(3, 4)
+    classes = np.full((3, 4), 2, dtype=np.uint8)
+    np.save(tmp_path / "z.npy", elevation)
+    np.save(tmp_path / "c.npy", classes)
+    terrain = load_npy_layers(tmp_path / "z.npy", tmp_path / "c.npy", resolution_m=0.5, origin=(1.0, 2.0))
+    np.testing.assert_array_equal(terrain.elevation_m, elevation)
+    assert terrain.class_at(1.1, 2.1) == 2 and not terrain.obstacles.any()
+    with pytest.raises(TerrainError, match="not found"):
+        load_npy_layers(tmp_path / "missing.npy", resolution_m=1.0)
+    (tmp_path / "junk.npy").write_bytes(b"not numpy")
+    with pytest.raises(TerrainError, match=r"junk\.npy"):
+        load_npy_layers(obstacles=tmp_path / "junk.npy", resolution_m=1.0)

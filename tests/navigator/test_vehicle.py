@@ -1,0 +1,90 @@
+import math
+
+import numpy as np
+import pytest
+
+from logs.settings import ConfigError, parse_toml
+from navigator.errors import ParameterError
+from navigator.vehicle import (
+    G,
+    VehicleParams,
+    max_climbable_slope_rad,
+    slope_acceleration,
+    stability_margins,
+    wheel_normal_forces,
+)
+
+PARAMS = VehicleParams()
+
+
+def test_slope_acceleration_is_the_papers_law():
+    theta = math.radians(30.0)
+    assert slope_acceleration(theta, 0.2) == pytest.approx(9.81 * (0.5 - 0.2 * math.cos(theta)))
+    assert slope_acceleration(0.0, 0.5) < 0.0  # friction holds on the level
+
+
+def test_max_climbable_slope():
+    assert max_climbable_slope_rad(0.8, 0.02) == pytest.approx(math.atan(0.78))
+    assert max_climbable_slope_rad(0.8, 0.02, margin_rad=0.1) == pytest.approx(math.atan(0.78) - 0.1)
+    assert max_climbable_slope_rad(0.1, 0.2) == 0.0
+    assert max_climbable_slope_rad(0.1, 0.05, margin_rad=1.0) == 0.0
+
+
+def test_geometry_properties():
+    assert PARAMS.footprint_radius_m == pytest.approx(0.5 * math.hypot(0.9, 0.7))
+    assert PARAMS.tip_roll_rad == pytest.approx(math.atan(0.275 / 0.30))
+    assert PARAMS.tip_pitch_rad == pytest.approx(math.atan(0.35 / 0.30))
+    assert PARAMS.effective_track_m == pytest.approx(0.55 * 1.6)
+
+
+@pytest.mark.parametrize(("roll", "pitch"), [(0.0, 0.0), (0.2, 0.0), (0.0, -0.3), (0.25, 0.35), (-0.6, 0.1)])
+def test_normal_forces_sum_to_slope_normal_weight(roll, pitch):
+    forces = wheel_normal_forces(PARAMS, roll, pitch)
+    assert forces.shape == (6,)
+    assert np.all(forces >= 0.0)
+    assert forces.sum() == pytest.approx(PARAMS.mass_kg * G * math.cos(roll) * math.cos(pitch))
+
+
+def test_level_load_is_even_and_transfers_the_right_way():
+    level = wheel_normal_forces(PARAMS, 0.0, 0.0)
+    np.testing.assert_allclose(level, PARAMS.mass_kg * G / 6.0)
+    nose_up = wheel_normal_forces(PARAMS, 0.0, 0.2)
+    assert nose_up[2] > nose_up[1] > nose_up[0]  # rear heaviest when climbing
+    right_low = wheel_normal_forces(PARAMS, 0.2, 0.0)
+    assert right_low[3:].sum() > right_low[:3].sum()
+    left_turn = wheel_normal_forces(PARAMS, 0.0, 0.0, ay_mps2=2.0)
+    assert left_turn[3:].sum() > left_turn[:3].sum()  # the outer (right) side carries more
+    braking = wheel_normal_forces(PARAMS, 0.0, 0.0, ax_mps2=-2.0)
+    assert braking[0] > braking[2]
+
+
+def test_a_lifting_axle_clamps_at_zero_and_keeps_the_sum():
+    pitch = math.atan(0.3 / 0.30)  # past the front-lift point, short of tip-over
+    forces = wheel_normal_forces(PARAMS, 0.0, pitch)
+    assert forces[0] == 0.0 and forces[3] == 0.0
+    assert forces.sum() == pytest.approx(PARAMS.mass_kg * G * math.cos(pitch))
+    past_tip = wheel_normal_forces(PARAMS, 0.0, PARAMS.tip_pitch_rad + 0.05)
+    assert past_tip[[0, 1, 3, 4]].sum() == 0.0  # all on the rear axle
+
+
+def test_stability_margins():
+    roll_margin, pitch_margin = stability_margins(PARAMS, 0.1, -0.2)
+    assert roll_margin == pytest.approx(PARAMS.tip_roll_rad - 0.1)
+    assert pitch_margin == pytest.approx(PARAMS.tip_pitch_rad - 0.2)
+    turning, _ = stability_margins(PARAMS, 0.0, 0.0, lateral_accel_mps2=G)
+    assert turning == pytest.approx(PARAMS.tip_roll_rad - math.pi / 4.0)
+    assert stability_margins(PARAMS, PARAMS.tip_roll_rad + 0.01, 0.0)[0] < 0.0
+
+
+def test_params_validation_and_strict_table():
+    with pytest.raises(ParameterError, match="mass_kg"):
+        VehicleParams(mass_kg=0.0)
+    with pytest.raises(ParameterError, match="skid_factor"):
+        VehicleParams(skid_factor=0.5)
+    table = parse_toml("mass_kg = 50.0\ntrack_m = 0.6\n", "rover.toml")
+    params = VehicleParams.from_table(table)
+    assert params.mass_kg == 50.0 and params.track_m == 0.6 and params.wheelbase_m == 0.70
+    with pytest.raises(ConfigError, match="masss_kg"):
+        VehicleParams.from_table(parse_toml("masss_kg = 50.0\n", "rover.toml"))
+    with pytest.raises(ConfigError, match="cg_height_m"):
+        VehicleParams.from_table(parse_toml("cg_height_m = 0\n", "rover.toml"))
