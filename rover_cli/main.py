@@ -13,7 +13,9 @@ import sys
 from collections.abc import Sequence
 
 # family -> module that defines ``register(subparsers)``
+# (one line per family; keep the table sorted)
 FAMILIES = {
+    "bench": "rover_cli.bench_commands",
     "hil": "rover_cli.hil_commands",
 }
 
