@@ -12,12 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from logs.settings import ConfigError, Table, load_toml
-from navigator.errors import TerrainError
-from navigator.terrain import TerrainMap, disc_mask, from_maze, load_npy_layers, procedural
-from navigator.terrain_classes import class_by_name
-
-TERRAIN_KINDS = ("maze", "procedural", "npy")
+from logs.settings import Table, load_toml
+from navigator.map_config import terrain_from_table
+from navigator.terrain import TerrainMap, disc_mask
 
 
 @dataclass(frozen=True)
@@ -95,7 +92,7 @@ def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
         )
     tags = tuple(str(t) for t in root.raw("tags", []))
 
-    terrain, summary = _terrain(root.table("terrain"), base_dir)
+    terrain, summary = terrain_from_table(root.table("terrain"), base_dir)
 
     start_table = root.table("start")
     start_xy = start_table.point("xy")
@@ -154,57 +151,3 @@ def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
 def _check_inside(terrain: TerrainMap, xy: tuple[float, float], table: Table, key: str) -> None:
     if not terrain.contains(*xy):
         raise table.error(key, f"point {xy} lies outside the terrain map")
-
-
-def _terrain(table: Table, base_dir: Path) -> tuple[TerrainMap, str]:
-    kind = table.text("kind", choices=TERRAIN_KINDS)
-    try:
-        if kind == "maze":
-            matrix = table.raw("matrix")
-            cell_size = table.number("cell_size_m", 2.0, lo=0.05, hi=100.0)
-            resolution = table.number("resolution_m", cell_size, lo=0.01, hi=cell_size)
-            class_id = _class_id(table, "class", "firm")
-            terrain = from_maze(matrix, cell_size, terrain_class=class_id, resolution_m=resolution)
-            summary = f"maze of {cell_size} m cells at {resolution} m"
-        elif kind == "procedural":
-            width, height = table.point("size_m")
-            resolution = table.number("resolution_m", 0.25, lo=0.01, hi=10.0)
-            rows, cols = round(height / resolution), round(width / resolution)
-            if rows < 2 or cols < 2:
-                raise table.error("size_m", "the map must be at least two cells each way")
-            terrain = procedural(
-                (rows, cols),
-                resolution,
-                np.random.default_rng(table.integer("seed", 0, lo=0)),
-                base_class=_class_id(table, "class", "firm"),
-                hill_height_m=table.number("hill_height_m", 0.5, lo=0.0, hi=100.0),
-                hill_count=table.integer("hill_count", 3, lo=0, hi=1000),
-                class_patch_count=table.integer("class_patch_count", 0, lo=0, hi=1000),
-            )
-            summary = f"procedural {width:g}x{height:g} m at {resolution} m"
-        else:
-            resolution = table.number("resolution_m", lo=0.01, hi=100.0)
-
-            def layer(key: str) -> Path | None:
-                return base_dir / table.text(key) if table.has(key) else None
-
-            terrain = load_npy_layers(
-                elevation=layer("elevation"),
-                classes=layer("classes"),
-                obstacles=layer("obstacles"),
-                resolution_m=resolution,
-                origin=table.point("origin", [0.0, 0.0]),
-            )
-            summary = f"npy layers {terrain.shape[0]}x{terrain.shape[1]} at {resolution} m"
-    except TerrainError as err:
-        raise ConfigError(table.source, table.prefix, str(err)) from err
-    table.finish()
-    return terrain, summary
-
-
-def _class_id(table: Table, key: str, default: str) -> int:
-    name = table.text(key, default)
-    try:
-        return class_by_name(name).id
-    except (KeyError, ValueError) as err:
-        raise table.error(key, str(err)) from err

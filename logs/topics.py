@@ -28,6 +28,7 @@ ESTIMATOR_INNOVATIONS = "estimator/innovations"
 NAVIGATOR_MAP = "navigator/map"
 NAVIGATOR_PATH = "navigator/path"
 NAVIGATOR_STATE = "navigator/state"
+PERCEPTION_OBSTACLES = "perception/obstacles"
 SAFETY_EVENTS = "safety/events"
 LOG = "log"
 TRUTH_POSE = "truth/pose"
@@ -247,6 +248,19 @@ _SPECS = [
             }
         ),
         "Navigator mode, goal, cross-track error, speed limit and the reason for it.",
+    ),
+    TopicSpec(
+        PERCEPTION_OBSTACLES,
+        "rover.ObstacleArray",
+        _obj(
+            {
+                "timestamp": _TIME,
+                "obstacles": _array(
+                    _obj({"id": _STR, "x": _NUM, "y": _NUM, "radius_m": _NUM, "vx": _NUM, "vy": _NUM})
+                ),
+            }
+        ),
+        "Obstacles perceived in this tick (ENU discs with velocity), as the navigator received them.",
     ),
     TopicSpec(
         SAFETY_EVENTS,

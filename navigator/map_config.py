@@ -1,0 +1,76 @@
+"""Terrain maps from a TOML table: the paper's maze matrix, .npy layers, or procedural from a seed.
+
+Shared by scenario files (the simulator's true world) and the rover config's ``[map]`` (the map the
+navigator believes), so both read terrain the same way with the same errors.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from logs.settings import ConfigError, Table
+from navigator.errors import TerrainError
+from navigator.terrain import TerrainMap, from_maze, load_npy_layers, procedural
+from navigator.terrain_classes import class_by_name
+
+TERRAIN_KINDS = ("maze", "procedural", "npy")
+
+
+def terrain_from_table(table: Table, base_dir: Path) -> tuple[TerrainMap, str]:
+    """The terrain a ``[terrain]``-style table describes, and a one-line summary of it.
+
+    Paths of .npy layers are relative to ``base_dir`` (the directory of the file the table came from).
+    """
+    kind = table.text("kind", choices=TERRAIN_KINDS)
+    try:
+        if kind == "maze":
+            matrix = table.raw("matrix")
+            cell_size = table.number("cell_size_m", 2.0, lo=0.05, hi=100.0)
+            resolution = table.number("resolution_m", cell_size, lo=0.01, hi=cell_size)
+            class_id = _class_id(table, "class", "firm")
+            terrain = from_maze(matrix, cell_size, terrain_class=class_id, resolution_m=resolution)
+            summary = f"maze of {cell_size} m cells at {resolution} m"
+        elif kind == "procedural":
+            width, height = table.point("size_m")
+            resolution = table.number("resolution_m", 0.25, lo=0.01, hi=10.0)
+            rows, cols = round(height / resolution), round(width / resolution)
+            if rows < 2 or cols < 2:
+                raise table.error("size_m", "the map must be at least two cells each way")
+            terrain = procedural(
+                (rows, cols),
+                resolution,
+                np.random.default_rng(table.integer("seed", 0, lo=0)),
+                base_class=_class_id(table, "class", "firm"),
+                hill_height_m=table.number("hill_height_m", 0.5, lo=0.0, hi=100.0),
+                hill_count=table.integer("hill_count", 3, lo=0, hi=1000),
+                class_patch_count=table.integer("class_patch_count", 0, lo=0, hi=1000),
+            )
+            summary = f"procedural {width:g}x{height:g} m at {resolution} m"
+        else:
+            resolution = table.number("resolution_m", lo=0.01, hi=100.0)
+
+            def layer(key: str) -> Path | None:
+                return base_dir / table.text(key) if table.has(key) else None
+
+            terrain = load_npy_layers(
+                elevation=layer("elevation"),
+                classes=layer("classes"),
+                obstacles=layer("obstacles"),
+                resolution_m=resolution,
+                origin=table.point("origin", [0.0, 0.0]),
+            )
+            summary = f"npy layers {terrain.shape[0]}x{terrain.shape[1]} at {resolution} m"
+    except TerrainError as err:
+        raise ConfigError(table.source, table.prefix, str(err)) from err
+    table.finish()
+    return terrain, summary
+
+
+def _class_id(table: Table, key: str, default: str) -> int:
+    name = table.text(key, default)
+    try:
+        return class_by_name(name).id
+    except (KeyError, ValueError) as err:
+        raise table.error(key, str(err)) from err

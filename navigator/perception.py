@@ -1,0 +1,34 @@
+"""What the rover perceives of obstacles around it, from whatever sensor or simulator provides it.
+
+On the rover a lidar or camera pipeline implements ``ObstacleSource``; in HIL the simulator does (only
+obstacles within sensing range, static and moving). The navigator consumes observations to repair its
+plan and to stop or slow for moving obstacles in its way.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+
+@dataclass(frozen=True)
+class ObstacleObservation:
+    """One obstacle seen at ``t_ns``: a disc in local ENU with its velocity (m/s; 0 for static ones)."""
+
+    t_ns: int
+    obstacle_id: str
+    x: float
+    y: float
+    radius_m: float
+    vx: float = 0.0
+    vy: float = 0.0
+
+    @property
+    def moving(self) -> bool:
+        return self.vx != 0.0 or self.vy != 0.0
+
+
+class ObstacleSource(Protocol):
+    def poll(self) -> list[ObstacleObservation]:
+        """Observations made since the last call, oldest first (empty when nothing new was seen)."""
+        ...
