@@ -18,12 +18,20 @@ _POSITIVE = (
     "accel_process_noise",
     "yaw_accel_process_noise",
     "gyro_bias_walk",
+    "odom_scale_walk",
     "track_m",
     "skid_factor",
     "healthy_position_std_m",
     "heading_init_distance_m",
     "slip_threshold_rps",
+    "healthy_heading_std_deg",
+    "gps_reset_after_s",
+    "gps_timeout_s",
+    "stuck_window_s",
+    "stuck_min_distance_m",
 )
+# Settings that may be zero but not negative.
+_NON_NEGATIVE = ("gps_latency_s",)
 
 
 @dataclass(frozen=True)
@@ -44,18 +52,33 @@ class EstimatorConfig:
         Random walk on yaw rate, rad/s^2.
     gyro_bias_walk : float
         Random walk on the gyro bias, rad/s per sqrt(s).
+    odom_scale_walk : float
+        Random walk on the odometry scale (wheel speed / ground speed), 1 per sqrt(s): how fast the
+        filter lets the ground change from firm to slippery.
     gate_probability : float
         Chi-square gate on every update: a measurement whose NIS exceeds ``chi2.ppf(p, dim)`` is rejected.
     track_m, skid_factor : float
         Skid-steer odometry: yaw rate = (v_right - v_left) / (track_m * skid_factor).
     healthy_position_std_m : float
         The estimate is healthy while the largest position std (m) stays below this.
+    healthy_heading_std_deg : float
+        ... and the heading std (degrees) below this.
     heading_init_distance_m : float
         With no heading given, GPS displacement (m) the rover must cover before yaw is taken from its track.
     slip_threshold_rps : float
         |odometry yaw rate - gyro yaw rate| (rad/s) above which odometry noise is inflated (wheels slipping).
-    gps_reset_after_rejections : int
-        After this many GPS fixes gated out in a row the filter believes GPS and re-anchors its position.
+    gps_reset_after_s : float
+        GPS gated out for this long without a single accepted fix in between (a persistent offset, not a
+        glitch) makes the filter believe GPS and re-anchor its position, once, with a logged warning.
+    gps_timeout_s : float
+        Health flag ``gps_fresh`` turns False when the last accepted fix is older than this (s).
+    gps_latency_s : float
+        Age of a fix when it reaches us (s): it is fused at ``t - latency`` by going back to the filter
+        state of that instant and re-fusing the IMU and wheel samples since (0: fused on arrival).
+    stuck_window_s, stuck_min_distance_m : float
+        Over every window of this length (s) with at least this much odometry travel (m), GPS travel is
+        compared with odometry travel: wheels that turn while GPS stands still are spinning in place,
+        and their speed is then left out until the two agree again.
     datum_lat_deg, datum_lon_deg, datum_alt_m : float | None
         ENU origin; if absent the first good GPS fix sets it.
     """
@@ -67,13 +90,19 @@ class EstimatorConfig:
     accel_process_noise: float = 0.5
     yaw_accel_process_noise: float = 1.0
     gyro_bias_walk: float = 1e-4
+    odom_scale_walk: float = 0.002
     gate_probability: float = 0.9995
     track_m: float = 0.55
     skid_factor: float = 1.6
     healthy_position_std_m: float = 2.0
+    healthy_heading_std_deg: float = 10.0
     heading_init_distance_m: float = 5.0
     slip_threshold_rps: float = 0.15
-    gps_reset_after_rejections: int = 25
+    gps_reset_after_s: float = 10.0
+    gps_timeout_s: float = 2.0
+    gps_latency_s: float = 0.0
+    stuck_window_s: float = 3.0
+    stuck_min_distance_m: float = 1.0
     datum_lat_deg: float | None = None
     datum_lon_deg: float | None = None
     datum_alt_m: float | None = None
@@ -83,13 +112,13 @@ class EstimatorConfig:
             value = getattr(self, name)
             if not math.isfinite(value) or value <= 0.0:
                 raise EstimatorSetupError(name, f"must be a finite number > 0, got {value}")
+        for name in _NON_NEGATIVE:
+            value = getattr(self, name)
+            if not math.isfinite(value) or value < 0.0:
+                raise EstimatorSetupError(name, f"must be a finite number >= 0, got {value}")
         if not 0.5 <= self.gate_probability < 1.0:
             raise EstimatorSetupError(
                 "gate_probability", f"must be in [0.5, 1) (e.g. 0.9995), got {self.gate_probability}"
-            )
-        if self.gps_reset_after_rejections < 1:
-            raise EstimatorSetupError(
-                "gps_reset_after_rejections", f"must be >= 1, got {self.gps_reset_after_rejections}"
             )
         if (self.datum_lat_deg is None) != (self.datum_lon_deg is None):
             raise EstimatorSetupError("datum_lat_deg", "give both datum_lat_deg and datum_lon_deg or neither")
@@ -107,12 +136,10 @@ class EstimatorConfig:
     @classmethod
     def from_table(cls, table: Table) -> EstimatorConfig:
         """Read the ``[estimator]`` table; unknown keys and bad values raise ``ConfigError`` naming it."""
-        values: dict[str, float | int | None] = {}
+        values: dict[str, float | None] = {}
         for f in fields(cls):
             default = f.default
-            if f.name == "gps_reset_after_rejections":
-                values[f.name] = table.integer(f.name, default)
-            elif default is None:
+            if default is None:
                 values[f.name] = table.number(f.name) if table.has(f.name) else None
             else:
                 assert isinstance(default, float)

@@ -1,20 +1,29 @@
-"""The rover EKF: planar pose, speed, yaw rate and gyro bias, with a chi-square gate on every update.
+"""The rover EKF: planar pose, speed, yaw rate, gyro bias and odometry scale, gated on every update.
 
-State ``x`` (shape (6,)), in order (``STATE_NAMES``)::
+State ``x`` (shape (7,)), in order (``STATE_NAMES``)::
 
     x_m, y_m          position, local ENU metres
     yaw_rad           heading, radians CCW from east, wrapped to (-pi, pi]
-    speed_mps         body forward speed, m/s (negative when reversing)
+    speed_mps         body forward speed over ground, m/s (negative when reversing)
     yaw_rate_rps      body yaw rate, rad/s
     gyro_bias_rps     additive bias of the z gyro, rad/s
+    odom_scale        wheel surface speed / speed over ground (1 on firm ground, > 1 when the wheels slip)
 
 Motion model: constant speed and yaw rate over ``dt``, position advanced along the mid-interval heading
-(second-order accurate; dt is at most a few tens of ms between sensor samples).
+(second-order accurate; dt is at most a few tens of ms between sensor samples). Speed, yaw rate, gyro bias
+and odometry scale are random walks (intensities from ``EstimatorConfig``).
+
+Measurement models: GPS ``z = (x, y)``; gyro ``z = yaw_rate + bias``; wheel odometry
+``z = (odom_scale * speed, yaw_rate)`` (or the yaw-rate row alone when the speed is known to be bad);
+heading ``z = yaw``. The scale is what makes dead reckoning on sand or mud honest: GPS teaches it while it is
+there, and a GPS dropout then integrates ``odometry / scale`` instead of the raw wheel speed.
 
 Why not ``filterpy.kalman.ExtendedKalmanFilter.update``: it applies every measurement unconditionally (the
 gate must see ``S`` *before* the state changes), fixes ``dim_z`` at construction although our sensors have 1
-or 2 dimensions, and deep-copies ``z`` on every call. The update below is the same Joseph-form EKF update
-with an angle-wrapping residual, plus the gate, and it allocates only small arrays.
+or 2 dimensions, and deep-copies ``z`` on every call. The update below is the same EKF update with an
+angle-wrapping residual, plus the gate; it uses ``P - K S K^T`` (with explicit symmetrisation) instead of
+filterpy's Joseph form because K is the optimal gain here and it costs two 7x7 products less per update;
+``rover bench estimator`` measures both against each other.
 """
 
 from __future__ import annotations
@@ -30,16 +39,31 @@ from estimator.angles import wrap_angle
 from estimator.config import EstimatorConfig
 from estimator.errors import EstimatorOperationError
 
-STATE_NAMES: tuple[str, ...] = ("x_m", "y_m", "yaw_rad", "speed_mps", "yaw_rate_rps", "gyro_bias_rps")
-X, Y, YAW, SPEED, YAW_RATE, BIAS = range(6)
-DIM_X = 6
+STATE_NAMES: tuple[str, ...] = (
+    "x_m",
+    "y_m",
+    "yaw_rad",
+    "speed_mps",
+    "yaw_rate_rps",
+    "gyro_bias_rps",
+    "odom_scale",
+)
+X, Y, YAW, SPEED, YAW_RATE, BIAS, SCALE = range(7)
+DIM_X = 7
 
 # Prior on the states nobody measured yet at initialisation: a rover starting up is nearly still.
 _INITIAL_SPEED_STD_MPS = 1.0
 _INITIAL_YAW_RATE_STD_RPS = 0.5
 _INITIAL_BIAS_STD_RPS = 0.05
+_INITIAL_SCALE_STD = 0.05
+# The scale is a ratio of speeds: outside these the wheels are not rolling on the ground at all (stuck,
+# airborne) and the stuck detector in the front end, not the scale, has to deal with it.
+_SCALE_MIN, _SCALE_MAX = 0.7, 2.0
 
 Array = NDArray[np.float64]
+
+# Flat indices of the random-walk states on P's diagonal, so predict adds Q with one fancy-free operation.
+_WALK_DIAGONAL = np.array([SPEED, YAW_RATE, BIAS, SCALE]) * (DIM_X + 1)
 
 
 def _rows(*selected: int) -> Array:
@@ -52,8 +76,8 @@ def _rows(*selected: int) -> Array:
 
 _H_POSITION = _rows(X, Y)
 _H_HEADING = _rows(YAW)
-_H_ODOMETRY = _rows(SPEED, YAW_RATE)
-_H_GYRO = np.array([[0.0, 0.0, 0.0, 0.0, 1.0, 1.0]])  # the gyro sees yaw rate + bias
+_H_ODOMETRY_YAW_RATE = _rows(YAW_RATE)
+_H_GYRO = np.array([[0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0]])  # the gyro sees yaw rate + bias
 
 
 @dataclass(frozen=True)
@@ -78,6 +102,15 @@ class Innovation:
     accepted: bool
 
 
+@dataclass(frozen=True, eq=False)
+class Snapshot:
+    """The filter at one instant, to go back to when a delayed measurement arrives (copies)."""
+
+    t_ns: int
+    x: Array
+    p: Array
+
+
 class RoverEkf:
     """Extended Kalman filter for a skid-steer rover in the plane.
 
@@ -90,17 +123,24 @@ class RoverEkf:
     def __init__(self, config: EstimatorConfig) -> None:
         self._config = config
         self._x: Array = np.zeros(DIM_X)
+        self._x[SCALE] = 1.0
         self._p: Array = np.eye(DIM_X)
         self._t_ns: int | None = None
-        self._identity: Array = np.eye(DIM_X)
-        # Process noise intensities (per second) on speed, yaw rate and bias: random walks.
+        # Process noise intensities (per second) of the random walks, in _WALK_DIAGONAL's order.
         self._q_rate: Array = np.array(
-            [config.accel_process_noise**2, config.yaw_accel_process_noise**2, config.gyro_bias_walk**2]
+            [
+                config.accel_process_noise**2,
+                config.yaw_accel_process_noise**2,
+                config.gyro_bias_walk**2,
+                config.odom_scale_walk**2,
+            ]
         )
         # Gate thresholds computed once per measurement dimension.
         self._gate = {dim: float(chi2.ppf(config.gate_probability, dim)) for dim in (1, 2)}
         self._r_gyro: Array = np.array([[config.gyro_noise_rps**2]])
+        self._scale_learning = True
         self._f: Array = np.eye(DIM_X)  # reused Jacobian buffer; only the motion entries change
+        self._h_odometry: Array = _rows(SPEED, YAW_RATE)  # reused; its speed row depends on the state
 
     # --- state access --------------------------------------------------------------------------
     @property
@@ -114,21 +154,34 @@ class RoverEkf:
 
     @property
     def x(self) -> Array:
-        """A copy of the state, shape (6,)."""
+        """A copy of the state, shape (7,)."""
         return self._x.copy()
 
     @property
     def covariance(self) -> Array:
-        """A copy of the state covariance, shape (6, 6), units of the state squared."""
+        """A copy of the state covariance, shape (7, 7), units of the state squared."""
         return self._p.copy()
 
     def state(self, index: int) -> float:
         """One state value without copying the vector."""
         return float(self._x[index])
 
+    def variance(self, index: int) -> float:
+        """One diagonal entry of the covariance without copying it."""
+        return float(self._p[index, index])
+
     def position_std_m(self) -> float:
         """Std (m) of the position along its worst direction."""
         return position_std_m(self._p)
+
+    def snapshot(self) -> Snapshot:
+        return Snapshot(self._require_time(), self._x.copy(), self._p.copy())
+
+    def restore(self, snapshot: Snapshot) -> None:
+        """Go back to a snapshot taken earlier (the buffer-and-re-fuse path for delayed measurements)."""
+        self._x = snapshot.x.copy()
+        self._p = snapshot.p.copy()
+        self._t_ns = snapshot.t_ns
 
     # --- set-up --------------------------------------------------------------------------------
     def initialise(
@@ -137,7 +190,7 @@ class RoverEkf:
         """Start (or restart) the filter at a position and heading; speed and yaw rate start at zero."""
         _check_finite("initialise", x_m=x_m, y_m=y_m, yaw_rad=yaw_rad)
         _check_std("initialise", position_std_m=position_std_m, yaw_std_rad=yaw_std_rad)
-        self._x[:] = (x_m, y_m, wrap_angle(yaw_rad), 0.0, 0.0, 0.0)
+        self._x[:] = (x_m, y_m, wrap_angle(yaw_rad), 0.0, 0.0, 0.0, 1.0)
         self._p[:] = np.diag(
             [
                 position_std_m**2,
@@ -146,6 +199,7 @@ class RoverEkf:
                 _INITIAL_SPEED_STD_MPS**2,
                 _INITIAL_YAW_RATE_STD_RPS**2,
                 _INITIAL_BIAS_STD_RPS**2,
+                _INITIAL_SCALE_STD**2,
             ]
         )
         self._t_ns = t_ns
@@ -169,6 +223,27 @@ class RoverEkf:
         self._p[(X, Y), :] = 0.0
         self._p[:, (X, Y)] = 0.0
         self._p[X, X] = self._p[Y, Y] = position_std_m**2
+
+    @property
+    def scale_learning(self) -> bool:
+        return self._scale_learning
+
+    def learn_scale(self, on: bool) -> None:
+        """Let updates correct the odometry scale (on) or only *consider* it (off).
+
+        The scale is observable only against an absolute speed: GPS track with a known heading. Without
+        one (heading still unknown, GPS lost, wheels spinning) the bilinear ``scale * speed`` model lets
+        an EKF wander along ``scale * speed = odometry`` and dead reckoning then drifts by tens of percent.
+        Off, the scale is a Schmidt "consider" state: its uncertainty still widens P for the other states,
+        but updates leave its value and its variance alone.
+        """
+        self._scale_learning = on
+
+    def inflate(self, index: int, std: float) -> None:
+        """Add ``std**2`` to one state's variance: it is known to be worse than the filter thinks."""
+        self._require_time()
+        _check_std("inflate", std=std)
+        self._p[index, index] += std**2
 
     # --- prediction ----------------------------------------------------------------------------
     def predict(self, t_ns: int) -> None:
@@ -195,7 +270,7 @@ class RoverEkf:
         f[Y, YAW_RATE] = step * cos_h * 0.5 * dt
         f[YAW, YAW_RATE] = dt
         p = f @ self._p @ f.T
-        p[(SPEED, YAW_RATE, BIAS), (SPEED, YAW_RATE, BIAS)] += self._q_rate * dt
+        p.ravel()[_WALK_DIAGONAL] += self._q_rate * dt
         self._p = p
         self._t_ns = t_ns
 
@@ -228,14 +303,36 @@ class RoverEkf:
         return self._update("gyro", y, _H_GYRO, self._r_gyro)
 
     def update_odometry(
-        self, speed_mps: float, yaw_rate_rps: float, speed_std_mps: float, yaw_rate_std_rps: float
+        self,
+        speed_mps: float,
+        yaw_rate_rps: float,
+        speed_std_mps: float,
+        yaw_rate_std_rps: float,
+        *,
+        use_speed: bool = True,
     ) -> Innovation:
-        """Wheel odometry: body speed (m/s) and yaw rate (rad/s) with their std."""
+        """Wheel odometry: mean wheel surface speed (m/s) and yaw rate (rad/s) with their std.
+
+        The speed row measures ``odom_scale * speed``. ``use_speed=False`` fuses the yaw rate alone (the
+        wheels are spinning in place: their speed says nothing about the ground); the residual then has
+        one entry.
+        """
         _check_finite("update_odometry", speed_mps=speed_mps, yaw_rate_rps=yaw_rate_rps)
         _check_std("update_odometry", speed_std_mps=speed_std_mps, yaw_rate_std_rps=yaw_rate_std_rps)
-        y = np.array([speed_mps - self._x[SPEED], yaw_rate_rps - self._x[YAW_RATE]])
+        x = self._x
+        if not use_speed:
+            y = np.array([yaw_rate_rps - x[YAW_RATE]])
+            return self._update("odometry", y, _H_ODOMETRY_YAW_RATE, np.array([[yaw_rate_std_rps**2]]))
+        y = np.array([speed_mps - x[SCALE] * x[SPEED], yaw_rate_rps - x[YAW_RATE]])
+        h = self._h_odometry
+        h[0, SPEED] = x[SCALE]
+        h[0, SCALE] = x[SPEED]
         r = np.diag([speed_std_mps**2, yaw_rate_std_rps**2])
-        return self._update("odometry", y, _H_ODOMETRY, r)
+        innovation = self._update("odometry", y, h, r)
+        # Keep the scale physical: a linearised update at near-zero speed can push it anywhere.
+        x = self._x
+        x[SCALE] = min(max(x[SCALE], _SCALE_MIN), _SCALE_MAX)
+        return innovation
 
     def update_heading(self, yaw_rad: float, std_rad: float) -> Innovation:
         """An absolute heading (compass, dual-antenna GPS), radians CCW from east."""
@@ -245,21 +342,29 @@ class RoverEkf:
         return self._update("heading", y, _H_HEADING, np.array([[std_rad**2]]))
 
     def _update(self, sensor: str, y: Array, h: Array, r: Array, *, gated: bool = True) -> Innovation:
-        """Gate, then Joseph-form update; ``y`` is the residual z - h(x), angles already wrapped."""
+        """Gate, then the EKF update; ``y`` is the residual z - h(x), angles already wrapped."""
         self._require_time()
         p_ht = self._p @ h.T
         s = h @ p_ht + r
         s_inv = _inverse_small(s)
         nis = float(y @ s_inv @ y)
-        residual = tuple(float(v) for v in y)
+        residual = tuple(y.tolist())
         if not math.isfinite(nis) or (gated and nis > self._gate[len(y)]):
             return Innovation(sensor, residual, nis, accepted=False)
         k = p_ht @ s_inv
-        self._x += k @ y
-        self._x[YAW] = wrap_angle(self._x[YAW])
-        i_kh = self._identity - k @ h
-        # Joseph form keeps P symmetric positive definite even with rounding; then symmetrise what's left.
-        p = i_kh @ self._p @ i_kh.T + k @ r @ k.T
+        if self._scale_learning or not p_ht[SCALE].any():
+            self._x += k @ y
+            self._x[YAW] = wrap_angle(self._x[YAW])
+            # P - K S K^T = P - K (P H^T)^T for the optimal gain; symmetrise what rounding leaves.
+            p = self._p - k @ p_ht.T
+        else:
+            # Schmidt update: the scale's gain row is zeroed, so K is no longer optimal and only the
+            # Joseph form gives the right covariance.
+            k[SCALE] = 0.0
+            self._x += k @ y
+            self._x[YAW] = wrap_angle(self._x[YAW])
+            i_kh = np.eye(DIM_X) - k @ h
+            p = i_kh @ self._p @ i_kh.T + k @ r @ k.T
         self._p = 0.5 * (p + p.T)
         return Innovation(sensor, residual, nis, accepted=True)
 
@@ -272,7 +377,7 @@ class RoverEkf:
 
 
 def position_std_m(covariance: Array) -> float:
-    """Sqrt of the largest eigenvalue of the 2x2 position block of a (6, 6) covariance, metres."""
+    """Sqrt of the largest eigenvalue of the 2x2 position block of a state covariance, metres."""
     a, b, c = covariance[X, X], covariance[X, Y], covariance[Y, Y]
     # Closed-form eigenvalue of a symmetric 2x2: cheaper than eigvalsh in a hot loop.
     largest = 0.5 * (a + c) + math.sqrt(max(0.25 * (a - c) ** 2 + b * b, 0.0))
@@ -282,7 +387,7 @@ def position_std_m(covariance: Array) -> float:
 def _inverse_small(s: Array) -> Array:
     """Inverse of a 1x1 or 2x2 innovation covariance in closed form (np.linalg.inv costs more to call)."""
     if s.shape == (1, 1):
-        return np.array([[1.0 / s[0, 0]]])
+        return 1.0 / s
     if s.shape == (2, 2):
         a, b, c, d = s[0, 0], s[0, 1], s[1, 0], s[1, 1]
         det = a * d - b * c

@@ -10,14 +10,34 @@ from __future__ import annotations
 import logging
 import math
 from collections import Counter
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
 
 from estimator.angles import wrap_angle
 from estimator.config import EstimatorConfig
-from estimator.ekf import BIAS, SPEED, YAW, YAW_RATE, Innovation, RoverEkf, position_std_m
+from estimator.ekf import (
+    BIAS,
+    SCALE,
+    SPEED,
+    YAW,
+    YAW_RATE,
+    Innovation,
+    RoverEkf,
+    Snapshot,
+    X,
+    Y,
+    position_std_m,
+)
 from estimator.errors import EstimatorSetupError
 from estimator.geodesy import Datum, to_enu
 from estimator.heading_bootstrap import HeadingBootstrap
+from estimator.health import EstimatorHealth
+from estimator.history import FusionHistory, GyroSample, OdometrySample, Sample
 from estimator.pose import PoseEstimate, pose_message
+from estimator.stuck import StuckDetector
+from estimator.wheels import BodyMotion, side_speeds, six_wheels
 from logs.clock import Clock
 from logs.sink import MessageSink
 from logs.topics import ESTIMATOR_INNOVATIONS, ESTIMATOR_POSE, stamp
@@ -33,6 +53,15 @@ UNKNOWN_HEADING_STD_RAD = math.pi
 _GYRO_FRESH_NS = 100_000_000
 # Log the first rejection of each kind, then every n-th, so a 50 Hz fault cannot flood the log.
 _LOG_EVERY = 100
+# Physically impossible readings (a sign or unit error, a corrupted frame): MEMS gyros saturate near
+# 35 rad/s (2000 deg/s), accelerometers at 16 g; a rover wheel surface beyond 20 m/s is a decoding error.
+_MAX_GYRO_RPS = 35.0
+_MAX_ACCEL_MPS2 = 16.0 * 9.80665
+_MAX_WHEEL_SPEED_MPS = 20.0
+# IMU / wheel samples may arrive this much behind the filter (two sources, one loop); older ones are stale.
+_MAX_SAMPLE_LAG_NS = 100_000_000
+# How far back the fusion history reaches beyond the configured GPS latency (jitter of the link).
+_HISTORY_MARGIN_NS = 300_000_000
 
 
 class Estimator:
@@ -59,8 +88,15 @@ class Estimator:
         self._initial_heading: tuple[float, float] | None = None
         self._heading_known = False
         self._odometry_seen = False
-        self._gps_rejected_in_row = 0
+        self._gps_rejected_since_ns: int | None = None  # fix time of the first gated fix in a row
+        self._last_gps_accepted_ns: int | None = None
+        self._last_gps_fix_ns: int | None = None
         self._last_gyro: tuple[int, float] | None = None  # (t_ns, raw gyro z rad/s)
+        self._last_wheels_ns: int | None = None
+        self._stuck = StuckDetector(config.stuck_window_s, config.stuck_min_distance_m)
+        self._latency_ns = round(config.gps_latency_s * 1e9)
+        # Kept only when fixes can be late: every IMU / wheel update then costs a state copy.
+        self._history = FusionHistory(self._latency_ns + _HISTORY_MARGIN_NS) if self._latency_ns else None
 
     # --- read-only views -----------------------------------------------------------------------
     @property
@@ -106,10 +142,13 @@ class Estimator:
         fix_type: int,
         eph_m: float | None,
         satellites: int,
+        fix_time_ns: int | None = None,
     ) -> None:
         """A GPS fix (WGS84 degrees, metres). ``eph_m`` is the horizontal std (m) or None if unknown.
 
-        ``satellites`` is informational; the receiver's ``fix_type`` already says whether enough were used.
+        ``t_ns`` is when it arrived; the fix was taken at ``fix_time_ns`` if the caller knows it, else
+        ``gps_latency_s`` before arrival. ``satellites`` is informational; the receiver's ``fix_type``
+        already says whether enough were used.
         """
         if fix_type < MIN_FIX_TYPE:
             self._reject("gps_no_fix", f"fix_type {fix_type} < {MIN_FIX_TYPE} (3D), {satellites} satellites")
@@ -123,6 +162,11 @@ class Estimator:
         if eph_m is not None and (not math.isfinite(eph_m) or eph_m < 0.0):
             self._reject("gps_bad_eph", f"eph_m={eph_m} is not a finite std >= 0")
             return
+        t_fix = fix_time_ns if fix_time_ns is not None else t_ns - self._latency_ns
+        if self._last_gps_fix_ns is not None and t_fix <= self._last_gps_fix_ns:
+            previous = self._last_gps_fix_ns
+            self._reject("gps_out_of_order", f"fix time {t_fix} ns is not after the previous {previous} ns")
+            return
         if self._datum is None:
             try:
                 self._datum = Datum(lat_deg, lon_deg, alt_m)
@@ -132,46 +176,47 @@ class Estimator:
             logger.info("ENU datum set from the first good fix: %s", self._datum)
         east, north, _ = to_enu(self._datum, lat_deg, lon_deg, alt_m)
         std = max(eph_m if eph_m is not None else 0.0, self._config.gps_noise_m)
+        self._last_gps_fix_ns = t_fix
 
         if not self._ekf.initialised:
-            self._initialise(t_ns, east, north, std)
+            self._initialise(t_fix, east, north, std)
+            self._last_gps_accepted_ns = t_fix
             return
-        self._advance(t_ns)
-        # Until the heading is known the covariance rests on a linearisation that may be far off, so the
-        # gate would throw away exactly the fixes that teach us the heading.
-        innovation = self._ekf.update_position(east, north, std, gated=self._heading_known)
-        self._publish_innovation(t_ns, innovation)
-        if not self._heading_known:
-            self._learn_heading(east, north, std)
-        if innovation.accepted:
-            self._gps_rejected_in_row = 0
-            self._counters["gps_accepted"] += 1
-            return
-        self._gps_rejected_in_row += 1
-        self._reject("gps_gated", f"NIS {innovation.nis:.1f}, residual {innovation.residual} m")
-        if self._gps_rejected_in_row >= self._config.gps_reset_after_rejections:
-            # Many fixes in a row disagree with us: more likely we drifted than that GPS is wrong for so long.
-            self._ekf.reset_position(east, north, std)
-            self._counters["gps_reset"] += 1
-            logger.warning(
-                "%d GPS fixes in a row were gated out; position re-anchored on GPS at (%.1f, %.1f) m",
-                self._gps_rejected_in_row,
-                east,
-                north,
-            )
-            self._gps_rejected_in_row = 0
+        was_spinning = self._stuck.spinning
+        if self._stuck.on_fix(t_fix, east, north, std) != was_spinning:
+            self._on_spinning_changed()
+        if t_fix < self._ekf.t_ns and self._heading_known:
+            self._fuse_late_gps(t_fix, east, north, std)
+        else:
+            # While the heading is still being learnt the bootstrap must see each motion once, so a late
+            # fix is fused on arrival then (a fraction of a second off, at walking speed).
+            self._fuse_gps(max(t_fix, self._ekf.t_ns), east, north, std)
 
     def on_imu(self, t_ns: int, gyro_z_rps: float, accel_x: float, accel_y: float) -> None:
-        """Body-frame IMU sample: gyro z (rad/s, CCW positive); accelerations (m/s^2) are not fused yet."""
-        if not math.isfinite(gyro_z_rps):
-            self._reject("imu_not_finite", f"gyro_z_rps={gyro_z_rps}")
+        """Body-frame IMU sample: gyro z (rad/s, CCW positive), accelerations (m/s^2, x forward, y left).
+
+        The accelerations are range-checked but not fused: on slopes they are dominated by the projection
+        of gravity, and this planar filter has no roll and pitch to take it out.
+        """
+        if not (math.isfinite(gyro_z_rps) and math.isfinite(accel_x) and math.isfinite(accel_y)):
+            self._reject("imu_not_finite", f"gyro_z_rps={gyro_z_rps}, accel=({accel_x}, {accel_y})")
             return
-        self._last_gyro = (t_ns, gyro_z_rps)
+        if abs(gyro_z_rps) > _MAX_GYRO_RPS or math.hypot(accel_x, accel_y) > _MAX_ACCEL_MPS2:
+            self._reject("imu_out_of_range", f"gyro_z_rps={gyro_z_rps}, accel=({accel_x}, {accel_y})")
+            return
         if not self._ekf.initialised:
+            self._last_gyro = (t_ns, gyro_z_rps)
             self._counters["imu_before_init"] += 1
             return
+        if t_ns < self._ekf.t_ns - _MAX_SAMPLE_LAG_NS:
+            self._reject("imu_stale", f"sample at {t_ns} ns, filter already at {self._ekf.t_ns} ns")
+            return
+        self._last_gyro = (t_ns, gyro_z_rps)
+        sample = GyroSample(t_ns, gyro_z_rps)
+        before = self._ekf.snapshot() if self._history is not None else None
         self._advance(t_ns)
         innovation = self._ekf.update_gyro(gyro_z_rps)
+        self._remember(before, sample)
         self._publish_innovation(t_ns, innovation)
         self._count(innovation, "gyro")
 
@@ -180,17 +225,28 @@ class Estimator:
         if not (math.isfinite(left_speed_mps) and math.isfinite(right_speed_mps)):
             self._reject("wheels_not_finite", f"left={left_speed_mps}, right={right_speed_mps}")
             return
-        if not self._ekf.initialised:
-            self._counters["wheels_before_init"] += 1
+        if max(abs(left_speed_mps), abs(right_speed_mps)) > _MAX_WHEEL_SPEED_MPS:
+            self._reject("wheels_out_of_range", f"left={left_speed_mps}, right={right_speed_mps} m/s")
             return
-        speed = 0.5 * (left_speed_mps + right_speed_mps)
-        yaw_rate = (right_speed_mps - left_speed_mps) / (self._config.track_m * self._config.skid_factor)
-        speed_std, yaw_rate_std = self._odometry_noise(t_ns, yaw_rate)
-        self._advance(t_ns)
-        innovation = self._ekf.update_odometry(speed, yaw_rate, speed_std, yaw_rate_std)
-        self._odometry_seen = True
-        self._publish_innovation(t_ns, innovation)
-        self._count(innovation, "odometry")
+        motion = side_speeds(left_speed_mps, right_speed_mps, self._config.track_m, self._config.skid_factor)
+        self._fuse_wheels(t_ns, motion)
+
+    def on_wheel_speeds(self, t_ns: int, speeds_mps: Sequence[float]) -> None:
+        """Six wheel surface speeds (m/s) in wheel order: left front/middle/rear, right front/middle/rear.
+
+        Better than ``on_wheels`` when available: wheels of one side that disagree (one spinning, one
+        stalled) make the odometry noise grow by their spread.
+        """
+        if len(speeds_mps) != 6:
+            self._reject("wheels_malformed", f"{len(speeds_mps)} wheel speeds instead of 6")
+            return
+        if not all(math.isfinite(v) for v in speeds_mps):
+            self._reject("wheels_not_finite", f"speeds={list(speeds_mps)}")
+            return
+        if max(abs(v) for v in speeds_mps) > _MAX_WHEEL_SPEED_MPS:
+            self._reject("wheels_out_of_range", f"speeds={list(speeds_mps)} m/s")
+            return
+        self._fuse_wheels(t_ns, six_wheels(speeds_mps, self._config.track_m, self._config.skid_factor))
 
     # --- output --------------------------------------------------------------------------------
     def pose(self, t_ns: int | None = None) -> PoseEstimate | None:
@@ -201,7 +257,7 @@ class Estimator:
             x, p = self._ekf.predicted(t_ns)
         else:
             x, p, t_ns = self._ekf.x, self._ekf.covariance, self._ekf.t_ns
-        std = position_std_m(p)
+        health = self._health(p)
         return PoseEstimate(
             x=float(x[0]),
             y=float(x[1]),
@@ -209,11 +265,20 @@ class Estimator:
             speed=float(x[SPEED]),
             yaw_rate=float(x[YAW_RATE]),
             covariance=p,
-            healthy=std < self._config.healthy_position_std_m,
+            healthy=health.healthy,
             t_ns=t_ns,
             heading_known=self._heading_known,
-            position_std_m=std,
+            position_std_m=health.position_std_m,
         )
+
+    def health(self) -> EstimatorHealth:
+        """Health flags of the current estimate, each with the threshold it was judged against."""
+        return self._health(self._ekf.covariance if self._ekf.initialised else None)
+
+    @property
+    def odometry_scale(self) -> float:
+        """Learnt wheel-speed / ground-speed ratio (1 on firm ground)."""
+        return self._ekf.state(SCALE) if self._ekf.initialised else 1.0
 
     def publish_pose(self, t_ns: int) -> bool:
         """Publish ``estimator/pose`` for ``t_ns``; returns False (nothing published) before the first fix."""
@@ -233,6 +298,122 @@ class Estimator:
         self._ekf.initialise(east, north, yaw, t_ns, std, yaw_std)
         self._counters["gps_initialised"] += 1
         logger.info("estimator initialised at (%.2f, %.2f) m, heading known: %s", east, north, yaw_std < 1.0)
+
+    def _fuse_gps(self, t_fix: int, east: float, north: float, std: float) -> None:
+        self._advance(t_fix)
+        # Until the heading is known the covariance rests on a linearisation that may be far off, so the
+        # gate would throw away exactly the fixes that teach us the heading.
+        innovation = self._ekf.update_position(east, north, std, gated=self._heading_known)
+        self._publish_innovation(t_fix, innovation)
+        if not self._heading_known:
+            self._learn_heading(east, north, std)
+        if innovation.accepted:
+            self._gps_accepted(t_fix)
+            return
+        self._reject("gps_gated", f"NIS {innovation.nis:.1f}, residual {innovation.residual} m")
+        if self._gps_rejected_since_ns is None:
+            self._gps_rejected_since_ns = t_fix
+        gated_for_s = (t_fix - self._gps_rejected_since_ns) * 1e-9
+        if gated_for_s >= self._config.gps_reset_after_s:
+            # GPS has disagreed with us for long, fix after fix: more likely we drifted (or the wheels
+            # lied) than that GPS is wrong for so long. A short glitch never gets here.
+            self._ekf.reset_position(east, north, std)
+            self._counters["gps_reset"] += 1
+            logger.warning(
+                "GPS gated out for %.1f s; position re-anchored on GPS at (%.1f, %.1f) m",
+                gated_for_s,
+                east,
+                north,
+            )
+            self._gps_rejected_since_ns = None
+
+    def _fuse_late_gps(self, t_fix: int, east: float, north: float, std: float) -> None:
+        """Rewind to the fix's time, fuse it there, and re-fuse the IMU / wheel samples since."""
+        history = self._history
+        if history is None or not history.covers(t_fix):
+            self._reject("gps_too_late", f"fix time {t_fix} ns is older than the fusion history")
+            return
+        later = history.rewind(self._ekf, t_fix)
+        self._fuse_gps(t_fix, east, north, std)
+        history.replay(self._ekf, later)
+        self._counters["gps_refused_late"] += 1
+
+    def _fuse_wheels(self, t_ns: int, motion: BodyMotion) -> None:
+        if not self._ekf.initialised:
+            self._counters["wheels_before_init"] += 1
+            return
+        if t_ns < self._ekf.t_ns - _MAX_SAMPLE_LAG_NS:
+            self._reject("wheels_stale", f"sample at {t_ns} ns, filter already at {self._ekf.t_ns} ns")
+            return
+        if self._last_wheels_ns is not None and t_ns > self._last_wheels_ns:
+            self._stuck.add_odometry(t_ns, motion.speed_mps * (t_ns - self._last_wheels_ns) * 1e-9)
+        self._last_wheels_ns = t_ns
+        speed_std, yaw_rate_std = self._odometry_noise(t_ns, motion)
+        use_speed = not self._stuck.spinning
+        if not use_speed:
+            self._counters["odometry_speed_left_out"] += 1
+        sample = OdometrySample(
+            t_ns, motion.speed_mps, motion.yaw_rate_rps, speed_std, yaw_rate_std, use_speed
+        )
+        before = self._ekf.snapshot() if self._history is not None else None
+        self._advance(t_ns)
+        self._ekf.learn_scale(self._scale_observable(t_ns))
+        innovation = self._ekf.update_odometry(
+            motion.speed_mps, motion.yaw_rate_rps, speed_std, yaw_rate_std, use_speed=use_speed
+        )
+        self._remember(before, sample)
+        self._odometry_seen = True
+        self._publish_innovation(t_ns, innovation)
+        self._count(innovation, "odometry")
+
+    def _on_spinning_changed(self) -> None:
+        spinning = self._stuck.spinning
+        self._counters["odometry_spinning_on" if spinning else "odometry_spinning_off"] += 1
+        logger.warning(
+            "wheels %s (odometry ran %.1f m ahead of GPS over %.1f s)",
+            "spinning in place: odometry speed left out" if spinning else "grip again",
+            self._stuck.shortfall_m,
+            self._config.stuck_window_s,
+        )
+        if spinning and self._stuck.shortfall_m > 0.0:
+            # The position and speed were dead-reckoned from the spinning wheels until now: they are off
+            # by about what odometry ran ahead. Saying so lets the next fixes through the gate at once.
+            self._ekf.inflate(X, self._stuck.shortfall_m)
+            self._ekf.inflate(Y, self._stuck.shortfall_m)
+            self._ekf.inflate(SPEED, max(abs(self._ekf.state(SPEED)), self._config.odom_speed_noise_mps))
+
+    def _scale_observable(self, t_ns: int) -> bool:
+        """The odometry scale is learnt only against GPS track with a known heading and gripping wheels."""
+        last_fix = self._last_gps_accepted_ns
+        gps_recent = last_fix is not None and t_ns - last_fix <= self._config.gps_timeout_s * 1e9
+        return gps_recent and self._heading_known and not self._stuck.spinning
+
+    def _remember(self, before: Snapshot | None, sample: Sample) -> None:
+        if self._history is not None and before is not None:
+            self._history.record(before, sample)
+
+    def _gps_accepted(self, t_fix: int) -> None:
+        self._gps_rejected_since_ns = None
+        self._last_gps_accepted_ns = t_fix
+        self._counters["gps_accepted"] += 1
+
+    def _health(self, p: NDArray[np.float64] | None) -> EstimatorHealth:
+        config = self._config
+        if self._last_gps_accepted_ns is None:
+            gps_age_s = math.inf
+        else:
+            gps_age_s = max(self._clock.now_ns() - self._last_gps_accepted_ns, 0) * 1e-9
+        return EstimatorHealth(
+            initialised=p is not None,
+            heading_known=self._heading_known,
+            position_std_m=position_std_m(p) if p is not None else math.inf,
+            position_std_limit_m=config.healthy_position_std_m,
+            heading_std_deg=math.degrees(math.sqrt(max(p[YAW, YAW], 0.0))) if p is not None else math.inf,
+            heading_std_limit_deg=config.healthy_heading_std_deg,
+            gps_age_s=gps_age_s,
+            gps_timeout_s=config.gps_timeout_s,
+            odometry_trusted=not self._stuck.spinning,
+        )
 
     def _advance(self, t_ns: int) -> None:
         """Predict to ``t_ns``, feeding the heading bootstrap the motion the filter believes in meanwhile."""
@@ -265,18 +446,22 @@ class Estimator:
         self._counters["heading_from_motion"] += 1
         logger.info("heading learnt from motion: %.3f rad (std %.3f rad)", guess.yaw_rad, guess.std_rad)
 
-    def _odometry_noise(self, t_ns: int, odom_yaw_rate: float) -> tuple[float, float]:
-        """Odometry std (speed m/s, yaw rate rad/s), inflated when wheels and gyro disagree (slip).
+    def _odometry_noise(self, t_ns: int, motion: BodyMotion) -> tuple[float, float]:
+        """Odometry std (speed m/s, yaw rate rad/s), inflated when the wheels are seen to slip.
 
-        Skid-steer wheels slip all the time on turns and loose ground; when the odometry yaw rate departs
-        from the bias-corrected gyro by more than the threshold, trust the wheels less in proportion.
+        Skid-steer wheels slip all the time on turns and loose ground. Two signs of it: the odometry yaw
+        rate departs from the bias-corrected gyro by more than the threshold (trust the wheels less in
+        proportion), and the wheels of one side disagree (the side's ground speed is then uncertain by
+        about their spread).
         """
-        speed_std = self._config.odom_speed_noise_mps
+        speed_std = max(self._config.odom_speed_noise_mps, motion.side_spread_mps)
         yaw_rate_std = self._config.odom_yaw_rate_noise_rps
+        if motion.side_spread_mps > self._config.odom_speed_noise_mps:
+            self._counters["odometry_wheel_spread"] += 1
         if self._last_gyro is None or abs(t_ns - self._last_gyro[0]) > _GYRO_FRESH_NS:
             return speed_std, yaw_rate_std
         gyro_rate = self._last_gyro[1] - self._ekf.state(BIAS)
-        mismatch = abs(odom_yaw_rate - gyro_rate)
+        mismatch = abs(motion.yaw_rate_rps - gyro_rate)
         if mismatch <= self._config.slip_threshold_rps:
             return speed_std, yaw_rate_std
         self._counters["odometry_slip"] += 1

@@ -24,6 +24,11 @@ class CanConfig:
     channel: str = "rover0"
     bitrate: int = 1_000_000
     command_rate_hz: float = 50.0
+    # A command older than this is not resent: a stalled control loop must not keep the motors running.
+    command_max_age_s: float = 0.2
+    # The rate the controllers send STATUS at; silent for ``liveness_periods`` of it means a fault.
+    status_rate_hz: float = 50.0
+    liveness_periods: int = 3
 
     def __post_init__(self) -> None:
         if self.interface not in CAN_INTERFACES:
@@ -36,16 +41,26 @@ class CanConfig:
             raise BridgeSetupError(f"CAN bitrate must be positive, got {self.bitrate}")
         if not self.command_rate_hz > 0:
             raise BridgeSetupError(f"CAN command_rate_hz must be positive, got {self.command_rate_hz}")
+        if not self.command_max_age_s > 0:
+            raise BridgeSetupError(f"CAN command_max_age_s must be positive, got {self.command_max_age_s}")
+        if not self.status_rate_hz > 0:
+            raise BridgeSetupError(f"CAN status_rate_hz must be positive, got {self.status_rate_hz}")
+        if self.liveness_periods < 1:
+            raise BridgeSetupError(f"CAN liveness_periods must be >= 1, got {self.liveness_periods}")
 
     @classmethod
     def from_table(cls, table: Table) -> CanConfig:
-        """Keys: interface, channel, bitrate, command_rate_hz (all optional); unknown keys are errors."""
+        """Keys: interface, channel, bitrate, command_rate_hz, command_max_age_s, status_rate_hz,
+        liveness_periods (all optional); unknown keys are errors."""
         defaults = cls()
         config = cls(
             interface=table.text("interface", defaults.interface, choices=CAN_INTERFACES),
             channel=table.text("channel", defaults.channel),
             bitrate=table.integer("bitrate", defaults.bitrate, lo=10_000, hi=8_000_000),
             command_rate_hz=table.number("command_rate_hz", defaults.command_rate_hz, lo=1.0, hi=1000.0),
+            command_max_age_s=table.number("command_max_age_s", defaults.command_max_age_s, lo=0.001, hi=5.0),
+            status_rate_hz=table.number("status_rate_hz", defaults.status_rate_hz, lo=0.1, hi=1000.0),
+            liveness_periods=table.integer("liveness_periods", defaults.liveness_periods, lo=1, hi=1000),
         )
         if not config.channel:
             raise table.error("channel", "must not be empty")

@@ -4,23 +4,37 @@ from __future__ import annotations
 
 import logging
 import math
+import threading
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, replace
 from types import TracebackType
+from typing import Any
 
 import can
 
 from firmware_bridge.can_bus import CanConfig, open_bus
+from firmware_bridge.can_health import (
+    BusSignal,
+    BusStateMachine,
+    CanLinkState,
+    ControllerLiveness,
+    StateChange,
+    classify_bus_state,
+    classify_error_frame,
+)
 from firmware_bridge.errors import BridgeOperationError, FrameError
 from firmware_bridge.vesc import WHEEL_COUNT, VescCodec, VescFrame, erpm_command
-from logs.clock import Clock
+from logs.clock import Clock, to_ns
 from logs.sink import MessageSink
-from logs.topics import CAN_FRAMES, WHEELS_STATUS, stamp
+from logs.topics import CAN_FRAMES, SAFETY_EVENTS, WHEELS_STATUS, stamp
 
-__all__ = ["CanConfig", "CanCounters", "CanLink", "WheelReading", "open_bus"]
+__all__ = ["CanConfig", "CanCounters", "CanLink", "CanLinkState", "WheelReading", "open_bus"]
 
 logger = logging.getLogger(__name__)
 
+# Records the background repeater may hold for the loop: ~10 s of repeats at 50 Hz.
+_MAX_PENDING = 4096
 _STATUS_KINDS = frozenset({"STATUS", "STATUS_4", "STATUS_5"})
 # Which FrameError reasons land in which counter.
 _REJECTION_COUNTER = {"unknown_id": "unknown_id", "not_extended": "unknown_id", "wrong_dlc": "wrong_dlc"}
@@ -52,6 +66,10 @@ class CanCounters:
     decode_errors: int = 0
     bus_errors: int = 0
     bad_commands: int = 0  # non-finite wheel speeds replaced by a stop command
+    resent: int = 0  # command rounds repeated by the link to keep the controllers' timeout from firing
+    stale_zeroed: int = 0  # resends that sent zero because the latest command was too old
+    withheld: int = 0  # command rounds replaced by zero or not sent because of the bus state
+    dropped_records: int = 0  # background-thread records lost because the loop did not poll for long
 
     def as_dict(self) -> dict[str, int]:
         return asdict(self)
@@ -73,9 +91,31 @@ class CanLink:
 
     Frame timestamps in the record come from ``clock``, never from python-can (whose virtual bus stamps
     wall time). Nothing here raises on bad input from the bus: it is counted and logged.
+
+    Commands are repeated every command period (``config.command_rate_hz``) when nobody sends a newer one,
+    so the controllers' own timeout never fires in normal driving; a command older than
+    ``config.command_max_age_s`` is never repeated, zero is sent instead (a stalled loop stops the rover).
+    ``keep_alive()`` does the repeating (call it after the tick's own command: a round sent this instant
+    is not repeated): with ``threaded=True`` a background thread calls it every period
+    (real time: a stalled loop cannot stall it) and a python-can ``Notifier`` reads the bus into a buffer
+    that ``poll()`` drains. Lockstep runs leave ``threaded`` off (deterministic, no threads) and call
+    ``keep_alive()`` themselves if their loop is slower than the command rate.
+
+    Bus faults (error-passive, bus-off, from error frames or ``bus.state``) change ``state`` and go to
+    ``safety/events``: see ``CanLinkState`` for what each state does to wheel commands.
     """
 
-    def __init__(self, bus: can.BusABC, codec: VescCodec, clock: Clock, sink: MessageSink) -> None:
+    def __init__(
+        self,
+        bus: can.BusABC,
+        codec: VescCodec,
+        clock: Clock,
+        sink: MessageSink,
+        *,
+        config: CanConfig | None = None,
+        threaded: bool = False,
+    ) -> None:
+        config = config if config is not None else CanConfig()
         self._bus = bus
         self._codec = codec
         self._clock = clock
@@ -86,29 +126,89 @@ class CanLink:
         self._readings = [WheelReading(cid) for cid in self._ids]
         self._wheel_of = {cid: index for index, cid in enumerate(self._ids)}
         self._closed = False
+        self._period_ns = to_ns(1.0 / config.command_rate_hz)
+        self._max_age_ns = to_ns(config.command_max_age_s)
+        self._bus_state = BusStateMachine(self._ids)
+        silent_after_ns = to_ns(config.liveness_periods / config.status_rate_hz)
+        self._liveness = ControllerLiveness(self._ids, silent_after_ns, clock.now_ns())
+        self._zero_erpm = [0] * WHEEL_COUNT
+        self._latest_erpm: list[int] = list(self._zero_erpm)
+        self._latest_ns: int | None = None  # when the control loop last asked for wheel speeds
+        self._last_round_ns: int | None = None  # when the link last put a command round on the bus
+        self.last_sent_erpm: list[int] | None = None  # None: the last round was withheld (bus-off)
+        # The background repeater shares the bus, the counters and the schedule with the loop's thread.
+        self._lock = threading.RLock()
+        self._background_records: deque[tuple[str, int, dict[str, Any]]] = deque(maxlen=_MAX_PENDING)
+        self._reader: can.BufferedReader | None = None
+        self._notifier: can.Notifier | None = None
+        self._repeater: threading.Thread | None = None
+        self._stop = threading.Event()
+        if threaded:
+            self._reader = can.BufferedReader()
+            self._notifier = can.Notifier(bus, [self._reader], timeout=0.05)
+            self._repeater = threading.Thread(target=self._repeat_forever, name="can-repeater", daemon=True)
+            self._repeater.start()
+
+    # --- state ---------------------------------------------------------------------------------
+    @property
+    def state(self) -> CanLinkState:
+        """OK, ERROR_PASSIVE, BUS_OFF or RECOVERING (what each does to wheel commands: CanLinkState)."""
+        return self._bus_state.state
+
+    def controllers_alive(self) -> dict[int, bool]:
+        """Controller id -> False when its STATUS has been silent for ``liveness_periods`` periods."""
+        return self._liveness.alive()
 
     # --- commands ------------------------------------------------------------------------------
     def send_wheel_speeds(self, speeds_mps: Sequence[float]) -> list[float]:
-        """Send six SET_RPM frames in wheel order; return the ERPM sent (after rounding and clamping)."""
+        """Ask for six wheel speeds (wheel order); return the ERPM the link stands for on the bus.
+
+        Normally that is the request, rounded and clamped; while the bus is not OK it is zero (sent as
+        zero, or not sent at all during bus-off).
+        """
         if len(speeds_mps) != WHEEL_COUNT:
             raise BridgeOperationError(
                 f"need {WHEEL_COUNT} wheel speeds in wheel order, got {len(speeds_mps)}"
             )
         erpm_per_mps = self.profile.erpm_per_mps
-        t_ns = self._clock.now_ns()
-        sent: list[float] = []
+        requested: list[int] = []
         for cid, speed in zip(self._ids, speeds_mps, strict=True):
             if not math.isfinite(speed):
                 # A NaN command must never reach a motor; stopping that wheel is the safe reading of it.
                 self.counters.bad_commands += 1
                 logger.warning("wheel speed %r for controller %d is not finite; commanding 0", speed, cid)
                 speed = 0.0
-            erpm = erpm_command(speed * erpm_per_mps)
-            sent.append(float(erpm))
-            self._send(t_ns, self._codec.encode_set_rpm(cid, erpm))
-        return sent
+            requested.append(erpm_command(speed * erpm_per_mps))
+        with self._lock:
+            t_ns = self._clock.now_ns()
+            self._latest_erpm = requested
+            self._latest_ns = t_ns
+            sent = self._send_round(t_ns, requested, background=False)
+        return [float(e) for e in (sent if sent is not None else self._zero_erpm)]
 
-    def _send(self, t_ns: int, msg: can.Message) -> None:
+    def _send_round(self, t_ns: int, erpm: list[int], *, background: bool) -> list[int] | None:
+        """Put one command round on the bus as the bus state allows; return what was sent."""
+        self._last_round_ns = t_ns
+        state = self._bus_state.state
+        if state is CanLinkState.BUS_OFF:
+            self.counters.withheld += 1
+            self.last_sent_erpm = None
+            return None
+        if state is not CanLinkState.OK:
+            if erpm != self._zero_erpm:
+                self.counters.withheld += 1
+            erpm = self._zero_erpm
+        failures = 0
+        for cid, value in zip(self._ids, erpm, strict=True):
+            if not self._send(t_ns, self._codec.encode_set_rpm(cid, value), background=background):
+                failures += 1
+        self.last_sent_erpm = list(erpm)
+        if failures == WHEEL_COUNT:
+            # socketcan refuses every send while the interface is down or the controller is bus-off.
+            self._apply(t_ns, self._bus_state.on_signal(BusSignal.BUS_OFF, "every send failed"), background)
+        return erpm
+
+    def _send(self, t_ns: int, msg: can.Message, *, background: bool = False) -> bool:
         try:
             self._bus.send(msg)
         except can.CanError as err:
@@ -120,49 +220,136 @@ class CanLink:
                 self.counters.bus_errors,
                 err,
             )
-            return
+            return False
         self.counters.tx += 1
-        self._sink.publish(CAN_FRAMES, t_ns, _frame_record(t_ns, "tx", msg))
+        self._record(CAN_FRAMES, t_ns, _frame_record(t_ns, "tx", msg), background)
+        return True
+
+    def keep_alive(self) -> None:
+        """Repeat the latest command if a command period passed without one; zero once it is too old."""
+        with self._lock:
+            self._flush_background_records()
+            self._repeat_if_due(self._clock.now_ns(), background=False)
+
+    def _repeat_if_due(self, now_ns: int, *, background: bool) -> None:
+        last = self._last_round_ns
+        if self._closed or last is None or now_ns - last < self._period_ns:
+            return
+        fresh = self._latest_ns is not None and now_ns - self._latest_ns <= self._max_age_ns
+        erpm = self._latest_erpm if fresh else self._zero_erpm
+        if not fresh and self._latest_erpm != self._zero_erpm:
+            self.counters.stale_zeroed += 1
+            logger.warning(
+                "no wheel command for %.0f ms (limit %.0f ms): commanding zero",
+                (now_ns - (self._latest_ns or 0)) / 1e6,
+                self._max_age_ns / 1e6,
+            )
+            self._latest_erpm = list(self._zero_erpm)
+        self.counters.resent += 1
+        self._send_round(now_ns, erpm, background=background)
+
+    def _repeat_forever(self) -> None:
+        while not self._stop.wait(self._period_ns / 1e9):
+            with self._lock:
+                try:
+                    self._repeat_if_due(self._clock.now_ns(), background=True)
+                except Exception:  # the repeater must outlive any one bad round; the loop sees counters
+                    logger.exception("CAN command repeater failed one round")
 
     # --- status --------------------------------------------------------------------------------
     def poll(self) -> int:
-        """Read every frame available now and update the readings.
+        """Read every frame available now; update readings, liveness and bus state.
 
         Publishes one ``wheels/status`` if any status frame came; returns the number of frames read.
         """
-        t_ns = self._clock.now_ns()
-        frames = 0
-        status_seen = False
-        while True:
-            try:
-                msg = self._bus.recv(timeout=0)
-            except can.CanError as err:
-                self.counters.bus_errors += 1
-                logger.debug("CAN receive failed: %s", err)
-                break
-            if msg is None:
-                break
-            frames += 1
-            if msg.is_error_frame:
-                # Error frames carry no data worth recording as a frame; the counter is their record.
-                self.counters.bus_errors += 1
-                logger.debug("CAN error frame received (id 0x%x)", msg.arbitration_id)
-                continue
-            self.counters.rx += 1
-            self._sink.publish(CAN_FRAMES, t_ns, _frame_record(t_ns, "rx", msg))
-            try:
-                frame = self._codec.decode(msg)
-            except FrameError as err:
-                counter = _REJECTION_COUNTER.get(err.reason, "decode_errors")
-                setattr(self.counters, counter, getattr(self.counters, counter) + 1)
-                logger.debug("rejected CAN frame: %s", err)
-                continue
-            if frame.kind in _STATUS_KINDS:
-                self._apply_status(frame, t_ns)
-                status_seen = True
-        if status_seen:
-            self._publish_status(t_ns)
-        return frames
+        with self._lock:
+            self._flush_background_records()
+            t_ns = self._clock.now_ns()
+            frames = 0
+            status_seen = False
+            while (msg := self._next_frame()) is not None:
+                frames += 1
+                status_seen |= self._take(msg, t_ns)
+            self._check_bus_state(t_ns)
+            for change in self._liveness.check(t_ns):
+                self._apply(t_ns, change, background=False)
+            if status_seen:
+                self._publish_status(t_ns)
+            return frames
+
+    def _next_frame(self) -> can.Message | None:
+        try:
+            if self._reader is not None:
+                return self._reader.get_message(timeout=0)
+            return self._bus.recv(timeout=0)
+        except (can.CanError, OSError, ValueError) as err:
+            self.counters.bus_errors += 1
+            logger.debug("CAN receive failed: %s", err)
+            return None
+
+    def _take(self, msg: can.Message, t_ns: int) -> bool:
+        """Handle one received frame; True if it was a status frame."""
+        if msg.is_error_frame:
+            # Error frames carry no data worth recording as a frame; the counter is their record.
+            self.counters.bus_errors += 1
+            logger.debug("CAN error frame received (class 0x%x)", msg.arbitration_id)
+            signal = classify_error_frame(msg)
+            self._apply(
+                t_ns, self._bus_state.on_signal(signal, f"error frame 0x{msg.arbitration_id:x}"), False
+            )
+            return False
+        self.counters.rx += 1
+        self._sink.publish(CAN_FRAMES, t_ns, _frame_record(t_ns, "rx", msg))
+        try:
+            frame = self._codec.decode(msg)
+        except FrameError as err:
+            counter = _REJECTION_COUNTER.get(err.reason, "decode_errors")
+            setattr(self.counters, counter, getattr(self.counters, counter) + 1)
+            logger.debug("rejected CAN frame: %s", err)
+            return False
+        self._apply(t_ns, self._bus_state.on_frame_received(), False)
+        if frame.kind not in _STATUS_KINDS:
+            return False
+        self._apply_status(frame, t_ns)
+        self._apply(t_ns, self._liveness.heard(frame.controller_id, t_ns), False)
+        self._apply(t_ns, self._bus_state.on_status(frame.controller_id), False)
+        return True
+
+    def _check_bus_state(self, t_ns: int) -> None:
+        try:
+            signal = classify_bus_state(self._bus.state)
+        except (NotImplementedError, can.CanError, OSError) as err:
+            logger.debug("bus state unavailable: %s", err)
+            return
+        if signal is not BusSignal.NONE:
+            self._apply(t_ns, self._bus_state.on_signal(signal, "interface reports it"), False)
+
+    def _apply(self, t_ns: int, change: StateChange | None, background: bool) -> None:
+        if change is None:
+            return
+        log = logger.info if change.severity == "info" else logger.warning
+        log("%s: %s", change.kind, change.detail)
+        event = {
+            "timestamp": stamp(t_ns),
+            "kind": change.kind,
+            "severity": change.severity,
+            "detail": change.detail,
+        }
+        self._record(SAFETY_EVENTS, t_ns, event, background)
+
+    def _record(self, topic: str, t_ns: int, message: dict[str, Any], background: bool) -> None:
+        if not background:
+            self._sink.publish(topic, t_ns, message)
+            return
+        # The sink belongs to the loop's thread; the loop publishes these at its next poll().
+        if len(self._background_records) == self._background_records.maxlen:
+            self.counters.dropped_records += 1
+        self._background_records.append((topic, t_ns, message))
+
+    def _flush_background_records(self) -> None:
+        while self._background_records:
+            topic, t_ns, message = self._background_records.popleft()
+            self._sink.publish(topic, t_ns, message)
 
     def _apply_status(self, frame: VescFrame, t_ns: int) -> None:
         reading = self._readings[self._wheel_of[frame.controller_id]]
@@ -201,14 +388,25 @@ class CanLink:
 
     # --- lifetime ------------------------------------------------------------------------------
     def close(self) -> None:
-        """Command all six wheels to zero once, then shut the bus down. Safe to call twice."""
+        """Stop the repeater, command all six wheels to zero once whatever the bus state, then shut the
+        bus down. Safe to call twice."""
         if self._closed:
             return
-        self._closed = True
-        try:
-            self.send_wheel_speeds([0.0] * WHEEL_COUNT)
-        finally:
-            self._bus.shutdown()
+        self._stop.set()
+        if self._repeater is not None:
+            self._repeater.join()
+        if self._notifier is not None:
+            self._notifier.stop()
+        with self._lock:
+            self._closed = True
+            self._flush_background_records()
+            try:
+                t_ns = self._clock.now_ns()
+                for cid in self._ids:
+                    self._send(t_ns, self._codec.encode_set_rpm(cid, 0))
+                self.last_sent_erpm = list(self._zero_erpm)
+            finally:
+                self._bus.shutdown()
 
     def __enter__(self) -> CanLink:
         return self

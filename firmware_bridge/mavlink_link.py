@@ -16,12 +16,19 @@ from typing import Any
 
 from pymavlink.dialects.v20 import common as mavlink2
 
-from firmware_bridge.errors import BridgeOperationError
+from firmware_bridge.errors import BridgeOperationError, BridgeSetupError
+from firmware_bridge.mavlink_commands import (
+    COMMAND_MESSAGES,
+    GoalRequest,
+    addressed_to,
+    judge_command,
+    statustext_chunks,
+)
 from firmware_bridge.mavlink_transport import Transport
-from logs.clock import Clock
+from logs.clock import Clock, to_ns
 from logs.settings import Table
 from logs.sink import MessageSink
-from logs.topics import MAVLINK_RAW, SENSORS_GPS, SENSORS_IMU, stamp
+from logs.topics import MAVLINK_RAW, SAFETY_EVENTS, SENSORS_GPS, SENSORS_IMU, stamp
 
 logger = logging.getLogger(__name__)
 
@@ -42,6 +49,8 @@ class MavlinkConfig:
     component_id: int = 191
     autopilot_system_id: int = 1
     allow_remote: bool = False  # only the real vehicle may talk to a non-loopback address
+    link_timeout_s: float = 3.0  # no autopilot HEARTBEAT (1 Hz) for this long: the link is lost
+    signing_key: str = ""  # 64 hex digits (32 bytes) turn MAVLink 2 signing on; empty: off
 
     @classmethod
     def from_table(cls, table: Table) -> MavlinkConfig:
@@ -53,9 +62,27 @@ class MavlinkConfig:
             component_id=table.integer("component_id", d.component_id, lo=1, hi=255),
             autopilot_system_id=table.integer("autopilot_system_id", d.autopilot_system_id, lo=1, hi=255),
             allow_remote=table.flag("allow_remote", d.allow_remote),
+            link_timeout_s=table.number("link_timeout_s", d.link_timeout_s, lo=0.1, hi=600.0),
+            signing_key=table.text("signing_key", d.signing_key),
         )
+        if config.signing_key:
+            try:
+                signing_key_bytes(config.signing_key)
+            except BridgeSetupError as err:
+                raise table.error("signing_key", str(err)) from None
         table.finish()
         return config
+
+
+def signing_key_bytes(text: str) -> bytes:
+    """The 32-byte MAVLink 2 secret key from its 64-hex-digit spelling in the config."""
+    try:
+        key = bytes.fromhex(text)
+    except ValueError:
+        key = b""
+    if len(key) != 32:
+        raise BridgeSetupError("a MAVLink signing key is 64 hex digits (32 bytes)")
+    return key
 
 
 @dataclass(frozen=True)
@@ -99,7 +126,18 @@ class AttitudeSample:
     yaw_rad: float
 
 
-Reading = GpsFix | ImuSample | AttitudeSample
+@dataclass(frozen=True)
+class BatteryState:
+    """SYS_STATUS / BATTERY_STATUS: volts, amps (NaN unknown), remaining percent (-1 unknown)."""
+
+    t_ns: int
+    voltage_v: float
+    current_a: float
+    remaining_pct: int
+    source: str
+
+
+Reading = GpsFix | ImuSample | AttitudeSample | BatteryState | GoalRequest
 
 
 @dataclass
@@ -109,6 +147,9 @@ class MavlinkCounters:
     bad_bytes: int = 0
     tx_frames: int = 0
     tx_errors: int = 0
+    goals_accepted: int = 0
+    commands_rejected: int = 0  # addressed to us but not a goal we can take (answered with the reason)
+    signature_rejected: int = 0  # unsigned, replayed or wrongly signed commands (signing on)
 
     def as_dict(self) -> dict[str, int]:
         return asdict(self)
@@ -154,6 +195,8 @@ class MavlinkLink:
         component_id: int = 191,
         *,
         autopilot_system_id: int | None = None,
+        link_timeout_s: float = 3.0,
+        signing_key: bytes | None = None,
     ) -> None:
         self._transport = transport
         self._clock = clock
@@ -161,15 +204,31 @@ class MavlinkLink:
         self.system_id = system_id
         self.component_id = component_id
         self._autopilot_system_id = autopilot_system_id
+        self._signing: mavlink2.MAVLinkSigning | None = None
+        if signing_key is not None:
+            if len(signing_key) != 32:
+                raise BridgeSetupError("a MAVLink signing key is 32 bytes")
+            self._signing = mavlink2.MAVLinkSigning()
+            self._signing.secret_key = signing_key
+            self._signing.sign_outgoing = True
+            # Telemetry may come unsigned (many autopilots sign nothing); commands never may.
+            self._signing.allow_unsigned_callback = _allow_unsigned
         self._mav = self._new_mavlink()
         self.counters = MavlinkCounters()
         self.last_heartbeat_ns: int | None = None
+        self._link_timeout_ns = to_ns(link_timeout_s)
+        self._started_ns = clock.now_ns()
+        self.autopilot_link_ok = True
+        self._statustext_id = 0
         self._closed = False
 
     def _new_mavlink(self) -> mavlink2.MAVLink:
         mav = mavlink2.MAVLink(_TransportFile(self._transport), self.system_id, self.component_id)
         # Robust parsing turns garbage into BAD_DATA messages instead of exceptions, so we can count it.
         mav.robust_parsing = True
+        if self._signing is not None:
+            # One signing state for the life of the link: its stream timestamps are the replay guard.
+            mav.signing = self._signing
         return mav
 
     # --- sending -------------------------------------------------------------------------------
@@ -204,6 +263,16 @@ class MavlinkLink:
             )
         )
 
+    def send_status_text(self, text: str, severity: int = mavlink2.MAV_SEVERITY_INFO) -> None:
+        """Tell the ground station something in STATUSTEXT (chunked past 50 bytes)."""
+        chunks = statustext_chunks(text)
+        if len(chunks) == 1:
+            self.send(self._mav.statustext_encode(severity, chunks[0]))
+            return
+        self._statustext_id = self._statustext_id % 65535 + 1
+        for seq, chunk in enumerate(chunks):
+            self.send(self._mav.statustext_encode(severity, chunk, self._statustext_id, seq))
+
     def _publish_raw(
         self, t_ns: int, direction: str, frame: bytes, msgid: int, name: str, sysid: int, compid: int
     ) -> None:
@@ -223,13 +292,14 @@ class MavlinkLink:
 
     # --- receiving -----------------------------------------------------------------------------
     def poll(self) -> list[Reading]:
-        """Read and parse everything available; return GPS / IMU / attitude readings in arrival order."""
-        data = self._transport.read()
-        if not data:
-            return []
+        """Read and parse everything available; return readings (sensors, battery, goals) in arrival order.
+
+        Goals addressed to us are answered here (COMMAND_ACK or the target echo) before they are returned.
+        """
         t_ns = self._clock.now_ns()
+        data = self._transport.read()
         readings: list[Reading] = []
-        for msg in self._parse(data):
+        for msg in self._parse(data) if data else []:
             frame = bytes(msg.get_msgbuf())
             if isinstance(msg, mavlink2.MAVLink_unknown):
                 msgid, sysid, compid = _header_fields(frame)
@@ -237,12 +307,79 @@ class MavlinkLink:
                 msgid, sysid, compid = msg.get_msgId(), msg.get_srcSystem(), msg.get_srcComponent()
             self.counters.rx_frames += 1
             self._publish_raw(t_ns, "rx", frame, msgid, msg.get_type(), sysid, compid)
+            if msg.get_type() in COMMAND_MESSAGES:
+                goal = self._answer_command(msg, t_ns)
+                if goal is not None:
+                    readings.append(goal)
+                continue
             if self._autopilot_system_id is not None and sysid != self._autopilot_system_id:
                 continue
             reading = self._convert(msg, t_ns)
             if reading is not None:
                 readings.append(reading)
+        self._check_link(t_ns)
         return readings
+
+    def _answer_command(self, msg: Any, t_ns: int) -> GoalRequest | None:
+        if not addressed_to(msg, self.system_id, self.component_id):
+            return None
+        verdict = judge_command(msg, t_ns)
+        if verdict.goal is not None:
+            self.counters.goals_accepted += 1
+            logger.info("goal %.7f, %.7f from %d/%d", verdict.goal.lat_deg, verdict.goal.lon_deg, *_src(msg))
+        else:
+            self.counters.commands_rejected += 1
+            logger.warning("refused %s from %d/%d: %s", msg.get_type(), *_src(msg), verdict.reason)
+        if msg.get_type() == "SET_POSITION_TARGET_GLOBAL_INT" and verdict.goal is not None:
+            # The standard answer to a position target is the target as now followed.
+            self.send(
+                self._mav.position_target_global_int_encode(
+                    int(t_ns // 1_000_000) & 0xFFFFFFFF,
+                    msg.coordinate_frame,
+                    msg.type_mask,
+                    msg.lat_int,
+                    msg.lon_int,
+                    msg.alt,
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                )
+            )
+        else:
+            command = getattr(msg, "command", mavlink2.MAV_CMD_DO_REPOSITION)
+            self.send(
+                self._mav.command_ack_encode(
+                    command, verdict.result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent()
+                )
+            )
+        if verdict.goal is None:
+            self.send_status_text(f"refused: {verdict.reason}", mavlink2.MAV_SEVERITY_WARNING)
+        return verdict.goal
+
+    def _check_link(self, t_ns: int) -> None:
+        last = self.last_heartbeat_ns if self.last_heartbeat_ns is not None else self._started_ns
+        silent_ns = t_ns - last
+        ok = silent_ns <= self._link_timeout_ns
+        if ok == self.autopilot_link_ok:
+            return
+        self.autopilot_link_ok = ok
+        if ok:
+            kind, severity, detail = "mavlink_link_restored", "info", "autopilot HEARTBEAT received again"
+        else:
+            kind, severity = "mavlink_link_lost", "error"
+            limit_s = self._link_timeout_ns / 1e9
+            detail = f"no autopilot HEARTBEAT for {silent_ns / 1e9:.1f} s (limit {limit_s:.1f} s)"
+        (logger.info if ok else logger.warning)("%s: %s", kind, detail)
+        self._sink.publish(
+            SAFETY_EVENTS,
+            t_ns,
+            {"timestamp": stamp(t_ns), "kind": kind, "severity": severity, "detail": detail},
+        )
 
     def _parse(self, data: bytes) -> list[Any]:
         messages: list[Any] = []
@@ -259,6 +396,11 @@ class MavlinkLink:
             if msg is None:
                 break
             if isinstance(msg, mavlink2.MAVLink_bad_data):
+                if msg.reason == "Invalid signature":
+                    # A whole, CRC-correct frame refused by the signing check: nothing to rescan.
+                    self.counters.signature_rejected += 1
+                    logger.warning("rejected an unsigned, replayed or wrongly signed MAVLink command")
+                    continue
                 self._count_bad(len(msg.data), msg.reason)
                 if msg.reason != "Bad prefix" and len(msg.data) > 1:
                     # pymavlink skipped a whole frame's length; a real frame may start inside those bytes
@@ -289,6 +431,21 @@ class MavlinkLink:
             fix = _gps_fix(msg, t_ns)
             self._publish_gps(fix)
             return fix
+        if kind == "HIGHRES_IMU":
+            # Already SI (m/s^2, rad/s), FRD.
+            sample = ImuSample(t_ns, (msg.xgyro, -msg.ygyro, -msg.zgyro), (msg.xacc, -msg.yacc, -msg.zacc))
+            self._publish_imu(sample)
+            return sample
+        if kind == "SYS_STATUS":
+            current = math.nan if msg.current_battery == -1 else msg.current_battery * 0.01
+            voltage = math.nan if msg.voltage_battery == _UINT16_UNKNOWN else msg.voltage_battery * 1e-3
+            return BatteryState(t_ns, voltage, current, int(msg.battery_remaining), kind)
+        if kind == "BATTERY_STATUS":
+            cells = [v for v in msg.voltages if v != _UINT16_UNKNOWN]
+            current = math.nan if msg.current_battery == -1 else msg.current_battery * 0.01
+            return BatteryState(
+                t_ns, sum(cells) * 1e-3 if cells else math.nan, current, int(msg.battery_remaining), kind
+            )
         if kind in ("SCALED_IMU", "RAW_IMU"):
             sample = ImuSample(
                 t_ns,
@@ -360,6 +517,23 @@ class MavlinkLink:
         tb: TracebackType | None,
     ) -> None:
         self.close()
+
+
+def _allow_unsigned(_mav: Any, msgid: int) -> bool:
+    return msgid not in _SIGNED_ONLY
+
+
+_SIGNED_ONLY = frozenset(
+    {
+        mavlink2.MAVLINK_MSG_ID_COMMAND_INT,
+        mavlink2.MAVLINK_MSG_ID_COMMAND_LONG,
+        mavlink2.MAVLINK_MSG_ID_SET_POSITION_TARGET_GLOBAL_INT,
+    }
+)
+
+
+def _src(msg: Any) -> tuple[int, int]:
+    return msg.get_srcSystem(), msg.get_srcComponent()
 
 
 def _unknown_if(value: int, scale: float) -> float:

@@ -1,6 +1,7 @@
 """A simulated autopilot: the rover's MAVLink 2 peer in HIL, reporting GPS and IMU from the true state.
 
-It speaks MAVLink's conventions on the wire: GPS_RAW_INT in degE7 / mm / cm / cdeg (course as a compass
+It speaks MAVLink's conventions on the wire: HEARTBEAT as a ground rover, SYS_STATUS with the battery,
+GPS_RAW_INT in degE7 / mm / cm / cdeg (course as a compass
 bearing), SCALED_IMU in mrad/s and mG in the FRD body frame (x forward, y right, z down). The truth it is
 given uses ours: ENU metres, yaw counter-clockwise from east, FLU body axes.
 """
@@ -18,6 +19,8 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from firmware_bridge.errors import BridgeOperationError
 from firmware_bridge.mavlink_transport import Transport
+from hil.faults import FaultSchedule
+from hil.sensors import GpsModel, GpsSample, ImuModel, course_bearing_deg
 from logs.clock import Clock, to_ns
 
 logger = logging.getLogger(__name__)
@@ -26,8 +29,12 @@ _MPS2_TO_MG = 1000.0 / 9.80665
 _RAD_TO_MRAD = 1000.0
 _INT16_MAX = 32767
 _UINT16_KNOWN_MAX = 65534  # 65535 means "unknown" in GPS_RAW_INT
-_FIX_3D = 3
-_SATELLITES = 12
+_SENSORS_PRESENT = (
+    mavlink2.MAV_SYS_STATUS_SENSOR_3D_GYRO
+    | mavlink2.MAV_SYS_STATUS_SENSOR_3D_ACCEL
+    | mavlink2.MAV_SYS_STATUS_SENSOR_GPS
+    | mavlink2.MAV_SYS_STATUS_SENSOR_BATTERY
+)
 
 
 @dataclass(frozen=True)
@@ -46,6 +53,9 @@ class AutopilotTruth:
     accel_body_mps2: tuple[float, float, float]
     roll_rad: float = 0.0
     pitch_rad: float = 0.0  # nose up positive, as MAVLink's ATTITUDE
+    battery_voltage_v: float = 0.0
+    battery_current_a: float = 0.0
+    battery_remaining_pct: int = -1  # -1: unknown, as in SYS_STATUS
 
 
 class _TransportFile:
@@ -61,7 +71,11 @@ def _int16(value: float) -> int:
 
 
 class SimAutopilot:
-    """Sends HEARTBEAT, GPS_RAW_INT, SCALED_IMU and ATTITUDE at their rates, on the ``clock``'s schedule."""
+    """Sends HEARTBEAT, SYS_STATUS, GPS_RAW_INT, SCALED_IMU and ATTITUDE at their rates, on the clock.
+
+    ``gps`` and ``imu`` are the sensor models (``hil.sensors``); by default fault-free ones built from the
+    noise figures. Call ``record_truth`` every physics tick when the GPS has latency or delay faults.
+    """
 
     def __init__(
         self,
@@ -76,14 +90,18 @@ class SimAutopilot:
         imu_rate_hz: float = 50.0,
         attitude_rate_hz: float = 10.0,
         heartbeat_rate_hz: float = 1.0,
+        sys_status_rate_hz: float = 1.0,
         gps_noise_m: float = 0.5,
         gyro_noise_rps: float = 0.005,
         accel_noise_mps2: float = 0.05,
         heading_noise_rad: float = 0.035,
         system_id: int = 1,
         component_id: int = 1,
+        gps: GpsModel | None = None,
+        imu: ImuModel | None = None,
     ) -> None:
         for name, rate in (
+            ("sys_status_rate_hz", sys_status_rate_hz),
             ("gps_rate_hz", gps_rate_hz),
             ("imu_rate_hz", imu_rate_hz),
             ("attitude_rate_hz", attitude_rate_hz),
@@ -109,8 +127,13 @@ class SimAutopilot:
         self._heading_noise_rad = heading_noise_rad
         self._mav = mavlink2.MAVLink(_TransportFile(transport), system_id, component_id)
         self._mav.robust_parsing = True
+        self._gps = gps or GpsModel(rng, FaultSchedule(), noise_m=gps_noise_m)
+        self._imu = imu or ImuModel(
+            rng, FaultSchedule(), gyro_noise_rps=gyro_noise_rps, accel_noise_mps2=accel_noise_mps2
+        )
         self._periods_ns = {
             "heartbeat": to_ns(1.0 / heartbeat_rate_hz),
+            "sys_status": to_ns(1.0 / sys_status_rate_hz),
             "gps": to_ns(1.0 / gps_rate_hz),
             "imu": to_ns(1.0 / imu_rate_hz),
             "attitude": to_ns(1.0 / attitude_rate_hz),
@@ -124,9 +147,17 @@ class SimAutopilot:
         self.bad_frames_received = 0
 
     # --- sending -------------------------------------------------------------------------------
+    def record_truth(self, truth: AutopilotTruth) -> None:
+        """Let the GPS remember where the rover was now (for its latency and delay faults)."""
+        self._gps.record(
+            GpsSample(self._clock.now_ns(), truth.x_m, truth.y_m, truth.z_m, truth.yaw_rad, truth.speed_mps)
+        )
+
     def step(self, truth: AutopilotTruth) -> None:
-        """Send whatever is due at the clock's now, in a fixed order: heartbeat, GPS, IMU, attitude."""
+        """Send what is due at the clock's now, in a fixed order: heartbeat, status, GPS, IMU, attitude."""
         now = self._clock.now_ns()
+        if not self._gps.has_history():
+            self.record_truth(truth)
         if self._due("heartbeat", now):
             self._send(
                 "heartbeat",
@@ -138,10 +169,16 @@ class SimAutopilot:
                     mavlink2.MAV_STATE_ACTIVE,
                 ),
             )
+        if self._due("sys_status", now):
+            self._send("sys_status", self._sys_status_message(truth))
         if self._due("gps", now):
-            self._send("gps", self._gps_message(truth, now))
+            gps = self._gps_message(now)
+            if gps is not None:
+                self._send("gps", gps)
         if self._due("imu", now):
-            self._send("imu", self._imu_message(truth, now))
+            imu = self._imu_message(truth, now)
+            if imu is not None:
+                self._send("imu", imu)
         if self._due("attitude", now):
             self._send("attitude", self._attitude_message(truth, now))
 
@@ -163,30 +200,40 @@ class SimAutopilot:
             return
         self.sent[stream] += 1
 
-    def _gps_message(self, truth: AutopilotTruth, now: int) -> Any:
-        # Always draw the same numbers per fix so the random stream does not depend on the truth values.
-        noise = self._rng.normal(0.0, 1.0, 3) * np.array([1.0, 1.0, 2.0]) * self._gps_noise_m
-        lat, lon, alt = pymap3d.enu2geodetic(
-            truth.x_m + float(noise[0]),
-            truth.y_m + float(noise[1]),
-            truth.z_m + float(noise[2]),
-            *self._datum,
-        )
-        speed = truth.speed_mps
-        heading = truth.yaw_rad if speed >= 0 else truth.yaw_rad + math.pi
-        bearing_deg = math.degrees(math.pi / 2.0 - heading) % 360.0
-        eph_cm = min(_UINT16_KNOWN_MAX, round(self._gps_noise_m * 100.0))
+    def _gps_message(self, now: int) -> Any:
+        fix = self._gps.fix(now)
+        if fix is None:
+            return None
+        lat, lon, alt = pymap3d.enu2geodetic(fix.x_m, fix.y_m, fix.z_m, *self._datum)
+        eph_cm = min(_UINT16_KNOWN_MAX, round(fix.eph_m * 100.0))
         return self._mav.gps_raw_int_encode(
             now // 1_000,
-            _FIX_3D,
+            fix.fix_type,
             round(float(lat) * 1e7),
             round(float(lon) * 1e7),
             round(float(alt) * 1e3),
             eph_cm,
-            eph_cm * 2,
-            min(_UINT16_KNOWN_MAX, round(abs(speed) * 100.0)),
-            round(bearing_deg * 100.0) % 36000,
-            _SATELLITES,
+            min(_UINT16_KNOWN_MAX, eph_cm * 2),
+            min(_UINT16_KNOWN_MAX, round(abs(fix.speed_mps) * 100.0)),
+            round(course_bearing_deg(fix.yaw_rad, fix.speed_mps) * 100.0) % 36000,
+            fix.satellites,
+        )
+
+    def _sys_status_message(self, truth: AutopilotTruth) -> Any:
+        return self._mav.sys_status_encode(
+            _SENSORS_PRESENT,
+            _SENSORS_PRESENT,
+            _SENSORS_PRESENT,
+            0,
+            max(0, min(65535, round(truth.battery_voltage_v * 1000.0))),
+            max(-1, min(_INT16_MAX, round(truth.battery_current_a * 100.0))),
+            max(-1, min(100, truth.battery_remaining_pct)),
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
         )
 
     def _attitude_message(self, truth: AutopilotTruth, now: int) -> Any:
@@ -204,21 +251,20 @@ class SimAutopilot:
         )
 
     def _imu_message(self, truth: AutopilotTruth, now: int) -> Any:
-        gyro_noise = self._rng.normal(0.0, self._gyro_noise_rps, 3)
-        accel_noise = self._rng.normal(0.0, self._accel_noise_mps2, 3)
-        ax, ay, az = truth.accel_body_mps2
-        # A skid-steer rover on the ground: body rates other than yaw are left to the noise.
-        gyro_flu = (float(gyro_noise[0]), float(gyro_noise[1]), truth.yaw_rate_rps + float(gyro_noise[2]))
-        accel_flu = (ax + float(accel_noise[0]), ay + float(accel_noise[1]), az + float(accel_noise[2]))
+        reading = self._imu.read(now, truth.yaw_rate_rps, truth.accel_body_mps2)
+        if reading is None:
+            return None
+        gx, gy, gz = reading.gyro_flu_rps
+        ax, ay, az = reading.accel_flu_mps2
         # FLU -> FRD: y and z change sign.
         return self._mav.scaled_imu_encode(
             (now // 1_000_000) % (1 << 32),
-            _int16(accel_flu[0] * _MPS2_TO_MG),
-            _int16(-accel_flu[1] * _MPS2_TO_MG),
-            _int16(-accel_flu[2] * _MPS2_TO_MG),
-            _int16(gyro_flu[0] * _RAD_TO_MRAD),
-            _int16(-gyro_flu[1] * _RAD_TO_MRAD),
-            _int16(-gyro_flu[2] * _RAD_TO_MRAD),
+            _int16(ax * _MPS2_TO_MG),
+            _int16(-ay * _MPS2_TO_MG),
+            _int16(-az * _MPS2_TO_MG),
+            _int16(gx * _RAD_TO_MRAD),
+            _int16(-gy * _RAD_TO_MRAD),
+            _int16(-gz * _RAD_TO_MRAD),
             0,
             0,
             0,

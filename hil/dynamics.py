@@ -134,7 +134,10 @@ class RoverDynamics:
         self._roll, self._pitch = terrain.tilt_at(self._x, self._y, self._yaw)
         self._energy_j = 0.0
         self._rolled_over = False
-        self._in_contact = self._clearance(self._x, self._y)[0] < params.footprint_radius_m
+        # The clearance and tilt where the rover stands, kept from the end of the last step (same place,
+        # same terrain) so each step computes them once, not twice.
+        self._clearance_here = self._clearance(self._x, self._y)[0]
+        self._in_contact = self._clearance_here < params.footprint_radius_m
 
     # --- state ------------------------------------------------------------------------------------
     @property
@@ -187,6 +190,8 @@ class RoverDynamics:
         if not terrain.contains(self._x, self._y):
             raise DynamicsError(f"new terrain does not cover the rover at ({self._x:.2f}, {self._y:.2f})")
         self._terrain = terrain
+        self._roll, self._pitch = terrain.tilt_at(self._x, self._y, self._yaw)
+        self._clearance_here = self._clearance(self._x, self._y)[0]
 
     # --- stepping ---------------------------------------------------------------------------------
     def step(
@@ -208,7 +213,7 @@ class RoverDynamics:
         p = self._params
         class_id = self._terrain.class_at(self._x, self._y)
         ground = self._classes[class_id]
-        roll, pitch = self._terrain.tilt_at(self._x, self._y, self._yaw)
+        roll, pitch = self._roll, self._pitch  # tilt_at(x, y, yaw), computed at the end of the last step
         if self._rolled_over:
             return self._rolled_over_step(dt_s, wheels, class_id, ground, roll, pitch)
 
@@ -241,7 +246,7 @@ class RoverDynamics:
 
         # Contact: refuse a move that pushes the footprint further into an obstacle or over the edge.
         radius = p.footprint_radius_m
-        old_clearance, _ = self._clearance(self._x, self._y)
+        old_clearance = self._clearance_here
         new_clearance, new_kind = self._clearance(new_x, new_y)
         blocked = new_clearance < radius and new_clearance < old_clearance
         if blocked:
@@ -250,6 +255,7 @@ class RoverDynamics:
             accel = (0.0 - self._speed) / dt_s
             speed = 0.0
         touching = blocked or new_clearance < radius + _CONTACT_TOLERANCE_M
+        self._clearance_here = new_clearance
         contact_began = touching and not self._in_contact
         self._in_contact = touching
 

@@ -12,13 +12,19 @@ import itertools
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import Literal
 
 import can
 
 from firmware_bridge.can_link import CanConfig, open_bus
 from firmware_bridge.mavlink_transport import PipeEnd, memory_pipe_pair
+from hil.lockstep_bus import lockstep_bus_pair
+from logs.clock import Clock
 
 _channel_numbers = itertools.count()
+
+CanBackend = Literal["lockstep", "virtual"]
+CAN_BACKENDS: tuple[CanBackend, ...] = ("lockstep", "virtual")
 
 
 @dataclass
@@ -30,12 +36,21 @@ class LockstepWires:
 
 
 @contextmanager
-def lockstep_wires(can_config: CanConfig) -> Iterator[LockstepWires]:
-    """Open a private virtual CAN channel and a MAVLink byte pipe; shut both CAN ends on exit."""
+def lockstep_wires(
+    can_config: CanConfig, *, clock: Clock | None = None, can_backend: CanBackend = "lockstep"
+) -> Iterator[LockstepWires]:
+    """Open a private CAN channel and a MAVLink byte pipe; shut both CAN ends on exit."""
     channel = f"{can_config.channel}-lockstep-{next(_channel_numbers)}"
-    onboard_config = dataclasses.replace(can_config, interface="virtual", channel=channel)
-    onboard_bus = open_bus(onboard_config)
-    sim_bus = open_bus(onboard_config)
+    onboard_bus: can.BusABC
+    sim_bus: can.BusABC
+    if can_backend == "lockstep":
+        onboard_bus, sim_bus = lockstep_bus_pair(channel, clock)
+    elif can_backend == "virtual":
+        onboard_config = dataclasses.replace(can_config, interface="virtual", channel=channel)
+        onboard_bus = open_bus(onboard_config)
+        sim_bus = open_bus(onboard_config)
+    else:
+        raise ValueError(f"lockstep CAN backend must be one of {CAN_BACKENDS}, got {can_backend!r}")
     onboard_pipe, sim_pipe = memory_pipe_pair()
     try:
         yield LockstepWires(onboard_bus, sim_bus, onboard_pipe, sim_pipe)

@@ -1,7 +1,9 @@
-"""Scenario files: the world a trial runs in (terrain, start, goals, obstacles, sensors, duration).
+"""Scenario files: the world a trial runs in.
 
-A scenario is TOML, validated completely before anything starts, with errors that name the file and the
-key. The terrain comes from the paper's maze matrix, from .npy layers, or is procedural from a seed.
+Terrain, start, goals, static and moving obstacles, sensor settings, perception, faults over time,
+duration, seed and success criteria. A scenario is TOML, validated completely before anything starts, with
+errors that name the file and the key. The terrain comes from the paper's maze matrix, from .npy layers, or
+is procedural from a seed. See docs/hil.md for every key.
 """
 
 from __future__ import annotations
@@ -12,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from hil.faults import Fault, faults_from_tables
+from hil.moving_obstacles import MovingObstacle
 from logs.settings import Table, load_toml
 from navigator.map_config import terrain_from_table
 from navigator.terrain import TerrainMap, disc_mask
@@ -23,6 +27,7 @@ class Obstacle:
     x: float
     y: float
     radius_m: float
+    known: bool = True  # on the rover's map from the start; unknown ones must be perceived
 
 
 @dataclass(frozen=True)
@@ -36,21 +41,68 @@ class Goal:
 class SensorSettings:
     gps_rate_hz: float = 5.0
     gps_noise_m: float = 0.5
+    gps_latency_s: float = 0.0
+    gps_dropout_probability: float = 0.0
+    gps_satellites: int = 12
     imu_rate_hz: float = 50.0
     gyro_noise_rps: float = 0.005
     accel_noise_mps2: float = 0.05
+    gyro_bias_rps: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    accel_bias_mps2: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    perception_range_m: float = 8.0
+    perception_rate_hz: float = 10.0
+    perception_noise_m: float = 0.0
 
     @classmethod
     def from_table(cls, table: Table) -> SensorSettings:
+        gyro_bias = table.numbers("gyro_bias_rps", list(cls.gyro_bias_rps), length=3)
+        accel_bias = table.numbers("accel_bias_mps2", list(cls.accel_bias_mps2), length=3)
         settings = cls(
             gps_rate_hz=table.number("gps_rate_hz", cls.gps_rate_hz, lo=0.1, hi=50.0),
             gps_noise_m=table.number("gps_noise_m", cls.gps_noise_m, lo=0.0, hi=50.0),
+            gps_latency_s=table.number("gps_latency_s", cls.gps_latency_s, lo=0.0, hi=5.0),
+            gps_dropout_probability=table.number(
+                "gps_dropout_probability", cls.gps_dropout_probability, lo=0.0, hi=1.0
+            ),
+            gps_satellites=table.integer("gps_satellites", cls.gps_satellites, lo=0, hi=64),
             imu_rate_hz=table.number("imu_rate_hz", cls.imu_rate_hz, lo=1.0, hi=1000.0),
             gyro_noise_rps=table.number("gyro_noise_rps", cls.gyro_noise_rps, lo=0.0, hi=1.0),
             accel_noise_mps2=table.number("accel_noise_mps2", cls.accel_noise_mps2, lo=0.0, hi=10.0),
+            gyro_bias_rps=(gyro_bias[0], gyro_bias[1], gyro_bias[2]),
+            accel_bias_mps2=(accel_bias[0], accel_bias[1], accel_bias[2]),
+            perception_range_m=table.number("perception_range_m", cls.perception_range_m, lo=0.1, hi=500.0),
+            perception_rate_hz=table.number("perception_rate_hz", cls.perception_rate_hz, lo=0.1, hi=100.0),
+            perception_noise_m=table.number("perception_noise_m", cls.perception_noise_m, lo=0.0, hi=10.0),
         )
         table.finish()
         return settings
+
+
+@dataclass(frozen=True)
+class SuccessCriteria:
+    """What a trial must achieve to count as a success (checked against its metrics)."""
+
+    goal_reached: bool = True
+    max_rollovers: int = 0
+    max_collisions: int | None = None  # None: not checked
+    min_path_accuracy_pct: float | None = None
+    max_duration_s: float | None = None
+
+    @classmethod
+    def from_table(cls, table: Table) -> SuccessCriteria:
+        criteria = cls(
+            goal_reached=table.flag("goal_reached", True),
+            max_rollovers=table.integer("max_rollovers", 0, lo=0),
+            max_collisions=table.integer("max_collisions", lo=0) if table.has("max_collisions") else None,
+            min_path_accuracy_pct=(
+                table.number("min_path_accuracy_pct", lo=0.0, hi=100.0)
+                if table.has("min_path_accuracy_pct")
+                else None
+            ),
+            max_duration_s=(table.number("max_duration_s", lo=0.0) if table.has("max_duration_s") else None),
+        )
+        table.finish()
+        return criteria
 
 
 @dataclass(frozen=True)
@@ -59,6 +111,7 @@ class Scenario:
     source: str
     text: str  # the file as written, attached to every recording
     terrain: TerrainMap  # the true world, static obstacles included
+    believed_terrain: TerrainMap  # the rover's map: the true ground with the *known* obstacles only
     start_xy: tuple[float, float]
     start_yaw_rad: float
     goals: tuple[Goal, ...]
@@ -70,6 +123,9 @@ class Scenario:
     datum: tuple[float, float, float]  # lat, lon, alt of the ENU origin
     terrain_summary: str = ""
     tags: tuple[str, ...] = field(default_factory=tuple)
+    moving_obstacles: tuple[MovingObstacle, ...] = ()
+    faults: tuple[Fault, ...] = ()
+    success: SuccessCriteria = SuccessCriteria()
 
 
 def load_scenario(path: str | Path) -> Scenario:
@@ -119,21 +175,40 @@ def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
         xy = obstacle_table.point("xy")
         _check_inside(terrain, xy, obstacle_table, "xy")
         radius = obstacle_table.number("radius_m", lo=0.05, hi=50.0)
+        known = obstacle_table.flag("known", True)
         obstacle_table.finish()
-        obstacles.append(Obstacle(obstacle_id, xy[0], xy[1], radius))
-    if obstacles:
-        mask = np.zeros(terrain.shape, dtype=bool)
-        for obstacle in obstacles:
-            mask |= disc_mask(terrain, obstacle.x, obstacle.y, obstacle.radius_m)
-        terrain = terrain.with_obstacles(mask)
+        obstacles.append(Obstacle(obstacle_id, xy[0], xy[1], radius, known))
+    believed_terrain = terrain.with_obstacles(_discs(terrain, [o for o in obstacles if o.known]))
+    terrain = terrain.with_obstacles(_discs(terrain, obstacles))
+
+    moving = []
+    for index, moving_table in enumerate(root.tables("moving_obstacles")):
+        moving_id = moving_table.text("id", f"mover{index}")
+        if moving_id in seen_ids:
+            raise moving_table.error("id", f"duplicate obstacle id {moving_id!r}")
+        seen_ids.add(moving_id)
+        waypoints = _waypoints(moving_table, terrain)
+        moving.append(
+            MovingObstacle(
+                moving_id,
+                moving_table.number("radius_m", lo=0.05, hi=50.0),
+                waypoints,
+                moving_table.number("speed_mps", lo=0.0, hi=20.0),
+                moving_table.number("start_s", 0.0, lo=0.0),
+            )
+        )
+        moving_table.finish()
 
     sensors = SensorSettings.from_table(root.table("sensors", optional=True))
+    faults = faults_from_tables(root.tables("faults"), duration_s)
+    success = SuccessCriteria.from_table(root.table("success", optional=True))
     root.finish()
     return Scenario(
         name=name,
         source=root.source,
         text=text,
         terrain=terrain,
+        believed_terrain=believed_terrain,
         start_xy=start_xy,
         start_yaw_rad=start_yaw,
         goals=tuple(goals),
@@ -145,7 +220,37 @@ def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
         datum=(datum_values[0], datum_values[1], datum_values[2]),
         terrain_summary=summary,
         tags=tags,
+        moving_obstacles=tuple(moving),
+        faults=faults,
+        success=success,
     )
+
+
+def _discs(terrain: TerrainMap, obstacles: list[Obstacle]) -> np.ndarray:
+    mask = np.zeros(terrain.shape, dtype=bool)
+    for obstacle in obstacles:
+        mask |= disc_mask(terrain, obstacle.x, obstacle.y, obstacle.radius_m)
+    return mask
+
+
+def _waypoints(table: Table, terrain: TerrainMap) -> tuple[tuple[float, float], ...]:
+    raw = table.raw("waypoints")
+    if not isinstance(raw, list) or len(raw) < 2:
+        raise table.error("waypoints", f"need a list of at least two [x, y] points, got {raw!r}")
+    points = []
+    for index, point in enumerate(raw):
+        if (
+            not isinstance(point, list)
+            or len(point) != 2
+            or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in point)
+            or not all(math.isfinite(float(v)) for v in point)
+        ):
+            raise table.error("waypoints", f"point {index} must be [x, y] in metres, got {point!r}")
+        xy = (float(point[0]), float(point[1]))
+        if not terrain.contains(*xy):
+            raise table.error("waypoints", f"point {index} {xy} lies outside the terrain map")
+        points.append(xy)
+    return tuple(points)
 
 
 def _check_inside(terrain: TerrainMap, xy: tuple[float, float], table: Table, key: str) -> None:

@@ -15,20 +15,16 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from importlib import metadata as package_metadata
 from pathlib import Path
-
-import numpy as np
+from typing import Any
 
 from firmware_bridge.can_link import CanLink
 from firmware_bridge.mavlink_link import MavlinkLink
 from firmware_bridge.vesc import VescCodec
 from firmware_bridge.vesc_dbc import load_vesc_database
-from hil.autopilot_sim import AutopilotTruth, SimAutopilot
-from hil.battery import Battery
-from hil.dynamics import RoverDynamics
-from hil.lockstep import lockstep_wires
+from hil.lockstep import CanBackend, lockstep_wires
 from hil.scenario import Scenario
-from hil.truth import TruthRecorder
-from hil.vesc_sim import SimVescBank
+from hil.success import judge
+from hil.world import SimWorld
 from logs.clock import NS_PER_S, SimClock, seconds, to_ns
 from logs.metrics import TrialMetrics, compute_metrics
 from logs.recorder import McapRecorder
@@ -40,7 +36,6 @@ _log = logging.getLogger(__name__)
 
 PHYSICS_DT_NS = 10_000_000  # 100 Hz rover body
 CONTROL_DIVIDER = 2  # onboard control at 50 Hz
-TRUTH_DIVIDER = 2  # ground truth recorded at 50 Hz
 ENCOUNTER_MARGIN_M = 2.5  # an obstacle this close to the track (beyond its radius) was "in the way"
 
 
@@ -51,6 +46,13 @@ class TrialResult:
     metrics: TrialMetrics
     simulated_s: float
     end_reason: str
+    success: bool = False
+    failures: tuple[str, ...] = ()
+
+
+# Called once the components exist (name -> object), before the first tick: ``rover bench hil`` uses it to
+# time each component. Nothing in a normal trial needs it.
+ComponentHook = Callable[[dict[str, Any]], None]
 
 
 def software_version() -> str:
@@ -68,6 +70,8 @@ def run_trial(
     seed: int | None = None,
     telemetry: MessageSink | None = None,
     on_progress: Callable[[float], None] | None = None,
+    can_backend: CanBackend = "lockstep",
+    on_components: ComponentHook | None = None,
 ) -> TrialResult:
     """Run one lockstep trial; writes ``trial.mcap`` and ``metrics.json`` into ``out_dir``."""
     seed = scenario.seed if seed is None else seed
@@ -75,14 +79,13 @@ def run_trial(
     out_dir.mkdir(parents=True, exist_ok=True)
     mcap_path = out_dir / "trial.mcap"
     clock = SimClock()
-    rng = np.random.default_rng(seed)
 
     with McapRecorder(mcap_path) as recorder:
         _write_header(recorder, scenario, config, seed)
         sink: MessageSink = recorder if telemetry is None else FanoutSink([recorder, telemetry])
-        with lockstep_wires(config.can) as wires:
+        with lockstep_wires(config.can, clock=clock, can_backend=can_backend) as wires:
             codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
-            can_link = CanLink(wires.onboard_bus, codec, clock, sink)
+            can_link = CanLink(wires.onboard_bus, codec, clock, sink, config=config.can)
             mavlink = MavlinkLink(
                 wires.onboard_mavlink,
                 clock,
@@ -90,41 +93,39 @@ def run_trial(
                 system_id=config.mavlink.system_id,
                 component_id=config.mavlink.component_id,
             )
-            stack = OnboardStack(config, clock, can_link, mavlink, sink, scenario.terrain)
-            vescs = SimVescBank(wires.sim_bus, codec, clock)
-            autopilot = SimAutopilot(
-                wires.sim_mavlink,
-                clock,
-                rng,
-                datum_lat_deg=scenario.datum[0],
-                datum_lon_deg=scenario.datum[1],
-                datum_alt_m=scenario.datum[2],
-                gps_rate_hz=scenario.sensors.gps_rate_hz,
-                imu_rate_hz=scenario.sensors.imu_rate_hz,
-                gps_noise_m=scenario.sensors.gps_noise_m,
-                gyro_noise_rps=scenario.sensors.gyro_noise_rps,
-                accel_noise_mps2=scenario.sensors.accel_noise_mps2,
+            world = SimWorld(
+                scenario, config.vehicle, codec, clock, wires.sim_bus, wires.sim_mavlink, sink, seed
             )
-            body = RoverDynamics(
-                scenario.terrain,
-                config.vehicle,
-                x=scenario.start_xy[0],
-                y=scenario.start_xy[1],
-                yaw=scenario.start_yaw_rad,
+            stack = OnboardStack(
+                config, clock, can_link, mavlink, sink, scenario.believed_terrain, obstacles=world.perception
             )
-            truth = TruthRecorder(sink, scenario)
-            battery = Battery()
-            end_reason = _run_loop(
-                scenario, clock, stack, vescs, autopilot, body, battery, truth, on_progress
-            )
+            if on_components is not None:
+                on_components(
+                    {
+                        "onboard": stack,
+                        "can_link": can_link,
+                        "mavlink_link": mavlink,
+                        "recorder": recorder,
+                        "telemetry": telemetry,
+                        "world": world,
+                        "vescs": world.vescs,
+                        "autopilot": world.autopilot,
+                        "dynamics": world.body,
+                        "truth": world.truth,
+                    }
+                )
+            end_reason = _run_loop(scenario, clock, stack, world, on_progress)
             stack.close()
-            vescs.poll()  # the zero commands sent on close reach the controllers
+            world.vescs.poll()  # the zero commands sent on close reach the controllers
         simulated_s = seconds(clock.now_ns())
 
     metrics = compute_metrics(mcap_path)
     metrics_path = out_dir / "metrics.json"
     metrics.write_json(metrics_path)
-    return TrialResult(mcap_path, metrics_path, metrics, simulated_s, end_reason)
+    failures = tuple(judge(scenario.success, metrics))
+    return TrialResult(
+        mcap_path, metrics_path, metrics, simulated_s, end_reason, success=not failures, failures=failures
+    )
 
 
 def _georeferenced(config: RoverConfig, scenario: Scenario) -> RoverConfig:
@@ -138,11 +139,7 @@ def _run_loop(
     scenario: Scenario,
     clock: SimClock,
     stack: OnboardStack,
-    vescs: SimVescBank,
-    autopilot: SimAutopilot,
-    body: RoverDynamics,
-    battery: Battery,
-    truth: TruthRecorder,
+    world: SimWorld,
     on_progress: Callable[[float], None] | None,
 ) -> str:
     dt_s = seconds(PHYSICS_DT_NS)
@@ -155,25 +152,7 @@ def _run_loop(
     while clock.now_ns() < end_ns:
         now = clock.advance(PHYSICS_DT_NS)
         tick += 1
-        vescs.poll()
-        step = body.step(dt_s, vescs.wheel_speeds_mps(), battery.voltage_v)
-        input_current = float(np.sum(np.abs(step.motor_currents_a) * np.abs(step.duty)))
-        voltage = battery.draw(input_current + 0.5, dt_s)  # 0.5 A for the electronics
-        vescs.set_electrical(step.motor_currents_a, voltage)
-        vescs.step(dt_s)
-        autopilot.step(
-            AutopilotTruth(
-                x_m=body.x,
-                y_m=body.y,
-                z_m=scenario.terrain.elevation_at(body.x, body.y),
-                yaw_rad=body.yaw,
-                speed_mps=body.speed,
-                yaw_rate_rps=body.yaw_rate,
-                accel_body_mps2=step.specific_force_body_mps2,
-            )
-        )
-        autopilot.poll()
-        truth.on_step(now, body, step, battery, record_state=tick % TRUTH_DIVIDER == 0)
+        world.tick(dt_s)
         if tick % CONTROL_DIVIDER == 0:
             stack.step()
             if stack.mode is Mode.ARRIVED:
@@ -183,7 +162,7 @@ def _run_loop(
                 stack.set_goal(goals[goal_index].x, goals[goal_index].y)
             elif stack.mode is Mode.NO_PATH:
                 return "no_path"
-        if body.rolled_over:
+        if world.rolled_over:
             return "rollover"
         if on_progress is not None and now >= next_progress_ns:
             on_progress(seconds(now) / scenario.duration_s)
@@ -193,6 +172,11 @@ def _run_loop(
 
 def _write_header(recorder: McapRecorder, scenario: Scenario, config: RoverConfig, seed: int) -> None:
     obstacles = [{"id": o.id, "x": o.x, "y": o.y, "radius": o.radius_m} for o in scenario.obstacles]
+    moving = [
+        {"id": m.id, "radius": m.radius_m, "waypoints": m.waypoints, "speed_mps": m.speed_mps}
+        for m in scenario.moving_obstacles
+    ]
+    faults = [dataclasses.asdict(f) for f in scenario.faults]
     goal = scenario.goals[-1]
     recorder.add_metadata(
         "scenario",
@@ -205,6 +189,8 @@ def _write_header(recorder: McapRecorder, scenario: Scenario, config: RoverConfi
             "path_tolerance_m": repr(scenario.path_tolerance_m),
             "encounter_margin_m": repr(ENCOUNTER_MARGIN_M),
             "obstacles_json": json.dumps(obstacles, separators=(",", ":")),
+            "moving_obstacles_json": json.dumps(moving, separators=(",", ":")),
+            "faults_json": json.dumps(faults, separators=(",", ":")),
             "goal_json": json.dumps({"x": goal.x, "y": goal.y, "tolerance_m": goal.tolerance_m}),
         },
     )

@@ -19,6 +19,7 @@ class TruthRecorder:
         self._scenario = scenario
         self._in_collision = False
         self._rollover_reported = False
+        self._touching_movers: set[str] = set()
 
     def on_step(
         self, now: int, body: RoverDynamics, step: DynamicsStep, battery: Battery, *, record_state: bool
@@ -81,6 +82,14 @@ class TruthRecorder:
         if step.rollover and not self._rollover_reported:
             self._rollover_reported = True
             self._publish_contact(now, "rollover", "", body)
+
+    def on_moving_contact(self, now: int, obstacle_id: str, touching: bool, body: RoverDynamics) -> None:
+        """A moving obstacle's contact with the footprint: reported once when it begins."""
+        if touching and obstacle_id not in self._touching_movers:
+            self._touching_movers.add(obstacle_id)
+            self._publish_contact(now, "collision", obstacle_id, body)
+        elif not touching:
+            self._touching_movers.discard(obstacle_id)
 
     def _publish_contact(self, now: int, kind: str, obstacle_id: str, body: RoverDynamics) -> None:
         self._sink.publish(

@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import math
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from logs.reader import ReadStats, RecordedMessage, RecordedMetadata, Source, read_entries
+from logs.reader import Entry, ReadStats, RecordedMessage, RecordedMetadata, Source, read_entries
 from logs.topics import (
     ESTIMATOR_POSE,
     NAVIGATOR_PATH,
@@ -38,7 +38,14 @@ DISTANCE_EPSILON_M = 1e-9
 _J_PER_WH = 3600.0
 _POINT_BLOCK = 1024  # points per vectorised distance block: bounds memory at block x path segments
 
-_TOPICS = (TRUTH_POSE, ESTIMATOR_POSE, NAVIGATOR_PATH, NAVIGATOR_STATE, TRUTH_CONTACTS, WHEELS_STATUS)
+METRIC_TOPICS = _TOPICS = (
+    TRUTH_POSE,
+    ESTIMATOR_POSE,
+    NAVIGATOR_PATH,
+    NAVIGATOR_STATE,
+    TRUTH_CONTACTS,
+    WHEELS_STATUS,
+)
 
 FloatArray = NDArray[np.float64]
 
@@ -98,13 +105,13 @@ class _Trial:
     rejected: Counter[str] = field(default_factory=Counter)
 
 
-def _gather(source: Source, stats: ReadStats) -> _Trial:
+def _gather(entries: Iterable[Entry]) -> _Trial:
     trial = _Trial()
-    for entry in read_entries(source, topics=_TOPICS, stats=stats):
+    for entry in entries:
         if isinstance(entry, RecordedMetadata):
             if entry.name == SCENARIO_METADATA:
                 trial.scenario = entry.data
-        elif isinstance(entry, RecordedMessage):
+        elif isinstance(entry, RecordedMessage) and entry.topic in _TOPICS:
             trial.seen.add(entry.topic)
             try:
                 _take(trial, entry)
@@ -174,7 +181,13 @@ class _Notes:
 def compute_metrics(source: Source) -> TrialMetrics:
     """All trial metrics from one recording (a path or a binary stream); see docs/metrics.md."""
     stats = ReadStats()
-    trial = _gather(source, stats)
+    return metrics_from_entries(read_entries(source, topics=METRIC_TOPICS, stats=stats), stats)
+
+
+def metrics_from_entries(entries: Iterable[Entry], stats: ReadStats) -> TrialMetrics:
+    """The metrics of entries read elsewhere (one pass feeding several analyses); ``stats`` of that read,
+    consulted after ``entries`` is exhausted. Messages on topics the metrics do not use are ignored."""
+    trial = _gather(entries)
     notes = _Notes()
     for topic, count in sorted(trial.rejected.items()):
         notes.problems.append(f"{topic}: {count} message(s) without usable values skipped")

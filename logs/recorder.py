@@ -32,6 +32,11 @@ MESSAGE_ENCODING = "json"
 LIBRARY = "rover-stack logs"
 
 _COMPRESSIONS = {"zstd": CompressionType.ZSTD, "none": CompressionType.NONE}
+# Crash budget: a chunk is closed and pushed to the OS once it spans this much log time, so SIGKILL or a
+# power cut loses at most about one second. At the lockstep trial's ~80 kB per simulated second the size
+# limit below alone would hold ~3 s, so the time limit is what bounds the loss.
+DEFAULT_CHUNK_DURATION_NS = 1_000_000_000
+DEFAULT_CHUNK_SIZE = 256 * 1024
 _SEQUENCE_MODULO = 2**32  # MCAP sequence numbers are uint32
 
 
@@ -80,23 +85,33 @@ class McapRecorder:
     A path's parent folders are created; the recorder owns and closes that file. A stream given by the
     caller is flushed on ``close()`` but left open. ``close()`` is safe to call twice; the recorder is also
     a context manager.
+
+    A chunk closes when it holds ``chunk_size`` uncompressed bytes or spans ``chunk_duration_ns`` of log
+    time (``None``: size only), whichever comes first; each time-closed chunk is flushed to the OS. A file
+    cut by a crash therefore keeps everything up to about ``chunk_duration_ns`` before the cut
+    (``rover logs recover``).
     """
 
     def __init__(
         self,
         output: str | Path | BinaryIO,
         *,
-        chunk_size: int = 256 * 1024,
+        chunk_size: int = DEFAULT_CHUNK_SIZE,
         compression: str = "zstd",
         profile: str = "",
+        chunk_duration_ns: int | None = DEFAULT_CHUNK_DURATION_NS,
     ) -> None:
         if chunk_size <= 0:
             raise RecordingError(f"chunk_size must be > 0 bytes, got {chunk_size}")
+        if chunk_duration_ns is not None and chunk_duration_ns <= 0:
+            raise RecordingError(f"chunk_duration_ns must be > 0 ns or None, got {chunk_duration_ns}")
         if compression not in _COMPRESSIONS:
             raise RecordingError(
                 f"unknown MCAP compression {compression!r}; use one of {', '.join(sorted(_COMPRESSIONS))}"
             )
         self.message_count = 0
+        self._chunk_duration_ns = chunk_duration_ns
+        self._chunk_started_ns: int | None = None  # log time of the first message in the open chunk
         self._closed = False
         self._owned_file: BinaryIO | None = None
         if isinstance(output, str | Path):
@@ -148,6 +163,12 @@ class McapRecorder:
         except OSError as err:
             raise RecordingError(f"cannot write to {self.name}: {err}") from err
         self.message_count += 1
+        if self._chunk_duration_ns is not None:
+            started = self._chunk_started_ns
+            if started is None:
+                self._chunk_started_ns = log_time_ns
+            elif log_time_ns - started >= self._chunk_duration_ns:
+                self.flush()  # also pushes Python's file buffer to the OS, where SIGKILL cannot lose it
 
     def _register(self, topic: str) -> list[int]:
         self._check_open(f"record {topic!r}")
@@ -201,6 +222,7 @@ class McapRecorder:
     def flush(self) -> None:
         """Close the chunk in progress and push it to the output, so a crash loses less."""
         self._check_open("flush")
+        self._chunk_started_ns = None
         try:
             self._writer.flush()
         except OSError as err:

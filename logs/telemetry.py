@@ -49,6 +49,9 @@ class ZenohSettings:
     listen: tuple[str, ...] = ("tcp/127.0.0.1:0",)
     connect: tuple[str, ...] = ()
     multicast_scouting: bool = False
+    # Zenoh config paths -> values, written last: authentication, TLS, access control (docs/telemetry.md),
+    # e.g. {"transport/auth/usrpwd/user": "station"}. A tuple of pairs so the settings stay hashable.
+    overrides: tuple[tuple[str, Any], ...] = ()
 
     @classmethod
     def from_table(cls, table: Table, *, finish: bool = True) -> ZenohSettings:
@@ -60,12 +63,24 @@ class ZenohSettings:
             listen=_endpoints(table, "listen", defaults.listen),
             connect=_endpoints(table, "connect", defaults.connect),
             multicast_scouting=table.flag("multicast_scouting", defaults.multicast_scouting),
+            overrides=_overrides(table),
         )
         if settings.mode == "client" and not settings.connect:
             raise table.error("connect", "client mode needs at least one endpoint to connect to (a router)")
         if finish:
             table.finish()
         return settings
+
+
+def _overrides(table: Table) -> tuple[tuple[str, Any], ...]:
+    if not table.has("overrides"):
+        return ()
+    value = table.raw("overrides")
+    if not isinstance(value, dict):
+        raise table.error(
+            "overrides", "expected a table of zenoh config paths, e.g. 'transport/auth/usrpwd/user'"
+        )
+    return tuple(sorted(value.items()))
 
 
 def _endpoints(table: Table, key: str, default: tuple[str, ...]) -> tuple[str, ...]:
@@ -88,7 +103,14 @@ def zenoh_config(settings: ZenohSettings) -> zenoh.Config:
         config.insert_json5("listen/endpoints", json.dumps(list(settings.listen)))
         config.insert_json5("connect/endpoints", json.dumps(list(settings.connect)))
         config.insert_json5("scouting/multicast/enabled", json.dumps(settings.multicast_scouting))
-    except (OSError, zenoh.ZError) as err:
+        for path, value in settings.overrides:
+            try:
+                config.insert_json5(path, json.dumps(value))
+            except (zenoh.ZError, TypeError) as err:
+                raise TelemetrySetupError(
+                    f"[zenoh.overrides] {path!r} = {value!r} is refused by zenoh: {err}"
+                ) from err
+    except (OSError, zenoh.ZError, TypeError) as err:
         raise TelemetrySetupError(
             f"cannot build the Zenoh config from the shipped {DEFAULT_CONFIG_RESOURCE}: {err}"
         ) from err

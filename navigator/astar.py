@@ -1,29 +1,45 @@
-"""A* on a dense 8-connected cost grid.
+"""A* on a dense 8-connected cost grid: validation and path tracing around the compiled search.
 
-Edge cost between neighbouring cells a and b: ``step * (cost[a] + cost[b]) / 2`` with ``step`` 1 for an
-orthogonal and sqrt(2) for a diagonal move (in cells). ``np.inf`` cells are never entered. A diagonal move
-needs both orthogonal cells beside it traversable (no corner cutting past an obstacle).
+Edge cost from cell a to its neighbour b by move m (the planner's model, exactly)::
+
+    edge(a, b) = step(m) * (cost[a] + cost[b]) / 2 * factor[m, a]
+
+with ``step`` 1 for an orthogonal and sqrt(2) for a diagonal move (in cells) and ``factor`` the optional
+direction factor (>= 1; 1 when none is given; ``inf`` forbids that move). ``np.inf`` cells are never
+entered. A diagonal move needs both orthogonal cells beside it traversable (no corner cutting past an
+obstacle). The path cost is the sum of its edges; the planner multiplies it by the map resolution.
+
+Heuristics, each a lower bound on the cost still to go (``c_min`` = the cheapest finite cell cost; every
+factor is >= 1, so every move costs at least ``step * c_min``):
+
+* octile: ``c_min * (max + (sqrt2 - 1) * min)`` of the row/column offsets, the exact 8-connected
+  distance on a uniform grid (the tightest of the three);
+* euclidean: ``c_min * hypot``, never more than octile;
+* manhattan: ``c_min * (|dr| + |dc|) / sqrt2``. Plain Manhattan overestimates a diagonal move (2 vs
+  sqrt2), so it is divided by sqrt2; then ``0.707 (dx + dy) <= max + 0.414 min`` holds for all dx, dy.
+
+All three are consistent, so with ``weight`` 1 the search never reopens a cell and returns an optimal
+path. ``weight`` w > 1 inflates the heuristic: the cost is then at most w times the optimum.
 """
 
 from __future__ import annotations
 
-import heapq
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
+from navigator import astar_kernel
 from navigator.errors import NoPathError, PlanningError
 
 SQRT2 = math.sqrt(2.0)
 HEURISTICS = ("octile", "euclidean", "manhattan")
-
-# (d_row, d_col, step length in cells)
-_MOVES = (
-    (-1, 0, 1.0), (1, 0, 1.0), (0, -1, 1.0), (0, 1, 1.0),
-    (-1, -1, SQRT2), (-1, 1, SQRT2), (1, -1, SQRT2), (1, 1, SQRT2),
-)  # fmt: skip
+_HEURISTIC_IDS = {
+    "octile": astar_kernel.H_OCTILE,
+    "euclidean": astar_kernel.H_EUCLIDEAN,
+    "manhattan": astar_kernel.H_MANHATTAN,
+}
+_NO_FACTORS = np.ones((8, 1))
 
 
 @dataclass(frozen=True)
@@ -35,36 +51,26 @@ class PlanResult:
     expanded: int
 
 
-def _heuristic(name: str, min_cost: float, goal: tuple[int, int]) -> Callable[[int, int], float]:
-    """Lower bound of the cost to the goal: a distance in cells times the cheapest cell cost.
+def check_cost_grid(cost: np.ndarray) -> np.ndarray:
+    """The grid as contiguous float64; PlanningError for a bad shape, NaN or a cost <= 0."""
+    grid = np.ascontiguousarray(cost, dtype=np.float64)
+    if grid.ndim != 2 or grid.size == 0:
+        raise PlanningError(f"cost grid must be a non-empty 2-D array, got shape {grid.shape}")
+    if np.any(np.isnan(grid)) or np.any(grid <= 0.0):
+        raise PlanningError("cost grid must hold costs > 0 or inf (lethal); found NaN or a value <= 0")
+    return grid
 
-    * octile: the exact 8-connected distance on a uniform grid, ``max + (sqrt2 - 1) * min``;
-    * euclidean: straight-line distance, never more than octile;
-    * manhattan: ``(|dr| + |dc|) / sqrt2``. Plain Manhattan overestimates a diagonal move (2 vs sqrt2),
-      so it is divided by sqrt2; then ``0.707 (dx + dy) <= max + 0.414 min`` holds for all dx, dy.
-    All three are consistent, so a closed cell never needs reopening (with ``weight`` 1).
-    """
-    goal_row, goal_col = goal
-    if name == "octile":
 
-        def octile(row: int, col: int) -> float:
-            d_row, d_col = abs(row - goal_row), abs(col - goal_col)
-            return min_cost * (max(d_row, d_col) + (SQRT2 - 1.0) * min(d_row, d_col))
-
-        return octile
-    if name == "euclidean":
-
-        def euclidean(row: int, col: int) -> float:
-            return min_cost * math.hypot(row - goal_row, col - goal_col)
-
-        return euclidean
-    if name == "manhattan":
-
-        def manhattan(row: int, col: int) -> float:
-            return min_cost * (abs(row - goal_row) + abs(col - goal_col)) / SQRT2
-
-        return manhattan
-    raise PlanningError(f"unknown heuristic {name!r}; choose one of {', '.join(HEURISTICS)}")
+def check_factors(factors: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """Direction factors as a contiguous ``(8, rows * cols)`` float64 array; each >= 1 or inf."""
+    array = np.asarray(factors, dtype=np.float64)
+    if array.shape != (8, *shape):
+        raise PlanningError(
+            f"direction factors must have shape (8, {shape[0]}, {shape[1]}), got {array.shape}"
+        )
+    if np.any(np.isnan(array)) or np.any(array < 1.0):
+        raise PlanningError("direction factors must be >= 1 (or inf to forbid a move); found NaN or < 1")
+    return np.ascontiguousarray(array.reshape(8, -1))
 
 
 def _check_cell(cost: np.ndarray, cell: tuple[int, int], what: str) -> None:
@@ -85,87 +91,53 @@ def astar(
     goal: tuple[int, int],
     heuristic: str = "octile",
     weight: float = 1.0,
+    factors: np.ndarray | None = None,
 ) -> PlanResult:
     """Cheapest 8-connected path from ``start`` to ``goal`` (``(row, col)`` cells) over ``cost``.
 
     ``cost``: ``(rows, cols)`` float, finite values > 0 are traversable, ``np.inf`` is lethal.
-    ``weight`` > 1 inflates the heuristic (weighted A*: faster, at most ``weight`` times the optimum).
+    ``factors``: optional ``(8, rows, cols)`` direction factors (move order of ``astar_kernel.MOVES``).
     Raises PlanningError for a bad grid, a start/goal off the grid or lethal, NoPathError when none exists.
     """
-    grid = np.asarray(cost, dtype=np.float64)
-    if grid.ndim != 2 or grid.size == 0:
-        raise PlanningError(f"cost grid must be a non-empty 2-D array, got shape {grid.shape}")
-    if np.any(np.isnan(grid)) or np.any(grid <= 0.0):
-        raise PlanningError("cost grid must hold costs > 0 or inf (lethal); found NaN or a value <= 0")
+    grid = check_cost_grid(cost)
+    if heuristic not in _HEURISTIC_IDS:
+        raise PlanningError(f"unknown heuristic {heuristic!r}; choose one of {', '.join(HEURISTICS)}")
     if not (math.isfinite(weight) and weight >= 0.0):
         raise PlanningError(f"heuristic weight must be a finite number >= 0, got {weight}")
+    flat_factors = _NO_FACTORS if factors is None else check_factors(factors, grid.shape)
     start = (int(start[0]), int(start[1]))
     goal = (int(goal[0]), int(goal[1]))
     _check_cell(grid, start, "start")
     _check_cell(grid, goal, "goal")
-
-    rows, cols = grid.shape
+    cols = grid.shape[1]
     finite = grid[np.isfinite(grid)]
-    h = _heuristic(heuristic, float(finite.min()), goal)
-
-    # Flat Python lists: element access on them is several times faster than on numpy arrays in this
-    # per-cell loop (a later numba version can go back to arrays).
-    flat_cost: list[float] = grid.ravel().tolist()
-    g_score = [math.inf] * (rows * cols)
-    closed = [False] * (rows * cols)
-    parent = [-1] * (rows * cols)
-    start_index = start[0] * cols + start[1]
-    goal_index = goal[0] * cols + goal[1]
-    g_score[start_index] = 0.0
-    # Ties on f go to the cell nearer the goal (smaller h), then to the smaller index: deterministic.
-    start_h = weight * h(*start)
-    open_heap: list[tuple[float, float, int]] = [(start_h, start_h, start_index)]
-    expanded = 0
-    inf = math.inf
-
-    while open_heap:
-        _, _, index = heapq.heappop(open_heap)
-        if closed[index]:
-            continue  # a stale entry: this cell was reached cheaper already
-        closed[index] = True
-        expanded += 1
-        if index == goal_index:
-            return PlanResult(_trace(parent, goal_index, cols), g_score[goal_index], expanded)
-        row, col = divmod(index, cols)
-        here_cost = flat_cost[index]
-        here_g = g_score[index]
-        for d_row, d_col, step in _MOVES:
-            n_row, n_col = row + d_row, col + d_col
-            if not (0 <= n_row < rows and 0 <= n_col < cols):
-                continue
-            n_index = n_row * cols + n_col
-            n_cost = flat_cost[n_index]
-            if n_cost == inf or closed[n_index]:
-                continue
-            if (
-                d_row
-                and d_col
-                and (flat_cost[row * cols + n_col] == inf or flat_cost[n_row * cols + col] == inf)
-            ):
-                continue  # no corner cutting
-            tentative = here_g + step * 0.5 * (here_cost + n_cost)
-            if tentative < g_score[n_index]:
-                g_score[n_index] = tentative
-                parent[n_index] = index
-                n_h = weight * h(n_row, n_col)
-                heapq.heappush(open_heap, (tentative + n_h, n_h, n_index))
-
-    raise NoPathError(
-        f"no traversable path from cell {start} to cell {goal} ({expanded} cells reachable from the start); "
-        "the goal is walled off by obstacles or lethal slopes"
+    parent, goal_cost, expanded = astar_kernel.search(
+        grid.ravel(),
+        cols,
+        start[0] * cols + start[1],
+        goal[0] * cols + goal[1],
+        _HEURISTIC_IDS[heuristic],
+        weight * float(finite.min()),
+        flat_factors,
+        factors is not None,
+        astar_kernel.MODEL_MEAN,
+        SQRT2,
+        True,
     )
+    if not math.isfinite(goal_cost):
+        raise NoPathError(
+            f"no traversable path from cell {start} to cell {goal} ({expanded} cells reachable from the "
+            "start); the goal is walled off by obstacles or lethal slopes"
+        )
+    return PlanResult(trace(parent, goal[0] * cols + goal[1], cols), float(goal_cost), int(expanded))
 
 
-def _trace(parent: list[int], goal_index: int, cols: int) -> list[tuple[int, int]]:
-    cells: list[tuple[int, int]] = []
+def trace(parent: np.ndarray, goal_index: int, cols: int) -> list[tuple[int, int]]:
+    """Cells from the search's start to ``goal_index`` following ``parent`` links."""
+    indices: list[int] = []
     index = goal_index
     while index != -1:
-        cells.append(divmod(index, cols))
-        index = parent[index]
-    cells.reverse()
-    return cells
+        indices.append(index)
+        index = int(parent[index])
+    indices.reverse()
+    return [(i // cols, i % cols) for i in indices]

@@ -18,6 +18,9 @@ from firmware_bridge.vesc import VescProfile
 from logs.settings import Table, load_toml
 from logs.telemetry import ZenohSettings
 from navigator.follower import FollowerConfig
+from navigator.map_config import terrain_from_table
+from navigator.safety_config import SafetyConfig
+from navigator.terrain import TerrainMap
 from navigator.vehicle import VehicleParams
 
 HEURISTICS = ("octile", "euclidean", "manhattan")
@@ -29,12 +32,21 @@ class PlannerConfig:
 
     heuristic: str = "octile"
     inflation_m: float = 0.1
+    # "terrain": class, slope, roughness and direction costs; "classical": obstacles only (the baseline).
+    cost_mode: str = "terrain"
+    heuristic_weight: float = 1.0  # > 1: weighted A*, cost at most this times the optimum
+    sensing_range_m: float = 8.0  # static obstacles seen within this range repair the plan
+    moving_horizon_s: float = 3.0  # a moving obstacle predicted on the path this far ahead blocks it
 
     @classmethod
     def from_table(cls, table: Table) -> PlannerConfig:
         config = cls(
             heuristic=table.text("heuristic", cls.heuristic, choices=HEURISTICS),
             inflation_m=table.number("inflation_m", cls.inflation_m, lo=0.0, hi=10.0),
+            cost_mode=table.text("cost_mode", cls.cost_mode, choices=("terrain", "classical")),
+            heuristic_weight=table.number("heuristic_weight", cls.heuristic_weight, lo=1.0, hi=10.0),
+            sensing_range_m=table.number("sensing_range_m", cls.sensing_range_m, lo=0.0, hi=1000.0),
+            moving_horizon_s=table.number("moving_horizon_s", cls.moving_horizon_s, lo=0.0, hi=60.0),
         )
         table.finish()
         return config
@@ -53,6 +65,9 @@ class RoverConfig:
     planner: PlannerConfig
     follower: FollowerConfig
     source: str = "<defaults>"
+    safety: SafetyConfig = dataclasses.field(default_factory=SafetyConfig)
+    # [map]: the terrain `rover run` plans on (HIL trials use the scenario's instead); None if absent.
+    terrain: TerrainMap | None = dataclasses.field(default=None, compare=False, repr=False)
 
 
 def load_rover_config(path: str | Path) -> RoverConfig:
@@ -82,6 +97,10 @@ def rover_config_from_table(root: Table) -> RoverConfig:
         estimator=estimator,
         planner=PlannerConfig.from_table(root.table("planner", optional=True)),
         follower=FollowerConfig.from_table(root.table("follower", optional=True)),
+        safety=SafetyConfig.from_table(root.table("safety", optional=True)),
+        terrain=(
+            terrain_from_table(root.table("map"), Path(root.source).parent)[0] if root.has("map") else None
+        ),
         source=root.source,
     )
     root.finish()

@@ -19,6 +19,7 @@ REASON_MAX_SPEED = "max_speed"
 REASON_CURVATURE = "curvature"
 REASON_GOAL_APPROACH = "goal_approach"
 REASON_TURN_IN_PLACE = "turn_in_place"
+CONTROLLERS = ("pure_pursuit", "stanley")
 
 
 @dataclass(frozen=True)
@@ -34,9 +35,20 @@ class FollowerConfig:
     slowdown_radius_m: float = 2.0
     turn_in_place_rad: float = math.radians(60.0)  # target further off the heading: stop and turn
     min_speed_mps: float = 0.1  # creep speed near the goal, so the approach slowdown still arrives
+    stanley_gain: float = 1.5  # Stanley: cross-track gain k in atan(k e / (v + softening))
+    stanley_softening_mps: float = 0.3  # keeps the Stanley correction finite at low speed
+    heading_time_constant_s: float = 0.5  # Stanley: yaw rate = heading correction / this
+    min_tip_margin_rad: float = math.radians(12.0)  # guidance slows so the tip-over margin stays above
+    controller: str = "pure_pursuit"  # or "stanley"
 
     def __post_init__(self) -> None:
+        if self.controller not in CONTROLLERS:
+            raise ParameterError(
+                f"follower controller must be one of {', '.join(CONTROLLERS)}, got {self.controller!r}"
+            )
         for field in fields(self):
+            if field.name == "controller":
+                continue
             value = getattr(self, field.name)
             lower_ok = value >= 0.0 if field.name in ("lookahead_gain_s", "min_speed_mps") else value > 0.0
             if not isinstance(value, int | float) or not math.isfinite(value) or not lower_ok:
@@ -53,7 +65,10 @@ class FollowerConfig:
         """Read a ``[follower]`` table; every key optional, unknown keys are errors (ConfigError)."""
         defaults = cls()
         values: dict[str, float] = {}
+        controller = table.text("controller", defaults.controller, choices=CONTROLLERS)
         for field in fields(cls):
+            if field.name == "controller":
+                continue
             upper = math.pi if field.name == "turn_in_place_rad" else None
             value = table.number(field.name, getattr(defaults, field.name), lo=0.0, hi=upper)
             if value == 0.0 and field.name not in ("lookahead_gain_s", "min_speed_mps"):
@@ -62,7 +77,7 @@ class FollowerConfig:
         if values["min_speed_mps"] > values["max_speed_mps"]:
             raise table.error("min_speed_mps", f"must not exceed max_speed_mps ({values['max_speed_mps']})")
         table.finish()
-        return cls(**values)
+        return cls(controller=controller, **values)
 
 
 @dataclass(frozen=True)
@@ -73,9 +88,10 @@ class FollowCommand:
     speed_limit_mps: float
     speed_limit_reason: str  # "max_speed", "curvature", "goal_approach" or "turn_in_place"
     arrived: bool
+    curvature_1pm: float = 0.0  # the commanded path curvature (1/m, positive turning left)
 
 
-def _wrap(angle: float) -> float:
+def wrap_angle(angle: float) -> float:
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
@@ -120,14 +136,11 @@ class PurePursuit:
         if distance_to_goal <= cfg.goal_tolerance_m and remaining <= max(lookahead, cfg.goal_tolerance_m):
             return FollowCommand(0.0, 0.0, cross_track, 0.0, REASON_GOAL_APPROACH, True)
 
-        target = self._point_at(points, projection + lookahead)
-        bearing_error = _wrap(math.atan2(target[1] - y, target[0] - x) - yaw)
-        if abs(bearing_error) > cfg.turn_in_place_rad:
-            yaw_rate = math.copysign(cfg.max_yaw_rate_rps, bearing_error)
+        heading_error, curvature = self._steer(points, x, y, yaw, speed, projection, cross_track, lookahead)
+        if abs(heading_error) > cfg.turn_in_place_rad:
+            yaw_rate = math.copysign(cfg.max_yaw_rate_rps, heading_error)
             return FollowCommand(0.0, yaw_rate, cross_track, 0.0, REASON_TURN_IN_PLACE, False)
 
-        chord = max(math.hypot(target[0] - x, target[1] - y), 1e-6)
-        curvature = 2.0 * math.sin(bearing_error) / chord
         limits = [(cfg.max_speed_mps, REASON_MAX_SPEED)]
         if abs(curvature) > 1e-9:
             turn_limit = min(
@@ -143,7 +156,24 @@ class PurePursuit:
         )
         # The first (in listed order) of the smallest limits names the reason.
         limit, reason = min(limits, key=lambda item: item[0])
-        return FollowCommand(limit, limit * curvature, cross_track, limit, reason, False)
+        return FollowCommand(limit, limit * curvature, cross_track, limit, reason, False, curvature)
+
+    def _steer(
+        self,
+        points: np.ndarray,
+        x: float,
+        y: float,
+        yaw: float,
+        speed: float,
+        projection: float,
+        cross_track: float,
+        lookahead: float,
+    ) -> tuple[float, float]:
+        """(heading error rad, curvature 1/m): the arc through the lookahead point (pure pursuit)."""
+        target = self._point_at(points, projection + lookahead)
+        bearing_error = wrap_angle(math.atan2(target[1] - y, target[0] - x) - yaw)
+        chord = max(math.hypot(target[0] - x, target[1] - y), 1e-6)
+        return bearing_error, 2.0 * math.sin(bearing_error) / chord
 
     # --- path bookkeeping -------------------------------------------------------------------------
     def _adopt(self, path: np.ndarray) -> np.ndarray:

@@ -1,8 +1,13 @@
-"""The onboard loop: links -> estimator -> planner/follower -> wheel commands, one tick at a time.
+"""The onboard loop: links -> estimator -> guidance -> safety supervisor -> wheel commands, tick by tick.
 
-``OnboardStack.step()`` is one control tick. The same object runs on the rover (a real-time scheduler calls
-``step`` at the control rate), in lockstep HIL (the trial runner calls it after advancing the simulated
-clock) and in tests. It owns no clock and opens no connection: both are handed in.
+``OnboardStack.step()`` is one control tick. The same object runs on the rover (``navigator.runtime``
+calls ``step`` at the control rate and ``ingest`` whenever a measurement arrives in between), in lockstep
+HIL (the trial runner calls it after advancing the simulated clock) and in tests. It owns no clock and
+opens no connection: both are handed in.
+
+Guidance (plan on a new goal, repair the plan as obstacles are perceived, follow the path) is
+``navigator.guidance.Guidance`` behind a start-up gate (``RouteGuidance``); the safety supervisor
+(``navigator.safety``) decides how much of guidance's command reaches the wheels.
 """
 
 from __future__ import annotations
@@ -15,16 +20,21 @@ from dataclasses import dataclass
 import numpy as np
 
 from estimator.estimator import Estimator
+from estimator.geodesy import to_enu
+from estimator.pose import PoseEstimate
 from firmware_bridge.can_link import CanLink
+from firmware_bridge.mavlink_commands import GoalRequest
 from firmware_bridge.mavlink_link import AttitudeSample, GpsFix, ImuSample, MavlinkLink
 from logs import topics
 from logs.clock import NS_PER_S, Clock
+from logs.commands import CommandSource
 from logs.sink import MessageSink
 from navigator.config import RoverConfig
-from navigator.errors import PlanningError
-from navigator.follower import PurePursuit
+from navigator.guidance import Guidance
 from navigator.mixing import mix_skid_steer
+from navigator.perception import ObstacleObservation, ObstacleSource
 from navigator.planner import Path, Planner
+from navigator.safety import EventSink, SafetyInputs, SafetyMode, SafetySupervisor, inside_polygon
 from navigator.terrain import TerrainMap
 
 _log = logging.getLogger(__name__)
@@ -37,14 +47,19 @@ AHRS_HEADING_STD_RAD = math.radians(5.0)
 SETTLE_NS = 2 * NS_PER_S
 LEFT_WHEELS = (0, 1, 2)
 RIGHT_WHEELS = (3, 4, 5)
+# MAVLink GPS_FIX_TYPE 3 = 3D fix; anything less does not count as "GPS present" for the GPS failsafe.
+MIN_GPS_FIX_TYPE = 3
 
 
 class Mode(enum.StrEnum):
+    """Guidance's mode (what it is trying to do); the safety supervisor's mode is ``SafetyMode``."""
+
     IDLE = "IDLE"  # no goal
-    WAITING_ESTIMATE = "WAITING_ESTIMATE"  # goal set, estimator not yet healthy
+    WAITING_ESTIMATE = "WAITING_ESTIMATE"  # goal set, start-up checks not yet passed
     DRIVING = "DRIVING"
     ARRIVED = "ARRIVED"
     NO_PATH = "NO_PATH"  # the planner proved the goal unreachable
+    BLOCKED = "BLOCKED"  # stopped: a moving obstacle is predicted on the path
 
 
 @dataclass(frozen=True)
@@ -53,8 +68,108 @@ class Goal:
     y: float
 
 
+@dataclass(frozen=True)
+class GuidanceCommand:
+    speed_mps: float
+    yaw_rate_rps: float
+    cross_track_error_m: float = 0.0
+    speed_limit_mps: float = 0.0
+    speed_limit_reason: str = "stopped"
+
+
+STOPPED = GuidanceCommand(0.0, 0.0)
+
+
+class RouteGuidance:
+    """Holds a goal until the start-up checks pass, then lets ``Guidance`` plan, repair and follow.
+
+    The gate is the only thing added here: the first plan must start from a settled estimate, and
+    ``Guidance`` itself does not know about readiness.
+    """
+
+    def __init__(self, config: RoverConfig, terrain: TerrainMap, sink: MessageSink, event: EventSink) -> None:
+        self.core = Guidance(terrain, config.vehicle, config.planner, config.follower)
+        self._sink = sink
+        self._event = event
+        self.mode = Mode.IDLE
+        self.goal: Goal | None = None
+
+    @property
+    def planner(self) -> Planner:
+        return self.core.planner
+
+    @property
+    def path(self) -> Path | None:
+        return self.core.path if self.mode is not Mode.WAITING_ESTIMATE else None
+
+    def set_goal(self, x: float, y: float) -> None:
+        self.goal = Goal(x, y)
+        self.mode = Mode.WAITING_ESTIMATE
+
+    def observe(self, observations: list[ObstacleObservation]) -> None:
+        self.core.observe(observations)
+
+    def tick(self, now: int, pose: PoseEstimate | None, ready: bool) -> GuidanceCommand:
+        if self.mode is Mode.IDLE or pose is None:
+            return STOPPED
+        if self.mode is Mode.WAITING_ESTIMATE:
+            if not ready or self.goal is None:
+                return STOPPED
+            self.core.set_goal(self.goal.x, self.goal.y)
+        out = self.core.update(now, pose.x, pose.y, pose.yaw, pose.speed)
+        self.mode = Mode(out.mode)
+        if out.path_changed and out.path is not None:
+            self._publish_path(now, out.path)
+        if out.detail:
+            severity = "error" if self.mode is Mode.NO_PATH else "info"
+            self._event(f"guidance.{self.mode.value.lower()}", severity, out.detail)
+        return GuidanceCommand(
+            out.speed_mps,
+            out.yaw_rate_rps,
+            out.cross_track_error_m,
+            out.speed_limit_mps,
+            out.speed_limit_reason,
+        )
+
+    def _publish_path(self, now: int, path: Path) -> None:
+        self._sink.publish(
+            topics.NAVIGATOR_PATH,
+            now,
+            {
+                "timestamp": topics.stamp(now),
+                "frame_id": topics.ENU_FRAME,
+                "poses": [topics.planar_pose(float(px), float(py), 0.0) for px, py in path.points],
+                "cost": path.cost,
+                "length_m": path.length_m,
+            },
+        )
+
+
+class _EventFn:
+    """Publishes one ``safety/events`` message (and logs it) at the clock's now."""
+
+    def __init__(self, clock: Clock, sink: MessageSink) -> None:
+        self._clock = clock
+        self._sink = sink
+
+    def __call__(self, kind: str, severity: str, detail: str) -> None:
+        now = self._clock.now_ns()
+        level = logging.INFO if severity == "info" else logging.WARNING
+        _log.log(level, "%s: %s", kind, detail)
+        self._sink.publish(
+            topics.SAFETY_EVENTS,
+            now,
+            {"timestamp": topics.stamp(now), "kind": kind, "severity": severity, "detail": detail},
+        )
+
+
 class OnboardStack:
-    """Estimator, planner, follower and mixer between a CAN link and a MAVLink link."""
+    """Estimator, guidance, safety supervisor and mixer between a CAN link and a MAVLink link.
+
+    ``commands`` (optional) delivers goals, e-stops and resumes from the ground (Zenoh); ``obstacles``
+    (optional) delivers perceived obstacles (a lidar pipeline on the rover, the simulator in HIL).
+    Goals also arrive over MAVLink from a ground station (the link has already acknowledged them).
+    """
 
     def __init__(
         self,
@@ -64,68 +179,106 @@ class OnboardStack:
         mavlink: MavlinkLink,
         sink: MessageSink,
         terrain: TerrainMap,
+        *,
+        commands: CommandSource | None = None,
+        obstacles: ObstacleSource | None = None,
     ) -> None:
         self._config = config
         self._clock = clock
         self._can = can_link
         self._mavlink = mavlink
         self._sink = sink
+        self._commands = commands
+        self._obstacles = obstacles
+        self._event = _EventFn(clock, sink)
         self.estimator = Estimator(config.estimator, clock, sink)
-        self.planner = Planner(
-            terrain,
-            config.vehicle,
-            heuristic=config.planner.heuristic,
-            inflation_m=config.planner.inflation_m,
-        )
-        self._follower = PurePursuit(config.follower)
-        self.mode = Mode.IDLE
-        self.goal: Goal | None = None
-        self.path: Path | None = None
-        self._last_heartbeat_ns: int | None = None
+        self.guidance = RouteGuidance(config, terrain, sink, self._event)
+        self.safety = SafetySupervisor(config.safety, config.vehicle, clock.now_ns(), self._event)
+        self._last_heartbeat_sent_ns: int | None = None
         self._healthy_since_ns: int | None = None
+        self._last_tick_ns: int | None = None
+        self._last_gps_ns: int | None = None
+        self._last_ground_ns: int | None = None
+        self._attitude: AttitudeSample | None = None
+        self._sent_speed_mps = 0.0
+        self._send_failing_since_ns: int | None = None
+        self._sent_at_ns = clock.now_ns()
+        self._newest_sensor_ns: int | None = None
+        # Real-time measurements of the last tick (meaningful under a real clock; 0 in lockstep).
+        self.last_sensor_to_command_ns: int | None = None
         self._closed = False
 
-    # --- commands from outside (ground station, trial runner) ---------------------------------------
+    # --- guidance's view, as hil.trial reads it -------------------------------------------------------
+    @property
+    def mode(self) -> Mode:
+        return self.guidance.mode
+
+    @property
+    def goal(self) -> Goal | None:
+        return self.guidance.goal
+
+    @property
+    def path(self) -> Path | None:
+        return self.guidance.path
+
+    @property
+    def planner(self) -> Planner:
+        return self.guidance.planner
+
+    @property
+    def safety_mode(self) -> SafetyMode:
+        return self.safety.mode
+
+    # --- commands from outside (ground station, trial runner, operator) --------------------------------
     def set_goal(self, x: float, y: float) -> None:
-        self.goal = Goal(x, y)
-        self.path = None
-        self.mode = Mode.WAITING_ESTIMATE
+        fence = self._config.safety.fence
+        if fence and not inside_polygon(x, y, fence):
+            self._event("goal_rejected", "warning", f"goal ({x:.2f}, {y:.2f}) is outside the geofence")
+            return
+        self.guidance.set_goal(x, y)
+        self.safety.new_goal()
         self._event("goal", "info", f"new goal ({x:.2f}, {y:.2f})")
+
+    def estop(self, source: str) -> None:
+        self.safety.estop(source)
+
+    def resume(self, source: str) -> None:
+        self.safety.resume(source)
+
+    # --- between ticks ----------------------------------------------------------------------------------
+    def ingest(self) -> None:
+        """Read whatever arrived on the links now and fuse it; the real-time scheduler calls this as data
+        arrives so the estimate is current when the tick comes."""
+        self._read_links(self._clock.now_ns())
 
     # --- the control tick ---------------------------------------------------------------------------
     def step(self) -> None:
         now = self._clock.now_ns()
         self._read_links(now)
-        if self._last_heartbeat_ns is None or now - self._last_heartbeat_ns >= HEARTBEAT_PERIOD_NS:
+        self._read_commands()
+        self._read_obstacles(now)
+        if self._last_heartbeat_sent_ns is None or now - self._last_heartbeat_sent_ns >= HEARTBEAT_PERIOD_NS:
             self._mavlink.send_heartbeat()
-            self._last_heartbeat_ns = now
+            self._last_heartbeat_sent_ns = now
 
-        speed, yaw_rate = 0.0, 0.0
-        state = {"cte": 0.0, "limit": 0.0, "reason": "stopped"}
         pose = self.estimator.pose()
-        healthy = pose is not None and pose.healthy
-        if not healthy:
-            self._healthy_since_ns = None
-        elif self._healthy_since_ns is None:
-            self._healthy_since_ns = now
-        settled = self._healthy_since_ns is not None and now - self._healthy_since_ns >= SETTLE_NS
-        if self.mode is Mode.WAITING_ESTIMATE and settled and pose is not None and self.goal is not None:
-            self._plan(now, pose.x, pose.y)
-        if self.mode is Mode.DRIVING and pose is not None and self.path is not None:
-            command = self._follower.command(pose.x, pose.y, pose.yaw, pose.speed, self.path.points)
-            state = {
-                "cte": command.cross_track_error_m,
-                "limit": command.speed_limit_mps,
-                "reason": command.speed_limit_reason,
-            }
-            if command.arrived:
-                self.mode = Mode.ARRIVED
-                self._event("arrived", "info", f"goal reached at ({pose.x:.2f}, {pose.y:.2f})")
-            else:
-                speed, yaw_rate = command.speed_mps, command.yaw_rate_rps
+        guidance = self.guidance.tick(now, pose, self._ready(now, pose))
+        decision = self.safety.update(self._safety_inputs(now, pose), self.guidance.mode is Mode.DRIVING)
+        speed = guidance.speed_mps * decision.speed_scale
+        yaw_rate = guidance.yaw_rate_rps * decision.speed_scale
+        self._last_tick_ns = now
 
         wheel_speeds = mix_skid_steer(speed, yaw_rate, self._config.vehicle)
+        errors_before, tx_before = self._can.counters.bus_errors, self._can.counters.tx
         erpm = self._can.send_wheel_speeds(wheel_speeds)
+        failed = self._can.counters.tx == tx_before and self._can.counters.bus_errors > errors_before
+        if not failed:
+            self._send_failing_since_ns = None
+        elif self._send_failing_since_ns is None:
+            self._send_failing_since_ns = now
+        self._sent_speed_mps, self._sent_at_ns = speed, now
+        if self._newest_sensor_ns is not None:
+            self.last_sensor_to_command_ns = self._clock.now_ns() - self._newest_sensor_ns
         self._sink.publish(
             topics.WHEELS_COMMAND,
             now,
@@ -138,17 +291,17 @@ class OnboardStack:
             },
         )
         self.estimator.publish_pose(now)
-        goal = {"x": self.goal.x, "y": self.goal.y} if self.goal else {"x": math.nan, "y": math.nan}
+        goal = self.goal
         self._sink.publish(
             topics.NAVIGATOR_STATE,
             now,
             {
                 "timestamp": topics.stamp(now),
                 "mode": self.mode.value,
-                "goal": goal,
-                "cross_track_error_m": state["cte"],
-                "speed_limit_mps": state["limit"],
-                "speed_limit_reason": state["reason"],
+                "goal": {"x": goal.x, "y": goal.y} if goal else {"x": math.nan, "y": math.nan},
+                "cross_track_error_m": guidance.cross_track_error_m,
+                "speed_limit_mps": guidance.speed_limit_mps * decision.speed_scale,
+                "speed_limit_reason": _limit_reason(guidance, decision.mode, decision.speed_scale),
                 "target_speed_mps": speed,
                 "target_yaw_rate_rps": yaw_rate,
             },
@@ -159,13 +312,105 @@ class OnboardStack:
         if self._closed:
             return
         self._closed = True
-        self._can.close()
-        self._mavlink.close()
+        try:
+            self._can.close()
+        finally:
+            self._mavlink.close()
 
     # --- internals ------------------------------------------------------------------------------------
+    def _ready(self, now: int, pose: PoseEstimate | None) -> bool:
+        """Start-up checks before driving: autopilot heard, every wheel controller heard, estimate settled."""
+        healthy = pose is not None and pose.healthy
+        if not healthy:
+            self._healthy_since_ns = None
+        elif self._healthy_since_ns is None:
+            self._healthy_since_ns = now
+        settled = self._healthy_since_ns is not None and now - self._healthy_since_ns >= SETTLE_NS
+        links_up = self._mavlink.last_heartbeat_ns is not None and all(
+            r.last_status_ns is not None for r in self._can.readings()
+        )
+        return settled and links_up
+
+    def _safety_inputs(self, now: int, pose: PoseEstimate | None) -> SafetyInputs:
+        readings = self._can.readings()
+        voltages = [r.input_voltage_v for r in readings if r.input_voltage_v > 0.0]
+        attitude = self._attitude
+        return SafetyInputs(
+            now_ns=now,
+            tick_gap_ns=None if self._last_tick_ns is None else now - self._last_tick_ns,
+            wheel_last_status_ns=tuple(r.last_status_ns for r in readings),
+            can_bus_off=self._can_bus_off(),
+            can_send_failing_since_ns=self._send_failing_since_ns,
+            estimator_healthy=pose is not None and pose.healthy,
+            last_gps_ns=self._last_gps_ns,
+            last_heartbeat_ns=self._mavlink.last_heartbeat_ns,
+            last_ground_contact_ns=self._ground_contact_ns(),
+            sent_speed_mps=self._sent_speed_mps,
+            sent_at_ns=self._sent_at_ns,
+            measured_speed_mps=None if pose is None else pose.speed,
+            roll_pitch_rad=None if attitude is None else (attitude.roll_rad, attitude.pitch_rad),
+            lateral_accel_mps2=0.0 if pose is None else pose.speed * pose.yaw_rate,
+            position_xy=None if pose is None else (pose.x, pose.y),
+            battery_v=min(voltages) if voltages else None,
+        )
+
+    def _can_bus_off(self) -> bool:
+        # The CAN link is gaining a bus state (firmware_bridge.can_health.CanLinkState); read it when the
+        # link has one. Without it, sustained send failures stand in for bus-off.
+        state = getattr(self._can, "state", None)
+        return getattr(state, "value", None) == "bus_off"
+
+    def _ground_contact_ns(self) -> int | None:
+        contact = getattr(self._commands, "last_contact_ns", None)
+        if isinstance(contact, int) and (self._last_ground_ns is None or contact > self._last_ground_ns):
+            return contact
+        return self._last_ground_ns
+
+    def _read_commands(self) -> None:
+        if self._commands is None:
+            return
+        for command in self._commands.poll():
+            self._last_ground_ns = command.received_ns
+            if command.kind == "estop":
+                self.estop("ground station")
+            elif command.kind == "resume":
+                self.resume("ground station")
+            elif command.x is not None and command.y is not None:
+                self.set_goal(command.x, command.y)
+
+    def _read_obstacles(self, now: int) -> None:
+        if self._obstacles is None:
+            return
+        seen = self._obstacles.poll()
+        if not seen:
+            return
+        self.guidance.observe(seen)
+        self._sink.publish(
+            topics.PERCEPTION_OBSTACLES,
+            now,
+            {
+                "timestamp": topics.stamp(now),
+                "obstacles": [
+                    {"id": o.obstacle_id, "x": o.x, "y": o.y, "radius_m": o.radius_m, "vx": o.vx, "vy": o.vy}
+                    for o in seen
+                ],
+            },
+        )
+
+    def _goal_from_ground_station(self, request: GoalRequest) -> None:
+        datum = self.estimator.datum
+        if datum is None:
+            self._event("goal_rejected", "warning", "MAVLink goal before the first GPS fix: no datum yet")
+            return
+        x, y, _ = to_enu(datum, request.lat_deg, request.lon_deg, datum.alt_m)
+        self.set_goal(x, y)
+
     def _read_links(self, now: int) -> None:
         for reading in self._mavlink.poll():
             if isinstance(reading, GpsFix):
+                self._newest_sensor_ns = now
+                if reading.fix_type >= MIN_GPS_FIX_TYPE:
+                    self._last_gps_ns = reading.t_ns
                 self.estimator.on_gps(
                     reading.t_ns,
                     reading.lat_deg,
@@ -176,45 +421,28 @@ class OnboardStack:
                     reading.satellites,
                 )
             elif isinstance(reading, ImuSample):
+                self._newest_sensor_ns = now
                 gz = reading.gyro_xyz_rps[2]
                 ax, ay, _ = reading.accel_xyz_mps2
                 self.estimator.on_imu(reading.t_ns, gz, ax, ay)
-            elif isinstance(reading, AttitudeSample) and not self.estimator.heading_known:
-                self.estimator.set_initial_heading(reading.yaw_rad, AHRS_HEADING_STD_RAD)
+            elif isinstance(reading, GoalRequest):
+                self._goal_from_ground_station(reading)
+            elif isinstance(reading, AttitudeSample):
+                self._attitude = reading
+                if not self.estimator.heading_known:
+                    self.estimator.set_initial_heading(reading.yaw_rad, AHRS_HEADING_STD_RAD)
         if self._can.poll():
             readings = self._can.readings()
             if all(r.last_status_ns is not None for r in readings):
+                self._newest_sensor_ns = now
                 left = float(np.mean([readings[i].speed_mps for i in LEFT_WHEELS]))
                 right = float(np.mean([readings[i].speed_mps for i in RIGHT_WHEELS]))
                 self.estimator.on_wheels(now, left, right)
 
-    def _plan(self, now: int, x: float, y: float) -> None:
-        assert self.goal is not None
-        try:
-            self.path = self.planner.plan((x, y), (self.goal.x, self.goal.y))
-        except PlanningError as err:
-            self.mode = Mode.NO_PATH
-            self._event("no_path", "error", str(err))
-            return
-        self.mode = Mode.DRIVING
-        self._sink.publish(
-            topics.NAVIGATOR_PATH,
-            now,
-            {
-                "timestamp": topics.stamp(now),
-                "frame_id": topics.ENU_FRAME,
-                "poses": [topics.planar_pose(float(px), float(py), 0.0) for px, py in self.path.points],
-                "cost": self.path.cost,
-                "length_m": self.path.length_m,
-            },
-        )
-        self._event("planned", "info", f"path of {self.path.length_m:.1f} m, cost {self.path.cost:.1f}")
 
-    def _event(self, kind: str, severity: str, detail: str) -> None:
-        now = self._clock.now_ns()
-        _log.info("%s: %s", kind, detail)
-        self._sink.publish(
-            topics.SAFETY_EVENTS,
-            now,
-            {"timestamp": topics.stamp(now), "kind": kind, "severity": severity, "detail": detail},
-        )
+def _limit_reason(guidance: GuidanceCommand, mode: SafetyMode, scale: float) -> str:
+    if mode is not SafetyMode.DRIVING and mode is not SafetyMode.IDLE:
+        return f"safety {mode.value.lower()}"
+    if 0.0 < scale < 1.0:
+        return "battery low"
+    return guidance.speed_limit_reason

@@ -1,4 +1,13 @@
-"""World-frame planning: ENU points -> map cells -> A* over the traversability grid -> ENU waypoints."""
+"""World-frame planning: ENU points -> map cells -> A* over the traversability grid -> ENU waypoints.
+
+Two cost modes (``COST_MODES``):
+
+* ``"terrain"`` (default): the full model, per-cell costs of ``navigator.costs`` (class, slope, roughness,
+  obstacle clearance) times the direction factors of ``navigator.direction_costs`` (climb, descent, side
+  slope, and moves past the tip-over / climb limits forbidden);
+* ``"classical"``: the paper's baseline, obstacles only: cost 1 everywhere but the inflated obstacles
+  (lethal) and the same soft clearance band; no terrain class, slope or direction costs.
+"""
 
 from __future__ import annotations
 
@@ -7,8 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from navigator.astar import HEURISTICS, astar
+from navigator.astar import HEURISTICS, PlanResult, astar
 from navigator.costs import CostModel
+from navigator.direction_costs import DirectionWeights, direction_factors
 from navigator.errors import PlanningError, TerrainError
 from navigator.terrain import TerrainMap
 from navigator.terrain_classes import TERRAIN_CLASSES, TerrainClass
@@ -17,6 +27,7 @@ from navigator.vehicle import VehicleParams
 _log = logging.getLogger(__name__)
 
 ESCAPE_RADIUS_M = 1.5
+COST_MODES = ("terrain", "classical")
 
 
 @dataclass(frozen=True)
@@ -45,15 +56,26 @@ class Planner:
         inflation_m: float = 0.1,
         classes: dict[int, TerrainClass] = TERRAIN_CLASSES,
         cost_model: CostModel | None = None,
+        cost_mode: str = "terrain",
+        direction_weights: DirectionWeights | None = None,
+        heuristic_weight: float = 1.0,
     ) -> None:
         if heuristic not in HEURISTICS:
             raise PlanningError(f"unknown heuristic {heuristic!r}; choose one of {', '.join(HEURISTICS)}")
+        if cost_mode not in COST_MODES:
+            raise PlanningError(f"unknown cost mode {cost_mode!r}; choose one of {', '.join(COST_MODES)}")
         self._params = params
         self._classes = classes
         self._heuristic = heuristic
+        self._heuristic_weight = heuristic_weight
+        self._cost_mode = cost_mode
+        self._direction_weights = direction_weights or DirectionWeights()
         self._cost_model = cost_model or CostModel(inflation_m=inflation_m)
         self._terrain = terrain
-        self._cost = self._cost_model.grid(terrain, params, classes)
+        self._cost = self._grid(terrain)
+        self._factors: np.ndarray | None = None
+        if cost_mode == "terrain":
+            self._factors = direction_factors(terrain, params, classes, self._direction_weights)
 
     @property
     def terrain(self) -> TerrainMap:
@@ -66,10 +88,42 @@ class Planner:
         view.setflags(write=False)
         return view
 
-    def update_obstacles(self, mask: np.ndarray) -> None:
-        """Add obstacle cells (bool, map shape) and recompute the cost grid."""
+    @property
+    def direction_factors(self) -> np.ndarray | None:
+        """The ``(8, rows, cols)`` direction factors (None in classical mode), read-only."""
+        if self._factors is None:
+            return None
+        view = self._factors.view()
+        view.setflags(write=False)
+        return view
+
+    @property
+    def cost_mode(self) -> str:
+        return self._cost_mode
+
+    def _grid(self, terrain: TerrainMap) -> np.ndarray:
+        if self._cost_mode == "classical":
+            # Obstacles only: the same map flattened to firm ground, so no slope, roughness or class
+            # cost and no lethal slope; obstacle inflation and the clearance band stay.
+            flat = TerrainMap(
+                np.zeros(terrain.shape), np.zeros(terrain.shape, np.uint8), terrain.obstacles,
+                terrain.resolution_m, terrain.origin_xy,
+            )  # fmt: skip
+            return self._cost_model.grid(flat, self._params, self._classes)
+        return self._cost_model.grid(terrain, self._params, self._classes)
+
+    def update_obstacles(self, mask: np.ndarray) -> np.ndarray:
+        """Add obstacle cells (bool, map shape) and recompute the costs; returns where the cost changed."""
         self._terrain = self._terrain.with_obstacles(mask)
-        self._cost = self._cost_model.grid(self._terrain, self._params, self._classes)
+        before = self._cost
+        self._cost = self._grid(self._terrain)
+        return np.asarray(before != self._cost)
+
+    def plan_cells(self, start_cell: tuple[int, int], goal_cell: tuple[int, int]) -> PlanResult:
+        """A* between two cells over the current costs (no start escape)."""
+        return astar(
+            self._cost, start_cell, goal_cell, self._heuristic, self._heuristic_weight, self._factors
+        )
 
     def plan(self, start_xy: tuple[float, float], goal_xy: tuple[float, float]) -> Path:
         """Path from ``start_xy`` to ``goal_xy`` (ENU metres); PlanningError / NoPathError when impossible.
@@ -80,7 +134,7 @@ class Planner:
         """
         start_cell = self._escape(self._cell(start_xy, "start"))
         goal_cell = self._cell(goal_xy, "goal")
-        result = astar(self._cost, start_cell, goal_cell, self._heuristic)
+        result = self.plan_cells(start_cell, goal_cell)
         centres = [self._terrain.center_of(row, col) for row, col in result.cells]
         # The ends are the exact positions asked for, not their cell centres.
         inner = centres[1:-1]

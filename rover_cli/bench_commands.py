@@ -10,7 +10,13 @@ import importlib
 from typing import Any
 
 # benchmark name -> module (one line per benchmark; keep the table sorted)
-BENCHMARKS: dict[str, str] = {}
+BENCHMARKS: dict[str, str] = {
+    "can": "rover_cli.bench_can",
+    "hil": "rover_cli.bench_hil",
+    "logs": "rover_cli.bench_logs",
+    "plan": "rover_cli.bench_plan",
+    "runtime": "rover_cli.bench_runtime",
+}
 
 
 def register(families: Any) -> None:

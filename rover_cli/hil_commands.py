@@ -26,6 +26,15 @@ def register(families: Any) -> None:
     trial.add_argument("--out", type=Path, default=None, help="output directory (default: logs/trials/<run>)")
     trial.add_argument("--no-telemetry", action="store_true", help="do not publish on Zenoh")
     trial.set_defaults(handler=run_trial_command)
+    campaign = commands.add_parser(
+        "campaign", help="run terrains x variants x seeds on all cores; write the paper-style summary"
+    )
+    campaign.add_argument("campaign", type=Path, help="campaign TOML file")
+    campaign.add_argument(
+        "--out", type=Path, default=None, help="output directory (default: logs/trials/<name>)"
+    )
+    campaign.add_argument("--workers", type=int, default=None, help="worker processes (default: the file's)")
+    campaign.set_defaults(handler=run_campaign_command)
 
 
 def load_config(path: Path | None) -> RoverConfig:
@@ -98,3 +107,40 @@ def run_trial_command(args: argparse.Namespace) -> int:
 
 def _fmt(value: object, pattern: str) -> str:
     return "n/a" if value is None else pattern.format(value)
+
+
+def run_campaign_command(args: argparse.Namespace) -> int:
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from hil.campaign import load_campaign
+    from hil.campaign_runner import TrialOutcome, run_campaign
+
+    console = Console()
+    try:
+        campaign = load_campaign(args.campaign)
+    except ConfigError as err:
+        console.print(f"[red]error:[/red] {err}")
+        return 2
+    if args.workers is not None and args.workers < 1:
+        console.print("[red]error:[/red] --workers must be >= 1")
+        return 2
+    out_dir = args.out or _unique_run_dir(DEFAULT_TRIALS_DIR, f"campaign-{campaign.name}")
+    total = len(campaign.terrains) * len(campaign.variants) * len(campaign.seeds)
+    with Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=console,
+    ) as progress:
+        task = progress.add_task(f"campaign {campaign.name}", total=total)
+
+        def on_done(outcome: TrialOutcome) -> None:
+            status = outcome.end_reason if outcome.ok else f"[red]error[/red] {outcome.error}"
+            progress.console.print(f"{outcome.spec.label}: {status} ({outcome.wall_s:.1f} s)")
+            progress.advance(task)
+
+        outcomes, markdown, json_path = run_campaign(campaign, out_dir, workers=args.workers, on_done=on_done)
+    console.print(markdown.read_text(encoding="utf-8"), soft_wrap=True, markup=False)
+    console.print(f"summary: {markdown}\n         {json_path}")
+    return 0 if all(o.ok for o in outcomes) else 1

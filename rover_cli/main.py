@@ -17,6 +17,10 @@ from collections.abc import Sequence
 FAMILIES = {
     "bench": "rover_cli.bench_commands",
     "hil": "rover_cli.hil_commands",
+    "plan": "rover_cli.plan_commands",
+    "run": "rover_cli.run_commands",
+    "logs": "rover_cli.logs_commands",
+    "telemetry": "rover_cli.telemetry_commands",
 }
 
 

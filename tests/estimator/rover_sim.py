@@ -3,11 +3,17 @@
 The truth integrates a speed / yaw-rate profile; the sensors are what the estimator would see:
 GPS at 5 Hz (0.5 m noise), gyro at 50 Hz (0.005 rad/s noise and a bias), wheel speeds at 50 Hz.
 Samples come out in time order as ``(t_ns, kind, values)``.
+
+Terrain classes change what the wheels report (``GROUND``): the wheel surface runs faster than the ground
+by the class's slip (the odometry scale the estimator has to learn) and its speed is noisier on rough
+ground. Faults are functions of time: GPS offsets (glitches), GPS outages, the ground share of the wheel
+speed (0 = stuck, wheels spinning in place), and a GPS delivery latency.
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
@@ -24,11 +30,30 @@ WHEEL_STD_MPS = 0.02
 
 
 @dataclass(frozen=True)
+class Ground:
+    """How a terrain class distorts wheel odometry: wheel speed = slip_scale * ground speed + noise."""
+
+    slip_scale: float
+    wheel_std_mps: float
+
+
+# Longitudinal slip of the wheels of a light rover (a few percent on rock, ~10 % on sand, more in mud).
+GROUND = {
+    "firm": Ground(1.0, WHEEL_STD_MPS),
+    "rocky": Ground(1.03, 0.05),
+    "sandy": Ground(1.10, 0.03),
+    "muddy": Ground(1.18, 0.04),
+}
+
+
+@dataclass(frozen=True)
 class Truth:
     t_ns: int
     x: float
     y: float
     yaw: float
+    speed: float = 0.0
+    distance: float = 0.0  # path length travelled so far, m
 
 
 @dataclass(frozen=True)
@@ -63,36 +88,54 @@ def simulate(
     gyro_bias_rps: float = 0.01,
     track_m: float = 0.55,
     skid_factor: float = 1.6,
+    ground: Ground = GROUND["firm"],
     profile: Callable[[float], tuple[float, float]] = default_profile,
     wheel_slip_rps: Callable[[float], float] = lambda t_s: 0.0,
+    ground_share: Callable[[float], float] = lambda t_s: 1.0,
+    gps_offset_m: Callable[[float], tuple[float, float]] = lambda t_s: (0.0, 0.0),
+    gps_available: Callable[[float], bool] = lambda t_s: True,
+    gps_latency_steps: int = 0,
 ) -> Iterator[tuple[Truth, list[Sample]]]:
     """Yield the truth and the sensor samples of every 20 ms step.
 
-    ``wheel_slip_rps(t_s)`` is a yaw rate the wheels report but the body does not do (one side spinning).
+    ``wheel_slip_rps(t_s)`` is a yaw rate the wheels report but the body does not do (one side spinning);
+    ``ground_share(t_s)`` the share of the wheels' speed the body really makes (0: stuck, spinning).
+    A fix taken at step k is delivered ``gps_latency_steps`` steps later, stamped with its delivery time.
     """
     x, y, yaw = 3.0, -2.0, start_yaw
+    distance = 0.0
     steps = round(duration_s * 1e9 / STEP_NS)
     dt = STEP_NS * 1e-9
+    in_flight: deque[tuple[int, tuple[float, ...]]] = deque()  # (delivery step, values)
     for k in range(1, steps + 1):
         t_ns = k * STEP_NS
-        speed, yaw_rate = profile(t_ns * 1e-9)
+        t_s = t_ns * 1e-9
+        wheel_speed, yaw_rate = profile(t_s)
+        speed = wheel_speed * ground_share(t_s)
         heading = yaw + 0.5 * yaw_rate * dt
         x += speed * dt * math.cos(heading)
         y += speed * dt * math.sin(heading)
         yaw += yaw_rate * dt
+        distance += abs(speed) * dt
         samples = [
             Sample(t_ns, "imu", (yaw_rate + gyro_bias_rps + rng.normal(0.0, GYRO_STD_RPS), 0.0, 0.0)),
         ]
-        half_diff = 0.5 * (yaw_rate + wheel_slip_rps(t_ns * 1e-9)) * track_m * skid_factor
-        left = speed - half_diff + rng.normal(0.0, WHEEL_STD_MPS)
-        right = speed + half_diff + rng.normal(0.0, WHEEL_STD_MPS)
+        half_diff = 0.5 * (yaw_rate + wheel_slip_rps(t_s)) * track_m * skid_factor
+        # The wheels turn at the commanded speed; on loose ground the body makes 1/slip_scale of it.
+        surface = speed * ground.slip_scale if ground_share(t_s) > 0.0 else wheel_speed
+        left = surface - half_diff + rng.normal(0.0, ground.wheel_std_mps)
+        right = surface + half_diff + rng.normal(0.0, ground.wheel_std_mps)
         samples.append(Sample(t_ns, "wheels", (left, right)))
         if k % GPS_EVERY == 0:
-            e = x + rng.normal(0.0, GPS_STD_M)
-            n = y + rng.normal(0.0, GPS_STD_M)
-            lat, lon, alt = to_geodetic(datum, e, n, 0.0)
-            samples.append(Sample(t_ns, "gps", (lat, lon, alt, 3.0, GPS_STD_M, 12.0)))
-        yield Truth(t_ns, x, y, math.atan2(math.sin(yaw), math.cos(yaw))), samples
+            noise = rng.normal(0.0, GPS_STD_M, 2)  # drawn always, so faults do not shift the stream
+            if gps_available(t_s):
+                dx, dy = gps_offset_m(t_s)
+                lat, lon, alt = to_geodetic(datum, x + noise[0] + dx, y + noise[1] + dy, 0.0)
+                in_flight.append((k + gps_latency_steps, (lat, lon, alt, 3.0, GPS_STD_M, 12.0)))
+        while in_flight and in_flight[0][0] <= k:
+            samples.append(Sample(t_ns, "gps", in_flight.popleft()[1]))
+        truth = Truth(t_ns, x, y, math.atan2(math.sin(yaw), math.cos(yaw)), speed, distance)
+        yield truth, samples
 
 
 def feed(estimator: Estimator, samples: list[Sample]) -> None:

@@ -34,7 +34,8 @@ def test_unknown_key_is_an_error_naming_it():
         ("gate_probability = 1.0", "estimator.gate_probability"),
         ("track_m = 'wide'", "estimator.track_m"),
         ("datum_lat_deg = 47.0", "estimator.datum_lat_deg"),
-        ("gps_reset_after_rejections = 0", "estimator.gps_reset_after_rejections"),
+        ("gps_reset_after_s = 0.0", "estimator.gps_reset_after_s"),
+        ("gps_latency_s = -0.1", "estimator.gps_latency_s"),
     ],
 )
 def test_bad_values_name_file_and_key(line, key):

@@ -77,7 +77,7 @@ def test_recorded_raw_frames_parse_with_a_fresh_pymavlink_parser():
     clock, sink, link, sim = make_pair()
     run(clock, link, sim, TRUTH, 0.5)
     raw = sink.on(MAVLINK_RAW)
-    assert {r["name"] for r in raw} == {"HEARTBEAT", "GPS_RAW_INT", "SCALED_IMU", "ATTITUDE"}
+    assert {r["name"] for r in raw} == {"HEARTBEAT", "SYS_STATUS", "GPS_RAW_INT", "SCALED_IMU", "ATTITUDE"}
     parser = mavlink2.MAVLink(None)
     for record in raw:
         (msg,) = parser.parse_buffer(base64.b64decode(record["data"]))
@@ -85,7 +85,7 @@ def test_recorded_raw_frames_parse_with_a_fresh_pymavlink_parser():
         assert msg.get_msgId() == record["msgid"]
         assert (msg.get_srcSystem(), msg.get_srcComponent()) == (record["sysid"], record["compid"])
         assert record["direction"] == "rx"
-    assert len(raw) == 1 + 3 + 25 + 5  # heartbeat 1 Hz, GPS 5 Hz, IMU 50 Hz, attitude 10 Hz for 0.5 s
+    assert len(raw) == 1 + 1 + 3 + 25 + 5  # heartbeat, SYS_STATUS 1 Hz, GPS 5, IMU 50, attitude 10 Hz, 0.5 s
 
 
 def test_gps_noise_has_the_configured_size_and_is_seeded():

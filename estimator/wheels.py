@@ -1,0 +1,41 @@
+"""Six wheel speeds -> skid-steer body motion, and how much the wheels of one side disagree.
+
+Wheel order is the bus order used everywhere: left front, left middle, left rear, right front, right
+middle, right rear. On firm ground the three wheels of a side turn at the same speed (they share the
+ground speed of that side); a wheel that spins faster or stalls is slipping or lifted, so the spread within
+a side is a slip signal the gyro cannot give (it sees no yaw when both sides slip alike).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+WHEEL_COUNT = 6
+LEFT = (0, 1, 2)
+RIGHT = (3, 4, 5)
+
+
+@dataclass(frozen=True)
+class BodyMotion:
+    """Body speed (m/s), yaw rate (rad/s) and the largest within-side wheel-speed spread (m/s)."""
+
+    speed_mps: float
+    yaw_rate_rps: float
+    side_spread_mps: float
+
+
+def side_speeds(left_mps: float, right_mps: float, track_m: float, skid_factor: float) -> BodyMotion:
+    """Skid-steer kinematics: v = (l + r) / 2, yaw rate = (r - l) / (track * skid factor)."""
+    return BodyMotion(0.5 * (left_mps + right_mps), (right_mps - left_mps) / (track_m * skid_factor), 0.0)
+
+
+def six_wheels(speeds_mps: Sequence[float], track_m: float, skid_factor: float) -> BodyMotion:
+    """Body motion from six wheel surface speeds (m/s), in wheel order (see the module docstring)."""
+    if len(speeds_mps) != WHEEL_COUNT:
+        raise ValueError(f"need {WHEEL_COUNT} wheel speeds, got {len(speeds_mps)}")
+    left = [speeds_mps[i] for i in LEFT]
+    right = [speeds_mps[i] for i in RIGHT]
+    motion = side_speeds(sum(left) / 3.0, sum(right) / 3.0, track_m, skid_factor)
+    spread = max(max(left) - min(left), max(right) - min(right))
+    return BodyMotion(motion.speed_mps, motion.yaw_rate_rps, spread)

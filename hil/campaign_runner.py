@@ -1,0 +1,116 @@
+"""Running a campaign: every trial in a worker process, one MCAP each, then the summary tables.
+
+Workers are separate processes (``spawn``: a clean interpreter per worker, nothing inherited from the
+parent's threads), so a campaign uses every core and a trial that crashes is recorded as failed without
+stopping the others. Each trial's numbers come from its own ``metrics.json``, computed from its MCAP.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import multiprocessing
+import time
+from collections.abc import Callable
+from concurrent.futures import Future, ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from hil.campaign import Campaign, TrialSpec, campaign_config
+from hil.campaign_summary import write_summary
+from hil.scenario import load_scenario
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class TrialOutcome:
+    spec: TrialSpec
+    ok: bool
+    end_reason: str
+    success: bool
+    failures: tuple[str, ...]
+    metrics_path: Path | None
+    simulated_s: float
+    wall_s: float
+    error: str = ""
+
+
+def run_one(spec: TrialSpec) -> TrialOutcome:
+    """Run one campaign trial (in a worker); never raises, a failure is an outcome."""
+    from hil.trial import run_trial  # imported in the worker: the parent only schedules
+
+    started = time.perf_counter()
+    try:
+        scenario = load_scenario(spec.scenario_path)
+        config = campaign_config(spec.config_path, spec.overrides, spec.label)
+        result = run_trial(scenario, config, spec.out_dir, seed=spec.seed)
+    except Exception as err:  # a broken trial must not take the campaign down; it is reported
+        logger.exception("trial %s failed", spec.label)
+        return TrialOutcome(
+            spec, False, "error", False, (), None, 0.0, time.perf_counter() - started, repr(err)
+        )
+    return TrialOutcome(
+        spec,
+        True,
+        result.end_reason,
+        result.success,
+        result.failures,
+        result.metrics_path,
+        result.simulated_s,
+        time.perf_counter() - started,
+    )
+
+
+def run_campaign(
+    campaign: Campaign,
+    out_dir: Path,
+    *,
+    workers: int | None = None,
+    on_done: Callable[[TrialOutcome], None] | None = None,
+) -> tuple[list[TrialOutcome], Path, Path]:
+    """Run every trial; returns the outcomes and the Markdown and JSON summary paths."""
+    specs = campaign.trials(out_dir)
+    count = workers if workers is not None else campaign.worker_count()
+    outcomes: list[TrialOutcome] = []
+    if count <= 1:
+        for spec in specs:
+            outcome = run_one(spec)
+            outcomes.append(outcome)
+            if on_done is not None:
+                on_done(outcome)
+    else:
+        context = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(max_workers=min(count, len(specs)), mp_context=context) as pool:
+            futures: dict[Future[TrialOutcome], TrialSpec] = {pool.submit(run_one, s): s for s in specs}
+            for future in as_completed(futures):
+                outcome = future.result()
+                outcomes.append(outcome)
+                if on_done is not None:
+                    on_done(outcome)
+    order = {spec.label: index for index, spec in enumerate(specs)}
+    outcomes.sort(key=lambda o: order[o.spec.label])
+    rows = [_row(o) for o in outcomes]
+    markdown, json_path = write_summary(campaign, rows, out_dir)
+    return outcomes, markdown, json_path
+
+
+def _row(outcome: TrialOutcome) -> dict[str, Any]:
+    metrics: dict[str, Any] = {}
+    if outcome.metrics_path is not None:
+        metrics = json.loads(outcome.metrics_path.read_text(encoding="utf-8"))
+    return {
+        "terrain": outcome.spec.terrain,
+        "variant": outcome.spec.variant,
+        "seed": outcome.spec.seed,
+        "ok": outcome.ok,
+        "end_reason": outcome.end_reason,
+        "success": outcome.success,
+        "failures": list(outcome.failures),
+        "error": outcome.error,
+        "mcap": str(outcome.spec.out_dir / "trial.mcap") if outcome.ok else None,
+        "simulated_s": outcome.simulated_s,
+        "wall_s": outcome.wall_s,
+        "metrics": metrics,
+    }

@@ -1,0 +1,184 @@
+"""Sensor models of the simulated autopilot: what GPS and IMU report of the true state, faults included.
+
+GPS: white position noise (σ per horizontal axis, 2σ vertical), a fixed latency (the receiver reports where
+the rover was ``latency_s`` ago, as real receivers do by 0.1-0.2 s), a fix type and satellite count, random
+dropouts. IMU: white noise plus a constant bias per axis; gravity on slopes comes in through the specific
+force the dynamics computes. Faults (``hil.faults``) change each of these while active.
+
+Random numbers are drawn in a fixed pattern per sample whatever the faults do, so a fault never shifts
+the noise of later samples (a trial with a fault differs from one without only where the fault acts).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from hil.faults import FaultSchedule
+from logs.clock import to_ns
+
+FIX_NONE = 0
+FIX_3D = 3
+
+
+@dataclass(frozen=True)
+class GpsSample:
+    """The truth a GPS fix is computed from (ENU metres, yaw CCW from east)."""
+
+    t_ns: int
+    x_m: float
+    y_m: float
+    z_m: float
+    yaw_rad: float
+    speed_mps: float
+
+
+@dataclass(frozen=True)
+class GpsFix:
+    x_m: float
+    y_m: float
+    z_m: float
+    yaw_rad: float
+    speed_mps: float
+    fix_type: int
+    satellites: int
+    eph_m: float
+
+
+class GpsModel:
+    """Turns the truth history into fixes: latency, noise, dropouts, fix quality and GPS faults."""
+
+    def __init__(
+        self,
+        rng: np.random.Generator,
+        faults: FaultSchedule,
+        *,
+        noise_m: float,
+        latency_s: float = 0.0,
+        dropout_probability: float = 0.0,
+        satellites: int = 12,
+    ) -> None:
+        self._rng = rng
+        self._faults = faults
+        self._noise_m = noise_m
+        self._latency_ns = to_ns(latency_s)
+        self._dropout = dropout_probability
+        self._satellites = satellites
+        self._history: deque[GpsSample] = deque()
+        # Keep just enough truth for the longest look-back the latency and delay faults can ask for.
+        longest_delay_s = max((f.delay_s for f in faults.faults if f.target == "gps"), default=0.0)
+        self._horizon_ns = self._latency_ns + to_ns(longest_delay_s) + to_ns(0.1)
+        self._fixes_due = 0
+        self.dropped = 0
+
+    def record(self, sample: GpsSample) -> None:
+        """Remember the truth (every physics tick) so a delayed fix can look back."""
+        self._history.append(sample)
+        horizon = sample.t_ns - self._horizon_ns
+        while len(self._history) > 1 and self._history[0].t_ns < horizon:
+            self._history.popleft()
+
+    def has_history(self) -> bool:
+        return bool(self._history)
+
+    def fix(self, now: int) -> GpsFix | None:
+        """The fix due at ``now``, or None when it is lost (dropout, loss fault, slow fault)."""
+        noise = self._rng.normal(0.0, 1.0, 3) * np.array([1.0, 1.0, 2.0]) * self._noise_m
+        drop_draw = float(self._rng.random())
+        self._fixes_due += 1
+        faults = self._faults.active_all("gps", now)
+        kinds = {f.kind: f for f in faults}
+        if "off" in kinds:
+            self.dropped += 1
+            return None
+        slow = kinds.get("slow")
+        if slow is not None and (self._fixes_due % max(1, round(slow.factor))) != 0:
+            self.dropped += 1
+            return None
+        intermittent = kinds.get("intermittent")
+        if drop_draw < self._dropout or (intermittent is not None and drop_draw < intermittent.probability):
+            self.dropped += 1
+            return None
+        delay_ns = self._latency_ns
+        delayed = kinds.get("delayed")
+        if delayed is not None:
+            delay_ns += to_ns(delayed.delay_s)
+        truth = self._at(now - delay_ns)
+        x, y, z = truth.x_m + float(noise[0]), truth.y_m + float(noise[1]), truth.z_m + float(noise[2])
+        wrong = kinds.get("wrong")
+        if wrong is not None:
+            x += wrong.offset_m[0]
+            y += wrong.offset_m[1]
+        if "garbage" in kinds:
+            # A receiver reporting nonsense: no fix, no satellites, a position far off.
+            return GpsFix(x + 1e4, y - 1e4, z, truth.yaw_rad, 0.0, FIX_NONE, 0, 9999.0)
+        return GpsFix(x, y, z, truth.yaw_rad, truth.speed_mps, FIX_3D, self._satellites, self._noise_m)
+
+    def _at(self, t_ns: int) -> GpsSample:
+        """The newest recorded truth at or before ``t_ns`` (the oldest one if none is that old)."""
+        chosen = self._history[0]
+        for sample in reversed(self._history):
+            if sample.t_ns <= t_ns:
+                return sample
+        return chosen
+
+
+@dataclass(frozen=True)
+class ImuReading:
+    gyro_flu_rps: tuple[float, float, float]
+    accel_flu_mps2: tuple[float, float, float]
+
+
+class ImuModel:
+    """Gyro and accelerometer in body FLU axes: truth + bias + white noise, with IMU faults."""
+
+    def __init__(
+        self,
+        rng: np.random.Generator,
+        faults: FaultSchedule,
+        *,
+        gyro_noise_rps: float,
+        accel_noise_mps2: float,
+        gyro_bias_rps: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        accel_bias_mps2: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    ) -> None:
+        self._rng = rng
+        self._faults = faults
+        self._gyro_noise = gyro_noise_rps
+        self._accel_noise = accel_noise_mps2
+        self._gyro_bias = np.asarray(gyro_bias_rps, dtype=float)
+        self._accel_bias = np.asarray(accel_bias_mps2, dtype=float)
+        self._last: ImuReading | None = None
+
+    def read(
+        self, now: int, yaw_rate_rps: float, specific_force_flu: tuple[float, float, float]
+    ) -> ImuReading | None:
+        """The reading at ``now``; None while an ``imu/off`` fault is active."""
+        gyro_noise = self._rng.normal(0.0, self._gyro_noise, 3)
+        accel_noise = self._rng.normal(0.0, self._accel_noise, 3)
+        kinds = {f.kind: f for f in self._faults.active_all("imu", now)}
+        if "off" in kinds:
+            return None
+        if "stuck" in kinds and self._last is not None:
+            return self._last
+        gyro = np.array([0.0, 0.0, yaw_rate_rps]) + self._gyro_bias + gyro_noise
+        accel = np.asarray(specific_force_flu, dtype=float) + self._accel_bias + accel_noise
+        wrong = kinds.get("wrong")
+        if wrong is not None:
+            gyro = gyro + np.asarray(wrong.gyro_bias_rps)
+            accel = accel + np.asarray(wrong.accel_bias_mps2)
+        reading = ImuReading(
+            (float(gyro[0]), float(gyro[1]), float(gyro[2])),
+            (float(accel[0]), float(accel[1]), float(accel[2])),
+        )
+        self._last = reading
+        return reading
+
+
+def course_bearing_deg(yaw_rad: float, speed_mps: float) -> float:
+    """Course over ground as a compass bearing (degrees clockwise from north) for an ENU yaw."""
+    heading = yaw_rad if speed_mps >= 0 else yaw_rad + math.pi
+    return math.degrees(math.pi / 2.0 - heading) % 360.0

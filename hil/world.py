@@ -1,0 +1,180 @@
+"""The simulated world and its peers, stepped one physics tick at a time.
+
+Everything on the simulator's side of the wires: the rover body on the true terrain (``hil.dynamics``), the
+battery, six VESC controllers on the CAN bus, the autopilot on the MAVLink link with its GPS and IMU
+models, moving obstacles, simulated perception, the scenario's faults, and the ground-truth recorder. The
+lockstep trial (``hil.trial``) and the real-time peer (``hil.peer``) both drive it; only their clocks and
+wires differ.
+"""
+
+from __future__ import annotations
+
+import math
+
+import can
+import numpy as np
+
+from firmware_bridge.mavlink_transport import Transport
+from firmware_bridge.vesc import WHEEL_COUNT, VescCodec
+from hil.autopilot_sim import AutopilotTruth, SimAutopilot
+from hil.battery import Battery
+from hil.dynamics import DynamicsStep, RoverDynamics
+from hil.fault_links import FaultyCanBus, FaultyTransport
+from hil.faults import FaultSchedule
+from hil.perception_sim import PerceptionSim
+from hil.scenario import Scenario
+from hil.sensors import GpsModel, ImuModel
+from hil.truth import TruthRecorder
+from hil.vesc_sim import SimVescBank
+from logs.clock import Clock
+from logs.sink import MessageSink
+from navigator.vehicle import VehicleParams
+
+ELECTRONICS_CURRENT_A = 0.5  # computer, radios and controllers at idle
+TRUTH_DIVIDER = 2  # ground truth recorded every second physics tick
+
+
+class SimWorld:
+    """The world and the simulated peers on the simulator's ends of the CAN bus and MAVLink link."""
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        vehicle: VehicleParams,
+        codec: VescCodec,
+        clock: Clock,
+        can_bus: can.BusABC,
+        mavlink: Transport,
+        sink: MessageSink,
+        seed: int,
+    ) -> None:
+        self.scenario = scenario
+        self._clock = clock
+        self._sink = sink
+        self.faults = FaultSchedule(scenario.faults)
+        # Separate streams so a fault or an extra obstacle never shifts the sensor noise.
+        sensor_rng = np.random.default_rng(seed)
+        fault_rng = np.random.default_rng([seed, 1])
+        perception_rng = np.random.default_rng([seed, 2])
+        has = {f.target for f in scenario.faults}
+        if "can" in has:
+            can_bus = FaultyCanBus(can_bus, self.faults, clock, fault_rng)
+        if "mavlink" in has:
+            mavlink = FaultyTransport(mavlink, self.faults, clock, fault_rng)
+        self._vesc_faults = "vesc" in has
+        self._battery_faults = "battery" in has
+        self.can_bus = can_bus
+        sensors = scenario.sensors
+        self.vescs = SimVescBank(can_bus, codec, clock)
+        self.autopilot = SimAutopilot(
+            mavlink,
+            clock,
+            sensor_rng,
+            datum_lat_deg=scenario.datum[0],
+            datum_lon_deg=scenario.datum[1],
+            datum_alt_m=scenario.datum[2],
+            gps_rate_hz=sensors.gps_rate_hz,
+            imu_rate_hz=sensors.imu_rate_hz,
+            gps_noise_m=sensors.gps_noise_m,
+            gyro_noise_rps=sensors.gyro_noise_rps,
+            accel_noise_mps2=sensors.accel_noise_mps2,
+            gps=GpsModel(
+                sensor_rng,
+                self.faults,
+                noise_m=sensors.gps_noise_m,
+                latency_s=sensors.gps_latency_s,
+                dropout_probability=sensors.gps_dropout_probability,
+                satellites=sensors.gps_satellites,
+            ),
+            imu=ImuModel(
+                sensor_rng,
+                self.faults,
+                gyro_noise_rps=sensors.gyro_noise_rps,
+                accel_noise_mps2=sensors.accel_noise_mps2,
+                gyro_bias_rps=sensors.gyro_bias_rps,
+                accel_bias_mps2=sensors.accel_bias_mps2,
+            ),
+        )
+        self.body = RoverDynamics(
+            scenario.terrain,
+            vehicle,
+            x=scenario.start_xy[0],
+            y=scenario.start_xy[1],
+            yaw=scenario.start_yaw_rad,
+        )
+        self._footprint_radius_m = vehicle.footprint_radius_m
+        self.battery = Battery()
+        self.truth = TruthRecorder(sink, scenario)
+        self.perception = PerceptionSim(
+            clock,
+            lambda: (self.body.x, self.body.y),
+            scenario.obstacles,
+            scenario.moving_obstacles,
+            perception_rng,
+            range_m=sensors.perception_range_m,
+            rate_hz=sensors.perception_rate_hz,
+            noise_m=sensors.perception_noise_m,
+        )
+        self._tick = 0
+        self.last_step: DynamicsStep | None = None
+
+    @property
+    def rolled_over(self) -> bool:
+        return self.body.rolled_over
+
+    def tick(self, dt_s: float) -> DynamicsStep:
+        """One physics tick ending at the clock's now: commands in, body moves, status and sensors out."""
+        now = self._clock.now_ns()
+        self._tick += 1
+        if self.scenario.faults:
+            self._apply_faults(now)
+        self.vescs.poll()
+        step = self.body.step(dt_s, self.vescs.wheel_speeds_mps(), self.battery.voltage_v)
+        input_current = float(np.sum(np.abs(step.motor_currents_a) * np.abs(step.duty)))
+        voltage = self.battery.draw(input_current + ELECTRONICS_CURRENT_A, dt_s)
+        self.vescs.set_electrical(step.motor_currents_a, voltage)
+        self.vescs.step(dt_s)
+        body = self.body
+        truth = AutopilotTruth(
+            x_m=body.x,
+            y_m=body.y,
+            z_m=self.scenario.terrain.elevation_at(body.x, body.y),
+            yaw_rad=body.yaw,
+            speed_mps=body.speed,
+            yaw_rate_rps=body.yaw_rate,
+            accel_body_mps2=step.specific_force_body_mps2,
+            roll_rad=step.roll_rad,
+            pitch_rad=step.pitch_rad,
+            battery_voltage_v=voltage,
+            battery_current_a=self.battery.current_a,
+            battery_remaining_pct=round(100.0 * self.battery.state_of_charge),
+        )
+        self.autopilot.record_truth(truth)
+        self.autopilot.step(truth)
+        self.autopilot.poll()
+        self.truth.on_step(now, body, step, self.battery, record_state=self._tick % TRUTH_DIVIDER == 0)
+        if self.scenario.moving_obstacles:
+            self._moving_contacts(now)
+        self.last_step = step
+        return step
+
+    def _apply_faults(self, now: int) -> None:
+        self.faults.announce(self._sink, now)
+        if self._vesc_faults:
+            active = self.faults.active_all("vesc", now)
+            for wheel in range(WHEEL_COUNT):
+                kinds = {f.kind for f in active if f.controller == wheel}
+                self.vescs.set_rebooting(wheel, "off" in kinds)
+                self.vescs.set_stuck(wheel, "stuck" in kinds)
+        if self._battery_faults:
+            sag = self.faults.active("battery", now)
+            if sag is None:
+                self.battery.set_sag(0.0, 0.0)
+            else:
+                self.battery.set_sag(sag.sag_v, sag.extra_resistance_ohm)
+
+    def _moving_contacts(self, now: int) -> None:
+        """A moving obstacle touching the footprint circle is a collision (reported once per contact)."""
+        for obstacle, (x, y, _vx, _vy) in self.perception.moving_states(now):
+            gap = math.hypot(x - self.body.x, y - self.body.y) - obstacle.radius_m - self._footprint_radius_m
+            self.truth.on_moving_contact(now, obstacle.id, gap < 0.0, self.body)

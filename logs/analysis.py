@@ -1,0 +1,364 @@
+"""One pass over a recording for the post-trial report: the paper's metrics plus the series to plot and the
+engineering figures (estimator error, control-loop timing, CAN bus load, error counts).
+
+Definitions and tolerances: docs/metrics.md ("Report figures"). Absent topics never raise: the figure is
+``None`` and the topic is listed in ``missing``.
+"""
+
+from __future__ import annotations
+
+import base64
+import math
+import re
+from collections import Counter
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from logs.errors import LogReadError
+from logs.metrics import METRIC_TOPICS, TrialMetrics, metrics_from_entries
+from logs.reader import (
+    Entry,
+    ReadStats,
+    RecordedAttachment,
+    RecordedMessage,
+    RecordedMetadata,
+    RecordedRaw,
+    read_entries,
+)
+from logs.topics import (
+    CAN_FRAMES,
+    ESTIMATOR_INNOVATIONS,
+    ESTIMATOR_POSE,
+    LOG,
+    NAVIGATOR_MAP,
+    NAVIGATOR_PATH,
+    NAVIGATOR_STATE,
+    SAFETY_EVENTS,
+    TRUTH_POSE,
+    TRUTH_STABILITY,
+    WHEELS_STATUS,
+    yaw_of,
+)
+
+FloatArray = NDArray[np.float64]
+DEFAULT_CAN_BITRATE = 500_000
+# Bits on the wire per classic CAN frame before bit stuffing: SOF, id, control, CRC, ACK, EOF, IFS.
+_CAN_OVERHEAD_BITS = {False: 47, True: 67}
+# CAN frames are most of a recording; the bus load needs only dlc and the id kind, found without a JSON
+# decode in the compact payload the recorder writes (``"extended":true,"dlc":8``).
+_DLC = re.compile(rb'"dlc":(\d+)')
+_EXTENDED = b'"extended":true'
+RAW_TOPICS = frozenset({CAN_FRAMES})
+REPORT_TOPICS = frozenset(METRIC_TOPICS) | {
+    ESTIMATOR_INNOVATIONS,
+    LOG,
+    NAVIGATOR_MAP,
+    SAFETY_EVENTS,
+    TRUTH_STABILITY,
+}
+EXPECTED_TOPICS = (ESTIMATOR_POSE, NAVIGATOR_PATH, NAVIGATOR_STATE, WHEELS_STATUS, CAN_FRAMES)
+
+
+@dataclass
+class Series:
+    """Time series for plots: ``t`` seconds from the first message, values aligned."""
+
+    t: list[float] = field(default_factory=list)
+    values: list[list[float]] = field(default_factory=list)
+
+    def add(self, t_s: float, *values: float) -> None:
+        self.t.append(t_s)
+        self.values.append([float(v) for v in values])
+
+    def array(self) -> FloatArray:
+        return np.asarray(self.values, dtype=np.float64).reshape(len(self.t), -1)
+
+
+@dataclass
+class TrialAnalysis:
+    path: str
+    metrics: TrialMetrics
+    metadata: dict[str, dict[str, str]]
+    attachments: list[str]
+    truth: Series  # x, y
+    estimate: Series  # x, y, yaw
+    truth_yaw: Series  # yaw
+    plan: FloatArray  # (M, 2) last planned path
+    xte: Series  # cross-track error (m)
+    speed: Series  # speed (m/s) from the trajectory topic
+    current: Series  # total input current (A)
+    stability: Series  # min(roll, pitch) margin (rad)
+    innovations: dict[str, Series]  # sensor -> NIS
+    figures: dict[str, float | int | None]
+    counts: dict[str, int]
+    missing: list[str]
+    terrain_class: str = "unknown"
+    grid: FloatArray | None = None  # elevation layer of navigator/map, rows north, for the background
+    grid_extent: tuple[float, float, float, float] | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "path": self.path,
+            "terrain_class": self.terrain_class,
+            "metrics": self.metrics.to_dict(),
+            "figures": {key: _round(value) for key, value in self.figures.items()},
+            "counts": self.counts,
+            "missing": self.missing,
+            "metadata": self.metadata,
+            "attachments": self.attachments,
+        }
+
+
+def _round(value: float | int | None) -> float | int | None:
+    if isinstance(value, float):
+        return round(value, 6) if math.isfinite(value) else None
+    return value
+
+
+@dataclass
+class _Collector:
+    t0: int | None = None
+    truth: Series = field(default_factory=Series)
+    truth_yaw: Series = field(default_factory=Series)
+    estimate: Series = field(default_factory=Series)
+    plan: list[tuple[float, float]] = field(default_factory=list)
+    xte: Series = field(default_factory=Series)
+    speed_truth: Series = field(default_factory=Series)
+    speed_estimate: Series = field(default_factory=Series)
+    current: Series = field(default_factory=Series)
+    stability: Series = field(default_factory=Series)
+    innovations: dict[str, Series] = field(default_factory=dict)
+    rejected_innovations: int = 0
+    state_times: list[int] = field(default_factory=list)
+    can_bits: Counter[int] = field(default_factory=Counter)  # second -> bits
+    can_frames: int = 0
+    can_first_s: float | None = None
+    can_last_s: float = 0.0
+    safety: Counter[str] = field(default_factory=Counter)
+    log_levels: Counter[int] = field(default_factory=Counter)
+    unusable: Counter[str] = field(default_factory=Counter)
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    attachments: list[str] = field(default_factory=list)
+    counts: Counter[str] = field(default_factory=Counter)
+    terrain: Counter[str] = field(default_factory=Counter)
+    grid: FloatArray | None = None
+    grid_extent: tuple[float, float, float, float] | None = None
+
+    def seconds(self, t_ns: int) -> float:
+        if self.t0 is None:
+            self.t0 = t_ns
+        return (t_ns - self.t0) / 1e9
+
+    def take(self, entry: Entry) -> None:
+        if isinstance(entry, RecordedMetadata):
+            self.metadata[entry.name] = entry.data
+        elif isinstance(entry, RecordedAttachment):
+            self.attachments.append(entry.name)
+        elif isinstance(entry, RecordedMessage):
+            self.counts[entry.topic] += 1
+            try:
+                self._message(entry)
+            except (KeyError, TypeError, ValueError, IndexError):
+                self.unusable[entry.topic] += 1
+        elif isinstance(entry, RecordedRaw):
+            self.counts[entry.topic] += 1
+            self._can_frame(entry)
+
+    def _can_frame(self, entry: RecordedRaw) -> None:
+        found = _DLC.search(entry.data)
+        if found is None:
+            self.unusable[entry.topic] += 1
+            return
+        bits = _CAN_OVERHEAD_BITS[_EXTENDED in entry.data] + 8 * min(int(found.group(1)), 8)
+        t = self.seconds(entry.log_time_ns)
+        self.can_bits[int(t)] += bits
+        self.can_frames += 1
+        if self.can_first_s is None:
+            self.can_first_s = t
+        self.can_last_s = t
+
+    def _message(self, entry: RecordedMessage) -> None:
+        topic, message, t = entry.topic, entry.message, self.seconds(entry.log_time_ns)
+        if topic == TRUTH_POSE:
+            p = message["pose"]["position"]
+            self.truth.add(t, p["x"], p["y"])
+            self.truth_yaw.add(t, yaw_of(message["pose"]))
+            self.speed_truth.add(t, message["speed_mps"])
+            self.terrain[str(message.get("terrain", ""))] += 1
+        elif topic == ESTIMATOR_POSE:
+            p = message["pose"]["position"]
+            self.estimate.add(t, p["x"], p["y"], yaw_of(message["pose"]))
+            self.speed_estimate.add(t, message["speed_mps"])
+        elif topic == NAVIGATOR_PATH:
+            self.plan = [(float(q["position"]["x"]), float(q["position"]["y"])) for q in message["poses"]]
+        elif topic == NAVIGATOR_STATE:
+            self.state_times.append(entry.log_time_ns)
+            value = message.get("cross_track_error_m")
+            if value is not None:
+                self.xte.add(t, value)
+        elif topic == WHEELS_STATUS:
+            self.current.add(t, sum(float(w["input_current_a"]) for w in message["wheels"]))
+        elif topic == TRUTH_STABILITY:
+            self.stability.add(t, min(float(message["roll_margin_rad"]), float(message["pitch_margin_rad"])))
+        elif topic == ESTIMATOR_INNOVATIONS:
+            self.innovations.setdefault(str(message["sensor"]), Series()).add(t, message["nis"])
+            self.rejected_innovations += not message["accepted"]
+        elif topic == SAFETY_EVENTS:
+            self.safety[str(message["severity"])] += 1
+        elif topic == LOG:
+            self.log_levels[int(message["level"])] += 1
+        elif topic == NAVIGATOR_MAP:
+            self._grid(message)
+
+    def _grid(self, message: dict[str, Any]) -> None:
+        columns = int(message["column_count"])
+        stride = int(message["cell_stride"])
+        field_offsets = {f["name"]: int(f["offset"]) for f in message["fields"]}
+        offset = field_offsets.get("elevation", 0)
+        raw = np.frombuffer(base64.b64decode(message["data"]), dtype=np.uint8)
+        rows = len(raw) // int(message["row_stride"])
+        cells = raw.reshape(rows * columns, stride)[:, offset : offset + 4].copy()
+        self.grid = cells.view("<f4").reshape(rows, columns).astype(np.float64)
+        origin = message["pose"]["position"]
+        size = message["cell_size"]
+        x0, y0 = float(origin["x"]), float(origin["y"])
+        self.grid_extent = (x0, x0 + columns * float(size["x"]), y0, y0 + rows * float(size["y"]))
+
+
+def analyse(path: str | Path, *, can_bitrate: int | None = None) -> TrialAnalysis:
+    """Read ``path`` once and compute everything the report shows. ``LogReadError`` for non-MCAP files."""
+    stats = ReadStats()
+    collector = _Collector()
+
+    def tee() -> Iterator[Entry]:
+        for entry in read_entries(path, topics=REPORT_TOPICS, stats=stats, raw_topics=RAW_TOPICS):
+            collector.take(entry)
+            yield entry
+
+    metrics = metrics_from_entries(tee(), stats)
+    if not collector.counts and not collector.metadata and not stats.truncated:
+        raise LogReadError(f"{path} holds no messages or metadata at all")
+    return _finish(str(path), metrics, collector, stats, can_bitrate)
+
+
+def _finish(
+    path: str, metrics: TrialMetrics, c: _Collector, stats: ReadStats, can_bitrate: int | None
+) -> TrialAnalysis:
+    missing = [topic for topic in EXPECTED_TOPICS if c.counts[topic] == 0]
+    missing += [item for item in metrics.missing if item not in missing]
+    figures: dict[str, float | int | None] = {}
+    figures.update(_estimator_error(c))
+    figures.update(_loop_timing(c.state_times))
+    bitrate = can_bitrate or _bitrate(c.metadata)
+    figures.update(_bus_load(c, bitrate))
+    figures["innovations_rejected"] = c.rejected_innovations
+    figures["safety_warnings"] = c.safety["warning"]
+    figures["safety_errors"] = c.safety["error"] + c.safety["fatal"]
+    figures["log_errors"] = sum(n for level, n in c.log_levels.items() if level >= 4)
+    figures["unusable_messages"] = sum(c.unusable.values()) + stats.skipped
+    speed = c.speed_truth if c.speed_truth.t else c.speed_estimate
+    return TrialAnalysis(
+        path=path,
+        metrics=metrics,
+        metadata=c.metadata,
+        attachments=c.attachments,
+        truth=c.truth,
+        estimate=c.estimate,
+        truth_yaw=c.truth_yaw,
+        plan=np.asarray(c.plan, dtype=np.float64).reshape(-1, 2),
+        xte=c.xte,
+        speed=speed,
+        current=c.current,
+        stability=c.stability,
+        innovations=c.innovations,
+        figures=figures,
+        counts=dict(sorted(c.counts.items())),
+        missing=missing,
+        terrain_class=_terrain_class(c),
+        grid=c.grid,
+        grid_extent=c.grid_extent,
+    )
+
+
+def _terrain_class(c: _Collector) -> str:
+    """The scenario's ``terrain_class`` metadata, else the class the true pose was on most often."""
+    declared = c.metadata.get("scenario", {}).get("terrain_class")
+    if declared:
+        return declared
+    c.terrain.pop("", None)
+    return c.terrain.most_common(1)[0][0] if c.terrain else "unknown"
+
+
+def _bitrate(metadata: dict[str, dict[str, str]]) -> int:
+    try:
+        return int(metadata.get("trial", {}).get("can_bitrate", DEFAULT_CAN_BITRATE))
+    except ValueError:
+        return DEFAULT_CAN_BITRATE
+
+
+def _estimator_error(c: _Collector) -> dict[str, float | None]:
+    names = (
+        "estimator_position_error_rms_m",
+        "estimator_position_error_max_m",
+        "estimator_yaw_error_rms_rad",
+    )
+    if len(c.truth.t) < 2 or not c.estimate.t:
+        return dict.fromkeys(names)
+    truth = c.truth.array()
+    estimate = c.estimate.array()
+    t_truth = np.asarray(c.truth.t)
+    t_est = np.asarray(c.estimate.t)
+    inside = (t_est >= t_truth[0]) & (t_est <= t_truth[-1])  # no extrapolation of the truth
+    if not inside.any():
+        return dict.fromkeys(names)
+    t_est = t_est[inside]
+    estimate = estimate[inside]
+    x = np.interp(t_est, t_truth, truth[:, 0])
+    y = np.interp(t_est, t_truth, truth[:, 1])
+    error = np.hypot(estimate[:, 0] - x, estimate[:, 1] - y)
+    truth_yaw = np.unwrap(c.truth_yaw.array()[:, 0])
+    yaw = np.interp(t_est, t_truth, truth_yaw)
+    yaw_error = np.angle(np.exp(1j * (estimate[:, 2] - yaw)))  # wrapped to (-pi, pi]
+    return {
+        names[0]: float(np.sqrt(np.mean(error**2))),
+        names[1]: float(error.max()),
+        names[2]: float(np.sqrt(np.mean(yaw_error**2))),
+    }
+
+
+def _loop_timing(times_ns: list[int]) -> dict[str, float | None]:
+    names = ("control_period_mean_ms", "control_period_p99_ms", "control_period_max_ms")
+    if len(times_ns) < 2:
+        return dict.fromkeys(names)
+    periods = np.diff(np.asarray(times_ns, dtype=np.int64)) / 1e6
+    return {
+        names[0]: float(periods.mean()),
+        names[1]: float(np.percentile(periods, 99)),
+        names[2]: float(periods.max()),
+    }
+
+
+def _bus_load(c: _Collector, bitrate: int) -> dict[str, float | int | None]:
+    if not c.can_bits:
+        return {"can_frames": 0, "can_bus_load_mean_pct": None, "can_bus_load_peak_pct": None}
+    per_second = np.array(list(c.can_bits.values()), dtype=np.float64)
+    span_s = c.can_last_s - (c.can_first_s or 0.0)
+    mean = 100.0 * per_second.sum() / span_s / bitrate if span_s > 0.0 else None
+    return {
+        "can_frames": c.can_frames,
+        "can_bitrate": bitrate,
+        "can_bus_load_mean_pct": mean,
+        "can_bus_load_peak_pct": float(100.0 * per_second.max() / bitrate),
+    }
+
+
+def distance_along(xy: FloatArray) -> FloatArray:
+    """Cumulative distance (m) along a polyline of shape (N, 2), starting at 0."""
+    if len(xy) == 0:
+        return np.zeros(0)
+    return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])

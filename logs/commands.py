@@ -1,0 +1,145 @@
+"""Commands to the rover over Zenoh: a new goal, an emergency stop, resume after an e-stop.
+
+Keys: ``rover/<rover_id>/cmd/goal`` (payload ``{"x": <m>, "y": <m>}``, local ENU), ``.../cmd/estop`` and
+``.../cmd/resume`` (payload ``{}``; any JSON object is accepted, extra fields are ignored). A command that
+does not decode is counted in ``rejected`` and logged (the first few), never raised: a ground station's
+bad packet must not stop the rover loop.
+
+The onboard loop reads commands with ``CommandSource.poll()``: non-blocking, thread-safe, each command
+returned once, in arrival order. ``received_ns`` is the receiver's clock at arrival, so a lockstep trial
+stays on its simulated time.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import threading
+from dataclasses import dataclass
+from typing import Literal, Protocol
+
+import zenoh
+
+from logs.clock import Clock
+from logs.errors import TelemetryError, TelemetrySetupError
+from logs.telemetry import key_prefix
+
+logger = logging.getLogger(__name__)
+
+CommandKind = Literal["goal", "estop", "resume"]
+COMMAND_KINDS: tuple[CommandKind, ...] = ("goal", "estop", "resume")
+COMMAND_SEGMENT = "cmd"
+_MAX_WARNINGS = 10
+# A goal is local ENU metres; anything beyond this is a unit mistake (degrees, millimetres), not a goal.
+MAX_GOAL_COORDINATE_M = 1.0e6
+
+
+@dataclass(frozen=True)
+class RoverCommand:
+    """One accepted command. ``x``/``y`` (ENU metres) only for ``goal``; ``received_ns`` from the clock."""
+
+    kind: CommandKind
+    received_ns: int
+    x: float | None = None
+    y: float | None = None
+
+
+class CommandSource(Protocol):
+    def poll(self) -> list[RoverCommand]:
+        """Commands received since the last poll, oldest first; never blocks."""
+        ...
+
+
+def command_key(rover_id: str, kind: CommandKind) -> str:
+    return f"{key_prefix(rover_id)}/{COMMAND_SEGMENT}/{kind}"
+
+
+def parse_command(kind: str, payload: bytes, received_ns: int) -> RoverCommand:
+    """A command from its key's last segment and JSON payload; ``ValueError`` naming what is wrong."""
+    if kind not in COMMAND_KINDS:
+        raise ValueError(f"unknown command {kind!r}; expected one of {', '.join(COMMAND_KINDS)}")
+    try:
+        body = json.loads(payload)
+    except (ValueError, UnicodeDecodeError) as err:
+        raise ValueError(f"{kind} payload is not JSON: {err}") from err
+    if not isinstance(body, dict):
+        raise ValueError(f"{kind} payload is a JSON {type(body).__name__}, not an object")
+    if kind != "goal":
+        return RoverCommand(kind, received_ns)
+    coordinates = []
+    for axis in ("x", "y"):
+        value = body.get(axis)
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ValueError(f"goal needs a number {axis!r} in metres, got {value!r}")
+        if not math.isfinite(value) or abs(value) > MAX_GOAL_COORDINATE_M:
+            raise ValueError(f"goal {axis}={value!r} is not a finite ENU coordinate within 1000 km")
+        coordinates.append(float(value))
+    return RoverCommand("goal", received_ns, coordinates[0], coordinates[1])
+
+
+class ZenohCommandReceiver:
+    """``CommandSource`` subscribed to ``rover/<rover_id>/cmd/*``; the session is the caller's."""
+
+    def __init__(self, session: zenoh.Session, rover_id: str, clock: Clock) -> None:
+        self._prefix = f"{key_prefix(rover_id)}/{COMMAND_SEGMENT}/"
+        self._clock = clock
+        self._lock = threading.Lock()  # zenoh delivers on its own threads; poll() runs on the rover loop
+        self._pending: list[RoverCommand] = []
+        self.accepted = 0
+        self.rejected = 0
+        self._closed = False
+        try:
+            self._subscriber = session.declare_subscriber(self._prefix + "*", self._on_sample)
+        except zenoh.ZError as err:
+            raise TelemetrySetupError(f"cannot subscribe to {self._prefix}*: {err}") from err
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        key = str(sample.key_expr)
+        kind = key[len(self._prefix) :] if key.startswith(self._prefix) else key
+        try:
+            command = parse_command(kind, sample.payload.to_bytes(), self._clock.now_ns())
+        except ValueError as err:
+            with self._lock:
+                self.rejected += 1
+                rejected = self.rejected
+            if rejected <= _MAX_WARNINGS:
+                logger.warning("command on %s rejected: %s", key, err)
+            return
+        with self._lock:
+            self._pending.append(command)
+            self.accepted += 1
+        logger.info("command accepted: %s", command)
+
+    def poll(self) -> list[RoverCommand]:
+        with self._lock:
+            commands, self._pending = self._pending, []
+        return commands
+
+    def close(self) -> None:
+        """Stop receiving. Safe to call twice."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._subscriber.undeclare()
+        except zenoh.ZError as err:
+            logger.debug("undeclaring the command subscriber on %s failed: %s", self._prefix, err)
+
+
+def send_command(
+    session: zenoh.Session, rover_id: str, kind: CommandKind, x: float | None = None, y: float | None = None
+) -> None:
+    """Publish one command (the ground station's side). ``TelemetryError`` if the put fails."""
+    if kind == "goal":
+        if x is None or y is None:
+            raise TelemetryError("a goal command needs x and y (ENU metres)")
+        body: dict[str, float] = {"x": float(x), "y": float(y)}
+    else:
+        body = {}
+    try:
+        session.put(
+            command_key(rover_id, kind), json.dumps(body).encode(), encoding=zenoh.Encoding.APPLICATION_JSON
+        )
+    except zenoh.ZError as err:
+        raise TelemetryError(f"cannot send {kind} to rover {rover_id!r}: {err}") from err

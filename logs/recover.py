@@ -1,0 +1,191 @@
+"""``rover logs recover``: turn a recording cut short (crash, power loss, full disk) into a valid MCAP file.
+
+Everything complete before the cut is kept: every chunk that decompresses and passes its CRC, and every
+top-level schema, channel, message, metadata and attachment record. A damaged chunk in the middle is
+dropped and counted, and the copy goes on after it. Message bytes, log and publish times and sequence
+numbers are copied unchanged; schema and channel ids are renumbered in the order first seen (the MCAP
+writer assigns them), which readers never depend on. The output gets a fresh summary and footer.
+"""
+
+from __future__ import annotations
+
+import logging
+import struct
+from dataclasses import asdict, dataclass
+from io import BytesIO
+from pathlib import Path
+from typing import Any
+
+from mcap.data_stream import ReadDataStream
+from mcap.exceptions import McapError
+from mcap.opcode import Opcode
+from mcap.records import Attachment, Channel, Header, Message, Metadata, Schema
+from mcap.writer import CompressionType, Writer
+
+from logs.errors import LogReadError, RecordingError
+from logs.frames import Frame, FrameWalk, attachment_crc_ok, chunk_of, chunk_payload, inner_frames
+from logs.recorder import DEFAULT_CHUNK_SIZE
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class RecoverResult:
+    source: str
+    output: str
+    was_complete: bool  # the source had its DataEnd: nothing needed recovering
+    cut_at: int | None
+    chunks_kept: int
+    chunks_dropped: int
+    messages: int
+    orphan_messages: int  # messages whose channel record was lost; they cannot be decoded and are dropped
+    metadata: int
+    attachments: int
+    first_ns: int | None
+    last_ns: int | None
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def recover(source: str | Path, output: str | Path) -> RecoverResult:
+    """Copy every complete record of ``source`` into a new, valid MCAP file at ``output``."""
+    src, dst = Path(source), Path(output)
+    if src.resolve() == dst.resolve():
+        raise RecordingError(f"recover writes a new file: give an output path other than {src}")
+    try:
+        stream = src.open("rb")
+    except OSError as err:
+        raise LogReadError(f"cannot open recording {src}: {err}") from err
+    try:
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        out = dst.open("wb")
+    except OSError as err:
+        stream.close()
+        raise RecordingError(f"cannot create {dst}: {err}") from err
+    with stream, out:
+        copier = _Copier(Writer(out, chunk_size=DEFAULT_CHUNK_SIZE, compression=CompressionType.ZSTD))
+        walk = FrameWalk(stream, str(src))
+        try:
+            copier.copy(walk)
+        finally:
+            copier.writer.finish()
+    result = RecoverResult(
+        source=str(src),
+        output=str(dst),
+        was_complete=copier.complete,
+        cut_at=walk.cut_at,
+        chunks_kept=copier.chunks_kept,
+        chunks_dropped=copier.chunks_dropped,
+        messages=copier.messages,
+        orphan_messages=copier.orphans,
+        metadata=copier.metadata,
+        attachments=copier.attachments,
+        first_ns=copier.first_ns,
+        last_ns=copier.last_ns,
+    )
+    logger.info("recovered %s -> %s: %s", src, dst, result)
+    return result
+
+
+class _Copier:
+    def __init__(self, writer: Writer) -> None:
+        self.writer = writer
+        self.started = False
+        self.complete = False
+        self.schema_ids: dict[int, int] = {0: 0}  # schema id 0 means "no schema" in MCAP
+        self.channel_ids: dict[int, int] = {}
+        self.chunks_kept = self.chunks_dropped = 0
+        self.messages = self.orphans = self.metadata = self.attachments = 0
+        self.first_ns: int | None = None
+        self.last_ns: int | None = None
+
+    def copy(self, walk: FrameWalk) -> None:
+        for frame in walk.frames():
+            if frame.opcode == Opcode.DATA_END:
+                self.complete = True
+                break
+            try:
+                self._frame(frame)
+            except (McapError, ValueError, struct.error, UnicodeDecodeError) as err:
+                logger.warning(
+                    "record at byte %d (opcode %#x) is damaged, skipped: %s", frame.offset, frame.opcode, err
+                )
+        self._start("", "")
+
+    def _start(self, profile: str, library: str) -> None:
+        if not self.started:
+            self.started = True
+            self.writer.start(profile=profile, library=library or "rover-stack logs (recovered)")
+
+    def _frame(self, frame: Frame) -> None:
+        data = ReadDataStream(BytesIO(frame.body))
+        if frame.opcode == Opcode.HEADER:
+            header = Header.read(data)
+            self._start(header.profile, header.library)
+            return
+        self._start("", "")
+        if frame.opcode == Opcode.CHUNK:
+            self._chunk(frame)
+        elif frame.opcode in (Opcode.SCHEMA, Opcode.CHANNEL, Opcode.MESSAGE):
+            self._record(frame.opcode, frame.body)
+        elif frame.opcode == Opcode.METADATA:
+            metadata = Metadata.read(data)
+            self.writer.add_metadata(metadata.name, dict(metadata.metadata))
+            self.metadata += 1
+        elif frame.opcode == Opcode.ATTACHMENT:
+            if not attachment_crc_ok(frame.body):
+                raise ValueError("attachment fails its CRC check")
+            attachment = Attachment.read(data)
+            self.writer.add_attachment(
+                create_time=attachment.create_time,
+                log_time=attachment.log_time,
+                name=attachment.name,
+                media_type=attachment.media_type,
+                data=attachment.data,
+            )
+            self.attachments += 1
+
+    def _chunk(self, frame: Frame) -> None:
+        try:
+            records = list(inner_frames(chunk_payload(chunk_of(frame))))
+        except ValueError as err:
+            self.chunks_dropped += 1
+            logger.warning("chunk at byte %d dropped: %s", frame.offset, err)
+            return
+        for opcode, body in records:
+            self._record(opcode, body)
+        self.chunks_kept += 1
+
+    def _record(self, opcode: int, body: bytes) -> None:
+        data = ReadDataStream(BytesIO(body))
+        if opcode == Opcode.SCHEMA:
+            schema = Schema.read(data)
+            if schema.id not in self.schema_ids:
+                self.schema_ids[schema.id] = self.writer.register_schema(
+                    schema.name, schema.encoding, schema.data
+                )
+        elif opcode == Opcode.CHANNEL:
+            channel = Channel.read(data)
+            if channel.id not in self.channel_ids:
+                schema_id = self.schema_ids.get(channel.schema_id, 0)
+                self.channel_ids[channel.id] = self.writer.register_channel(
+                    channel.topic, channel.message_encoding, schema_id, dict(channel.metadata)
+                )
+        elif opcode == Opcode.MESSAGE:
+            message = Message.read(data, len(body))
+            channel_id = self.channel_ids.get(message.channel_id)
+            if channel_id is None:
+                self.orphans += 1
+                return
+            self.writer.add_message(
+                channel_id=channel_id,
+                log_time=message.log_time,
+                data=message.data,
+                publish_time=message.publish_time,
+                sequence=message.sequence,
+            )
+            self.messages += 1
+            t = message.log_time
+            self.first_ns = t if self.first_ns is None else min(self.first_ns, t)
+            self.last_ns = t if self.last_ns is None else max(self.last_ns, t)

@@ -1,0 +1,145 @@
+"""The ground station's side of the live stream: record it into MCAP, keep a live view of the rover, and
+thin the rover's stream to configured rates.
+
+``StreamRecorder`` writes every received sample into an ``McapRecorder`` with the rover's log time, so the
+ground-station file reads back like the rover's own (same topics, payloads and log times; ``rover logs
+report`` works on it). ``LiveView`` keeps the latest pose, speed, mode, health and CAN bus load for
+``rover telemetry watch``. ``RateLimitedSink`` sits in front of the Zenoh publisher on the rover: per-topic
+maximum rates judged on log time, so lockstep trials stay deterministic.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+from collections import deque
+from collections.abc import Mapping
+
+import zenoh
+
+from logs.errors import LogsError, TelemetrySetupError
+from logs.recorder import McapRecorder
+from logs.sink import Message, MessageSink
+from logs.telemetry import TelemetrySample, TelemetrySubscription, subscribe
+from logs.topics import CAN_FRAMES, ESTIMATOR_POSE, NAVIGATOR_STATE, SAFETY_EVENTS, TOPICS, TRUTH_POSE, yaw_of
+
+logger = logging.getLogger(__name__)
+
+CAN_BITS_PER_FRAME = 131  # extended id, 8 data bytes, before stuffing: the VESC status frames
+BUS_WINDOW_NS = 1_000_000_000
+
+
+class RateLimitedSink:
+    """Forwards at most ``rates[topic]`` messages per second of log time; topics not listed pass freely."""
+
+    def __init__(self, sink: MessageSink, rates_hz: Mapping[str, float]) -> None:
+        for topic, rate in rates_hz.items():
+            if topic not in TOPICS:
+                raise TelemetrySetupError(f"telemetry rate for unknown topic {topic!r}")
+            if not math.isfinite(rate) or rate <= 0.0:
+                raise TelemetrySetupError(f"telemetry rate for {topic} must be > 0 Hz, got {rate!r}")
+        self._sink = sink
+        self._period_ns = {topic: int(1e9 / rate) for topic, rate in rates_hz.items()}
+        self._next_ns: dict[str, int] = {}
+        self.dropped = 0
+
+    def publish(self, topic: str, log_time_ns: int, message: Message) -> None:
+        period = self._period_ns.get(topic)
+        if period is not None:
+            due = self._next_ns.get(topic)
+            if due is not None and log_time_ns < due:
+                self.dropped += 1
+                return
+            self._next_ns[topic] = log_time_ns + period
+        self._sink.publish(topic, log_time_ns, message)
+
+
+class StreamRecorder:
+    """Records a rover's live stream into ``recorder`` (the caller's; closed by the caller)."""
+
+    def __init__(self, session: zenoh.Session, rover_id: str, recorder: McapRecorder) -> None:
+        self._recorder = recorder
+        self._lock = threading.Lock()  # zenoh calls back on its own threads; the recorder is not thread-safe
+        self.recorded = 0
+        self.failed = 0
+        self.topics: set[str] = set()
+        self._subscription: TelemetrySubscription = subscribe(session, rover_id, self._on_sample)
+
+    @property
+    def rejected(self) -> int:
+        return self._subscription.rejected
+
+    def _on_sample(self, sample: TelemetrySample) -> None:
+        with self._lock:
+            try:
+                self._recorder.publish(sample.topic, sample.log_time_ns, sample.message)
+            except LogsError as err:
+                self.failed += 1
+                if self.failed <= 10:
+                    logger.warning("live sample on %s not recorded: %s", sample.topic, err)
+                return
+            self.recorded += 1
+            self.topics.add(sample.topic)
+
+    def close(self) -> None:
+        self._subscription.close()
+        with self._lock:  # a callback in flight finishes before the caller closes the recorder
+            pass
+
+
+class LiveView:
+    """Latest state of one rover from its stream; ``rows()`` for a table. Thread-safe."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._values: dict[str, str] = {}
+        self._can_times: deque[int] = deque()
+        self.samples = 0
+
+    def update(self, sample: TelemetrySample) -> None:
+        message = sample.message
+        with self._lock:
+            self.samples += 1
+            try:
+                self._take(sample.topic, sample.log_time_ns, message)
+            except (KeyError, TypeError, ValueError):
+                self._values["last problem"] = f"unusable {sample.topic} message"
+            self._values["log time (s)"] = f"{sample.log_time_ns / 1e9:.2f}"
+
+    def _take(self, topic: str, t_ns: int, message: Message) -> None:
+        if topic == ESTIMATOR_POSE or (topic == TRUTH_POSE and "pose (estimate)" not in self._values):
+            p = message["pose"]["position"]
+            label = "pose (estimate)" if topic == ESTIMATOR_POSE else "pose (truth)"
+            heading = math.degrees(yaw_of(message["pose"]))
+            self._values[label] = f"x {float(p['x']):.2f} m, y {float(p['y']):.2f} m, yaw {heading:.0f} deg"
+            self._values["speed (m/s)"] = f"{float(message['speed_mps']):.2f}"
+            if topic == ESTIMATOR_POSE:
+                self._values["estimator"] = "healthy" if message.get("healthy") else "NOT healthy"
+        elif topic == NAVIGATOR_STATE:
+            self._values["mode"] = str(message["mode"])
+            self._values["speed limit"] = (
+                f"{message['speed_limit_mps']} m/s ({message['speed_limit_reason']})"
+            )
+            xte = message.get("cross_track_error_m")
+            self._values["cross-track error (m)"] = "n/a" if xte is None else f"{float(xte):.2f}"
+        elif topic == SAFETY_EVENTS:
+            self._values["last safety event"] = (
+                f"{message['severity']}: {message['kind']} {message['detail']}"
+            )
+        elif topic == CAN_FRAMES:
+            self._can_times.append(t_ns)
+            while self._can_times and self._can_times[0] <= t_ns - BUS_WINDOW_NS:
+                self._can_times.popleft()
+
+    def bus_load_pct(self, bitrate: int = 500_000) -> float:
+        """CAN frames seen in the last second of log time, as a share of ``bitrate``."""
+        with self._lock:
+            return 100.0 * len(self._can_times) * CAN_BITS_PER_FRAME / bitrate
+
+    def rows(self) -> list[tuple[str, str]]:
+        load = self.bus_load_pct()
+        with self._lock:
+            rows = sorted(self._values.items())
+        rows.append(("CAN bus load (%)", f"{load:.1f}"))
+        return rows

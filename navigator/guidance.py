@@ -1,0 +1,313 @@
+"""Guidance: planning, replanning and path following in one object, the navigator's drive loop brain.
+
+``Guidance`` owns a ``Planner`` (the believed map) and a follower (pure pursuit or Stanley). Each control
+tick calls ``update`` with the estimated pose and gets speed, yaw rate, a mode and the reason for the
+current speed limit. Obstacles seen on the way come in through ``observe``:
+
+* a *static* obstacle not seen before (and within ``sensing_range_m`` of the rover) is added to the map.
+  The plan is then *repaired*: costs only ever rise when obstacles are added, so a remaining path that
+  touches no cell whose cost changed is still optimal and is kept (checked in O(path length)); otherwise
+  a new plan is made from the current pose;
+* a *moving* obstacle is tracked (latest observation per id); if its constant-velocity prediction comes
+  within clearance of the path ahead within ``moving_horizon_s``, the rover stops (mode ``BLOCKED``) until
+  the way is clear.
+
+Speed limits on top of the follower's (curvature, goal approach): the slope under the rover, the terrain
+class, and the predicted tip-over margin: on a side slope of roll ``r`` the lateral acceleration ``v^2 k``
+of a turn may use only ``g tan(tip_roll - min_tip_margin - |r|)``.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+
+from navigator.config import PlannerConfig
+from navigator.errors import NoPathError, ParameterError, PlanningError, TerrainError
+from navigator.follower import FollowCommand, FollowerConfig, PurePursuit
+from navigator.perception import ObstacleObservation
+from navigator.planner import Path, Planner
+from navigator.stanley import Stanley
+from navigator.terrain import TerrainMap, disc_mask
+from navigator.terrain_classes import TERRAIN_CLASSES, TerrainClass
+from navigator.vehicle import G, VehicleParams
+
+_log = logging.getLogger(__name__)
+
+IDLE = "IDLE"
+DRIVING = "DRIVING"
+ARRIVED = "ARRIVED"
+NO_PATH = "NO_PATH"
+BLOCKED = "BLOCKED"
+
+REASON_SLOPE = "slope"
+REASON_TERRAIN = "terrain_class"
+REASON_TIP_MARGIN = "tip_margin"
+REASON_MOVING_OBSTACLE = "moving_obstacle"
+REASON_STOPPED = "stopped"
+
+# A rover further than this off its path replans from where it is (it was pushed, slid or mis-estimated).
+REPLAN_CROSS_TRACK_M = 2.0
+_PREDICTION_STEP_S = 0.25
+
+
+@dataclass(frozen=True)
+class GuidanceOutput:
+    speed_mps: float
+    yaw_rate_rps: float
+    mode: str
+    cross_track_error_m: float
+    speed_limit_mps: float
+    speed_limit_reason: str
+    path: Path | None
+    path_changed: bool  # a new path was made on this tick (publish it)
+    arrived: bool
+    detail: str  # what happened on this tick, for logs and events ("" when nothing new)
+
+
+class Guidance:
+    """Plans to a goal, repairs the plan as obstacles appear, and follows it within safe speed limits."""
+
+    def __init__(
+        self,
+        terrain: TerrainMap,
+        params: VehicleParams,
+        planner_config: PlannerConfig,
+        follower_config: FollowerConfig,
+        classes: dict[int, TerrainClass] = TERRAIN_CLASSES,
+    ) -> None:
+        self._params = params
+        self._classes = classes
+        self._config = planner_config
+        self._follower_config = follower_config
+        self.planner = Planner(
+            terrain,
+            params,
+            heuristic=planner_config.heuristic,
+            inflation_m=planner_config.inflation_m,
+            classes=classes,
+            cost_mode=planner_config.cost_mode,
+            heuristic_weight=planner_config.heuristic_weight,
+        )
+        self._follower: PurePursuit = (
+            Stanley(follower_config)
+            if follower_config.controller == "stanley"
+            else PurePursuit(follower_config)
+        )
+        self._clearance_m = params.footprint_radius_m + planner_config.inflation_m
+        self._goal: tuple[float, float] | None = None
+        self._path: Path | None = None
+        self._mode = IDLE
+        self._needs_plan = False
+        self._known_static: set[str] = set()
+        self._pending: list[ObstacleObservation] = []
+        self._moving: dict[str, ObstacleObservation] = {}
+        self._last_xy: tuple[float, float] | None = None
+        self.replans = 0
+        self.repairs_kept = 0
+
+    @property
+    def mode(self) -> str:
+        return self._mode
+
+    @property
+    def path(self) -> Path | None:
+        return self._path
+
+    @property
+    def goal(self) -> tuple[float, float] | None:
+        return self._goal
+
+    def set_goal(self, x: float, y: float) -> None:
+        if not (math.isfinite(x) and math.isfinite(y)):
+            raise ParameterError(f"goal must be finite, got ({x}, {y})")
+        self._goal = (float(x), float(y))
+        self._path = None
+        self._needs_plan = True
+        self._mode = DRIVING
+        self._follower.reset()
+
+    def observe(self, observations: Iterable[ObstacleObservation]) -> None:
+        """Take in obstacle observations (any number, any order); acted on at the next ``update``."""
+        for obs in observations:
+            if (
+                not all(math.isfinite(v) for v in (obs.x, obs.y, obs.radius_m, obs.vx, obs.vy))
+                or obs.radius_m < 0
+            ):
+                _log.warning(
+                    "rejected obstacle observation %r: non-finite or negative values", obs.obstacle_id
+                )
+                continue
+            if obs.moving:
+                self._moving[obs.obstacle_id] = obs
+            elif obs.obstacle_id not in self._known_static:
+                self._moving.pop(obs.obstacle_id, None)  # it stopped: from now on part of the map
+                self._pending.append(obs)
+
+    def update(self, t_ns: int, x: float, y: float, yaw: float, speed: float) -> GuidanceOutput:
+        """One tick: repair or make the plan as needed, then the command for the pose (ENU m, rad, m/s)."""
+        if not all(math.isfinite(v) for v in (x, y, yaw, speed)):
+            raise ParameterError(f"pose must be finite, got x={x}, y={y}, yaw={yaw}, speed={speed}")
+        self._last_xy = (x, y)
+        details: list[str] = []
+        path_changed = False
+        if self._pending:
+            details.append(self._absorb_static(x, y))
+        if self._goal is None:
+            return self._stopped(IDLE, "", path_changed)
+        if self._mode == ARRIVED:
+            return self._stopped(ARRIVED, "", path_changed, arrived=True)
+        if self._needs_plan:
+            detail = self._replan(x, y)
+            details.append(detail)
+            path_changed = self._path is not None
+            if self._path is None:
+                return self._stopped(NO_PATH, "; ".join(d for d in details if d), path_changed)
+        assert self._path is not None
+        command = self._follower.command(x, y, yaw, speed, self._path.points)
+        if abs(command.cross_track_error_m) > REPLAN_CROSS_TRACK_M and not command.arrived:
+            details.append(self._replan(x, y, why=f"{command.cross_track_error_m:+.1f} m off the path"))
+            if self._path is None:
+                return self._stopped(NO_PATH, "; ".join(d for d in details if d), True)
+            path_changed = True
+            command = self._follower.command(x, y, yaw, speed, self._path.points)
+        detail = "; ".join(d for d in details if d)
+        if command.arrived:
+            self._mode = ARRIVED
+            return self._stopped(ARRIVED, detail or "goal reached", path_changed, arrived=True)
+        blocker = self._blocking_obstacle(t_ns, x, y, speed)
+        if blocker is not None:
+            self._mode = BLOCKED
+            return GuidanceOutput(
+                0.0, 0.0, BLOCKED, command.cross_track_error_m, 0.0, REASON_MOVING_OBSTACLE, self._path,
+                path_changed, False, detail or f"moving obstacle {blocker} predicted on the path",
+            )  # fmt: skip
+        self._mode = DRIVING
+        return self._limited(command, x, y, yaw, path_changed, detail)
+
+    # --- planning -------------------------------------------------------------------------------------
+    def _replan(self, x: float, y: float, why: str = "") -> str:
+        assert self._goal is not None
+        self._needs_plan = False
+        try:
+            self._path = self.planner.plan((x, y), self._goal)
+        except NoPathError as err:
+            self._path = None
+            return f"no path: {err}"
+        except PlanningError as err:
+            self._path = None
+            return f"cannot plan: {err}"
+        self.replans += 1
+        self._follower.reset()
+        reason = f" ({why})" if why else ""
+        return f"planned {self._path.length_m:.1f} m, cost {self._path.cost:.1f}{reason}"
+
+    def _absorb_static(self, x: float, y: float) -> str:
+        terrain = self.planner.terrain
+        mask = np.zeros(terrain.shape, dtype=bool)
+        added: list[str] = []
+        kept: list[ObstacleObservation] = []
+        for obs in self._pending:
+            if math.hypot(obs.x - x, obs.y - y) - obs.radius_m > self._config.sensing_range_m:
+                kept.append(obs)  # not yet within sensing range: wait until the rover is near
+                continue
+            self._known_static.add(obs.obstacle_id)
+            mask |= disc_mask(terrain, obs.x, obs.y, obs.radius_m)
+            added.append(obs.obstacle_id)
+        self._pending = kept
+        if not added:
+            return ""
+        changed = self.planner.update_obstacles(mask)
+        if self._path is None or self._goal is None:
+            if self._goal is not None and self._mode == NO_PATH:
+                self._needs_plan = True
+            return f"obstacles {', '.join(added)} added to the map"
+        if self._path_touches(changed, x, y):
+            self._needs_plan = True
+            return f"obstacles {', '.join(added)} block the path: replanning"
+        self.repairs_kept += 1
+        return f"obstacles {', '.join(added)} added; the path is clear of them and still optimal"
+
+    def _path_touches(self, changed: np.ndarray, x: float, y: float) -> bool:
+        assert self._path is not None
+        terrain = self.planner.terrain
+        points = self._path.points
+        start = int(np.argmin(np.hypot(points[:, 0] - x, points[:, 1] - y)))
+        for px, py in points[max(start - 1, 0) :]:
+            try:
+                if changed[terrain.cell_of(float(px), float(py))]:
+                    return True
+            except TerrainError:
+                continue
+        return False
+
+    # --- moving obstacles -----------------------------------------------------------------------------
+    def _blocking_obstacle(self, t_ns: int, x: float, y: float, speed: float) -> str | None:
+        if not self._moving or self._path is None:
+            return None
+        points = self._path.points
+        start = int(np.argmin(np.hypot(points[:, 0] - x, points[:, 1] - y)))
+        reach = max(3.0, abs(speed) * self._config.moving_horizon_s + self._follower_config.lookahead_m)
+        ahead = [np.array([x, y])]
+        travelled = 0.0
+        for point in points[start + 1 :]:
+            travelled += float(np.hypot(*(point - ahead[-1])))
+            ahead.append(point)
+            if travelled > reach:
+                break
+        corridor = np.array(ahead)
+        steps = np.arange(0.0, self._config.moving_horizon_s + 1e-9, _PREDICTION_STEP_S)
+        for obstacle_id, obs in sorted(self._moving.items()):
+            age_s = max(0.0, (t_ns - obs.t_ns) * 1e-9)
+            xs = obs.x + obs.vx * (age_s + steps)
+            ys = obs.y + obs.vy * (age_s + steps)
+            gaps = np.hypot(corridor[:, 0][:, None] - xs[None, :], corridor[:, 1][:, None] - ys[None, :])
+            if float(gaps.min()) < obs.radius_m + self._clearance_m:
+                return obstacle_id
+        return None
+
+    # --- speed limits ---------------------------------------------------------------------------------
+    def _limited(
+        self, command: FollowCommand, x: float, y: float, yaw: float, path_changed: bool, detail: str
+    ) -> GuidanceOutput:
+        cfg = self._follower_config
+        limits = [(command.speed_limit_mps, command.speed_limit_reason)]
+        terrain = self.planner.terrain
+        if terrain.contains(x, y) and command.speed_mps > 0.0:
+            roll, pitch = terrain.tilt_at(x, y, yaw)
+            tilt = max(abs(roll), abs(pitch))
+            slope_scale = max(0.3, 1.0 - math.tan(tilt) / math.tan(self._params.tip_roll_rad))
+            limits.append((cfg.max_speed_mps * slope_scale, REASON_SLOPE))
+            factor = self._classes[terrain.class_at(x, y)].cost_factor
+            limits.append((cfg.max_speed_mps / math.sqrt(max(factor, 1.0)), REASON_TERRAIN))
+            room = self._params.tip_roll_rad - cfg.min_tip_margin_rad - abs(roll)
+            if abs(command.curvature_1pm) > 1e-9:
+                lateral = G * math.tan(max(room, 0.0))
+                limits.append(
+                    (
+                        max(math.sqrt(lateral / abs(command.curvature_1pm)), cfg.min_speed_mps),
+                        REASON_TIP_MARGIN,
+                    )
+                )
+        limit, reason = min(limits, key=lambda item: item[0])
+        speed, yaw_rate = command.speed_mps, command.yaw_rate_rps
+        if speed > limit > 0.0:
+            # Scale speed and yaw rate together: the curvature the follower asked for is kept.
+            yaw_rate *= limit / speed
+            speed = limit
+        return GuidanceOutput(
+            speed, yaw_rate, DRIVING, command.cross_track_error_m, limit, reason, self._path, path_changed,
+            False, detail,
+        )  # fmt: skip
+
+    def _stopped(
+        self, mode: str, detail: str, path_changed: bool, *, arrived: bool = False
+    ) -> GuidanceOutput:
+        self._mode = mode
+        return GuidanceOutput(
+            0.0, 0.0, mode, 0.0, 0.0, REASON_STOPPED, self._path, path_changed, arrived, detail,
+        )  # fmt: skip

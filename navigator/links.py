@@ -1,0 +1,38 @@
+"""Opening the rover's links from its config: the CAN bus to the motor controllers, MAVLink to the autopilot.
+
+On the rover that is ``socketcan``/``can0`` and a UDP (or, later, serial) MAVLink endpoint; in real-time
+HIL the same config names a ``udp_multicast`` channel (inside a private network namespace) and a
+loopback UDP port. Failures raise ``firmware_bridge.errors.BridgeSetupError`` naming what to check.
+"""
+
+from __future__ import annotations
+
+from firmware_bridge.can_link import CanLink, open_bus
+from firmware_bridge.errors import BridgeSetupError
+from firmware_bridge.mavlink_link import MavlinkLink
+from firmware_bridge.mavlink_transport import open_transport
+from firmware_bridge.vesc import VescCodec
+from firmware_bridge.vesc_dbc import load_vesc_database
+from logs.clock import Clock
+from logs.sink import MessageSink
+from navigator.config import RoverConfig
+
+
+def open_links(config: RoverConfig, clock: Clock, sink: MessageSink) -> tuple[CanLink, MavlinkLink]:
+    """Open CAN first, then MAVLink; if MAVLink fails the CAN bus is shut again."""
+    codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
+    can_link = CanLink(open_bus(config.can), codec, clock, sink)
+    try:
+        transport = open_transport(config.mavlink.connection, allow_remote=config.mavlink.allow_remote)
+    except BridgeSetupError:
+        can_link.close()
+        raise
+    mavlink = MavlinkLink(
+        transport,
+        clock,
+        sink,
+        system_id=config.mavlink.system_id,
+        component_id=config.mavlink.component_id,
+        autopilot_system_id=config.mavlink.autopilot_system_id,
+    )
+    return can_link, mavlink

@@ -1,0 +1,144 @@
+"""The real-time scheduler: a fixed-rate control loop, measurements fused as they arrive in between.
+
+Ticks are due at ``start + k * period`` (absolute deadlines, so no drift). Between ticks the loop waits
+in short slices and calls ``ingest`` so the estimator is current when the tick comes. A tick that runs
+late by more than a whole period skips the missed ticks (counted in ``overruns``) instead of bursting.
+The stop flag is polled every slice, so SIGINT/SIGTERM handlers only set it; the caller then stops the
+wheels and closes the recording.
+
+Each tick records its start-to-start period and the stack's sensor-to-command latency into bounded
+arrays (``TimingStats``), summarised as percentiles at the end.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from logs.clock import NS_PER_S, Clock
+
+_log = logging.getLogger(__name__)
+
+# Keep at most this many samples (an hour at 50 Hz); older ones are overwritten, so memory is bounded.
+MAX_SAMPLES = 180_000
+# Wait for input in slices of at most this long, so a measurement is fused soon after it arrives.
+WAIT_SLICE_NS = 1_000_000
+
+
+class RingStats:
+    """The last ``capacity`` int samples, in a preallocated array (no growth in a long run)."""
+
+    def __init__(self, capacity: int = MAX_SAMPLES) -> None:
+        self._data = np.zeros(capacity, dtype=np.int64)
+        self._count = 0
+
+    def add(self, value: int) -> None:
+        self._data[self._count % len(self._data)] = value
+        self._count += 1
+
+    @property
+    def count(self) -> int:
+        return self._count
+
+    def values(self) -> np.ndarray:
+        return self._data[: min(self._count, len(self._data))]
+
+    def summary_ms(self) -> dict[str, float]:
+        """p50, p99 and max in milliseconds (NaN when empty)."""
+        values = self.values()
+        if values.size == 0:
+            return {"p50_ms": float("nan"), "p99_ms": float("nan"), "max_ms": float("nan")}
+        p50, p99 = np.percentile(values, [50, 99])
+        return {"p50_ms": float(p50) / 1e6, "p99_ms": float(p99) / 1e6, "max_ms": float(values.max()) / 1e6}
+
+
+@dataclass
+class TimingStats:
+    jitter_ns: RingStats  # |actual period - nominal period|
+    latency_ns: RingStats  # sensor arrival -> wheel command
+    tick_ns: RingStats  # time spent in one tick
+    overruns: int = 0
+    ticks: int = 0
+
+    @classmethod
+    def empty(cls) -> TimingStats:
+        return cls(RingStats(), RingStats(), RingStats())
+
+    def summary(self) -> dict[str, object]:
+        return {
+            "ticks": self.ticks,
+            "overruns": self.overruns,
+            "jitter": self.jitter_ns.summary_ms(),
+            "latency": self.latency_ns.summary_ms(),
+            "tick_time": self.tick_ns.summary_ms(),
+        }
+
+
+class FixedRateScheduler:
+    """Calls ``tick`` at ``rate_hz`` on ``clock``; ``ingest`` while waiting; ``wait(seconds)`` to idle.
+
+    ``latency`` (optional) returns the stack's last sensor-to-command latency after each tick.
+    """
+
+    def __init__(
+        self,
+        clock: Clock,
+        rate_hz: float,
+        tick: Callable[[], None],
+        *,
+        ingest: Callable[[], None] | None = None,
+        wait: Callable[[float], None],
+        latency: Callable[[], int | None] | None = None,
+        stop: threading.Event | None = None,
+    ) -> None:
+        if not rate_hz > 0:
+            raise ValueError(f"rate_hz must be > 0, got {rate_hz}")
+        self._clock = clock
+        self.period_ns = round(NS_PER_S / rate_hz)
+        self._tick = tick
+        self._ingest = ingest
+        self._wait = wait
+        self._latency = latency
+        self.stop = stop or threading.Event()
+        self.stats = TimingStats.empty()
+
+    def run(self, duration_ns: int | None = None) -> TimingStats:
+        """Run until ``stop`` is set (or ``duration_ns`` has passed); returns the timing statistics."""
+        start = self._clock.now_ns()
+        end = None if duration_ns is None else start + duration_ns
+        due = start
+        previous_start: int | None = None
+        while not self.stop.is_set():
+            now = self._clock.now_ns()
+            if end is not None and now >= end:
+                break
+            if now < due:
+                if self._ingest is not None:
+                    self._ingest()
+                remaining = due - self._clock.now_ns()
+                if remaining > 0:
+                    self._wait(min(remaining, WAIT_SLICE_NS) / NS_PER_S)
+                continue
+            tick_start = now
+            self._tick()
+            tick_end = self._clock.now_ns()
+            self.stats.ticks += 1
+            self.stats.tick_ns.add(tick_end - tick_start)
+            if previous_start is not None:
+                self.stats.jitter_ns.add(abs(tick_start - previous_start - self.period_ns))
+            previous_start = tick_start
+            if self._latency is not None:
+                latency = self._latency()
+                if latency is not None:
+                    self.stats.latency_ns.add(latency)
+            due += self.period_ns
+            if tick_end - due > self.period_ns:
+                missed = (tick_end - due) // self.period_ns
+                self.stats.overruns += int(missed)
+                due += missed * self.period_ns
+                _log.warning("control loop overran: skipped %d tick(s)", missed)
+        return self.stats

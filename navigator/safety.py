@@ -1,0 +1,308 @@
+"""The safety supervisor: explicit modes, one failsafe per hazard, every transition reported with its cause.
+
+It is pure: each control tick the onboard stack hands it what the links and the estimator say
+(``SafetyInputs``) and whether guidance wants to drive; it answers with the mode and how much of the
+guidance command may reach the wheels (``SafetyDecision.speed_scale``: 0 stops them). Time comes in the
+inputs, so lockstep tests hit every threshold to the tick. Failsafes, thresholds, actions and how each one
+clears are listed in docs/safety.md; the names below are the ``kind`` suffixes on ``safety/events``
+(``failsafe.<name>`` when one fires, ``cleared.<name>`` when it clears, ``mode`` for mode changes).
+
+A timed failsafe fires when the measured age or duration is strictly greater than its threshold, so with
+a 20 ms tick it fires on the first tick past the threshold and not on the one before it.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from logs.clock import NS_PER_S, to_ns
+from navigator.safety_config import SafetyConfig
+from navigator.vehicle import VehicleParams, stability_margins
+
+EventSink = Callable[[str, str, str], None]  # (kind, severity, detail)
+
+# Failsafes whose action is HOLD (zero wheel commands until they clear).
+LOOP_STALL = "loop_stall"
+WHEEL_SILENT = "wheel_silent"
+CAN_BUS_OFF = "can_bus_off"
+ESTIMATOR_UNHEALTHY = "estimator_unhealthy"
+GPS_LOST = "gps_lost"
+HEARTBEAT_LOST = "heartbeat_lost"
+GROUND_LINK_LOST = "ground_link_lost"
+STUCK = "stuck"
+TIP_OVER = "tip_over"
+GEOFENCE = "geofence"
+BATTERY_CRITICAL = "battery_critical"
+# Failsafes with other actions.
+BATTERY_LOW = "battery_low"  # speed limited
+ESTOP = "estop"  # latched ESTOP mode
+# A pack reading below this is "no reading yet" (STATUS_5 not received), not a flat battery.
+_NO_VOLTAGE_V = 1.0
+
+
+class SafetyMode(enum.StrEnum):
+    IDLE = "IDLE"  # nothing to do (no goal, arrived, or not yet ready): wheels at zero
+    DRIVING = "DRIVING"  # guidance commands reach the wheels (possibly speed-limited)
+    HOLD = "HOLD"  # a failsafe is active: wheels at zero until it clears
+    ESTOP = "ESTOP"  # emergency stop: wheels at zero until an explicit resume
+
+
+@dataclass(frozen=True)
+class SafetyInputs:
+    """What the supervisor judges, all measured at ``now_ns`` (clock ns). ``None`` means never seen."""
+
+    now_ns: int
+    tick_gap_ns: int | None  # since the previous control tick
+    wheel_last_status_ns: tuple[int | None, ...]
+    can_bus_off: bool  # the CAN link says it cannot transmit
+    can_send_failing_since_ns: int | None  # first tick of the current run of failed wheel-command sends
+    estimator_healthy: bool
+    last_gps_ns: int | None  # last GPS fix with a 3D fix or better
+    last_heartbeat_ns: int | None  # last autopilot HEARTBEAT
+    last_ground_contact_ns: int | None  # last sign of life from the ground station
+    sent_speed_mps: float  # body speed commanded on the previous tick
+    sent_at_ns: int  # when that command was sent
+    measured_speed_mps: float | None  # estimated body speed
+    roll_pitch_rad: tuple[float, float] | None  # from the autopilot's AHRS
+    lateral_accel_mps2: float
+    position_xy: tuple[float, float] | None  # estimated, local ENU
+    battery_v: float | None  # pack voltage as the motor controllers see it
+
+
+@dataclass(frozen=True)
+class SafetyDecision:
+    mode: SafetyMode
+    speed_scale: float  # multiply guidance's speed and yaw rate by this; 0 stops the wheels
+    faults: tuple[str, ...]  # active failsafes, sorted
+
+
+def inside_polygon(x: float, y: float, polygon: tuple[tuple[float, float], ...]) -> bool:
+    """Even-odd rule: a ray to +x crosses the polygon's edges an odd number of times iff inside."""
+    inside = False
+    n = len(polygon)
+    for i in range(n):
+        x1, y1 = polygon[i]
+        x2, y2 = polygon[(i + 1) % n]
+        if (y1 > y) != (y2 > y) and x < x1 + (y - y1) * (x2 - x1) / (y2 - y1):
+            inside = not inside
+    return inside
+
+
+class SafetySupervisor:
+    """Turns inputs into a mode; reports every failsafe firing or clearing and every mode change."""
+
+    def __init__(self, config: SafetyConfig, vehicle: VehicleParams, start_ns: int, emit: EventSink) -> None:
+        self._config = config
+        self._vehicle = vehicle
+        self._start_ns = start_ns
+        self._emit = emit
+        self._active: dict[str, str] = {}  # failsafe -> detail when it fired
+        self._since: dict[str, int] = {}  # condition -> first tick it was seen (for sustained conditions)
+        self.mode = SafetyMode.IDLE
+        c = config
+        self._stall_ns = to_ns(c.loop_stall_s)
+        self._silent_ns = to_ns(c.wheel_silent_s)
+        self._can_fail_ns = to_ns(c.can_fail_s)
+        self._unhealthy_ns = to_ns(c.estimator_unhealthy_s)
+        self._gps_ns = to_ns(c.gps_budget_s)
+        self._heartbeat_ns = to_ns(c.heartbeat_timeout_s)
+        self._ground_ns = to_ns(c.ground_link_timeout_s)
+        self._stuck_ns = to_ns(c.stuck_time_s)
+        self._battery_ns = to_ns(c.battery_debounce_s)
+        self._tip_rad = math.radians(c.tip_margin_deg)
+        self._tip_clear_rad = math.radians(c.tip_margin_deg + c.tip_clear_deg)
+
+    @property
+    def faults(self) -> tuple[str, ...]:
+        return tuple(sorted(self._active))
+
+    # --- commands -------------------------------------------------------------------------------
+    def estop(self, source: str) -> None:
+        """Latch the emergency stop (from Zenoh, MAVLink or the operator)."""
+        self._trip(ESTOP, "error", f"emergency stop from {source}")
+
+    def resume(self, source: str) -> None:
+        """Clear the e-stop and the latched stuck check: the operator has looked and says go."""
+        for name in (ESTOP, STUCK):
+            self._clear(name, f"resume from {source}")
+
+    def new_goal(self) -> None:
+        """A new goal clears the stuck check: the operator chose where to go next."""
+        self._clear(STUCK, "new goal")
+
+    # --- the tick -------------------------------------------------------------------------------
+    def update(self, inputs: SafetyInputs, wants_to_drive: bool) -> SafetyDecision:
+        self._check_loop(inputs)
+        self._check_links(inputs)
+        self._check_estimate(inputs, wants_to_drive)
+        self._check_motion(inputs)
+        self._check_battery(inputs)
+        return self._decide(wants_to_drive)
+
+    def _check_loop(self, i: SafetyInputs) -> None:
+        gap = i.tick_gap_ns
+        # Judged per tick: the tick after a stall runs with zero commands, the next on-time tick clears it.
+        stalled = gap is not None and gap > self._stall_ns
+        self._set(
+            LOOP_STALL,
+            _detail(stalled, f"control tick {_ms(gap or 0)} after the previous one", self._stall_ns),
+        )
+
+    def _check_links(self, i: SafetyInputs) -> None:
+        silent = [
+            f"#{index}"
+            for index, t in enumerate(i.wheel_last_status_ns)
+            if self._age(i.now_ns, t) > self._silent_ns
+        ]
+        self._set(
+            WHEEL_SILENT,
+            f"wheel controller(s) {', '.join(silent)} silent for more than {_ms(self._silent_ns)}"
+            if silent
+            else None,
+        )
+        failing = 0 if i.can_send_failing_since_ns is None else i.now_ns - i.can_send_failing_since_ns
+        if i.can_bus_off:
+            self._set(CAN_BUS_OFF, "the CAN link reports bus-off")
+        else:
+            self._set(
+                CAN_BUS_OFF,
+                _detail(
+                    failing > self._can_fail_ns, f"CAN sends failing for {_ms(failing)}", self._can_fail_ns
+                ),
+            )
+        self._timeout(
+            HEARTBEAT_LOST, "no autopilot heartbeat", i.now_ns, i.last_heartbeat_ns, self._heartbeat_ns
+        )
+        self._timeout(
+            GROUND_LINK_LOST,
+            "no word from the ground station",
+            i.now_ns,
+            i.last_ground_contact_ns,
+            self._ground_ns,
+        )
+
+    def _check_estimate(self, i: SafetyInputs, wants_to_drive: bool) -> None:
+        self._timeout(GPS_LOST, "no 3D GPS fix", i.now_ns, i.last_gps_ns, self._gps_ns)
+        # Before driving, an unhealthy estimate is the start-up wait, not a fault.
+        unhealthy = self._sustained(ESTIMATOR_UNHEALTHY, not i.estimator_healthy, i.now_ns)
+        if self._active.get(ESTIMATOR_UNHEALTHY) is None and not wants_to_drive:
+            unhealthy = 0
+        if i.estimator_healthy:
+            self._set(ESTIMATOR_UNHEALTHY, None)
+        elif unhealthy > self._unhealthy_ns:
+            self._set(
+                ESTIMATOR_UNHEALTHY,
+                f"estimate unhealthy for {_ms(unhealthy)} (limit {_ms(self._unhealthy_ns)})",
+            )
+
+    def _check_motion(self, i: SafetyInputs) -> None:
+        c = self._config
+        not_moving = i.measured_speed_mps is None or abs(i.measured_speed_mps) < c.stuck_max_speed_mps
+        pushing = abs(i.sent_speed_mps) >= c.stuck_min_command_mps and not_moving
+        # Counted from when the command went out, not from the tick that first sees it had no effect.
+        pushed = self._sustained(STUCK, pushing, i.now_ns, start_ns=i.sent_at_ns)
+        if self._stuck_ns > 0 and pushed > self._stuck_ns:
+            # Latched (like ArduPilot's crash check): cleared by a new goal or a resume, not by itself.
+            self._trip(
+                STUCK,
+                "error",
+                f"commanded {i.sent_speed_mps:.2f} m/s but moving < {c.stuck_max_speed_mps} m/s "
+                f"for {_ms(pushed)}",
+            )
+        if i.roll_pitch_rad is not None:
+            roll, pitch = i.roll_pitch_rad
+            margin = min(stability_margins(self._vehicle, roll, pitch, i.lateral_accel_mps2))
+            if margin < self._tip_rad:
+                self._trip(
+                    TIP_OVER,
+                    "error",
+                    f"tip-over margin {math.degrees(margin):.1f} deg < {c.tip_margin_deg} deg "
+                    f"(roll {math.degrees(roll):.1f}, pitch {math.degrees(pitch):.1f} deg)",
+                )
+            elif margin > self._tip_clear_rad:
+                self._clear(TIP_OVER, f"margin back to {math.degrees(margin):.1f} deg")
+        if c.fence and i.position_xy is not None:
+            x, y = i.position_xy
+            if not inside_polygon(x, y, c.fence):
+                self._trip(GEOFENCE, "error", f"position ({x:.2f}, {y:.2f}) is outside the geofence")
+            else:
+                self._clear(GEOFENCE, f"back inside the geofence at ({x:.2f}, {y:.2f})")
+
+    def _check_battery(self, i: SafetyInputs) -> None:
+        c = self._config
+        v = i.battery_v if i.battery_v is not None and i.battery_v > _NO_VOLTAGE_V else None
+        for name, threshold, severity in (
+            (BATTERY_CRITICAL, c.battery_critical_v, "error"),
+            (BATTERY_LOW, c.battery_low_v, "warning"),
+        ):
+            low_for = self._sustained(name, v is not None and v < threshold, i.now_ns)
+            if v is None:
+                continue
+            if low_for > self._battery_ns:
+                self._trip(name, severity, f"battery {v:.2f} V below {threshold} V for {_ms(low_for)}")
+            elif v > threshold + c.battery_clear_v:
+                self._clear(name, f"battery back to {v:.2f} V")
+
+    def _decide(self, wants_to_drive: bool) -> SafetyDecision:
+        holds = sorted(name for name in self._active if name not in (ESTOP, BATTERY_LOW))
+        if ESTOP in self._active:
+            mode, cause = SafetyMode.ESTOP, self._active[ESTOP]
+        elif holds:
+            mode, cause = SafetyMode.HOLD, ", ".join(holds)
+        elif wants_to_drive:
+            mode, cause = SafetyMode.DRIVING, "guidance has a path and no failsafe is active"
+        else:
+            mode, cause = SafetyMode.IDLE, "nothing to drive to"
+        if mode is not self.mode:
+            severity = "info" if mode in (SafetyMode.IDLE, SafetyMode.DRIVING) else "error"
+            self._emit("mode", severity, f"{self.mode.value} -> {mode.value}: {cause}")
+            self.mode = mode
+        scale = 0.0
+        if mode is SafetyMode.DRIVING:
+            scale = self._config.battery_low_speed_scale if BATTERY_LOW in self._active else 1.0
+        return SafetyDecision(mode, scale, self.faults)
+
+    # --- helpers --------------------------------------------------------------------------------
+    def _age(self, now_ns: int, t_ns: int | None) -> int:
+        """Time since ``t_ns``; never seen counts from the supervisor's start."""
+        return now_ns - (self._start_ns if t_ns is None else t_ns)
+
+    def _sustained(self, key: str, condition: bool, now_ns: int, start_ns: int | None = None) -> int:
+        """How long ``condition`` has held (0 when it does not): from the first tick it was seen."""
+        if not condition:
+            self._since.pop(key, None)
+            return 0
+        return now_ns - self._since.setdefault(key, now_ns if start_ns is None else start_ns)
+
+    def _timeout(self, name: str, what: str, now_ns: int, last_ns: int | None, limit_ns: int) -> None:
+        if limit_ns <= 0:
+            return
+        age = self._age(now_ns, last_ns)
+        self._set(name, _detail(age > limit_ns, f"{what} for {_ms(age)}", limit_ns))
+
+    def _set(self, name: str, detail: str | None, severity: str = "error") -> None:
+        """A self-clearing failsafe: active exactly while ``detail`` is not None."""
+        if detail is not None:
+            self._trip(name, severity, detail)
+        else:
+            self._clear(name, "condition gone")
+
+    def _trip(self, name: str, severity: str, detail: str) -> None:
+        if name not in self._active:
+            self._active[name] = detail
+            self._emit(f"failsafe.{name}", severity, detail)
+
+    def _clear(self, name: str, why: str) -> None:
+        if self._active.pop(name, None) is not None:
+            self._emit(f"cleared.{name}", "info", why)
+
+
+def _detail(condition: bool, what: str, limit_ns: int) -> str | None:
+    return f"{what} (limit {_ms(limit_ns)})" if condition else None
+
+
+def _ms(t_ns: int) -> str:
+    return f"{t_ns / (NS_PER_S / 1000):.0f} ms"

@@ -1,0 +1,89 @@
+"""The ``[safety]`` table: every failsafe's threshold, in one frozen dataclass validated on load.
+
+Defaults follow ArduPilot Rover's where it has an equivalent (crash check 2 s, GCS failsafe off by default,
+battery low/critical with a debounce timer); docs/safety.md lists each failsafe with threshold and action.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from logs.settings import Table
+
+# A fence polygon needs at least a triangle.
+MIN_FENCE_VERTICES = 3
+
+
+@dataclass(frozen=True)
+class SafetyConfig:
+    """Failsafe thresholds (seconds, metres, volts, degrees). A timeout of 0 turns that failsafe off."""
+
+    loop_stall_s: float = 0.2
+    wheel_silent_s: float = 0.25
+    can_fail_s: float = 0.1
+    estimator_unhealthy_s: float = 0.5
+    gps_budget_s: float = 3.0
+    heartbeat_timeout_s: float = 3.0
+    ground_link_timeout_s: float = 0.0  # off: a rover working alone must not stop when the GCS drops
+    stuck_time_s: float = 2.0
+    stuck_min_command_mps: float = 0.2
+    stuck_max_speed_mps: float = 0.05
+    tip_margin_deg: float = 10.0
+    tip_clear_deg: float = 3.0  # hysteresis: margin must exceed threshold + this to clear
+    fence: tuple[tuple[float, float], ...] = ()  # ENU polygon; empty = no geofence
+    battery_low_v: float = 21.0  # 6S at 3.5 V/cell
+    battery_critical_v: float = 20.0  # 6S at 3.33 V/cell
+    battery_debounce_s: float = 2.0  # voltage sags under load; only a sustained low counts
+    battery_clear_v: float = 0.3  # hysteresis above a battery threshold before it clears
+    battery_low_speed_scale: float = 0.5
+
+    @classmethod
+    def from_table(cls, table: Table) -> SafetyConfig:
+        d = cls()
+
+        def seconds(key: str, default: float) -> float:
+            return table.number(key, default, lo=0.0, hi=3600.0)
+
+        fence_raw = table.raw("fence", [])
+        if not isinstance(fence_raw, list) or any(
+            not isinstance(p, list)
+            or len(p) != 2
+            or not all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in p)
+            for p in fence_raw
+        ):
+            raise table.error("fence", f"expected a list of [x, y] points in ENU metres, got {fence_raw!r}")
+        if fence_raw and len(fence_raw) < MIN_FENCE_VERTICES:
+            raise table.error(
+                "fence", f"a fence needs at least {MIN_FENCE_VERTICES} points, got {len(fence_raw)}"
+            )
+        config = cls(
+            loop_stall_s=table.number("loop_stall_s", d.loop_stall_s, lo=0.001, hi=10.0),
+            wheel_silent_s=seconds("wheel_silent_s", d.wheel_silent_s),
+            can_fail_s=seconds("can_fail_s", d.can_fail_s),
+            estimator_unhealthy_s=seconds("estimator_unhealthy_s", d.estimator_unhealthy_s),
+            gps_budget_s=seconds("gps_budget_s", d.gps_budget_s),
+            heartbeat_timeout_s=seconds("heartbeat_timeout_s", d.heartbeat_timeout_s),
+            ground_link_timeout_s=seconds("ground_link_timeout_s", d.ground_link_timeout_s),
+            stuck_time_s=seconds("stuck_time_s", d.stuck_time_s),
+            stuck_min_command_mps=table.number("stuck_min_command_mps", d.stuck_min_command_mps, lo=0.0),
+            stuck_max_speed_mps=table.number("stuck_max_speed_mps", d.stuck_max_speed_mps, lo=0.0),
+            tip_margin_deg=table.number("tip_margin_deg", d.tip_margin_deg, lo=0.0, hi=90.0),
+            tip_clear_deg=table.number("tip_clear_deg", d.tip_clear_deg, lo=0.0, hi=90.0),
+            fence=tuple((float(p[0]), float(p[1])) for p in fence_raw),
+            battery_low_v=table.number("battery_low_v", d.battery_low_v, lo=0.0, hi=1000.0),
+            battery_critical_v=table.number("battery_critical_v", d.battery_critical_v, lo=0.0, hi=1000.0),
+            battery_debounce_s=seconds("battery_debounce_s", d.battery_debounce_s),
+            battery_clear_v=table.number("battery_clear_v", d.battery_clear_v, lo=0.0, hi=100.0),
+            battery_low_speed_scale=table.number(
+                "battery_low_speed_scale", d.battery_low_speed_scale, lo=0.0, hi=1.0
+            ),
+        )
+        if config.battery_critical_v > config.battery_low_v:
+            raise table.error(
+                "battery_critical_v",
+                f"must not exceed battery_low_v ({config.battery_low_v} V), "
+                f"got {config.battery_critical_v} V",
+            )
+        table.finish()
+        return config

@@ -1,0 +1,44 @@
+"""``rover bench can``: VESC frame rounds per second and latency on the virtual bus, and the bus load."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from typing import Any
+
+from rich.console import Console
+from rich.table import Table as RichTable
+
+from firmware_bridge.can_bench import run_can_bench
+
+
+def register(commands: Any) -> None:
+    bench = commands.add_parser("can", help="CAN rounds/s, receive latency and bus load (virtual bus)")
+    bench.add_argument("--rounds", type=int, default=20_000, help="frames per measurement (default 20000)")
+    bench.add_argument("--json", action="store_true", help="print the figures as one JSON object")
+    bench.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    result = run_can_bench(max(args.rounds, 200))
+    if args.json:
+        print(json.dumps(result.as_dict()))
+        return 0
+    console = Console()
+    table = RichTable(title=f"CAN rounds (encode -> send -> receive -> decode), {result.rounds} frames")
+    table.add_column("implementation")
+    table.add_column("rounds/s", justify="right")
+    table.add_column("µs/round", justify="right")
+    for figures in [result.ours, *result.peers]:
+        table.add_row(figures.name, f"{figures.rounds_per_s:,.0f}", f"{figures.us_per_round:.1f}")
+    console.print(table)
+    six = result.link_six_wheel_rounds_per_s
+    console.print(f"CanLink six-wheel command rounds/s (recorded to a null sink): {six:,.0f}")
+    p50, p99 = result.latency_p50_us, result.latency_p99_us
+    console.print(f"receive latency on the virtual bus: p50 {p50:.1f} µs, p99 {p99:.1f} µs")
+    load = result.bus_load
+    console.print(
+        f"default rates on 1 Mbit/s: {load.frames_per_s:,.0f} frames/s, {load.load_pct_nominal:.1f} % "
+        f"(no stuffing) to {load.load_pct_worst:.1f} % (worst-case stuffing)"
+    )
+    return 0

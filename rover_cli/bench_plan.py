@@ -1,0 +1,47 @@
+"""``rover bench plan``: our A* against pyastar2d and python-tcod on seeded maps (navigator.plan_bench)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from typing import Any
+
+from navigator.plan_bench import DEFAULT_SIZES, SizeResult, repair_figures, run_size, warm_up
+
+
+def register(commands: Any) -> None:
+    bench = commands.add_parser("plan", help="A*: ours vs pyastar2d and tcod; plan repair vs fresh plan")
+    bench.add_argument("--sizes", type=int, nargs="+", default=list(DEFAULT_SIZES), help="map sizes (cells)")
+    bench.add_argument("--repeats", type=int, default=3, help="runs per solver and size (median reported)")
+    bench.add_argument("--seed", type=int, default=1)
+    bench.add_argument("--json", action="store_true", help="print the figures as one JSON object")
+    bench.set_defaults(handler=run_bench)
+
+
+def run_bench(args: argparse.Namespace) -> int:
+    warm_up()
+    smallest = min(args.sizes)
+    results: list[SizeResult] = [run_size(s, args.seed, args.repeats, s == smallest) for s in args.sizes]
+    repair = repair_figures(1024 if 1024 in args.sizes else max(args.sizes), args.seed, args.repeats)
+    if args.json:
+        print(json.dumps({"sizes": [vars(r) for r in results], "repair": repair}))
+        return 0
+    for r in results:
+        print(f"{r.size} x {r.size}:")
+        for name, ms in r.times_ms.items():
+            expanded = r.expanded.get(name)
+            cost = r.costs.get(name)
+            print(
+                f"  {name:<12} {ms:9.1f} ms   x{r.ratios[name]:5.2f} of pyastar2d"
+                + (f"   expanded {expanded}" if expanded is not None else "")
+                + (f"   cost {cost:.2f}" if cost is not None else "")
+            )
+    print(
+        f"repair on {repair['size']}^2 after a local change: {repair['repair_ms']:.1f} ms vs fresh plan "
+        f"{repair['fresh_ms']:.1f} ms ({100 * repair['ratio']:.1f} %), same cost: {repair['same_cost']}"
+    )
+    print(
+        f"  change off the path: {repair['off_path_repair_ms']:.1f} ms "
+        f"({100 * repair['off_path_ratio']:.2f} %), same cost: {repair['off_path_same_cost']}"
+    )
+    return 0

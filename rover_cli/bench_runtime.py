@@ -1,0 +1,213 @@
+"""``rover bench runtime``: real-time HIL at the control rate; loop jitter, sensor-to-command latency, CPU.
+
+The onboard stack runs in this thread with the real-time scheduler, recording to MCAP and (unless
+``--no-telemetry``) publishing on Zenoh with the shipped loopback config. The simulated rover runs in a
+second thread at 100 Hz: six VESCs on a python-can ``virtual`` bus and the autopilot over MAVLink on UDP
+127.0.0.1 (a port from the OS). Peers measured in the same run: the scheduler with an empty tick (what
+the OS and Python give at best) and the full stack. CPU is the control thread's own (RUSAGE_THREAD).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import resource
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from logs.clock import MonotonicClock, seconds
+
+DATUM = (47.0, 8.0, 400.0)
+SIM_DT_NS = 10_000_000
+
+
+def register(commands: Any) -> None:
+    bench = commands.add_parser("runtime", help="real-time loop jitter and sensor-to-command latency")
+    bench.add_argument("--seconds", type=float, default=60.0, help="length of the full-stack run")
+    bench.add_argument("--no-telemetry", action="store_true", help="record only (no Zenoh)")
+    bench.add_argument("--json", action="store_true", help="print the figures as one JSON object")
+    bench.set_defaults(handler=run_bench)
+
+
+def _thread_cpu_s() -> float:
+    usage = resource.getrusage(resource.RUSAGE_THREAD)
+    return usage.ru_utime + usage.ru_stime
+
+
+def _empty_loop(duration_s: float) -> dict[str, Any]:
+    from navigator.runtime import FixedRateScheduler
+
+    cpu0, wall0 = _thread_cpu_s(), time.perf_counter()
+    stats = FixedRateScheduler(MonotonicClock(), 50.0, lambda: None, wait=time.sleep).run(
+        round(duration_s * 1e9)
+    )
+    figures = stats.summary()
+    figures["cpu_pct"] = 100.0 * (_thread_cpu_s() - cpu0) / (time.perf_counter() - wall0)
+    return figures
+
+
+def _sim_peer(stop: threading.Event, bus: Any, mavlink_port: int, config: Any, terrain: Any) -> None:
+    """The simulated rover, paced on the monotonic clock at 100 Hz until ``stop``."""
+    from firmware_bridge.mavlink_transport import UdpTransport
+    from firmware_bridge.vesc import VescCodec
+    from firmware_bridge.vesc_dbc import load_vesc_database
+    from hil.autopilot_sim import AutopilotTruth, SimAutopilot
+    from hil.dynamics import RoverDynamics
+    from hil.vesc_sim import SimVescBank
+
+    clock = MonotonicClock()
+    codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
+    vescs = SimVescBank(bus, codec, clock)
+    transport = UdpTransport("udpout", "127.0.0.1", mavlink_port)
+    autopilot = SimAutopilot(
+        transport,
+        clock,
+        np.random.default_rng(1),
+        datum_lat_deg=DATUM[0],
+        datum_lon_deg=DATUM[1],
+        datum_alt_m=DATUM[2],
+    )
+    body = RoverDynamics(terrain, config.vehicle, x=5.0, y=5.0, yaw=0.785)
+    due = clock.now_ns()
+    dt_s = seconds(SIM_DT_NS)
+    while not stop.is_set():
+        vescs.poll()
+        step = body.step(dt_s, vescs.wheel_speeds_mps(), 24.0)
+        vescs.set_electrical(step.motor_currents_a, 24.0)
+        vescs.step(dt_s)
+        autopilot.step(
+            AutopilotTruth(
+                x_m=body.x,
+                y_m=body.y,
+                z_m=0.0,
+                yaw_rad=body.yaw,
+                speed_mps=body.speed,
+                yaw_rate_rps=body.yaw_rate,
+                accel_body_mps2=step.specific_force_body_mps2,
+            )
+        )
+        autopilot.poll()
+        due += SIM_DT_NS
+        remaining = due - clock.now_ns()
+        if remaining > 0:
+            time.sleep(remaining / 1e9)
+    transport.close()
+    bus.shutdown()
+
+
+def _full_stack(duration_s: float, telemetry: bool) -> dict[str, Any]:
+    from firmware_bridge.can_link import CanLink, open_bus
+    from firmware_bridge.mavlink_link import MavlinkLink
+    from firmware_bridge.mavlink_transport import UdpTransport
+    from firmware_bridge.vesc import VescCodec
+    from firmware_bridge.vesc_dbc import load_vesc_database
+    from logs.recorder import McapRecorder
+    from logs.settings import parse_toml
+    from logs.sink import FanoutSink, MessageSink
+    from logs.telemetry import ZenohTelemetry, open_session
+    from navigator.config import rover_config_from_table
+    from navigator.onboard import OnboardStack
+    from navigator.runtime import FixedRateScheduler
+    from navigator.terrain import from_maze
+
+    config = rover_config_from_table(parse_toml(Path("configs/rover.toml").read_text(), "configs/rover.toml"))
+    estimator = dataclasses.replace(
+        config.estimator, datum_lat_deg=DATUM[0], datum_lon_deg=DATUM[1], datum_alt_m=DATUM[2]
+    )
+    config = dataclasses.replace(config, estimator=estimator)
+    bus_config = dataclasses.replace(
+        config.can, interface="virtual", channel=f"bench-runtime-{time.monotonic_ns()}"
+    )
+    terrain = from_maze(np.full((20, 20), 2), 2.0)
+    clock = MonotonicClock()
+    stop = threading.Event()
+    session = open_session(config.zenoh) if telemetry else None
+    with tempfile.TemporaryDirectory() as tmp, McapRecorder(Path(tmp) / "bench.mcap") as recorder:
+        publisher = ZenohTelemetry(session, config.rover_id) if session is not None else None
+        sink: MessageSink = recorder if publisher is None else FanoutSink([recorder, publisher])
+        mavlink_transport = UdpTransport("udpin", "127.0.0.1", 0)
+        codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
+        can_link = CanLink(open_bus(bus_config), codec, clock, sink)
+        mavlink = MavlinkLink(mavlink_transport, clock, sink)
+        stack = OnboardStack(config, clock, can_link, mavlink, sink, terrain)
+        stack.set_goal(35.0, 35.0)
+        peer = threading.Thread(
+            target=_sim_peer,
+            args=(stop, open_bus(bus_config), mavlink_transport.local_address[1], config, terrain),
+            daemon=True,
+        )
+        peer.start()
+        scheduler = FixedRateScheduler(
+            clock,
+            config.control_rate_hz,
+            stack.step,
+            ingest=stack.ingest,
+            wait=time.sleep,
+            latency=lambda: stack.last_sensor_to_command_ns,
+        )
+        cpu0, wall0 = _thread_cpu_s(), time.perf_counter()
+        try:
+            stats = scheduler.run(round(duration_s * 1e9))
+        finally:
+            cpu = 100.0 * (_thread_cpu_s() - cpu0) / (time.perf_counter() - wall0)
+            stop.set()
+            peer.join(timeout=5.0)
+            stack.close()
+            if publisher is not None:
+                publisher.close()
+    if session is not None:
+        session.close()
+    figures = stats.summary()
+    figures["cpu_pct"] = cpu
+    figures["final_mode"] = stack.safety_mode.value
+    return figures
+
+
+def run_bench(args: argparse.Namespace) -> int:
+    peers = {
+        "empty tick (scheduler only)": _empty_loop(min(10.0, args.seconds)),
+        "stack + recording" + ("" if args.no_telemetry else " + telemetry"): _full_stack(
+            args.seconds, not args.no_telemetry
+        ),
+    }
+    if args.json:
+        # NaN (no latency samples for the empty tick) is not JSON: write null.
+        print(json.dumps(_no_nan({"rate_hz": 50.0, "peers": peers}), indent=2))
+        return 0
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(
+        title=f"rover bench runtime: 50 Hz real-time HIL, {args.seconds:g} s (goal p99 jitter <= 1 ms)"
+    )
+    for column in ("peer", "ticks", "overruns", "jitter p50/p99/max ms", "latency p50/p99/max ms", "CPU %"):
+        table.add_column(column)
+    for name, f in peers.items():
+        table.add_row(
+            name,
+            str(f["ticks"]),
+            str(f["overruns"]),
+            _triple(f["jitter"]),
+            _triple(f["latency"]),
+            f"{f['cpu_pct']:.1f}",
+        )
+    Console().print(table)
+    return 0
+
+
+def _triple(summary: Any) -> str:
+    return f"{summary['p50_ms']:.3f} / {summary['p99_ms']:.3f} / {summary['max_ms']:.3f}"
+
+
+def _no_nan(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _no_nan(v) for k, v in value.items()}
+    if isinstance(value, float) and value != value:
+        return None
+    return value

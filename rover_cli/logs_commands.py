@@ -1,0 +1,115 @@
+"""``rover logs ...``: check, repair and report on MCAP recordings."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console
+from rich.table import Table as RichTable
+
+from logs.errors import LogsError
+
+
+def register(families: Any) -> None:
+    logs = families.add_parser("logs", help="check, repair and report on MCAP recordings")
+    commands = logs.add_subparsers(dest="command", required=True, metavar="SUBCOMMAND")
+
+    doctor = commands.add_parser(
+        "doctor", help="structure, CRCs, summary and counts per topic of a recording"
+    )
+    doctor.add_argument("file", type=Path)
+    doctor.add_argument("--json", action="store_true", help="print the findings as one JSON object")
+    doctor.set_defaults(handler=doctor_command)
+
+    recover = commands.add_parser(
+        "recover", help="keep every complete chunk of a cut file; write a valid one"
+    )
+    recover.add_argument("file", type=Path)
+    recover.add_argument("out", type=Path)
+    recover.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    recover.set_defaults(handler=recover_command)
+
+    report = commands.add_parser("report", help="HTML + Markdown + JSON report of one or more recordings")
+    report.add_argument("inputs", type=Path, nargs="+", help="recordings and/or campaign directories")
+    report.add_argument("--out", type=Path, required=True, help="folder for report.html/.md/.json")
+    report.add_argument("--no-plots", action="store_true", help="tables only (faster)")
+    report.set_defaults(handler=report_command)
+
+
+def doctor_command(args: argparse.Namespace) -> int:
+    from logs.doctor import diagnose
+
+    console = Console()
+    try:
+        report = diagnose(args.file)
+    except LogsError as err:
+        console.print(f"[red]error:[/red] {err}")
+        return 2
+    if args.json:
+        console.print_json(json.dumps(report.to_dict(), default=str))
+        return 0 if report.healthy else 1
+    state = "[green]healthy[/green]" if report.healthy else "[red]problems found[/red]"
+    console.print(f"{report.path}: {state}; {report.size_bytes} bytes, library {report.library!r}")
+    console.print(
+        f"chunks {report.chunks} ({report.chunk_compression}), damaged {report.chunks_damaged}; "
+        f"messages {report.messages}; data end {'yes' if report.complete else 'no'}, "
+        f"summary {'yes' if report.summary_present else 'no'}, "
+        f"footer {'yes' if report.footer_present else 'no'}, "
+        f"data CRC {'n/a' if report.data_crc_ok is None else report.data_crc_ok}"
+    )
+    table = RichTable()
+    for column in ("topic", "messages", "first (s)", "last (s)", "encoding"):
+        table.add_column(column, justify="left" if column in ("topic", "encoding") else "right")
+    for topic, summary in sorted(report.topics.items()):
+        first = "" if summary.first_ns is None else f"{summary.first_ns / 1e9:.3f}"
+        last = "" if summary.last_ns is None else f"{summary.last_ns / 1e9:.3f}"
+        table.add_row(topic, str(summary.messages), first, last, summary.encoding)
+    console.print(table)
+    console.print(
+        f"metadata: {', '.join(report.metadata) or '-'}; attachments: {', '.join(report.attachments) or '-'}"
+    )
+    for problem in report.problems:
+        console.print(f"[red]problem:[/red] {problem}")
+    return 0 if report.healthy else 1
+
+
+def recover_command(args: argparse.Namespace) -> int:
+    from logs.recover import recover
+
+    console = Console()
+    try:
+        result = recover(args.file, args.out)
+    except LogsError as err:
+        console.print(f"[red]error:[/red] {err}")
+        return 2
+    if args.json:
+        console.print_json(json.dumps(result.to_dict()))
+        return 0
+    where = "complete file, copied" if result.was_complete else f"cut at byte {result.cut_at}"
+    console.print(
+        f"{result.source} ({where}) -> {result.output}: kept {result.chunks_kept} chunks, "
+        f"{result.messages} messages, {result.metadata} metadata, {result.attachments} attachments; "
+        f"dropped {result.chunks_dropped} damaged chunks, {result.orphan_messages} orphan messages"
+    )
+    return 0
+
+
+def report_command(args: argparse.Namespace) -> int:
+    from logs.report import write_report
+
+    console = Console()
+    try:
+        result = write_report(args.inputs, args.out, plots=not args.no_plots)
+    except LogsError as err:
+        console.print(f"[red]error:[/red] {err}")
+        return 2
+    for path, reason in result.failed.items():
+        console.print(f"[yellow]skipped[/yellow] {path}: {reason}")
+    for run in result.runs:
+        if run.missing:
+            console.print(f"[yellow]partial[/yellow] {run.path}: missing {', '.join(run.missing)}")
+    console.print(f"report: {result.html}\n        {result.markdown}\n        {result.json}")
+    return 0 if result.runs else 2

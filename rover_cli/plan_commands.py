@@ -1,0 +1,76 @@
+"""``rover plan MAP --start X,Y --goal X,Y``: plan once, print cost, length, nodes expanded and time."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+from logs.settings import ConfigError
+from navigator.astar import HEURISTICS
+from navigator.errors import NavigatorError
+from navigator.plan_tools import draw_png, export_costs, load_map, plan_once
+from navigator.planner import COST_MODES, Planner
+from navigator.vehicle import VehicleParams
+
+
+def _point(text: str) -> tuple[float, float]:
+    try:
+        x, y = (float(v) for v in text.split(","))
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(f"expected X,Y in metres, got {text!r}") from err
+    return x, y
+
+
+def register(families: Any) -> None:
+    plan = families.add_parser("plan", help="plan a path on a map and print (or draw) it")
+    plan.add_argument(
+        "map", type=Path, help="TOML with a [terrain] table (e.g. a scenario) or an .npy elevation"
+    )
+    plan.add_argument("--start", type=_point, required=True, help="start X,Y (ENU metres)")
+    plan.add_argument("--goal", type=_point, required=True, help="goal X,Y (ENU metres)")
+    plan.add_argument("--heuristic", choices=HEURISTICS, default="octile")
+    plan.add_argument("--weight", type=float, default=1.0, help="heuristic weight (> 1: bounded suboptimal)")
+    plan.add_argument("--cost-mode", choices=COST_MODES, default="terrain")
+    plan.add_argument("--resolution-m", type=float, default=None, help="cell size of an .npy map")
+    plan.add_argument("--json", action="store_true", help="print the figures as one JSON object")
+    plan.add_argument("--png", type=Path, default=None, help="draw the path over the cost map")
+    plan.add_argument(
+        "--export-costs", type=Path, default=None, help="write the exact edge-cost model (.npz)"
+    )
+    plan.set_defaults(handler=run_plan)
+
+
+def run_plan(args: argparse.Namespace) -> int:
+    try:
+        terrain = load_map(args.map, args.resolution_m)
+        planner = Planner(
+            terrain, VehicleParams(), heuristic=args.heuristic, cost_mode=args.cost_mode,
+            heuristic_weight=args.weight,
+        )  # fmt: skip
+        report = plan_once(planner, args.start, args.goal)
+    except (NavigatorError, ConfigError) as err:
+        print(f"rover plan: {err}")
+        return 2
+    figures = {
+        "cost": report.cost,
+        "length_m": report.length_m,
+        "expanded": report.expanded,
+        "time_ms": report.time_ms,
+        "heuristic": args.heuristic,
+        "cost_mode": args.cost_mode,
+        "points": len(report.points),
+    }
+    if args.export_costs is not None:
+        export_costs(planner, report, args.export_costs)
+        figures["export"] = str(args.export_costs)
+    if args.png is not None:
+        draw_png(planner, report, args.png)
+        figures["png"] = str(args.png)
+    if args.json:
+        print(json.dumps(figures))
+    else:
+        for key, value in figures.items():
+            print(f"{key:>10}: {value:.3f}" if isinstance(value, float) else f"{key:>10}: {value}")
+    return 0

@@ -1,0 +1,161 @@
+"""``rover telemetry ...``: the ground station's side of the live Zenoh stream."""
+
+from __future__ import annotations
+
+import argparse
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console
+from rich.live import Live
+from rich.table import Table as RichTable
+
+from logs.errors import LogsError
+
+
+def register(families: Any) -> None:
+    telemetry = families.add_parser("telemetry", help="watch, record and command a rover over Zenoh")
+    commands = telemetry.add_subparsers(dest="command", required=True, metavar="SUBCOMMAND")
+
+    def connection(parser: argparse.ArgumentParser) -> None:
+        parser.add_argument("--rover-id", default="rover1", help="names the key space rover/<id>/...")
+        parser.add_argument(
+            "--config", type=Path, default=None, help="rover config TOML with a [zenoh] table"
+        )
+        parser.add_argument(
+            "--connect", action="append", default=[], help="endpoint of the rover or a router (tcp/HOST:PORT)"
+        )
+
+    watch = commands.add_parser("watch", help="live table of pose, speed, mode, health and bus load")
+    connection(watch)
+    watch.add_argument(
+        "--duration-s", type=float, default=None, help="stop after this long (default: Ctrl-C)"
+    )
+    watch.set_defaults(handler=watch_command)
+
+    record = commands.add_parser("record", help="record the live stream into an MCAP file")
+    connection(record)
+    record.add_argument("out", type=Path)
+    record.add_argument(
+        "--duration-s", type=float, default=None, help="stop after this long (default: Ctrl-C)"
+    )
+    record.set_defaults(handler=record_command)
+
+    send = commands.add_parser("send", help="send a command: goal X Y | estop | resume")
+    connection(send)
+    send.add_argument("kind", choices=("goal", "estop", "resume"))
+    send.add_argument("xy", type=float, nargs="*", help="goal x y in ENU metres")
+    send.set_defaults(handler=send_command_line)
+
+
+def _session(args: argparse.Namespace) -> Any:
+    import dataclasses
+
+    from logs.telemetry import ZenohSettings, open_session
+
+    settings = ZenohSettings(enabled=True)
+    if args.config is not None:
+        from navigator.config import load_rover_config
+
+        settings = load_rover_config(args.config).zenoh
+    if args.connect:
+        settings = dataclasses.replace(settings, connect=tuple(args.connect), listen=())
+    return open_session(settings)
+
+
+def _wait(duration_s: float | None, tick: Any = None) -> None:
+    """Until the duration has passed or Ctrl-C; ``tick()`` four times a second."""
+    stop = threading.Event()
+    deadline = None if duration_s is None else time.monotonic() + duration_s
+    try:
+        while deadline is None or time.monotonic() < deadline:
+            if tick is not None:
+                tick()
+            stop.wait(0.25)
+    except KeyboardInterrupt:
+        pass
+
+
+def watch_command(args: argparse.Namespace) -> int:
+    from logs.telemetry import subscribe
+    from logs.telemetry_station import LiveView
+
+    console = Console()
+    try:
+        session = _session(args)
+    except LogsError as err:
+        console.print(f"[red]error:[/red] {err}")
+        return 2
+    view = LiveView()
+    subscription = subscribe(session, args.rover_id, view.update)
+
+    def table() -> RichTable:
+        rendered = RichTable(title=f"rover {args.rover_id}: {view.samples} samples")
+        rendered.add_column("what")
+        rendered.add_column("value")
+        for name, value in view.rows():
+            rendered.add_row(name, value)
+        return rendered
+
+    try:
+        with Live(table(), console=console, refresh_per_second=4) as live:
+            _wait(args.duration_s, lambda: live.update(table()))
+    finally:
+        subscription.close()
+        session.close()
+    return 0
+
+
+def record_command(args: argparse.Namespace) -> int:
+    from logs.recorder import McapRecorder
+    from logs.telemetry_station import StreamRecorder
+
+    console = Console()
+    try:
+        session = _session(args)
+        recorder = McapRecorder(args.out)
+    except LogsError as err:
+        console.print(f"[red]error:[/red] {err}")
+        return 2
+    stream = StreamRecorder(session, args.rover_id, recorder)
+    try:
+        with console.status(f"recording rover/{args.rover_id}/** into {args.out} ..."):
+            _wait(args.duration_s)
+    finally:
+        stream.close()
+        recorder.close()
+        session.close()
+    console.print(
+        f"{args.out}: {stream.recorded} messages on {len(stream.topics)} topics; "
+        f"{stream.rejected} samples rejected, {stream.failed} not recorded"
+    )
+    return 0
+
+
+def send_command_line(args: argparse.Namespace) -> int:
+    from logs.commands import send_command
+
+    console = Console()
+    if (args.kind == "goal") != (len(args.xy) == 2) or (args.kind != "goal" and args.xy):
+        console.print(
+            "[red]error:[/red] goal takes exactly two numbers (x y, metres); estop/resume take none"
+        )
+        return 2
+    try:
+        session = _session(args)
+    except LogsError as err:
+        console.print(f"[red]error:[/red] {err}")
+        return 2
+    try:
+        x, y = [*args.xy, None, None][:2]
+        send_command(session, args.rover_id, args.kind, x, y)
+        time.sleep(0.2)  # let the put leave before the session closes (CLI only; no component waits so)
+    except LogsError as err:
+        console.print(f"[red]error:[/red] {err}")
+        return 2
+    finally:
+        session.close()
+    console.print(f"sent {args.kind} to rover {args.rover_id}")
+    return 0

@@ -1,0 +1,34 @@
+import pytest
+
+from firmware_bridge.can_bench import bus_load, frame_bits, run_can_bench
+from firmware_bridge.can_bus import CanConfig
+
+
+def test_frame_bits_match_the_classic_can_budget():
+    # ../shared/reference/vesc_can.md: 8-byte frame, 29-bit id: 131 bits unstuffed, 160 worst case
+    assert frame_bits(8, worst_case=False) == 131
+    assert frame_bits(8, worst_case=True) == 160
+    assert frame_bits(4, worst_case=False) == 99
+
+
+def test_bus_load_of_the_reference_example():
+    # six wheels x (1 command + 3 status) at 100 Hz = 2400 frames/s, about 40 % worst case
+    config = CanConfig(command_rate_hz=100.0, status_rate_hz=100.0)
+    load = bus_load(config, slow_status_rate_hz=100.0)
+    assert load.frames_per_s == 2400
+    assert load.load_pct_worst == pytest.approx(
+        100 * 6 * 100 * (160 * 3 + frame_bits(4, worst_case=True)) / 1e6
+    )
+    assert 35 < load.load_pct_worst < 40
+
+
+def test_bench_runs_and_reports_every_figure():
+    result = run_can_bench(300)
+    figures = result.as_dict()
+    assert figures["ours"]["rounds_per_s"] > 0
+    assert [p["name"] for p in figures["peers"]] == [
+        "python-can + struct (no DBC)",
+        "cantools strict encode + decode",
+    ]
+    assert 0 < result.latency_p50_us <= result.latency_p99_us
+    assert result.bus_load.frames_per_s == 6 * (50 + 50 + 10 + 10)

@@ -1,0 +1,174 @@
+"""Every fault type shows in the recorded data, only while it is active, and is announced on ``log``."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from logs.settings import ConfigError
+from tests.hil.world_harness import WorldRun, run_world, scenario_with
+
+
+def fault(target: str, kind: str, start: float = 1.0, duration: float = 2.0, **params: object) -> str:
+    lines = [
+        "[[faults]]",
+        f'target = "{target}"',
+        f'kind = "{kind}"',
+        f"start_s = {start}",
+        f"duration_s = {duration}",
+    ]
+    lines += [f"{key} = {value!r}".replace("(", "[").replace(")", "]") for key, value in params.items()]
+    return "\n".join(lines) + "\n"
+
+
+@pytest.fixture(scope="module")
+def baseline() -> WorldRun:
+    return run_world()
+
+
+def announced(run: WorldRun, name: str) -> bool:
+    messages = [m["message"] for m in run.on("log") if m["name"] == "hil.faults"]
+    return any(f"fault injected: {name}" in m for m in messages) and any(
+        f"cleared: {name}" in m for m in messages
+    )
+
+
+def test_gps_off_loses_fixes_only_in_the_window(baseline):
+    run = run_world(fault("gps", "off"))
+    assert run.on("sensors/gps", 1.0, 3.0) == []
+    assert len(run.on("sensors/gps", 3.05, 4.0)) >= 3
+    assert len(baseline.on("sensors/gps", 1.0, 3.0)) == 10
+    assert announced(run, "gps/off")
+
+
+def test_gps_glitch_offsets_the_fixes(baseline):
+    run = run_world(fault("gps", "wrong", offset_m=(6.0, -4.0)))
+    inside = np.array([(e, n) for _t, e, n in run.gps_enu(1.0, 3.0)])
+    base = np.array([(e, n) for _t, e, n in baseline.gps_enu(1.0, 3.0)])
+    assert inside.mean(axis=0) - base.mean(axis=0) == pytest.approx([6.0, -4.0], abs=0.05)
+    after = np.array([(e, n) for _t, e, n in run.gps_enu(3.05, 4.0)])
+    after_base = np.array([(e, n) for _t, e, n in baseline.gps_enu(3.05, 4.0)])
+    assert np.allclose(after, after_base)
+
+
+def test_gps_delay_reports_where_the_rover_was():
+    run = run_world(
+        fault("gps", "delayed", start=0.0, duration=10.0, delay_s=1.0) + "[sensors]\ngps_noise_m = 0.0\n"
+    )
+    truth = [(m, m["pose"]["position"]) for m in run.on("truth/pose")]
+    fixes = run.gps_enu(2.5, 4.0)
+    assert fixes
+    for t_ns, e, n in fixes:
+        earlier = min(truth, key=lambda item: abs(_ns(item[0]) - (t_ns - 1_000_000_000)))[1]
+        now = min(truth, key=lambda item: abs(_ns(item[0]) - t_ns))[1]
+        assert math.hypot(e - earlier["x"], n - earlier["y"]) < 0.05
+        assert math.hypot(e - now["x"], n - now["y"]) > 0.3  # it moved ~0.6 m in that second
+
+
+def _ns(message: dict) -> int:
+    return message["timestamp"]["sec"] * 1_000_000_000 + message["timestamp"]["nsec"]
+
+
+def test_gps_slow_and_intermittent_thin_the_fixes(baseline):
+    slow = run_world(fault("gps", "slow", factor=5.0))
+    assert len(slow.on("sensors/gps", 1.0, 3.0)) == 2  # 5 Hz / 5 for 2 s
+    flaky = run_world(fault("gps", "intermittent", start=0.0, duration=10.0, probability=0.5))
+    assert 4 <= len(flaky.on("sensors/gps")) <= 16  # of 20; binomial(20, 0.5) leaves this range rarely
+
+
+def test_gps_garbage_reports_no_fix():
+    run = run_world(fault("gps", "garbage"))
+    inside = run.on("sensors/gps", 1.0, 3.0)
+    assert inside and all(m["fix_type"] == 0 and m["satellites"] == 0 for m in inside)
+    assert all(m["fix_type"] == 3 for m in run.on("sensors/gps", 3.05, 4.0))
+
+
+def test_imu_bias_stuck_and_off(baseline):
+    biased = run_world(fault("imu", "wrong", gyro_bias_rps=(0.0, 0.0, 0.2), accel_bias_mps2=(0.5, 0.0, 0.0)))
+    z = [m["angular_velocity"]["z"] for m in biased.on("sensors/imu", 1.0, 3.0)]
+    z0 = [m["angular_velocity"]["z"] for m in baseline.on("sensors/imu", 1.0, 3.0)]
+    assert np.mean(z) - np.mean(z0) == pytest.approx(0.2, abs=0.01)
+    stuck = run_world(fault("imu", "stuck"))
+    readings = [
+        (m["angular_velocity"]["z"], m["linear_acceleration"]["x"])
+        for m in stuck.on("sensors/imu", 1.05, 3.0)
+    ]
+    assert len(readings) > 50 and len(set(readings)) == 1
+    off = run_world(fault("imu", "off"))
+    assert off.on("sensors/imu", 1.0, 3.0) == [] and off.on("sensors/imu", 3.05, 4.0)
+
+
+def test_can_bus_off_drop_and_delay(baseline):
+    bus_off = run_world(fault("can", "off"))
+    assert bus_off.rx_frames(1.0, 3.0) == [] and bus_off.rx_frames(3.1, 4.0)
+    assert announced(bus_off, "can/off")
+    dropping = run_world(fault("can", "intermittent", probability=0.5))
+    kept, full = len(dropping.rx_frames(1.0, 3.0)), len(baseline.rx_frames(1.0, 3.0))
+    assert 0.3 * full < kept < 0.7 * full
+    delayed = run_world(fault("can", "delayed", delay_s=0.5))
+    assert delayed.rx_frames(1.0, 1.5) == [] and delayed.rx_frames(1.5, 3.0)
+
+
+def test_can_corruption_changes_payloads_only_in_the_window(baseline):
+    run = run_world(fault("can", "garbage", probability=1.0))
+    before = [f["data"] for f in run.rx_frames(0.0, 0.99)]
+    assert before == [f["data"] for f in baseline.rx_frames(0.0, 0.99)]
+    inside = [f["data"] for f in run.rx_frames(1.0, 3.0)]
+    inside_base = [f["data"] for f in baseline.rx_frames(1.0, 3.0)]
+    assert len(inside) == len(inside_base)
+    assert sum(a != b for a, b in zip(inside, inside_base, strict=True)) == len(inside)
+
+
+def test_controller_reboot_is_silent_then_starts_fresh():
+    run = run_world(fault("vesc", "off", start=1.0, duration=1.0, controller=2))
+    ids = run.world.vescs.profile.controller_ids
+    silent = [f for f in run.rx_frames(1.0, 2.0) if f["id"] & 0xFF == ids[2]]
+    others = [f for f in run.rx_frames(1.0, 2.0) if f["id"] & 0xFF == ids[1]]
+    assert silent == [] and others
+    assert run.world.vescs.reboots == 1
+    # After the reboot its tachometer counts from zero again: smaller than its neighbour's.
+    last = run.on("wheels/status")[-1]["wheels"]
+    assert abs(last[2]["tachometer"]) < 0.8 * abs(last[1]["tachometer"])
+
+
+def test_stuck_wheel_does_not_turn():
+    run = run_world(fault("vesc", "stuck", controller=4))
+    inside = run.on("wheels/status", 1.5, 3.0)
+    assert inside and all(m["wheels"][4]["erpm"] == 0 for m in inside)
+    assert all(m["wheels"][3]["erpm"] > 100 for m in inside)
+
+
+def test_mavlink_loss_and_garbage(baseline):
+    lost = run_world(fault("mavlink", "off"))
+    assert [m for m in lost.on("mavlink/raw", 1.0, 3.0) if m["direction"] == "rx"] == []
+    assert [m for m in lost.on("mavlink/raw", 3.05, 4.0) if m["direction"] == "rx"]
+    garbled = run_world(fault("mavlink", "garbage", probability=1.0))
+    rx = [m for m in garbled.on("mavlink/raw", 1.05, 3.0) if m["direction"] == "rx"]
+    rx_base = [m for m in baseline.on("mavlink/raw", 1.05, 3.0) if m["direction"] == "rx"]
+    assert len(rx) < 0.8 * len(rx_base)  # corrupted frames fail their CRC and are not decoded
+
+
+def test_battery_sag_lowers_the_reported_voltage(baseline):
+    run = run_world(fault("battery", "wrong", sag_v=3.0, extra_resistance_ohm=0.2))
+    volts = [m["battery_voltage_v"] for m in run.on("truth/wheels", 1.1, 3.0)]
+    volts_base = [m["battery_voltage_v"] for m in baseline.on("truth/wheels", 1.1, 3.0)]
+    assert np.mean(volts_base) - np.mean(volts) > 3.0
+    status = [w["input_voltage_v"] for m in run.on("wheels/status", 1.5, 3.0) for w in m["wheels"]]
+    assert max(status) < 22.5  # the controllers report the sagging pack (25.2 V when full)
+
+
+@pytest.mark.parametrize(
+    ("text", "key"),
+    [
+        ('target = "gps"\nkind = "stuck"', "faults[0].kind"),
+        ('target = "laser"\nkind = "off"', "faults[0].target"),
+        ('target = "gps"\nkind = "off"\nstart_s = 9999.0', "faults[0].start_s"),
+        ('target = "imu"\nkind = "off"\noffset_m = [1.0, 2.0]', "offset_m"),
+    ],
+)
+def test_bad_faults_name_the_key(text, key):
+    with pytest.raises(ConfigError) as caught:
+        scenario_with("[[faults]]\n" + text + "\n")
+    assert key in str(caught.value)

@@ -1,0 +1,108 @@
+"""Kill test: a real lockstep trial SIGKILLed at random points; recover keeps every complete chunk, each
+chunk spans at most about one second, and the report runs on the recovered file."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from logs.doctor import diagnose
+from logs.frames import FrameWalk, chunk_of
+from logs.reader import ReadStats, read_messages
+from logs.recorder import DEFAULT_CHUNK_DURATION_NS
+from logs.recover import recover
+from logs.report import write_report
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENARIO = ROOT / "tests" / "data" / "small_rocky.toml"
+KILL_POINTS = 3
+START_TIMEOUT_S = 60.0
+
+
+def _start(out: Path) -> subprocess.Popen[bytes]:
+    command = [sys.executable, "-m", "rover_cli.main", "hil", "trial", str(SCENARIO), "--no-telemetry"]
+    return subprocess.Popen(
+        [*command, "--out", str(out)], cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
+    )
+
+
+def _kill_when_larger(process: subprocess.Popen[bytes], recording: Path, size: int) -> None:
+    deadline = time.monotonic() + START_TIMEOUT_S
+    while time.monotonic() < deadline:
+        if process.poll() is not None:
+            _, err = process.communicate()
+            pytest.fail(
+                f"trial ended (rc {process.returncode}) before reaching {size} bytes: {err.decode()[-800:]}"
+            )
+        if recording.exists() and recording.stat().st_size >= size:
+            os.kill(process.pid, signal.SIGKILL)
+            process.wait(timeout=10)
+            return
+        time.sleep(0.005)
+    process.kill()
+    process.wait()
+    pytest.fail(f"trial never reached {size} bytes in {START_TIMEOUT_S} s")
+
+
+def _chunk_spans_ns(path: Path) -> list[int]:
+    with path.open("rb") as stream:
+        walk = FrameWalk(stream, str(path))
+        spans = []
+        for frame in walk.frames():
+            if frame.opcode == 0x06:
+                chunk = chunk_of(frame)
+                spans.append(chunk.message_end_time - chunk.message_start_time)
+        return spans
+
+
+def test_sigkill_then_recover_then_report(tmp_path: Path) -> None:
+    # Random kill points (seeded, so a failure reproduces): a byte size the recording must reach first.
+    # The whole small trial writes ~1.1 MB; the header and the first second are ~80 kB.
+    sizes = sorted(np.random.default_rng(20240607).integers(120_000, 800_000, KILL_POINTS).tolist())
+    runs = [(tmp_path / f"kill{i}", size) for i, size in enumerate(sizes)]
+    processes = [_start(out) for out, _ in runs]  # concurrently: the three trials share the wait
+    try:
+        for process, (out, size) in zip(processes, runs, strict=True):
+            _kill_when_larger(process, out / "trial.mcap", size)
+    finally:
+        for process in processes:
+            if process.poll() is None:
+                process.kill()
+                process.wait()
+
+    for index, (out, size) in enumerate(runs):
+        cut = out / "trial.mcap"
+        findings = diagnose(cut)
+        assert not findings.complete and not findings.healthy, (
+            f"killed at {size} B yet the file looks complete"
+        )
+        assert findings.chunks >= 1 and findings.chunks_damaged == 0
+        # The reader reads a cut file up to the cut, without raising.
+        stats = ReadStats()
+        read_before = sum(1 for _ in read_messages(cut, stats=stats))
+        assert stats.truncated and read_before == findings.messages
+
+        recovered = out / "recovered.mcap"
+        result = recover(cut, recovered)
+        assert not result.was_complete and result.chunks_dropped == 0 and result.orphan_messages == 0
+        assert result.chunks_kept == findings.chunks  # every complete chunk is kept ...
+        assert result.messages == findings.messages  # ... with every message in it
+        assert result.metadata == 2 and result.attachments == 1  # written before the first chunk
+        again = diagnose(recovered)
+        assert again.healthy and again.complete and again.footer_present, again.problems
+        assert again.messages == result.messages
+        # A crash loses at most about one second: no chunk spans more than the recorder's time limit
+        # (plus one 10 ms physics tick, the message that closes the chunk).
+        assert max(_chunk_spans_ns(cut)) <= DEFAULT_CHUNK_DURATION_NS + 10_000_000
+
+        report = write_report([recovered], out / "report", plots=index == 0)  # plots cost ~1 s each
+        assert not report.failed and len(report.runs) == 1
+        assert report.runs[0].metrics.duration_s is not None and report.runs[0].metrics.duration_s > 0.5
+        assert ("<svg" in report.html.read_text(encoding="utf-8")) == (index == 0)

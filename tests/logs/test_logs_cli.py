@@ -1,0 +1,49 @@
+"""``rover logs doctor|recover|report`` exit codes and outputs on a small synthetic recording."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from logs.recorder import McapRecorder
+from logs.synthetic import synthetic_metadata, write_synthetic_trial
+from rover_cli.main import main
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("cli") / "trial.mcap"
+    with McapRecorder(path) as recorder:
+        recorder.add_metadata("scenario", synthetic_metadata(4.0))
+        write_synthetic_trial(recorder, 4.0)
+    return path
+
+
+def test_doctor_exit_codes(recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["logs", "doctor", str(recording), "--json"]) == 0
+    findings = json.loads(capsys.readouterr().out)
+    assert findings["healthy"] and findings["topics"]["can/frames"]["messages"] == 14 * 200
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(recording.read_bytes()[:-5000])
+    assert main(["logs", "doctor", str(cut)]) == 1
+    assert "cut short" in capsys.readouterr().out
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"PK\x03\x04 a zip file")
+    assert main(["logs", "doctor", str(junk)]) == 2
+    assert "not an MCAP file" in capsys.readouterr().out
+
+
+def test_recover_then_report(recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(recording.read_bytes()[:-5000])
+    assert main(["logs", "recover", str(cut), str(tmp_path / "fixed.mcap"), "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["messages"] > 0 and not result["was_complete"]
+    assert (
+        main(["logs", "report", str(tmp_path / "fixed.mcap"), "--out", str(tmp_path / "r"), "--no-plots"])
+        == 0
+    )
+    assert (tmp_path / "r" / "report.html").exists() and (tmp_path / "r" / "report.json").exists()
+    assert main(["logs", "report", str(tmp_path / "absent.mcap"), "--out", str(tmp_path / "r2")]) == 2

@@ -1,0 +1,52 @@
+"""Rate limiting of the live stream and the ground station's live view (no network needed)."""
+
+from __future__ import annotations
+
+import pytest
+
+from logs.errors import TelemetrySetupError
+from logs.sink import MemorySink
+from logs.telemetry import TelemetrySample
+from logs.telemetry_station import CAN_BITS_PER_FRAME, LiveView, RateLimitedSink
+from logs.topics import CAN_FRAMES, ESTIMATOR_POSE, LOG, NAVIGATOR_STATE, planar_pose, stamp
+
+
+def test_rate_limit_is_judged_on_log_time() -> None:
+    memory = MemorySink()
+    sink = RateLimitedSink(memory, {ESTIMATOR_POSE: 10.0})
+    for tick in range(100):  # 50 Hz for 2 s
+        t = tick * 20_000_000
+        sink.publish(ESTIMATOR_POSE, t, {"i": tick})
+        sink.publish(LOG, t, {"i": tick})  # not limited
+    assert len(memory.on(ESTIMATOR_POSE)) == 20 and len(memory.on(LOG)) == 100
+    assert [m["i"] for m in memory.on(ESTIMATOR_POSE)][:3] == [0, 5, 10]
+    assert sink.dropped == 80
+
+
+@pytest.mark.parametrize("rates", [{"no/such": 1.0}, {LOG: 0.0}, {LOG: float("nan")}])
+def test_bad_rates_are_setup_errors(rates: dict[str, float]) -> None:
+    with pytest.raises(TelemetrySetupError):
+        RateLimitedSink(MemorySink(), rates)
+
+
+def test_live_view_shows_latest_state_and_bus_load() -> None:
+    view = LiveView()
+    pose = {"pose": planar_pose(1.0, 2.0, 0.0), "speed_mps": 0.5, "healthy": True}
+    view.update(TelemetrySample(ESTIMATOR_POSE, 1_000, pose))
+    state = {
+        "mode": "DRIVING",
+        "speed_limit_mps": 0.8,
+        "speed_limit_reason": "slope",
+        "cross_track_error_m": None,
+        "timestamp": stamp(0),
+    }
+    view.update(TelemetrySample(NAVIGATOR_STATE, 2_000, state))
+    for i in range(1500):  # 1500 frames over 1.5 s: 1000 in the last second
+        view.update(TelemetrySample(CAN_FRAMES, i * 1_000_000, {"dlc": 8}))
+    view.update(TelemetrySample(ESTIMATOR_POSE, 3_000, {"pose": "broken"}))  # counted, not raised
+    rows = dict(view.rows())
+    assert rows["pose (estimate)"].startswith("x 1.00 m, y 2.00 m")
+    assert rows["mode"] == "DRIVING" and rows["estimator"] == "healthy"
+    assert rows["speed limit"] == "0.8 m/s (slope)" and rows["cross-track error (m)"] == "n/a"
+    assert view.bus_load_pct() == pytest.approx(100.0 * 1000 * CAN_BITS_PER_FRAME / 500_000)
+    assert rows["last problem"] == f"unusable {ESTIMATOR_POSE} message"

@@ -1,0 +1,147 @@
+"""Guidance: plan, repair after new obstacles (same cost as a fresh plan), stop for moving obstacles,
+and follow straight lines and arcs within cross-track bounds with either controller."""
+
+import math
+
+import numpy as np
+import pytest
+
+from navigator.config import PlannerConfig
+from navigator.follower import FollowerConfig, PurePursuit
+from navigator.guidance import ARRIVED, BLOCKED, DRIVING, IDLE, NO_PATH, Guidance
+from navigator.perception import ObstacleObservation
+from navigator.planner import Planner
+from navigator.stanley import Stanley
+from navigator.terrain import TerrainMap, disc_mask
+from navigator.vehicle import VehicleParams
+
+PARAMS = VehicleParams()
+
+
+def _flat(rows: int = 80, cols: int = 120, res: float = 0.25) -> TerrainMap:
+    return TerrainMap(
+        np.zeros((rows, cols)), np.zeros((rows, cols), np.uint8), np.zeros((rows, cols), bool), res
+    )
+
+
+def _guidance(terrain: TerrainMap, sensing_range_m: float = 40.0) -> Guidance:
+    return Guidance(terrain, PARAMS, PlannerConfig(sensing_range_m=sensing_range_m), FollowerConfig())
+
+
+def test_idle_then_plans_and_drives() -> None:
+    guidance = _guidance(_flat())
+    assert guidance.update(0, 2.0, 10.0, 0.0, 0.0).mode == IDLE
+    guidance.set_goal(27.0, 10.0)
+    out = guidance.update(0, 2.0, 10.0, 0.0, 0.0)
+    assert out.mode == DRIVING and out.path_changed and out.path is not None and out.speed_mps > 0.0
+    assert not guidance.update(1, 2.0, 10.0, 0.0, 0.0).path_changed
+
+
+def test_repair_after_a_new_obstacle_costs_the_same_as_a_fresh_plan() -> None:
+    terrain = _flat()
+    guidance = _guidance(terrain)
+    guidance.set_goal(27.0, 10.0)
+    guidance.update(0, 2.0, 10.0, 0.0, 0.0)
+    # An obstacle off the path: the plan is kept (still optimal), no replan.
+    guidance.observe([ObstacleObservation(0, "aside", 6.0, 14.0, 0.5)])
+    out = guidance.update(1, 2.0, 10.0, 0.0, 0.0)
+    assert not out.path_changed and guidance.repairs_kept == 1
+    # An obstacle on the path: repaired, and the repaired cost equals a fresh plan on the updated map.
+    guidance.observe([ObstacleObservation(2, "rock", 14.0, 10.0, 1.0)])
+    out = guidance.update(2, 2.0, 10.0, 0.0, 0.0)
+    assert out.path_changed and out.path is not None and "block" in out.detail
+    updated = terrain.with_obstacles(disc_mask(terrain, 6.0, 14.0, 0.5) | disc_mask(terrain, 14.0, 10.0, 1.0))
+    fresh = Planner(updated, PARAMS).plan((2.0, 10.0), (27.0, 10.0))
+    assert out.path.cost == pytest.approx(fresh.cost, rel=1e-12)
+    kept_cost = Planner(terrain.with_obstacles(disc_mask(terrain, 6.0, 14.0, 0.5)), PARAMS).plan(
+        (2.0, 10.0), (27.0, 10.0)
+    )
+    assert kept_cost.cost == pytest.approx(Planner(terrain, PARAMS).plan((2.0, 10.0), (27.0, 10.0)).cost)
+
+
+def test_far_obstacles_wait_until_in_sensing_range_and_bad_ones_are_rejected() -> None:
+    guidance = _guidance(_flat(), sensing_range_m=8.0)
+    guidance.set_goal(27.0, 10.0)
+    guidance.update(0, 2.0, 10.0, 0.0, 0.0)
+    guidance.observe(
+        [ObstacleObservation(0, "far", 20.0, 10.0, 0.5), ObstacleObservation(0, "bad", math.nan, 1, 1)]
+    )
+    assert not guidance.update(1, 2.0, 10.0, 0.0, 0.0).path_changed  # 18 m away, range 8 m
+    assert guidance.update(2, 13.0, 10.0, 0.0, 0.5).path_changed  # now within range: replanned
+
+
+def test_walled_off_goal_is_no_path() -> None:
+    guidance = _guidance(_flat())
+    guidance.set_goal(27.0, 10.0)
+    guidance.update(0, 2.0, 10.0, 0.0, 0.0)
+    guidance.observe([ObstacleObservation(0, "wall", 27.0, 10.0, 3.0)])
+    out = guidance.update(1, 2.0, 10.0, 0.0, 0.0)
+    assert out.mode == NO_PATH and out.speed_mps == 0.0 and "lethal" in out.detail
+
+
+def test_moving_obstacle_crossing_ahead_stops_the_rover_then_it_goes_on() -> None:
+    guidance = _guidance(_flat())
+    guidance.set_goal(27.0, 10.0)
+    guidance.update(0, 2.0, 10.0, 0.0, 0.0)
+    # A walker 3 m ahead, 2 m to the side, walking across the path at 1 m/s.
+    guidance.observe([ObstacleObservation(0, "walker", 5.0, 12.0, 0.3, vx=0.0, vy=-1.0)])
+    out = guidance.update(0, 2.0, 10.0, 0.0, 0.5)
+    assert out.mode == BLOCKED and out.speed_mps == 0.0 and out.speed_limit_reason == "moving_obstacle"
+    # Seen again having crossed and walking away: the way is clear.
+    guidance.observe([ObstacleObservation(4_000_000_000, "walker", 5.0, 6.0, 0.3, vx=0.0, vy=-1.0)])
+    assert guidance.update(4_000_000_000, 2.0, 10.0, 0.0, 0.0).mode == DRIVING
+
+
+def _drive(
+    follower: PurePursuit, path: np.ndarray, pose: tuple[float, float, float], steps: int
+) -> list[float]:
+    """Kinematic unicycle at 20 Hz; returns |cross-track error| per step."""
+    x, y, yaw = pose
+    speed = 0.0
+    errors = []
+    for _ in range(steps):
+        cmd = follower.command(x, y, yaw, speed, path)
+        errors.append(abs(cmd.cross_track_error_m))
+        if cmd.arrived:
+            break
+        speed = cmd.speed_mps
+        yaw += cmd.yaw_rate_rps * 0.05
+        x += speed * math.cos(yaw) * 0.05
+        y += speed * math.sin(yaw) * 0.05
+    return errors
+
+
+@pytest.mark.parametrize("controller", [PurePursuit, Stanley])
+def test_cross_track_error_bounds_on_a_line_and_an_arc(controller: type[PurePursuit]) -> None:
+    config = FollowerConfig(controller="stanley" if controller is Stanley else "pure_pursuit")
+    line = np.column_stack([np.linspace(0.0, 20.0, 81), np.zeros(81)])
+    errors = _drive(controller(config), line, (0.0, 0.5, 0.0), 600)
+    assert max(errors[len(errors) // 2 :]) < 0.05  # converged onto the line
+    assert max(errors) <= 0.55  # never further off than it started (+ a little overshoot)
+    angles = np.linspace(-math.pi / 2, math.pi / 2, 120)
+    arc = np.column_stack([5.0 * np.cos(angles), 5.0 * np.sin(angles) + 5.0])  # radius 5 m
+    errors = _drive(controller(config), arc, (0.0, 0.0, 0.0), 800)
+    assert max(errors) < 0.25
+
+
+def test_arrives_and_stays_arrived() -> None:
+    guidance = _guidance(_flat())
+    guidance.set_goal(5.0, 10.0)
+    guidance.update(0, 2.0, 10.0, 0.0, 0.0)
+    out = guidance.update(1, 4.9, 10.0, 0.0, 0.2)
+    assert out.mode == ARRIVED and out.arrived
+    assert guidance.update(2, 4.9, 10.0, 0.0, 0.0).mode == ARRIVED
+
+
+def test_side_slope_turn_is_slowed_by_the_tip_margin() -> None:
+    rows, cols, res = 80, 120, 0.25
+    grade = math.tan(math.radians(25.0))
+    elevation = np.tile((np.arange(rows) * res * grade)[:, None], (1, cols))  # rises to the north
+    terrain = TerrainMap(elevation, np.zeros((rows, cols), np.uint8), np.zeros((rows, cols), bool), res)
+    guidance = Guidance(
+        terrain, PARAMS, PlannerConfig(cost_mode="classical"), FollowerConfig(max_speed_mps=2.0)
+    )
+    guidance.set_goal(20.0, 12.0)
+    out = guidance.update(0, 5.0, 5.0, 0.0, 1.0)  # heading east across the slope, the goal up-left
+    assert out.speed_limit_reason in ("tip_margin", "slope")
+    assert out.speed_limit_mps < 2.0

@@ -1,0 +1,36 @@
+"""`rover plan`: figures as JSON, a PNG, and an exported edge-cost model an independent solver agrees with."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rover_cli.main import main
+from tests.navigator.test_direction_and_modes import _dijkstra_cost
+
+SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "hills-2.toml"
+
+
+def test_plan_json_png_and_exported_costs_agree_with_dijkstra(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    export = tmp_path / "costs.npz"
+    png = tmp_path / "path.png"
+    code = main([
+        "plan", str(SCENARIO), "--start", "3,12", "--goal", "25,5", "--json",
+        "--png", str(png), "--export-costs", str(export),
+    ])  # fmt: skip
+    assert code == 0
+    figures = json.loads(capsys.readouterr().out)
+    assert figures["expanded"] > 0 and figures["length_m"] > 22.0 and png.stat().st_size > 1000
+    data = np.load(export)
+    start, goal = tuple(data["start"]), tuple(data["goal"])
+    expected = _dijkstra_cost(data["cost"], data["factors"], start, goal)
+    assert float(data["path_cost"]) == pytest.approx(expected, rel=1e-9)
+    assert figures["cost"] == pytest.approx(expected * float(data["resolution_m"]), rel=1e-9)
+
+
+def test_plan_reports_an_off_map_goal(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["plan", str(SCENARIO), "--start", "3,12", "--goal", "300,12"]) == 2
+    assert "off the map" in capsys.readouterr().out

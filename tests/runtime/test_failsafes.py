@@ -1,0 +1,306 @@
+"""One lockstep HIL test per failsafe: it fires one tick past its threshold and not before, takes its action
+(wheels at zero, or speed limited), and clears as docs/safety.md says."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Iterator
+
+import pytest
+
+from logs.commands import RoverCommand
+from tests.runtime.rig import (
+    MSG_GPS_RAW_INT,
+    MSG_HEARTBEAT,
+    TICK_NS,
+    FakeGroundStation,
+    Rig,
+    rig_config,
+)
+
+
+def assert_fired_in_window(fired_ns: int | None, reference_ns: int, threshold_s: float) -> None:
+    """Fired on the first control tick strictly past ``reference + threshold``, not on the tick before."""
+    assert fired_ns is not None, "the failsafe never fired"
+    threshold_ns = round(threshold_s * 1e9)
+    assert fired_ns - reference_ns > threshold_ns, "fired before its threshold"
+    assert fired_ns - TICK_NS - reference_ns <= threshold_ns, "fired later than one tick past its threshold"
+
+
+def assert_wheels_stopped(rig: Rig, t_ns: int) -> None:
+    assert rig.commands_at(t_ns)["speed_mps"] == [0.0] * 6
+
+
+def assert_driving_again(rig: Rig, within_s: float = 3.0) -> None:
+    rig.run_until(lambda: rig.stack.safety_mode.value == "DRIVING", within_s, "back to DRIVING")
+    rig.control_tick()
+    assert any(abs(v) > 0.0 for v in rig.commands_at(rig.now_ns)["speed_mps"])
+
+
+@pytest.fixture
+def rig() -> Iterator[Rig]:
+    made = Rig(rig_config())
+    yield made
+    made.close()
+
+
+def test_loop_stall_fires_past_200ms_gap_and_clears_on_next_on_time_tick(rig: Rig) -> None:
+    rig.drive()
+    rig.control_enabled = False
+    for _ in range(9):  # 9 skipped ticks: a 200 ms gap, at the threshold, not past it
+        rig.control_tick()
+    rig.control_enabled = True
+    rig.control_tick()
+    assert rig.first_event_ns("failsafe.loop_stall") is None
+    rig.control_enabled = False
+    for _ in range(10):  # a 220 ms gap
+        rig.control_tick()
+    rig.control_enabled = True
+    stalled_tick = rig.control_tick()
+    assert rig.first_event_ns("failsafe.loop_stall") == stalled_tick
+    assert_wheels_stopped(rig, stalled_tick)
+    next_tick = rig.control_tick()
+    assert rig.first_event_ns("cleared.loop_stall") == next_tick
+    assert rig.stack.safety_mode.value == "DRIVING"
+
+
+def test_wheel_controller_silent(rig: Rig) -> None:
+    rig.drive()
+    rig.bus.silent_ids = {3}
+    rig.run_for(0.4)
+    fired = rig.first_event_ns("failsafe.wheel_silent")
+    last_heard = rig.last_rx_ns(
+        "can/frames", lambda m: m["direction"] == "rx" and m["id"] & 0xFF == 3, rig.now_ns
+    )
+    assert_fired_in_window(fired, last_heard, 0.25)
+    assert fired is not None
+    assert_wheels_stopped(rig, fired)
+    assert rig.stack.safety_mode.value == "HOLD"
+    rig.bus.silent_ids = set()
+    assert_driving_again(rig)
+    assert rig.first_event_ns("cleared.wheel_silent") is not None
+
+
+def test_can_bus_off_when_sends_keep_failing(rig: Rig) -> None:
+    rig.drive()
+    rig.bus.send_fails = True
+    first_failed = rig.control_tick()
+    rig.run_for(0.3)
+    assert_fired_in_window(rig.first_event_ns("failsafe.can_bus_off"), first_failed, 0.1)
+    assert rig.stack.safety_mode.value == "HOLD"
+    rig.bus.send_fails = False
+    assert_driving_again(rig)
+    assert rig.first_event_ns("cleared.can_bus_off") is not None
+
+
+def test_autopilot_heartbeat_lost(rig: Rig) -> None:
+    rig.drive()
+    rig.wire.dropped = {MSG_HEARTBEAT}
+    rig.run_for(4.2)
+    fired = rig.first_event_ns("failsafe.heartbeat_lost")
+    last = rig.last_rx_ns(
+        "mavlink/raw", lambda m: m["direction"] == "rx" and m["name"] == "HEARTBEAT", rig.now_ns
+    )
+    assert_fired_in_window(fired, last, 3.0)
+    assert fired is not None
+    assert_wheels_stopped(rig, fired)
+    rig.wire.dropped = set()
+    assert_driving_again(rig, within_s=1.5)
+    assert rig.first_event_ns("cleared.heartbeat_lost") is not None
+
+
+def test_gps_lost_beyond_budget() -> None:
+    # A generous estimator health limit, so the GPS budget is what is tested (not the covariance growth).
+    rig = Rig(rig_config(gps_budget_s=1.0, estimator_unhealthy_s=30.0))
+    try:
+        rig.drive()
+        rig.wire.dropped = {MSG_GPS_RAW_INT}
+        rig.run_for(1.4)
+        fired = rig.first_event_ns("failsafe.gps_lost")
+        last = rig.last_rx_ns(
+            "mavlink/raw", lambda m: m["direction"] == "rx" and m["name"] == "GPS_RAW_INT", rig.now_ns
+        )
+        assert_fired_in_window(fired, last, 1.0)
+        assert fired is not None
+        assert_wheels_stopped(rig, fired)
+        rig.wire.dropped = set()
+        assert_driving_again(rig)
+        assert rig.first_event_ns("cleared.gps_lost") is not None
+    finally:
+        rig.close()
+
+
+def test_estimator_unhealthy_while_driving() -> None:
+    # GPS gone for long (budget off) and a tight health limit: dead reckoning soon becomes "unhealthy".
+    config = rig_config(gps_budget_s=0.0)
+    estimator = dataclasses.replace(config.estimator, healthy_position_std_m=0.35)
+    config = dataclasses.replace(config, estimator=estimator)
+    rig = Rig(config)
+    try:
+        rig.drive()
+        rig.wire.dropped = {MSG_GPS_RAW_INT}
+        rig.run_until(
+            lambda: rig.first_event_ns("failsafe.estimator_unhealthy") is not None, 30.0, "unhealthy"
+        )
+        fired = rig.first_event_ns("failsafe.estimator_unhealthy")
+        assert fired is not None
+        first_unhealthy = min(
+            t for tp, t, m in rig.sink.records if tp == "estimator/pose" and not m["healthy"] and t > 2e9
+        )
+        assert_fired_in_window(fired, first_unhealthy, 0.5)
+        assert_wheels_stopped(rig, fired)
+        rig.wire.dropped = set()
+        rig.run_until(
+            lambda: rig.first_event_ns("cleared.estimator_unhealthy") is not None, 15.0, "healthy again"
+        )
+    finally:
+        rig.close()
+
+
+def test_ground_link_lost_when_configured() -> None:
+    ground = FakeGroundStation()
+    rig = Rig(rig_config(ground_link_timeout_s=1.0), commands=ground)
+    try:
+        rig.run_until(lambda: _with_contact(rig, ground), 10.0, "driving")
+        last_contact = rig.now_ns
+        rig.run_for(1.2)
+        assert_fired_in_window(rig.first_event_ns("failsafe.ground_link_lost"), last_contact, 1.0)
+        assert rig.stack.safety_mode.value == "HOLD"
+        ground.last_contact_ns = rig.now_ns
+        rig.control_tick()
+        assert rig.first_event_ns("cleared.ground_link_lost") == rig.now_ns
+    finally:
+        rig.close()
+
+
+def _with_contact(rig: Rig, ground: FakeGroundStation) -> bool:
+    ground.last_contact_ns = rig.now_ns
+    return rig.stack.safety_mode.value == "DRIVING" and rig.body.speed > 0.3
+
+
+def test_stuck_when_commanded_but_not_moving_latches_until_new_goal(rig: Rig) -> None:
+    rig.bus.drop_commands = True  # the controllers never hear us: the rover cannot move
+    rig.run_until(lambda: rig.first_event_ns("failsafe.stuck") is not None, 10.0, "stuck")
+    first_push = min(
+        t for tp, t, m in rig.sink.records if tp == "wheels/command" and abs(m["body_speed_mps"]) >= 0.2
+    )
+    assert_fired_in_window(rig.first_event_ns("failsafe.stuck"), first_push, 2.0)
+    rig.bus.drop_commands = False
+    rig.run_for(0.5)
+    assert rig.stack.safety_mode.value == "HOLD"  # latched
+    rig.stack.set_goal(17.0, 16.0)
+    assert rig.first_event_ns("cleared.stuck") is not None
+    assert_driving_again(rig, within_s=4.0)
+
+
+def test_tip_over_margin() -> None:
+    config = rig_config()
+    tip_roll = config.vehicle.tip_roll_rad
+    threshold = math.radians(config.safety.tip_margin_deg)
+    rig = Rig(config)
+    try:
+        rig.drive()
+        rig.roll_override = tip_roll - threshold - math.radians(0.5)  # margin just above the threshold
+        rig.run_for(0.5)
+        assert rig.first_event_ns("failsafe.tip_over") is None
+        rig.roll_override = tip_roll - threshold + math.radians(0.5)  # just below
+        rig.run_for(0.3)
+        fired = rig.first_event_ns("failsafe.tip_over")
+        attitude_in = rig.last_rx_ns(
+            "mavlink/raw", lambda m: m["direction"] == "rx" and m["name"] == "ATTITUDE", fired or 0
+        )
+        assert fired is not None and 0 <= fired - attitude_in < TICK_NS  # the first tick that saw it
+        assert_wheels_stopped(rig, fired)
+        rig.roll_override = tip_roll - threshold - math.radians(1.0)  # inside the hysteresis: still held
+        rig.run_for(0.3)
+        assert rig.first_event_ns("cleared.tip_over") is None
+        rig.roll_override = 0.0
+        assert_driving_again(rig)
+    finally:
+        rig.close()
+
+
+def test_geofence_breach_holds() -> None:
+    notch = [
+        (0.0, 0.0),
+        (4.0, 0.0),
+        (4.0, 6.0),
+        (12.0, 6.0),
+        (12.0, 0.0),
+        (20.0, 0.0),
+        (20.0, 20.0),
+        (0.0, 20.0),
+    ]
+    rig = Rig(rig_config(fence=tuple(notch)), start=(3.0, 3.0), goal=(17.0, 3.0))
+    try:
+        rig.run_until(lambda: rig.first_event_ns("failsafe.geofence") is not None, 20.0, "geofence")
+        fired = rig.first_event_ns("failsafe.geofence")
+        before = [
+            m["pose"]["position"]["x"]
+            for tp, t, m in rig.sink.records
+            if tp == "estimator/pose" and t < (fired or 0)
+        ]
+        assert before and before[-1] <= 4.0 + 1e-9  # the tick before was still inside
+        assert_wheels_stopped(rig, fired or 0)
+        rig.stack.set_goal(30.0, 3.0)  # a goal outside the fence is refused
+        assert rig.first_event_ns("goal_rejected") is not None
+    finally:
+        rig.close()
+
+
+def test_battery_low_limits_speed_and_critical_holds(rig: Rig) -> None:
+    rig.drive()
+    rig.voltage_override = 20.8  # below low (21 V), above critical (20 V)
+    rig.run_for(2.4)
+    fired = rig.first_event_ns("failsafe.battery_low")
+    first_low = min(
+        t
+        for tp, t, m in rig.sink.records
+        if tp == "wheels/status" and m["wheels"][0]["input_voltage_v"] < 21.0
+    )
+    # The tick that first sees the low reading starts the debounce; STATUS_5 arrives between ticks.
+    first_seen = first_low + (-first_low) % TICK_NS
+    assert_fired_in_window(fired, first_seen, 2.0)
+    assert rig.stack.safety_mode.value == "DRIVING"
+    states = [m for tp, t, m in rig.sink.records if tp == "navigator/state" and t > (fired or 0)]
+    assert states and all(m["speed_limit_reason"] == "battery low" for m in states)
+    assert all(m["target_speed_mps"] <= 0.5 * 1.0 + 1e-9 for m in states)
+    rig.voltage_override = 19.5
+    rig.run_for(2.4)
+    assert rig.first_event_ns("failsafe.battery_critical") is not None
+    assert rig.stack.safety_mode.value == "HOLD"
+    rig.voltage_override = 20.2  # above critical but inside its 0.3 V hysteresis: still held
+    rig.run_for(0.3)
+    assert rig.stack.safety_mode.value == "HOLD"
+    rig.voltage_override = None
+    assert_driving_again(rig)
+    assert rig.first_event_ns("cleared.battery_low") is not None
+
+
+def test_estop_from_ground_latches_until_resume() -> None:
+    ground = FakeGroundStation()
+    rig = Rig(rig_config(), commands=ground)
+    try:
+        rig.drive()
+        ground.queued.append(RoverCommand("estop", rig.now_ns))
+        tick = rig.control_tick()
+        assert rig.first_event_ns("failsafe.estop") == tick
+        assert_wheels_stopped(rig, tick)
+        rig.run_for(1.0)
+        assert rig.stack.safety_mode.value == "ESTOP"
+        ground.queued.append(RoverCommand("resume", rig.now_ns))
+        rig.control_tick()
+        assert rig.first_event_ns("cleared.estop") is not None
+        assert_driving_again(rig)
+    finally:
+        rig.close()
+
+
+def test_every_mode_change_is_an_event_with_its_cause(rig: Rig) -> None:
+    rig.drive()
+    rig.bus.silent_ids = {1}
+    rig.run_for(0.5)
+    details = [m["detail"] for _, m in rig.events("mode")]
+    assert details[0].startswith("IDLE -> DRIVING")
+    assert details[1].startswith("DRIVING -> HOLD: wheel_silent")

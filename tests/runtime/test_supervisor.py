@@ -1,0 +1,75 @@
+"""The supervisor on its own: geofence clearing, config validation, mode reporting."""
+
+from __future__ import annotations
+
+import pytest
+
+from logs.settings import ConfigError, parse_toml
+from navigator.safety import SafetyInputs, SafetySupervisor, inside_polygon
+from navigator.safety_config import SafetyConfig
+from navigator.vehicle import VehicleParams
+
+SQUARE = ((0.0, 0.0), (10.0, 0.0), (10.0, 10.0), (0.0, 10.0))
+
+
+def inputs(now_ns: int, position: tuple[float, float]) -> SafetyInputs:
+    return SafetyInputs(
+        now_ns=now_ns,
+        tick_gap_ns=20_000_000,
+        wheel_last_status_ns=(now_ns,) * 6,
+        can_bus_off=False,
+        can_send_failing_since_ns=None,
+        estimator_healthy=True,
+        last_gps_ns=now_ns,
+        last_heartbeat_ns=now_ns,
+        last_ground_contact_ns=None,
+        sent_speed_mps=0.0,
+        sent_at_ns=now_ns,
+        measured_speed_mps=0.0,
+        roll_pitch_rad=(0.0, 0.0),
+        lateral_accel_mps2=0.0,
+        position_xy=position,
+        battery_v=24.0,
+    )
+
+
+def test_geofence_fires_outside_and_clears_back_inside() -> None:
+    events: list[tuple[str, str, str]] = []
+    supervisor = SafetySupervisor(SafetyConfig(fence=SQUARE), VehicleParams(), 0, lambda *e: events.append(e))
+    assert supervisor.update(inputs(20_000_000, (5.0, 5.0)), True).speed_scale == 1.0
+    decision = supervisor.update(inputs(40_000_000, (10.5, 5.0)), True)
+    assert decision.mode.value == "HOLD" and decision.speed_scale == 0.0 and decision.faults == ("geofence",)
+    decision = supervisor.update(inputs(60_000_000, (9.5, 5.0)), True)
+    assert decision.mode.value == "DRIVING"
+    assert [e[0] for e in events] == ["mode", "failsafe.geofence", "mode", "cleared.geofence", "mode"]
+
+
+def test_inside_polygon_handles_concave_shapes() -> None:
+    notch = (
+        (0.0, 0.0),
+        (4.0, 0.0),
+        (4.0, 6.0),
+        (6.0, 6.0),
+        (6.0, 0.0),
+        (10.0, 0.0),
+        (10.0, 10.0),
+        (0.0, 10.0),
+    )
+    assert inside_polygon(2.0, 2.0, notch) and inside_polygon(5.0, 8.0, notch)
+    assert not inside_polygon(5.0, 2.0, notch) and not inside_polygon(11.0, 2.0, notch)
+
+
+@pytest.mark.parametrize(
+    ("text", "key"),
+    [
+        ("fence = [[0, 0], [1, 1]]", "safety.fence"),
+        ("fence = [[0, 0], [1, 'x'], [2, 2]]", "safety.fence"),
+        ("battery_low_v = 20.0\nbattery_critical_v = 21.0", "safety.battery_critical_v"),
+        ("loop_stall_s = 0", "safety.loop_stall_s"),
+        ("stall_s = 0.2", "safety.stall_s"),
+    ],
+)
+def test_bad_safety_config_names_the_key(text: str, key: str) -> None:
+    table = parse_toml(f"[safety]\n{text}\n", "rover.toml").table("safety")
+    with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
+        SafetyConfig.from_table(table)
