@@ -31,7 +31,7 @@ _POSITIVE = (
     "stuck_min_distance_m",
 )
 # Settings that may be zero but not negative.
-_NON_NEGATIVE = ("gps_latency_s",)
+_NON_NEGATIVE = ("gps_latency_s", "odom_yaw_rate_relative_noise")
 
 
 @dataclass(frozen=True)
@@ -46,6 +46,10 @@ class EstimatorConfig:
         Gyro z std, rad/s.
     odom_speed_noise_mps, odom_yaw_rate_noise_rps : float
         Wheel odometry std of body speed (m/s) and yaw rate (rad/s) when the wheels do not slip.
+    odom_yaw_rate_relative_noise : float
+        Further odometry yaw-rate std as a share of the yaw rate: a skid-steer's effective skid factor
+        changes with ground and load, so its turn rate from the wheels is uncertain in proportion. Without
+        it, the gyro bias state soaks up the skid error of every turn.
     accel_process_noise : float
         Random walk on speed, m/s^2 (std of the white acceleration driving it).
     yaw_accel_process_noise : float
@@ -87,6 +91,7 @@ class EstimatorConfig:
     gyro_noise_rps: float = 0.01
     odom_speed_noise_mps: float = 0.05
     odom_yaw_rate_noise_rps: float = 0.05
+    odom_yaw_rate_relative_noise: float = 0.3
     accel_process_noise: float = 0.5
     yaw_accel_process_noise: float = 1.0
     gyro_bias_walk: float = 1e-4
@@ -101,7 +106,7 @@ class EstimatorConfig:
     gps_reset_after_s: float = 10.0
     gps_timeout_s: float = 2.0
     gps_latency_s: float = 0.0
-    stuck_window_s: float = 3.0
+    stuck_window_s: float = 4.0
     stuck_min_distance_m: float = 1.0
     datum_lat_deg: float | None = None
     datum_lon_deg: float | None = None

@@ -20,10 +20,11 @@ there, and a GPS dropout then integrates ``odometry / scale`` instead of the raw
 
 Why not ``filterpy.kalman.ExtendedKalmanFilter.update``: it applies every measurement unconditionally (the
 gate must see ``S`` *before* the state changes), fixes ``dim_z`` at construction although our sensors have 1
-or 2 dimensions, and deep-copies ``z`` on every call. The update below is the same EKF update with an
-angle-wrapping residual, plus the gate; it uses ``P - K S K^T`` (with explicit symmetrisation) instead of
-filterpy's Joseph form because K is the optimal gain here and it costs two 7x7 products less per update;
-``rover bench estimator`` measures both against each other.
+or 2 dimensions, and deep-copies ``z`` on every call. The update here is the same EKF update with an
+angle-wrapping residual, plus the gate, compiled with numba (``estimator.ekf_kernels``). It uses
+``P - K S K^T`` (symmetric by construction) instead of filterpy's Joseph form because K is the optimal
+gain, except while the odometry scale is only *considered* (Schmidt update: Joseph form). A test checks
+both give filterpy's numbers; ``rover bench estimator`` times them against each other.
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ from scipy.stats import chi2
 
 from estimator.angles import wrap_angle
 from estimator.config import EstimatorConfig
+from estimator.ekf_kernels import predict_kernel, update_kernel
 from estimator.errors import EstimatorOperationError
 
 STATE_NAMES: tuple[str, ...] = (
@@ -62,8 +64,8 @@ _SCALE_MIN, _SCALE_MAX = 0.7, 2.0
 
 Array = NDArray[np.float64]
 
-# Flat indices of the random-walk states on P's diagonal, so predict adds Q with one fancy-free operation.
-_WALK_DIAGONAL = np.array([SPEED, YAW_RATE, BIAS, SCALE]) * (DIM_X + 1)
+# The random-walk states, in the order of the process noise intensities.
+_WALK_STATES = np.array([SPEED, YAW_RATE, BIAS, SCALE], dtype=np.int64)
 
 
 def _rows(*selected: int) -> Array:
@@ -126,7 +128,7 @@ class RoverEkf:
         self._x[SCALE] = 1.0
         self._p: Array = np.eye(DIM_X)
         self._t_ns: int | None = None
-        # Process noise intensities (per second) of the random walks, in _WALK_DIAGONAL's order.
+        # Process noise intensities (per second) of the random walks, in _WALK_STATES' order.
         self._q_rate: Array = np.array(
             [
                 config.accel_process_noise**2,
@@ -139,7 +141,6 @@ class RoverEkf:
         self._gate = {dim: float(chi2.ppf(config.gate_probability, dim)) for dim in (1, 2)}
         self._r_gyro: Array = np.array([[config.gyro_noise_rps**2]])
         self._scale_learning = True
-        self._f: Array = np.eye(DIM_X)  # reused Jacobian buffer; only the motion entries change
         self._h_odometry: Array = _rows(SPEED, YAW_RATE)  # reused; its speed row depends on the state
 
     # --- state access --------------------------------------------------------------------------
@@ -251,27 +252,7 @@ class RoverEkf:
         dt_ns = t_ns - self._require_time()
         if dt_ns <= 0:
             return
-        dt = dt_ns * 1e-9
-        x = self._x
-        v, w = x[SPEED], x[YAW_RATE]
-        heading = x[YAW] + 0.5 * w * dt
-        cos_h, sin_h = math.cos(heading), math.sin(heading)
-        step = v * dt
-        x[X] += step * cos_h
-        x[Y] += step * sin_h
-        x[YAW] = wrap_angle(x[YAW] + w * dt)
-
-        f = self._f
-        f[X, YAW] = -step * sin_h
-        f[X, SPEED] = dt * cos_h
-        f[X, YAW_RATE] = -step * sin_h * 0.5 * dt
-        f[Y, YAW] = step * cos_h
-        f[Y, SPEED] = dt * sin_h
-        f[Y, YAW_RATE] = step * cos_h * 0.5 * dt
-        f[YAW, YAW_RATE] = dt
-        p = f @ self._p @ f.T
-        p.ravel()[_WALK_DIAGONAL] += self._q_rate * dt
-        self._p = p
+        predict_kernel(self._x, self._p, dt_ns * 1e-9, self._q_rate, _WALK_STATES)
         self._t_ns = t_ns
 
     def predicted(self, t_ns: int) -> tuple[Array, Array]:
@@ -292,14 +273,17 @@ class RoverEkf:
         """
         _check_finite("update_position", x_m=x_m, y_m=y_m)
         _check_std("update_position", std_m=std_m)
-        y = np.array([x_m - self._x[X], y_m - self._x[Y]])
-        r = np.diag([std_m**2, std_m**2])
+        x = self._x.tolist()  # Python floats: cheaper arithmetic than numpy scalars
+        y = np.array([x_m - x[X], y_m - x[Y]])
+        variance = std_m * std_m
+        r = np.array([[variance, 0.0], [0.0, variance]])
         return self._update("gps", y, _H_POSITION, r, gated=gated)
 
     def update_gyro(self, z_rps: float) -> Innovation:
         """Body z gyro, rad/s: measures yaw rate + bias."""
         _check_finite("update_gyro", z_rps=z_rps)
-        y = np.array([z_rps - self._x[YAW_RATE] - self._x[BIAS]])
+        x = self._x.tolist()
+        y = np.array([z_rps - x[YAW_RATE] - x[BIAS]])
         return self._update("gyro", y, _H_GYRO, self._r_gyro)
 
     def update_odometry(
@@ -319,7 +303,7 @@ class RoverEkf:
         """
         _check_finite("update_odometry", speed_mps=speed_mps, yaw_rate_rps=yaw_rate_rps)
         _check_std("update_odometry", speed_std_mps=speed_std_mps, yaw_rate_std_rps=yaw_rate_std_rps)
-        x = self._x
+        x = self._x.tolist()
         if not use_speed:
             y = np.array([yaw_rate_rps - x[YAW_RATE]])
             return self._update("odometry", y, _H_ODOMETRY_YAW_RATE, np.array([[yaw_rate_std_rps**2]]))
@@ -327,11 +311,12 @@ class RoverEkf:
         h = self._h_odometry
         h[0, SPEED] = x[SCALE]
         h[0, SCALE] = x[SPEED]
-        r = np.diag([speed_std_mps**2, yaw_rate_std_rps**2])
+        r = np.array([[speed_std_mps**2, 0.0], [0.0, yaw_rate_std_rps**2]])
         innovation = self._update("odometry", y, h, r)
         # Keep the scale physical: a linearised update at near-zero speed can push it anywhere.
-        x = self._x
-        x[SCALE] = min(max(x[SCALE], _SCALE_MIN), _SCALE_MAX)
+        scale = float(self._x[SCALE])
+        if not _SCALE_MIN <= scale <= _SCALE_MAX:
+            self._x[SCALE] = min(max(scale, _SCALE_MIN), _SCALE_MAX)
         return innovation
 
     def update_heading(self, yaw_rad: float, std_rad: float) -> Innovation:
@@ -342,31 +327,11 @@ class RoverEkf:
         return self._update("heading", y, _H_HEADING, np.array([[std_rad**2]]))
 
     def _update(self, sensor: str, y: Array, h: Array, r: Array, *, gated: bool = True) -> Innovation:
-        """Gate, then the EKF update; ``y`` is the residual z - h(x), angles already wrapped."""
+        """Gate, then the EKF update (compiled: ``ekf_kernels.update_kernel``); ``y`` is z - h(x)."""
         self._require_time()
-        p_ht = self._p @ h.T
-        s = h @ p_ht + r
-        s_inv = _inverse_small(s)
-        nis = float(y @ s_inv @ y)
-        residual = tuple(y.tolist())
-        if not math.isfinite(nis) or (gated and nis > self._gate[len(y)]):
-            return Innovation(sensor, residual, nis, accepted=False)
-        k = p_ht @ s_inv
-        if self._scale_learning or not p_ht[SCALE].any():
-            self._x += k @ y
-            self._x[YAW] = wrap_angle(self._x[YAW])
-            # P - K S K^T = P - K (P H^T)^T for the optimal gain; symmetrise what rounding leaves.
-            p = self._p - k @ p_ht.T
-        else:
-            # Schmidt update: the scale's gain row is zeroed, so K is no longer optimal and only the
-            # Joseph form gives the right covariance.
-            k[SCALE] = 0.0
-            self._x += k @ y
-            self._x[YAW] = wrap_angle(self._x[YAW])
-            i_kh = np.eye(DIM_X) - k @ h
-            p = i_kh @ self._p @ i_kh.T + k @ r @ k.T
-        self._p = 0.5 * (p + p.T)
-        return Innovation(sensor, residual, nis, accepted=True)
+        schmidt = -1 if self._scale_learning else SCALE
+        nis, accepted = update_kernel(self._x, self._p, y, h, r, self._gate[len(y)], gated, schmidt)
+        return Innovation(sensor, tuple(y.tolist()), float(nis), accepted=bool(accepted))
 
     def _require_time(self) -> int:
         if self._t_ns is None:
@@ -382,17 +347,6 @@ def position_std_m(covariance: Array) -> float:
     # Closed-form eigenvalue of a symmetric 2x2: cheaper than eigvalsh in a hot loop.
     largest = 0.5 * (a + c) + math.sqrt(max(0.25 * (a - c) ** 2 + b * b, 0.0))
     return math.sqrt(max(float(largest), 0.0))
-
-
-def _inverse_small(s: Array) -> Array:
-    """Inverse of a 1x1 or 2x2 innovation covariance in closed form (np.linalg.inv costs more to call)."""
-    if s.shape == (1, 1):
-        return 1.0 / s
-    if s.shape == (2, 2):
-        a, b, c, d = s[0, 0], s[0, 1], s[1, 0], s[1, 1]
-        det = a * d - b * c
-        return np.array([[d, -b], [-c, a]]) / det
-    return np.linalg.inv(s).astype(np.float64)
 
 
 def _check_finite(where: str, **values: float) -> None:

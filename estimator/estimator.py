@@ -132,6 +132,26 @@ class Estimator:
             self._initial_heading = (wrap_angle(yaw_rad), std_rad)
         self._heading_known = True
 
+    def on_attitude(self, t_ns: int, yaw_rad: float, std_rad: float) -> None:
+        """An absolute heading (AHRS / compass yaw, rad CCW from east, std rad), fused as a measurement.
+
+        The first one (before any heading is known) initialises the heading; later ones are gated updates,
+        so one noisy AHRS sample does not fix the heading for the whole run.
+        """
+        if not (math.isfinite(yaw_rad) and math.isfinite(std_rad)) or std_rad <= 0.0:
+            self._reject("attitude_not_finite", f"yaw={yaw_rad}, std={std_rad}")
+            return
+        if not self._ekf.initialised or not self._heading_known:
+            self.set_initial_heading(yaw_rad, std_rad)
+            return
+        if t_ns < self._ekf.t_ns - _MAX_SAMPLE_LAG_NS:
+            self._reject("attitude_stale", f"sample at {t_ns} ns, filter already at {self._ekf.t_ns} ns")
+            return
+        self._advance(t_ns)
+        innovation = self._ekf.update_heading(yaw_rad, std_rad)
+        self._publish_innovation(t_ns, innovation)
+        self._count(innovation, "heading")
+
     # --- sensors -------------------------------------------------------------------------------
     def on_gps(
         self,
@@ -336,7 +356,7 @@ class Estimator:
         later = history.rewind(self._ekf, t_fix)
         self._fuse_gps(t_fix, east, north, std)
         history.replay(self._ekf, later)
-        self._counters["gps_refused_late"] += 1
+        self._counters["gps_fused_late"] += 1
 
     def _fuse_wheels(self, t_ns: int, motion: BodyMotion) -> None:
         if not self._ekf.initialised:
@@ -454,8 +474,11 @@ class Estimator:
         proportion), and the wheels of one side disagree (the side's ground speed is then uncertain by
         about their spread).
         """
-        speed_std = max(self._config.odom_speed_noise_mps, motion.side_spread_mps)
-        yaw_rate_std = self._config.odom_yaw_rate_noise_rps
+        config = self._config
+        speed_std = max(config.odom_speed_noise_mps, motion.side_spread_mps)
+        yaw_rate_std = math.hypot(
+            config.odom_yaw_rate_noise_rps, config.odom_yaw_rate_relative_noise * motion.yaw_rate_rps
+        )
         if motion.side_spread_mps > self._config.odom_speed_noise_mps:
             self._counters["odometry_wheel_spread"] += 1
         if self._last_gyro is None or abs(t_ns - self._last_gyro[0]) > _GYRO_FRESH_NS:

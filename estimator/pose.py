@@ -26,7 +26,7 @@ class PoseEstimate:
         Forward speed, m/s.
     yaw_rate : float
         Yaw rate, rad/s.
-    covariance : ndarray, shape (6, 6)
+    covariance : ndarray, shape (7, 7)
         Full state covariance, order as ``ekf.STATE_NAMES``.
     healthy : bool
         Initialised and the worst-direction position std below ``healthy_position_std_m``.

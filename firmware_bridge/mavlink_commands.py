@@ -1,8 +1,13 @@
-"""Goals a ground station sends the rover over MAVLink, and the rover's answers.
+"""Goals and stops a ground station sends the rover over MAVLink, and the rover's answers.
 
-Two ways in, as ground stations send them: ``SET_POSITION_TARGET_GLOBAL_INT`` (answered the standard way,
-by echoing the accepted target in ``POSITION_TARGET_GLOBAL_INT``) and ``COMMAND_INT`` with
+Goals come two ways, as ground stations send them: ``SET_POSITION_TARGET_GLOBAL_INT`` (answered the
+standard way, by echoing the accepted target in ``POSITION_TARGET_GLOBAL_INT``) and ``COMMAND_INT`` with
 ``MAV_CMD_DO_REPOSITION`` (answered with ``COMMAND_ACK``). Latitude and longitude are degrees x 1e7.
+
+An emergency stop comes as ``COMMAND_LONG`` or ``COMMAND_INT`` carrying ``MAV_CMD_COMPONENT_ARM_DISARM``
+with param1 = 0 (disarm; param2 = 21196 forces it, and is taken the same way) or
+``MAV_CMD_DO_FLIGHTTERMINATION`` with param1 = 1; it is answered with ``COMMAND_ACK`` (ACCEPTED).
+A stop is never refused for a reason the sender could not fix (a refused stop is the unsafe answer).
 """
 
 from __future__ import annotations
@@ -24,6 +29,8 @@ GLOBAL_FRAMES = frozenset(
         mavlink2.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT,
     }
 )
+# MAV_CMD_COMPONENT_ARM_DISARM param2 magic number: disarm even when the vehicle thinks it unsafe.
+FORCE_DISARM_MAGIC = 21196
 # type_mask bits 0..2: ignore x / y / z position.
 _IGNORE_POSITION_XY = 0b011
 COMMAND_MESSAGES = frozenset({"COMMAND_INT", "COMMAND_LONG", "SET_POSITION_TARGET_GLOBAL_INT"})
@@ -43,12 +50,23 @@ class GoalRequest:
 
 
 @dataclass(frozen=True)
+class StopRequest:
+    """An emergency stop from a ground station: when, which command carried it, and from whom."""
+
+    t_ns: int
+    source: str  # "MAV_CMD_COMPONENT_ARM_DISARM" or "MAV_CMD_DO_FLIGHTTERMINATION"
+    sysid: int
+    compid: int
+
+
+@dataclass(frozen=True)
 class Verdict:
-    """What to do with one command message: a goal, or why not, and the MAV_RESULT to answer with."""
+    """What to do with one command message: a goal, a stop, or why not, and the MAV_RESULT to answer with."""
 
     goal: GoalRequest | None
     result: int
     reason: str
+    stop: StopRequest | None = None
 
 
 def addressed_to(msg: Any, system_id: int, component_id: int) -> bool:
@@ -74,6 +92,8 @@ def judge_command(msg: Any, t_ns: int) -> Verdict:
             return Verdict(None, mavlink2.MAV_RESULT_UNSUPPORTED, "only position targets are supported")
         position = _position(msg.lat_int, msg.lon_int)
         source = kind
+    elif kind in ("COMMAND_LONG", "COMMAND_INT") and msg.command in _STOP_COMMANDS:
+        return _judge_stop(msg, t_ns)
     elif kind == "COMMAND_INT" and msg.command == mavlink2.MAV_CMD_DO_REPOSITION:
         if msg.frame not in GLOBAL_FRAMES:
             return Verdict(None, mavlink2.MAV_RESULT_DENIED, f"frame {msg.frame} is not global")
@@ -86,6 +106,35 @@ def judge_command(msg: Any, t_ns: int) -> Verdict:
         return Verdict(None, mavlink2.MAV_RESULT_DENIED, "latitude/longitude out of range")
     goal = GoalRequest(t_ns, position[0], position[1], source, sysid, compid)
     return Verdict(goal, mavlink2.MAV_RESULT_ACCEPTED, "goal accepted")
+
+
+_STOP_COMMANDS = {
+    mavlink2.MAV_CMD_COMPONENT_ARM_DISARM: "MAV_CMD_COMPONENT_ARM_DISARM",
+    mavlink2.MAV_CMD_DO_FLIGHTTERMINATION: "MAV_CMD_DO_FLIGHTTERMINATION",
+}
+
+
+def _judge_stop(msg: Any, t_ns: int) -> Verdict:
+    """ARM_DISARM / FLIGHTTERMINATION (COMMAND_LONG or COMMAND_INT: both carry param1 and param2)."""
+    name = _STOP_COMMANDS[msg.command]
+    param1 = msg.param1
+    if msg.command == mavlink2.MAV_CMD_COMPONENT_ARM_DISARM:
+        if param1 == 1.0:
+            # Arming is the autopilot's business; the companion never arms itself on a ground station's word.
+            return Verdict(None, mavlink2.MAV_RESULT_UNSUPPORTED, "arming is not taken by the companion")
+        if param1 != 0.0:
+            return Verdict(None, mavlink2.MAV_RESULT_DENIED, f"disarm param1 {param1} is not 0 or 1")
+        forced = msg.param2 == FORCE_DISARM_MAGIC
+        reason = "forced disarm: emergency stop" if forced else "disarm: emergency stop"
+    else:
+        if not param1 > 0.5:
+            # Clearing termination would restart motors remotely: a new goal does that, deliberately.
+            return Verdict(
+                None, mavlink2.MAV_RESULT_UNSUPPORTED, "clearing flight termination is not supported"
+            )
+        reason = "flight termination: emergency stop"
+    stop = StopRequest(t_ns, name, msg.get_srcSystem(), msg.get_srcComponent())
+    return Verdict(None, mavlink2.MAV_RESULT_ACCEPTED, reason, stop=stop)
 
 
 def statustext_chunks(text: str) -> list[bytes]:

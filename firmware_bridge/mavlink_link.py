@@ -20,6 +20,7 @@ from firmware_bridge.errors import BridgeOperationError, BridgeSetupError
 from firmware_bridge.mavlink_commands import (
     COMMAND_MESSAGES,
     GoalRequest,
+    StopRequest,
     addressed_to,
     judge_command,
     statustext_chunks,
@@ -137,7 +138,7 @@ class BatteryState:
     source: str
 
 
-Reading = GpsFix | ImuSample | AttitudeSample | BatteryState | GoalRequest
+Reading = GpsFix | ImuSample | AttitudeSample | BatteryState | GoalRequest | StopRequest
 
 
 @dataclass
@@ -148,6 +149,7 @@ class MavlinkCounters:
     tx_frames: int = 0
     tx_errors: int = 0
     goals_accepted: int = 0
+    stops_accepted: int = 0  # emergency stops (disarm / flight termination) taken and acknowledged
     commands_rejected: int = 0  # addressed to us but not a goal we can take (answered with the reason)
     signature_rejected: int = 0  # unsigned, replayed or wrongly signed commands (signing on)
 
@@ -292,9 +294,11 @@ class MavlinkLink:
 
     # --- receiving -----------------------------------------------------------------------------
     def poll(self) -> list[Reading]:
-        """Read and parse everything available; return readings (sensors, battery, goals) in arrival order.
+        """Read and parse everything available; return readings (sensors, battery, goals, stops) in arrival
+        order.
 
-        Goals addressed to us are answered here (COMMAND_ACK or the target echo) before they are returned.
+        Goals and stops addressed to us are answered here (COMMAND_ACK or the target echo) before they are
+        returned; a ``StopRequest`` is also recorded on ``safety/events`` (kind ``mavlink_stop_request``).
         """
         t_ns = self._clock.now_ns()
         data = self._transport.read()
@@ -308,9 +312,9 @@ class MavlinkLink:
             self.counters.rx_frames += 1
             self._publish_raw(t_ns, "rx", frame, msgid, msg.get_type(), sysid, compid)
             if msg.get_type() in COMMAND_MESSAGES:
-                goal = self._answer_command(msg, t_ns)
-                if goal is not None:
-                    readings.append(goal)
+                request = self._answer_command(msg, t_ns)
+                if request is not None:
+                    readings.append(request)
                 continue
             if self._autopilot_system_id is not None and sysid != self._autopilot_system_id:
                 continue
@@ -320,11 +324,13 @@ class MavlinkLink:
         self._check_link(t_ns)
         return readings
 
-    def _answer_command(self, msg: Any, t_ns: int) -> GoalRequest | None:
+    def _answer_command(self, msg: Any, t_ns: int) -> GoalRequest | StopRequest | None:
         if not addressed_to(msg, self.system_id, self.component_id):
             return None
         verdict = judge_command(msg, t_ns)
-        if verdict.goal is not None:
+        if verdict.stop is not None:
+            self._record_stop(verdict.stop, verdict.reason)
+        elif verdict.goal is not None:
             self.counters.goals_accepted += 1
             logger.info("goal %.7f, %.7f from %d/%d", verdict.goal.lat_deg, verdict.goal.lon_deg, *_src(msg))
         else:
@@ -357,9 +363,26 @@ class MavlinkLink:
                     command, verdict.result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent()
                 )
             )
+        if verdict.stop is not None:
+            return verdict.stop
         if verdict.goal is None:
             self.send_status_text(f"refused: {verdict.reason}", mavlink2.MAV_SEVERITY_WARNING)
         return verdict.goal
+
+    def _record_stop(self, stop: StopRequest, reason: str) -> None:
+        self.counters.stops_accepted += 1
+        detail = f"{reason} ({stop.source} from {stop.sysid}/{stop.compid})"
+        logger.warning("mavlink_stop_request: %s", detail)
+        self._sink.publish(
+            SAFETY_EVENTS,
+            stop.t_ns,
+            {
+                "timestamp": stamp(stop.t_ns),
+                "kind": "mavlink_stop_request",
+                "severity": "error",
+                "detail": detail,
+            },
+        )
 
     def _check_link(self, t_ns: int) -> None:
         last = self.last_heartbeat_ns if self.last_heartbeat_ns is not None else self._started_ns

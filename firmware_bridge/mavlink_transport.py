@@ -1,4 +1,5 @@
-"""Byte transports for MAVLink: an in-memory pipe for lockstep, and loopback-guarded UDP.
+"""Byte transports for MAVLink: an in-memory pipe for lockstep, loopback-guarded UDP, and (in
+``firmware_bridge.mavlink_stream``) TCP and serial; ``open_transport`` picks one from a connection string.
 
 Every transport is non-blocking: ``read()`` returns whatever has arrived (``b""`` if nothing), so a
 lockstep loop never waits on a socket.
@@ -12,10 +13,12 @@ import socket
 from typing import Protocol
 
 from firmware_bridge.errors import BridgeOperationError, BridgeSetupError
+from firmware_bridge.mavlink_stream import SerialTransport, TcpTransport
 
 logger = logging.getLogger(__name__)
 
 _MAX_DATAGRAM = 65535
+DEFAULT_SERIAL_BAUD = 115200  # pymavlink's default too; telemetry radios usually want 57600
 
 
 class Transport(Protocol):
@@ -158,20 +161,53 @@ class UdpTransport:
             self._socket.close()
 
 
+def _split_host_port(connection: str, scheme: str, rest: str) -> tuple[str, int]:
+    host, sep, port_text = rest.rpartition(":")
+    if not sep or not host or not port_text.isdigit():
+        raise BridgeSetupError(f"MAVLink connection {connection!r} must look like {scheme}:HOST:PORT")
+    return host, int(port_text)
+
+
+def _serial_device_and_baud(connection: str) -> tuple[str, int]:
+    """``serial:DEVICE:BAUD``, ``DEVICE,BAUD`` (pymavlink's spelling) or a bare ``/dev/...`` path."""
+    spec = connection.removeprefix("serial:")
+    for separator in (",", ":"):
+        device, sep, baud_text = spec.rpartition(separator)
+        if sep and device:
+            if not baud_text.isdigit():
+                raise BridgeSetupError(
+                    f"MAVLink connection {connection!r}: baud {baud_text!r} is not a number"
+                )
+            return device, int(baud_text)
+    if not spec:
+        raise BridgeSetupError(f"MAVLink connection {connection!r} must look like serial:DEVICE:BAUD")
+    return spec, DEFAULT_SERIAL_BAUD
+
+
 def open_transport(connection: str, *, allow_remote: bool = False) -> Transport:
-    """A transport from a connection string as MAVLink users know them: ``udpin:HOST:PORT`` etc."""
+    """A transport from a connection string as MAVLink users know them.
+
+    ``udpin:HOST:PORT``, ``udpout:HOST:PORT``, ``tcp:HOST:PORT`` (connect), ``tcpin:HOST:PORT`` (listen),
+    ``serial:DEVICE:BAUD``, ``DEVICE,BAUD`` or ``/dev/DEVICE`` (115200 baud). Network hosts must be
+    loopback unless ``allow_remote`` (the real vehicle only).
+    """
     if connection == "memory":
         raise BridgeSetupError(
             "the 'memory' MAVLink connection cannot be opened by name; build it with memory_pipe_pair()"
         )
     scheme, _, rest = connection.partition(":")
     if scheme in ("udpin", "udpout"):
-        host, sep, port_text = rest.rpartition(":")
-        if not sep or not host or not port_text.isdigit():
-            raise BridgeSetupError(f"MAVLink connection {connection!r} must look like {scheme}:HOST:PORT")
-        return UdpTransport(scheme, host, int(port_text), allow_remote=allow_remote)
-    if scheme in ("tcp", "tcpin", "serial") or connection.startswith("/dev/"):
-        raise BridgeSetupError(f"MAVLink connection {connection!r}: not supported yet; use udpin: or udpout:")
+        host, port = _split_host_port(connection, scheme, rest)
+        return UdpTransport(scheme, host, port, allow_remote=allow_remote)
+    if scheme in ("tcp", "tcpin"):
+        host, port = _split_host_port(connection, scheme, rest)
+        if not 0 <= port <= 65535 or (scheme == "tcp" and port == 0):
+            raise BridgeSetupError(f"{connection!r}: port {port} is out of range")
+        return TcpTransport(scheme, _resolve_host(host, allow_remote, connection), port)
+    if scheme == "serial" or connection.startswith("/dev/"):
+        device, baud = _serial_device_and_baud(connection)
+        return SerialTransport(device, baud)
     raise BridgeSetupError(
-        f"unknown MAVLink connection {connection!r}; expected udpin:HOST:PORT, udpout:HOST:PORT or memory"
+        f"unknown MAVLink connection {connection!r}; expected udpin:HOST:PORT, udpout:HOST:PORT, "
+        "tcp:HOST:PORT, tcpin:HOST:PORT, serial:DEVICE:BAUD or memory"
     )

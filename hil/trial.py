@@ -17,6 +17,8 @@ from importlib import metadata as package_metadata
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from firmware_bridge.can_link import CanLink
 from firmware_bridge.mavlink_link import MavlinkLink
 from firmware_bridge.vesc import VescCodec
@@ -31,6 +33,7 @@ from logs.recorder import McapRecorder
 from logs.sink import FanoutSink, MessageSink
 from navigator.config import RoverConfig
 from navigator.onboard import Mode, OnboardStack
+from navigator.terrain_classes import TERRAIN_CLASSES
 
 _log = logging.getLogger(__name__)
 
@@ -81,7 +84,7 @@ def run_trial(
     clock = SimClock()
 
     with McapRecorder(mcap_path) as recorder:
-        _write_header(recorder, scenario, config, seed)
+        write_header(recorder, scenario, config, seed)
         sink: MessageSink = recorder if telemetry is None else FanoutSink([recorder, telemetry])
         with lockstep_wires(config.can, clock=clock, can_backend=can_backend) as wires:
             codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
@@ -170,7 +173,10 @@ def _run_loop(
     return "timeout"
 
 
-def _write_header(recorder: McapRecorder, scenario: Scenario, config: RoverConfig, seed: int) -> None:
+def write_header(
+    recorder: McapRecorder, scenario: Scenario, config: RoverConfig, seed: int, *, mode: str = "sim-lockstep"
+) -> None:
+    """Metadata (scenario, trial) and attachments (scenario, config) that make a recording self-describing."""
     obstacles = [{"id": o.id, "x": o.x, "y": o.y, "radius": o.radius_m} for o in scenario.obstacles]
     moving = [
         {"id": m.id, "radius": m.radius_m, "waypoints": m.waypoints, "speed_mps": m.speed_mps}
@@ -192,15 +198,26 @@ def _write_header(recorder: McapRecorder, scenario: Scenario, config: RoverConfi
             "moving_obstacles_json": json.dumps(moving, separators=(",", ":")),
             "faults_json": json.dumps(faults, separators=(",", ":")),
             "goal_json": json.dumps({"x": goal.x, "y": goal.y, "tolerance_m": goal.tolerance_m}),
+            "terrain_class": _dominant_class(scenario),
         },
     )
     recorder.add_metadata(
         "trial",
         {
-            "mode": "sim-lockstep",
+            "mode": mode,
             "rover_id": config.rover_id,
             "config": Path(config.source).name,
             "software_version": software_version(),
+            "can_bitrate": str(config.can.bitrate),
         },
     )
     recorder.add_attachment("scenario.toml", "application/toml", scenario.text.encode("utf-8"), 0)
+    config_path = Path(config.source)
+    if config_path.is_file():
+        recorder.add_attachment("config.toml", "application/toml", config_path.read_bytes(), 0)
+
+
+def _dominant_class(scenario: Scenario) -> str:
+    """The terrain class covering most of the map: the row a trial falls under in per-terrain tables."""
+    counts = np.bincount(scenario.terrain.terrain_class.ravel())
+    return TERRAIN_CLASSES[int(np.argmax(counts))].name

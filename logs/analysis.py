@@ -8,10 +8,12 @@ Definitions and tolerances: docs/metrics.md ("Report figures"). Absent topics ne
 from __future__ import annotations
 
 import base64
+import gc
 import math
 import re
 from collections import Counter
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -230,6 +232,20 @@ class _Collector:
         self.grid_extent = (x0, x0 + columns * float(size["x"]), y0, y0 + rows * float(size["y"]))
 
 
+@contextmanager
+def _cyclic_gc_paused() -> Iterator[None]:
+    """Pause the cyclic garbage collector: the hundreds of thousands of decoded JSON dicts trigger many
+    full collections that find nothing (JSON data has no cycles; reference counting frees it), ~30 % of
+    a long report's time."""
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was_enabled:
+            gc.enable()
+
+
 def analyse(path: str | Path, *, can_bitrate: int | None = None) -> TrialAnalysis:
     """Read ``path`` once and compute everything the report shows. ``LogReadError`` for non-MCAP files."""
     stats = ReadStats()
@@ -240,7 +256,8 @@ def analyse(path: str | Path, *, can_bitrate: int | None = None) -> TrialAnalysi
             collector.take(entry)
             yield entry
 
-    metrics = metrics_from_entries(tee(), stats)
+    with _cyclic_gc_paused():
+        metrics = metrics_from_entries(tee(), stats)
     if not collector.counts and not collector.metadata and not stats.truncated:
         raise LogReadError(f"{path} holds no messages or metadata at all")
     return _finish(str(path), metrics, collector, stats, can_bitrate)

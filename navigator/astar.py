@@ -40,6 +40,7 @@ _HEURISTIC_IDS = {
     "manhattan": astar_kernel.H_MANHATTAN,
 }
 _NO_FACTORS = np.ones((8, 1))
+_NO_FIELD = np.zeros(1)
 
 
 @dataclass(frozen=True)
@@ -73,6 +74,21 @@ def check_factors(factors: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     return np.ascontiguousarray(array.reshape(8, -1))
 
 
+def _min_finite(grid: np.ndarray) -> float:
+    # The grid is validated (> 0 or inf) and start and goal are finite, so the minimum exists.
+    finite_min = float(np.min(grid, initial=np.inf, where=np.isfinite(grid)))
+    return finite_min
+
+
+def _check_field(field: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    array = np.asarray(field, dtype=np.float64)
+    if array.shape != shape:
+        raise PlanningError(f"heuristic field must have the grid's shape {shape}, got {array.shape}")
+    if np.any(np.isnan(array)) or np.any(array < 0.0):
+        raise PlanningError("heuristic field must hold lower bounds >= 0 (or inf); found NaN or < 0")
+    return np.ascontiguousarray(array.ravel())
+
+
 def _check_cell(cost: np.ndarray, cell: tuple[int, int], what: str) -> None:
     rows, cols = cost.shape
     row, col = cell
@@ -92,11 +108,14 @@ def astar(
     heuristic: str = "octile",
     weight: float = 1.0,
     factors: np.ndarray | None = None,
+    field: np.ndarray | None = None,
 ) -> PlanResult:
     """Cheapest 8-connected path from ``start`` to ``goal`` (``(row, col)`` cells) over ``cost``.
 
     ``cost``: ``(rows, cols)`` float, finite values > 0 are traversable, ``np.inf`` is lethal.
     ``factors``: optional ``(8, rows, cols)`` direction factors (move order of ``astar_kernel.MOVES``).
+    ``field``: optional ``(rows, cols)`` lower bounds of the cost to ``goal`` that replace the named
+    heuristic (``navigator.replanning``: the cost-to-go of an earlier map whose costs were nowhere higher).
     Raises PlanningError for a bad grid, a start/goal off the grid or lethal, NoPathError when none exists.
     """
     grid = check_cost_grid(cost)
@@ -110,19 +129,23 @@ def astar(
     _check_cell(grid, start, "start")
     _check_cell(grid, goal, "goal")
     cols = grid.shape[1]
-    finite = grid[np.isfinite(grid)]
+    if field is None:
+        heuristic_id, h_scale, h_field = _HEURISTIC_IDS[heuristic], weight * _min_finite(grid), _NO_FIELD
+    else:
+        heuristic_id, h_scale, h_field = astar_kernel.H_FIELD, weight, _check_field(field, grid.shape)
     parent, goal_cost, expanded = astar_kernel.search(
         grid.ravel(),
         cols,
         start[0] * cols + start[1],
         goal[0] * cols + goal[1],
-        _HEURISTIC_IDS[heuristic],
-        weight * float(finite.min()),
+        heuristic_id,
+        h_scale,
         flat_factors,
         factors is not None,
         astar_kernel.MODEL_MEAN,
         SQRT2,
         True,
+        h_field,
     )
     if not math.isfinite(goal_cost):
         raise NoPathError(

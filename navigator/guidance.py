@@ -7,7 +7,9 @@ current speed limit. Obstacles seen on the way come in through ``observe``:
 * a *static* obstacle not seen before (and within ``sensing_range_m`` of the rover) is added to the map.
   The plan is then *repaired*: costs only ever rise when obstacles are added, so a remaining path that
   touches no cell whose cost changed is still optimal and is kept (checked in O(path length)); otherwise
-  a new plan is made from the current pose;
+  a new plan is made from the current pose, with the goal's cost-to-go field (built on the first plan to
+  that goal, still a consistent lower bound since costs only rose) as the A* heuristic, so it expands
+  little more than the detour (``navigator.replanning``) and costs the same as a fresh plan;
 * a *moving* obstacle is tracked (latest observation per id); if its constant-velocity prediction comes
   within clearance of the path ahead within ``moving_horizon_s``, the rover stops (mode ``BLOCKED``) until
   the way is clear.
@@ -92,6 +94,9 @@ class Guidance:
             classes=classes,
             cost_mode=planner_config.cost_mode,
             heuristic_weight=planner_config.heuristic_weight,
+            # Every replan to the same goal reuses its cost-to-go field: a repair after new obstacles
+            # or from a new pose expands little more than the new path (navigator.replanning).
+            reuse_goal_field=True,
         )
         self._follower: PurePursuit = (
             Stanley(follower_config)

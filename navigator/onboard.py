@@ -17,13 +17,11 @@ import logging
 import math
 from dataclasses import dataclass
 
-import numpy as np
-
 from estimator.estimator import Estimator
 from estimator.geodesy import to_enu
 from estimator.pose import PoseEstimate
 from firmware_bridge.can_link import CanLink
-from firmware_bridge.mavlink_commands import GoalRequest
+from firmware_bridge.mavlink_commands import GoalRequest, StopRequest
 from firmware_bridge.mavlink_link import AttitudeSample, GpsFix, ImuSample, MavlinkLink
 from logs import topics
 from logs.clock import NS_PER_S, Clock
@@ -31,6 +29,7 @@ from logs.commands import CommandSource
 from logs.sink import MessageSink
 from navigator.config import RoverConfig
 from navigator.guidance import Guidance
+from navigator.map_message import grid_message
 from navigator.mixing import mix_skid_steer
 from navigator.perception import ObstacleObservation, ObstacleSource
 from navigator.planner import Path, Planner
@@ -40,13 +39,11 @@ from navigator.terrain import TerrainMap
 _log = logging.getLogger(__name__)
 
 HEARTBEAT_PERIOD_NS = NS_PER_S
-# The autopilot's AHRS heading seeds the estimator; compass-aided yaw is good to a few degrees.
+# The autopilot's AHRS heading (compass-aided yaw, good to a few degrees) is fused as a measurement.
 AHRS_HEADING_STD_RAD = math.radians(5.0)
 # Readiness check before driving: the estimate must stay healthy this long (several GPS fixes averaged),
 # so the first plan does not start from one noisy fix.
 SETTLE_NS = 2 * NS_PER_S
-LEFT_WHEELS = (0, 1, 2)
-RIGHT_WHEELS = (3, 4, 5)
 # MAVLink GPS_FIX_TYPE 3 = 3D fix; anything less does not count as "GPS present" for the GPS failsafe.
 MIN_GPS_FIX_TYPE = 3
 
@@ -190,6 +187,8 @@ class OnboardStack:
         self._sink = sink
         self._commands = commands
         self._obstacles = obstacles
+        self._terrain = terrain
+        self._map_published = False
         self._event = _EventFn(clock, sink)
         self.estimator = Estimator(config.estimator, clock, sink)
         self.guidance = RouteGuidance(config, terrain, sink, self._event)
@@ -254,6 +253,9 @@ class OnboardStack:
     # --- the control tick ---------------------------------------------------------------------------
     def step(self) -> None:
         now = self._clock.now_ns()
+        if not self._map_published:
+            self._sink.publish(topics.NAVIGATOR_MAP, now, grid_message(self._terrain, now))
+            self._map_published = True
         self._read_links(now)
         self._read_commands()
         self._read_obstacles(now)
@@ -427,17 +429,17 @@ class OnboardStack:
                 self.estimator.on_imu(reading.t_ns, gz, ax, ay)
             elif isinstance(reading, GoalRequest):
                 self._goal_from_ground_station(reading)
+            elif isinstance(reading, StopRequest):
+                self.estop(f"MAVLink {reading.source} from system {reading.sysid}")
             elif isinstance(reading, AttitudeSample):
                 self._attitude = reading
-                if not self.estimator.heading_known:
-                    self.estimator.set_initial_heading(reading.yaw_rad, AHRS_HEADING_STD_RAD)
+                self.estimator.on_attitude(reading.t_ns, reading.yaw_rad, AHRS_HEADING_STD_RAD)
         if self._can.poll():
             readings = self._can.readings()
             if all(r.last_status_ns is not None for r in readings):
                 self._newest_sensor_ns = now
-                left = float(np.mean([readings[i].speed_mps for i in LEFT_WHEELS]))
-                right = float(np.mean([readings[i].speed_mps for i in RIGHT_WHEELS]))
-                self.estimator.on_wheels(now, left, right)
+                # All six: disagreement between the wheels of one side is a slip signal to the estimator.
+                self.estimator.on_wheel_speeds(now, [r.speed_mps for r in readings])
 
 
 def _limit_reason(guidance: GuidanceCommand, mode: SafetyMode, scale: float) -> str:

@@ -20,6 +20,7 @@ from navigator.astar import HEURISTICS, PlanResult, astar
 from navigator.costs import CostModel
 from navigator.direction_costs import DirectionWeights, direction_factors
 from navigator.errors import PlanningError, TerrainError
+from navigator.replanning import RepairingPlanner
 from navigator.terrain import TerrainMap
 from navigator.terrain_classes import TERRAIN_CLASSES, TerrainClass
 from navigator.vehicle import VehicleParams
@@ -59,7 +60,11 @@ class Planner:
         cost_mode: str = "terrain",
         direction_weights: DirectionWeights | None = None,
         heuristic_weight: float = 1.0,
+        reuse_goal_field: bool = False,
     ) -> None:
+        """``reuse_goal_field``: plan with ``navigator.replanning`` (the goal's cost-to-go field as the
+        heuristic, built once per goal and kept while obstacles only add cost): the first plan to a goal
+        costs about one full Dijkstra, every later one (new start, new obstacles) a small fraction."""
         if heuristic not in HEURISTICS:
             raise PlanningError(f"unknown heuristic {heuristic!r}; choose one of {', '.join(HEURISTICS)}")
         if cost_mode not in COST_MODES:
@@ -76,6 +81,9 @@ class Planner:
         self._factors: np.ndarray | None = None
         if cost_mode == "terrain":
             self._factors = direction_factors(terrain, params, classes, self._direction_weights)
+        self._repairing: RepairingPlanner | None = None
+        if reuse_goal_field:
+            self._repairing = RepairingPlanner(self._cost, self._factors, heuristic_weight)
 
     @property
     def terrain(self) -> TerrainMap:
@@ -117,10 +125,14 @@ class Planner:
         self._terrain = self._terrain.with_obstacles(mask)
         before = self._cost
         self._cost = self._grid(self._terrain)
+        if self._repairing is not None:
+            self._repairing.update_costs(self._cost)
         return np.asarray(before != self._cost)
 
     def plan_cells(self, start_cell: tuple[int, int], goal_cell: tuple[int, int]) -> PlanResult:
         """A* between two cells over the current costs (no start escape)."""
+        if self._repairing is not None:
+            return self._repairing.plan(start_cell, goal_cell)
         return astar(
             self._cost, start_cell, goal_cell, self._heuristic, self._heuristic_weight, self._factors
         )

@@ -16,6 +16,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from logs.clock import Clock
 from logs.commands import ZenohCommandReceiver
 from logs.recorder import McapRecorder
@@ -25,6 +27,7 @@ from navigator.config import RoverConfig
 from navigator.errors import NavigatorError
 from navigator.links import open_links
 from navigator.onboard import OnboardStack
+from navigator.planner import Planner
 from navigator.runtime import FixedRateScheduler, TimingStats
 
 _log = logging.getLogger(__name__)
@@ -73,6 +76,7 @@ def run_rover(
             can_link, mavlink = open_links(config, clock, sink)
             stack = OnboardStack(config, clock, can_link, mavlink, sink, config.terrain, commands=commands)
             try:
+                warm_up_planner(stack.guidance.planner, clock)
                 if goal is not None:
                     stack.set_goal(*goal)
                 scheduler = FixedRateScheduler(
@@ -99,3 +103,20 @@ def run_rover(
             if session is not None:
                 session.close()
     return RunResult(mcap_path, timing)
+
+
+def warm_up_planner(planner: Planner, clock: Clock) -> None:
+    """Plan once on this map before the loop starts, so the A* kernel is compiled (or loaded from numba's
+    cache) now: the first real plan runs inside a control tick, and a compile there stalled the loop for
+    seconds (the safety supervisor then saw a loop stall). A map with no free cell is left to guidance."""
+    free = np.argwhere(np.isfinite(planner.cost_grid))
+    if free.size == 0:
+        return
+    cell = (int(free[0][0]), int(free[0][1]))
+    started = clock.now_ns()
+    try:
+        planner.plan_cells(cell, cell)
+    except NavigatorError as err:
+        _log.warning("planner warm-up failed (the first plan will be slow): %s", err)
+        return
+    _log.info("planner warmed up in %.2f s", (clock.now_ns() - started) / 1e9)

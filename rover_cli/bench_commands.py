@@ -12,6 +12,7 @@ from typing import Any
 # benchmark name -> module (one line per benchmark; keep the table sorted)
 BENCHMARKS: dict[str, str] = {
     "can": "rover_cli.bench_can",
+    "estimator": "rover_cli.bench_estimator",
     "hil": "rover_cli.bench_hil",
     "logs": "rover_cli.bench_logs",
     "plan": "rover_cli.bench_plan",

@@ -16,6 +16,7 @@ def register(benchmarks: Any) -> None:
     bench.add_argument(
         "--duration-s", type=float, default=600.0, help="simulated length of the reported trial"
     )
+    bench.add_argument("--repeat", type=int, default=3, help="recorder runs per contender (best is kept)")
     bench.add_argument("--json", action="store_true", help="print the figures as one JSON object")
     bench.set_defaults(handler=run)
 
@@ -24,10 +25,10 @@ def run(args: argparse.Namespace) -> int:
     from logs.bench import run_benchmark
 
     console = Console()
-    if args.messages <= 0 or args.duration_s <= 0:
-        console.print("[red]error:[/red] --messages and --duration-s must be > 0")
+    if args.messages <= 0 or args.duration_s <= 0 or args.repeat <= 0:
+        console.print("[red]error:[/red] --messages, --duration-s and --repeat must be > 0")
         return 2
-    figures = run_benchmark(args.messages, args.duration_s)
+    figures = run_benchmark(args.messages, args.duration_s, args.repeat)
     if args.json:
         print(json.dumps(figures, sort_keys=True))
         return 0

@@ -37,11 +37,17 @@ def run_bench(args: argparse.Namespace) -> int:
                 + (f"   cost {cost:.2f}" if cost is not None else "")
             )
     print(
-        f"repair on {repair['size']}^2 after a local change: {repair['repair_ms']:.1f} ms vs fresh plan "
-        f"{repair['fresh_ms']:.1f} ms ({100 * repair['ratio']:.1f} %), same cost: {repair['same_cost']}"
+        f"repair on {repair['size']}^2 after a local change on the path: {repair['repair_ms']:.1f} ms vs "
+        f"fresh plan {repair['fresh_ms']:.1f} ms ({100 * repair['ratio']:.1f} %), expanded "
+        f"{repair['repair_expanded']} vs {repair['fresh_expanded']}, same cost: {repair['same_cost']}"
     )
     print(
         f"  change off the path: {repair['off_path_repair_ms']:.1f} ms "
-        f"({100 * repair['off_path_ratio']:.2f} %), same cost: {repair['off_path_same_cost']}"
+        f"({100 * repair['off_path_ratio']:.1f} %), expanded {repair['off_path_repair_expanded']}, "
+        f"same cost: {repair['off_path_same_cost']}"
+    )
+    print(
+        f"  goal cost-to-go field (once per goal, reused by every repair): {repair['field_ms']:.1f} ms "
+        f"({100 * repair['field_ratio']:.0f} % of a fresh plan)"
     )
     return 0

@@ -35,6 +35,28 @@ def register(families: Any) -> None:
     )
     campaign.add_argument("--workers", type=int, default=None, help="worker processes (default: the file's)")
     campaign.set_defaults(handler=run_campaign_command)
+    _register_peer(commands)
+
+
+def _register_peer(commands: Any) -> None:
+    peer = commands.add_parser(
+        "peer", help="the simulated rover in real time, on a CAN bus and a MAVLink UDP port, for `rover run`"
+    )
+    peer.add_argument("scenario", type=Path, help="scenario TOML file")
+    peer.add_argument("--seed", type=int, default=None, help="random seed (default: the scenario's)")
+    peer.add_argument("--config", type=Path, default=None, help="rover config TOML (default: built-in)")
+    peer.add_argument("--can-interface", default=None, help="python-can interface (default: the config's)")
+    peer.add_argument(
+        "--can-channel", default=None, help="CAN channel, e.g. vcan0 or a 239.x.y.z udp_multicast group"
+    )
+    peer.add_argument(
+        "--mavlink", default="udpin:127.0.0.1:0", help="where the autopilot listens (port 0: the OS picks)"
+    )
+    peer.add_argument("--port-file", type=Path, default=None, help="write the bound MAVLink UDP port here")
+    peer.add_argument("--status-file", type=Path, default=None, help="keep the body's state here (JSON)")
+    peer.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
+    peer.add_argument("--out", type=Path, default=None, help="output directory (default: logs/trials/<run>)")
+    peer.set_defaults(handler=run_peer_command)
 
 
 def load_config(path: Path | None) -> RoverConfig:
@@ -144,3 +166,74 @@ def run_campaign_command(args: argparse.Namespace) -> int:
     console.print(markdown.read_text(encoding="utf-8"), soft_wrap=True, markup=False)
     console.print(f"summary: {markdown}\n         {json_path}")
     return 0 if all(o.ok for o in outcomes) else 1
+
+
+def run_peer_command(args: argparse.Namespace) -> int:
+    import dataclasses
+    import signal
+    import threading
+    from types import FrameType
+
+    from firmware_bridge.errors import BridgeError
+    from hil.peer import open_peer_wires, run_peer
+    from hil.scenario import load_scenario
+    from logs.clock import MonotonicClock
+
+    console = Console(stderr=True)
+    try:
+        scenario = load_scenario(args.scenario)
+        config = load_config(args.config)
+        can_config = dataclasses.replace(
+            config.can,
+            interface=args.can_interface or config.can.interface,
+            channel=args.can_channel or config.can.channel,
+        )
+        config = dataclasses.replace(config, can=can_config)
+        bus, transport = open_peer_wires(can_config, args.mavlink)
+    except (ConfigError, BridgeError) as err:
+        console.print(f"[red]error:[/red] {err}")
+        return 2
+    seed = scenario.seed if args.seed is None else args.seed
+    out_dir = args.out or _unique_run_dir(DEFAULT_TRIALS_DIR, f"{scenario.name}-seed{seed}-peer")
+    stop = threading.Event()
+
+    def on_signal(signum: int, frame: FrameType | None) -> None:
+        del frame
+        console.print(f"{signal.Signals(signum).name}: stopping the peer")
+        stop.set()
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+    port = transport.local_address[1]
+
+    def on_ready(rover_config: Path) -> None:
+        # stdout is for whoever started us: the port to dial, then the config that dials it.
+        print(f"mavlink: udpout:127.0.0.1:{port}", flush=True)
+        print(f"rover config: {rover_config}", flush=True)
+
+    try:
+        result = run_peer(
+            scenario,
+            config,
+            out_dir,
+            clock=MonotonicClock(),
+            can_bus=bus,
+            mavlink=transport,
+            mavlink_port=port,
+            wait=time.sleep,
+            stop=stop,
+            seed=seed,
+            duration_ns=None if args.duration is None else round(args.duration * 1e9),
+            status_path=args.status_file,
+            port_file=args.port_file,
+            on_ready=on_ready,
+        )
+    finally:
+        transport.close()
+        bus.shutdown()
+    print(f"truth: {result.mcap_path}")
+    print(
+        f"simulated {result.simulated_s:.1f} s; VESC commands {result.commands_applied}, "
+        f"command timeouts {result.vesc_timeouts}; timing {result.timing.summary()}"
+    )
+    return 0

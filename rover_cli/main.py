@@ -16,10 +16,11 @@ from collections.abc import Sequence
 # (one line per family; keep the table sorted)
 FAMILIES = {
     "bench": "rover_cli.bench_commands",
+    "can": "rover_cli.can_commands",
     "hil": "rover_cli.hil_commands",
+    "logs": "rover_cli.logs_commands",
     "plan": "rover_cli.plan_commands",
     "run": "rover_cli.run_commands",
-    "logs": "rover_cli.logs_commands",
     "telemetry": "rover_cli.telemetry_commands",
 }
 

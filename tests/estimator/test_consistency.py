@@ -37,6 +37,8 @@ MATCHED = EstimatorConfig(
     odom_yaw_rate_noise_rps=rover_sim.WHEEL_STD_MPS * math.sqrt(2.0) / (0.55 * 1.6),
     accel_process_noise=SPEED_WALK,
     yaw_accel_process_noise=YAW_RATE_WALK,
+    # The simulated wheels obey the skid-steer kinematics exactly.
+    odom_yaw_rate_relative_noise=0.0,
     # The simulated gyro bias and odometry scale are constants: (almost) no random walk on them either.
     gyro_bias_walk=1e-6,
     odom_scale_walk=1e-5,

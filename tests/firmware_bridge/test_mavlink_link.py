@@ -184,7 +184,12 @@ def test_udp_loopback_round_trip_with_os_chosen_port():
         ("udpin:0.0.0.0:14550", "loopback"),
         ("udpout:example.com:14550", "loopback"),
         ("udpout:127.0.0.1", "HOST:PORT"),
-        ("tcp:127.0.0.1:5760", "not supported yet"),
+        ("tcp:10.0.0.1:5760", "loopback"),
+        ("tcp:127.0.0.1:0", "out of range"),
+        ("serial:/dev/ttyUSB0:fast", "not a number"),
+        ("/dev/no-such-tty-for-rover,57600", "cannot open"),
+        ("serial:/dev/null:57600", "not a serial device"),
+        ("serial:/dev/null:12345", "baud"),
         ("carrier-pigeon", "unknown MAVLink connection"),
     ],
 )

@@ -24,6 +24,7 @@ ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = ROOT / "tests" / "data" / "small_rocky.toml"
 KILL_POINTS = 3
 START_TIMEOUT_S = 60.0
+FIRST_CHUNK_BYTES = 20_000  # header, metadata, attachment and the first one-second chunk
 
 
 def _start(out: Path) -> subprocess.Popen[bytes]:
@@ -33,22 +34,24 @@ def _start(out: Path) -> subprocess.Popen[bytes]:
     )
 
 
-def _kill_when_larger(process: subprocess.Popen[bytes], recording: Path, size: int) -> None:
+def _kill_after(process: subprocess.Popen[bytes], recording: Path, delay_s: float) -> None:
+    """SIGKILL ``delay_s`` after the recording holds its first chunk (the trial is then truly recording)."""
     deadline = time.monotonic() + START_TIMEOUT_S
+    kill_at = None
     while time.monotonic() < deadline:
         if process.poll() is not None:
             _, err = process.communicate()
-            pytest.fail(
-                f"trial ended (rc {process.returncode}) before reaching {size} bytes: {err.decode()[-800:]}"
-            )
-        if recording.exists() and recording.stat().st_size >= size:
+            pytest.fail(f"trial ended (rc {process.returncode}) before its kill point: {err.decode()[-800:]}")
+        if kill_at is None and recording.exists() and recording.stat().st_size >= FIRST_CHUNK_BYTES:
+            kill_at = time.monotonic() + delay_s
+        if kill_at is not None and time.monotonic() >= kill_at:
             os.kill(process.pid, signal.SIGKILL)
             process.wait(timeout=10)
             return
         time.sleep(0.005)
     process.kill()
     process.wait()
-    pytest.fail(f"trial never reached {size} bytes in {START_TIMEOUT_S} s")
+    pytest.fail(f"trial never reached its kill point in {START_TIMEOUT_S} s")
 
 
 def _chunk_spans_ns(path: Path) -> list[int]:
@@ -63,25 +66,25 @@ def _chunk_spans_ns(path: Path) -> list[int]:
 
 
 def test_sigkill_then_recover_then_report(tmp_path: Path) -> None:
-    # Random kill points (seeded, so a failure reproduces): a byte size the recording must reach first.
-    # The whole small trial writes ~1.1 MB; the header and the first second are ~80 kB.
-    sizes = sorted(np.random.default_rng(20240607).integers(120_000, 800_000, KILL_POINTS).tolist())
-    runs = [(tmp_path / f"kill{i}", size) for i, size in enumerate(sizes)]
+    # Random kill points (seeded, so a failure reproduces): a delay after the first chunk is on disk.
+    # Wall-time points, not sizes: the trial's real-time factor varies with the machine's load.
+    delays = np.random.default_rng(20240607).uniform(0.0, 1.5, KILL_POINTS).tolist()
+    runs = [(tmp_path / f"kill{i}", delay) for i, delay in enumerate(delays)]
     processes = [_start(out) for out, _ in runs]  # concurrently: the three trials share the wait
     try:
-        for process, (out, size) in zip(processes, runs, strict=True):
-            _kill_when_larger(process, out / "trial.mcap", size)
+        for process, (out, delay) in zip(processes, runs, strict=True):
+            _kill_after(process, out / "trial.mcap", delay)
     finally:
         for process in processes:
             if process.poll() is None:
                 process.kill()
                 process.wait()
 
-    for index, (out, size) in enumerate(runs):
+    for index, (out, delay) in enumerate(runs):
         cut = out / "trial.mcap"
         findings = diagnose(cut)
         assert not findings.complete and not findings.healthy, (
-            f"killed at {size} B yet the file looks complete"
+            f"killed {delay:.2f} s in, yet the file looks complete"
         )
         assert findings.chunks >= 1 and findings.chunks_damaged == 0
         # The reader reads a cut file up to the cut, without raising.

@@ -26,18 +26,18 @@ def test_doctor_exit_codes(recording: Path, tmp_path: Path, capsys: pytest.Captu
     findings = json.loads(capsys.readouterr().out)
     assert findings["healthy"] and findings["topics"]["can/frames"]["messages"] == 14 * 200
     cut = tmp_path / "cut.mcap"
-    cut.write_bytes(recording.read_bytes()[:-5000])
+    cut.write_bytes(recording.read_bytes()[: recording.stat().st_size // 2])
     assert main(["logs", "doctor", str(cut)]) == 1
-    assert "cut short" in capsys.readouterr().out
+    assert "cut short" in " ".join(capsys.readouterr().out.split())  # rich wraps long lines
     junk = tmp_path / "junk.mcap"
     junk.write_bytes(b"PK\x03\x04 a zip file")
     assert main(["logs", "doctor", str(junk)]) == 2
-    assert "not an MCAP file" in capsys.readouterr().out
+    assert "not an MCAP file" in " ".join(capsys.readouterr().out.split())
 
 
 def test_recover_then_report(recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     cut = tmp_path / "cut.mcap"
-    cut.write_bytes(recording.read_bytes()[:-5000])
+    cut.write_bytes(recording.read_bytes()[: recording.stat().st_size // 2])
     assert main(["logs", "recover", str(cut), str(tmp_path / "fixed.mcap"), "--json"]) == 0
     result = json.loads(capsys.readouterr().out)
     assert result["messages"] > 0 and not result["was_complete"]

@@ -304,3 +304,21 @@ def test_every_mode_change_is_an_event_with_its_cause(rig: Rig) -> None:
     details = [m["detail"] for _, m in rig.events("mode")]
     assert details[0].startswith("IDLE -> DRIVING")
     assert details[1].startswith("DRIVING -> HOLD: wheel_silent")
+
+
+def test_estop_over_mavlink_latches_estop() -> None:
+    from pymavlink.dialects.v20 import common as mavlink2
+
+    rig = Rig(rig_config())
+    try:
+        rig.drive()
+        ground_station = mavlink2.MAVLink(rig.wire, srcSystem=255, srcComponent=190)
+        ground_station.command_long_send(
+            1, 191, mavlink2.MAV_CMD_COMPONENT_ARM_DISARM, 0, 0.0, 21196.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        )
+        tick = rig.control_tick()
+        assert rig.first_event_ns("failsafe.estop") == tick
+        assert_wheels_stopped(rig, tick)
+        assert rig.stack.safety_mode.value == "ESTOP"
+    finally:
+        rig.close()

@@ -1,0 +1,214 @@
+"""The real-time HIL peer: the simulated world on the monotonic clock, on real wires to ``rover run``.
+
+The same ``SimWorld`` the lockstep trial steps is paced here by ``navigator.runtime.FixedRateScheduler`` at
+100 Hz on a ``MonotonicClock``; its six VESCs sit on a python-can bus opened from config (``udp_multicast``
+inside a private network namespace, ``socketcan``/``vcan0`` where the kernel has it) and its autopilot
+answers on a UDP MAVLink port on 127.0.0.1 that the OS picked (``rover run`` connects with
+``udpout:127.0.0.1:PORT``). Everything the world publishes (ground truth, faults) goes to the peer's own
+MCAP, so real-time metrics can be computed from it together with the rover's recording
+(``hil.realtime_metrics``).
+
+A late tick integrates the time that really passed, in sub-steps of at most ``PHYSICS_DT_NS``, so the
+simulated rover moves in real time even when the machine is busy; the scheduler counts the overruns.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import can
+
+from firmware_bridge.can_bus import CanConfig, open_bus
+from firmware_bridge.errors import BridgeSetupError
+from firmware_bridge.mavlink_transport import Transport, UdpTransport, open_transport
+from firmware_bridge.vesc import VescCodec
+from firmware_bridge.vesc_dbc import load_vesc_database
+from hil.peer_files import write_peer_files
+from hil.scenario import Scenario
+from hil.world import SimWorld
+from logs import topics
+from logs.clock import NS_PER_S, Clock, seconds
+from logs.recorder import McapRecorder
+from navigator.config import RoverConfig
+from navigator.runtime import FixedRateScheduler, TimingStats
+
+_log = logging.getLogger(__name__)
+
+PHYSICS_DT_NS = 10_000_000  # 100 Hz rover body, as in lockstep
+# A tick later than this many physics steps is not caught up in full (the world would jump); the lost
+# time is counted by the scheduler as overruns.
+MAX_SUBSTEPS = 5
+STATUS_PERIOD_NS = 50_000_000  # the status file is rewritten at 20 Hz
+_LOG_WARNING = 3  # foxglove.Log level
+
+
+@dataclass(frozen=True)
+class PeerResult:
+    mcap_path: Path
+    timing: TimingStats
+    simulated_s: float
+    vesc_timeouts: int
+    commands_applied: int
+
+
+class RealtimePeer:
+    """One ``SimWorld`` stepped in real time; ``tick()`` is the scheduler's callback.
+
+    ``status_path`` (optional) is rewritten atomically every ``STATUS_PERIOD_NS`` with the body's pose and
+    speed and the wheels' speeds and command timeouts, so a test or an operator can watch the simulated
+    rover without opening the MCAP that is still being written.
+    """
+
+    def __init__(
+        self, world: SimWorld, clock: Clock, recorder: McapRecorder, status_path: Path | None
+    ) -> None:
+        self.world = world
+        self._clock = clock
+        self._recorder = recorder
+        self._status_path = status_path
+        self._last_ns = clock.now_ns()
+        self._next_status_ns = self._last_ns
+        self._timeouts_seen = 0
+        self.simulated_ns = 0
+
+    def tick(self) -> None:
+        now = self._clock.now_ns()
+        elapsed = min(now - self._last_ns, MAX_SUBSTEPS * PHYSICS_DT_NS)
+        self._last_ns = now
+        steps = max(1, -(-elapsed // PHYSICS_DT_NS))
+        dt_s = seconds(elapsed) / steps
+        for _ in range(steps):
+            self.world.tick(dt_s)
+        self.simulated_ns += elapsed
+        self._note_timeouts(now)
+        if self._status_path is not None and now >= self._next_status_ns:
+            self._next_status_ns = now + STATUS_PERIOD_NS
+            self.write_status()
+
+    def _note_timeouts(self, now: int) -> None:
+        """Record each command timeout: the evidence that the controllers stopped a silent rover's wheels."""
+        timeouts = self.world.vescs.timeouts
+        if timeouts > self._timeouts_seen:
+            self._recorder.publish(
+                topics.LOG,
+                now,
+                {
+                    "timestamp": topics.stamp(now),
+                    "level": _LOG_WARNING,
+                    "message": f"VESC command timeout: {timeouts - self._timeouts_seen} wheel(s) stopped",
+                    "name": "hil.peer",
+                    "file": "",
+                    "line": 0,
+                },
+            )
+            self._timeouts_seen = timeouts
+
+    def write_status(self) -> None:
+        assert self._status_path is not None
+        body = self.world.body
+        status = {
+            "t_ns": self._last_ns,
+            "x_m": body.x,
+            "y_m": body.y,
+            "yaw_rad": body.yaw,
+            "speed_mps": body.speed,
+            "wheel_speeds_mps": self.world.vescs.wheel_speeds_mps(),
+            "targets_erpm": self.world.vescs.targets_erpm(),
+            "vesc_timeouts": self.world.vescs.timeouts,
+            "commands_applied": self.world.vescs.commands_applied,
+            "rolled_over": self.world.rolled_over,
+        }
+        _write_atomically(self._status_path, json.dumps(status))
+
+
+def open_peer_wires(can_config: CanConfig, mavlink_connection: str) -> tuple[can.BusABC, UdpTransport]:
+    """The peer's ends of the wires: the configured CAN bus and a loopback ``udpin`` MAVLink port.
+
+    The rover dials the peer (``udpout``), so the peer must listen; port 0 lets the OS pick a free one.
+    """
+    if not mavlink_connection.startswith("udpin:"):
+        raise BridgeSetupError(
+            f"HIL peer MAVLink {mavlink_connection!r}: the peer listens, use udpin:127.0.0.1:PORT (0: any)"
+        )
+    transport = open_transport(mavlink_connection)
+    assert isinstance(transport, UdpTransport)
+    try:
+        bus = open_bus(can_config)
+    except BridgeSetupError:
+        transport.close()
+        raise
+    return bus, transport
+
+
+def run_peer(
+    scenario: Scenario,
+    config: RoverConfig,
+    out_dir: Path,
+    *,
+    clock: Clock,
+    can_bus: can.BusABC,
+    mavlink: Transport,
+    mavlink_port: int,
+    wait: Callable[[float], None],
+    stop: threading.Event,
+    seed: int | None = None,
+    duration_ns: int | None = None,
+    status_path: Path | None = None,
+    port_file: Path | None = None,
+    on_ready: Callable[[Path], None] | None = None,
+) -> PeerResult:
+    """Run the simulated rover in real time on opened wires until ``stop`` or ``duration_ns``.
+
+    Writes ``truth.mcap`` and the rover-side files (``hil.peer_files``) into ``out_dir``; the port file
+    last, so whoever waits on it finds the rest in place. ``on_ready`` gets the generated rover config.
+    The wires are the caller's; they are not closed here.
+    """
+    seed = scenario.seed if seed is None else seed
+    out_dir.mkdir(parents=True, exist_ok=True)
+    mcap_path = out_dir / "truth.mcap"
+    with McapRecorder(mcap_path) as recorder:
+        write_peer_header(recorder, scenario, config, seed)
+        codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
+        world = SimWorld(scenario, config.vehicle, codec, clock, can_bus, mavlink, recorder, seed)
+        peer = RealtimePeer(world, clock, recorder, status_path)
+        if status_path is not None:
+            peer.write_status()
+        rover_config = write_peer_files(out_dir, scenario, config, mavlink_port)
+        if port_file is not None:
+            _write_atomically(port_file, f"{mavlink_port}\n")
+        if on_ready is not None:
+            on_ready(rover_config)
+        rate_hz = NS_PER_S / PHYSICS_DT_NS
+        scheduler = FixedRateScheduler(clock, rate_hz, peer.tick, wait=wait, stop=stop)
+        _log.info("HIL peer for %s running in real time at %.0f Hz", scenario.name, rate_hz)
+        timing = scheduler.run(duration_ns)
+        if status_path is not None:
+            peer.write_status()
+        recorder.add_metadata("runtime", {"timing_json": json.dumps(timing.summary())})
+    return PeerResult(
+        mcap_path, timing, seconds(peer.simulated_ns), world.vescs.timeouts, world.vescs.commands_applied
+    )
+
+
+def write_peer_header(recorder: McapRecorder, scenario: Scenario, config: RoverConfig, seed: int) -> None:
+    """The lockstep trial's scenario metadata (the metrics need it), and this run's mode."""
+    # hil.trial writes the same scenario record; it keeps its writer private, so reuse it through the
+    # module and then say which kind of run this is (the later "trial" record wins for readers).
+    from hil import trial
+
+    trial.write_header(recorder, scenario, config, seed, mode="sim-realtime-peer")
+    recorder.add_metadata("peer", {"mode": "sim-realtime-peer", "physics_dt_ns": str(PHYSICS_DT_NS)})
+
+
+def _write_atomically(path: Path, text: str) -> None:
+    """Write then rename, so a reader polling the file never sees half of it."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    temporary = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    temporary.write_text(text, encoding="utf-8")
+    os.replace(temporary, path)

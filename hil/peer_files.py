@@ -1,0 +1,70 @@
+"""What the real-time peer leaves for ``rover run``: the rover's map as .npy layers and a rover config.
+
+The onboard stack must plan on what the rover *believes* (the scenario's terrain with its known obstacles,
+as in lockstep) and georeference GPS on the scenario's datum; ``rover run`` gets both only through its
+config. So the peer writes ``map/{elevation,classes,obstacles}.npy`` and ``rover-hil.toml``: the CAN bus
+the peer is on, ``udpout:127.0.0.1:PORT`` to its autopilot, the datum, the map, Zenoh off. Every other
+table is left at the built-in defaults (the ones the peer simulates when it has no ``--config``); with a
+custom vehicle, add its tables to the file.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from hil.scenario import Scenario
+from navigator.config import RoverConfig
+
+ROVER_CONFIG_NAME = "rover-hil.toml"
+MAP_DIR = "map"
+
+
+def write_peer_files(out_dir: Path, scenario: Scenario, config: RoverConfig, mavlink_port: int) -> Path:
+    """Write the map layers and ``rover-hil.toml`` into ``out_dir``; returns the config's path."""
+    terrain = scenario.believed_terrain
+    map_dir = out_dir / MAP_DIR
+    map_dir.mkdir(parents=True, exist_ok=True)
+    # Saved in their own dtypes: the numba kernels are compiled (and cached) per dtype, and a map of
+    # another dtype than lockstep's would cost ``rover run`` a fresh compile inside its first ticks.
+    np.save(map_dir / "elevation.npy", terrain.elevation_m)
+    np.save(map_dir / "classes.npy", terrain.terrain_class)
+    np.save(map_dir / "obstacles.npy", terrain.obstacles)
+    lat, lon, alt = scenario.datum
+    origin_x, origin_y = terrain.origin_xy
+    # json.dumps spells strings and floats the way TOML does (double quotes, repr-exact numbers).
+    lines = [
+        f"# Written by `rover hil peer` for scenario {scenario.name!r}; connect with",
+        f"#   rover run --config {ROVER_CONFIG_NAME} --goal X,Y",
+        f"rover_id = {json.dumps(config.rover_id)}",
+        f"control_rate_hz = {config.control_rate_hz!r}",
+        "",
+        "[can]",
+        f"interface = {json.dumps(config.can.interface)}",
+        f"channel = {json.dumps(config.can.channel)}",
+        "",
+        "[mavlink]",
+        f'connection = "udpout:127.0.0.1:{mavlink_port}"',
+        "",
+        "[zenoh]",
+        "enabled = false",
+        "",
+        "[estimator]",
+        f"datum_lat_deg = {lat!r}",
+        f"datum_lon_deg = {lon!r}",
+        f"datum_alt_m = {alt!r}",
+        "",
+        "[map]",
+        'kind = "npy"',
+        f'elevation = "{MAP_DIR}/elevation.npy"',
+        f'classes = "{MAP_DIR}/classes.npy"',
+        f'obstacles = "{MAP_DIR}/obstacles.npy"',
+        f"resolution_m = {terrain.resolution_m!r}",
+        f"origin = [{float(origin_x)!r}, {float(origin_y)!r}]",
+        "",
+    ]
+    path = out_dir / ROVER_CONFIG_NAME
+    path.write_text("\n".join(lines), encoding="utf-8")
+    return path

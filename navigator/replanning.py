@@ -1,0 +1,110 @@
+"""Plan repair for one goal on a map whose costs only rise: A* guided by an earlier map's exact cost-to-go.
+
+Once per goal, a backward Dijkstra from the goal (``navigator.cost_to_go_kernel``) gives ``field[c]``, the
+exact cost from every cell ``c`` to the goal on the map of that moment. When obstacles are added later,
+every edge costs the same or more (cell costs only rise, ``inf`` forbids), so the old field is still
+
+* admissible: a lower bound of the new cost to go, and
+* consistent: ``field[a] <= old_edge(a, b) + field[b] <= new_edge(a, b) + field[b]``,
+
+and A* with it as the heuristic returns an optimal path on the new map. Where nothing changed the field is
+exact, so A* walks straight down the new path and spends its expansions only around the detour: a repair
+after a local change costs a small fraction of a fresh plan, from *any* start (the rover keeps moving).
+
+If costs ever fall (an obstacle removed, a new map), the field is no longer a lower bound: it is dropped
+and rebuilt from the new map before the next plan (``update_costs`` checks).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from navigator.astar import SQRT2, PlanResult, astar, check_cost_grid, check_factors
+from navigator.cost_to_go_kernel import cost_to_go
+from navigator.errors import PlanningError
+
+_log = logging.getLogger(__name__)
+
+_NO_FACTORS = np.ones((8, 1))
+
+
+def cost_to_go_field(
+    cost: np.ndarray, goal: tuple[int, int], factors: np.ndarray | None = None
+) -> np.ndarray:
+    """``(rows, cols)`` exact cost from each cell to ``goal`` (``inf`` where the goal cannot be reached)."""
+    grid = check_cost_grid(cost)
+    rows, cols = grid.shape
+    row, col = int(goal[0]), int(goal[1])
+    if not (0 <= row < rows and 0 <= col < cols):
+        raise PlanningError(f"goal cell {goal} is outside the {rows} x {cols} cost grid")
+    flat_factors = _NO_FACTORS if factors is None else check_factors(factors, grid.shape)
+    field = cost_to_go(grid.ravel(), cols, row * cols + col, flat_factors, factors is not None, SQRT2)
+    return field.reshape(rows, cols)
+
+
+@dataclass
+class RepairStats:
+    """What the repairing planner did: fields built, plans made with a field, costs seen to fall."""
+
+    fields_built: int = 0
+    plans: int = 0
+    fields_dropped: int = 0
+
+
+class RepairingPlanner:
+    """Plans to a goal again and again as costs rise, reusing the goal's cost-to-go field as the heuristic.
+
+    ``cost`` and ``factors`` as for ``navigator.astar.astar``; ``weight`` > 1 inflates the field (the
+    cost is then at most ``weight`` times the optimum).
+    """
+
+    def __init__(self, cost: np.ndarray, factors: np.ndarray | None = None, weight: float = 1.0) -> None:
+        self._cost = check_cost_grid(cost).copy()
+        self._factors = None if factors is None else np.array(factors, dtype=np.float64)
+        self._weight = weight
+        self._goal: tuple[int, int] | None = None
+        self._field: np.ndarray | None = None
+        self.stats = RepairStats()
+
+    @property
+    def has_field(self) -> bool:
+        return self._field is not None
+
+    def prepare(self, goal: tuple[int, int]) -> None:
+        """Build the cost-to-go field of ``goal`` now (otherwise the first ``plan`` to it does)."""
+        goal = (int(goal[0]), int(goal[1]))
+        if self._field is not None and self._goal == goal:
+            return
+        self._field = cost_to_go_field(self._cost, goal, self._factors)
+        self._goal = goal
+        self.stats.fields_built += 1
+
+    def update_costs(self, cost: np.ndarray, factors: np.ndarray | None = None) -> bool:
+        """Take the new costs (and factors, if they changed); returns whether the field is kept.
+
+        It is kept only when no cell cost and no factor fell; otherwise it is dropped (rebuilt lazily).
+        """
+        new_cost = check_cost_grid(cost)
+        new_factors = self._factors if factors is None else np.array(factors, dtype=np.float64)
+        rose_only = bool(np.all(new_cost >= self._cost))
+        if rose_only and new_factors is not None and self._factors is not None:
+            rose_only = bool(np.all(new_factors >= self._factors))
+        elif (new_factors is None) != (self._factors is None):
+            rose_only = False
+        self._cost = new_cost.copy()
+        self._factors = new_factors
+        if not rose_only and self._field is not None:
+            _log.info("costs fell somewhere: the cost-to-go field is rebuilt before the next plan")
+            self._field = None
+            self.stats.fields_dropped += 1
+        return self._field is not None
+
+    def plan(self, start: tuple[int, int], goal: tuple[int, int]) -> PlanResult:
+        """Optimal path (``weight`` 1) from ``start`` to ``goal`` on the current costs."""
+        self.prepare(goal)
+        assert self._field is not None
+        self.stats.plans += 1
+        return astar(self._cost, start, goal, weight=self._weight, factors=self._factors, field=self._field)

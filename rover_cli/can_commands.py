@@ -1,0 +1,43 @@
+"""``rover can ...``: tools for the CAN side of the rover (recorded frames out to CAN log files)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+
+def register(families: Any) -> None:
+    can_family = families.add_parser("can", help="CAN tools: export recorded frames to candump logs")
+    commands = can_family.add_subparsers(dest="command", required=True, metavar="SUBCOMMAND")
+    export = commands.add_parser(
+        "export",
+        help="write a recording's can/frames as a candump log (.log) or .asc/.blf/.trc/.csv by suffix",
+    )
+    export.add_argument("trial", type=Path, help="the recording (trial.mcap)")
+    export.add_argument("out", type=Path, help="the CAN log to write; the suffix picks the format")
+    export.add_argument("--channel", default="can0", help="interface name written per frame (default can0)")
+    export.add_argument("--json", action="store_true", help="print the export figures as one JSON object")
+    export.set_defaults(handler=export_command)
+
+
+def export_command(args: argparse.Namespace) -> int:
+    from firmware_bridge.can_export import export_can_log
+    from firmware_bridge.errors import BridgeError
+
+    try:
+        stats = export_can_log(args.trial, args.out, channel=args.channel)
+    except BridgeError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    if args.json:
+        print(json.dumps({"out": str(args.out), **stats.as_dict()}))
+    else:
+        cut = " (recording cut short: exported up to the cut)" if stats.truncated else ""
+        print(
+            f"{args.out}: {stats.frames} frames ({stats.tx} tx, {stats.rx} rx), "
+            f"{stats.rejected} records skipped{cut}"
+        )
+    return 1 if stats.rejected else 0

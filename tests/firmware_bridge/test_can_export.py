@@ -1,0 +1,135 @@
+from io import BytesIO
+from pathlib import Path
+
+import can
+import cantools
+import pytest
+
+import firmware_bridge
+from firmware_bridge.can_export import export_can_log, record_to_message
+from firmware_bridge.can_link import CanLink
+from firmware_bridge.errors import BridgeOperationError, BridgeSetupError, FrameError
+from hil.vesc_sim import SimVescBank
+from logs.clock import SimClock
+from logs.reader import read_messages
+from logs.recorder import McapRecorder
+from logs.topics import CAN_FRAMES, stamp
+from tests.firmware_bridge.virtual_can import make_codec, virtual_bus_pair
+
+SHIPPED_DBC = Path(firmware_bridge.__file__).parent / "vesc_6wheel.dbc"
+TICK_NS = 10_000_000
+
+
+def record_a_run(label: str, ticks: int = 30) -> bytes:
+    """A short lockstep run of CanLink against the simulated controllers, recorded to MCAP in memory."""
+    stream = BytesIO()
+    clock = SimClock(1_000_000_000)
+    with (
+        virtual_bus_pair(label) as (ours, theirs),
+        McapRecorder(stream, chunk_duration_ns=5 * TICK_NS) as recorder,
+    ):
+        link = CanLink(ours, make_codec(), clock, recorder)
+        bank = SimVescBank(theirs, make_codec(), clock)
+        for tick in range(ticks):
+            if tick % 2 == 0:
+                link.send_wheel_speeds([0.4, 0.4, 0.4, -0.2, -0.2, -0.2])
+            bank.poll()
+            bank.step(TICK_NS / 1e9)
+            link.poll()
+            clock.advance(TICK_NS)
+    return stream.getvalue()
+
+
+def test_export_reads_back_identical_and_decodes_with_the_shipped_dbc(request, tmp_path):
+    recording = record_a_run(request.node.name)
+    recorded = list(read_messages(BytesIO(recording), topics=[CAN_FRAMES]))
+    out = tmp_path / "run.log"
+    stats = export_can_log(BytesIO(recording), out, channel="vcan0")
+    assert stats.frames == len(recorded) > 100
+    assert stats.tx == sum(r.message["direction"] == "tx" for r in recorded) > 0
+    assert stats.rx == stats.frames - stats.tx > 0
+    assert stats.rejected == 0 and not stats.truncated
+    assert (stats.first_ns, stats.last_ns) == (recorded[0].log_time_ns, recorded[-1].log_time_ns)
+
+    read_back = list(can.CanutilsLogReader(out))
+    assert len(read_back) == len(recorded)
+    for msg, rec in zip(read_back, recorded, strict=True):
+        frame = rec.message
+        assert msg.arbitration_id == frame["id"]
+        assert msg.is_extended_id == frame["extended"]
+        assert msg.dlc == frame["dlc"]
+        assert bytes(msg.data).hex() == frame["data"]
+        assert msg.is_rx == (frame["direction"] == "rx")
+        assert msg.channel == "vcan0"
+        assert round(msg.timestamp * 1e9) == rec.log_time_ns  # lockstep times are whole microseconds
+
+    database = cantools.database.load_file(str(SHIPPED_DBC), database_format="dbc", strict=True)
+    profile = make_codec().profile
+    commanded = {round(profile.erpm_from_speed(0.4)), round(profile.erpm_from_speed(-0.2))}
+    names = set()
+    for msg in read_back:
+        message = database.get_message_by_frame_id(msg.arbitration_id, force_extended_id=msg.is_extended_id)
+        decoded = message.decode(bytes(msg.data))  # strict decoding: raises on a malformed frame
+        names.add(message.name)
+        if message.name.startswith("VESC_SET_RPM_C"):
+            assert not msg.is_rx and decoded["erpm"] in commanded
+    assert {"VESC_SET_RPM_C1", "VESC_STATUS_C6", "VESC_STATUS_4_C3", "VESC_STATUS_5_C2"} <= names
+
+
+def test_bad_records_are_counted_and_skipped_not_fatal(tmp_path):
+    stream = BytesIO()
+    good = {
+        "timestamp": stamp(1_000),
+        "direction": "rx",
+        "id": 0x901,
+        "extended": True,
+        "dlc": 2,
+        "data": "0102",
+    }
+    with McapRecorder(stream) as recorder:
+        recorder.publish(CAN_FRAMES, 1_000, good)
+        recorder.publish(CAN_FRAMES, 2_000, {**good, "data": "zz"})
+        recorder.publish(CAN_FRAMES, 3_000, {**good, "dlc": 3})
+        recorder.publish(CAN_FRAMES, 4_000, {**good, "id": 0x901, "extended": False})
+        recorder.publish(CAN_FRAMES, 5_000, {**good, "direction": "sideways"})
+        recorder.publish(CAN_FRAMES, 6_000, {**good, "direction": "tx", "id": 0x123, "extended": False})
+    out = tmp_path / "bad.log"
+    stats = export_can_log(BytesIO(stream.getvalue()), out)
+    assert (stats.frames, stats.rejected) == (2, 4)
+    lines = out.read_text().splitlines()
+    assert lines == ["(0.000001) can0 00000901#0102 R", "(0.000006) can0 123#0102 T"]
+
+
+@pytest.mark.parametrize(
+    ("record", "text"),
+    [
+        ({"direction": "rx", "id": 1, "extended": True, "dlc": 1}, "malformed"),
+        ({"direction": "rx", "id": -1, "extended": True, "dlc": 0, "data": ""}, "out of range"),
+        ({"direction": "rx", "id": 1, "extended": True, "dlc": 9, "data": "00" * 9}, "dlc 9"),
+    ],
+)
+def test_record_to_message_names_what_is_wrong(record, text):
+    with pytest.raises(FrameError, match=text) as caught:
+        record_to_message(record, 0, "can0")
+    assert caught.value.reason == "record"
+
+
+def test_other_formats_by_suffix_and_refusals(request, tmp_path):
+    recording = record_a_run(request.node.name, ticks=4)
+    stats = export_can_log(BytesIO(recording), tmp_path / "run.asc")
+    assert len(list(can.ASCReader(tmp_path / "run.asc"))) == stats.frames > 0
+    with pytest.raises(BridgeSetupError, match="unknown CAN log suffix"):
+        export_can_log(BytesIO(recording), tmp_path / "run.txt")
+    with pytest.raises(BridgeSetupError, match="without spaces"):
+        export_can_log(BytesIO(recording), tmp_path / "run.log", channel="can 0")
+    with pytest.raises(BridgeOperationError, match="cannot export"):
+        export_can_log(BytesIO(b"not an mcap file at all"), tmp_path / "x.log")
+
+
+def test_a_recording_cut_short_exports_up_to_the_cut(request, tmp_path):
+    recording = record_a_run(request.node.name)
+    whole = export_can_log(BytesIO(recording), tmp_path / "whole.log")
+    cut = export_can_log(BytesIO(recording[: len(recording) // 2]), tmp_path / "cut.log")
+    assert cut.truncated
+    assert cut.frames < whole.frames
+    assert len((tmp_path / "cut.log").read_text().splitlines()) == cut.frames

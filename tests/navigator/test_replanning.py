@@ -1,0 +1,103 @@
+"""Plan repair with the goal's cost-to-go field: exact field, optimal repairs as costs rise, fall-back."""
+
+import numpy as np
+import pytest
+
+from navigator.astar import astar
+from navigator.errors import PlanningError
+from navigator.replanning import RepairingPlanner, cost_to_go_field
+from tests.navigator.test_astar import dijkstra_cost
+
+
+def _random_map(seed: int, shape: tuple[int, int] = (30, 40)) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    cost = 1.0 + 4.0 * rng.random(shape)
+    cost[rng.random(shape) < 0.2] = np.inf
+    cost[0, 0] = cost[-1, -1] = 1.0
+    return cost
+
+
+def _random_factors(seed: int, shape: tuple[int, int]) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    factors = 1.0 + rng.random((8, *shape))
+    factors[rng.random(factors.shape) < 0.05] = np.inf
+    return factors
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_field_is_the_exact_cost_to_go(seed: int) -> None:
+    cost = _random_map(seed, (14, 17))
+    goal = (13, 16)
+    field = cost_to_go_field(cost, goal)
+    rng = np.random.default_rng(seed)
+    finite = np.argwhere(np.isfinite(cost))
+    for row, col in finite[rng.choice(len(finite), 6, replace=False)]:
+        assert field[row, col] == pytest.approx(dijkstra_cost(cost, (row, col), goal), rel=1e-12)
+
+
+def test_field_with_direction_factors_matches_forward_astar() -> None:
+    cost = _random_map(3)
+    factors = _random_factors(3, cost.shape)
+    goal = (29, 39)
+    field = cost_to_go_field(cost, goal, factors)
+    for start in [(0, 0), (5, 20), (17, 3)]:
+        if not np.isfinite(cost[start]):
+            continue
+        expected = astar(cost, start, goal, factors=factors).cost if np.isfinite(field[start]) else np.inf
+        assert field[start] == pytest.approx(expected, rel=1e-12)
+
+
+@pytest.mark.parametrize("seed", [4, 5, 6])
+def test_repairs_as_obstacles_appear_cost_the_same_as_fresh_plans(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    cost = _random_map(seed, (60, 60))
+    factors = _random_factors(seed, cost.shape)
+    goal = (59, 59)
+    planner = RepairingPlanner(cost, factors)
+    start = (0, 0)
+    fresh = astar(cost, start, goal, factors=factors)
+    repaired = planner.plan(start, goal)
+    assert repaired.cost == pytest.approx(fresh.cost, rel=1e-12)
+    for _ in range(4):
+        # A block dropped on the current path, the rover a few cells further along it.
+        row, col = repaired.cells[len(repaired.cells) // 2]
+        cost = cost.copy()
+        cost[row - 1 : row + 2, col - 1 : col + 2] = np.inf
+        cost[rng.random(cost.shape) < 0.01] *= 2.0  # and some costs rising elsewhere
+        start = repaired.cells[min(3, len(repaired.cells) - 1)]
+        if not np.isfinite(cost[start]):
+            break
+        assert planner.update_costs(cost)  # costs only rose: the field is kept
+        fresh = astar(cost, start, goal, factors=factors)
+        repaired = planner.plan(start, goal)
+        assert repaired.cost == pytest.approx(fresh.cost, rel=1e-12)
+        assert repaired.cells[0] == start and repaired.cells[-1] == goal
+        assert repaired.expanded < fresh.expanded
+    assert planner.stats.fields_built == 1
+
+
+def test_falling_costs_drop_the_field_and_plans_stay_optimal() -> None:
+    cost = _random_map(7)
+    goal = (29, 39)
+    planner = RepairingPlanner(cost)
+    planner.plan((0, 0), goal)
+    cheaper = cost.copy()
+    cheaper[np.isfinite(cheaper)] = 1.0  # every cost fell: the old field would overestimate
+    assert not planner.update_costs(cheaper)
+    assert planner.stats.fields_dropped == 1
+    assert planner.plan((0, 0), goal).cost == pytest.approx(astar(cheaper, (0, 0), goal).cost, rel=1e-12)
+    assert planner.stats.fields_built == 2
+
+
+def test_bad_goal_is_a_planning_error() -> None:
+    with pytest.raises(PlanningError, match="outside"):
+        cost_to_go_field(np.ones((4, 4)), (9, 9))
+    with pytest.raises(PlanningError, match="shape"):
+        astar(np.ones((4, 4)), (0, 0), (3, 3), field=np.zeros((3, 3)))
+
+
+def test_ties_on_a_flat_map_do_not_flood_it() -> None:
+    # Equal costs everywhere: without tie-breaking towards the larger g, A* expands every tied cell.
+    for goal in [(299, 299), (0, 299), (299, 0)]:
+        result = astar(np.ones((300, 300)), (0, 0), goal)
+        assert result.expanded <= 2 * len(result.cells)

@@ -1,0 +1,80 @@
+"""Real-time HIL across processes: ``rover hil peer`` and ``rover run`` on real wires reach the goal.
+
+The same small scenario as the lockstep tests. Tolerances against the lockstep run of that scenario
+(real time adds OS scheduling and UDP delivery, so the runs differ, but not by much): both arrive, no
+collisions or rollovers, path accuracy within 15 points, drive duration within 30 %.
+"""
+
+from __future__ import annotations
+
+import math
+import signal
+from pathlib import Path
+
+import pytest
+
+from hil.realtime_metrics import realtime_metrics
+from hil.scenario import Scenario
+from hil.trial import TrialResult
+from tests.system.conftest import DATA
+from tests.system.realtime_rig import (
+    START_TIMEOUT_S,
+    fresh_multicast_group,
+    needs_netns,
+    needs_vcan,
+    running_peer,
+    running_rover,
+    wait_for,
+)
+
+PATH_ACCURACY_POINTS = 15.0
+DURATION_RATIO = 0.30
+# Once driving has begun, the drive itself must finish within this (lockstep needs ~16 s).
+DRIVE_TIMEOUT_S = 60.0
+
+BUSES = [
+    pytest.param("udp_multicast", None, marks=needs_netns, id="udp_multicast"),
+    pytest.param("socketcan", "vcan0", marks=needs_vcan, id="vcan0"),
+]
+
+
+@pytest.mark.parametrize(("interface", "channel"), BUSES)
+def test_rover_run_and_peer_reach_the_goal_like_lockstep(
+    interface: str, channel: str | None, small_scenario: Scenario, small_trial: TrialResult, tmp_path: Path
+) -> None:
+    goal = small_scenario.goals[-1]
+    channel = channel or fresh_multicast_group()
+    scenario_file = DATA / "small_rocky.toml"
+    with (
+        running_peer(scenario_file, tmp_path / "peer", interface, channel) as peer,
+        running_rover(peer.rover_config, (goal.x, goal.y), tmp_path / "rover") as rover,
+    ):
+
+        def driving() -> bool | None:
+            status = peer.status()
+            return True if status and any(t != 0 for t in status["targets_erpm"]) else None
+
+        def parked_at_goal() -> bool | None:
+            status = peer.status()
+            if status is None:
+                return None
+            near = math.hypot(status["x_m"] - goal.x, status["y_m"] - goal.y) < goal.tolerance_m + 0.3
+            return True if near and all(t == 0 for t in status["targets_erpm"]) else None
+
+        wait_for(driving, START_TIMEOUT_S, "the rover to start driving", rover, peer.process)
+        wait_for(parked_at_goal, DRIVE_TIMEOUT_S, "the rover to stop at the goal", rover, peer.process)
+        rover.send_signal(signal.SIGINT)
+        assert rover.wait(timeout=20) == 0
+
+    realtime = realtime_metrics(tmp_path / "rover" / "rover.mcap", tmp_path / "peer" / "truth.mcap")
+    lockstep = small_trial.metrics
+    assert lockstep.goal_reached and realtime.goal_reached, realtime
+    assert realtime.collisions == 0 and realtime.rollovers == 0, realtime
+    assert lockstep.path_accuracy_pct is not None and realtime.path_accuracy_pct is not None
+    assert abs(realtime.path_accuracy_pct - lockstep.path_accuracy_pct) <= PATH_ACCURACY_POINTS, realtime
+    assert lockstep.duration_s is not None and realtime.duration_s is not None
+    assert abs(realtime.duration_s - lockstep.duration_s) <= DURATION_RATIO * lockstep.duration_s, (
+        realtime.duration_s,
+        lockstep.duration_s,
+    )
+    assert not realtime.missing, realtime.missing
