@@ -28,6 +28,7 @@ from hil.scenario import Scenario
 from hil.success import judge
 from hil.world import SimWorld
 from logs.clock import NS_PER_S, SimClock, seconds, to_ns
+from logs.commands import CommandSource
 from logs.metrics import TrialMetrics, compute_metrics
 from logs.recorder import McapRecorder
 from logs.sink import FanoutSink, MessageSink
@@ -75,6 +76,7 @@ def run_trial(
     on_progress: Callable[[float], None] | None = None,
     can_backend: CanBackend = "lockstep",
     on_components: ComponentHook | None = None,
+    commands: CommandSource | None = None,
 ) -> TrialResult:
     """Run one lockstep trial; writes ``trial.mcap`` and ``metrics.json`` into ``out_dir``."""
     seed = scenario.seed if seed is None else seed
@@ -100,7 +102,14 @@ def run_trial(
                 scenario, config.vehicle, codec, clock, wires.sim_bus, wires.sim_mavlink, sink, seed
             )
             stack = OnboardStack(
-                config, clock, can_link, mavlink, sink, scenario.believed_terrain, obstacles=world.perception
+                config,
+                clock,
+                can_link,
+                mavlink,
+                sink,
+                scenario.believed_terrain,
+                obstacles=world.perception,
+                commands=commands,
             )
             if on_components is not None:
                 on_components(

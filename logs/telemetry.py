@@ -52,6 +52,9 @@ class ZenohSettings:
     # Zenoh config paths -> values, written last: authentication, TLS, access control (docs/telemetry.md),
     # e.g. {"transport/auth/usrpwd/user": "station"}. A tuple of pairs so the settings stay hashable.
     overrides: tuple[tuple[str, Any], ...] = ()
+    # Topic -> maximum messages per second on the live stream (``[zenoh.rates]``); unlisted topics are
+    # sent at full rate. The MCAP recording always keeps everything.
+    rates_hz: tuple[tuple[str, float], ...] = ()
 
     @classmethod
     def from_table(cls, table: Table, *, finish: bool = True) -> ZenohSettings:
@@ -64,6 +67,7 @@ class ZenohSettings:
             connect=_endpoints(table, "connect", defaults.connect),
             multicast_scouting=table.flag("multicast_scouting", defaults.multicast_scouting),
             overrides=_overrides(table),
+            rates_hz=_rates(table),
         )
         if settings.mode == "client" and not settings.connect:
             raise table.error("connect", "client mode needs at least one endpoint to connect to (a router)")
@@ -81,6 +85,19 @@ def _overrides(table: Table) -> tuple[tuple[str, Any], ...]:
             "overrides", "expected a table of zenoh config paths, e.g. 'transport/auth/usrpwd/user'"
         )
     return tuple(sorted(value.items()))
+
+
+def _rates(table: Table) -> tuple[tuple[str, float], ...]:
+    if not table.has("rates"):
+        return ()
+    rates = table.table("rates")
+    result = []
+    for topic in sorted(rates.keys()):
+        if topic not in TOPICS:
+            raise rates.error(topic, f"unknown topic; known topics: {', '.join(sorted(TOPICS))}")
+        result.append((topic, rates.number(topic, lo=0.01, hi=10_000.0)))
+    rates.finish()
+    return tuple(result)
 
 
 def _endpoints(table: Table, key: str, default: tuple[str, ...]) -> tuple[str, ...]:

@@ -143,3 +143,8 @@ class LiveView:
             rows = sorted(self._values.items())
         rows.append(("CAN bus load (%)", f"{load:.1f}"))
         return rows
+
+
+def rate_limited(sink: MessageSink, rates_hz: tuple[tuple[str, float], ...]) -> MessageSink:
+    """``sink`` thinned to the configured per-topic rates (``ZenohSettings.rates_hz``), or as is."""
+    return RateLimitedSink(sink, dict(rates_hz)) if rates_hz else sink

@@ -23,6 +23,7 @@ from logs.commands import ZenohCommandReceiver
 from logs.recorder import McapRecorder
 from logs.sink import FanoutSink, MessageSink
 from logs.telemetry import ZenohTelemetry, open_session
+from logs.telemetry_station import rate_limited
 from navigator.config import RoverConfig
 from navigator.errors import NavigatorError
 from navigator.links import open_links
@@ -71,7 +72,7 @@ def run_rover(
             session = open_session(config.zenoh)
             publisher = ZenohTelemetry(session, config.rover_id)
             commands = ZenohCommandReceiver(session, config.rover_id, clock)
-            sink = FanoutSink([recorder, publisher])
+            sink = FanoutSink([recorder, rate_limited(publisher, config.zenoh.rates_hz)])
         try:
             can_link, mavlink = open_links(config, clock, sink)
             stack = OnboardStack(config, clock, can_link, mavlink, sink, config.terrain, commands=commands)

@@ -11,6 +11,7 @@ from rich.console import Console
 from rich.table import Table as RichTable
 
 from logs.settings import ConfigError, parse_toml
+from logs.sink import MessageSink
 from navigator.config import RoverConfig, load_rover_config, rover_config_from_table
 
 DEFAULT_TRIALS_DIR = Path("logs/trials")
@@ -78,6 +79,7 @@ def run_trial_command(args: argparse.Namespace) -> int:
     from hil.scenario import load_scenario
     from hil.trial import run_trial
     from logs.telemetry import ZenohTelemetry, open_session
+    from logs.telemetry_station import rate_limited
 
     console = Console()
     try:
@@ -91,13 +93,15 @@ def run_trial_command(args: argparse.Namespace) -> int:
 
     session = None
     telemetry = None
+    live: MessageSink | None = None
     if config.zenoh.enabled and not args.no_telemetry:
         session = open_session(config.zenoh)
         telemetry = ZenohTelemetry(session, config.rover_id)
+        live = rate_limited(telemetry, config.zenoh.rates_hz)
     started = time.perf_counter()
     try:
         with console.status(f"running {scenario.name} (seed {seed}) ..."):
-            result = run_trial(scenario, config, out_dir, seed=seed, telemetry=telemetry)
+            result = run_trial(scenario, config, out_dir, seed=seed, telemetry=live)
     finally:
         if telemetry is not None:
             telemetry.close()

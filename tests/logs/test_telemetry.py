@@ -178,3 +178,26 @@ def test_station_rejects_samples_without_log_time(sessions: tuple[zenoh.Session,
 def test_open_session_reports_unusable_endpoint() -> None:
     with pytest.raises(TelemetrySetupError, match="listen"):
         open_session(ZenohSettings(enabled=True, listen=("tcp/256.1.1.1:0",)))
+
+
+def test_rates_table_limits_the_live_stream_per_topic() -> None:
+    from logs.sink import MemorySink
+    from logs.telemetry_station import rate_limited
+
+    table = parse_toml('[zenoh]\n[zenoh.rates]\n"estimator/pose" = 10.0\n', "<test>").table("zenoh")
+    settings = ZenohSettings.from_table(table)
+    assert settings.rates_hz == (("estimator/pose", 10.0),)
+    memory = MemorySink()
+    sink = rate_limited(memory, settings.rates_hz)
+    for tick in range(50):  # one second at 50 Hz
+        sink.publish("estimator/pose", tick * 20_000_000, {"n": tick})
+        sink.publish(NAVIGATOR_STATE, tick * 20_000_000, {"n": tick})
+    assert len(memory.on("estimator/pose")) == 10
+    assert len(memory.on(NAVIGATOR_STATE)) == 50
+    assert rate_limited(memory, ()) is memory
+
+
+def test_rates_for_unknown_topics_are_refused() -> None:
+    table = parse_toml('[zenoh.rates]\n"no/such" = 5.0\n', "<test>").table("zenoh")
+    with pytest.raises(ConfigError, match="no/such"):
+        ZenohSettings.from_table(table)
