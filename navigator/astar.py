@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from navigator import astar_kernel
+from navigator.astar_python import check_cell
 from navigator.errors import NoPathError, PlanningError
 
 SQRT2 = math.sqrt(2.0)
@@ -89,18 +90,6 @@ def _check_field(field: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     return np.ascontiguousarray(array.ravel())
 
 
-def _check_cell(cost: np.ndarray, cell: tuple[int, int], what: str) -> None:
-    rows, cols = cost.shape
-    row, col = cell
-    if not (0 <= row < rows and 0 <= col < cols):
-        raise PlanningError(f"{what} cell {cell} is outside the {rows} x {cols} cost grid")
-    if not math.isfinite(float(cost[row, col])):
-        raise PlanningError(
-            f"{what} cell {cell} is lethal (an obstacle, its inflation, or too steep); move the {what} "
-            "or check the map"
-        )
-
-
 def astar(
     cost: np.ndarray,
     start: tuple[int, int],
@@ -126,8 +115,8 @@ def astar(
     flat_factors = _NO_FACTORS if factors is None else check_factors(factors, grid.shape)
     start = (int(start[0]), int(start[1]))
     goal = (int(goal[0]), int(goal[1]))
-    _check_cell(grid, start, "start")
-    _check_cell(grid, goal, "goal")
+    check_cell(grid, start, "start")
+    check_cell(grid, goal, "goal")
     cols = grid.shape[1]
     if field is None:
         heuristic_id, h_scale, h_field = _HEURISTIC_IDS[heuristic], weight * _min_finite(grid), _NO_FIELD

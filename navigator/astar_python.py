@@ -69,7 +69,8 @@ def _heuristic(name: str, min_cost: float, goal: tuple[int, int]) -> Callable[[i
     raise PlanningError(f"unknown heuristic {name!r}; choose one of {', '.join(HEURISTICS)}")
 
 
-def _check_cell(cost: np.ndarray, cell: tuple[int, int], what: str) -> None:
+def check_cell(cost: np.ndarray, cell: tuple[int, int], what: str) -> None:
+    """Refuse a start or goal off the grid or on a lethal cell, with a message naming the cell."""
     rows, cols = cost.shape
     row, col = cell
     if not (0 <= row < rows and 0 <= col < cols):
@@ -103,8 +104,8 @@ def astar_python(
         raise PlanningError(f"heuristic weight must be a finite number >= 0, got {weight}")
     start = (int(start[0]), int(start[1]))
     goal = (int(goal[0]), int(goal[1]))
-    _check_cell(grid, start, "start")
-    _check_cell(grid, goal, "goal")
+    check_cell(grid, start, "start")
+    check_cell(grid, goal, "goal")
 
     rows, cols = grid.shape
     finite = grid[np.isfinite(grid)]

@@ -2,33 +2,20 @@
 
 from __future__ import annotations
 
-import socket
 import threading
 import time
 
 from hil.trial import run_trial
 from logs import topics
 from logs.reader import read_messages
-from logs.settings import parse_toml
-from logs.telemetry import TelemetrySample, ZenohSettings, ZenohTelemetry, open_session, subscribe
+from logs.telemetry import TelemetrySample, ZenohTelemetry, subscribe
+from tests.system.zenoh_pair import open_pair
 
 CHECKED = (topics.SENSORS_GPS, topics.NAVIGATOR_PATH, topics.SAFETY_EVENTS)
 
 
-def _free_loopback_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
-
-
-def _settings(text: str) -> ZenohSettings:
-    return ZenohSettings.from_table(parse_toml(text, "<test>").table("zenoh"))
-
-
 def test_live_stream_matches_recording(small_scenario, default_config, tmp_path):
-    endpoint = f"tcp/127.0.0.1:{_free_loopback_port()}"
-    ground = open_session(_settings(f'[zenoh]\nenabled = true\nlisten = ["{endpoint}"]\n'))
-    rover = open_session(_settings(f'[zenoh]\nenabled = true\nlisten = []\nconnect = ["{endpoint}"]\n'))
+    ground, rover = open_pair()
     received: list[TelemetrySample] = []
     lock = threading.Lock()
 

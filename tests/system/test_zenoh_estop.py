@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import socket
 import time
 
 from hil.trial import run_trial
@@ -10,26 +9,13 @@ from logs import topics
 from logs.clock import SimClock
 from logs.commands import ZenohCommandReceiver, send_command
 from logs.reader import read_messages
-from logs.settings import parse_toml
-from logs.telemetry import ZenohSettings, open_session
+from tests.system.zenoh_pair import open_pair
 
 ESTOP_AT = 0.2  # share of the scenario's duration: the rover is driving by then
 
 
-def _free_loopback_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
-
-
-def _settings(text: str) -> ZenohSettings:
-    return ZenohSettings.from_table(parse_toml(text, "<test>").table("zenoh"))
-
-
 def test_estop_on_command_key_stops_the_rover(small_scenario, default_config, tmp_path):
-    endpoint = f"tcp/127.0.0.1:{_free_loopback_port()}"
-    rover = open_session(_settings(f'[zenoh]\nenabled = true\nlisten = ["{endpoint}"]\n'))
-    ground = open_session(_settings(f'[zenoh]\nenabled = true\nlisten = []\nconnect = ["{endpoint}"]\n'))
+    rover, ground = open_pair()
     # The receiver stamps arrivals with a clock; the trial's own clock is inside run_trial, and the
     # stamp only feeds the ground-link failsafe, which is off by default.
     receiver = ZenohCommandReceiver(rover, default_config.rover_id, SimClock())
