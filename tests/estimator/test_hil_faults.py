@@ -43,3 +43,17 @@ def test_hil_gps_glitch_is_rejected_and_the_estimate_holds(tmp_path):
     errors = pose_errors(result.mcap_path)
     assert errors.position_m[errors.t_s >= 2.0].max() < 3.0
     assert result.end_reason == "arrived"
+
+
+def test_hil_gps_dropout_health_flag_turns_unhealthy_at_its_threshold(tmp_path):
+    from tests.estimator.dropout_drift import HEALTH_THRESHOLD_M, run_dropout
+
+    result = run_dropout(5, tmp_path)
+    assert result.distance_m > 15.0  # the rover kept driving through the dropout
+    assert result.unhealthy_at_ns is not None, "the covariance never passed the health threshold"
+    assert result.std_before_unhealthy_m is not None and result.std_when_unhealthy_m is not None
+    # The flag flips on the first published pose whose position std is past the threshold, not before.
+    assert result.std_before_unhealthy_m <= HEALTH_THRESHOLD_M < result.std_when_unhealthy_m
+    # Dead reckoning holds to a few percent of distance (the issue's 3 % goal is not met in HIL yet:
+    # see the issue note; this bound guards against regressions).
+    assert result.drift_pct < 5.0
