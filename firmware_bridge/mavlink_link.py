@@ -197,7 +197,7 @@ class MavlinkLink:
         component_id: int = 191,
         *,
         autopilot_system_id: int | None = None,
-        link_timeout_s: float = 3.0,
+        link_timeout_s: float | None = 3.0,  # None: no autopilot on this link (a ground-station link)
         signing_key: bytes | None = None,
     ) -> None:
         self._transport = transport
@@ -218,7 +218,7 @@ class MavlinkLink:
         self._mav = self._new_mavlink()
         self.counters = MavlinkCounters()
         self.last_heartbeat_ns: int | None = None
-        self._link_timeout_ns = to_ns(link_timeout_s)
+        self._link_timeout_ns = None if link_timeout_s is None else to_ns(link_timeout_s)
         self._started_ns = clock.now_ns()
         self.autopilot_link_ok = True
         self._statustext_id = 0
@@ -385,6 +385,8 @@ class MavlinkLink:
         )
 
     def _check_link(self, t_ns: int) -> None:
+        if self._link_timeout_ns is None:
+            return
         last = self.last_heartbeat_ns if self.last_heartbeat_ns is not None else self._started_ns
         silent_ns = t_ns - last
         ok = silent_ns <= self._link_timeout_ns

@@ -9,6 +9,7 @@ same scenario and seed give the same recording, message for message.
 from __future__ import annotations
 
 import dataclasses
+import io
 import json
 import logging
 from collections.abc import Callable
@@ -21,6 +22,7 @@ import numpy as np
 
 from firmware_bridge.can_link import CanLink
 from firmware_bridge.mavlink_link import MavlinkLink
+from firmware_bridge.mavlink_transport import Transport
 from firmware_bridge.vesc import VescCodec
 from firmware_bridge.vesc_dbc import load_vesc_database
 from hil.lockstep import CanBackend, lockstep_wires
@@ -77,6 +79,7 @@ def run_trial(
     can_backend: CanBackend = "lockstep",
     on_components: ComponentHook | None = None,
     commands: CommandSource | None = None,
+    ground_station: Transport | None = None,
 ) -> TrialResult:
     """Run one lockstep trial; writes ``trial.mcap`` and ``metrics.json`` into ``out_dir``."""
     seed = scenario.seed if seed is None else seed
@@ -110,6 +113,9 @@ def run_trial(
                 scenario.believed_terrain,
                 obstacles=world.perception,
                 commands=commands,
+                ground_station=None
+                if ground_station is None
+                else MavlinkLink(ground_station, clock, sink, link_timeout_s=None),
             )
             if on_components is not None:
                 on_components(
@@ -221,9 +227,25 @@ def write_header(
         },
     )
     recorder.add_attachment("scenario.toml", "application/toml", scenario.text.encode("utf-8"), 0)
+    recorder.add_attachment("map.npz", "application/x-npz", _map_archive(scenario), 0)
     config_path = Path(config.source)
     if config_path.is_file():
         recorder.add_attachment("config.toml", "application/toml", config_path.read_bytes(), 0)
+
+
+def _map_archive(scenario: Scenario) -> bytes:
+    """The true map's layers (what the simulator drove on), loadable with ``numpy.load``."""
+    terrain = scenario.terrain
+    buffer = io.BytesIO()
+    np.savez_compressed(
+        buffer,
+        elevation_m=terrain.elevation_m,
+        terrain_class=terrain.terrain_class,
+        obstacles=terrain.obstacles,
+        resolution_m=np.float64(terrain.resolution_m),
+        origin_xy=np.asarray(terrain.origin_xy, dtype=np.float64),
+    )
+    return buffer.getvalue()
 
 
 def _dominant_class(scenario: Scenario) -> str:

@@ -165,7 +165,9 @@ class OnboardStack:
 
     ``commands`` (optional) delivers goals, e-stops and resumes from the ground (Zenoh); ``obstacles``
     (optional) delivers perceived obstacles (a lidar pipeline on the rover, the simulator in HIL).
-    Goals also arrive over MAVLink from a ground station (the link has already acknowledged them).
+    Goals and stops also arrive over MAVLink (the link has already acknowledged them): on the autopilot's
+    link when the autopilot forwards them, or on ``ground_station``, a second MAVLink link straight to a
+    ground station (as a companion computer behind mavlink-router has).
     """
 
     def __init__(
@@ -179,6 +181,7 @@ class OnboardStack:
         *,
         commands: CommandSource | None = None,
         obstacles: ObstacleSource | None = None,
+        ground_station: MavlinkLink | None = None,
     ) -> None:
         self._config = config
         self._clock = clock
@@ -187,6 +190,7 @@ class OnboardStack:
         self._sink = sink
         self._commands = commands
         self._obstacles = obstacles
+        self._ground_station = ground_station
         self._terrain = terrain
         self._map_published = False
         self._event = _EventFn(clock, sink)
@@ -261,6 +265,8 @@ class OnboardStack:
         self._read_obstacles(now)
         if self._last_heartbeat_sent_ns is None or now - self._last_heartbeat_sent_ns >= HEARTBEAT_PERIOD_NS:
             self._mavlink.send_heartbeat()
+            if self._ground_station is not None:
+                self._ground_station.send_heartbeat()
             self._last_heartbeat_sent_ns = now
 
         pose = self.estimator.pose()
@@ -318,6 +324,8 @@ class OnboardStack:
             self._can.close()
         finally:
             self._mavlink.close()
+            if self._ground_station is not None:
+                self._ground_station.close()
 
     # --- internals ------------------------------------------------------------------------------------
     def _ready(self, now: int, pose: PoseEstimate | None) -> bool:
@@ -407,7 +415,17 @@ class OnboardStack:
         x, y, _ = to_enu(datum, request.lat_deg, request.lon_deg, datum.alt_m)
         self.set_goal(x, y)
 
+    def _read_ground_station(self) -> None:
+        if self._ground_station is None:
+            return
+        for reading in self._ground_station.poll():
+            if isinstance(reading, GoalRequest):
+                self._goal_from_ground_station(reading)
+            elif isinstance(reading, StopRequest):
+                self.estop(f"MAVLink {reading.source} from system {reading.sysid}")
+
     def _read_links(self, now: int) -> None:
+        self._read_ground_station()
         for reading in self._mavlink.poll():
             if isinstance(reading, GpsFix):
                 self._newest_sensor_ns = now

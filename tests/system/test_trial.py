@@ -106,3 +106,20 @@ def test_recorded_mavlink_parses_with_fresh_pymavlink(small_trial):
         count += 1
     assert {"HEARTBEAT", "GPS_RAW_INT", "SCALED_IMU"} <= names
     assert count > 100
+
+
+def test_scenario_config_and_map_are_attached(small_trial, small_scenario):
+    import io
+
+    import numpy as np
+
+    from logs.reader import read_attachments, read_metadata
+
+    attachments = read_attachments(small_trial.mcap_path)
+    assert attachments["scenario.toml"].decode() == small_scenario.text
+    layers = np.load(io.BytesIO(attachments["map.npz"]))
+    assert np.array_equal(layers["obstacles"], small_scenario.terrain.obstacles)
+    assert np.array_equal(layers["elevation_m"], small_scenario.terrain.elevation_m)
+    metadata = read_metadata(small_trial.mcap_path)
+    assert metadata["trial"]["mode"] == "sim-lockstep"
+    assert metadata["scenario"]["terrain_class"] == "rocky"
