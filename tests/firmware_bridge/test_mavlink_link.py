@@ -176,6 +176,7 @@ def test_udp_loopback_round_trip_with_os_chosen_port():
         server.close()
 
 
+# The non-loopback hosts below are refused by the loopback guard before any socket exists: nothing is sent.
 @pytest.mark.parametrize(
     ("connection", "text"),
     [
