@@ -46,6 +46,10 @@ class RoverCommand:
 
 
 class CommandSource(Protocol):
+    # When the ground station was last heard from (any sample, even a malformed one), on the rover's
+    # clock; None before the first. The ground-link failsafe watches it.
+    last_contact_ns: int | None
+
     def poll(self) -> list[RoverCommand]:
         """Commands received since the last poll, oldest first; never blocks."""
         ...
@@ -88,6 +92,7 @@ class ZenohCommandReceiver:
         self._pending: list[RoverCommand] = []
         self.accepted = 0
         self.rejected = 0
+        self.last_contact_ns: int | None = None
         self._closed = False
         try:
             self._subscriber = session.declare_subscriber(self._prefix + "*", self._on_sample)
@@ -97,8 +102,10 @@ class ZenohCommandReceiver:
     def _on_sample(self, sample: zenoh.Sample) -> None:
         key = str(sample.key_expr)
         kind = key[len(self._prefix) :] if key.startswith(self._prefix) else key
+        received_ns = self._clock.now_ns()
+        self.last_contact_ns = received_ns
         try:
-            command = parse_command(kind, sample.payload.to_bytes(), self._clock.now_ns())
+            command = parse_command(kind, sample.payload.to_bytes(), received_ns)
         except ValueError as err:
             with self._lock:
                 self.rejected += 1

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from estimator.estimator import Estimator
 from estimator.geodesy import to_enu
 from estimator.pose import PoseEstimate
+from firmware_bridge.can_health import CanLinkState
 from firmware_bridge.can_link import CanLink
 from firmware_bridge.mavlink_commands import GoalRequest, StopRequest
 from firmware_bridge.mavlink_link import AttitudeSample, GpsFix, ImuSample, MavlinkLink
@@ -191,6 +192,7 @@ class OnboardStack:
         self._commands = commands
         self._obstacles = obstacles
         self._ground_station = ground_station
+        self._wheels = can_link.readings()
         self._terrain = terrain
         self._map_published = False
         self._event = _EventFn(clock, sink)
@@ -337,19 +339,19 @@ class OnboardStack:
             self._healthy_since_ns = now
         settled = self._healthy_since_ns is not None and now - self._healthy_since_ns >= SETTLE_NS
         links_up = self._mavlink.last_heartbeat_ns is not None and all(
-            r.last_status_ns is not None for r in self._can.readings()
+            r.last_status_ns is not None for r in self._wheels
         )
         return settled and links_up
 
     def _safety_inputs(self, now: int, pose: PoseEstimate | None) -> SafetyInputs:
-        readings = self._can.readings()
+        readings = self._wheels
         voltages = [r.input_voltage_v for r in readings if r.input_voltage_v > 0.0]
         attitude = self._attitude
         return SafetyInputs(
             now_ns=now,
             tick_gap_ns=None if self._last_tick_ns is None else now - self._last_tick_ns,
             wheel_last_status_ns=tuple(r.last_status_ns for r in readings),
-            can_bus_off=self._can_bus_off(),
+            can_bus_off=self._can.state is CanLinkState.BUS_OFF,
             can_send_failing_since_ns=self._send_failing_since_ns,
             estimator_healthy=pose is not None and pose.healthy,
             last_gps_ns=self._last_gps_ns,
@@ -364,17 +366,10 @@ class OnboardStack:
             battery_v=min(voltages) if voltages else None,
         )
 
-    def _can_bus_off(self) -> bool:
-        # The CAN link is gaining a bus state (firmware_bridge.can_health.CanLinkState); read it when the
-        # link has one. Without it, sustained send failures stand in for bus-off.
-        state = getattr(self._can, "state", None)
-        return getattr(state, "value", None) == "bus_off"
-
     def _ground_contact_ns(self) -> int | None:
-        contact = getattr(self._commands, "last_contact_ns", None)
-        if isinstance(contact, int) and (self._last_ground_ns is None or contact > self._last_ground_ns):
-            return contact
-        return self._last_ground_ns
+        """The newest sign of the ground station: its last command, or its command source's last contact."""
+        source_contact = None if self._commands is None else self._commands.last_contact_ns
+        return max((t for t in (self._last_ground_ns, source_contact) if t is not None), default=None)
 
     def _read_commands(self) -> None:
         if self._commands is None:
@@ -453,7 +448,9 @@ class OnboardStack:
                 self._attitude = reading
                 self.estimator.on_attitude(reading.t_ns, reading.yaw_rad, AHRS_HEADING_STD_RAD)
         if self._can.poll():
-            readings = self._can.readings()
+            # One snapshot per poll: the readings change only when frames arrive, and the start-up checks
+            # and the safety inputs of this tick read the same snapshot.
+            self._wheels = readings = self._can.readings()
             if all(r.last_status_ns is not None for r in readings):
                 self._newest_sensor_ns = now
                 # All six: disagreement between the wheels of one side is a slip signal to the estimator.

@@ -128,3 +128,19 @@ def test_goal_without_coordinates_is_refused_by_the_sender(
 ) -> None:
     with pytest.raises(TelemetryError, match="x and y"):
         send_command(sessions[1], "r7", "goal", 1.0, None)
+
+
+def test_any_sample_counts_as_ground_contact(sessions: tuple[zenoh.Session, zenoh.Session]) -> None:
+    rover, station = sessions
+    clock = SimClock(start_ns=5_000)
+    receiver = ZenohCommandReceiver(rover, "r1", clock)
+    try:
+        assert receiver.last_contact_ns is None
+        # Even a malformed goal shows the station is there: the ground-link failsafe watches contact.
+        assert _until(
+            lambda: receiver.last_contact_ns == 5_000,
+            lambda: station.put(command_key("r1", "goal"), b"not json"),
+        )
+        assert receiver.poll() == []
+    finally:
+        receiver.close()
