@@ -8,7 +8,6 @@ import threading
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, replace
-from types import TracebackType
 from typing import Any
 
 import can
@@ -26,6 +25,7 @@ from firmware_bridge.can_health import (
 from firmware_bridge.errors import BridgeOperationError, FrameError
 from firmware_bridge.vesc import WHEEL_COUNT, VescCodec, VescFrame, erpm_command
 from logs.clock import Clock, to_ns
+from logs.closing import ClosesOnExit
 from logs.sink import MessageSink
 from logs.topics import CAN_FRAMES, SAFETY_EVENTS, WHEELS_STATUS, stamp
 
@@ -86,7 +86,7 @@ def _frame_record(t_ns: int, direction: str, msg: can.Message) -> dict[str, obje
     }
 
 
-class CanLink:
+class CanLink(ClosesOnExit):
     """Sends wheel speeds as VESC SET_RPM frames and collects VESC status into per-wheel readings.
 
     Frame timestamps in the record come from ``clock``, never from python-can (whose virtual bus stamps
@@ -407,14 +407,3 @@ class CanLink:
                 self.last_sent_erpm = list(self._zero_erpm)
             finally:
                 self._bus.shutdown()
-
-    def __enter__(self) -> CanLink:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()

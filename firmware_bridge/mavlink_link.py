@@ -11,7 +11,6 @@ import logging
 import math
 import struct
 from dataclasses import asdict, dataclass
-from types import TracebackType
 from typing import Any
 
 from pymavlink.dialects.v20 import common as mavlink2
@@ -27,6 +26,7 @@ from firmware_bridge.mavlink_commands import (
 )
 from firmware_bridge.mavlink_transport import Transport
 from logs.clock import Clock, to_ns
+from logs.closing import ClosesOnExit
 from logs.settings import Table
 from logs.sink import MessageSink
 from logs.topics import MAVLINK_RAW, SAFETY_EVENTS, SENSORS_GPS, SENSORS_IMU, stamp
@@ -182,7 +182,7 @@ def compass_to_enu_rad(bearing_deg: float) -> float:
     return math.atan2(math.sin(angle), math.cos(angle))
 
 
-class MavlinkLink:
+class MavlinkLink(ClosesOnExit):
     """Our MAVLink component on the companion computer (``MAV_TYPE_ONBOARD_CONTROLLER``).
 
     ``autopilot_system_id`` (optional) keeps sensors and heartbeats from other systems out.
@@ -531,17 +531,6 @@ class MavlinkLink:
         if not self._closed:
             self._closed = True
             self._transport.close()
-
-    def __enter__(self) -> MavlinkLink:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
 
 def _allow_unsigned(_mav: Any, msgid: int) -> bool:

@@ -23,7 +23,7 @@ import zenoh
 
 from logs.clock import Clock
 from logs.errors import TelemetryError, TelemetrySetupError
-from logs.telemetry import key_prefix
+from logs.telemetry import key_prefix, undeclare_quietly
 
 logger = logging.getLogger(__name__)
 
@@ -128,10 +128,7 @@ class ZenohCommandReceiver:
         if self._closed:
             return
         self._closed = True
-        try:
-            self._subscriber.undeclare()
-        except zenoh.ZError as err:
-            logger.debug("undeclaring the command subscriber on %s failed: %s", self._prefix, err)
+        undeclare_quietly(self._subscriber, self._prefix)
 
 
 def send_command(

@@ -16,11 +16,11 @@ import logging
 import math
 from collections.abc import Mapping
 from pathlib import Path
-from types import TracebackType
 from typing import Any, BinaryIO
 
 from mcap.writer import CompressionType, Writer
 
+from logs.closing import ClosesOnExit
 from logs.errors import RecordingError
 from logs.sink import Message
 from logs.topics import spec
@@ -79,7 +79,7 @@ def encode_message(message: Message) -> bytes:
     return json.dumps(repaired, separators=(",", ":"), allow_nan=False, default=_json_default).encode()
 
 
-class McapRecorder:
+class McapRecorder(ClosesOnExit):
     """Writes published messages to an MCAP file (a path or a binary stream).
 
     A path's parent folders are created; the recorder owns and closes that file. A stream given by the
@@ -256,14 +256,3 @@ class McapRecorder:
     def _check_open(self, action: str) -> None:
         if self._closed:
             raise RecordingError(f"recorder {self.name} is closed; cannot {action}")
-
-    def __enter__(self) -> McapRecorder:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()

@@ -279,10 +279,15 @@ class TelemetrySubscription:
         if self._closed:
             return
         self._closed = True
-        try:
-            self._subscriber.undeclare()
-        except zenoh.ZError as err:
-            logger.debug("undeclaring the subscriber on %s failed: %s", self._prefix, err)
+        undeclare_quietly(self._subscriber, self._prefix)
+
+
+def undeclare_quietly(subscriber: zenoh.Subscriber, key: str) -> None:
+    """Undeclare on close: a failure there (session already gone) is logged, never raised."""
+    try:
+        subscriber.undeclare()
+    except zenoh.ZError as err:
+        logger.debug("undeclaring the subscriber on %s failed: %s", key, err)
 
 
 def subscribe(
