@@ -21,10 +21,11 @@ from logs.recover import recover
 from logs.report import write_report
 
 ROOT = Path(__file__).resolve().parents[2]
-SCENARIO = ROOT / "tests" / "data" / "small_rocky.toml"
+# The default scenario: about 40 s simulated, several seconds of wall time even at full speed, so the
+# latest kill point (1.5 s after the first chunk) falls well inside the trial on a loaded machine.
+SCENARIO = ROOT / "scenarios" / "default.toml"
 KILL_POINTS = 3
 START_TIMEOUT_S = 60.0
-FIRST_CHUNK_BYTES = 20_000  # header, metadata, attachment and the first one-second chunk
 
 
 def _start(out: Path) -> subprocess.Popen[bytes]:
@@ -34,24 +35,37 @@ def _start(out: Path) -> subprocess.Popen[bytes]:
     )
 
 
-def _kill_after(process: subprocess.Popen[bytes], recording: Path, delay_s: float) -> None:
-    """SIGKILL ``delay_s`` after the recording holds its first chunk (the trial is then truly recording)."""
+def _holds_a_chunk(path: Path) -> bool:
+    """Whether a complete chunk record is on disk yet (the file is still growing; a cut is expected)."""
+    with path.open("rb") as stream:
+        return any(frame.opcode == 0x06 for frame in FrameWalk(stream, str(path)).frames())
+
+
+def _kill_each_after(runs: list[tuple[subprocess.Popen[bytes], Path, float]]) -> None:
+    """SIGKILL each trial its own delay after its recording holds the first chunk (it is then truly
+    recording). One loop watches all of them, so every delay counts from that trial's own first chunk."""
     deadline = time.monotonic() + START_TIMEOUT_S
-    kill_at = None
-    while time.monotonic() < deadline:
-        if process.poll() is not None:
-            _, err = process.communicate()
-            pytest.fail(f"trial ended (rc {process.returncode}) before its kill point: {err.decode()[-800:]}")
-        if kill_at is None and recording.exists() and recording.stat().st_size >= FIRST_CHUNK_BYTES:
-            kill_at = time.monotonic() + delay_s
-        if kill_at is not None and time.monotonic() >= kill_at:
-            os.kill(process.pid, signal.SIGKILL)
-            process.wait(timeout=10)
-            return
+    kill_at: dict[int, float] = {}
+    pending = list(range(len(runs)))
+    while pending and time.monotonic() < deadline:
+        for index in list(pending):
+            process, recording, delay_s = runs[index]
+            if process.poll() is not None:
+                _, err = process.communicate()
+                pytest.fail(
+                    f"trial {index} ended (rc {process.returncode}) before its kill point: "
+                    f"{err.decode()[-800:]}"
+                )
+            started = recording.exists() and _holds_a_chunk(recording)
+            if index not in kill_at and started:
+                kill_at[index] = time.monotonic() + delay_s
+            if index in kill_at and time.monotonic() >= kill_at[index]:
+                os.kill(process.pid, signal.SIGKILL)
+                process.wait(timeout=10)
+                pending.remove(index)
         time.sleep(0.005)
-    process.kill()
-    process.wait()
-    pytest.fail(f"trial never reached its kill point in {START_TIMEOUT_S} s")
+    if pending:
+        pytest.fail(f"trials {pending} never reached their kill points in {START_TIMEOUT_S} s")
 
 
 def _chunk_spans_ns(path: Path) -> list[int]:
@@ -72,8 +86,12 @@ def test_sigkill_then_recover_then_report(tmp_path: Path) -> None:
     runs = [(tmp_path / f"kill{i}", delay) for i, delay in enumerate(delays)]
     processes = [_start(out) for out, _ in runs]  # concurrently: the three trials share the wait
     try:
-        for process, (out, delay) in zip(processes, runs, strict=True):
-            _kill_after(process, out / "trial.mcap", delay)
+        _kill_each_after(
+            [
+                (process, out / "trial.mcap", delay)
+                for process, (out, delay) in zip(processes, runs, strict=True)
+            ]
+        )
     finally:
         for process in processes:
             if process.poll() is None:
