@@ -29,6 +29,8 @@ _POSITIVE = (
     "gps_timeout_s",
     "stuck_window_s",
     "stuck_min_distance_m",
+    "odom_transient_accel_mps2",
+    "odom_settle_s",
 )
 # Settings that may be zero but not negative.
 _NON_NEGATIVE = ("gps_latency_s", "odom_yaw_rate_relative_noise")
@@ -83,6 +85,10 @@ class EstimatorConfig:
         Over every window of this length (s) with at least this much odometry travel (m), GPS travel is
         compared with odometry travel: wheels that turn while GPS stands still are spinning in place,
         and their speed is then left out until the two agree again.
+    odom_transient_accel_mps2, odom_settle_s : float
+        While the mean wheel speed changes faster than this (m/s^2), and for ``odom_settle_s`` after, the
+        wheels lead or lag the body (transient slip): the odometry scale is not learnt
+        (``estimator.transient``).
     datum_lat_deg, datum_lon_deg, datum_alt_m : float | None
         ENU origin; if absent the first good GPS fix sets it.
     """
@@ -108,6 +114,8 @@ class EstimatorConfig:
     gps_latency_s: float = 0.0
     stuck_window_s: float = 4.0
     stuck_min_distance_m: float = 1.0
+    odom_transient_accel_mps2: float = 1.0
+    odom_settle_s: float = 1.0
     datum_lat_deg: float | None = None
     datum_lon_deg: float | None = None
     datum_alt_m: float | None = None

@@ -37,6 +37,7 @@ from estimator.health import EstimatorHealth
 from estimator.history import FusionHistory, GyroSample, OdometrySample, Sample
 from estimator.pose import PoseEstimate, pose_message
 from estimator.stuck import StuckDetector
+from estimator.transient import WheelTransient
 from estimator.wheels import BodyMotion, side_speeds, six_wheels
 from logs.clock import Clock
 from logs.sink import MessageSink
@@ -87,6 +88,7 @@ class Estimator:
         self._bootstrap = HeadingBootstrap(config.heading_init_distance_m)
         self._initial_heading: tuple[float, float] | None = None
         self._heading_known = False
+        self._transient = WheelTransient(config.odom_transient_accel_mps2, config.odom_settle_s)
         self._odometry_seen = False
         self._gps_rejected_since_ns: int | None = None  # fix time of the first gated fix in a row
         self._last_gps_accepted_ns: int | None = None
@@ -368,6 +370,7 @@ class Estimator:
         if self._last_wheels_ns is not None and t_ns > self._last_wheels_ns:
             self._stuck.add_odometry(t_ns, motion.speed_mps * (t_ns - self._last_wheels_ns) * 1e-9)
         self._last_wheels_ns = t_ns
+        self._transient.add(t_ns, motion.speed_mps)
         speed_std, yaw_rate_std = self._odometry_noise(t_ns, motion)
         use_speed = not self._stuck.spinning
         if not use_speed:
@@ -406,7 +409,8 @@ class Estimator:
         """The odometry scale is learnt only against GPS track with a known heading and gripping wheels."""
         last_fix = self._last_gps_accepted_ns
         gps_recent = last_fix is not None and t_ns - last_fix <= self._config.gps_timeout_s * 1e9
-        return gps_recent and self._heading_known and not self._stuck.spinning
+        steady = not self._transient.unsettled(t_ns)
+        return gps_recent and self._heading_known and steady and not self._stuck.spinning
 
     def _remember(self, before: Snapshot | None, sample: Sample) -> None:
         if self._history is not None and before is not None:
