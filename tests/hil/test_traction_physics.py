@@ -1,6 +1,7 @@
 """The wheel-ground laws (hil.traction) in the body (hil.dynamics) against closed forms and physical sense:
 traction-slip curve, skid-steer scrub, sinkage resistance, motor current limit."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -12,6 +13,7 @@ from hil.traction import SCRUB_SPEED_EPS_MPS, slip_for_ratio, traction_ratio
 from hil.vesc_sim import SimVescBank
 from logs.clock import SimClock, to_ns
 from logs.sink import MemorySink
+from navigator.errors import TerrainError
 from navigator.terrain import TerrainMap
 from navigator.terrain_classes import FIRM, MUDDY, ROCKY, SANDY, TERRAIN_CLASSES
 from navigator.vehicle import G, VehicleParams
@@ -193,3 +195,18 @@ def test_commanded_beyond_the_current_limit_the_rover_stalls_and_the_vesc_report
     assert max(step.motor_currents_a) == pytest.approx(limit)
     assert max(reported) == pytest.approx(limit, abs=0.05)  # STATUS carries 0.1 A resolution
     assert sum(step.traction_forces_n) < PARAMS.mass_kg * G * math.sin(theta)
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"slip_constant": 0.0}, "slip_constant"),
+        ({"sinkage_resistance": 0.5}, "sinkage_resistance"),
+        ({"sinkage_exponent": -1.0}, "sinkage_exponent"),
+        ({"lateral_resistance": -0.1}, "lateral_resistance"),
+        ({"friction_mu": 0.0}, "friction_mu"),
+    ],
+)
+def test_a_class_with_impossible_wheel_ground_parameters_is_a_terrain_error(changes, message):
+    with pytest.raises(TerrainError, match=message):
+        dataclasses.replace(TERRAIN_CLASSES[SANDY], **changes)
