@@ -69,9 +69,11 @@ class DynamicsStep:
     terrain_class: int
     terrain_name: str
     wheel_speeds_mps: tuple[float, ...]  # wheel surface speeds applied this step
-    slip: tuple[float, ...]  # (surface − ground speed) / max(|surface|, |ground|), in [-1, 1]
+    # From the class's traction curve for each wheel's pull; (surface − ground) / max(|surface|, |ground|)
+    # once it spins or slides; in [-1, 1].
+    slip: tuple[float, ...]
     normal_forces_n: tuple[float, ...]
-    traction_forces_n: tuple[float, ...]  # forward force of each tyre on the ground contact
+    traction_forces_n: tuple[float, ...]  # forward pull of each wheel's motor at the ground contact
     motor_currents_a: tuple[float, ...]
     duty: tuple[float, ...]
     longitudinal_accel_mps2: float

@@ -205,6 +205,8 @@ def drive_forces(
         radius = abs(v_cmd) / abs(yaw_cmd)
     if abs(yaw_rate) > 1e-9:
         radius = min(radius, abs(speed) / abs(yaw_rate))
+    elif math.isinf(radius):
+        radius = 0.0  # not turning and not asked to: static friction holds the heading in full
     lateral_speed = abs(yaw_rate) * half_base  # of the end wheels, sideways
     left_sliding = left - (speed - 0.5 * yaw_rate * effective_track)
     right_sliding = right - (speed + 0.5 * yaw_rate * effective_track)
