@@ -5,22 +5,30 @@ The model, per step of ``dt`` (semi-implicit Euler, no randomness):
 * The terrain under the rover gives roll and pitch (``TerrainMap.tilt_at`` at its heading), the friction
   coefficient μ and rolling resistance crr of its class, and the wheel normal forces
   (``navigator.vehicle.wheel_normal_forces``, with the last step's acceleration for weight transfer).
-* Longitudinal: the wheels pull the body toward the mean commanded surface speed ``v_cmd`` within a time
-  constant ``tau``. The drive force they would need,
-  ``F_req = m (v_cmd − v) / max(tau, dt) + m g sin(pitch) + F_rr``, is limited by traction ``|F| <= μ ΣN``.
-  Rolling resistance ``F_rr = crr ΣN`` opposes the wheels' turning and vanishes when they are locked.
-  So with locked wheels on a slope steeper than ``atan μ`` the body slides down at the paper's
-  ``a = g (sin θ − μ cos θ)``; with wheels spinning uphill it slides back unless ``tan θ <= μ − crr``.
-* Yaw: follows the commanded ``(v_right − v_left) / (track × skid_factor)`` with a first-order lag, its
-  angular acceleration limited by the traction left over after driving (``(μ ΣN − |F|) × track/2 / I_z``).
+* Wheels on the ground (``hil.traction``, per wheel, with the class's laws): each rolling wheel meets
+  motion resistance ``crr N`` whose sinkage part grows with its load (Bekker); the end axles scrub sideways
+  in a turn, a moment ``mu_t sum(N |x|)`` against the yaw with ``mu_t`` falling with the turn radius; a wheel
+  pulls along its class's traction-slip curve, at most ``mu N`` and at most what its motor's current limit
+  gives.
+* Longitudinal and yaw: the commanded side speeds, minus the steady-state slip the curve needs for the
+  forces that hold them (gravity ``m g sin(pitch)``, resistance, scrub), give a target speed and yaw rate
+  ``(v_right − v_left) / (track × skid_factor)``. The wheels pull the body toward them within ``tau`` and
+  ``tau_yaw``, as far as each side's traction and current limits allow (``F_req = m (v_target − v) / tau +
+  m g sin(pitch) + F_resist``, clipped). So with locked wheels on a slope steeper than ``atan μ`` the body
+  slides down at the paper's ``a = g (sin θ − μ cos θ)``; with wheels spinning uphill it slides back unless
+  ``tan θ <= μ − crr``; in steady driving and turning the ground speed lags the tyres by the curve's slip,
+  so a turn falls short of the wheels' kinematic yaw rate by the slip the scrub needs. The scrub is
+  Coulomb friction on the yaw (it stops a turn, never reverses it).
 * No lateral slip (the body moves along its heading); horizontal displacement is ``v cos(pitch) dt``.
 * Rollover when a stability margin (``navigator.vehicle.stability_margins``, lateral acceleration ``v ω``
   included) goes negative: latched, the rover stays stopped.
 * Collision when the footprint circle (``footprint_radius_m``) would overlap an obstacle cell or cross the
   map edge: the move is refused and the rover stopped (it may still turn in place and back away). Reported
   once per entry in ``DynamicsStep.collided_obstacle``; ``collided`` is true for as long as it touches.
-* Motors: wheel torque ``F r`` -> motor current ``F r / (gear k_t)``; duty ``(k_t ω_motor + I R) / V``;
-  electrical power ``k_t I ω_motor + I² R`` per motor (no regeneration) integrates to energy.
+* Motors: wheel torque ``F r`` -> motor current ``F r / (gear k_t)`` (so never above the current limit);
+  duty ``(k_t ω_motor + I R) / V``; electrical power ``k_t I ω_motor + I² R`` per motor (no regeneration)
+  integrates to energy. Slip: from the curve while a wheel pulls below its traction limit, from its surface
+  and ground speeds once it spins or slides.
 
 Body axes: x forward, y left, z up; pitch positive nose up, roll positive when the right side is lower.
 """
@@ -33,17 +41,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hil.traction import drive_forces, wheel_outputs
 from navigator.terrain import TerrainMap
-from navigator.terrain_classes import TERRAIN_CLASSES, TerrainClass
+from navigator.terrain_classes import REFERENCE_WHEEL_LOAD_N, TERRAIN_CLASSES, TerrainClass
 from navigator.vehicle import G, VehicleParams, stability_margins, wheel_normal_forces
 
-# Below this mean wheel surface speed rolling resistance fades out linearly (it needs the wheels turning).
-_ROLLING_SPEED_EPS_MPS = 0.05
 # Within this distance of an obstacle the footprint counts as touching it.
 _CONTACT_TOLERANCE_M = 1e-3
 _CONTACT_BISECTIONS = 16
-# Slip ratios use at least this speed as denominator, so a wheel at rest does not divide by zero.
-_SLIP_SPEED_EPS_MPS = 0.05
 
 
 class DynamicsError(ValueError):
@@ -64,9 +69,11 @@ class DynamicsStep:
     terrain_class: int
     terrain_name: str
     wheel_speeds_mps: tuple[float, ...]  # wheel surface speeds applied this step
-    slip: tuple[float, ...]  # (surface − ground speed) / max(|surface|, |ground|), in [-1, 1]
+    # From the class's traction curve for each wheel's pull; (surface − ground) / max(|surface|, |ground|)
+    # once it spins or slides; in [-1, 1].
+    slip: tuple[float, ...]
     normal_forces_n: tuple[float, ...]
-    traction_forces_n: tuple[float, ...]  # forward force of each tyre on the ground contact
+    traction_forces_n: tuple[float, ...]  # forward pull of each wheel's motor at the ground contact
     motor_currents_a: tuple[float, ...]
     duty: tuple[float, ...]
     longitudinal_accel_mps2: float
@@ -98,12 +105,14 @@ class RoverDynamics:
         motor_torque_constant_nm_per_a: float = 0.07,  # k_t, ~136 rpm/V: 1.5 m/s at ~19 V back-EMF
         gear_ratio: float = 20.0,  # motor turns per wheel turn
         winding_resistance_ohm: float = 0.1,
+        motor_current_limit_a: float = 10.0,  # the VESC's motor current limit (its l_current_max setting)
         drive_time_constant_s: float = 0.1,
         yaw_time_constant_s: float = 0.15,
     ) -> None:
         for name, value in (
             ("motor_torque_constant_nm_per_a", motor_torque_constant_nm_per_a),
             ("gear_ratio", gear_ratio),
+            ("motor_current_limit_a", motor_current_limit_a),
             ("drive_time_constant_s", drive_time_constant_s),
             ("yaw_time_constant_s", yaw_time_constant_s),
         ):
@@ -119,13 +128,49 @@ class RoverDynamics:
         self._terrain = terrain
         self._params = params
         self._classes = classes
-        self._k_t = motor_torque_constant_nm_per_a
-        self._gear = gear_ratio
-        self._resistance = winding_resistance_ohm
-        self._tau_drive = drive_time_constant_s
-        self._tau_yaw = yaw_time_constant_s
+        self._current_limit_a = motor_current_limit_a
         # Yaw inertia of a uniform box the size of the footprint.
-        self._inertia_z = params.mass_kg * (params.footprint_length_m**2 + params.footprint_width_m**2) / 12.0
+        inertia_z = params.mass_kg * (params.footprint_length_m**2 + params.footprint_width_m**2) / 12.0
+        # The current limit caps each wheel's pull at limit x k_t x gear / wheel radius.
+        force_cap = (
+            motor_current_limit_a * motor_torque_constant_nm_per_a * gear_ratio / params.wheel_radius_m
+        )
+        # Plain float vectors for the compiled kernels (hil.traction), built once.
+        self._vehicle_vector = np.array(
+            [
+                params.mass_kg,
+                inertia_z,
+                params.track_m,
+                params.effective_track_m,
+                params.wheelbase_m / 2.0,
+                REFERENCE_WHEEL_LOAD_N,
+                force_cap,
+                drive_time_constant_s,
+                yaw_time_constant_s,
+            ]
+        )
+        self._motor_vector = np.array(
+            [
+                params.wheel_radius_m,
+                gear_ratio,
+                motor_torque_constant_nm_per_a,
+                winding_resistance_ohm,
+                params.effective_track_m,
+            ]
+        )
+        self._ground_params = {
+            class_id: np.array(
+                [
+                    c.friction_mu,
+                    c.slip_constant,
+                    c.rolling_resistance,
+                    c.sinkage_resistance,
+                    c.sinkage_exponent,
+                    c.lateral_resistance,
+                ]
+            )
+            for class_id, c in classes.items()
+        }
 
         self._x, self._y, self._yaw = float(x), float(y), _wrap(float(yaw))
         self._speed = 0.0
@@ -178,6 +223,10 @@ class RoverDynamics:
         return self._energy_j / 3600.0
 
     @property
+    def motor_current_limit_a(self) -> float:
+        return self._current_limit_a
+
+    @property
     def rolled_over(self) -> bool:
         return self._rolled_over
 
@@ -218,26 +267,21 @@ class RoverDynamics:
             return self._rolled_over_step(dt_s, wheels, class_id, ground, roll, pitch)
 
         normals = wheel_normal_forces(p, roll, pitch, self._accel, self._speed * self._yaw_rate)
-        normal_total = float(normals.sum())
-        traction_limit = ground.friction_mu * normal_total
-
-        # Longitudinal: reach the commanded speed within tau, as far as traction allows.
-        left_cmd, right_cmd = float(wheels[:3].mean()), float(wheels[3:].mean())
-        v_cmd = 0.5 * (left_cmd + right_cmd)
-        gravity_along = -p.mass_kg * G * math.sin(pitch)
-        rolling = -ground.rolling_resistance * normal_total * _clip(v_cmd / _ROLLING_SPEED_EPS_MPS, 1.0)
-        required = p.mass_kg * (v_cmd - self._speed) / max(self._tau_drive, dt_s) - gravity_along - rolling
-        drive = _clip(required, traction_limit)
-        accel = (drive + gravity_along + rolling) / p.mass_kg
-
-        # Yaw: first-order lag toward the skid-steer kinematic rate, limited by the traction left over.
-        yaw_rate_cmd = (right_cmd - left_cmd) / p.effective_track_m
-        spare = max(0.0, traction_limit - abs(drive))
-        max_yaw_accel = spare * (p.track_m / 2.0) / self._inertia_z
-        yaw_accel = _clip((yaw_rate_cmd - self._yaw_rate) / max(self._tau_yaw, dt_s), max_yaw_accel)
+        ground_params = self._ground_params[class_id]
+        traction = np.empty(6)
+        accel, yaw_rate = drive_forces(
+            wheels,
+            normals,
+            ground_params,
+            self._vehicle_vector,
+            self._speed,
+            self._yaw_rate,
+            pitch,
+            dt_s,
+            traction,
+        )
 
         speed = self._speed + accel * dt_s
-        yaw_rate = self._yaw_rate + yaw_accel * dt_s
         mean_speed = 0.5 * (self._speed + speed)
         heading = self._yaw + 0.5 * (self._yaw_rate + yaw_rate) * 0.5 * dt_s
         new_x = self._x + mean_speed * math.cos(pitch) * math.cos(heading) * dt_s
@@ -269,13 +313,20 @@ class RoverDynamics:
             self._rolled_over = True
             self._speed = self._yaw_rate = self._accel = 0.0
 
-        # Wheels: split the drive force between the sides (the difference turns the body), then by load.
-        side_difference = self._inertia_z * yaw_accel / p.track_m
-        side_force = np.array([0.5 * drive - side_difference, 0.5 * drive + side_difference])
-        traction = np.concatenate([_share(side_force[0], normals[:3]), _share(side_force[1], normals[3:])])
-        ground_speed = speed + np.array([-1.0] * 3 + [1.0] * 3) * yaw_rate * p.effective_track_m / 2.0
-        slip = _slip(wheels, ground_speed)
-        currents, duty, power = self._motors(wheels, traction, battery_voltage_v)
+        slip, currents, duty = np.empty(6), np.empty(6), np.empty(6)
+        power = wheel_outputs(
+            wheels,
+            normals,
+            traction,
+            speed,
+            yaw_rate,
+            ground_params,
+            self._motor_vector,
+            battery_voltage_v,
+            slip,
+            currents,
+            duty,
+        )
         self._energy_j += power * dt_s
 
         return DynamicsStep(
@@ -354,21 +405,6 @@ class RoverDynamics:
             G * cos_pitch * math.cos(self._roll),
         )
 
-    def _motors(
-        self, wheels: np.ndarray, traction: np.ndarray, battery_voltage_v: float
-    ) -> tuple[np.ndarray, np.ndarray, float]:
-        """(motor currents A, duty cycles, total electrical power W) for the wheel forces and speeds."""
-        radius = self._params.wheel_radius_m
-        currents = traction * radius / (self._gear * self._k_t)
-        motor_rate = wheels / radius * self._gear  # rad/s
-        back_emf = self._k_t * motor_rate
-        if battery_voltage_v > 0.0:
-            duty = np.clip((back_emf + currents * self._resistance) / battery_voltage_v, -1.0, 1.0)
-        else:
-            duty = np.zeros(6)
-        power = np.maximum(back_emf * currents + currents * currents * self._resistance, 0.0)
-        return currents, duty, float(power.sum())
-
     def _advance_to_contact(self, new_x: float, new_y: float, clear_now: bool) -> tuple[float, float]:
         """The furthest point along this step's move that keeps the footprint clear (bisection).
 
@@ -419,20 +455,3 @@ class RoverDynamics:
 
 def _wrap(angle: float) -> float:
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
-
-
-def _clip(value: float, limit: float) -> float:
-    return max(-limit, min(limit, value))
-
-
-def _share(force: float, loads: np.ndarray) -> np.ndarray:
-    """Split a side's force over its wheels in proportion to their normal load."""
-    total = float(loads.sum())
-    if total <= 0.0:
-        return np.full(loads.shape, force / loads.size)
-    return force * loads / total
-
-
-def _slip(surface: np.ndarray, ground: np.ndarray) -> np.ndarray:
-    scale = np.maximum(np.maximum(np.abs(surface), np.abs(ground)), _SLIP_SPEED_EPS_MPS)
-    return np.clip((surface - ground) / scale, -1.0, 1.0)

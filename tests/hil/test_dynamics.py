@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from hil.dynamics import DynamicsError, RoverDynamics
+from hil.traction import slip_for_ratio
 from navigator.follower import FollowerConfig, PurePursuit
 from navigator.mixing import mix_skid_steer
 from navigator.planner import Planner
@@ -34,15 +35,20 @@ def run(body, wheels, seconds):
     return [body.step(DT, wheels, VOLTS) for _ in range(round(seconds / DT))]
 
 
-def test_drives_straight_and_turns_at_the_skid_steer_rate():
+def test_drives_straight_and_turns_at_the_skid_steer_rate_less_the_slip():
+    firm = TERRAIN_CLASSES[0]
     body = RoverDynamics(plane(), PARAMS, x=5.0, y=10.0, yaw=0.0)
     steps = run(body, [1.0] * 6, 3.0)
-    assert body.speed == pytest.approx(1.0, abs=1e-3)
+    # Rolling resistance needs a pull of crr N per wheel: the ground lags the tyres by the curve's slip.
+    rolling_slip = slip_for_ratio(firm.rolling_resistance, firm.friction_mu, firm.slip_constant)
+    assert 0.0 < rolling_slip < 0.01
+    assert body.speed == pytest.approx(1.0 - rolling_slip, rel=1e-6)
     assert body.x > 7.0 and body.y == pytest.approx(10.0)
     assert steps[-1].specific_force_body_mps2 == pytest.approx((0.0, 0.0, G), abs=1e-3)
     body = RoverDynamics(plane(), PARAMS, x=10.0, y=10.0, yaw=0.0)
     run(body, [-0.4] * 3 + [0.4] * 3, 2.0)
-    assert body.yaw_rate == pytest.approx(0.8 / PARAMS.effective_track_m, rel=1e-3)
+    # On firm ground a turn on the spot slips a little (closed form in test_traction_physics.py).
+    assert 0.9 * 0.8 / PARAMS.effective_track_m < body.yaw_rate < 0.8 / PARAMS.effective_track_m
     assert body.speed == pytest.approx(0.0, abs=1e-9)
 
 

@@ -1,0 +1,306 @@
+"""The wheel-ground laws of a terrain class, compiled with numba: traction-slip curve, sinkage resistance,
+lateral scrub of skid-steer turns, and the drive forces of the six wheels under traction and current limits.
+
+The laws (parameters per class in ``navigator.terrain_classes``, sources in docs/physics.md):
+
+* Traction curve: a wheel slipping by ``s`` (0 rolling, 1 spinning on the spot or sliding locked) pulls with
+  ``F / N = mu (1 - exp(-s / s_k)) / (1 - exp(-1 / s_k))``: the Janosi-Hanamoto shear-displacement law
+  (Wong, *Theory of Ground Vehicles*, ch. 2), normalised so a fully slipping wheel gives exactly ``mu N``.
+* Motion resistance of a rolling wheel: ``N (crr - c_s + c_s (N / N_ref)^(1 / (2n + 1)))``: the tyre's own
+  part plus the compaction part ``c_s`` of the class, which grows with the wheel load as Bekker's
+  rigid-wheel sinkage law says (compaction resistance ~ W^((2n+2)/(2n+1))). At ``N_ref`` it is the table's
+  crr. It fades in below ``ROLLING_SPEED_EPS_MPS`` of wheel speed (a wheel at rest does not roll).
+* Lateral scrub: in a skid-steer turn the end axles slide sideways; with the lateral resistance
+  coefficient ``mu_t`` each wheel resists with ``mu_t N`` at a lever of its distance from the middle axle,
+  a moment ``M = mu_t sum(N_i |x_i| share_i)`` against the yaw (Wong ch. 7 for tracks; Yu et al. 2010 for
+  skid-steered wheels). ``mu_t`` falls with the turn radius R as ``mu_t / (0.925 + 0.15 R / B)``, the
+  empirical fit Wong quotes for tracked vehicles (B = track), never above ``mu_t``. ``share_i`` is the
+  sideways part of the wheel's sliding velocity (``sideways_share``): a wheel spinning in place resists
+  little sideways, which is how a skid-steer still turns on slippery ground.
+* Sharing a side's force: the wheels on one side roll over the same ground speed, so at equal wheel speeds
+  they slip alike and pull in proportion to their load, each at most ``mu N_i`` and at most the force its
+  motor's current limit gives; a wheel at its current limit pulls less and the others take the rest.
+
+``drive_forces`` turns these into one step of the body's motion (see ``hil.dynamics``): the body is pulled
+toward the ground speeds the wheel speeds give once the curve's steady-state slip is taken off, within the
+drive and yaw time constants, as far as the wheels' traction and current limits allow.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+Array = NDArray[np.float64]
+
+G = 9.81  # m/s^2, as navigator.vehicle.G (a compile-time constant here)
+# Below this wheel surface speed rolling resistance fades out linearly (it needs the wheel turning).
+ROLLING_SPEED_EPS_MPS = 0.05
+# Slip ratios use at least this speed as denominator, so a wheel at rest does not divide by zero.
+SLIP_SPEED_EPS_MPS = 0.05
+# Sideways speed added to the end wheels' scrub so a wheel at rest holds with full static friction.
+SCRUB_SPEED_EPS_MPS = 0.01
+# Indices into drive_forces' class-parameter vector.
+MU, SLIP_K, CRR, SINK, SINK_N, MU_LAT = 0, 1, 2, 3, 4, 5
+
+
+@numba.njit(cache=True)
+def traction_ratio(slip: float, mu: float, slip_constant: float) -> float:
+    """Drawbar pull / normal load at slip ratio ``slip`` (signed, |slip| <= 1); ``mu`` at full slip."""
+    magnitude = min(abs(slip), 1.0)
+    value = mu * (1.0 - math.exp(-magnitude / slip_constant)) / (1.0 - math.exp(-1.0 / slip_constant))
+    return value if slip >= 0.0 else -value
+
+
+@numba.njit(cache=True)
+def slip_for_ratio(ratio: float, mu: float, slip_constant: float) -> float:
+    """The slip ratio at which the curve gives force / load ``ratio`` (signed); +-1 at or beyond ``mu``."""
+    fraction = abs(ratio) / mu
+    if fraction >= 1.0:
+        magnitude = 1.0
+    else:
+        magnitude = min(
+            1.0, -slip_constant * math.log(1.0 - fraction * (1.0 - math.exp(-1.0 / slip_constant)))
+        )
+    return magnitude if ratio >= 0.0 else -magnitude
+
+
+@numba.njit(cache=True)
+def resistance_coefficient(
+    load_n: float, reference_load_n: float, crr: float, sinkage: float, exponent_n: float
+) -> float:
+    """Motion resistance / load of a wheel carrying ``load_n``: tyre part + Bekker compaction part."""
+    if load_n <= 0.0:
+        return 0.0
+    return crr - sinkage + sinkage * (load_n / reference_load_n) ** (1.0 / (2.0 * exponent_n + 1.0))
+
+
+@numba.njit(cache=True)
+def scrub_coefficient(lateral_resistance: float, turn_radius_m: float, track_m: float) -> float:
+    """Lateral resistance coefficient at turn radius ``turn_radius_m`` (inf: straight, no scrub)."""
+    if math.isinf(turn_radius_m):
+        return 0.0
+    return lateral_resistance / max(1.0, 0.925 + 0.15 * turn_radius_m / track_m)
+
+
+@numba.njit(cache=True)
+def sideways_share(lateral_speed: float, sliding_speed: float) -> float:
+    """Share of a wheel's friction that resists sideways motion: the sideways part of its sliding velocity.
+
+    Friction acts against the contact's sliding velocity (Wong and Chiang's skid-steering theory, Wong
+    ch. 7): a wheel spinning fast (large longitudinal ``sliding_speed``, surface minus ground) offers little
+    sideways resistance. At rest both are ~0 and the share is 1 (static friction holds the heading).
+    """
+    sideways = lateral_speed + SCRUB_SPEED_EPS_MPS
+    return sideways / math.hypot(sideways, sliding_speed)
+
+
+@numba.njit(cache=True)
+def _share_side(force: float, loads: Array, first: int, mu: float, cap: float, out: Array) -> float:
+    """Split ``force`` over wheels ``first..first+2`` in proportion to load, each within ``mu N`` and
+    ``cap``; a wheel at its cap gives way to the others. Writes ``out``; returns the force / load ratio
+    of the uncapped wheels (>= mu: the side cannot give ``force``, each wheel gives its most)."""
+    magnitude = abs(force)
+    sign = 1.0 if force >= 0.0 else -1.0
+    capped = np.zeros(3, dtype=np.bool_)
+    ratio = 0.0
+    for _ in range(4):
+        free_load = 0.0
+        taken = 0.0
+        for k in range(3):
+            if capped[k]:
+                taken += cap
+            else:
+                free_load += loads[first + k]
+        if free_load <= 0.0:
+            ratio = math.inf if magnitude > taken else 0.0
+            break
+        ratio = (magnitude - taken) / free_load
+        worst = -1
+        for k in range(3):
+            over = not capped[k] and min(ratio, mu) * loads[first + k] > cap
+            if over and (worst < 0 or loads[first + k] > loads[first + worst]):
+                worst = k
+        if worst < 0:
+            break
+        capped[worst] = True
+    for k in range(3):
+        if capped[k]:
+            out[first + k] = sign * cap
+        else:
+            out[first + k] = sign * min(ratio, mu) * loads[first + k]
+    return ratio
+
+
+@numba.njit(cache=True)
+def _side_ground_speed(
+    surface: float, force: float, loads: Array, first: int, mu: float, k: float, cap: float
+) -> float:
+    """Ground speed a side's wheels at ``surface`` m/s settle at while transmitting ``force`` (N)."""
+    scratch = np.empty(6)
+    ratio = _share_side(force, loads, first, mu, cap, scratch)
+    if ratio >= mu:
+        return surface  # cannot hold it: the wheels spin; the force limit, not slip, sets the motion
+    slip = slip_for_ratio(ratio, mu, k)
+    if force * surface >= 0.0:
+        return surface * (1.0 - slip)  # driving: the ground lags the tyre
+    return surface / (1.0 - slip)  # braking: the ground runs ahead of the tyre
+
+
+@numba.njit(cache=True)
+def drive_forces(
+    wheels: Array,
+    normals: Array,
+    ground: Array,
+    vehicle: Array,
+    speed: float,
+    yaw_rate: float,
+    pitch: float,
+    dt: float,
+    out_forces: Array,
+) -> tuple[float, float]:
+    """One step of the wheels' pull on the body: (longitudinal acceleration m/s^2, new yaw rate rad/s).
+
+    ``wheels`` surface speeds (m/s) and ``normals`` (N), wheel order LF LM LR RF RM RR. ``ground`` =
+    [mu, slip_constant, crr, sinkage_resistance, sinkage_exponent, lateral_resistance].
+    ``vehicle`` = [mass kg, yaw inertia kg m^2, track m, effective track m, half wheelbase m,
+    reference wheel load N, per-wheel force cap N (motor current limit), drive tau s, yaw tau s].
+    Writes each wheel's drive force (N, forward positive) into ``out_forces``.
+    """
+    mass, inertia, track, effective_track = vehicle[0], vehicle[1], vehicle[2], vehicle[3]
+    half_base, reference_load, cap = vehicle[4], vehicle[5], vehicle[6]
+    tau_drive, tau_yaw = max(vehicle[7], dt), max(vehicle[8], dt)
+    mu, slip_k = ground[MU], ground[SLIP_K]
+
+    # Motion resistance of each wheel against its own rolling, and its moment about the vertical axis.
+    resist_total = 0.0
+    resist_moment = 0.0
+    left_lever = 0.0
+    right_lever = 0.0
+    for i in range(6):
+        fade = max(-1.0, min(1.0, wheels[i] / ROLLING_SPEED_EPS_MPS))
+        coefficient = resistance_coefficient(
+            normals[i], reference_load, ground[CRR], ground[SINK], ground[SINK_N]
+        )
+        force = -coefficient * normals[i] * fade
+        resist_total += force
+        resist_moment += force * (0.5 * track if i >= 3 else -0.5 * track)  # forward on the right yaws left
+        if i % 3 != 1:  # the middle axle turns about itself: no scrub
+            if i < 3:
+                left_lever += normals[i] * half_base
+            else:
+                right_lever += normals[i] * half_base
+    gravity_along = -mass * G * math.sin(pitch)
+
+    # The turn the wheels ask for, and the scrub resisting it at the tighter of the asked and actual radius.
+    left = (wheels[0] + wheels[1] + wheels[2]) / 3.0
+    right = (wheels[3] + wheels[4] + wheels[5]) / 3.0
+    v_cmd = 0.5 * (left + right)
+    yaw_cmd = (right - left) / effective_track
+    radius = math.inf
+    if abs(yaw_cmd) > 1e-9:
+        radius = abs(v_cmd) / abs(yaw_cmd)
+    if abs(yaw_rate) > 1e-9:
+        radius = min(radius, abs(speed) / abs(yaw_rate))
+    elif math.isinf(radius):
+        radius = 0.0  # not turning and not asked to: static friction holds the heading in full
+    lateral_speed = abs(yaw_rate) * half_base  # of the end wheels, sideways
+    left_sliding = left - (speed - 0.5 * yaw_rate * effective_track)
+    right_sliding = right - (speed + 0.5 * yaw_rate * effective_track)
+    scrub = scrub_coefficient(ground[MU_LAT], radius, track) * (
+        left_lever * sideways_share(lateral_speed, left_sliding)
+        + right_lever * sideways_share(lateral_speed, right_sliding)
+    )
+    turn_sign = 1.0 if yaw_cmd > 0.0 else (-1.0 if yaw_cmd < 0.0 else 0.0)
+
+    # Steady state: the sides' forces that hold this speed and turn, and the ground speeds their slip gives.
+    hold_force = -gravity_along - resist_total
+    hold_moment = turn_sign * scrub - resist_moment
+    left_ground = _side_ground_speed(
+        left, 0.5 * hold_force - hold_moment / track, normals, 0, mu, slip_k, cap
+    )
+    right_ground = _side_ground_speed(
+        right, 0.5 * hold_force + hold_moment / track, normals, 3, mu, slip_k, cap
+    )
+    v_target = 0.5 * (left_ground + right_ground)
+    yaw_target = (right_ground - left_ground) / effective_track
+
+    # Longitudinal: toward the target within tau, as far as the sides' traction and current limits allow.
+    left_capacity = 0.0
+    right_capacity = 0.0
+    for i in range(6):
+        most = min(mu * normals[i], cap)
+        if i < 3:
+            left_capacity += most
+        else:
+            right_capacity += most
+    required = mass * (v_target - speed) / tau_drive - gravity_along - resist_total
+    total_capacity = left_capacity + right_capacity
+    drive = max(-total_capacity, min(total_capacity, required))
+    accel = (drive + gravity_along + resist_total) / mass
+
+    # Yaw: the moment toward the target turn plus the scrub, within what each side has left over.
+    required_moment = inertia * (yaw_target - yaw_rate) / tau_yaw + turn_sign * scrub - resist_moment
+    low = track * max(-right_capacity - 0.5 * drive, 0.5 * drive - left_capacity)
+    high = track * min(right_capacity - 0.5 * drive, 0.5 * drive + left_capacity)
+    if low > high:
+        low = high = 0.5 * (low + high)
+    moment = max(low, min(high, required_moment))
+    # The scrub is Coulomb friction: it stops the yaw rather than reversing it (implicit, so no chatter).
+    free_yaw_rate = yaw_rate + (moment + resist_moment) * dt / inertia
+    scrub_change = scrub * dt / inertia
+    if abs(free_yaw_rate) <= scrub_change:
+        new_yaw_rate = 0.0
+    elif free_yaw_rate > 0.0:
+        new_yaw_rate = free_yaw_rate - scrub_change
+    else:
+        new_yaw_rate = free_yaw_rate + scrub_change
+
+    _share_side(0.5 * drive - moment / track, normals, 0, mu, cap, out_forces)
+    _share_side(0.5 * drive + moment / track, normals, 3, mu, cap, out_forces)
+    return accel, new_yaw_rate
+
+
+@numba.njit(cache=True)
+def wheel_outputs(
+    wheels: Array,
+    normals: Array,
+    forces: Array,
+    speed: float,
+    yaw_rate: float,
+    ground: Array,
+    motor: Array,
+    battery_voltage: float,
+    out_slip: Array,
+    out_current: Array,
+    out_duty: Array,
+) -> float:
+    """Per-wheel slip, motor current (A) and duty, and the six motors' electrical power (W, returned).
+
+    ``motor`` = [wheel radius m, gear ratio, torque constant N m/A, winding resistance ohm, effective
+    track m]. A wheel pulling below its traction limit slips as the class's curve says; a saturated or
+    lifted wheel slips as its surface and ground speeds say (it spins or slides).
+    """
+    radius, gear, k_t, resistance, effective_track = motor[0], motor[1], motor[2], motor[3], motor[4]
+    mu, slip_k = ground[MU], ground[SLIP_K]
+    power = 0.0
+    for i in range(6):
+        side = 1.0 if i >= 3 else -1.0
+        ground_speed = speed + side * yaw_rate * 0.5 * effective_track
+        if normals[i] > 0.0 and abs(forces[i]) < mu * normals[i] * (1.0 - 1e-9):
+            out_slip[i] = slip_for_ratio(forces[i] / normals[i], mu, slip_k)
+        else:
+            scale = max(abs(wheels[i]), abs(ground_speed), SLIP_SPEED_EPS_MPS)
+            out_slip[i] = max(-1.0, min(1.0, (wheels[i] - ground_speed) / scale))
+        current = forces[i] * radius / (gear * k_t)
+        back_emf = k_t * wheels[i] / radius * gear
+        out_current[i] = current
+        if battery_voltage > 0.0:
+            out_duty[i] = max(-1.0, min(1.0, (back_emf + current * resistance) / battery_voltage))
+        else:
+            out_duty[i] = 0.0
+        power += max(back_emf * current + current * current * resistance, 0.0)
+    return power
