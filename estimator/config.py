@@ -19,6 +19,7 @@ _POSITIVE = (
     "yaw_accel_process_noise",
     "gyro_bias_walk",
     "odom_scale_walk",
+    "odom_scale_initial_std",
     "track_m",
     "skid_factor",
     "healthy_position_std_m",
@@ -61,6 +62,12 @@ class EstimatorConfig:
     odom_scale_walk : float
         Random walk on the odometry scale (wheel speed / ground speed), 1 per sqrt(s): how fast the
         filter lets the ground change from firm to slippery.
+    odom_scale_initial_std : float
+        Prior std of the odometry scale at start (1 sigma, as a ratio): how well the wheel radius is
+        calibrated for the ground the rover starts on. 0.03 suits a radius measured to a few percent on firm
+        ground: a few seconds of noisy GPS cannot then talk the scale 5 % off (which a GPS dropout right
+        after would integrate as 5 % of distance); the scale still learns loose ground's 10-15 % slip, over
+        tens of seconds of GPS. Raise it when the rover starts on known-soft ground.
     gate_probability : float
         Chi-square gate on every update: a measurement whose NIS exceeds ``chi2.ppf(p, dim)`` is rejected.
     track_m, skid_factor : float
@@ -102,6 +109,7 @@ class EstimatorConfig:
     yaw_accel_process_noise: float = 1.0
     gyro_bias_walk: float = 1e-4
     odom_scale_walk: float = 0.002
+    odom_scale_initial_std: float = 0.03
     gate_probability: float = 0.9995
     track_m: float = 0.55
     skid_factor: float = 1.6

@@ -57,7 +57,6 @@ DIM_X = 7
 _INITIAL_SPEED_STD_MPS = 1.0
 _INITIAL_YAW_RATE_STD_RPS = 0.5
 _INITIAL_BIAS_STD_RPS = 0.05
-_INITIAL_SCALE_STD = 0.05
 # The scale is a ratio of speeds: outside these the wheels are not rolling on the ground at all (stuck,
 # airborne) and the stuck detector in the front end, not the scale, has to deal with it.
 _SCALE_MIN, _SCALE_MAX = 0.7, 2.0
@@ -200,7 +199,7 @@ class RoverEkf:
                 _INITIAL_SPEED_STD_MPS**2,
                 _INITIAL_YAW_RATE_STD_RPS**2,
                 _INITIAL_BIAS_STD_RPS**2,
-                _INITIAL_SCALE_STD**2,
+                self._config.odom_scale_initial_std**2,
             ]
         )
         self._t_ns = t_ns
