@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from navigator.astar import astar
-from navigator.errors import PlanningError
+from navigator.errors import NoPathError, PlanningError
 from navigator.replanning import RepairingPlanner, cost_to_go_field
 from tests.navigator.test_astar import dijkstra_cost
 
@@ -101,3 +101,36 @@ def test_ties_on_a_flat_map_do_not_flood_it() -> None:
     for goal in [(299, 299), (0, 299), (299, 0)]:
         result = astar(np.ones((300, 300)), (0, 0), goal)
         assert result.expanded <= 2 * len(result.cells)
+
+
+def test_work_arrays_kept_between_plans_do_not_leak_one_plan_into_the_next() -> None:
+    # Many plans on one planner (the stamps tell each plan's cells apart), one of them from a walled-in
+    # start that fails: each cost must still equal a fresh A* from scratch.
+    cost = _random_map(11, (40, 40))
+    cost[20:23, 20:23] = np.inf
+    cost[21, 21] = 1.0  # a free cell walled in by its eight neighbours
+    goal = (39, 39)
+    planner = RepairingPlanner(cost)
+    rng = np.random.default_rng(11)
+    free = np.argwhere(np.isfinite(cost_to_go_field(cost, goal)))  # cells the goal can be reached from
+    starts = [tuple(int(v) for v in free[i]) for i in rng.choice(len(free), 8, replace=False)]
+    starts.insert(4, (21, 21))
+    for start in starts:
+        if start == (21, 21):
+            with pytest.raises(NoPathError):
+                planner.plan(start, goal)
+            continue
+        repaired = planner.plan(start, goal)
+        assert repaired.cost == pytest.approx(astar(cost, start, goal, search="heap").cost, rel=1e-12)
+        assert repaired.cells[0] == start and repaired.cells[-1] == goal
+    assert planner.stats.fields_built == 1
+
+
+def test_bad_new_costs_are_planning_errors() -> None:
+    planner = RepairingPlanner(np.ones((5, 6)))
+    with pytest.raises(PlanningError, match="shape"):
+        planner.update_costs(np.ones((6, 5)))
+    bad = np.ones((5, 6))
+    bad[2, 3] = np.nan
+    with pytest.raises(PlanningError, match="NaN"):
+        planner.update_costs(bad)
