@@ -113,7 +113,7 @@ def test_work_arrays_kept_between_plans_do_not_leak_one_plan_into_the_next() -> 
     planner = RepairingPlanner(cost)
     rng = np.random.default_rng(11)
     free = np.argwhere(np.isfinite(cost_to_go_field(cost, goal)))  # cells the goal can be reached from
-    starts = [tuple(int(v) for v in free[i]) for i in rng.choice(len(free), 8, replace=False)]
+    starts = [(int(free[i][0]), int(free[i][1])) for i in rng.choice(len(free), 8, replace=False)]
     starts.insert(4, (21, 21))
     for start in starts:
         if start == (21, 21):
