@@ -26,10 +26,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from navigator import astar_repair_kernel
+from navigator import astar_bucket_kernel, astar_repair_kernel
 from navigator.astar import SQRT2, PlanResult, check_cost_grid, check_factors, trace
 from navigator.astar_python import check_cell
-from navigator.cost_to_go_kernel import cost_to_go
+from navigator.cost_to_go_kernel import cost_to_go, cost_to_go_buckets
 from navigator.errors import NoPathError, PlanningError
 
 _log = logging.getLogger(__name__)
@@ -47,6 +47,15 @@ def cost_to_go_field(
     if not (0 <= row < rows and 0 <= col < cols):
         raise PlanningError(f"goal cell {goal} is outside the {rows} x {cols} cost grid")
     flat_factors = _NO_FACTORS if factors is None else check_factors(factors, grid.shape)
+    frame, _, c_min, c_max = astar_bucket_kernel.padded(grid.ravel(), cols)
+    max_factor = float(np.max(flat_factors, initial=1.0, where=np.isfinite(flat_factors)))
+    if math.isfinite(c_min):
+        slots = astar_bucket_kernel.slots_needed(SQRT2 * c_max * max_factor, c_min, 0.0, SQRT2)
+        if slots <= astar_bucket_kernel.MAX_SLOTS:
+            field = cost_to_go_buckets(
+                frame, cols, row * cols + col, c_min, slots, flat_factors, factors is not None, SQRT2
+            )
+            return field.reshape(rows, cols)
     field = cost_to_go(grid.ravel(), cols, row * cols + col, flat_factors, factors is not None, SQRT2)
     return field.reshape(rows, cols)
 

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from navigator.astar import astar
+from navigator.astar import SQRT2, astar
+from navigator.cost_to_go_kernel import cost_to_go
 from navigator.errors import NoPathError, PlanningError
 from navigator.replanning import RepairingPlanner, cost_to_go_field
 from tests.navigator.test_astar import dijkstra_cost
@@ -134,3 +135,18 @@ def test_bad_new_costs_are_planning_errors() -> None:
     bad[2, 3] = np.nan
     with pytest.raises(PlanningError, match="NaN"):
         planner.update_costs(bad)
+
+
+@pytest.mark.parametrize("spread", [4.0, 500.0])
+def test_bucket_field_equals_the_heap_field(spread: float) -> None:
+    rng = np.random.default_rng(int(spread))
+    cost = 1.0 + (spread - 1.0) * rng.random((25, 31))
+    cost[rng.random(cost.shape) < 0.2] = np.inf
+    cost[24, 30] = 1.0
+    factors = _random_factors(int(spread), cost.shape)
+    flat_factors = factors.reshape(8, -1)
+    for with_factors in (False, True):
+        field = cost_to_go_field(cost, (24, 30), factors if with_factors else None)  # the bucket version
+        heap = cost_to_go(cost.ravel(), 31, 24 * 31 + 30, flat_factors, with_factors, SQRT2)
+        assert np.isfinite(field).sum() > 100
+        np.testing.assert_allclose(field.ravel(), heap, rtol=1e-12)
