@@ -7,6 +7,7 @@ the topic or metadata key goes into ``missing``; unusable values are skipped and
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 from collections import Counter
@@ -57,6 +58,8 @@ class TrialMetrics:
     distance_m: float | None
     path_tolerance_m: float
     path_accuracy_pct: float | None
+    route_length_m: float | None
+    route_accuracy_pct: float | None
     encounter_margin_m: float
     obstacles_encountered: int | None
     obstacles_avoided: int | None
@@ -212,6 +215,7 @@ def metrics_from_entries(entries: Iterable[Entry], stats: ReadStats) -> TrialMet
     energy = _energy_wh(trial, notes)
     goal_reached, goal_distance = _goal(trial, xy, notes)
     xte_rms, xte_max = _cross_track(trial)
+    route_length, route_accuracy = _route_accuracy(trial, xy, tolerance)
 
     return TrialMetrics(
         trajectory_topic=trajectory_topic,
@@ -219,6 +223,8 @@ def metrics_from_entries(entries: Iterable[Entry], stats: ReadStats) -> TrialMet
         distance_m=distance,
         path_tolerance_m=tolerance,
         path_accuracy_pct=_path_accuracy(trial, times, xy, steps, tolerance, notes),
+        route_length_m=route_length,
+        route_accuracy_pct=route_accuracy,
         encounter_margin_m=margin,
         obstacles_encountered=encountered,
         obstacles_avoided=avoided,
@@ -296,6 +302,72 @@ def _path_accuracy(
     if counted <= 0.0:
         return None
     return 100.0 * within / counted
+
+
+def planned_route(paths: list[FloatArray]) -> list[FloatArray]:
+    """The route the rover was asked to drive: each plan up to where the next one took over, then the last.
+
+    ``paths`` in log-time order (empty ones are left out). A plan is cut at the point of it closest to
+    the next plan's first pose (the rover's position when it replanned: a detour round a new obstacle,
+    or a return after straying), so a part that was planned but superseded before the rover got there is
+    not asked of it, while the last plan counts to its end (the goal).
+    """
+    plans = [path for path in paths if len(path) > 0]
+    route = []
+    for plan, successor in itertools.pairwise(plans):
+        route.append(_cut_at_closest(plan, successor[0]))
+    if plans:
+        route.append(plans[-1])
+    return route
+
+
+def _cut_at_closest(polyline: FloatArray, point: FloatArray) -> FloatArray:
+    """``polyline`` from its start to its point closest to ``point`` (the first such point on ties)."""
+    if len(polyline) == 1:
+        return polyline
+    start = polyline[:-1]
+    along = polyline[1:] - start
+    length_sq = np.einsum("ij,ij->i", along, along)
+    fraction = np.einsum("ij,ij->i", point - start, along) / np.where(length_sq > 0.0, length_sq, 1.0)
+    fraction = np.clip(np.where(length_sq > 0.0, fraction, 0.0), 0.0, 1.0)
+    closest = start + fraction[:, None] * along
+    segment = int(np.argmin(np.hypot(*(closest - point).T)))
+    return np.vstack([polyline[: segment + 1], closest[segment][None, :]])
+
+
+def _route_pieces(route: list[FloatArray], spacing: float) -> tuple[FloatArray, FloatArray]:
+    """Midpoints and lengths of the route cut into pieces no longer than ``spacing`` (m)."""
+    midpoints: list[FloatArray] = []
+    lengths: list[FloatArray] = []
+    for polyline in route:
+        for a, b in itertools.pairwise(polyline):
+            length = float(np.hypot(*(b - a)))
+            if length <= 0.0:
+                continue
+            count = max(1, math.ceil(length / spacing))
+            centres = (np.arange(count, dtype=np.float64) + 0.5) / count
+            midpoints.append(a + centres[:, None] * (b - a))
+            lengths.append(np.full(count, length / count))
+    if not midpoints:
+        return np.zeros((0, 2)), np.zeros(0)
+    return np.vstack(midpoints), np.concatenate(lengths)
+
+
+def _route_accuracy(trial: _Trial, xy: FloatArray, tolerance: float) -> tuple[float | None, float | None]:
+    """(route length m, % of it the trajectory passed within ``tolerance``); see docs/metrics.md."""
+    paths = [path for _, path in sorted(trial.paths, key=lambda item: item[0])]
+    route = planned_route(paths)
+    if not route:
+        return None, None
+    # Pieces a fifth of the tolerance long: a piece counts whole or not at all, so this bounds the error.
+    midpoints, lengths = _route_pieces(route, max(tolerance, 0.05) / 5.0)
+    total = float(lengths.sum())
+    if total <= 0.0:
+        return 0.0, None
+    if len(xy) == 0:
+        return total, None
+    followed = distances_to_polyline(midpoints, xy) <= tolerance + DISTANCE_EPSILON_M
+    return total, 100.0 * float(lengths[followed].sum()) / total
 
 
 def _contact_counts(

@@ -9,6 +9,11 @@ so a backward step from ``b`` relaxes each predecessor ``a = b - MOVES[m]`` with
 (direction factors are not symmetric). The field is what ``navigator.replanning`` reuses: on a map
 whose costs have since only *risen*, the old field is still a lower bound of the cost to go and it is
 consistent, so A* with it as the heuristic stays optimal while expanding little more than the new path.
+
+Two versions, the same field: ``cost_to_go_buckets`` (the default) is Dijkstra with a bucket queue of
+span ``c_min`` (every edge costs at least that, so each cell of the lowest bucket is final: the argument
+of ``navigator.astar_bucket_kernel`` with no heuristic), over the padded grid; ``cost_to_go`` is the heap
+version, kept for cost spreads so wide that the ring of buckets would be huge.
 """
 
 from __future__ import annotations
@@ -16,6 +21,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from navigator.astar_bucket_kernel import _grown
 from navigator.astar_kernel import MOVES, _pop, _sift_up
 
 
@@ -93,4 +99,82 @@ def cost_to_go(
                 # Dijkstra: the key is the cost itself (no heuristic); the "g" tie-break key is the same.
                 _sift_up(hf, hg, hc, size, tentative, tentative, p_index)
                 size += 1
+    return field
+
+
+@numba.njit(cache=True, error_model="numpy")
+def cost_to_go_buckets(
+    frame: np.ndarray,
+    cols: int,
+    goal: int,
+    c_min: float,
+    slots: int,
+    factors: np.ndarray,
+    use_factors: bool,
+    diagonal_step: float,
+) -> np.ndarray:
+    """``(cells,)`` cheapest cost from every cell to ``goal`` (a flat index of the unpadded map).
+
+    ``frame``: ``astar_bucket_kernel.padded`` of the map (``cols`` wide); ``slots``:
+    ``astar_bucket_kernel.slots_needed(max_edge, c_min, 0.0, diagonal_step)``. No corner cutting.
+    """
+    stride = cols + 2
+    inv_stride = 1.0 / stride  # row = index // stride without a division (see the bucket kernel)
+    rows = frame.size // stride - 2
+    g = np.full(frame.size, np.inf)
+    inv_span = 1.0 / c_min
+    mask = slots - 1
+    buckets = np.empty((slots, 256), dtype=np.int32)
+    lengths = np.zeros(slots, dtype=np.int64)
+    source = (goal // cols + 1) * stride + goal % cols + 1
+    g[source] = 0.0
+    buckets[0, 0] = source
+    lengths[0] = 1
+    longest = 1
+    pending = 1
+    bucket = 0
+    while pending > 0:
+        slot = bucket & mask
+        while lengths[slot] > 0:
+            lengths[slot] -= 1
+            pending -= 1
+            index = buckets[slot, lengths[slot]]
+            here = g[index]
+            if here < 0.0:
+                continue  # a duplicate entry of a settled cell
+            g[index] = -here
+            if longest + 8 > buckets.shape[1]:
+                buckets = _grown(buckets, lengths)
+            row = int((index + 0.5) * inv_stride)
+            col = index - row * stride
+            here_cost = frame[index]
+            for move in range(8):
+                d_row = MOVES[move, 0]
+                d_col = MOVES[move, 1]
+                # The predecessor that reaches this cell by ``move``.
+                p_index = index - d_row * stride - d_col
+                p_cost = frame[p_index]
+                step = 1.0
+                if move >= 4:
+                    step = diagonal_step
+                    # The diagonal move p -> here passes (p_row, col) and (row, p_col): inf if blocked.
+                    if frame[index - d_row * stride] == np.inf or frame[index - d_col] == np.inf:
+                        p_cost = np.inf
+                edge = step * 0.5 * (p_cost + here_cost)
+                if use_factors:
+                    edge *= factors[move, (row - d_row - 1) * cols + col - d_col - 1]
+                tentative = here + edge
+                if tentative < g[p_index]:
+                    g[p_index] = tentative
+                    # >= bucket + 1 exactly; rounding may give this bucket (then this loop takes it).
+                    p_slot = max(int(tentative * inv_span), bucket) & mask
+                    buckets[p_slot, lengths[p_slot]] = p_index
+                    lengths[p_slot] += 1
+                    longest = max(longest, lengths[p_slot])
+                    pending += 1
+        bucket += 1
+    field = np.empty(rows * cols)
+    for r in range(rows):
+        for c in range(cols):
+            field[r * cols + c] = abs(g[(r + 1) * stride + c + 1])  # settled cells hold -cost
     return field

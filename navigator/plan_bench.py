@@ -7,13 +7,19 @@ is reported (``time.perf_counter`` here is the benchmark's own stopwatch, not a 
 Solvers and the problem each solves (they differ in edge model, so costs are compared only where the
 problem is the same):
 
-* ``ours``: the planner's model, ``step * mean(cell costs)``, diagonal step sqrt 2, no corner cutting,
-  optimal octile A*;
-* ``ours_target``: our kernel on pyastar2d's own model (``cost of the entered cell``, diagonal step 1,
-  corner cutting allowed, Chebyshev heuristic), so the costs must agree exactly with pyastar2d's;
+* ``ours``: ``navigator.astar.astar`` as the planner calls it: the planner's model, ``step * mean(cell
+  costs)``, diagonal step sqrt 2, no corner cutting, optimal, octile; ``search="auto"`` (the bucket
+  search on these maps);
+* ``ours_heap``: the same problem with ``search="heap"`` (binary heap, full octile heuristic);
+* ``ours_target``: our bucket kernel on pyastar2d's own model (``cost of the entered cell``, diagonal
+  step 1, corner cutting allowed, Chebyshev heuristic), so its cost must equal pyastar2d's;
 * ``pyastar2d``: ``astar_path(..., allow_diagonal=True)`` (C++);
 * ``tcod``: ``tcod.path.AStar(cost, diagonal=1.41)`` (libtcod, C; integer costs, 0 = wall);
 * ``python``: our pure-Python heapq A* (same model as ``ours``), only on the smallest map (it is slow).
+
+Optimality is checked, not assumed: ``reference`` is scipy's Dijkstra (``scipy.sparse.csgraph``) over the
+planner's edges built independently here with numpy; ``ours``, ``ours_heap`` and ``python`` must match it
+and ``ours_target`` must match pyastar2d, each to a relative 1e-9 (``checks``).
 
 ``repair``: a local change on the map (a 3 x 3 block of obstacles dropped on the current path near its
 middle, and one beside it) and the plan repaired by ``navigator.replanning.RepairingPlanner`` (A* with the
@@ -30,14 +36,17 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import dijkstra
 
-from navigator import astar_kernel
-from navigator.astar import PlanResult, astar
+from navigator import astar_bucket_kernel, astar_kernel
+from navigator.astar import BUCKET_ALPHA, SQRT2, PlanResult, astar
 from navigator.astar_python import astar_python
 from navigator.replanning import RepairingPlanner
 
 DEFAULT_SIZES = (256, 1024, 2048)
 OBSTACLE_FRACTION = 0.2
+COST_TOLERANCE = 1e-9  # relative; sums of ~10^4 edges in a different order differ in the last bits
 
 
 @dataclass
@@ -47,6 +56,7 @@ class SizeResult:
     expanded: dict[str, int] = field(default_factory=dict)
     costs: dict[str, float] = field(default_factory=dict)
     ratios: dict[str, float] = field(default_factory=dict)
+    checks: dict[str, bool] = field(default_factory=dict)
 
 
 def benchmark_map(size: int, seed: int) -> np.ndarray:
@@ -71,13 +81,43 @@ def _median_ms(run: Callable[[], Any], repeats: int) -> tuple[float, Any]:
 
 
 def _ours_target(cost: np.ndarray) -> tuple[float, int]:
+    """Our bucket kernel on pyastar2d's problem (entered-cell cost, diagonal step 1, corners cut)."""
     rows, cols = cost.shape
-    flat = np.ascontiguousarray(cost.ravel())
-    _, goal_cost, expanded = astar_kernel.search(
-        flat, cols, 0, rows * cols - 1, astar_kernel.H_OCTILE, 1.0, np.ones((8, 1)), False,
+    frame, _, c_min, c_max = astar_bucket_kernel.padded(np.ascontiguousarray(cost.ravel()), cols)
+    slots = astar_bucket_kernel.slots_needed(c_max, c_min, BUCKET_ALPHA, 1.0)
+    _, goal_cost, expanded = astar_bucket_kernel.search(
+        frame, cols, 0, rows * cols - 1, BUCKET_ALPHA, c_min, slots, np.ones((8, 1)), False,
         astar_kernel.MODEL_TARGET, 1.0, False,
     )  # fmt: skip
     return float(goal_cost), int(expanded)
+
+
+def reference_cost(cost: np.ndarray, start: tuple[int, int], goal: tuple[int, int]) -> float:
+    """scipy's Dijkstra over the planner's edges (``navigator.astar``'s model), built here with numpy."""
+    rows, cols = cost.shape
+    index = np.arange(rows * cols, dtype=np.int32).reshape(rows, cols)
+    finite = np.isfinite(cost)
+    sources, targets, weights = [], [], []
+    for d_row, d_col in astar_kernel.MOVES.tolist():
+        here = (slice(max(0, -d_row), rows - max(0, d_row)), slice(max(0, -d_col), cols - max(0, d_col)))
+        there = (slice(max(0, d_row), rows - max(0, -d_row)), slice(max(0, d_col), cols - max(0, -d_col)))
+        allowed = finite[here] & finite[there]
+        if d_row and d_col:  # no corner cutting: both orthogonal cells beside the move finite
+            allowed &= finite[there[0], here[1]] & finite[here[0], there[1]]
+        step = SQRT2 if d_row and d_col else 1.0
+        sources.append(index[here][allowed])
+        targets.append(index[there][allowed])
+        weights.append(step * 0.5 * (cost[here][allowed] + cost[there][allowed]))
+    graph = csr_matrix(
+        (np.concatenate(weights), (np.concatenate(sources), np.concatenate(targets))),
+        shape=(rows * cols, rows * cols),
+    )
+    distances = dijkstra(graph, indices=start[0] * cols + start[1])
+    return float(distances[goal[0] * cols + goal[1]])
+
+
+def _same(a: float, b: float) -> bool:
+    return math.isclose(a, b, rel_tol=COST_TOLERANCE)
 
 
 def _path_cost_target(cost: np.ndarray, path: np.ndarray) -> float:
@@ -95,6 +135,10 @@ def run_size(size: int, seed: int, repeats: int, with_python: bool) -> SizeResul
 
     ms, plan = _median_ms(lambda: astar(cost, (0, 0), goal, "octile"), repeats)
     result.times_ms["ours"], result.expanded["ours"], result.costs["ours"] = ms, plan.expanded, plan.cost
+
+    ms, plan = _median_ms(lambda: astar(cost, (0, 0), goal, "octile", search="heap"), repeats)
+    result.times_ms["ours_heap"], result.expanded["ours_heap"] = ms, plan.expanded
+    result.costs["ours_heap"] = plan.cost
 
     ms, (target_cost, target_expanded) = _median_ms(lambda: _ours_target(cost), repeats)
     result.times_ms["ours_target"] = ms
@@ -119,6 +163,12 @@ def run_size(size: int, seed: int, repeats: int, with_python: bool) -> SizeResul
         result.times_ms["python"], result.expanded["python"] = ms, plan.expanded
         result.costs["python"] = plan.cost
 
+    result.costs["reference"] = reference_cost(cost, (0, 0), goal)
+    for name in ("ours", "ours_heap", "python"):
+        if name in result.costs:
+            result.checks[f"{name} = reference"] = _same(result.costs[name], result.costs["reference"])
+    result.checks["ours_target = pyastar2d"] = _same(result.costs["ours_target"], result.costs["pyastar2d"])
+
     base = result.times_ms["pyastar2d"]
     result.ratios = {name: t / base for name, t in result.times_ms.items()}
     return result
@@ -128,6 +178,7 @@ def warm_up() -> None:
     """Compile the numba kernels (cached on disk after the first run) before anything is timed."""
     small = benchmark_map(16, 0)
     astar(small, (0, 0), (15, 15))
+    astar(small, (0, 0), (15, 15), search="heap")
     _ours_target(small)
     RepairingPlanner(small).plan((0, 0), (15, 15))
 

@@ -12,19 +12,25 @@ exact, so A* walks straight down the new path and spends its expansions only aro
 after a local change costs a small fraction of a fresh plan, from *any* start (the rover keeps moving).
 
 If costs ever fall (an obstacle removed, a new map), the field is no longer a lower bound: it is dropped
-and rebuilt from the new map before the next plan (``update_costs`` checks).
+and rebuilt from the new map before the next plan (``update_costs`` checks, in one compiled pass).
+
+A repair's own work is what it expands: its search (``navigator.astar_repair_kernel``) keeps its work
+arrays from plan to plan and tells stale cells by a per-cell stamp, so no O(cells) set-up per plan.
 """
 
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from navigator.astar import SQRT2, PlanResult, astar, check_cost_grid, check_factors
-from navigator.cost_to_go_kernel import cost_to_go
-from navigator.errors import PlanningError
+from navigator import astar_bucket_kernel, astar_repair_kernel
+from navigator.astar import SQRT2, PlanResult, check_cost_grid, check_factors, trace
+from navigator.astar_python import check_cell
+from navigator.cost_to_go_kernel import cost_to_go, cost_to_go_buckets
+from navigator.errors import NoPathError, PlanningError
 
 _log = logging.getLogger(__name__)
 
@@ -41,6 +47,15 @@ def cost_to_go_field(
     if not (0 <= row < rows and 0 <= col < cols):
         raise PlanningError(f"goal cell {goal} is outside the {rows} x {cols} cost grid")
     flat_factors = _NO_FACTORS if factors is None else check_factors(factors, grid.shape)
+    frame, _, c_min, c_max = astar_bucket_kernel.padded(grid.ravel(), cols)
+    max_factor = float(np.max(flat_factors, initial=1.0, where=np.isfinite(flat_factors)))
+    if math.isfinite(c_min):
+        slots = astar_bucket_kernel.slots_needed(SQRT2 * c_max * max_factor, c_min, 0.0, SQRT2)
+        if slots <= astar_bucket_kernel.MAX_SLOTS:
+            field = cost_to_go_buckets(
+                frame, cols, row * cols + col, c_min, slots, flat_factors, factors is not None, SQRT2
+            )
+            return field.reshape(rows, cols)
     field = cost_to_go(grid.ravel(), cols, row * cols + col, flat_factors, factors is not None, SQRT2)
     return field.reshape(rows, cols)
 
@@ -62,12 +77,23 @@ class RepairingPlanner:
     """
 
     def __init__(self, cost: np.ndarray, factors: np.ndarray | None = None, weight: float = 1.0) -> None:
+        if not (math.isfinite(weight) and weight >= 0.0):
+            raise PlanningError(f"heuristic weight must be a finite number >= 0, got {weight}")
         self._cost = check_cost_grid(cost).copy()
-        self._factors = None if factors is None else np.array(factors, dtype=np.float64)
+        self._factors = None if factors is None else self._checked_factors(factors)
         self._weight = weight
         self._goal: tuple[int, int] | None = None
         self._field: np.ndarray | None = None
+        cells = self._cost.size
+        self._g = np.empty(cells)
+        self._parent = np.empty(cells, dtype=np.int32)
+        self._stamp = np.zeros(cells, dtype=np.int32)
+        self._plan_id = 0
         self.stats = RepairStats()
+
+    def _checked_factors(self, factors: np.ndarray) -> np.ndarray:
+        """A validated ``(8, rows, cols)`` copy (``check_factors`` gives the flat ``(8, cells)`` form)."""
+        return check_factors(factors, self._cost.shape).reshape(8, *self._cost.shape).copy()
 
     @property
     def has_field(self) -> bool:
@@ -78,7 +104,7 @@ class RepairingPlanner:
         goal = (int(goal[0]), int(goal[1]))
         if self._field is not None and self._goal == goal:
             return
-        self._field = cost_to_go_field(self._cost, goal, self._factors)
+        self._field = cost_to_go_field(self._cost, goal, self._factors).ravel()
         self._goal = goal
         self.stats.fields_built += 1
 
@@ -87,14 +113,20 @@ class RepairingPlanner:
 
         It is kept only when no cell cost and no factor fell; otherwise it is dropped (rebuilt lazily).
         """
-        new_cost = check_cost_grid(cost)
-        new_factors = self._factors if factors is None else np.array(factors, dtype=np.float64)
-        rose_only = bool(np.all(new_cost >= self._cost))
-        if rose_only and new_factors is not None and self._factors is not None:
-            rose_only = bool(np.all(new_factors >= self._factors))
-        elif (new_factors is None) != (self._factors is None):
-            rose_only = False
-        self._cost = new_cost.copy()
+        new_cost = np.ascontiguousarray(cost, dtype=np.float64)
+        if new_cost.shape != self._cost.shape:
+            raise PlanningError(
+                f"new cost grid has shape {new_cost.shape}, the planner's is {self._cost.shape}; "
+                "make a new RepairingPlanner for another map"
+            )
+        bad, rose_only = astar_repair_kernel.costs_rose_only(new_cost.ravel(), self._cost.ravel())
+        if bad:
+            raise PlanningError("cost grid must hold costs > 0 or inf (lethal); found NaN or a value <= 0")
+        new_factors = self._factors
+        if factors is not None:
+            new_factors = self._checked_factors(factors)
+            rose_only = rose_only and self._factors is not None and bool(np.all(new_factors >= self._factors))
+        self._cost[...] = new_cost
         self._factors = new_factors
         if not rose_only and self._field is not None:
             _log.info("costs fell somewhere: the cost-to-go field is rebuilt before the next plan")
@@ -104,7 +136,28 @@ class RepairingPlanner:
 
     def plan(self, start: tuple[int, int], goal: tuple[int, int]) -> PlanResult:
         """Optimal path (``weight`` 1) from ``start`` to ``goal`` on the current costs."""
+        start = (int(start[0]), int(start[1]))
+        goal = (int(goal[0]), int(goal[1]))
+        check_cell(self._cost, start, "start")
+        check_cell(self._cost, goal, "goal")
         self.prepare(goal)
         assert self._field is not None
         self.stats.plans += 1
-        return astar(self._cost, start, goal, weight=self._weight, factors=self._factors, field=self._field)
+        if self._plan_id == np.iinfo(np.int32).max:  # stamps would repeat: start the count afresh
+            self._stamp[:] = 0
+            self._plan_id = 0
+        self._plan_id += 1
+        cols = self._cost.shape[1]
+        goal_index = goal[0] * cols + goal[1]
+        goal_cost, expanded = astar_repair_kernel.search(
+            self._cost.ravel(), cols, start[0] * cols + start[1], goal_index, self._field, self._weight,
+            _NO_FACTORS if self._factors is None else self._factors.reshape(8, -1),
+            self._factors is not None, SQRT2,
+            self._g, self._parent, self._stamp, self._plan_id,
+        )  # fmt: skip
+        if not math.isfinite(goal_cost):
+            raise NoPathError(
+                f"no traversable path from cell {start} to cell {goal} ({expanded} cells reachable from "
+                "the start); the goal is walled off by obstacles or lethal slopes"
+            )
+        return PlanResult(trace(self._parent, goal_index, cols), float(goal_cost), int(expanded))

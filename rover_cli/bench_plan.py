@@ -23,9 +23,10 @@ def run_bench(args: argparse.Namespace) -> int:
     smallest = min(args.sizes)
     results: list[SizeResult] = [run_size(s, args.seed, args.repeats, s == smallest) for s in args.sizes]
     repair = repair_figures(1024 if 1024 in args.sizes else max(args.sizes), args.seed, args.repeats)
+    all_optimal = all(all(r.checks.values()) for r in results) and repair["same_cost"]
     if args.json:
-        print(json.dumps({"sizes": [vars(r) for r in results], "repair": repair}))
-        return 0
+        print(json.dumps({"sizes": [vars(r) for r in results], "repair": repair, "optimal": all_optimal}))
+        return 0 if all_optimal else 1
     for r in results:
         print(f"{r.size} x {r.size}:")
         for name, ms in r.times_ms.items():
@@ -33,9 +34,11 @@ def run_bench(args: argparse.Namespace) -> int:
             cost = r.costs.get(name)
             print(
                 f"  {name:<12} {ms:9.1f} ms   x{r.ratios[name]:5.2f} of pyastar2d"
-                + (f"   expanded {expanded}" if expanded is not None else "")
-                + (f"   cost {cost:.2f}" if cost is not None else "")
+                + (f"   expanded {expanded:>8}" if expanded is not None else "")
+                + (f"   cost {cost:.6f}" if cost is not None else "")
             )
+        print(f"  reference (scipy Dijkstra, planner's model): cost {r.costs['reference']:.6f}")
+        print("  same cost: " + ", ".join(f"{name}: {ok}" for name, ok in r.checks.items()))
     print(
         f"repair on {repair['size']}^2 after a local change on the path: {repair['repair_ms']:.1f} ms vs "
         f"fresh plan {repair['fresh_ms']:.1f} ms ({100 * repair['ratio']:.1f} %), expanded "
@@ -50,4 +53,6 @@ def run_bench(args: argparse.Namespace) -> int:
         f"  goal cost-to-go field (once per goal, reused by every repair): {repair['field_ms']:.1f} ms "
         f"({100 * repair['field_ratio']:.0f} % of a fresh plan)"
     )
-    return 0
+    if not all_optimal:
+        print("NOT OPTIMAL: a cost differs from its reference (see 'same cost' above)")
+    return 0 if all_optimal else 1

@@ -7,10 +7,11 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from logs.clock import to_ns
-from logs.metrics import TrialMetrics, compute_metrics, distances_to_polyline
+from logs.metrics import TrialMetrics, compute_metrics, distances_to_polyline, planned_route
 from logs.recorder import McapRecorder
 from logs.topics import (
     ESTIMATOR_POSE,
@@ -107,6 +108,9 @@ def test_hand_computed_metrics() -> None:
     assert metrics.duration_s == pytest.approx(12.0)
     assert metrics.path_tolerance_m == 0.5
     assert metrics.path_accuracy_pct == pytest.approx(100.0 * 8.0 / 14.0)
+    # The route (10 m) is passed within 0.5 m except for x in (3.5, 4.5), where the detour ran 2 m off.
+    assert metrics.route_length_m == pytest.approx(10.0)
+    assert metrics.route_accuracy_pct == pytest.approx(90.0)
     assert (metrics.obstacles_encountered, metrics.obstacles_avoided) == (2, 1)
     assert metrics.obstacle_avoidance_success_pct == pytest.approx(50.0)
     assert (metrics.collisions, metrics.rollovers) == (1, 1)
@@ -222,3 +226,52 @@ def test_cut_recording_is_flagged() -> None:
     metrics = compute_metrics(io.BytesIO(data[: len(data) // 4]))  # the summary is the latter half
     assert metrics.truncated
     assert any("cut short" in p for p in metrics.problems)
+
+
+def _route_trial(
+    paths: list[tuple[float, list[tuple[float, float]]]], trajectory: list[tuple[float, float]]
+) -> bytes:
+    buffer = io.BytesIO()
+    with McapRecorder(buffer) as rec:
+        rec.add_metadata("scenario", {"path_tolerance_m": "0.5", "obstacles_json": "[]"})
+        for t_s, points in paths:
+            rec.publish(NAVIGATOR_PATH, to_ns(t_s), _path(to_ns(t_s), points))
+        for i, (x, y) in enumerate(trajectory):
+            rec.publish(TRUTH_POSE, to_ns(float(i)), _pose(to_ns(float(i)), x, y))
+    return buffer.getvalue()
+
+
+def test_a_run_cut_short_scores_only_the_route_it_drove() -> None:
+    # A rollover 2 m along a 10 m route: on the path all the way (path accuracy 100 %), but only the first
+    # 2.5 m of the route (2 m driven + the 0.5 m tolerance) were passed.
+    trial = _route_trial([(0.0, [(0.0, 0.0), (10.0, 0.0)])], [(0.0, 0.0), (1.0, 0.0), (2.0, 0.0)])
+    metrics = compute_metrics(io.BytesIO(trial))
+    assert metrics.path_accuracy_pct == pytest.approx(100.0)
+    assert metrics.route_length_m == pytest.approx(10.0)
+    assert metrics.route_accuracy_pct == pytest.approx(25.0)
+
+
+def test_a_replan_replaces_the_rest_of_the_old_plan_in_the_route() -> None:
+    # At t = 3 s the rover, at (3, 0), replans round something ahead: the route is the old plan up to
+    # (3, 0) (3 m) and the new plan (2 + 7 m); the rover drives exactly that.
+    paths = [(0.0, [(0.0, 0.0), (10.0, 0.0)]), (3.0, [(3.0, 0.0), (3.0, 2.0), (10.0, 2.0)])]
+    trajectory = [(0.0, 0.0), (1.0, 0.0), (2.0, 0.0), (3.0, 0.0), (3.0, 1.0), (3.0, 2.0)]
+    trajectory += [(float(x), 2.0) for x in range(4, 11)]
+    metrics = compute_metrics(io.BytesIO(_route_trial(paths, trajectory)))
+    assert metrics.route_length_m == pytest.approx(12.0)
+    assert metrics.route_accuracy_pct == pytest.approx(100.0)
+    # A rover that kept to the old line instead passes only the 3 m shared start and the first 0.5 m of
+    # the new plan's first leg (within 0.5 m of the old line).
+    straight = [(float(x), 0.0) for x in range(11)]
+    metrics = compute_metrics(io.BytesIO(_route_trial(paths, straight)))
+    assert metrics.route_accuracy_pct == pytest.approx(100.0 * 3.5 / 12.0)
+
+
+def test_planned_route_cuts_each_plan_where_the_next_begins() -> None:
+    first = np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 4.0]])
+    second = np.array([[4.5, 2.0], [8.0, 2.0]])  # began 0.5 m beside the first plan's second leg
+    route = planned_route([first, np.zeros((0, 2)), second])
+    assert len(route) == 2
+    np.testing.assert_allclose(route[0], [[0.0, 0.0], [4.0, 0.0], [4.0, 2.0]])
+    np.testing.assert_allclose(route[1], second)
+    assert planned_route([]) == []

@@ -7,7 +7,8 @@ import pytest
 from scipy.sparse import lil_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from navigator.astar import HEURISTICS, astar
+from navigator import astar_bucket_kernel, astar_kernel
+from navigator.astar import HEURISTICS, SQRT2, astar
 from navigator.errors import NoPathError, PlanningError
 
 MAZE = [[1, 1, 1, 1, 1, 1], [1, 2, 2, 1, 1, 1], [1, 2, 1, 1, 1, 1], [1, 2, 1, 2, 2, 1], [1, 1, 1, 2, 1, 1]]
@@ -62,9 +63,13 @@ def test_maze_shortest_paths(heuristic):
         astar(cost, (1, 1), (4, 3), heuristic)
 
 
-@pytest.mark.parametrize("heuristic", HEURISTICS)
+# Every search over every heuristic it supports: the heap takes all three, the bucket search only octile.
+SEARCH_CASES = [("heap", h) for h in HEURISTICS] + [("bucket", "octile"), ("auto", "octile")]
+
+
+@pytest.mark.parametrize(("search", "heuristic"), SEARCH_CASES)
 @pytest.mark.parametrize("seed", [0, 1, 2, 3])
-def test_matches_dijkstra_on_random_grids(heuristic, seed):
+def test_matches_dijkstra_on_random_grids(search, heuristic, seed):
     rng = np.random.default_rng(seed)
     cost = 1.0 + 4.0 * rng.random((18, 23))
     cost[rng.random(cost.shape) < 0.25] = np.inf
@@ -75,9 +80,9 @@ def test_matches_dijkstra_on_random_grids(heuristic, seed):
         reference = dijkstra_cost(cost, start, goal)
         if np.isinf(reference):
             with pytest.raises(NoPathError):
-                astar(cost, start, goal, heuristic)
+                astar(cost, start, goal, heuristic, search=search)
             continue
-        result = astar(cost, start, goal, heuristic)
+        result = astar(cost, start, goal, heuristic, search=search)
         assert result.cost == pytest.approx(reference, rel=1e-12)
         assert result.cells[0] == start and result.cells[-1] == goal
         assert path_cost(cost, result.cells) == pytest.approx(result.cost, rel=1e-12)
@@ -120,3 +125,72 @@ def test_large_grid_is_quick():
     result = astar(cost, (0, 0), (199, 199))
     assert time.perf_counter() - started < 1.0
     assert result.cells[-1] == (199, 199)
+
+
+@pytest.mark.parametrize("spread", [10.0, 1000.0])
+def test_bucket_search_matches_dijkstra_on_integer_costs_and_wide_spreads(spread):
+    # Integer costs as in the benchmark (many exact ties), and a spread of 1000 that needs thousands of
+    # buckets in the ring (a key jumps far ahead of the bucket being emptied).
+    rng = np.random.default_rng(int(spread))
+    cost = rng.integers(1, int(spread) + 1, size=(30, 27)).astype(np.float64)
+    cost[rng.random(cost.shape) < 0.2] = np.inf
+    cost[0, 0] = cost[29, 26] = 1.0
+    for start, goal in [((0, 0), (29, 26)), ((29, 26), (0, 0))]:
+        reference = dijkstra_cost(cost, start, goal)
+        if np.isinf(reference):
+            with pytest.raises(NoPathError):
+                astar(cost, start, goal, search="bucket")
+            continue
+        bucket = astar(cost, start, goal, search="bucket")
+        heap = astar(cost, start, goal, search="heap")
+        assert bucket.cost == pytest.approx(reference, rel=1e-12)
+        assert heap.cost == pytest.approx(reference, rel=1e-12)
+        assert path_cost(cost, bucket.cells) == pytest.approx(bucket.cost, rel=1e-12)
+
+
+def test_bucket_kernel_solves_the_entered_cell_model_like_the_heap_kernel():
+    # MODEL_TARGET (pyastar2d's problem: cost of the entered cell, diagonal step 1, corners may be cut).
+    rng = np.random.default_rng(9)
+    cost = rng.integers(1, 11, size=(40, 50)).astype(np.float64)
+    cost[rng.random(cost.shape) < 0.2] = np.inf
+    cost[0, 0] = cost[-1, -1] = 1.0
+    flat = cost.ravel()
+    frame, bad, c_min, c_max = astar_bucket_kernel.padded(flat, 50)
+    assert (bad, c_min, c_max) == (0, 1.0, 10.0)
+    slots = astar_bucket_kernel.slots_needed(c_max, c_min, 0.75, 1.0)
+    _, bucket_cost, _ = astar_bucket_kernel.search(
+        frame, 50, 0, flat.size - 1, 0.75, c_min, slots, np.ones((8, 1)), False,
+        astar_kernel.MODEL_TARGET, 1.0, False,
+    )  # fmt: skip
+    _, heap_cost, _ = astar_kernel.search(
+        flat, 50, 0, flat.size - 1, astar_kernel.H_OCTILE, 1.0, np.ones((8, 1)), False,
+        astar_kernel.MODEL_TARGET, 1.0, False,
+    )  # fmt: skip
+    assert np.isfinite(heap_cost)
+    assert bucket_cost == heap_cost  # integer sums: exact
+
+
+def test_bucket_slots_cover_the_largest_reduced_edge():
+    slots = astar_bucket_kernel.slots_needed(10 * SQRT2, 1.0, 0.75, SQRT2)
+    assert slots & (slots - 1) == 0  # a power of two (a mask picks the slot)
+    assert slots * 0.25 >= 10 * SQRT2 + 0.75 * SQRT2 + 0.25
+
+
+def test_search_choice():
+    cost = maze_cost()
+    with pytest.raises(PlanningError, match="unknown search"):
+        astar(cost, (1, 2), (3, 1), search="dijkstra")
+    for kwargs in ({"heuristic": "euclidean"}, {"weight": 2.0}, {"field": np.zeros(cost.shape)}):
+        with pytest.raises(PlanningError, match="bucket search needs"):
+            astar(cost, (1, 2), (3, 1), search="bucket", **kwargs)
+    with pytest.raises(PlanningError, match="NaN"):
+        astar(np.full((3, 3), np.nan), (0, 0), (1, 1), search="bucket")
+    # auto: a plateau goes to the heap (its tie-break walks straight), anything else to the buckets,
+    # which expand more cells here (alpha < 1 on the heuristic) for the same optimal cost.
+    rng = np.random.default_rng(2)
+    varied = 1.0 + rng.random((40, 40))
+    auto, heap, bucket = (astar(varied, (0, 0), (39, 30), search=s) for s in ("auto", "heap", "bucket"))
+    assert auto == bucket
+    assert bucket.cost == pytest.approx(heap.cost, rel=1e-12)
+    flat = np.ones((40, 40))
+    assert astar(flat, (0, 0), (39, 39)) == astar(flat, (0, 0), (39, 39), search="heap")

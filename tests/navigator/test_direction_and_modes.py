@@ -44,9 +44,9 @@ def _dijkstra_cost(
     return float(dijkstra(graph, indices=start[0] * cols + start[1])[goal[0] * cols + goal[1]])
 
 
-@pytest.mark.parametrize("heuristic", HEURISTICS)
+@pytest.mark.parametrize(("search", "heuristic"), [("heap", h) for h in HEURISTICS] + [("bucket", "octile")])
 @pytest.mark.parametrize("seed", [3, 4, 5])
-def test_terrain_mode_is_optimal_against_dijkstra(heuristic: str, seed: int) -> None:
+def test_terrain_mode_is_optimal_against_dijkstra(search: str, heuristic: str, seed: int) -> None:
     terrain = procedural((24, 30), 0.25, np.random.default_rng(seed), hill_height_m=1.5, hill_count=5,
                          class_patch_count=3, hill_radius_m=(0.8, 2.0))  # fmt: skip
     planner = Planner(terrain, PARAMS, heuristic=heuristic, inflation_m=0.0)
@@ -62,7 +62,7 @@ def test_terrain_mode_is_optimal_against_dijkstra(heuristic: str, seed: int) -> 
         expected = _dijkstra_cost(cost, factors, start, goal)
         if not np.isfinite(expected):
             continue
-        result = astar(cost, start, goal, heuristic, factors=factors)
+        result = astar(cost, start, goal, heuristic, factors=factors, search=search)
         assert result.cost == pytest.approx(expected, rel=1e-9)
 
 

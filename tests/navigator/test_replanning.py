@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
-from navigator.astar import astar
-from navigator.errors import PlanningError
+from navigator.astar import SQRT2, astar
+from navigator.cost_to_go_kernel import cost_to_go
+from navigator.errors import NoPathError, PlanningError
 from navigator.replanning import RepairingPlanner, cost_to_go_field
 from tests.navigator.test_astar import dijkstra_cost
 
@@ -101,3 +102,51 @@ def test_ties_on_a_flat_map_do_not_flood_it() -> None:
     for goal in [(299, 299), (0, 299), (299, 0)]:
         result = astar(np.ones((300, 300)), (0, 0), goal)
         assert result.expanded <= 2 * len(result.cells)
+
+
+def test_work_arrays_kept_between_plans_do_not_leak_one_plan_into_the_next() -> None:
+    # Many plans on one planner (the stamps tell each plan's cells apart), one of them from a walled-in
+    # start that fails: each cost must still equal a fresh A* from scratch.
+    cost = _random_map(11, (40, 40))
+    cost[20:23, 20:23] = np.inf
+    cost[21, 21] = 1.0  # a free cell walled in by its eight neighbours
+    goal = (39, 39)
+    planner = RepairingPlanner(cost)
+    rng = np.random.default_rng(11)
+    free = np.argwhere(np.isfinite(cost_to_go_field(cost, goal)))  # cells the goal can be reached from
+    starts = [(int(free[i][0]), int(free[i][1])) for i in rng.choice(len(free), 8, replace=False)]
+    starts.insert(4, (21, 21))
+    for start in starts:
+        if start == (21, 21):
+            with pytest.raises(NoPathError):
+                planner.plan(start, goal)
+            continue
+        repaired = planner.plan(start, goal)
+        assert repaired.cost == pytest.approx(astar(cost, start, goal, search="heap").cost, rel=1e-12)
+        assert repaired.cells[0] == start and repaired.cells[-1] == goal
+    assert planner.stats.fields_built == 1
+
+
+def test_bad_new_costs_are_planning_errors() -> None:
+    planner = RepairingPlanner(np.ones((5, 6)))
+    with pytest.raises(PlanningError, match="shape"):
+        planner.update_costs(np.ones((6, 5)))
+    bad = np.ones((5, 6))
+    bad[2, 3] = np.nan
+    with pytest.raises(PlanningError, match="NaN"):
+        planner.update_costs(bad)
+
+
+@pytest.mark.parametrize("spread", [4.0, 500.0])
+def test_bucket_field_equals_the_heap_field(spread: float) -> None:
+    rng = np.random.default_rng(int(spread))
+    cost = 1.0 + (spread - 1.0) * rng.random((25, 31))
+    cost[rng.random(cost.shape) < 0.2] = np.inf
+    cost[24, 30] = 1.0
+    factors = _random_factors(int(spread), cost.shape)
+    flat_factors = factors.reshape(8, -1)
+    for with_factors in (False, True):
+        field = cost_to_go_field(cost, (24, 30), factors if with_factors else None)  # the bucket version
+        heap = cost_to_go(cost.ravel(), 31, 24 * 31 + 30, flat_factors, with_factors, SQRT2)
+        assert np.isfinite(field).sum() > 100
+        np.testing.assert_allclose(field.ravel(), heap, rtol=1e-12)

@@ -70,4 +70,8 @@ def test_campaign_runs_every_trial_in_workers_and_writes_tables(tmp_path):
         metrics = json.loads(outcome.metrics_path.read_text(encoding="utf-8"))
         assert row["metrics"] == metrics
     text = markdown.read_text(encoding="utf-8")
-    assert "Table 1" in text and "Path Accuracy (%)" in text and "Stability (No. of Rollovers)" in text
+    assert (
+        "Table 1" in text and "Path Accuracy (% of route)" in text and "Stability (No. of Rollovers)" in text
+    )
+    for entry in summary["table1"]:  # the route-based accuracy is there for every variant
+        assert entry["route_accuracy_pct"] is not None
