@@ -3,8 +3,9 @@
 Table 1 (per terrain and variant, averaged over seeds): path accuracy % (of the planned *route*,
 ``route_accuracy_pct``: a run that rolls over a fifth of the way scores at most about a fifth),
 obstacle-avoidance success %, rollovers (mean per trial, as the paper's "Stability (No. of Rollovers)"),
-plus tracking % (``path_accuracy_pct``: the driven distance spent within tolerance of the path, which
-says how well a run tracked while it lasted, not how much of the route it did), energy Wh/m, duration,
+plus path accuracy % of the driven distance (``path_accuracy_pct``: the driven distance spent within
+tolerance of the path, which says how well a run tracked while it lasted, not how much of the route it
+did), energy Wh/m, duration,
 collisions and the share of trials meeting the scenario's success criteria (docs/metrics.md defines
 both accuracies). Table 2: the same per run (seed), as the paper lists its simulation runs. Every
 figure comes from the trials' ``metrics.json``.
@@ -23,7 +24,7 @@ TABLE1_COLUMNS = (
     ("route_accuracy_pct", "Path Accuracy (% of route)", "{:.1f}"),
     ("obstacle_avoidance_success_pct", "Obstacle Avoidance Success (%)", "{:.1f}"),
     ("rollovers", "Stability (No. of Rollovers)", "{:.2f}"),
-    ("path_accuracy_pct", "Tracking (% of driven)", "{:.1f}"),
+    ("path_accuracy_pct", "Path Accuracy (% of driven)", "{:.1f}"),
     ("energy_wh_per_m", "Energy (Wh/m)", "{:.4f}"),
     ("duration_s", "Duration (s)", "{:.1f}"),
     ("collisions", "Collisions", "{:.2f}"),

@@ -25,7 +25,8 @@ from logs.errors import LogReadError, LogsError
 logger = logging.getLogger(__name__)
 
 HEADLINE_METRICS = (
-    ("path_accuracy_pct", "path accuracy (%)"),
+    ("path_accuracy_pct", "path accuracy (% of driven)"),
+    ("route_accuracy_pct", "path accuracy (% of route)"),
     ("obstacle_avoidance_success_pct", "obstacle-avoidance success (%)"),
     ("rollovers", "rollovers"),
     ("collisions", "collisions"),
@@ -99,7 +100,8 @@ def write_report(inputs: Sequence[str | Path], out_dir: str | Path, *, plots: bo
 
 # --- tables -------------------------------------------------------------------------------------
 def terrain_table(runs: Sequence[TrialAnalysis]) -> list[dict[str, Any]]:
-    """Per terrain class: number of runs, mean path accuracy and avoidance success, total rollovers,
+    """Per terrain class: number of runs, mean path accuracy (of the driven distance and of the route)
+    and avoidance success, total rollovers,
     mean Wh/m (means over the runs where the metric is known)."""
     groups: dict[str, list[TrialAnalysis]] = {}
     for run in runs:
@@ -112,6 +114,7 @@ def terrain_table(runs: Sequence[TrialAnalysis]) -> list[dict[str, Any]]:
                 "terrain": terrain,
                 "runs": len(members),
                 "path_accuracy_pct": _mean([m.path_accuracy_pct for m in metrics]),
+                "route_accuracy_pct": _mean([m.route_accuracy_pct for m in metrics]),
                 "obstacle_avoidance_success_pct": _mean([m.obstacle_avoidance_success_pct for m in metrics]),
                 "rollovers": sum(m.rollovers or 0 for m in metrics),
                 "goal_reached_pct": _mean([100.0 * bool(m.goal_reached) for m in metrics]),

@@ -114,7 +114,8 @@ def run_trial_command(args: argparse.Namespace) -> int:
     table.add_column("metric")
     table.add_column("value", justify="right")
     rows = [
-        ("path accuracy (%)", _fmt(metrics.path_accuracy_pct, "{:.1f}")),
+        ("path accuracy (% of driven)", _fmt(metrics.path_accuracy_pct, "{:.1f}")),
+        ("path accuracy (% of route)", _fmt(metrics.route_accuracy_pct, "{:.1f}")),
         ("obstacle-avoidance success (%)", _fmt(metrics.obstacle_avoidance_success_pct, "{:.1f}")),
         ("rollovers", _fmt(metrics.rollovers, "{}")),
         ("collisions", _fmt(metrics.collisions, "{}")),

@@ -112,7 +112,7 @@ def test_report_single_run_has_metrics_plots_and_json(trial: tuple[Path, int], t
     assert run["figures"]["can_bus_load_mean_pct"] == pytest.approx(100 * 700 * 131 / 500_000, rel=1e-2)
     assert run["figures"]["estimator_position_error_rms_m"] == pytest.approx(0.1 * 2**0.5, rel=0.1)
     assert run["terrain_class"] == "rocky" and not run["missing"]
-    assert "path accuracy (%)" in result.markdown.read_text(encoding="utf-8")
+    assert "path accuracy (% of driven)" in result.markdown.read_text(encoding="utf-8")
 
 
 def test_report_with_missing_topics_is_partial_and_says_so(tmp_path: Path) -> None:
