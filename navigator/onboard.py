@@ -20,6 +20,7 @@ from __future__ import annotations
 import enum
 import logging
 import math
+from concurrent.futures import Executor
 from dataclasses import dataclass
 
 from estimator.estimator import Estimator
@@ -60,6 +61,7 @@ class Mode(enum.StrEnum):
 
     IDLE = "IDLE"  # no goal
     WAITING_ESTIMATE = "WAITING_ESTIMATE"  # goal set, start-up checks not yet passed
+    PLANNING = "PLANNING"  # the first plan to the goal is being made off the control thread (wheels held)
     DRIVING = "DRIVING"
     ARRIVED = "ARRIVED"
     NO_PATH = "NO_PATH"  # the planner proved the goal unreachable
@@ -91,8 +93,15 @@ class RouteGuidance:
     ``Guidance`` itself does not know about readiness.
     """
 
-    def __init__(self, config: RoverConfig, terrain: TerrainMap, sink: MessageSink, event: EventSink) -> None:
-        self.core = Guidance(terrain, config.vehicle, config.planner, config.follower)
+    def __init__(
+        self,
+        config: RoverConfig,
+        terrain: TerrainMap,
+        sink: MessageSink,
+        event: EventSink,
+        planning: Executor | None = None,
+    ) -> None:
+        self.core = Guidance(terrain, config.vehicle, config.planner, config.follower, executor=planning)
         self._sink = sink
         self._event = event
         self.mode = Mode.IDLE
@@ -178,6 +187,8 @@ class OnboardStack:
 
     ``deferred`` (optional): the ``DeferredSink`` the links and ``sink`` record through; the stack holds it
     from a pacing sample's arrival to the wheel command's send (``navigator.deferred_sink``).
+    ``planning`` (optional): the executor planning jobs run on (``navigator.plan_worker``); the default
+    plans inline, inside the tick (lockstep: deterministic). The caller owns it and shuts it down.
     """
 
     def __init__(
@@ -193,6 +204,7 @@ class OnboardStack:
         obstacles: ObstacleSource | None = None,
         ground_station: MavlinkLink | None = None,
         deferred: DeferredSink | None = None,
+        planning: Executor | None = None,
     ) -> None:
         self._config = config
         self._clock = clock
@@ -207,7 +219,7 @@ class OnboardStack:
         self._map_published = False
         self._event = _EventFn(clock, sink)
         self.estimator = Estimator(config.estimator, clock, sink)
-        self.guidance = RouteGuidance(config, terrain, sink, self._event)
+        self.guidance = RouteGuidance(config, terrain, sink, self._event, planning)
         self.safety = SafetySupervisor(config.safety, config.vehicle, clock.now_ns(), self._event)
         self._last_heartbeat_sent_ns: int | None = None
         self._healthy_since_ns: int | None = None
@@ -360,6 +372,7 @@ class OnboardStack:
         if self._closed:
             return
         self._closed = True
+        self.guidance.core.close()
         try:
             self._can.close()
         finally:

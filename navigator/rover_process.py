@@ -5,7 +5,8 @@ names what to check); the terrain comes from the config's ``[map]``. Before the 
 compiled (or loaded from numba's cache) by a warm-up plan and the map is published: neither lands in a
 tick.
 Driving waits for the start-up checks in ``OnboardStack`` (autopilot heard, all six controllers heard,
-estimate healthy and settled). The loop is sensor-synchronous (``navigator.paced_loop``): a tick starts
+estimate healthy and settled). Planning runs on a worker thread (``navigator.plan_worker``), so a long
+plan never delays a tick. The loop is sensor-synchronous (``navigator.paced_loop``): a tick starts
 when the pacing measurement has arrived, with a fixed-rate deadline as the fallback; it publishes
 ``runtime/timing`` once a second.
 Shutdown (stop flag set by SIGINT/SIGTERM, or the duration over): the stack sends zero wheel commands
@@ -36,6 +37,7 @@ from navigator.input_wait import input_waiter
 from navigator.links import open_links
 from navigator.onboard import OnboardStack
 from navigator.paced_loop import SensorPacedScheduler
+from navigator.plan_worker import plan_worker
 from navigator.planner import Planner
 from navigator.runtime import TimingStats, realtime_switch_interval
 from navigator.timing_topic import TimingPublisher
@@ -86,6 +88,7 @@ def run_rover(
             commands = ZenohCommandReceiver(session, config.rover_id, clock)
             sink = FanoutSink([recorder, rate_limited(publisher, config.zenoh.rates_hz)])
         deferred = DeferredSink(sink)
+        planning = plan_worker()
         try:
             links = open_links(config, clock, deferred)
             stack = OnboardStack(
@@ -97,6 +100,7 @@ def run_rover(
                 config.terrain,
                 commands=commands,
                 deferred=deferred,
+                planning=planning,
             )
             try:
                 warm_up_planner(stack.guidance.planner, clock)
@@ -120,6 +124,8 @@ def run_rover(
             _log.info("stopped: %s", summary)
             recorder.add_metadata("runtime", {"timing_json": json.dumps(summary)})
         finally:
+            # A plan still running is not waited for: its outcome would never be read.
+            planning.shutdown(wait=False, cancel_futures=True)
             if commands is not None:
                 commands.close()
             if publisher is not None:

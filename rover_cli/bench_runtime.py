@@ -2,10 +2,10 @@
 
 The onboard stack runs in this thread in the sensor-synchronous loop ``rover run`` uses
 (``navigator.rover_process.paced_scheduler``: a tick on each IMU sample, a fixed-rate deadline as the
-fallback), after the same start-up warm-up, recording to MCAP and (unless ``--no-telemetry``) publishing
-on Zenoh with the shipped loopback config. The simulated rover runs in a
-second thread at 100 Hz: six VESCs on a python-can ``virtual`` bus and the autopilot over MAVLink on UDP
-127.0.0.1 (a port from the OS). Peers measured in the same run: the scheduler with an empty tick (what
+fallback), with planning on a worker thread, after the same start-up warm-up; it records to MCAP and
+(unless ``--no-telemetry``) publishes on Zenoh with the shipped loopback config. The simulated rover runs
+in a second thread at 100 Hz: six VESCs on a python-can ``virtual`` bus and the autopilot over MAVLink on
+UDP 127.0.0.1 (a port from the OS). Peers measured in the same run: the scheduler with an empty tick (what
 the OS and Python give at best) and the full stack. CPU is the control thread's own (RUSAGE_THREAD).
 """
 
@@ -121,6 +121,7 @@ def _full_stack(duration_s: float, telemetry: bool) -> dict[str, Any]:
     from navigator.deferred_sink import DeferredSink
     from navigator.input_wait import input_waiter
     from navigator.onboard import OnboardStack
+    from navigator.plan_worker import plan_worker
     from navigator.rover_process import paced_scheduler, warm_up_planner
     from navigator.runtime import realtime_switch_interval
     from navigator.terrain import from_maze
@@ -145,7 +146,10 @@ def _full_stack(duration_s: float, telemetry: bool) -> dict[str, Any]:
         codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
         can_link = CanLink(open_bus(bus_config), codec, clock, deferred)
         mavlink = MavlinkLink(mavlink_transport, clock, deferred)
-        stack = OnboardStack(config, clock, can_link, mavlink, deferred, terrain, deferred=deferred)
+        planning = plan_worker()
+        stack = OnboardStack(
+            config, clock, can_link, mavlink, deferred, terrain, deferred=deferred, planning=planning
+        )
         warm_up_planner(stack.planner, clock)
         stack.publish_map()
         stack.set_goal(35.0, 35.0)
@@ -165,6 +169,7 @@ def _full_stack(duration_s: float, telemetry: bool) -> dict[str, Any]:
             stop.set()
             peer.join(timeout=5.0)
             stack.close()
+            planning.shutdown(wait=False, cancel_futures=True)
             if publisher is not None:
                 publisher.close()
     if session is not None:
