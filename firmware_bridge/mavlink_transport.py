@@ -126,6 +126,10 @@ class UdpTransport:
         host, port = self._socket.getsockname()[:2]
         return str(host), int(port)
 
+    def fileno(self) -> int:
+        """The socket's descriptor, so a loop can sleep in ``select`` until a datagram arrives."""
+        return self._socket.fileno()
+
     def write(self, data: bytes) -> None:
         if self._closed:
             raise BridgeOperationError("write on a closed UDP transport")

@@ -87,31 +87,39 @@ class Fault:
 
 @dataclass
 class FaultSchedule:
-    """The scenario's faults; asked by each component "is my fault active now?"."""
+    """The scenario's faults; asked by each component "is my fault active now?".
+
+    Callers ask with their clock's time; fault times count from ``epoch_ns`` on that clock (the world's
+    start: 0 in lockstep, the moment the real-time peer started on its monotonic clock).
+    """
 
     faults: tuple[Fault, ...] = ()
+    epoch_ns: int = 0
     _announced: set[int] = field(default_factory=set)
     _ended: set[int] = field(default_factory=set)
 
     def active(self, target: str, t_ns: int, kind: str | None = None) -> Fault | None:
         """The first fault on ``target`` (of ``kind``, if given) active at ``t_ns``, else None."""
+        t_ns -= self.epoch_ns
         for fault in self.faults:
             if fault.target == target and fault.active_at(t_ns) and (kind is None or fault.kind == kind):
                 return fault
         return None
 
     def active_all(self, target: str, t_ns: int) -> list[Fault]:
+        t_ns -= self.epoch_ns
         return [f for f in self.faults if f.target == target and f.active_at(t_ns)]
 
     def announce(self, sink: MessageSink, t_ns: int) -> None:
         """Record each fault's start and end on the ``log`` topic once (call every tick)."""
+        log_ns, t_ns = t_ns, t_ns - self.epoch_ns
         for index, fault in enumerate(self.faults):
             if index not in self._announced and t_ns >= fault.start_ns:
                 self._announced.add(index)
-                _log(sink, t_ns, _LOG_WARNING, f"fault injected: {fault.name} ({_describe(fault)})")
+                _log(sink, log_ns, _LOG_WARNING, f"fault injected: {fault.name} ({_describe(fault)})")
             if index not in self._ended and t_ns >= fault.end_ns:
                 self._ended.add(index)
-                _log(sink, t_ns, _LOG_INFO, f"fault cleared: {fault.name}")
+                _log(sink, log_ns, _LOG_INFO, f"fault cleared: {fault.name}")
 
 
 def _describe(fault: Fault) -> str:

@@ -31,6 +31,7 @@ NAVIGATOR_STATE = "navigator/state"
 PERCEPTION_OBSTACLES = "perception/obstacles"
 SAFETY_EVENTS = "safety/events"
 LOG = "log"
+RUNTIME_TIMING = "runtime/timing"
 TRUTH_POSE = "truth/pose"
 TRUTH_WHEELS = "truth/wheels"
 TRUTH_STABILITY = "truth/stability"
@@ -72,6 +73,9 @@ def _nums(n: int | None = None) -> JsonSchema:
 def _array(items: JsonSchema) -> JsonSchema:
     return {"type": "array", "items": items}
 
+
+_NUM_OR_NULL: JsonSchema = {"type": ["number", "null"]}
+_PERCENTILES = _obj({"p50_ms": _NUM_OR_NULL, "p99_ms": _NUM_OR_NULL, "max_ms": _NUM_OR_NULL, "samples": _INT})
 
 _POSE_IN_FRAME_FIELDS: dict[str, JsonSchema] = {"timestamp": _TIME, "frame_id": _STR, "pose": _POSE}
 
@@ -273,6 +277,29 @@ _SPECS = [
         "foxglove.Log",
         _obj({"timestamp": _TIME, "level": _INT, "message": _STR, "name": _STR, "file": _STR, "line": _INT}),
         "Log lines. level: 1 debug, 2 info, 3 warning, 4 error, 5 fatal (Foxglove's enum).",
+    ),
+    TopicSpec(
+        RUNTIME_TIMING,
+        "rover.RuntimeTiming",
+        _obj(
+            {
+                "timestamp": _TIME,
+                "window_s": _NUM,
+                "nominal_period_ms": _NUM,
+                "ticks": _INT,
+                "sensor_ticks": _INT,
+                "deadline_ticks": _INT,
+                "overruns": _INT,
+                "jitter": _PERCENTILES,
+                "latency": _PERCENTILES,
+                "tick_time": _PERCENTILES,
+                "last_tick_ms": _NUM_OR_NULL,
+                "ticks_total": _INT,
+                "overruns_total": _INT,
+            }
+        ),
+        "Control-loop timing over the last window (~1 s): period jitter, sensor-to-command latency and "
+        "tick time (p50/p99/max ms, null without samples), ticks by trigger (sensor, deadline), overruns.",
     ),
     TopicSpec(
         TRUTH_POSE,

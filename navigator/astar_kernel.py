@@ -117,7 +117,9 @@ def _pop(hf: np.ndarray, hg: np.ndarray, hc: np.ndarray, size: int) -> int:
     return size
 
 
-@numba.njit(cache=True, error_model="numpy")
+# nogil: in real time the search runs on the planner thread (navigator.plan_worker) and the control
+# thread must keep ticking meanwhile.
+@numba.njit(cache=True, error_model="numpy", nogil=True)
 def search(
     cost: np.ndarray,
     cols: int,

@@ -24,6 +24,9 @@ from navigator.terrain import TerrainMap
 from navigator.vehicle import VehicleParams
 
 HEURISTICS = ("octile", "euclidean", "manhattan")
+# The measurement whose arrival starts a control tick in real time (navigator.paced_loop); "none": a
+# plain fixed-rate loop.
+PACING_SENSORS = ("imu", "gps", "wheels", "none")
 
 
 @dataclass(frozen=True)
@@ -66,6 +69,7 @@ class RoverConfig:
     follower: FollowerConfig
     source: str = "<defaults>"
     safety: SafetyConfig = dataclasses.field(default_factory=SafetyConfig)
+    pacing_sensor: str = "imu"
     # [map]: the terrain `rover run` plans on (HIL trials use the scenario's instead); None if absent.
     terrain: TerrainMap | None = dataclasses.field(default=None, compare=False, repr=False)
 
@@ -82,6 +86,7 @@ def rover_config_from_table(root: Table) -> RoverConfig:
             "rover_id", f"use letters, digits, '-' and '_' only (it becomes a Zenoh key), got {rover_id!r}"
         )
     control_rate_hz = root.number("control_rate_hz", 50.0, lo=1.0, hi=1000.0)
+    pacing_sensor = root.text("pacing_sensor", "imu", choices=PACING_SENSORS)
     vehicle = VehicleParams.from_table(root.table("vehicle", optional=True))
     vesc = VescProfile.from_table(root.table("vesc", optional=True), wheel_radius_m=vehicle.wheel_radius_m)
     estimator = EstimatorConfig.from_table(root.table("estimator", optional=True))
@@ -98,6 +103,7 @@ def rover_config_from_table(root: Table) -> RoverConfig:
         planner=PlannerConfig.from_table(root.table("planner", optional=True)),
         follower=FollowerConfig.from_table(root.table("follower", optional=True)),
         safety=SafetyConfig.from_table(root.table("safety", optional=True)),
+        pacing_sensor=pacing_sensor,
         terrain=(
             terrain_from_table(root.table("map"), Path(root.source).parent)[0] if root.has("map") else None
         ),

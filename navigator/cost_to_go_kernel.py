@@ -25,7 +25,9 @@ from navigator.astar_bucket_kernel import _grown
 from navigator.astar_kernel import MOVES, _pop, _sift_up
 
 
-@numba.njit(cache=True, error_model="numpy")
+# nogil: in real time the search runs on the planner thread (navigator.plan_worker) and the control
+# thread must keep ticking meanwhile.
+@numba.njit(cache=True, error_model="numpy", nogil=True)
 def cost_to_go(
     cost: np.ndarray,
     cols: int,

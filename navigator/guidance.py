@@ -2,7 +2,10 @@
 
 ``Guidance`` owns a ``Planner`` (the believed map) and a follower (pure pursuit or Stanley). Each control
 tick calls ``update`` with the estimated pose and gets speed, yaw rate, a mode and the reason for the
-current speed limit. Obstacles seen on the way come in through ``observe``:
+current speed limit. Planning (obstacles into the map, then a plan) is a job on an injected executor
+(``navigator.plan_worker``): a worker thread in real time, so a long plan never delays a tick (the rover
+follows its last path meanwhile, or holds in ``PLANNING`` with none); inline in lockstep HIL and tests,
+so the plan is there within the same tick. Obstacles seen on the way come in through ``observe``:
 
 * a *static* obstacle not seen before (and within ``sensing_range_m`` of the rover) is added to the map.
   The plan is then *repaired*: costs only ever rise when obstacles are added, so a remaining path that
@@ -24,17 +27,19 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Iterable
+from concurrent.futures import Executor, Future
 from dataclasses import dataclass
 
 import numpy as np
 
 from navigator.config import PlannerConfig
-from navigator.errors import NoPathError, ParameterError, PlanningError, TerrainError
+from navigator.errors import ParameterError
 from navigator.follower import FollowCommand, FollowerConfig, PurePursuit
 from navigator.perception import ObstacleObservation
+from navigator.plan_worker import InlineExecutor, PlanOutcome, PlanRequest, in_range, run_plan_request
 from navigator.planner import Path, Planner
 from navigator.stanley import Stanley
-from navigator.terrain import TerrainMap, disc_mask
+from navigator.terrain import TerrainMap
 from navigator.terrain_classes import TERRAIN_CLASSES, TerrainClass
 from navigator.vehicle import G, VehicleParams
 
@@ -45,6 +50,7 @@ DRIVING = "DRIVING"
 ARRIVED = "ARRIVED"
 NO_PATH = "NO_PATH"
 BLOCKED = "BLOCKED"
+PLANNING = "PLANNING"  # a goal, no path yet: the first plan is being made (wheels held)
 
 REASON_SLOPE = "slope"
 REASON_TERRAIN = "terrain_class"
@@ -81,8 +87,14 @@ class Guidance:
         planner_config: PlannerConfig,
         follower_config: FollowerConfig,
         classes: dict[int, TerrainClass] = TERRAIN_CLASSES,
+        *,
+        executor: Executor | None = None,
     ) -> None:
+        """``executor`` runs the planning jobs (default: inline, in ``update``; see the module doc)."""
         self._params = params
+        self._executor: Executor = executor if executor is not None else InlineExecutor()
+        self._job: Future[PlanOutcome] | None = None
+        self._generation = 0  # counts goals: an outcome planned for an older goal is stale
         self._classes = classes
         self._config = planner_config
         self._follower_config = follower_config
@@ -131,10 +143,16 @@ class Guidance:
         if not (math.isfinite(x) and math.isfinite(y)):
             raise ParameterError(f"goal must be finite, got ({x}, {y})")
         self._goal = (float(x), float(y))
+        self._generation += 1
         self._path = None
         self._needs_plan = True
         self._mode = DRIVING
         self._follower.reset()
+
+    @property
+    def planning(self) -> bool:
+        """Whether a planning job is in flight."""
+        return self._job is not None
 
     def observe(self, observations: Iterable[ObstacleObservation]) -> None:
         """Take in obstacle observations (any number, any order); acted on at the next ``update``."""
@@ -159,28 +177,29 @@ class Guidance:
             raise ParameterError(f"pose must be finite, got x={x}, y={y}, yaw={yaw}, speed={speed}")
         self._last_xy = (x, y)
         details: list[str] = []
-        path_changed = False
-        if self._pending:
-            details.append(self._absorb_static(x, y))
+        path_changed = self._collect(details)
+        if self._job is None:
+            self._submit(x, y)
+            path_changed |= self._collect(details)  # an inline executor has finished already
         if self._goal is None:
             return self._stopped(IDLE, "", path_changed)
         if self._mode == ARRIVED:
             return self._stopped(ARRIVED, "", path_changed, arrived=True)
-        if self._needs_plan:
-            detail = self._replan(x, y)
-            details.append(detail)
-            path_changed = self._path is not None
-            if self._path is None:
-                return self._stopped(NO_PATH, "; ".join(d for d in details if d), path_changed)
-        assert self._path is not None
+        if self._path is None:
+            waiting = self._job is not None or self._needs_plan
+            return self._stopped(PLANNING if waiting else NO_PATH, _joined(details), path_changed)
         command = self._follower.command(x, y, yaw, speed, self._path.points)
-        if abs(command.cross_track_error_m) > REPLAN_CROSS_TRACK_M and not command.arrived:
-            details.append(self._replan(x, y, why=f"{command.cross_track_error_m:+.1f} m off the path"))
+        off_path = abs(command.cross_track_error_m) > REPLAN_CROSS_TRACK_M and not command.arrived
+        if off_path and self._job is None:
+            # A plan from where the rover is; in real time it keeps following the old path meanwhile.
+            self._submit(x, y, why=f"{command.cross_track_error_m:+.1f} m off the path", must_plan=True)
+            changed = self._collect(details)
             if self._path is None:
-                return self._stopped(NO_PATH, "; ".join(d for d in details if d), True)
-            path_changed = True
-            command = self._follower.command(x, y, yaw, speed, self._path.points)
-        detail = "; ".join(d for d in details if d)
+                return self._stopped(NO_PATH, _joined(details), True)
+            if changed:
+                path_changed = True
+                command = self._follower.command(x, y, yaw, speed, self._path.points)
+        detail = _joined(details)
         if command.arrived:
             self._mode = ARRIVED
             return self._stopped(ARRIVED, detail or "goal reached", path_changed, arrived=True)
@@ -195,60 +214,53 @@ class Guidance:
         return self._limited(command, x, y, yaw, path_changed, detail)
 
     # --- planning -------------------------------------------------------------------------------------
-    def _replan(self, x: float, y: float, why: str = "") -> str:
-        assert self._goal is not None
-        self._needs_plan = False
-        try:
-            self._path = self.planner.plan((x, y), self._goal)
-        except NoPathError as err:
-            self._path = None
-            return f"no path: {err}"
-        except PlanningError as err:
-            self._path = None
-            return f"cannot plan: {err}"
+    def _submit(self, x: float, y: float, *, why: str = "", must_plan: bool = False) -> None:
+        """Start a planning job if there is work: static obstacles now within range, or a plan needed."""
+        near = [o for o in self._pending if in_range(o, (x, y), self._config.sensing_range_m)]
+        must_plan = must_plan or (self._needs_plan and self._goal is not None and self._mode != ARRIVED)
+        if not near and not must_plan:
+            return
+        # Obstacles not yet within sensing range wait until the rover is near.
+        self._pending = [o for o in self._pending if o not in near]
+        self._known_static.update(o.obstacle_id for o in near)
+        if must_plan:
+            self._needs_plan = False
+        request = PlanRequest(
+            generation=self._generation,
+            start_xy=(x, y),
+            # Arrived: obstacles still go into the map, but nothing is planned until a new goal.
+            goal=None if self._mode == ARRIVED else self._goal,
+            new_obstacles=tuple(near),
+            path=self._path,
+            must_plan=must_plan,
+            retry_no_path=self._mode == NO_PATH,
+            why=why,
+        )
+        self._job = self._executor.submit(run_plan_request, self.planner, request)
+
+    def _collect(self, details: list[str]) -> bool:
+        """Take in a finished job's outcome; returns whether it brought a new path (``_path`` is None
+        after a failed plan)."""
+        job = self._job
+        if job is None or not job.done():
+            return False
+        self._job = None
+        outcome = job.result()
+        details.extend(outcome.details)
+        if outcome.repair_kept:
+            self.repairs_kept += 1
+        if not outcome.planned:
+            return False
+        if outcome.generation != self._generation:
+            self._needs_plan = self._goal is not None  # planned for an older goal: plan for this one
+            return False
+        self._path = outcome.path
+        if outcome.path is None:
+            self._mode = NO_PATH
+            return False
         self.replans += 1
         self._follower.reset()
-        reason = f" ({why})" if why else ""
-        return f"planned {self._path.length_m:.1f} m, cost {self._path.cost:.1f}{reason}"
-
-    def _absorb_static(self, x: float, y: float) -> str:
-        terrain = self.planner.terrain
-        mask = np.zeros(terrain.shape, dtype=bool)
-        added: list[str] = []
-        kept: list[ObstacleObservation] = []
-        for obs in self._pending:
-            if math.hypot(obs.x - x, obs.y - y) - obs.radius_m > self._config.sensing_range_m:
-                kept.append(obs)  # not yet within sensing range: wait until the rover is near
-                continue
-            self._known_static.add(obs.obstacle_id)
-            mask |= disc_mask(terrain, obs.x, obs.y, obs.radius_m)
-            added.append(obs.obstacle_id)
-        self._pending = kept
-        if not added:
-            return ""
-        changed = self.planner.update_obstacles(mask)
-        if self._path is None or self._goal is None:
-            if self._goal is not None and self._mode == NO_PATH:
-                self._needs_plan = True
-            return f"obstacles {', '.join(added)} added to the map"
-        if self._path_touches(changed, x, y):
-            self._needs_plan = True
-            return f"obstacles {', '.join(added)} block the path: replanning"
-        self.repairs_kept += 1
-        return f"obstacles {', '.join(added)} added; the path is clear of them and still optimal"
-
-    def _path_touches(self, changed: np.ndarray, x: float, y: float) -> bool:
-        assert self._path is not None
-        terrain = self.planner.terrain
-        points = self._path.points
-        start = int(np.argmin(np.hypot(points[:, 0] - x, points[:, 1] - y)))
-        for px, py in points[max(start - 1, 0) :]:
-            try:
-                if changed[terrain.cell_of(float(px), float(py))]:
-                    return True
-            except TerrainError:
-                continue
-        return False
+        return True
 
     # --- moving obstacles -----------------------------------------------------------------------------
     def _blocking_obstacle(self, t_ns: int, x: float, y: float, speed: float) -> str | None:
@@ -309,6 +321,12 @@ class Guidance:
             False, detail,
         )  # fmt: skip
 
+    def close(self) -> None:
+        """Forget a job in flight (its outcome is never read); the executor belongs to the caller."""
+        if self._job is not None:
+            self._job.cancel()
+            self._job = None
+
     def _stopped(
         self, mode: str, detail: str, path_changed: bool, *, arrived: bool = False
     ) -> GuidanceOutput:
@@ -316,3 +334,7 @@ class Guidance:
         return GuidanceOutput(
             0.0, 0.0, mode, 0.0, 0.0, REASON_STOPPED, self._path, path_changed, arrived, detail,
         )  # fmt: skip
+
+
+def _joined(details: list[str]) -> str:
+    return "; ".join(d for d in details if d)

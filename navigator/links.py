@@ -7,6 +7,8 @@ loopback UDP port. Failures raise ``firmware_bridge.errors.BridgeSetupError`` na
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 from firmware_bridge.can_link import CanLink, open_bus
 from firmware_bridge.errors import BridgeSetupError
 from firmware_bridge.mavlink_link import MavlinkLink
@@ -18,10 +20,21 @@ from logs.sink import MessageSink
 from navigator.config import RoverConfig
 
 
-def open_links(config: RoverConfig, clock: Clock, sink: MessageSink) -> tuple[CanLink, MavlinkLink]:
+@dataclass(frozen=True)
+class RoverLinks:
+    """The opened links, and what the real-time loop may sleep on until the pacing sensor's data lands
+    (``navigator.input_wait``): the MAVLink transport for IMU or GPS pacing, the CAN bus for wheels."""
+
+    can: CanLink
+    mavlink: MavlinkLink
+    pacing_sources: tuple[object, ...]
+
+
+def open_links(config: RoverConfig, clock: Clock, sink: MessageSink) -> RoverLinks:
     """Open CAN first, then MAVLink; if MAVLink fails the CAN bus is shut again."""
     codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
-    can_link = CanLink(open_bus(config.can), codec, clock, sink)
+    bus = open_bus(config.can)
+    can_link = CanLink(bus, codec, clock, sink)
     try:
         transport = open_transport(config.mavlink.connection, allow_remote=config.mavlink.allow_remote)
     except BridgeSetupError:
@@ -35,4 +48,5 @@ def open_links(config: RoverConfig, clock: Clock, sink: MessageSink) -> tuple[Ca
         component_id=config.mavlink.component_id,
         autopilot_system_id=config.mavlink.autopilot_system_id,
     )
-    return can_link, mavlink
+    pacing: dict[str, tuple[object, ...]] = {"imu": (transport,), "gps": (transport,), "wheels": (bus,)}
+    return RoverLinks(can_link, mavlink, pacing.get(config.pacing_sensor, ()))

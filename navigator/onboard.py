@@ -1,9 +1,14 @@
 """The onboard loop: links -> estimator -> guidance -> safety supervisor -> wheel commands, tick by tick.
 
-``OnboardStack.step()`` is one control tick. The same object runs on the rover (``navigator.runtime``
-calls ``step`` at the control rate and ``ingest`` whenever a measurement arrives in between), in lockstep
-HIL (the trial runner calls it after advancing the simulated clock) and in tests. It owns no clock and
-opens no connection: both are handed in.
+``OnboardStack.step()`` is one control tick. The same object runs on the rover (``navigator.paced_loop``
+calls ``ingest`` until the pacing measurement, the IMU sample by default, has arrived, then ``step`` at
+once, with a fixed-rate deadline as the fallback), in lockstep HIL (the trial runner calls ``step`` after
+advancing the simulated clock; the sample read inside the step paces it) and in tests. It owns no clock
+and opens no connection: both are handed in.
+
+A tick's critical path is: read the links, estimate, guide, supervise, mix, send the wheel commands.
+Everything else (heartbeat, the tick's own topics, the map) comes after the send, and records made on
+the critical path are held back until then when the stack is given a ``DeferredSink``.
 
 Guidance (plan on a new goal, repair the plan as obstacles are perceived, follow the path) is
 ``navigator.guidance.Guidance`` behind a start-up gate (``RouteGuidance``); the safety supervisor
@@ -15,6 +20,7 @@ from __future__ import annotations
 import enum
 import logging
 import math
+from concurrent.futures import Executor
 from dataclasses import dataclass
 
 from estimator.estimator import Estimator
@@ -29,6 +35,7 @@ from logs.clock import NS_PER_S, Clock
 from logs.commands import CommandSource
 from logs.sink import MessageSink
 from navigator.config import RoverConfig
+from navigator.deferred_sink import DeferredSink
 from navigator.guidance import Guidance
 from navigator.map_message import grid_message
 from navigator.mixing import mix_skid_steer
@@ -54,6 +61,7 @@ class Mode(enum.StrEnum):
 
     IDLE = "IDLE"  # no goal
     WAITING_ESTIMATE = "WAITING_ESTIMATE"  # goal set, start-up checks not yet passed
+    PLANNING = "PLANNING"  # the first plan to the goal is being made off the control thread (wheels held)
     DRIVING = "DRIVING"
     ARRIVED = "ARRIVED"
     NO_PATH = "NO_PATH"  # the planner proved the goal unreachable
@@ -85,8 +93,15 @@ class RouteGuidance:
     ``Guidance`` itself does not know about readiness.
     """
 
-    def __init__(self, config: RoverConfig, terrain: TerrainMap, sink: MessageSink, event: EventSink) -> None:
-        self.core = Guidance(terrain, config.vehicle, config.planner, config.follower)
+    def __init__(
+        self,
+        config: RoverConfig,
+        terrain: TerrainMap,
+        sink: MessageSink,
+        event: EventSink,
+        planning: Executor | None = None,
+    ) -> None:
+        self.core = Guidance(terrain, config.vehicle, config.planner, config.follower, executor=planning)
         self._sink = sink
         self._event = event
         self.mode = Mode.IDLE
@@ -169,6 +184,11 @@ class OnboardStack:
     Goals and stops also arrive over MAVLink (the link has already acknowledged them): on the autopilot's
     link when the autopilot forwards them, or on ``ground_station``, a second MAVLink link straight to a
     ground station (as a companion computer behind mavlink-router has).
+
+    ``deferred`` (optional): the ``DeferredSink`` the links and ``sink`` record through; the stack holds it
+    from a pacing sample's arrival to the wheel command's send (``navigator.deferred_sink``).
+    ``planning`` (optional): the executor planning jobs run on (``navigator.plan_worker``); the default
+    plans inline, inside the tick (lockstep: deterministic). The caller owns it and shuts it down.
     """
 
     def __init__(
@@ -183,6 +203,8 @@ class OnboardStack:
         commands: CommandSource | None = None,
         obstacles: ObstacleSource | None = None,
         ground_station: MavlinkLink | None = None,
+        deferred: DeferredSink | None = None,
+        planning: Executor | None = None,
     ) -> None:
         self._config = config
         self._clock = clock
@@ -197,7 +219,7 @@ class OnboardStack:
         self._map_published = False
         self._event = _EventFn(clock, sink)
         self.estimator = Estimator(config.estimator, clock, sink)
-        self.guidance = RouteGuidance(config, terrain, sink, self._event)
+        self.guidance = RouteGuidance(config, terrain, sink, self._event, planning)
         self.safety = SafetySupervisor(config.safety, config.vehicle, clock.now_ns(), self._event)
         self._last_heartbeat_sent_ns: int | None = None
         self._healthy_since_ns: int | None = None
@@ -208,8 +230,12 @@ class OnboardStack:
         self._sent_speed_mps = 0.0
         self._send_failing_since_ns: int | None = None
         self._sent_at_ns = clock.now_ns()
-        self._newest_sensor_ns: int | None = None
-        # Real-time measurements of the last tick (meaningful under a real clock; 0 in lockstep).
+        self._deferred = deferred
+        self._pacing = config.pacing_sensor
+        self._pacing_rx_ns: int | None = None  # receive time of the newest pacing sample in this read
+        # The last tick's sensor-to-command latency: from the receive time of the pacing sample that
+        # started it to its wheel commands handed to the bus (None: no pacing sample fed the tick).
+        # Meaningful under a real clock; 0 in lockstep.
         self.last_sensor_to_command_ns: int | None = None
         self._closed = False
 
@@ -251,25 +277,41 @@ class OnboardStack:
         self.safety.resume(source)
 
     # --- between ticks ----------------------------------------------------------------------------------
-    def ingest(self) -> None:
-        """Read whatever arrived on the links now and fuse it; the real-time scheduler calls this as data
-        arrives so the estimate is current when the tick comes."""
-        self._read_links(self._clock.now_ns())
+    def ingest(self) -> int | None:
+        """Read whatever arrived on the links now and fuse it; returns the receive time of the newest
+        pacing sample among it (None if none). The real-time loop calls this between ticks and starts a
+        tick on a pacing sample; records stay held for that tick (released otherwise)."""
+        if self._deferred is not None:
+            self._deferred.hold()
+        self._read_links(self._clock.now_ns(), stop_at_pacing=True)
+        received = self._pacing_rx_ns
+        if received is None and self._deferred is not None:
+            self._deferred.release()
+        return received
+
+    def publish_map(self) -> None:
+        """Publish ``navigator/map`` now (the first tick does it if nobody did before)."""
+        now = self._clock.now_ns()
+        self._sink.publish(topics.NAVIGATOR_MAP, now, grid_message(self._terrain, now))
+        self._map_published = True
 
     # --- the control tick ---------------------------------------------------------------------------
-    def step(self) -> None:
+    def step(self, trigger_ns: int | None = None) -> None:
+        """One control tick. ``trigger_ns``: receive time of the pacing sample that started it, found by
+        ``ingest`` just before (the real-time loop); without it the tick reads the links itself and a
+        pacing sample among what it reads is its trigger (lockstep)."""
         now = self._clock.now_ns()
-        if not self._map_published:
-            self._sink.publish(topics.NAVIGATOR_MAP, now, grid_message(self._terrain, now))
-            self._map_published = True
-        self._read_links(now)
+        if self._deferred is not None:
+            self._deferred.hold()
+        if trigger_ns is None:
+            self._read_links(now)
+            trigger = self._pacing_rx_ns
+        else:
+            # The loop's ``ingest`` read the links an instant ago and found the trigger: reading them
+            # again would only put a CAN poll on the sensor-to-command path.
+            trigger = trigger_ns
         self._read_commands()
         self._read_obstacles(now)
-        if self._last_heartbeat_sent_ns is None or now - self._last_heartbeat_sent_ns >= HEARTBEAT_PERIOD_NS:
-            self._mavlink.send_heartbeat()
-            if self._ground_station is not None:
-                self._ground_station.send_heartbeat()
-            self._last_heartbeat_sent_ns = now
 
         pose = self.estimator.pose()
         guidance = self.guidance.tick(now, pose, self._ready(now, pose))
@@ -287,8 +329,16 @@ class OnboardStack:
         elif self._send_failing_since_ns is None:
             self._send_failing_since_ns = now
         self._sent_speed_mps, self._sent_at_ns = speed, now
-        if self._newest_sensor_ns is not None:
-            self.last_sensor_to_command_ns = self._clock.now_ns() - self._newest_sensor_ns
+        self.last_sensor_to_command_ns = None if trigger is None else self._clock.now_ns() - trigger
+        if self._deferred is not None:
+            self._deferred.release()
+        if not self._map_published:
+            self.publish_map()
+        if self._last_heartbeat_sent_ns is None or now - self._last_heartbeat_sent_ns >= HEARTBEAT_PERIOD_NS:
+            self._mavlink.send_heartbeat()
+            if self._ground_station is not None:
+                self._ground_station.send_heartbeat()
+            self._last_heartbeat_sent_ns = now
         self._sink.publish(
             topics.WHEELS_COMMAND,
             now,
@@ -322,6 +372,7 @@ class OnboardStack:
         if self._closed:
             return
         self._closed = True
+        self.guidance.core.close()
         try:
             self._can.close()
         finally:
@@ -419,11 +470,28 @@ class OnboardStack:
             elif isinstance(reading, StopRequest):
                 self.estop(f"MAVLink {reading.source} from system {reading.sysid}")
 
-    def _read_links(self, now: int) -> None:
+    def _read_links(self, now: int, *, stop_at_pacing: bool = False) -> None:
+        """Read and fuse every link, the pacing sensor's link first; with ``stop_at_pacing``, return as
+        soon as a pacing sample is in (the tick it starts should not wait for the other links: they are
+        read again within a millisecond)."""
+        self._pacing_rx_ns = None
         self._read_ground_station()
+        first, second = (
+            (self._read_can, self._read_mavlink)
+            if self._pacing == "wheels"
+            else (self._read_mavlink, self._read_can)
+        )
+        first(now)
+        if stop_at_pacing and self._pacing_rx_ns is not None:
+            return
+        second(now)
+
+    def _read_mavlink(self, now: int) -> None:
+        del now  # each reading carries its own receive time
         for reading in self._mavlink.poll():
             if isinstance(reading, GpsFix):
-                self._newest_sensor_ns = now
+                if self._pacing == "gps":
+                    self._pacing_rx_ns = reading.t_ns
                 if reading.fix_type >= MIN_GPS_FIX_TYPE:
                     self._last_gps_ns = reading.t_ns
                 self.estimator.on_gps(
@@ -436,7 +504,8 @@ class OnboardStack:
                     reading.satellites,
                 )
             elif isinstance(reading, ImuSample):
-                self._newest_sensor_ns = now
+                if self._pacing == "imu":
+                    self._pacing_rx_ns = reading.t_ns
                 gz = reading.gyro_xyz_rps[2]
                 ax, ay, _ = reading.accel_xyz_mps2
                 self.estimator.on_imu(reading.t_ns, gz, ax, ay)
@@ -447,12 +516,16 @@ class OnboardStack:
             elif isinstance(reading, AttitudeSample):
                 self._attitude = reading
                 self.estimator.on_attitude(reading.t_ns, reading.yaw_rad, AHRS_HEADING_STD_RAD)
+
+    def _read_can(self, now: int) -> None:
+        can_read_ns = self._clock.now_ns()
         if self._can.poll():
             # One snapshot per poll: the readings change only when frames arrive, and the start-up checks
             # and the safety inputs of this tick read the same snapshot.
             self._wheels = readings = self._can.readings()
             if all(r.last_status_ns is not None for r in readings):
-                self._newest_sensor_ns = now
+                if self._pacing == "wheels":
+                    self._pacing_rx_ns = can_read_ns
                 # All six: disagreement between the wheels of one side is a slip signal to the estimator.
                 self.estimator.on_wheel_speeds(now, [r.speed_mps for r in readings])
 

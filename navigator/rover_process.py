@@ -1,8 +1,14 @@
 """The ``rover run`` process: start-up checks, the real-time loop, and a shutdown that stops the wheels.
 
 Start-up: the config was validated on load; the links are opened here (a failure is a setup error that
-names what to check); the terrain comes from the config's ``[map]``. Driving waits for the start-up
-checks in ``OnboardStack`` (autopilot heard, all six controllers heard, estimate healthy and settled).
+names what to check); the terrain comes from the config's ``[map]``. Before the loop, the A* kernels are
+compiled (or loaded from numba's cache) by a warm-up plan and the map is published: neither lands in a
+tick.
+Driving waits for the start-up checks in ``OnboardStack`` (autopilot heard, all six controllers heard,
+estimate healthy and settled). Planning runs on a worker thread (``navigator.plan_worker``), so a long
+plan never delays a tick. The loop is sensor-synchronous (``navigator.paced_loop``): a tick starts
+when the pacing measurement has arrived, with a fixed-rate deadline as the fallback; it publishes
+``runtime/timing`` once a second.
 Shutdown (stop flag set by SIGINT/SIGTERM, or the duration over): the stack sends zero wheel commands
 and closes the links, then the recording is closed with the loop's timing summary as metadata.
 """
@@ -25,11 +31,16 @@ from logs.sink import FanoutSink, MessageSink
 from logs.telemetry import ZenohTelemetry, open_session
 from logs.telemetry_station import rate_limited
 from navigator.config import RoverConfig
+from navigator.deferred_sink import DeferredSink
 from navigator.errors import NavigatorError
+from navigator.input_wait import input_waiter
 from navigator.links import open_links
 from navigator.onboard import OnboardStack
+from navigator.paced_loop import SensorPacedScheduler
+from navigator.plan_worker import plan_worker
 from navigator.planner import Planner
-from navigator.runtime import FixedRateScheduler, TimingStats
+from navigator.runtime import TimingStats, realtime_switch_interval
+from navigator.timing_topic import TimingPublisher
 
 _log = logging.getLogger(__name__)
 
@@ -49,13 +60,16 @@ def run_rover(
     clock: Clock,
     out_dir: Path,
     *,
-    wait: Callable[[float], None],
     stop: threading.Event,
+    wait: Callable[[float], None] | None = None,
     goal: tuple[float, float] | None = None,
     duration_ns: int | None = None,
     telemetry: bool = True,
 ) -> RunResult:
-    """Run the onboard stack in real time until ``stop`` is set; returns the recording and timing."""
+    """Run the onboard stack in real time until ``stop`` is set; returns the recording and timing.
+
+    ``wait`` idles the loop between reads (default: ``select`` on the pacing link, ``navigator.input_wait``).
+    """
     if config.terrain is None:
         raise RoverSetupError(f"{config.source}: `rover run` needs a [map] table (the terrain to plan on)")
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -73,30 +87,45 @@ def run_rover(
             publisher = ZenohTelemetry(session, config.rover_id)
             commands = ZenohCommandReceiver(session, config.rover_id, clock)
             sink = FanoutSink([recorder, rate_limited(publisher, config.zenoh.rates_hz)])
+        deferred = DeferredSink(sink)
+        planning = plan_worker()
         try:
-            can_link, mavlink = open_links(config, clock, sink)
-            stack = OnboardStack(config, clock, can_link, mavlink, sink, config.terrain, commands=commands)
+            links = open_links(config, clock, deferred)
+            stack = OnboardStack(
+                config,
+                clock,
+                links.can,
+                links.mavlink,
+                deferred,
+                config.terrain,
+                commands=commands,
+                deferred=deferred,
+                planning=planning,
+            )
             try:
                 warm_up_planner(stack.guidance.planner, clock)
+                stack.publish_map()
                 if goal is not None:
                     stack.set_goal(*goal)
-                scheduler = FixedRateScheduler(
-                    clock,
-                    config.control_rate_hz,
-                    stack.step,
-                    ingest=stack.ingest,
-                    wait=wait,
-                    latency=lambda: stack.last_sensor_to_command_ns,
-                    stop=stop,
+                scheduler = paced_scheduler(
+                    stack, clock, config, deferred, wait or input_waiter(links.pacing_sources), stop
                 )
-                _log.info("rover %s running at %.0f Hz", config.rover_id, config.control_rate_hz)
-                timing = scheduler.run(duration_ns)
+                _log.info(
+                    "rover %s running at %.0f Hz, paced by %s",
+                    config.rover_id,
+                    config.control_rate_hz,
+                    config.pacing_sensor,
+                )
+                with realtime_switch_interval():
+                    timing = scheduler.run(duration_ns)
             finally:
                 stack.close()  # zero wheel commands, links closed
             summary = timing.summary()
             _log.info("stopped: %s", summary)
             recorder.add_metadata("runtime", {"timing_json": json.dumps(summary)})
         finally:
+            # A plan still running is not waited for: its outcome would never be read.
+            planning.shutdown(wait=False, cancel_futures=True)
             if commands is not None:
                 commands.close()
             if publisher is not None:
@@ -104,6 +133,29 @@ def run_rover(
             if session is not None:
                 session.close()
     return RunResult(mcap_path, timing)
+
+
+def paced_scheduler(
+    stack: OnboardStack,
+    clock: Clock,
+    config: RoverConfig,
+    sink: MessageSink,
+    wait: Callable[[float], None],
+    stop: threading.Event | None = None,
+) -> SensorPacedScheduler:
+    """The sensor-synchronous loop around ``stack``, publishing ``runtime/timing`` to ``sink``."""
+    period_ns = round(1e9 / config.control_rate_hz)
+    timing = TimingPublisher(clock, sink, period_ns)
+    return SensorPacedScheduler(
+        clock,
+        config.control_rate_hz,
+        stack.step,
+        ingest=stack.ingest,
+        wait=wait,
+        latency=lambda: stack.last_sensor_to_command_ns,
+        on_tick=timing.observe,
+        stop=stop,
+    )
 
 
 def warm_up_planner(planner: Planner, clock: Clock) -> None:

@@ -13,8 +13,10 @@ arrays (``TimingStats``), summarised as percentiles at the end.
 from __future__ import annotations
 
 import logging
+import sys
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,6 +29,21 @@ _log = logging.getLogger(__name__)
 MAX_SAMPLES = 180_000
 # Wait for input in slices of at most this long, so a measurement is fused soon after it arrives.
 WAIT_SLICE_NS = 1_000_000
+# While the real-time loop runs, a thread that wants the GIL gets it after at most this long (Python's
+# default is 5 ms): the control thread, woken by a sensor sample, must not wait 5 ms for the planner
+# worker or another thread (the in-process simulator of ``rover bench runtime``) to let go.
+REALTIME_SWITCH_INTERVAL_S = 0.0002
+
+
+@contextmanager
+def realtime_switch_interval(interval_s: float = REALTIME_SWITCH_INTERVAL_S) -> Iterator[None]:
+    """Shorten the interpreter's thread switch interval for the ``with`` block (it is process-wide)."""
+    previous = sys.getswitchinterval()
+    sys.setswitchinterval(interval_s)
+    try:
+        yield
+    finally:
+        sys.setswitchinterval(previous)
 
 
 class RingStats:
@@ -63,6 +80,8 @@ class TimingStats:
     tick_ns: RingStats  # time spent in one tick
     overruns: int = 0
     ticks: int = 0
+    sensor_ticks: int = 0  # started by the pacing measurement (navigator.paced_loop)
+    deadline_ticks: int = 0  # started by the fixed-rate fallback deadline (the pacing sensor was late)
 
     @classmethod
     def empty(cls) -> TimingStats:
@@ -72,6 +91,8 @@ class TimingStats:
         return {
             "ticks": self.ticks,
             "overruns": self.overruns,
+            "sensor_ticks": self.sensor_ticks,
+            "deadline_ticks": self.deadline_ticks,
             "jitter": self.jitter_ns.summary_ms(),
             "latency": self.latency_ns.summary_ms(),
             "tick_time": self.tick_ns.summary_ms(),
@@ -127,6 +148,7 @@ class FixedRateScheduler:
             self._tick()
             tick_end = self._clock.now_ns()
             self.stats.ticks += 1
+            self.stats.deadline_ticks += 1
             self.stats.tick_ns.add(tick_end - tick_start)
             if previous_start is not None:
                 self.stats.jitter_ns.add(abs(tick_start - previous_start - self.period_ns))

@@ -13,6 +13,7 @@ from rich.table import Table as RichTable
 from logs.settings import ConfigError, parse_toml
 from logs.sink import MessageSink
 from navigator.config import RoverConfig, load_rover_config, rover_config_from_table
+from rover_cli import soak_commands
 
 DEFAULT_TRIALS_DIR = Path("logs/trials")
 
@@ -37,6 +38,7 @@ def register(families: Any) -> None:
     campaign.add_argument("--workers", type=int, default=None, help="worker processes (default: the file's)")
     campaign.set_defaults(handler=run_campaign_command)
     _register_peer(commands)
+    soak_commands.register(commands)
 
 
 def _register_peer(commands: Any) -> None:

@@ -63,7 +63,6 @@ def run_command(args: argparse.Namespace) -> int:
             config,
             MonotonicClock(),
             out_dir,
-            wait=time.sleep,
             stop=stop,
             goal=args.goal,
             duration_ns=duration_ns,

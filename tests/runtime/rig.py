@@ -30,6 +30,7 @@ from logs.commands import CommandSource
 from logs.settings import parse_toml
 from logs.sink import MemorySink, Message
 from navigator.config import RoverConfig, rover_config_from_table
+from navigator.deferred_sink import DeferredSink
 from navigator.onboard import OnboardStack
 from navigator.terrain import from_maze
 
@@ -130,9 +131,13 @@ class Rig:
         goal: tuple[float, float] = (17.0, 17.0),
         commands: CommandSource | None = None,
         seed: int = 0,
+        deferred: bool = False,
     ) -> None:
+        """``deferred``: the links and the stack record through a ``DeferredSink`` (as ``rover run``)."""
         self.clock = SimClock()
         self.sink = MemorySink()
+        self.deferred = DeferredSink(self.sink) if deferred else None
+        onboard_sink = self.sink if self.deferred is None else self.deferred
         self.terrain = from_maze(np.full((10, 10), 2), 2.0)
         bus_config = dataclasses.replace(config.can, interface="virtual", channel=f"rig-{next(_channels)}")
         self.bus = FaultyBus(open_bus(bus_config))
@@ -140,10 +145,17 @@ class Rig:
         onboard_pipe, sim_pipe = memory_pipe_pair()
         self.wire = FaultyAutopilotWire(sim_pipe)
         codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
-        can_link = CanLink(self.bus, codec, self.clock, self.sink)
-        mavlink = MavlinkLink(onboard_pipe, self.clock, self.sink)
+        can_link = CanLink(self.bus, codec, self.clock, onboard_sink)
+        mavlink = MavlinkLink(onboard_pipe, self.clock, onboard_sink)
         self.stack = OnboardStack(
-            config, self.clock, can_link, mavlink, self.sink, self.terrain, commands=commands
+            config,
+            self.clock,
+            can_link,
+            mavlink,
+            onboard_sink,
+            self.terrain,
+            commands=commands,
+            deferred=self.deferred,
         )
         self.vescs = SimVescBank(self._sim_bus, codec, self.clock)
         self.autopilot = SimAutopilot(

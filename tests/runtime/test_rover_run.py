@@ -102,7 +102,7 @@ def test_rover_run_stops_wheels_and_closes_recording_on_signal(tmp_path: Path, s
         for line in process.stderr:
             if "running at" in line or time.monotonic() > deadline:
                 break
-        time.sleep(0.5)  # some ticks with nobody answering: the supervisor holds
+        time.sleep(1.3)  # ticks with nobody answering: the supervisor holds; one runtime/timing window
         process.send_signal(stop_signal)
         stdout, _ = process.communicate(timeout=20)
     finally:
@@ -112,6 +112,11 @@ def test_rover_run_stops_wheels_and_closes_recording_on_signal(tmp_path: Path, s
     mcap = out / "rover.mcap"
     timing = json.loads(read_metadata(mcap)["runtime"]["timing_json"])
     assert timing["ticks"] >= 20
+    # No autopilot, so no IMU: every tick ran on the fixed-rate fallback deadline.
+    assert timing["deadline_ticks"] == timing["ticks"] and timing["sensor_ticks"] == 0
+    windows = [m.message for m in read_messages(mcap, ["runtime/timing"])]
+    assert windows and all(w["deadline_ticks"] == w["ticks"] > 0 for w in windows)
+    assert windows[0]["jitter"]["samples"] > 0 and windows[0]["latency"]["samples"] == 0
     frames = [m.message for m in read_messages(mcap, ["can/frames"]) if m.message["direction"] == "tx"]
     assert len(frames) >= 6 and all(f["data"] == "00000000" for f in frames[-6:])  # the last six: zero rpm
     events = [m.message for m in read_messages(mcap, ["safety/events"])]

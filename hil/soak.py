@@ -1,0 +1,277 @@
+"""``rover hil soak``: real-time HIL for minutes with faults sprinkled in; crashes, recovery and memory.
+
+Two real processes, as in the real-time system tests: ``rover hil peer`` (the simulated rover, applying
+the seeded fault schedule of ``hil.soak_plan``) and ``rover run`` (the onboard stack), on python-can
+``udp_multicast`` inside the private network namespace (``scripts/in-private-netns``) or on ``vcan0``,
+MAVLink on UDP 127.0.0.1. The soak itself is the ground station: over Zenoh on loopback (multicast
+scouting off) it sends patrol goals and the e-stop / resume of the plan. Every ``rss_period_s`` it reads
+both processes' resident memory from ``/proc``. At the end it stops both with SIGINT and judges the
+recordings (``hil.soak_report``).
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import math
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from hil.soak_plan import PATROL, PATROL_PERIOD_S, SoakFault, fault_plan, scenario_text
+from hil.soak_report import ProcessRun, SoakReport, judge_soak
+from logs.commands import send_command
+from logs.settings import parse_toml
+from logs.telemetry import ZenohSettings, open_session
+
+_log = logging.getLogger(__name__)
+
+
+class SoakSetupError(RuntimeError):
+    """The soak cannot start here (no private network namespace, a peer that never came up)."""
+
+
+START_TIMEOUT_S = 120.0  # the peer's first start may compile numba kernels
+POLL_S = 0.1
+
+
+@dataclass(frozen=True)
+class SoakSettings:
+    seconds: float
+    seed: int
+    out_dir: Path
+    rss_period_s: float = 5.0
+    warmup_s: float = 20.0  # before the first fault: both processes up, estimate settled, driving
+    gap_s: tuple[float, float] = (12.0, 20.0)  # recovery time after each fault
+    can_interface: str = "udp_multicast"
+    can_channel: str | None = None  # default: a fresh multicast group
+
+
+def run_soak(settings: SoakSettings) -> SoakReport:
+    """Run the soak; returns the judged report (also written to ``OUT/soak.json``)."""
+    if settings.can_interface == "udp_multicast" and os.environ.get("ROVER_IN_NETNS") != "1":
+        raise SoakSetupError(
+            "udp_multicast CAN runs only inside a private loopback-only network namespace: "
+            "run the soak under scripts/in-private-netns (or use --can-interface socketcan on vcan0)"
+        )
+    out = settings.out_dir
+    out.mkdir(parents=True, exist_ok=True)
+    plan = fault_plan(settings.seed, settings.seconds, settings.warmup_s, settings.gap_s)
+    scenario = out / "soak-scenario.toml"
+    scenario.write_text(scenario_text(f"soak-seed{settings.seed}", settings.seconds, settings.seed, plan))
+    channel = settings.can_channel or _multicast_group(settings.seed)
+    peer_dir, rover_dir = out / "peer", out / "rover"
+    peer_dir.mkdir(exist_ok=True)
+    rover_dir.mkdir(exist_ok=True)
+    _log.info(
+        "soak: %.0f s, seed %d, %d faults; recordings in %s", settings.seconds, settings.seed, len(plan), out
+    )
+    with open(peer_dir / "peer.log", "wb") as peer_log, open(rover_dir / "rover.log", "wb") as rover_log:
+        peer = subprocess.Popen(
+            _cli(
+                "hil", "peer", str(scenario), "--can-interface", settings.can_interface,
+                "--can-channel", channel, "--port-file", str(peer_dir / "port"),
+                "--status-file", str(peer_dir / "status.json"), "--out", str(peer_dir),
+                "--duration", str(settings.seconds + 60.0),
+            ),
+            stdout=peer_log,
+            stderr=subprocess.STDOUT,
+        )  # fmt: skip
+        rover: subprocess.Popen[bytes] | None = None
+        try:
+            _wait_for_file(peer_dir / "port", peer)
+            epoch = time.monotonic()  # the peer's world started a moment ago: fault times count from here
+            endpoint = f"tcp/127.0.0.1:{_free_port()}"
+            config = _rover_config(peer_dir / "rover-hil.toml", rover_dir / "rover-soak.toml", endpoint)
+            goal = PATROL[0]
+            rover = subprocess.Popen(
+                _cli(
+                    "-v",
+                    "run",
+                    "--config",
+                    str(config),
+                    "--goal",
+                    f"{goal[0]},{goal[1]}",
+                    "--out",
+                    str(rover_dir),
+                ),
+                stdout=rover_log,
+                stderr=subprocess.STDOUT,
+            )
+            runs, estops = _drive(settings, plan, epoch, endpoint, peer, rover, peer_dir / "status.json")
+        finally:
+            for process in (rover, peer):
+                if process is not None:
+                    _stop(process)
+    finished = [
+        ProcessRun(r.name, r.rss_kb, r.crashed_at_s, _returncode(p), _tracebacks(log))
+        for r, p, log in zip(
+            runs, (rover, peer), (rover_dir / "rover.log", peer_dir / "peer.log"), strict=True
+        )
+    ]
+    report = judge_soak(
+        settings.seconds,
+        settings.seed,
+        plan,
+        epoch,
+        estops,
+        finished,
+        rover_dir / "rover.mcap",
+        peer_dir / "truth.mcap",
+        settings.warmup_s,
+    )
+    (out / "soak.json").write_text(report.to_json(), encoding="utf-8")
+    return report
+
+
+@dataclass
+class _Sampled:
+    name: str
+    rss_kb: list[tuple[float, int]]
+    crashed_at_s: float | None = None
+
+
+def _drive(
+    settings: SoakSettings,
+    plan: list[SoakFault],
+    epoch: float,
+    endpoint: str,
+    peer: subprocess.Popen[bytes],
+    rover: subprocess.Popen[bytes],
+    status_file: Path,
+) -> tuple[list[_Sampled], list[tuple[float, float]]]:
+    """The soak's own loop: e-stops, patrol goals, RSS samples, crash watch; returns samples and the
+    (e-stop, resume) times in seconds from ``epoch``."""
+    ground = open_session(_ground_settings(endpoint))
+    rover_id = "rover1"
+    sampled = [_Sampled("rover", []), _Sampled("peer", [])]
+    estop_plan = [f for f in plan if f.target == "estop"]
+    estops: list[tuple[float, float]] = []
+    patrol = itertools.cycle(PATROL[1:] + PATROL[:1])
+    goal, goal_sent_s = PATROL[0], 0.0
+    next_rss_s = 0.0
+    try:
+        while (now_s := time.monotonic() - epoch) < settings.seconds:
+            for run, process in zip(sampled, (rover, peer), strict=True):
+                if run.crashed_at_s is None and process.poll() is not None:
+                    run.crashed_at_s = now_s
+                    _log.error("soak: %s exited with %s at %.1f s", run.name, process.returncode, now_s)
+            if any(r.crashed_at_s is not None for r in sampled):
+                break
+            if now_s >= next_rss_s:
+                for run, process in zip(sampled, (rover, peer), strict=True):
+                    rss = _rss_kb(process.pid)
+                    if rss is not None:
+                        run.rss_kb.append((now_s, rss))
+                next_rss_s += settings.rss_period_s
+            if estop_plan and now_s >= estop_plan[0].start_s:
+                fault = estop_plan.pop(0)
+                send_command(ground, rover_id, "estop")
+                estops.append((time.monotonic() - epoch, math.nan))
+                _sleep_until(epoch + fault.end_s)
+                send_command(ground, rover_id, "resume")
+                estops[-1] = (estops[-1][0], time.monotonic() - epoch)
+            if _near(status_file, goal) or now_s - goal_sent_s > PATROL_PERIOD_S:
+                goal, goal_sent_s = next(patrol), now_s
+                send_command(ground, rover_id, "goal", goal[0], goal[1])
+            time.sleep(POLL_S)
+    finally:
+        ground.close()
+    return sampled, estops
+
+
+def _near(status_file: Path, goal: tuple[float, float]) -> bool:
+    import json
+
+    try:
+        status = json.loads(status_file.read_text(encoding="utf-8"))
+    except (FileNotFoundError, ValueError):
+        return False
+    return bool(math.hypot(status["x_m"] - goal[0], status["y_m"] - goal[1]) < 1.0)
+
+
+def _rover_config(peer_config: Path, out: Path, endpoint: str) -> Path:
+    """The peer's ``rover-hil.toml`` with Zenoh on, listening on ``endpoint`` (loopback, no scouting)."""
+    text = peer_config.read_text(encoding="utf-8")
+    zenoh = f'[zenoh]\nenabled = true\nlisten = ["{endpoint}"]\nconnect = []\nmulticast_scouting = false\n'
+    if "[zenoh]\nenabled = false\n" not in text:
+        raise SoakSetupError(f"{peer_config}: no `[zenoh] enabled = false` section to replace")
+    # The map paths in the peer's config are relative to it.
+    text = text.replace("[zenoh]\nenabled = false\n", zenoh).replace('"map/', f'"{peer_config.parent}/map/')
+    out.write_text(text, encoding="utf-8")
+    return out
+
+
+def _ground_settings(endpoint: str) -> ZenohSettings:
+    table = parse_toml(f'[zenoh]\nenabled = true\nlisten = []\nconnect = ["{endpoint}"]\n', "<soak>")
+    return ZenohSettings.from_table(table.table("zenoh"))
+
+
+def _rss_kb(pid: int) -> int | None:
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1])
+    except (FileNotFoundError, ProcessLookupError, ValueError):
+        return None
+    return None
+
+
+def _tracebacks(log: Path) -> int:
+    try:
+        return log.read_text(encoding="utf-8", errors="replace").count("Traceback (most recent call last)")
+    except FileNotFoundError:
+        return 0
+
+
+def _returncode(process: subprocess.Popen[bytes] | None) -> int | None:
+    return None if process is None else process.returncode
+
+
+def _cli(*args: str) -> list[str]:
+    return [sys.executable, "-m", "rover_cli.main", *args]
+
+
+def _stop(process: subprocess.Popen[bytes]) -> None:
+    if process.poll() is not None:
+        return
+    process.send_signal(signal.SIGINT)
+    try:
+        process.wait(timeout=30)
+    except subprocess.TimeoutExpired:
+        _log.error("soak: pid %d ignored SIGINT for 30 s; killing it", process.pid)
+        process.kill()
+        process.wait(timeout=10)
+
+
+def _wait_for_file(path: Path, process: subprocess.Popen[bytes]) -> None:
+    deadline = time.monotonic() + START_TIMEOUT_S
+    while not (path.exists() and path.read_text(encoding="utf-8").strip()):
+        if process.poll() is not None:
+            raise SoakSetupError(f"the HIL peer exited ({process.returncode}) before writing {path}")
+        if time.monotonic() > deadline:
+            raise SoakSetupError(f"the HIL peer did not write {path} within {START_TIMEOUT_S:g} s")
+        time.sleep(0.05)
+
+
+def _sleep_until(monotonic_s: float) -> None:
+    remaining = monotonic_s - time.monotonic()
+    if remaining > 0:
+        time.sleep(remaining)
+
+
+def _free_port() -> int:
+    # Ask the OS for a free loopback port; the instant before Zenoh binds it is an accepted race.
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+def _multicast_group(seed: int) -> str:
+    # A group of its own per soak process, so a leftover peer can never talk to this rover.
+    return f"239.75.{(os.getpid() >> 8) % 200 + 10}.{(os.getpid() + seed) % 250 + 1}"

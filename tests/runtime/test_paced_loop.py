@@ -1,0 +1,189 @@
+"""The sensor-synchronous loop on a simulated clock: ticks start on pacing samples, a silent sensor falls
+back to fixed-rate deadlines, a faster sensor is decimated, and held records keep their order."""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+from dataclasses import dataclass, field
+
+import pytest
+
+from logs.clock import SimClock
+from logs.sink import MemorySink
+from navigator.deferred_sink import DeferredSink
+from navigator.paced_loop import DEADLINE_GRACE, SensorPacedScheduler, TickSample
+from tests.runtime.rig import Rig, rig_config
+
+MS = 1_000_000
+PERIOD = 20 * MS  # 50 Hz
+TICK_COST = 300_000  # each tick takes 0.3 ms of (simulated) time
+
+
+@dataclass
+class FakeSensor:
+    """Samples land at ``arrivals`` (clock ns); ``ingest`` returns the newest one not yet read."""
+
+    clock: SimClock
+    arrivals: list[int]
+    read: int = 0
+
+    def ingest(self) -> int | None:
+        newest = None
+        while self.read < len(self.arrivals) and self.arrivals[self.read] <= self.clock.now_ns():
+            newest = self.arrivals[self.read]
+            self.read += 1
+        return newest
+
+
+@dataclass
+class Loop:
+    clock: SimClock
+    sensor: FakeSensor
+    ticks: list[tuple[int, int | None]] = field(default_factory=list)
+    samples: list[TickSample] = field(default_factory=list)
+
+    def tick(self, trigger_ns: int | None) -> None:
+        self.ticks.append((self.clock.now_ns(), trigger_ns))
+        self.clock.advance(TICK_COST)
+
+    def wait(self, seconds: float) -> None:
+        # Like select on the socket: wake at the timeout or when the next sample lands, whichever first.
+        wake = self.clock.now_ns() + max(1, round(seconds * 1e9))
+        pending = self.sensor.arrivals[self.sensor.read :]
+        if pending and self.clock.now_ns() < pending[0] < wake:
+            wake = pending[0]
+        self.clock.advance(max(1, wake - self.clock.now_ns()))
+
+    def run(self, duration_ns: int) -> SensorPacedScheduler:
+        scheduler = SensorPacedScheduler(
+            self.clock,
+            1e9 / PERIOD,
+            self.tick,
+            ingest=self.sensor.ingest,
+            wait=self.wait,
+            latency=lambda: None if self.ticks[-1][1] is None else self.clock.now_ns() - self.ticks[-1][1],
+            on_tick=self.samples.append,
+        )
+        scheduler.run(duration_ns)
+        return scheduler
+
+
+def _loop(arrivals: list[int]) -> Loop:
+    clock = SimClock()
+    return Loop(clock, FakeSensor(clock, arrivals))
+
+
+def test_each_sample_starts_a_tick_at_once() -> None:
+    # A 50 Hz sensor 7.3 ms out of phase with the loop's own start, with +-0.4 ms arrival jitter.
+    arrivals = [round(7.3 * MS) + k * PERIOD + (400_000 if k % 3 == 0 else -400_000) for k in range(50)]
+    loop = _loop(arrivals)
+    stats = loop.run(arrivals[-1] + MS).stats
+    sensor_ticks = [(t, trigger) for t, trigger in loop.ticks if trigger is not None]
+    assert stats.sensor_ticks == len(sensor_ticks) == 50 and stats.deadline_ticks == 0
+    # The tick starts in the instant the sample is read, on the sample's own time: no waiting for a slot.
+    assert all(t == trigger for t, trigger in sensor_ticks)
+    assert stats.latency_ns.summary_ms()["max_ms"] == pytest.approx(TICK_COST / 1e6)
+    # Jitter is the sensor's: |period - 20 ms| is 0 or 0.8 ms here.
+    assert stats.jitter_ns.summary_ms()["max_ms"] == pytest.approx(0.8)
+
+
+def test_a_silent_sensor_falls_back_to_fixed_rate_deadlines_and_back() -> None:
+    # Samples for 0.2 s, silence for 0.5 s, then samples again.
+    arrivals = [5 * MS + k * PERIOD for k in range(10)] + [705 * MS + k * PERIOD for k in range(10)]
+    loop = _loop(arrivals)
+    loop.run(900 * MS)
+    starts = [t for t, _ in loop.ticks]
+    gaps = [b - a for a, b in itertools.pairwise(starts)]
+    # Never a gap longer than a period plus the grace: the stall failsafe (0.2 s) is nowhere near.
+    assert max(gaps) <= PERIOD + DEADLINE_GRACE * PERIOD + TICK_COST
+    silent = [(t, trigger) for t, trigger in loop.ticks if 185 * MS < t < 705 * MS]
+    assert silent and all(trigger is None for _, trigger in silent)
+    # The first deadline after the last sample is a period plus grace away, then every period exactly.
+    deadline_starts = [t for t, _ in silent]
+    assert deadline_starts[0] == 185 * MS + PERIOD + round(DEADLINE_GRACE * PERIOD)
+    assert {b - a for a, b in itertools.pairwise(deadline_starts)} == {PERIOD}
+    # Back on the sensor as soon as it speaks again.
+    assert all(trigger == t for t, trigger in loop.ticks if t >= 705 * MS)
+    assert sum(1 for _, trigger in loop.ticks if trigger is not None) == 20
+
+
+def test_a_faster_sensor_is_decimated_to_the_control_rate() -> None:
+    arrivals = [k * 5 * MS + MS for k in range(400)]  # 200 Hz
+    loop = _loop(arrivals)
+    stats = loop.run(2_000 * MS).stats
+    assert 95 <= stats.ticks <= 101 and stats.deadline_ticks <= 1
+    steady = [s.period_ns for s in loop.samples[20:] if s.period_ns is not None]
+    assert set(steady) == {PERIOD}
+
+
+def test_a_long_tick_counts_overruns_instead_of_bursting() -> None:
+    loop = _loop([])  # deadline ticks only
+
+    def slow_tick(trigger_ns: int | None) -> None:
+        loop.ticks.append((loop.clock.now_ns(), trigger_ns))
+        loop.clock.advance(95 * MS if len(loop.ticks) == 3 else TICK_COST)
+
+    loop.tick = slow_tick  # type: ignore[method-assign]
+    stats = loop.run(400 * MS).stats
+    assert stats.overruns >= 3
+    starts = [t for t, _ in loop.ticks]
+    assert min(b - a for a, b in itertools.pairwise(starts)) >= PERIOD // 2
+
+
+def test_deferred_sink_holds_records_in_order_until_release() -> None:
+    inner = MemorySink()
+    deferred = DeferredSink(inner)
+    deferred.publish("a", 1, {"n": 1})
+    deferred.hold()
+    deferred.publish("b", 2, {"n": 2})
+    deferred.hold()
+    deferred.publish("c", 3, {"n": 3})
+    assert [t for t, _, _ in inner.records] == ["a"]
+    deferred.release()
+    deferred.publish("d", 4, {"n": 4})
+    assert [(t, log_time) for t, log_time, _ in inner.records] == [("a", 1), ("b", 2), ("c", 3), ("d", 4)]
+    assert not deferred.holding
+
+
+def test_lockstep_ticks_are_paced_by_the_imu_read_inside_them() -> None:
+    rig = Rig(rig_config())
+    try:
+        rig.run_for(1.0)
+        # The autopilot's IMU runs at the control rate: every tick read one, on a simulated clock.
+        assert rig.stack.last_sensor_to_command_ns == 0
+    finally:
+        rig.close()
+    rig = Rig(dataclasses.replace(rig_config(), pacing_sensor="none"))
+    try:
+        rig.run_for(0.2)
+        assert rig.stack.last_sensor_to_command_ns is None
+    finally:
+        rig.close()
+
+
+def test_records_of_the_sensor_to_command_path_wait_until_the_command_is_sent() -> None:
+    rig = Rig(rig_config(), deferred=True)
+    assert rig.deferred is not None
+    try:
+        rig.run_for(0.5)
+        received = None
+        while received is None:
+            rig.physics_tick()
+            received = rig.stack.ingest()
+        before = len(rig.sink.records)
+        assert rig.deferred.holding  # the IMU's own records are held for the tick it starts
+        rig.stack.step(received)
+        assert not rig.deferred.holding
+        new = [(topic, m) for topic, _, m in rig.sink.records[before:]]
+        topics_in_order = [topic for topic, _ in new]
+        first_tx = next(
+            i for i, (topic, m) in enumerate(new) if topic == "can/frames" and m["direction"] == "tx"
+        )
+        assert "sensors/imu" in topics_in_order[:first_tx]  # recorded in arrival order, after the fact
+        assert topics_in_order[-1] == "navigator/state"
+        assert rig.stack.last_sensor_to_command_ns == 0
+        # Nothing arrived: ingest releases at once and returns None.
+        assert rig.stack.ingest() is None and not rig.deferred.holding
+    finally:
+        rig.close()

@@ -1,0 +1,119 @@
+"""Planning off the control thread: guidance holds (no path yet) or keeps following its last path while a
+plan is in flight, takes the outcome when it is done, and drops an outcome made for an older goal."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from concurrent.futures import Executor, Future
+from typing import Any, TypeVar
+
+import numpy as np
+
+from navigator.config import PlannerConfig
+from navigator.follower import FollowerConfig
+from navigator.guidance import DRIVING, NO_PATH, PLANNING, Guidance
+from navigator.perception import ObstacleObservation
+from navigator.plan_worker import InlineExecutor, plan_worker
+from navigator.terrain import TerrainMap
+from navigator.vehicle import VehicleParams
+
+T = TypeVar("T")
+
+
+class HeldExecutor(Executor):
+    """Jobs wait until the test runs them (``run_all``): a worker thread the test controls."""
+
+    def __init__(self) -> None:
+        self.queued: list[tuple[Future[Any], Callable[[], Any]]] = []
+
+    def submit(self, fn: Callable[..., T], /, *args: Any, **kwargs: Any) -> Future[T]:
+        future: Future[T] = Future()
+        self.queued.append((future, lambda: fn(*args, **kwargs)))
+        return future
+
+    def run_all(self) -> None:
+        queued, self.queued = self.queued, []
+        for future, job in queued:
+            future.set_result(job())
+
+
+def _flat(rows: int = 80, cols: int = 120, res: float = 0.25) -> TerrainMap:
+    return TerrainMap(
+        np.zeros((rows, cols)), np.zeros((rows, cols), np.uint8), np.zeros((rows, cols), bool), res
+    )
+
+
+def _guidance(terrain: TerrainMap, executor: Executor) -> Guidance:
+    return Guidance(
+        terrain, VehicleParams(), PlannerConfig(sensing_range_m=40.0), FollowerConfig(), executor=executor
+    )
+
+
+def test_holds_until_the_first_plan_arrives_then_drives() -> None:
+    worker = HeldExecutor()
+    guidance = _guidance(_flat(), worker)
+    guidance.set_goal(27.0, 10.0)
+    out = guidance.update(0, 2.0, 10.0, 0.0, 0.0)
+    assert out.mode == PLANNING and out.speed_mps == 0.0 and guidance.planning and len(worker.queued) == 1
+    assert guidance.update(1, 2.0, 10.0, 0.0, 0.0).mode == PLANNING and len(worker.queued) == 1  # one job
+    worker.run_all()
+    out = guidance.update(2, 2.0, 10.0, 0.0, 0.0)
+    assert out.mode == DRIVING and out.path_changed and out.speed_mps > 0.0 and "planned" in out.detail
+    assert not guidance.planning and guidance.replans == 1
+
+
+def test_keeps_following_the_old_path_while_a_repair_is_planned() -> None:
+    worker = HeldExecutor()
+    guidance = _guidance(_flat(), worker)
+    guidance.set_goal(27.0, 10.0)
+    guidance.update(0, 2.0, 10.0, 0.0, 0.0)
+    worker.run_all()
+    first = guidance.update(1, 2.0, 10.0, 0.0, 0.0)
+    assert first.path is not None
+    guidance.observe([ObstacleObservation(2, "rock", 14.0, 10.0, 1.0)])  # on the path
+    out = guidance.update(2, 2.0, 10.0, 0.0, 0.5)
+    assert out.mode == DRIVING and out.speed_mps > 0.0 and out.path is first.path and guidance.planning
+    worker.run_all()
+    out = guidance.update(3, 2.0, 10.0, 0.0, 0.5)
+    assert out.path_changed and out.path is not first.path and "block the path" in out.detail
+
+
+def test_an_outcome_for_an_older_goal_is_dropped() -> None:
+    worker = HeldExecutor()
+    guidance = _guidance(_flat(), worker)
+    guidance.set_goal(27.0, 10.0)
+    guidance.update(0, 2.0, 10.0, 0.0, 0.0)
+    guidance.set_goal(5.0, 17.0)  # while the first plan is in flight
+    worker.run_all()
+    assert guidance.update(1, 2.0, 10.0, 0.0, 0.0).mode == PLANNING  # stale: a new job for the new goal
+    worker.run_all()
+    out = guidance.update(2, 2.0, 10.0, 0.0, 0.0)
+    assert out.path is not None and tuple(out.path.points[-1]) == (5.0, 17.0)
+
+
+def test_no_path_stays_no_path_on_the_next_ticks() -> None:
+    wall = np.zeros((80, 120), bool)
+    wall[:, 60] = True
+    walled = TerrainMap(np.zeros(wall.shape), np.zeros(wall.shape, np.uint8), wall, 0.25)
+    guidance = _guidance(walled, InlineExecutor())
+    guidance.set_goal(27.0, 10.0)
+    assert guidance.update(0, 2.0, 10.0, 0.0, 0.0).mode == NO_PATH
+    assert guidance.update(1, 2.0, 10.0, 0.0, 0.0).mode == NO_PATH  # held, not an error
+
+
+def test_a_long_plan_on_the_worker_thread_does_not_block_the_tick() -> None:
+    terrain = _flat(600, 600, 0.25)  # a full cost-to-go field over 360 000 cells: tens of ms at least
+    with plan_worker() as worker:
+        guidance = _guidance(terrain, worker)
+        guidance.set_goal(145.0, 145.0)
+        started = time.perf_counter()
+        out = guidance.update(0, 2.0, 2.0, 0.0, 0.0)
+        tick_s = time.perf_counter() - started
+        assert out.mode == PLANNING
+        while guidance.planning:
+            out = guidance.update(1, 2.0, 2.0, 0.0, 0.0)
+            time.sleep(0.001)
+        plan_s = time.perf_counter() - started
+    assert out.mode == DRIVING and out.path is not None
+    assert tick_s < plan_s / 3, (tick_s, plan_s)

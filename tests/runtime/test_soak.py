@@ -1,0 +1,50 @@
+"""The soak: its seeded plan, and a 30 s real-time soak (peer + rover run, four faults) judged clean."""
+
+from __future__ import annotations
+
+import itertools
+import math
+from pathlib import Path
+
+from hil.scenario import load_scenario
+from hil.soak import SoakSettings, run_soak
+from hil.soak_plan import CATALOG, fault_plan, scenario_text
+from tests.system.realtime_rig import needs_netns
+
+
+def test_the_plan_is_seeded_covers_every_fault_before_repeating_and_leaves_recovery_gaps() -> None:
+    plan = fault_plan(11, 600.0, 20.0, (12.0, 20.0))
+    assert plan == fault_plan(11, 600.0, 20.0, (12.0, 20.0)) and plan != fault_plan(
+        12, 600.0, 20.0, (12.0, 20.0)
+    )
+    kinds = [(f.target, f.kind) for f in plan]
+    assert set(kinds[: len(CATALOG)]) == {(target, kind) for target, kind, *_ in CATALOG}
+    assert plan[0].start_s == 20.0 and plan[-1].end_s + 12.0 <= 600.0
+    assert all(b.start_s - a.end_s >= 12.0 for a, b in itertools.pairwise(plan))
+
+
+def test_the_scenario_carries_the_peer_side_faults(tmp_path: Path) -> None:
+    plan = fault_plan(3, 60.0, 5.0, (3.0, 4.0))
+    path = tmp_path / "soak.toml"
+    path.write_text(scenario_text("soak", 60.0, 3, plan))
+    scenario = load_scenario(path)
+    peer_side = [f for f in plan if f.target != "estop"]
+    assert [(f.target, f.kind) for f in scenario.faults] == [(f.target, f.kind) for f in peer_side]
+    assert [f.start_ns for f in scenario.faults] == [round(f.start_s * 1e9) for f in peer_side]
+
+
+@needs_netns
+def test_a_short_soak_injects_sees_and_recovers_every_fault(tmp_path: Path) -> None:
+    # Seed 3 in 30 s: a controller reboot, an e-stop over Zenoh, a silent IMU (the pacing sensor), a CAN
+    # bus drop.
+    settings = SoakSettings(30.0, 3, tmp_path, rss_period_s=1.0, warmup_s=6.0, gap_s=(3.0, 4.0))
+    report = run_soak(settings)
+    names = [f.name.split("[")[0] for f in report.faults]
+    assert names == ["vesc", "estop/command", "imu/off", "can/off"], report.faults
+    assert report.ok, report.to_json()
+    assert not report.crashes and report.ticks > 1000 and report.sensor_ticks > 0.8 * report.ticks
+    assert report.deadline_ticks > 0  # the silent IMU's fallback ticks
+    # A normal start does not trip the stall failsafe (the first plan runs off the control thread).
+    assert "failsafe.loop_stall" not in report.failsafe_events
+    assert all(math.isfinite(m.max_mb) for m in report.memory)
+    assert (tmp_path / "soak.json").exists()
