@@ -95,7 +95,9 @@ def _grown(buckets: np.ndarray, lengths: np.ndarray) -> np.ndarray:
     return grown
 
 
-@numba.njit(cache=True, error_model="numpy")
+# nogil: in real time the search runs on the planner thread (navigator.plan_worker); the control
+# thread must keep ticking meanwhile.
+@numba.njit(cache=True, error_model="numpy", nogil=True)
 def search(
     frame: np.ndarray,
     cols: int,

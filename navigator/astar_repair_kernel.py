@@ -33,7 +33,9 @@ def costs_rose_only(new: np.ndarray, old: np.ndarray) -> tuple[int, bool]:
     return bad, rose_only
 
 
-@numba.njit(cache=True, error_model="numpy")
+# nogil: in real time the search runs on the planner thread (navigator.plan_worker); the control
+# thread must keep ticking meanwhile.
+@numba.njit(cache=True, error_model="numpy", nogil=True)
 def search(
     cost: np.ndarray,
     cols: int,

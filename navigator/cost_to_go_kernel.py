@@ -104,7 +104,9 @@ def cost_to_go(
     return field
 
 
-@numba.njit(cache=True, error_model="numpy")
+# nogil: in real time the search runs on the planner thread (navigator.plan_worker); the control
+# thread must keep ticking meanwhile.
+@numba.njit(cache=True, error_model="numpy", nogil=True)
 def cost_to_go_buckets(
     frame: np.ndarray,
     cols: int,
