@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import can
@@ -10,6 +11,7 @@ import cantools
 import cantools.database
 
 from firmware_bridge.errors import BridgeOperationError, BridgeSetupError, FrameError
+from firmware_bridge.frame_packer import FramePacker
 from firmware_bridge.vesc_dbc import DEFAULT_CONTROLLER_IDS, VESC_MESSAGES, message_name
 from logs.settings import Table
 
@@ -88,13 +90,22 @@ class VescFrame:
 
 
 class VescCodec:
-    """Encodes and decodes VESC frames through cantools, strictly: bad frames raise ``FrameError``."""
+    """Encodes and decodes VESC frames through cantools, strictly: bad frames raise ``FrameError``.
+
+    Two hot-path variants use precomputed ``FramePacker``s derived from the same DBC messages (falling
+    back to cantools where a message's layout has none): ``encode_in_range`` for senders whose values are
+    already clamped into their fields (SET_RPM from the link, status from the simulated controllers) and
+    ``decode_fast`` for the simulated controllers. Frames from outside are decoded by ``decode``, strictly,
+    through cantools.
+    """
 
     def __init__(self, database: cantools.database.can.Database, profile: VescProfile) -> None:
         self.database = database
         self.profile = profile
         self._by_key: dict[tuple[str, int], cantools.database.can.Message] = {}
         self._by_id: dict[int, tuple[str, int, cantools.database.can.Message]] = {}
+        self._packers: dict[tuple[str, int], FramePacker | None] = {}
+        self._packers_by_id: dict[int, FramePacker | None] = {}
         for cid in profile.controller_ids:
             for spec in VESC_MESSAGES:
                 name = message_name(spec.kind, cid)
@@ -109,6 +120,9 @@ class VescCodec:
                     raise BridgeSetupError(f"{name} must use a 29-bit extended id in the DBC")
                 self._by_key[(spec.kind, cid)] = message
                 self._by_id[message.frame_id] = (spec.kind, cid, message)
+                packer = FramePacker.for_message(message)
+                self._packers[(spec.kind, cid)] = packer
+                self._packers_by_id[message.frame_id] = packer
 
     def _message(self, kind: str, controller_id: int) -> cantools.database.can.Message:
         try:
@@ -131,14 +145,42 @@ class VescCodec:
 
     def encode_set_rpm(self, controller_id: int, erpm: float) -> can.Message:
         """SET_RPM with the ERPM rounded to an integer and clamped to int32."""
-        raw = erpm_command(erpm)
-        message = self._message("SET_RPM", controller_id)
-        # Hot path (six frames per control tick, thousands per simulated minute): the value is already an
-        # in-range integer, so cantools' strict range check is redundant; strict=False measured ~2x faster.
-        data = message.encode({"erpm": raw}, strict=False)
+        return self.encode_in_range("SET_RPM", controller_id, {"erpm": erpm_command(erpm)})
+
+    def encode_in_range(self, kind: str, controller_id: int, values: Mapping[str, float]) -> can.Message:
+        """Encode values the caller has already clamped into their fields, without cantools' range check.
+
+        Hot path (six SET_RPM per control tick, eighteen status frames per 20 ms in the simulator): the
+        precomputed packer gives the bytes cantools' ``encode(values, strict=False)`` gives (a test
+        compares them on random values) in about a fifth of the time; messages without one use cantools.
+        """
+        message = self._message(kind, controller_id)
+        packer = self._packers[(kind, controller_id)]
+        try:
+            data = message.encode(dict(values), strict=False) if packer is None else packer.pack(values)
+        except (cantools.database.EncodeError, KeyError, ValueError, TypeError) as err:
+            raise BridgeOperationError(f"cannot encode {message.name} from {dict(values)}: {err}") from err
         return can.Message(
             arbitration_id=message.frame_id, is_extended_id=True, data=data, dlc=message.length
         )
+
+    def decode_fast(self, msg: can.Message) -> VescFrame:
+        """``decode`` for a peer that trusts its bus (the simulated controllers): the same id and length
+        checks, the payload unpacked by the precomputed packer (a fixed-layout payload of the right length
+        decodes to the same numbers either way; a test compares them)."""
+        packer = self._packers_by_id.get(msg.arbitration_id)
+        entry = self._by_id.get(msg.arbitration_id)
+        if (
+            packer is None
+            or entry is None
+            or not msg.is_extended_id
+            or msg.is_remote_frame
+            or msg.dlc != packer.message.length
+            or len(msg.data) != packer.message.length
+        ):
+            return self.decode(msg)  # the strict path names whatever is wrong
+        kind, cid, _ = entry
+        return VescFrame(kind, cid, packer.unpack(bytes(msg.data)))
 
     def decode(self, msg: can.Message) -> VescFrame:
         """Strictly decode a received frame; raises ``FrameError`` with a ``reason`` on anything odd."""
