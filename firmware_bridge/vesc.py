@@ -154,8 +154,9 @@ class VescCodec:
         precomputed packer gives the bytes cantools' ``encode(values, strict=False)`` gives (a test
         compares them on random values) in about a fifth of the time; messages without one use cantools.
         """
-        message = self._message(kind, controller_id)
-        packer = self._packers[(kind, controller_id)]
+        packer = self._packers.get((kind, controller_id))
+        # Without a packer: cantools, or the error naming an unknown kind or controller.
+        message = self._message(kind, controller_id) if packer is None else packer.message
         try:
             data = message.encode(dict(values), strict=False) if packer is None else packer.pack(values)
         except (cantools.database.EncodeError, KeyError, ValueError, TypeError) as err:

@@ -1,3 +1,5 @@
+import dataclasses
+
 import can
 import pytest
 
@@ -98,6 +100,16 @@ def test_readings_are_copies(buses):
     link = make_link(buses[0])
     link.readings()[0].erpm = 99.0
     assert link.readings()[0].erpm == 0.0
+
+
+def test_readings_copy_every_field(buses):
+    link = make_link(buses[0])
+    # Every field set to a value no default has, so a field the copy forgets shows up as a difference.
+    for index, reading in enumerate(link._readings):
+        for number, field in enumerate(dataclasses.fields(reading)):
+            setattr(reading, field.name, 1000 * index + number + 1)
+    assert link.readings() == link._readings
+    assert all(copy is not original for copy, original in zip(link.readings(), link._readings, strict=True))
 
 
 def test_close_sends_zero_once_then_shuts_down_and_is_idempotent(buses):
