@@ -40,6 +40,8 @@ class FramePacker:
         self._struct = struct.Struct(layout)
         self._to_raw = tuple(signal.conversion.numeric_scaled_to_raw for signal in signals)
         self._to_scaled = tuple(signal.conversion.raw_to_scaled for signal in signals)
+        # Identity conversions return the raw integer itself: float() alone gives cantools' number.
+        self._identity = tuple(isinstance(signal.conversion, IdentityConversion) for signal in signals)
 
     @classmethod
     def for_message(cls, message: cantools.database.can.Message) -> FramePacker | None:
@@ -85,6 +87,8 @@ class FramePacker:
         """Signal name -> physical value (a float) for data of exactly the message's length."""
         raws = self._struct.unpack(data)
         return {
-            name: float(to_scaled(raw, False))
-            for name, to_scaled, raw in zip(self.names, self._to_scaled, raws, strict=True)
+            name: float(raw if identity else to_scaled(raw, False))
+            for name, to_scaled, identity, raw in zip(
+                self.names, self._to_scaled, self._identity, raws, strict=True
+            )
         }
