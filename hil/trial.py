@@ -123,6 +123,7 @@ def run_trial(
                         "onboard": stack,
                         "can_link": can_link,
                         "mavlink_link": mavlink,
+                        "encoding": sink if isinstance(sink, FanoutSink) else None,
                         "recorder": recorder,
                         "telemetry": telemetry,
                         "world": world,

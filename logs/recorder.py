@@ -5,23 +5,23 @@ channel (``json`` message encoding) the first time it is published. ``log_time``
 both come from the caller's clock; sequence numbers count per channel from 0.
 
 ``publish`` sits on the simulator's hot path (thousands of calls per simulated second), so it does one
-dict lookup, one ``json.dumps`` and one ``add_message``; the slow path (NaN repair, registration) runs
-only when needed.
+dict lookup, one ``encode_message`` and one ``add_message``; the slow path (NaN repair, registration) runs
+only when needed. ``publish_encoded`` takes bytes already encoded (a ``FanoutSink`` encodes each message
+once for the recorder and the live stream). ``encode_message`` lives in ``logs.encoding``.
 """
 
 from __future__ import annotations
 
 import json
 import logging
-import math
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, BinaryIO
-
-from mcap.writer import CompressionType, Writer
+from typing import BinaryIO
 
 from logs.closing import ClosesOnExit
+from logs.encoding import encode_message
 from logs.errors import RecordingError
+from logs.mcap_writer import ChunkedMcapWriter
 from logs.sink import Message
 from logs.topics import spec
 
@@ -31,52 +31,13 @@ SCHEMA_ENCODING = "jsonschema"
 MESSAGE_ENCODING = "json"
 LIBRARY = "rover-stack logs"
 
-_COMPRESSIONS = {"zstd": CompressionType.ZSTD, "none": CompressionType.NONE}
+_COMPRESSIONS = {"zstd": "zstd", "none": ""}  # our name -> the MCAP chunk record's
 # Crash budget: a chunk is closed and pushed to the OS once it spans this much log time, so SIGKILL or a
 # power cut loses at most about one second. At the lockstep trial's ~80 kB per simulated second the size
 # limit below alone would hold ~3 s, so the time limit is what bounds the loss.
 DEFAULT_CHUNK_DURATION_NS = 1_000_000_000
 DEFAULT_CHUNK_SIZE = 256 * 1024
 _SEQUENCE_MODULO = 2**32  # MCAP sequence numbers are uint32
-
-
-def _json_default(value: Any) -> Any:
-    # numpy scalars and arrays have tolist(); anything else is a caller bug worth a clear error.
-    tolist = getattr(value, "tolist", None)
-    if tolist is not None:
-        return tolist()
-    raise TypeError(f"{type(value).__name__} value {value!r} is not JSON-serialisable")
-
-
-def _finite(value: Any) -> Any:
-    """A copy of ``value`` with every NaN / infinity replaced by ``None`` (JSON null)."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {key: _finite(item) for key, item in value.items()}
-    if isinstance(value, list | tuple):
-        return [_finite(item) for item in value]
-    tolist = getattr(value, "tolist", None)
-    if tolist is not None:
-        return _finite(tolist())
-    return value
-
-
-def encode_message(message: Message) -> bytes:
-    """Compact JSON bytes of ``message``; NaN and +/-inf become ``null`` (JSON has no NaN).
-
-    The common case is a single ``json.dumps``. Only a message holding a non-finite float pays for a
-    second pass. Raises ``TypeError`` for values JSON cannot hold and ``ValueError`` for circular data.
-    """
-    try:
-        return json.dumps(message, separators=(",", ":"), allow_nan=False, default=_json_default).encode()
-    except ValueError:
-        pass  # a non-finite float (or a cycle, which the second pass reports)
-    try:
-        repaired = _finite(message)
-    except RecursionError as err:
-        raise ValueError("message is circular or nested too deeply to encode as JSON") from err
-    return json.dumps(repaired, separators=(",", ":"), allow_nan=False, default=_json_default).encode()
 
 
 class McapRecorder(ClosesOnExit):
@@ -127,7 +88,11 @@ class McapRecorder(ClosesOnExit):
             self.name = str(getattr(output, "name", "<stream>"))
             stream = output
         self._stream = stream
-        self._writer = Writer(stream, chunk_size=chunk_size, compression=_COMPRESSIONS[compression])
+        # Our writer, not the mcap library's: the same file layout (a test compares the bytes), a quarter
+        # of the cost per message (logs.mcap_writer).
+        self._writer = ChunkedMcapWriter(
+            stream, chunk_size=chunk_size, compression=_COMPRESSIONS[compression]
+        )
         # topic -> [channel id, next sequence number]; a list so publish() updates it in place.
         self._channels: dict[str, list[int]] = {}
         self._schema_ids: dict[tuple[str, bytes], int] = {}
@@ -139,6 +104,14 @@ class McapRecorder(ClosesOnExit):
 
     # --- MessageSink ---------------------------------------------------------------------------
     def publish(self, topic: str, log_time_ns: int, message: Message) -> None:
+        try:
+            data = encode_message(message)
+        except (TypeError, ValueError) as err:
+            raise RecordingError(f"{topic} at {log_time_ns} ns: message cannot be encoded: {err}") from err
+        self.publish_encoded(topic, log_time_ns, message, data)
+
+    def publish_encoded(self, topic: str, log_time_ns: int, message: Message, data: bytes) -> None:
+        """Record ``data``, which is ``encode_message(message)`` (a ``FanoutSink`` encodes once for all)."""
         entry = self._channels.get(topic)
         if entry is None:
             entry = self._register(topic)
@@ -146,20 +119,10 @@ class McapRecorder(ClosesOnExit):
             raise RecordingError(f"recorder {self.name} is closed; cannot record {topic!r}")
         if not isinstance(log_time_ns, int) or log_time_ns < 0:
             raise RecordingError(f"{topic}: log_time_ns must be a non-negative int, got {log_time_ns!r}")
-        try:
-            data = encode_message(message)
-        except (TypeError, ValueError) as err:
-            raise RecordingError(f"{topic} at {log_time_ns} ns: message cannot be encoded: {err}") from err
         sequence = entry[1]
         entry[1] = (sequence + 1) % _SEQUENCE_MODULO
         try:
-            self._writer.add_message(
-                channel_id=entry[0],
-                log_time=log_time_ns,
-                data=data,
-                publish_time=log_time_ns,
-                sequence=sequence,
-            )
+            self._writer.add_message(entry[0], log_time_ns, data, log_time_ns, sequence)
         except OSError as err:
             raise RecordingError(f"cannot write to {self.name}: {err}") from err
         self.message_count += 1

@@ -8,9 +8,11 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Protocol, cast
 
-Message = dict[str, Any]
+from logs.encoding import EncodedSink, Message, encode_message
+
+__all__ = ["FanoutSink", "MemorySink", "Message", "MessageSink", "NullSink"]
 
 
 class MessageSink(Protocol):
@@ -38,11 +40,35 @@ class MemorySink:
 
 
 class FanoutSink:
-    """Publishes every message to each of several sinks, in the order given."""
+    """Publishes every message to each of several sinks, in the order given.
+
+    The recorder and the live stream carry the same bytes, so the message is encoded once and those bytes
+    go to every sink that takes them (``EncodedSink``); other sinks get the message itself. A message
+    that cannot be encoded goes to every sink as is, so each reports it in its own words.
+    """
 
     def __init__(self, sinks: Iterable[MessageSink]) -> None:
-        self._sinks = tuple(sinks)
+        # (sink, takes bytes). The method is looked up per call, not bound here, so a benchmark that wraps
+        # a sink's methods after wiring (``rover bench hil``) still sees every call.
+        self._sinks = tuple((sink, isinstance(sink, EncodedSink)) for sink in sinks)
+        self._any_encoded = any(encoded for _, encoded in self._sinks)
 
     def publish(self, topic: str, log_time_ns: int, message: Message) -> None:
-        for sink in self._sinks:
-            sink.publish(topic, log_time_ns, message)
+        data: bytes | None = None
+        if self._any_encoded:
+            try:
+                data = encode_message(message)
+            except (TypeError, ValueError):
+                data = None
+        if data is None:
+            for sink, _ in self._sinks:
+                sink.publish(topic, log_time_ns, message)
+            return
+        self.publish_encoded(topic, log_time_ns, message, data)
+
+    def publish_encoded(self, topic: str, log_time_ns: int, message: Message, data: bytes) -> None:
+        for sink, encoded in self._sinks:
+            if encoded:
+                cast(EncodedSink, sink).publish_encoded(topic, log_time_ns, message, data)
+            else:
+                sink.publish(topic, log_time_ns, message)

@@ -24,8 +24,8 @@ from typing import Any
 
 import zenoh
 
+from logs.encoding import encode_message
 from logs.errors import TelemetryError, TelemetrySetupError
-from logs.recorder import encode_message
 from logs.settings import Table
 from logs.sink import Message
 from logs.topics import TOPICS
@@ -170,6 +170,14 @@ class ZenohTelemetry:
         self.failures = 0
 
     def publish(self, topic: str, log_time_ns: int, message: Message) -> None:
+        try:
+            payload = encode_message(message)
+        except (TypeError, ValueError) as err:
+            raise TelemetryError(f"{topic} at {log_time_ns} ns: message cannot be encoded: {err}") from err
+        self.publish_encoded(topic, log_time_ns, message, payload)
+
+    def publish_encoded(self, topic: str, log_time_ns: int, message: Message, data: bytes) -> None:
+        """Put ``data`` (``encode_message(message)``, shared with the recorder by a ``FanoutSink``)."""
         if self._closed:
             raise TelemetryError(f"telemetry {self._prefix} is closed; cannot publish {topic!r}")
         publisher = self._publishers.get(topic)
@@ -178,11 +186,7 @@ class ZenohTelemetry:
             if publisher is None:
                 return
         try:
-            payload = encode_message(message)
-        except (TypeError, ValueError) as err:
-            raise TelemetryError(f"{topic} at {log_time_ns} ns: message cannot be encoded: {err}") from err
-        try:
-            publisher.put(payload, attachment=_LOG_TIME.pack(log_time_ns))
+            publisher.put(data, attachment=_LOG_TIME.pack(log_time_ns))
         except (zenoh.ZError, struct.error) as err:
             self._failed("put on %s failed: %s", topic, err)
             return

@@ -18,6 +18,7 @@ from collections.abc import Mapping
 
 import zenoh
 
+from logs.encoding import EncodedSink
 from logs.errors import LogsError, TelemetrySetupError
 from logs.recorder import McapRecorder
 from logs.sink import Message, MessageSink
@@ -40,19 +41,33 @@ class RateLimitedSink:
             if not math.isfinite(rate) or rate <= 0.0:
                 raise TelemetrySetupError(f"telemetry rate for {topic} must be > 0 Hz, got {rate!r}")
         self._sink = sink
+        self._sink_encoded = sink if isinstance(sink, EncodedSink) else None
         self._period_ns = {topic: int(1e9 / rate) for topic, rate in rates_hz.items()}
         self._next_ns: dict[str, int] = {}
         self.dropped = 0
 
     def publish(self, topic: str, log_time_ns: int, message: Message) -> None:
+        if self._due(topic, log_time_ns):
+            self._sink.publish(topic, log_time_ns, message)
+
+    def publish_encoded(self, topic: str, log_time_ns: int, message: Message, data: bytes) -> None:
+        """As ``publish``, passing the already encoded bytes on when the sink behind takes them."""
+        if not self._due(topic, log_time_ns):
+            return
+        if self._sink_encoded is not None:
+            self._sink_encoded.publish_encoded(topic, log_time_ns, message, data)
+        else:
+            self._sink.publish(topic, log_time_ns, message)
+
+    def _due(self, topic: str, log_time_ns: int) -> bool:
         period = self._period_ns.get(topic)
         if period is not None:
             due = self._next_ns.get(topic)
             if due is not None and log_time_ns < due:
                 self.dropped += 1
-                return
+                return False
             self._next_ns[topic] = log_time_ns + period
-        self._sink.publish(topic, log_time_ns, message)
+        return True
 
 
 class StreamRecorder:

@@ -31,6 +31,7 @@ def run_bench_command(args: argparse.Namespace) -> int:
     from hil.bench import run_bench
     from hil.scenario import load_scenario
     from logs.telemetry import ZenohSettings, ZenohTelemetry, open_session
+    from logs.telemetry_station import rate_limited
     from rover_cli.hil_commands import load_config
 
     console = Console()
@@ -54,33 +55,56 @@ def run_bench_command(args: argparse.Namespace) -> int:
             telemetry.close()
             session.close()
 
-        return telemetry, close
+        # As `rover hil trial` publishes: thinned to the config's [zenoh.rates] (the MCAP keeps everything).
+        return rate_limited(telemetry, config.zenoh.rates_hz), close
 
     report = run_bench(scenario, config, telemetry_factory=telemetry_factory, one_core=not args.all_cores)
     figures = report.as_dict()
     if args.json:
         print(json.dumps(figures, indent=2))
         return 0
+    goal = figures["goal_real_time_factor"]
     peers = RichTable(title=f"rover bench hil: {scenario.name}, {figures['simulated_s']} s simulated")
-    peers.add_column("peer")
-    peers.add_column("wall (s)", justify="right")
+    peers.add_column("peer / baseline", no_wrap=True)
+    peers.add_column("wall s", justify="right")
     peers.add_column("real-time factor", justify="right")
+    peers.add_column("CPU s", justify="right")
+    peers.add_column("on CPU time", justify="right")
+    peers.add_column("of goal", justify="right", no_wrap=True)
     for name, factor in figures["real_time_factor"].items():
-        peers.add_row(name, f"{figures['wall_s'][name]:.2f}", f"{factor:.1f}x")
+        peers.add_row(
+            name,
+            f"{figures['wall_s'][name]:.2f}",
+            f"{factor:.1f}x",
+            f"{figures['cpu_s'][name]:.2f}",
+            f"{figures['cpu_real_time_factor'][name]:.1f}x",
+            f"{100.0 * factor / goal:.0f} %",
+        )
+    for name, (low, high) in figures["named_baselines"].items():
+        span = f"<= {high:.0f}x" if low == 0 else f"{low:.0f}-{high:.0f}x"
+        peers.add_row(f"[dim]{name}[/dim]", "", f"[dim]{span}[/dim]", "", "", "[dim]elsewhere[/dim]")
+    peers.add_row("[bold]goal[/bold]", "", f"[bold]{goal:.0f}x[/bold]", "", "", "100 %")
     console.print(peers)
     breakdown = RichTable(title="per component (instrumented run, exclusive time)")
-    breakdown.add_column("component")
+    breakdown.add_column("component", no_wrap=True)
     breakdown.add_column("s", justify="right")
     breakdown.add_column("%", justify="right")
     breakdown.add_column("calls", justify="right")
+    breakdown.add_column("us/call", justify="right")
     for entry in figures["breakdown"].values():
+        per_call = 1e6 * entry["seconds"] / entry["calls"] if entry["calls"] else 0.0
         breakdown.add_row(
-            entry["what"], f"{entry['seconds']:.3f}", f"{entry['share_pct']:.1f}", str(entry["calls"])
+            entry["what"],
+            f"{entry['seconds']:.3f}",
+            f"{entry['share_pct']:.1f}",
+            str(entry["calls"]),
+            f"{per_call:.1f}",
         )
     console.print(breakdown)
     console.print(
         f"metrics from the MCAP afterwards: {figures['metrics_from_mcap_s']:.3f} s; "
-        f"pinned to CPU {figures['cpu']}; Zenoh {'on' if figures['zenoh'] else 'off'}; "
-        f"goal {figures['goal_real_time_factor']:.0f}x"
+        f"instrumented run {figures['instrumented_wall_s']:.2f} s wall (timers add overhead); "
+        f"untimed warm-up {figures['warmup_wall_s']:.2f} s; "
+        f"pinned to CPU {figures['cpu']}; Zenoh {'on' if figures['zenoh'] else 'off'}"
     )
     return 0

@@ -1,9 +1,13 @@
+import dataclasses
+import random
+
 import can
 import pytest
 
-from firmware_bridge.can_link import CanConfig, CanLink, open_bus
+from firmware_bridge.can_link import CanConfig, CanLink, _frame_json, _frame_record, open_bus
 from firmware_bridge.errors import BridgeOperationError, BridgeSetupError
 from logs.clock import SimClock
+from logs.encoding import encode_message
 from logs.settings import ConfigError, parse_toml
 from logs.sink import MemorySink
 from logs.topics import CAN_FRAMES, WHEELS_STATUS
@@ -100,6 +104,16 @@ def test_readings_are_copies(buses):
     assert link.readings()[0].erpm == 0.0
 
 
+def test_readings_copy_every_field(buses):
+    link = make_link(buses[0])
+    # Every field set to a value no default has, so a field the copy forgets shows up as a difference.
+    for index, reading in enumerate(link._readings):
+        for number, field in enumerate(dataclasses.fields(reading)):
+            setattr(reading, field.name, 1000 * index + number + 1)
+    assert link.readings() == link._readings
+    assert all(copy is not original for copy, original in zip(link.readings(), link._readings, strict=True))
+
+
 def test_close_sends_zero_once_then_shuts_down_and_is_idempotent(buses):
     ours, theirs = buses
     with make_link(ours) as link:
@@ -136,3 +150,38 @@ def test_open_bus_wraps_python_can_errors():
     # This machine has no SocketCAN at all; elsewhere the interface name does not exist. Either way:
     with pytest.raises(BridgeSetupError, match="socketcan:no-such-can9"):
         open_bus(CanConfig(interface="socketcan", channel="no-such-can9"))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_preformatted_frame_record_is_the_json_encoders_bytes(seed):
+    rng = random.Random(seed)
+    for _ in range(500):
+        extended = rng.random() < 0.8
+        dlc = rng.randrange(9)
+        msg = can.Message(
+            arbitration_id=rng.randrange(1 << (29 if extended else 11)),
+            is_extended_id=extended,
+            data=rng.randbytes(dlc),
+            dlc=dlc,
+        )
+        t_ns = rng.choice([0, rng.randrange(10**15)])
+        direction = rng.choice(["rx", "tx"])
+        assert _frame_json(t_ns, direction, msg) == encode_message(_frame_record(t_ns, direction, msg))
+
+
+def test_an_encoding_sink_gets_the_same_frame_records(buses):
+    class BytesSink(MemorySink):
+        def __init__(self):
+            super().__init__()
+            self.data = []
+
+        def publish_encoded(self, topic, log_time_ns, message, data):
+            self.data.append((topic, data))
+            self.publish(topic, log_time_ns, message)
+
+    sink = BytesSink()
+    link = CanLink(buses[0], make_codec(), SimClock(), sink)
+    link.send_wheel_speeds([0.5] * 6)
+    frames = [(t, m) for t, _, m in sink.records if t == CAN_FRAMES]
+    assert len(frames) == 6
+    assert [d for t, d in sink.data if t == CAN_FRAMES] == [encode_message(m) for _, m in frames]

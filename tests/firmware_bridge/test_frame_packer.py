@@ -1,0 +1,131 @@
+"""The hot-path frame packer gives cantools' bytes and values, and declines layouts it cannot express."""
+
+from __future__ import annotations
+
+import random
+
+import can
+import cantools
+import pytest
+
+from firmware_bridge.errors import FrameError
+from firmware_bridge.frame_packer import FramePacker
+from firmware_bridge.vesc_dbc import VESC_MESSAGES, message_name
+from tests.firmware_bridge.virtual_can import make_codec
+
+
+def _random_in_range(rng: random.Random, signal: cantools.database.can.Signal) -> float:
+    """A physical value whose raw value fits the field, sometimes exactly on its edges."""
+    bits = signal.length
+    low, high = (-(1 << (bits - 1)), (1 << (bits - 1)) - 1) if signal.is_signed else (0, (1 << bits) - 1)
+    raw = rng.choice([low, high, 0, -1 if signal.is_signed else 1, rng.randint(low, high)])
+    value = raw * signal.conversion.scale + signal.conversion.offset
+    # Off the raw grid by up to 0.49 steps (rounding is cantools', to the last bit), kept inside the field.
+    nudge = rng.uniform(-0.49, 0.49) * signal.conversion.scale
+    return float(value + nudge) if low < raw < high else float(value)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_packer_bytes_equal_cantools_bytes_for_random_values(seed: int) -> None:
+    rng = random.Random(seed)
+    codec = make_codec()
+    for spec in VESC_MESSAGES:
+        message = codec.database.get_message_by_name(message_name(spec.kind, 1))
+        packer = FramePacker.for_message(message)
+        assert packer is not None, f"{message.name} should have a plain layout"
+        for _ in range(300):
+            values = {signal.name: _random_in_range(rng, signal) for signal in message.signals}
+            expected = message.encode(values, strict=False)
+            assert packer.pack(values) == expected, values
+            frame = codec.encode_in_range(spec.kind, 1, values)
+            assert bytes(frame.data) == expected and frame.dlc == message.length
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_fast_decode_equals_strict_decode_for_random_payloads(seed: int) -> None:
+    rng = random.Random(seed)
+    codec = make_codec()
+    for spec in VESC_MESSAGES:
+        message = codec.database.get_message_by_name(message_name(spec.kind, 4))
+        for _ in range(300):
+            data = bytes(rng.randrange(256) for _ in range(message.length))
+            msg = can.Message(arbitration_id=message.frame_id, is_extended_id=True, data=data)
+            assert codec.decode_fast(msg) == codec.decode(msg)
+
+
+def test_out_of_range_values_take_the_cantools_path() -> None:
+    codec = make_codec()
+    message = codec.database.get_message_by_name(message_name("STATUS", 2))
+    packer = FramePacker.for_message(message)
+    assert packer is not None
+    values = {"erpm": 3e9, "current": 1.0, "duty": 0.5}  # erpm beyond int32
+    with pytest.raises(OverflowError):  # what cantools (bitstruct) does with it ...
+        message.encode(values, strict=False)
+    with pytest.raises(OverflowError):  # ... the packer does too
+        packer.pack(values)
+
+
+def test_set_rpm_goes_through_the_packer_with_the_same_bytes() -> None:
+    codec = make_codec()
+    message = codec.database.get_message_by_name(message_name("SET_RPM", 5))
+    for erpm in (0, 1, -1, 1234.5, -98765.4, 2**31 - 1, -(2**31), 1e12, -1e12):
+        expected = message.encode({"erpm": max(-(2**31), min(2**31 - 1, round(erpm)))})
+        assert bytes(codec.encode_set_rpm(5, erpm).data) == expected
+
+
+def test_fast_decode_keeps_the_strict_checks() -> None:
+    codec = make_codec()
+    status_id = (9 << 8) | 1
+    with pytest.raises(FrameError) as wrong_dlc:
+        codec.decode_fast(can.Message(arbitration_id=status_id, is_extended_id=True, data=b"\x00" * 4))
+    assert wrong_dlc.value.reason == "wrong_dlc"
+    with pytest.raises(FrameError) as unknown:
+        codec.decode_fast(can.Message(arbitration_id=(9 << 8) | 99, is_extended_id=True, data=b"\x00" * 8))
+    assert unknown.value.reason == "unknown_id"
+    with pytest.raises(FrameError) as standard:
+        codec.decode_fast(can.Message(arbitration_id=0x101, is_extended_id=False, data=b"\x00" * 8))
+    assert standard.value.reason == "not_extended"
+
+
+DBC_WITH_ODD_LAYOUTS = """VERSION ""
+
+NS_ :
+
+BS_:
+
+BU_: A B
+
+BO_ 2147483905 LITTLE: 8 A
+ SG_ value : 0|32@1- (1,0) [0|0] "" B
+
+BO_ 2147483906 UNALIGNED: 8 A
+ SG_ value : 3|12@0- (1,0) [0|0] "" B
+
+BO_ 2147483907 FLOATING: 8 A
+ SG_ value : 7|32@0- (1,0) [0|0] "" B
+
+BO_ 2147483908 PLAIN: 8 A
+ SG_ first : 7|16@0+ (0.5,-3) [0|0] "" B
+ SG_ second : 39|8@0- (2,0) [0|0] "" B
+
+SIG_VALTYPE_ 2147483907 value : 1;
+"""
+
+
+def test_layouts_struct_cannot_express_are_declined() -> None:
+    database = cantools.database.load_string(DBC_WITH_ODD_LAYOUTS, database_format="dbc")
+    assert isinstance(database, cantools.database.can.Database)
+    for name in ("LITTLE", "UNALIGNED", "FLOATING"):
+        assert FramePacker.for_message(database.get_message_by_name(name)) is None, name
+    plain = database.get_message_by_name("PLAIN")
+    packer = FramePacker.for_message(plain)
+    assert packer is not None
+    rng = random.Random(7)
+    for _ in range(200):
+        values = {signal.name: _random_in_range(rng, signal) for signal in plain.signals}
+        assert packer.pack(values) == plain.encode(values, strict=False)
+        data = bytes(rng.randrange(256) for _ in range(8))
+        decoded = plain.decode(data, decode_choices=False)
+        assert isinstance(decoded, dict)
+        assert all(isinstance(value, int | float) for value in decoded.values())
+        assert packer.unpack(data) == {key: float(value) for key, value in decoded.items()}  # type: ignore[arg-type]

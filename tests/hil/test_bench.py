@@ -1,0 +1,66 @@
+"""``rover bench hil``'s bookkeeping: exclusive timing, encoded-sink timing and the report's figures."""
+
+from __future__ import annotations
+
+import time
+
+from hil.bench import GOAL_REAL_TIME_FACTOR, NAMED_BASELINES, BenchReport, ExclusiveTimer, PeerFigure
+from logs.sink import FanoutSink, MemorySink, Message
+
+
+class _Sleeper:
+    def __init__(self, inner: _Sleeper | None = None) -> None:
+        self.inner = inner
+
+    def step(self) -> None:
+        time.sleep(0.02)
+        if self.inner is not None:
+            self.inner.step()
+
+
+def test_nested_calls_count_once_for_their_own_component() -> None:
+    timer = ExclusiveTimer()
+    inner = _Sleeper()
+    outer = _Sleeper(inner)
+    timer.instrument({"onboard": outer, "dynamics": inner})
+    outer.step()
+    assert timer.calls == {"onboard": 1, "dynamics": 1}
+    # Each slept 20 ms itself; the outer one does not also carry the inner one's 20 ms.
+    assert 0.015 < timer.totals_s["onboard"] < timer.totals_s["dynamics"] + 0.015
+
+
+class _EncodedMemory(MemorySink):
+    def publish_encoded(self, topic: str, log_time_ns: int, message: Message, data: bytes) -> None:
+        time.sleep(0.01)
+        self.publish(topic, log_time_ns, message)
+
+
+def test_sinks_wired_before_instrumenting_are_still_timed() -> None:
+    recorder, telemetry = _EncodedMemory(), _EncodedMemory()
+    fanout = FanoutSink([recorder, telemetry])  # wired first, as run_trial does
+    timer = ExclusiveTimer()
+    timer.instrument({"encoding": fanout, "recorder": recorder, "telemetry": telemetry})
+    fanout.publish("log", 0, {"a": 1})
+    assert timer.calls == {"encoding": 1, "recorder": 1, "telemetry": 1}
+    assert timer.totals_s["encoding"] < timer.totals_s["recorder"]
+
+
+def test_report_gives_wall_and_cpu_factors_against_the_goal_and_baselines() -> None:
+    report = BenchReport(
+        scenario="s",
+        cpu=0,
+        zenoh=True,
+        peers=(PeerFigure("lockstep", 2.0, 40.0, cpu_s=1.0), PeerFigure("world-only", 0.5, 40.0, cpu_s=0.4)),
+        breakdown_s={"onboard": 0.3, "dynamics": 0.1},
+        breakdown_calls={"onboard": 10, "dynamics": 20},
+        instrumented_wall_s=2.5,
+        metrics_s=0.2,
+        simulated_s=40.0,
+        warmup_s=0.3,
+    )
+    figures = report.as_dict()
+    assert figures["real_time_factor"] == {"lockstep": 20.0, "world-only": 80.0}
+    assert figures["cpu_real_time_factor"] == {"lockstep": 40.0, "world-only": 100.0}
+    assert figures["goal_real_time_factor"] == GOAL_REAL_TIME_FACTOR
+    assert figures["named_baselines"] == {name: list(span) for name, span in NAMED_BASELINES.items()}
+    assert [entry["share_pct"] for entry in figures["breakdown"].values()] == [75.0, 25.0]

@@ -1,0 +1,102 @@
+"""One encoding per message: the reusable encoder matches ``json.dumps``, and a fanout shares its bytes."""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import random
+from typing import Any
+
+import numpy as np
+import pytest
+
+from logs.encoding import encode_message
+from logs.errors import RecordingError
+from logs.recorder import McapRecorder
+from logs.sink import FanoutSink, MemorySink, Message
+from logs.telemetry_station import RateLimitedSink
+from logs.topics import CAN_FRAMES, LOG
+
+
+def _random_value(rng: random.Random, depth: int = 0) -> Any:
+    kind = rng.randrange(7 if depth < 3 else 5)
+    if kind == 0:
+        return rng.uniform(-1e6, 1e6) * 10 ** rng.randint(-12, 12)
+    if kind == 1:
+        return rng.randint(-(2**40), 2**40)
+    if kind == 2:
+        return "".join(rng.choice('ab"\\\n\u00e9\u2603 /') for _ in range(rng.randrange(8)))
+    if kind == 3:
+        return rng.choice([True, False, None])
+    if kind == 4:
+        return rng.choice([0.1, -0.0, 1e-300, 5e-324, 1.7976931348623157e308, 25.200000000000003])
+    if kind == 5:
+        return [_random_value(rng, depth + 1) for _ in range(rng.randrange(5))]
+    return {f"k{i}": _random_value(rng, depth + 1) for i in range(rng.randrange(5))}
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_encoder_gives_the_bytes_json_dumps_gives(seed: int) -> None:
+    rng = random.Random(seed)
+    for _ in range(200):
+        message = {"timestamp": {"sec": 1, "nsec": 2}, "value": _random_value(rng)}
+        expected = json.dumps(message, separators=(",", ":"), allow_nan=False).encode()
+        assert encode_message(message) == expected
+
+
+def test_encoder_can_be_reused_after_a_failed_message() -> None:
+    with pytest.raises(TypeError):
+        encode_message({"a": {"b": object()}})
+    assert encode_message({"a": {"b": [math.inf, np.float64(1.5)]}}) == b'{"a":{"b":[null,1.5]}}'
+    assert encode_message({"a": 1}) == b'{"a":1}'
+
+
+def test_circular_message_is_a_value_error() -> None:
+    message: dict[str, Any] = {}
+    message["self"] = message
+    with pytest.raises(ValueError, match="circular"):
+        encode_message(message)
+
+
+class _CountingEncodedSink(MemorySink):
+    """A sink that takes encoded bytes, keeping them next to the message."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.data: list[bytes] = []
+
+    def publish_encoded(self, topic: str, log_time_ns: int, message: Message, data: bytes) -> None:
+        self.data.append(data)
+        self.publish(topic, log_time_ns, message)
+
+
+def test_fanout_encodes_once_and_shares_the_bytes(monkeypatch: pytest.MonkeyPatch) -> None:
+    import logs.sink
+
+    calls = []
+
+    def counting(message: Message) -> bytes:
+        calls.append(message)
+        return encode_message(message)
+
+    monkeypatch.setattr(logs.sink, "encode_message", counting)
+    first, second, plain = _CountingEncodedSink(), _CountingEncodedSink(), MemorySink()
+    limited = RateLimitedSink(second, {CAN_FRAMES: 10.0})
+    fanout = FanoutSink([first, limited, plain])
+    for tick in range(10):  # 100 Hz for 0.1 s: the rate limit passes the first only
+        fanout.publish(CAN_FRAMES, tick * 10_000_000, {"i": tick, "x": 0.5})
+    assert len(calls) == 10
+    assert first.data == [encode_message({"i": tick, "x": 0.5}) for tick in range(10)]
+    assert second.data == first.data[:1] and limited.dropped == 9
+    assert [m for _, _, m in plain.records] == [{"i": tick, "x": 0.5} for tick in range(10)]
+
+
+def test_fanout_lets_each_sink_report_a_message_it_cannot_encode() -> None:
+    recorder = McapRecorder(io.BytesIO())
+    memory = MemorySink()
+    fanout = FanoutSink([memory, recorder])
+    with pytest.raises(RecordingError, match="cannot be encoded"):
+        fanout.publish(LOG, 0, {"bad": object()})
+    assert len(memory.records) == 1
+    recorder.close()
