@@ -18,10 +18,11 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import BinaryIO
 
+from mcap.writer import CompressionType, Writer
+
 from logs.closing import ClosesOnExit
 from logs.encoding import encode_message
 from logs.errors import RecordingError
-from logs.mcap_writer import ChunkedMcapWriter
 from logs.sink import Message
 from logs.topics import spec
 
@@ -31,7 +32,7 @@ SCHEMA_ENCODING = "jsonschema"
 MESSAGE_ENCODING = "json"
 LIBRARY = "rover-stack logs"
 
-_COMPRESSIONS = {"zstd": "zstd", "none": ""}  # our name -> the MCAP chunk record's
+_COMPRESSIONS = {"zstd": CompressionType.ZSTD, "none": CompressionType.NONE}
 # Crash budget: a chunk is closed and pushed to the OS once it spans this much log time, so SIGKILL or a
 # power cut loses at most about one second. At the lockstep trial's ~80 kB per simulated second the size
 # limit below alone would hold ~3 s, so the time limit is what bounds the loss.
@@ -88,11 +89,7 @@ class McapRecorder(ClosesOnExit):
             self.name = str(getattr(output, "name", "<stream>"))
             stream = output
         self._stream = stream
-        # Our writer, not the mcap library's: the same file layout (a test compares the bytes), a quarter
-        # of the cost per message (logs.mcap_writer).
-        self._writer = ChunkedMcapWriter(
-            stream, chunk_size=chunk_size, compression=_COMPRESSIONS[compression]
-        )
+        self._writer = Writer(stream, chunk_size=chunk_size, compression=_COMPRESSIONS[compression])
         # topic -> [channel id, next sequence number]; a list so publish() updates it in place.
         self._channels: dict[str, list[int]] = {}
         self._schema_ids: dict[tuple[str, bytes], int] = {}
@@ -122,7 +119,13 @@ class McapRecorder(ClosesOnExit):
         sequence = entry[1]
         entry[1] = (sequence + 1) % _SEQUENCE_MODULO
         try:
-            self._writer.add_message(entry[0], log_time_ns, data, log_time_ns, sequence)
+            self._writer.add_message(
+                channel_id=entry[0],
+                log_time=log_time_ns,
+                data=data,
+                publish_time=log_time_ns,
+                sequence=sequence,
+            )
         except OSError as err:
             raise RecordingError(f"cannot write to {self.name}: {err}") from err
         self.message_count += 1
