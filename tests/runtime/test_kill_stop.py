@@ -29,8 +29,9 @@ from tests.system.realtime_rig import (
 
 COMMAND_TIMEOUT_S = 0.5  # hil.vesc_sim.SimVescBank's default
 STATUS_PERIOD_S = 0.02  # 50 Hz STATUS
-# The peer ticks at 100 Hz, and on this shared machine a process can be scheduled late by tens of ms.
-SCHEDULING_SLACK_S = 0.06
+# The peer ticks at 100 Hz, and on a loaded 2-core machine a process can be scheduled late by tens of ms
+# (0.094 s over the timeout was seen once with five test jobs running beside it).
+SCHEDULING_SLACK_S = 0.1
 BOUND_S = COMMAND_TIMEOUT_S + STATUS_PERIOD_S + SCHEDULING_SLACK_S
 AT_REST_AFTER_S = 0.3  # six motor time constants (50 ms) after the timeout
 AT_REST_MPS = 0.05
