@@ -26,14 +26,16 @@ def _point(text: str) -> tuple[float, float]:
 def register(families: Any) -> None:
     plan = families.add_parser("plan", help="plan a path on a map and print (or draw) it")
     plan.add_argument(
-        "map", type=Path, help="TOML with a [terrain] table (e.g. a scenario) or an .npy elevation"
+        "map",
+        type=Path,
+        help="TOML with a [terrain] table (e.g. a scenario), an .npy elevation or a .png obstacle image",
     )
     plan.add_argument("--start", type=_point, required=True, help="start X,Y (ENU metres)")
     plan.add_argument("--goal", type=_point, required=True, help="goal X,Y (ENU metres)")
     plan.add_argument("--heuristic", choices=HEURISTICS, default="octile")
     plan.add_argument("--weight", type=float, default=1.0, help="heuristic weight (> 1: bounded suboptimal)")
     plan.add_argument("--cost-mode", choices=COST_MODES, default="terrain")
-    plan.add_argument("--resolution-m", type=float, default=None, help="cell size of an .npy map")
+    plan.add_argument("--resolution-m", type=float, default=None, help="cell size of an .npy / .png map")
     plan.add_argument("--json", action="store_true", help="print the figures as one JSON object")
     plan.add_argument("--png", type=Path, default=None, help="draw the path over the cost map")
     plan.add_argument(
