@@ -9,8 +9,6 @@ wires differ.
 
 from __future__ import annotations
 
-import math
-
 import can
 import numpy as np
 
@@ -28,6 +26,7 @@ from hil.truth import TruthRecorder
 from hil.vesc_sim import SimVescBank
 from logs.clock import Clock
 from logs.sink import MessageSink
+from navigator.footprint import Footprint, disc_gap_m
 from navigator.vehicle import VehicleParams
 
 ELECTRONICS_CURRENT_A = 0.5  # computer, radios and controllers at idle
@@ -103,7 +102,7 @@ class SimWorld:
             y=scenario.start_xy[1],
             yaw=scenario.start_yaw_rad,
         )
-        self._footprint_radius_m = vehicle.footprint_radius_m
+        self._footprint = Footprint.of(vehicle)
         self.battery = Battery()
         self.truth = TruthRecorder(sink, scenario)
         self.perception = PerceptionSim(
@@ -175,7 +174,9 @@ class SimWorld:
                 self.battery.set_sag(sag.sag_v, sag.extra_resistance_ohm)
 
     def _moving_contacts(self, now: int) -> None:
-        """A moving obstacle touching the footprint circle is a collision (reported once per contact)."""
+        """A moving obstacle (a disc) touching the footprint rectangle is a collision (reported once per
+        contact)."""
+        pose = (self.body.x, self.body.y, self.body.yaw)
         for obstacle, (x, y, _vx, _vy) in self.perception.moving_states(now):
-            gap = math.hypot(x - self.body.x, y - self.body.y) - obstacle.radius_m - self._footprint_radius_m
+            gap = disc_gap_m(pose, self._footprint, (x, y), obstacle.radius_m)
             self.truth.on_moving_contact(now, obstacle.id, gap < 0.0, self.body)

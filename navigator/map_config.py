@@ -1,4 +1,4 @@
-"""Terrain maps from a TOML table: the paper's maze matrix, .npy layers, or procedural from a seed.
+"""Terrain maps from a TOML table: the paper's maze matrix, .npy or PNG layers, or procedural from a seed.
 
 Shared by scenario files (the simulator's true world) and the rover config's ``[map]`` (the map the
 navigator believes), so both read terrain the same way with the same errors.
@@ -12,16 +12,17 @@ import numpy as np
 
 from logs.settings import ConfigError, Table
 from navigator.errors import TerrainError
+from navigator.png_layers import load_png_layers
 from navigator.terrain import TerrainMap, from_maze, load_npy_layers, procedural
 from navigator.terrain_classes import class_by_name
 
-TERRAIN_KINDS = ("maze", "procedural", "npy")
+TERRAIN_KINDS = ("maze", "procedural", "npy", "png")
 
 
 def terrain_from_table(table: Table, base_dir: Path) -> tuple[TerrainMap, str]:
     """The terrain a ``[terrain]``-style table describes, and a one-line summary of it.
 
-    Paths of .npy layers are relative to ``base_dir`` (the directory of the file the table came from).
+    Paths of .npy / PNG layers are relative to ``base_dir`` (the directory of the file the table came from).
     """
     kind = table.text("kind", choices=TERRAIN_KINDS)
     try:
@@ -48,6 +49,9 @@ def terrain_from_table(table: Table, base_dir: Path) -> tuple[TerrainMap, str]:
                 class_patch_count=table.integer("class_patch_count", 0, lo=0, hi=1000),
             )
             summary = f"procedural {width:g}x{height:g} m at {resolution} m"
+        elif kind == "png":
+            terrain = _png_terrain(table, base_dir)
+            summary = f"PNG layers {terrain.shape[0]}x{terrain.shape[1]} at {terrain.resolution_m} m"
         else:
             resolution = table.number("resolution_m", lo=0.01, hi=100.0)
 
@@ -66,6 +70,34 @@ def terrain_from_table(table: Table, base_dir: Path) -> tuple[TerrainMap, str]:
         raise ConfigError(table.source, table.prefix, str(err)) from err
     table.finish()
     return terrain, summary
+
+
+def _png_terrain(table: Table, base_dir: Path) -> TerrainMap:
+    """``kind = "png"``: layer paths, the elevation scale, the class table and the obstacle threshold."""
+
+    def layer(key: str) -> Path | None:
+        return base_dir / table.text(key) if table.has(key) else None
+
+    class_values: dict[int, int] = {}
+    if table.has("class_values"):
+        values = table.table("class_values")
+        for key in list(values.keys()):
+            if not key.isdigit() or int(key) > 65535:
+                raise values.error(key, "keys are palette indices or grey levels: whole numbers 0..65535")
+            class_values[int(key)] = _class_id(values, key, "firm")
+        values.finish()
+    return load_png_layers(
+        elevation=layer("elevation"),
+        classes=layer("classes"),
+        obstacles=layer("obstacles"),
+        resolution_m=table.number("resolution_m", lo=0.01, hi=100.0),
+        origin=table.point("origin", [0.0, 0.0]),
+        elevation_scale_m=table.number("elevation_scale_m", 0.01, lo=-1000.0, hi=1000.0),
+        elevation_offset_m=table.number("elevation_offset_m", 0.0, lo=-1e5, hi=1e5),
+        class_values=class_values,
+        obstacle_threshold=table.number("obstacle_threshold", 0.5, lo=1e-6, hi=1.0),
+        base_class=_class_id(table, "class", "firm"),
+    )
 
 
 def _class_id(table: Table, key: str, default: str) -> int:

@@ -20,6 +20,7 @@ from navigator.astar_kernel import MOVES
 from navigator.errors import TerrainError
 from navigator.map_config import terrain_from_table
 from navigator.planner import Planner
+from navigator.png_layers import load_png_layers
 from navigator.terrain import TerrainMap, load_npy_layers
 
 EDGE_MODEL = (
@@ -39,10 +40,14 @@ class PlanReport:
 
 
 def load_map(path: FilePath, resolution_m: float | None) -> TerrainMap:
-    """A TOML file with a ``[terrain]`` table (a scenario qualifies) or an ``.npy`` elevation layer."""
-    if path.suffix == ".npy":
+    """A TOML file with a ``[terrain]`` table (a scenario qualifies), an ``.npy`` elevation layer, or a
+    ``.png`` obstacle image (dark = obstacle, image top = north; the form a drawn maze takes)."""
+    suffix = path.suffix.lower()
+    if suffix in (".npy", ".png"):
         if resolution_m is None:
-            raise TerrainError("an .npy map needs its resolution (--resolution-m)")
+            raise TerrainError(f"a {suffix} map needs its resolution (--resolution-m)")
+        if suffix == ".png":
+            return load_png_layers(obstacles=path, resolution_m=resolution_m)
         return load_npy_layers(elevation=path, resolution_m=resolution_m)
     root = load_toml(path)
     terrain, _ = terrain_from_table(root.table("terrain"), path.parent)

@@ -7,19 +7,34 @@ Two cost modes (``COST_MODES``):
   slope, and moves past the tip-over / climb limits forbidden);
 * ``"classical"``: the paper's baseline, obstacles only: cost 1 everywhere but the inflated obstacles
   (lethal) and the same soft clearance band; no terrain class, slope or direction costs.
+
+Footprint: the cost grid inflates obstacles by a circle (``footprint_inflation``): the ``circumscribed``
+circle (default; pessimistic: it never lets the rectangle touch at a cell centre but blocks squeezing
+lengthwise through a gap narrower than the rover's diagonal) or the ``inscribed`` one (optimistic: it
+lets A* through such gaps but misses the corners). Either way ``plan`` then walks the path with the
+oriented rectangle (``navigator.footprint.first_collision``, heading along the path, turns on the spot at
+corners); where it hits, the move (cell to cell) of the path segment it hit on is forbidden and A* runs again
+(from the same start, same costs, those moves forbidden), up to ``MAX_FOOTPRINT_RETRIES`` times, then
+NoPathError. With the circumscribed circle a hit is rare (the rectangle is inside the circle at every
+cell centre; the exact goal point off its cell centre can touch), so the check costs one walk of the
+path; with the inscribed one, squeezes and turns in tight places can cost several A* runs.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from navigator.astar import HEURISTICS, PlanResult, astar
+from navigator.astar_kernel import MOVES
 from navigator.costs import CostModel
 from navigator.direction_costs import DirectionWeights, direction_factors
-from navigator.errors import PlanningError, TerrainError
+from navigator.errors import NoPathError, PlanningError, TerrainError
+from navigator.footprint import Collision, Footprint, first_collision
 from navigator.replanning import RepairingPlanner
 from navigator.terrain import TerrainMap
 from navigator.terrain_classes import TERRAIN_CLASSES, TerrainClass
@@ -29,6 +44,9 @@ _log = logging.getLogger(__name__)
 
 ESCAPE_RADIUS_M = 1.5
 COST_MODES = ("terrain", "classical")
+FOOTPRINT_INFLATIONS = ("circumscribed", "inscribed")
+MAX_FOOTPRINT_RETRIES = 40
+MOVE_INDEX = {(int(d_row), int(d_col)): index for index, (d_row, d_col) in enumerate(MOVES)}
 
 
 @dataclass(frozen=True)
@@ -37,12 +55,15 @@ class Path:
 
     ``points``: ``(n, 2)`` metres, first the start position, last the goal position, cell centres between.
     ``cost``: the A* cost times the map resolution (cost-weighted metres). ``length_m``: polyline length.
+    ``checked_from_m``: the oriented footprint is clear of obstacles from this distance along the path on;
+    before it the rover gets from where it is to the search's first cell centre (its start is a fact).
     """
 
     points: np.ndarray
     cost: float
     length_m: float
     expanded: int
+    checked_from_m: float = 0.0
 
 
 class Planner:
@@ -61,15 +82,32 @@ class Planner:
         direction_weights: DirectionWeights | None = None,
         heuristic_weight: float = 1.0,
         reuse_goal_field: bool = False,
+        footprint_inflation: str = "circumscribed",
     ) -> None:
-        """``reuse_goal_field``: plan with ``navigator.replanning`` (the goal's cost-to-go field as the
+        """``footprint_inflation``: the circle the cost grid inflates obstacles by (module docstring).
+
+        ``reuse_goal_field``: plan with ``navigator.replanning`` (the goal's cost-to-go field as the
         heuristic, built once per goal and kept while obstacles only add cost): the first plan to a goal
         costs about one full Dijkstra, every later one (new start, new obstacles) a small fraction."""
         if heuristic not in HEURISTICS:
             raise PlanningError(f"unknown heuristic {heuristic!r}; choose one of {', '.join(HEURISTICS)}")
         if cost_mode not in COST_MODES:
             raise PlanningError(f"unknown cost mode {cost_mode!r}; choose one of {', '.join(COST_MODES)}")
+        if footprint_inflation not in FOOTPRINT_INFLATIONS:
+            raise PlanningError(
+                f"unknown footprint inflation {footprint_inflation!r}; choose one of "
+                f"{', '.join(FOOTPRINT_INFLATIONS)}"
+            )
         self._params = params
+        self._footprint = Footprint.of(params)
+        self._inflation_params = params
+        if footprint_inflation == "inscribed":
+            # The cost grid inflates by params.footprint_radius_m (half the rectangle's diagonal); a square
+            # of side r * sqrt(2) has the circumscribed radius r, so this hands it the inscribed circle.
+            side = self._footprint.inscribed_radius_m * math.sqrt(2.0)
+            self._inflation_params = dataclasses.replace(
+                params, footprint_length_m=side, footprint_width_m=side
+            )
         self._classes = classes
         self._heuristic = heuristic
         self._heuristic_weight = heuristic_weight
@@ -117,8 +155,8 @@ class Planner:
                 np.zeros(terrain.shape), np.zeros(terrain.shape, np.uint8), terrain.obstacles,
                 terrain.resolution_m, terrain.origin_xy,
             )  # fmt: skip
-            return self._cost_model.grid(flat, self._params, self._classes)
-        return self._cost_model.grid(terrain, self._params, self._classes)
+            return self._cost_model.grid(flat, self._inflation_params, self._classes)
+        return self._cost_model.grid(terrain, self._inflation_params, self._classes)
 
     def update_obstacles(self, mask: np.ndarray) -> np.ndarray:
         """Add obstacle cells (bool, map shape) and recompute the costs; returns where the cost changed."""
@@ -147,6 +185,49 @@ class Planner:
         start_cell = self._escape(self._cell(start_xy, "start"))
         goal_cell = self._cell(goal_xy, "goal")
         result = self.plan_cells(start_cell, goal_cell)
+        factors: np.ndarray | None = None  # a copy with the moves found impossible forbidden, once needed
+        for attempt in range(MAX_FOOTPRINT_RETRIES + 1):
+            path = self._path(result, start_xy, goal_xy)
+            # The way from where the rover is to its first cell centre is not checked: the start is a fact.
+            first_centre = self._terrain.center_of(*result.cells[0])
+            skip_m = float(np.hypot(first_centre[0] - start_xy[0], first_centre[1] - start_xy[1]))
+            collision = first_collision(path.points, self._terrain, self._footprint, skip_m=skip_m)
+            if collision is None:
+                return dataclasses.replace(path, checked_from_m=skip_m)
+            if attempt == MAX_FOOTPRINT_RETRIES or len(result.cells) < 2:
+                break
+            if factors is None:
+                factors = np.ones((8, *self._cost.shape)) if self._factors is None else self._factors.copy()
+            # Segment i of the path is the move cells[i] -> cells[i+1] (the ends are the exact start and
+            # goal points inside those cells); the rectangle cannot make it (or the turn onto it), so A*
+            # must not use that move out of that cell. Blocking the move, not the cell, keeps one-cell-wide
+            # squeezes open: the rover may still pass straight through and turn further on.
+            (row, col), (next_row, next_col) = (
+                result.cells[collision.index],
+                result.cells[collision.index + 1],
+            )
+            move = MOVE_INDEX[(next_row - row, next_col - col)]
+            factors[move, row, col] = np.inf
+            _log.debug(
+                "footprint hits %s at (%.2f, %.2f); replanning",
+                collision.cells.tolist(),
+                collision.x,
+                collision.y,
+            )
+            try:
+                result = astar(
+                    self._cost, start_cell, goal_cell, self._heuristic, self._heuristic_weight, factors
+                )
+            except PlanningError as err:  # no way is left
+                raise NoPathError(f"{self._misfit(collision)} and no other way is left ({err})") from err
+        raise NoPathError(f"{self._misfit(collision)} after {MAX_FOOTPRINT_RETRIES} replans")
+
+    def _misfit(self, collision: Collision | None) -> str:
+        where = "" if collision is None else f" at ({collision.x:.2f}, {collision.y:.2f})"
+        size = f"{self._footprint.length_m} x {self._footprint.width_m} m"
+        return f"the rover's {size} footprint does not fit: it hits an obstacle{where}"
+
+    def _path(self, result: PlanResult, start_xy: tuple[float, float], goal_xy: tuple[float, float]) -> Path:
         centres = [self._terrain.center_of(row, col) for row, col in result.cells]
         # The ends are the exact positions asked for, not their cell centres.
         inner = centres[1:-1]

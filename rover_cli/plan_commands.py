@@ -11,7 +11,7 @@ from logs.settings import ConfigError
 from navigator.astar import HEURISTICS
 from navigator.errors import NavigatorError
 from navigator.plan_tools import draw_png, export_costs, load_map, plan_once
-from navigator.planner import COST_MODES, Planner
+from navigator.planner import COST_MODES, FOOTPRINT_INFLATIONS, Planner
 from navigator.vehicle import VehicleParams
 
 
@@ -26,14 +26,22 @@ def _point(text: str) -> tuple[float, float]:
 def register(families: Any) -> None:
     plan = families.add_parser("plan", help="plan a path on a map and print (or draw) it")
     plan.add_argument(
-        "map", type=Path, help="TOML with a [terrain] table (e.g. a scenario) or an .npy elevation"
+        "map",
+        type=Path,
+        help="TOML with a [terrain] table (e.g. a scenario), an .npy elevation or a .png obstacle image",
     )
     plan.add_argument("--start", type=_point, required=True, help="start X,Y (ENU metres)")
     plan.add_argument("--goal", type=_point, required=True, help="goal X,Y (ENU metres)")
     plan.add_argument("--heuristic", choices=HEURISTICS, default="octile")
     plan.add_argument("--weight", type=float, default=1.0, help="heuristic weight (> 1: bounded suboptimal)")
     plan.add_argument("--cost-mode", choices=COST_MODES, default="terrain")
-    plan.add_argument("--resolution-m", type=float, default=None, help="cell size of an .npy map")
+    plan.add_argument(
+        "--footprint-inflation",
+        choices=FOOTPRINT_INFLATIONS,
+        default="circumscribed",
+        help="circle obstacles are inflated by before the oriented-rectangle check (docs/planning.md)",
+    )
+    plan.add_argument("--resolution-m", type=float, default=None, help="cell size of an .npy / .png map")
     plan.add_argument("--json", action="store_true", help="print the figures as one JSON object")
     plan.add_argument("--png", type=Path, default=None, help="draw the path over the cost map")
     plan.add_argument(
@@ -47,7 +55,7 @@ def run_plan(args: argparse.Namespace) -> int:
         terrain = load_map(args.map, args.resolution_m)
         planner = Planner(
             terrain, VehicleParams(), heuristic=args.heuristic, cost_mode=args.cost_mode,
-            heuristic_weight=args.weight,
+            heuristic_weight=args.weight, footprint_inflation=args.footprint_inflation,
         )  # fmt: skip
         report = plan_once(planner, args.start, args.goal)
     except (NavigatorError, ConfigError) as err:
