@@ -2,7 +2,8 @@
 
 The model, per step of ``dt`` (semi-implicit Euler, no randomness):
 
-* The terrain under the rover gives roll and pitch (``TerrainMap.tilt_at`` at its heading), the friction
+* The terrain under the rover gives roll and pitch (``TerrainMap.tilt_at``'s numbers at its heading, looked up
+  with its class and elevation in one call by ``hil.ground``), the friction
   coefficient μ and rolling resistance crr of its class, and the wheel normal forces
   (``navigator.vehicle.wheel_normal_forces``, with the last step's acceleration for weight transfer).
 * Wheels on the ground (``hil.traction``, per wheel, with the class's laws): each rolling wheel meets
@@ -41,6 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hil.ground import GroundProbe, GroundUnder
 from hil.traction import drive_forces, wheel_outputs
 from navigator.terrain import TerrainMap
 from navigator.terrain_classes import REFERENCE_WHEEL_LOAD_N, TERRAIN_CLASSES, TerrainClass
@@ -176,7 +178,9 @@ class RoverDynamics:
         self._speed = 0.0
         self._yaw_rate = 0.0
         self._accel = 0.0
-        self._roll, self._pitch = terrain.tilt_at(self._x, self._y, self._yaw)
+        self._ground = GroundProbe(terrain)
+        # The terrain where the rover stands (class, elevation, tilt), kept from the end of the last step.
+        self._under = self._ground.at(self._x, self._y, self._yaw)
         self._energy_j = 0.0
         self._rolled_over = False
         # The clearance and tilt where the rover stands, kept from the end of the last step (same place,
@@ -208,11 +212,21 @@ class RoverDynamics:
 
     @property
     def roll(self) -> float:
-        return self._roll
+        return self._under.roll_rad
 
     @property
     def pitch(self) -> float:
-        return self._pitch
+        return self._under.pitch_rad
+
+    @property
+    def elevation_m(self) -> float:
+        """The true terrain's elevation under the rover (m)."""
+        return self._under.elevation_m
+
+    @property
+    def ground(self) -> GroundUnder:
+        """The true terrain under the rover: class, elevation, roll and pitch at its heading."""
+        return self._under
 
     @property
     def energy_j(self) -> float:
@@ -239,7 +253,8 @@ class RoverDynamics:
         if not terrain.contains(self._x, self._y):
             raise DynamicsError(f"new terrain does not cover the rover at ({self._x:.2f}, {self._y:.2f})")
         self._terrain = terrain
-        self._roll, self._pitch = terrain.tilt_at(self._x, self._y, self._yaw)
+        self._ground = GroundProbe(terrain)
+        self._under = self._ground.at(self._x, self._y, self._yaw)
         self._clearance_here = self._clearance(self._x, self._y)[0]
 
     # --- stepping ---------------------------------------------------------------------------------
@@ -253,16 +268,15 @@ class RoverDynamics:
             raise DynamicsError(
                 f"expected 6 wheel speeds (LF LM LR RF RM RR), got {len(wheel_surface_speeds)}"
             )
-        wheels = np.asarray(wheel_surface_speeds, dtype=np.float64)
-        if not np.all(np.isfinite(wheels)):
-            raise DynamicsError(f"wheel speeds must be finite, got {wheels.tolist()}")
+        if not all(math.isfinite(speed) for speed in wheel_surface_speeds):
+            raise DynamicsError(f"wheel speeds must be finite, got {list(wheel_surface_speeds)}")
+        wheels = np.array(wheel_surface_speeds, dtype=np.float64)
         if not math.isfinite(battery_voltage_v):
             raise DynamicsError(f"battery voltage must be finite, got {battery_voltage_v}")
 
         p = self._params
-        class_id = self._terrain.class_at(self._x, self._y)
+        class_id, _, roll, pitch = self._under  # where the rover stands: from the end of the last step
         ground = self._classes[class_id]
-        roll, pitch = self._roll, self._pitch  # tilt_at(x, y, yaw), computed at the end of the last step
         if self._rolled_over:
             return self._rolled_over_step(dt_s, wheels, class_id, ground, roll, pitch)
 
@@ -305,9 +319,9 @@ class RoverDynamics:
 
         self._x, self._y, self._yaw = new_x, new_y, new_yaw
         self._speed, self._yaw_rate, self._accel = speed, yaw_rate, accel
-        self._roll, self._pitch = self._terrain.tilt_at(new_x, new_y, new_yaw)
+        self._under = under = self._ground.at(new_x, new_y, new_yaw)
         lateral = speed * yaw_rate
-        roll_margin, pitch_margin = stability_margins(p, self._roll, self._pitch, lateral)
+        roll_margin, pitch_margin = stability_margins(p, under.roll_rad, under.pitch_rad, lateral)
         rollover_started = min(roll_margin, pitch_margin) < 0.0
         if rollover_started:
             self._rolled_over = True
@@ -335,8 +349,8 @@ class RoverDynamics:
             yaw=self._yaw,
             speed_mps=self._speed,
             yaw_rate_rps=self._yaw_rate,
-            roll_rad=self._roll,
-            pitch_rad=self._pitch,
+            roll_rad=self._under.roll_rad,
+            pitch_rad=self._under.pitch_rad,
             terrain_class=class_id,
             terrain_name=ground.name,
             wheel_speeds_mps=tuple(wheels.tolist()),
@@ -372,8 +386,8 @@ class RoverDynamics:
             yaw=self._yaw,
             speed_mps=0.0,
             yaw_rate_rps=0.0,
-            roll_rad=self._roll,
-            pitch_rad=self._pitch,
+            roll_rad=self._under.roll_rad,
+            pitch_rad=self._under.pitch_rad,
             terrain_class=class_id,
             terrain_name=ground.name,
             wheel_speeds_mps=tuple(wheels.tolist()),
@@ -398,11 +412,12 @@ class RoverDynamics:
 
     def _specific_force(self, accel: float, lateral: float) -> tuple[float, float, float]:
         """Acceleration minus gravity in body axes (x fwd, y left, z up): (0, 0, +g) at rest on the level."""
-        cos_pitch = math.cos(self._pitch)
+        roll, pitch = self._under.roll_rad, self._under.pitch_rad
+        cos_pitch = math.cos(pitch)
         return (
-            accel + G * math.sin(self._pitch),
-            lateral + G * cos_pitch * math.sin(self._roll),
-            G * cos_pitch * math.cos(self._roll),
+            accel + G * math.sin(pitch),
+            lateral + G * cos_pitch * math.sin(roll),
+            G * cos_pitch * math.cos(roll),
         )
 
     def _advance_to_contact(self, new_x: float, new_y: float, clear_now: bool) -> tuple[float, float]:

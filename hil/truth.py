@@ -28,14 +28,13 @@ class TruthRecorder:
         if not record_state:
             return
         stamp = topics.stamp(now)
-        terrain = self._scenario.terrain
         self._sink.publish(
             topics.TRUTH_POSE,
             now,
             {
                 "timestamp": stamp,
                 "frame_id": topics.ENU_FRAME,
-                "pose": topics.planar_pose(body.x, body.y, body.yaw, terrain.elevation_at(body.x, body.y)),
+                "pose": topics.planar_pose(body.x, body.y, body.yaw, body.elevation_m),
                 "yaw_rad": body.yaw,
                 "roll_rad": step.roll_rad,
                 "pitch_rad": step.pitch_rad,

@@ -109,38 +109,39 @@ def max_climbable_slope_rad(mu: float, rolling_resistance: float, margin_rad: fl
     return max(0.0, math.atan(max(0.0, mu - rolling_resistance)) - margin_rad)
 
 
-def _axle_fractions(moment_rear: float, total: float, half_wheelbase: float) -> np.ndarray:
-    """Share of ``total`` normal load on the front, middle and rear axles.
+def _axle_loads(moment_rear: float, total: float, half_wheelbase: float) -> list[float]:
+    """Normal load on the front, middle and rear axles (N), summing to ``total``.
 
     The load varies linearly along the body (a rigid chassis on equally stiff wheels) and balances the
     pitching moment ``moment_rear`` (N·m, positive loads the rear). An axle that would carry a negative load
     lifts: it is dropped and the rest re-balance, so the last axle standing carries everything (that is the
     tip-over point ``tan θ = (wheelbase/2) / h``).
+
+    Plain floats, not numpy: the simulator calls this every physics step, and on three numbers numpy's
+    per-call overhead was most of its cost.
     """
-    xs = np.array(_AXLE_X_UNITS) * half_wheelbase
-    in_contact = np.ones(3, dtype=bool)
-    loads = np.zeros(3)
+    loads = [0.0, 0.0, 0.0]
     if total <= 0.0:
         return loads
+    in_contact = [0, 1, 2]
     while True:
-        x = xs[in_contact]
-        n = x.size
+        x = [_AXLE_X_UNITS[i] * half_wheelbase for i in in_contact]
+        n = len(x)
         if n == 1:
-            loads[in_contact] = total
+            loads[in_contact[0]] = total
             return loads
         # N_i = a + b x_i with sum N_i = total and sum N_i x_i = -moment_rear.
-        sx, sxx = float(x.sum()), float((x * x).sum())
+        sx, sxx = sum(x), sum(xi * xi for xi in x)
         det = n * sxx - sx * sx
         a = (total * sxx + moment_rear * sx) / det
         b = (-moment_rear * n - sx * total) / det
-        contact_loads = a + b * x
-        if np.all(contact_loads >= 0.0):
-            loads[:] = 0.0
-            loads[in_contact] = contact_loads
+        contact_loads = [a + b * xi for xi in x]
+        if min(contact_loads) >= 0.0:
+            for axle, load in zip(in_contact, contact_loads, strict=True):
+                loads[axle] = load
             return loads
         # Lift the axle with the most negative load and re-balance on the others.
-        lifted = np.flatnonzero(in_contact)[int(np.argmin(contact_loads))]
-        in_contact[lifted] = False
+        del in_contact[contact_loads.index(min(contact_loads))]
 
 
 def wheel_normal_forces(
@@ -152,7 +153,7 @@ def wheel_normal_forces(
     ``m h (g sin(pitch) + ax) / ...`` and to the right by ``m h (g cos(pitch) sin(roll) + ay) / track``,
     where ``ax`` is the forward and ``ay`` the leftward acceleration of the body (a left turn loads the
     right side). Sides split the load linearly and clamp at zero when a side lifts; axles per
-    ``_axle_fractions``. The sum is always the total load (until the whole rover is airborne: never here).
+    ``_axle_loads``. The sum is always the total load (until the whole rover is airborne: never here).
     """
     m, h = params.mass_kg, params.cg_height_m
     total = m * G * math.cos(roll_rad) * math.cos(pitch_rad)
@@ -161,10 +162,10 @@ def wheel_normal_forces(
     moment_rear = m * h * (G * math.sin(pitch_rad) + ax_mps2)
     moment_right = m * h * (G * math.cos(pitch_rad) * math.sin(roll_rad) + ay_mps2)
     right_share = min(1.0, max(0.0, 0.5 + moment_right / (params.track_m * total)))
-    axle_share = _axle_fractions(moment_rear, total, params.wheelbase_m / 2.0) / total
-    left = (1.0 - right_share) * axle_share * total
-    right = right_share * axle_share * total
-    return np.concatenate([left, right])
+    axle_shares = [load / total for load in _axle_loads(moment_rear, total, params.wheelbase_m / 2.0)]
+    left = [(1.0 - right_share) * share * total for share in axle_shares]
+    right = [right_share * share * total for share in axle_shares]
+    return np.array(left + right)
 
 
 def stability_margins(
