@@ -69,7 +69,8 @@ class EstimatorConfig:
         after would integrate as 5 % of distance); the scale still learns loose ground's 10-15 % slip, over
         tens of seconds of GPS. Raise it when the rover starts on known-soft ground.
     gate_probability : float
-        Chi-square gate on every update: a measurement whose NIS exceeds ``chi2.ppf(p, dim)`` is rejected.
+        Chi-square gate on every update: a measurement whose NIS exceeds the chi-square quantile ``p`` of
+        its dimension (``estimator.chi_square``) is rejected.
     track_m, skid_factor : float
         Skid-steer odometry: yaw rate = (v_right - v_left) / (track_m * skid_factor).
     healthy_position_std_m : float

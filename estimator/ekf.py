@@ -34,9 +34,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.stats import chi2
 
 from estimator.angles import wrap_angle
+from estimator.chi_square import chi_square_quantile
 from estimator.config import EstimatorConfig
 from estimator.ekf_kernels import predict_kernel, update_kernel
 from estimator.errors import EstimatorOperationError
@@ -137,7 +137,7 @@ class RoverEkf:
             ]
         )
         # Gate thresholds computed once per measurement dimension.
-        self._gate = {dim: float(chi2.ppf(config.gate_probability, dim)) for dim in (1, 2)}
+        self._gate = {dim: chi_square_quantile(config.gate_probability, dim) for dim in (1, 2)}
         self._r_gyro: Array = np.array([[config.gyro_noise_rps**2]])
         self._scale_learning = True
         self._h_odometry: Array = _rows(SPEED, YAW_RATE)  # reused; its speed row depends on the state

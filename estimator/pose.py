@@ -60,6 +60,7 @@ def pose_message(pose: PoseEstimate) -> dict[str, Any]:
         "speed_mps": pose.speed,
         "yaw_rate_rps": pose.yaw_rate,
         "state_names": list(STATE_NAMES),
-        "covariance": [float(v) for v in pose.covariance.ravel()],
+        # All 49 entries, every 20 ms: tolist() makes the Python floats in one C call, not 49 float() calls.
+        "covariance": pose.covariance.ravel().tolist(),
         "healthy": pose.healthy,
     }

@@ -14,6 +14,7 @@ import numpy as np
 
 from logs.settings import Table
 from navigator.errors import ParameterError
+from navigator.projection_kernel import nearest_segment
 
 REASON_MAX_SPEED = "max_speed"
 REASON_CURVATURE = "curvature"
@@ -204,22 +205,12 @@ class PurePursuit:
         last = int(np.searchsorted(self._arc, window_end, side="right"))
         first = self._segment
         last = min(max(last, first + 1), len(points) - 1)
-        starts = points[first:last]
-        ends = points[first + 1 : last + 1]
-        deltas = ends - starts
-        lengths_sq = np.maximum(np.sum(deltas * deltas, axis=1), 1e-12)
-        offsets = np.array([x, y]) - starts
-        t = np.clip(np.sum(offsets * deltas, axis=1) / lengths_sq, 0.0, 1.0)
-        nearest = starts + t[:, np.newaxis] * deltas
-        distances = np.hypot(*(np.array([x, y]) - nearest).T)
-        best = int(np.argmin(distances))
-        self._segment = first + best
-        length = math.sqrt(float(lengths_sq[best]))
-        projection = float(self._arc[self._segment]) + float(t[best]) * length
+        segment, t, nearest_x, nearest_y, dx, dy, length_sq = nearest_segment(points, first, last, x, y)
+        self._segment = segment
+        length = math.sqrt(length_sq)
+        projection = float(self._arc[segment]) + t * length
         self._progress_m = max(self._progress_m, projection)
-        direction = deltas[best] / length
-        offset = np.array([x, y]) - nearest[best]
-        cross_track = float(direction[0] * offset[1] - direction[1] * offset[0])
+        cross_track = (dx / length) * (y - nearest_y) - (dy / length) * (x - nearest_x)
         return projection, cross_track
 
     def _point_at(self, points: np.ndarray, arc_m: float) -> np.ndarray:

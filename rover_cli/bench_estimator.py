@@ -6,8 +6,6 @@ import argparse
 import json
 from typing import Any
 
-from estimator.bench import run_benchmark
-
 
 def register(commands: Any) -> None:
     bench = commands.add_parser(
@@ -21,6 +19,9 @@ def register(commands: Any) -> None:
 
 
 def run_bench(args: argparse.Namespace) -> int:
+    # Imported here: filterpy (the peer) imports scipy.stats, seconds that no other command should pay.
+    from estimator.bench import run_benchmark
+
     if args.cycles < 100 or args.repeats < 1:
         raise SystemExit("rover bench estimator: need --cycles >= 100 and --repeats >= 1")
     figures = run_benchmark(args.cycles, args.seed, args.repeats)

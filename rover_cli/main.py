@@ -1,7 +1,9 @@
 """``rover`` entry point: one subcommand family per part of the stack.
 
 Subcommand modules are imported only when picked, so ``rover run`` on the rover never imports the
-simulator.
+simulator, and no command pays for another's imports (the estimator benchmark's filterpy pulls in
+scipy.stats: seconds of start-up). Only ``rover --help`` (or an unknown command) imports every family, to
+list them.
 """
 
 from __future__ import annotations
@@ -25,18 +27,28 @@ FAMILIES = {
 }
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(family: str | None = None) -> argparse.ArgumentParser:
+    """The ``rover`` parser with every family, or with ``family``'s alone (the others not imported)."""
     parser = argparse.ArgumentParser(prog="rover", description=__doc__.splitlines()[0] if __doc__ else None)
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more logging (-vv for debug)")
     families = parser.add_subparsers(dest="family", required=True, metavar="COMMAND")
-    for module_name in FAMILIES.values():
-        module = importlib.import_module(module_name)
-        module.register(families)
+    for name, module_name in FAMILIES.items():
+        if family is None or name == family:
+            importlib.import_module(module_name).register(families)
     return parser
 
 
+def picked_family(argv: Sequence[str]) -> str | None:
+    """The family the command line names (its first word that is not an option), if it is one of ours."""
+    # The only top-level option (-v) takes no value, so the first non-option word is the family.
+    first_word = next((word for word in argv if not word.startswith("-")), None)
+    return first_word if first_word in FAMILIES else None
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
+    if argv is None:
+        argv = sys.argv[1:]
+    parser = build_parser(picked_family(argv))
     args = parser.parse_args(argv)
     level = logging.WARNING - 10 * min(args.verbose, 2)
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
