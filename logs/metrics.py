@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
 from logs.reader import Entry, ReadStats, RecordedMessage, RecordedMetadata, Source, read_entries
 from logs.topics import (
@@ -174,6 +175,26 @@ def distances_to_polyline(points: FloatArray, polyline: FloatArray) -> FloatArra
     return result
 
 
+def near_polyline(points: FloatArray, polyline: FloatArray, radius: float) -> NDArray[np.bool_]:
+    """Whether each of ``points`` (K, 2) lies within ``radius`` (m) of the polyline (M >= 1, 2).
+
+    The same answer as ``distances_to_polyline(...) <= radius``, without its K x M cost on long polylines
+    (a 600 s trajectory has 30,000 segments): the nearest *vertex* settles most points, because a point
+    within ``radius`` of a vertex is near the polyline, and a point further than ``radius + L / 2`` from
+    every vertex (L the longest segment) is near no segment (every point of a segment is within L / 2 of
+    one of its ends). Only the points in between are measured against every segment.
+    """
+    if len(points) == 0:
+        return np.zeros(0, dtype=bool)
+    vertex_gap, _ = cKDTree(polyline).query(points, k=1)
+    longest = float(np.hypot(*np.diff(polyline, axis=0).T).max()) if len(polyline) > 1 else 0.0
+    near = vertex_gap <= radius
+    unsure = ~near & (vertex_gap <= radius + 0.5 * longest)
+    if unsure.any():
+        near[unsure] = distances_to_polyline(points[unsure], polyline) <= radius
+    return np.asarray(near, dtype=bool)
+
+
 # --- the metrics -------------------------------------------------------------------------------
 @dataclass
 class _Notes:
@@ -297,7 +318,7 @@ def _path_accuracy(
             continue  # no path in force yet (or an empty one): not counted either way
         mask = in_force == index
         counted += float(steps[mask].sum())
-        near = distances_to_polyline(midpoints[mask], paths[int(index)][1]) <= tolerance + DISTANCE_EPSILON_M
+        near = near_polyline(midpoints[mask], paths[int(index)][1], tolerance + DISTANCE_EPSILON_M)
         within += float(steps[mask][near].sum())
     if counted <= 0.0:
         return None
@@ -366,7 +387,7 @@ def _route_accuracy(trial: _Trial, xy: FloatArray, tolerance: float) -> tuple[fl
         return 0.0, None
     if len(xy) == 0:
         return total, None
-    followed = distances_to_polyline(midpoints, xy) <= tolerance + DISTANCE_EPSILON_M
+    followed = near_polyline(midpoints, xy, tolerance + DISTANCE_EPSILON_M)
     return total, 100.0 * float(lengths[followed].sum()) / total
 
 

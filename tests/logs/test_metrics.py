@@ -275,3 +275,19 @@ def test_planned_route_cuts_each_plan_where_the_next_begins() -> None:
     np.testing.assert_allclose(route[0], [[0.0, 0.0], [4.0, 0.0], [4.0, 2.0]])
     np.testing.assert_allclose(route[1], second)
     assert planned_route([]) == []
+
+
+def test_near_polyline_agrees_with_the_exact_distances():
+    from logs.metrics import distances_to_polyline, near_polyline
+
+    rng = np.random.default_rng(11)
+    for trial in range(60):
+        # Dense wiggly trajectories and sparse long-segment paths, with points straddling the radius.
+        vertices = int(rng.integers(1, 400))
+        step = 0.02 if trial % 2 else 3.0
+        polyline = np.cumsum(rng.normal(0.0, step, (vertices, 2)), axis=0)
+        points = polyline[rng.integers(0, vertices, 300)] + rng.normal(0.0, 0.6, (300, 2))
+        radius = float(rng.uniform(0.05, 0.8))
+        exact = distances_to_polyline(points, polyline) <= radius
+        assert np.array_equal(near_polyline(points, polyline, radius), exact)
+    assert near_polyline(np.zeros((0, 2)), np.zeros((3, 2)), 0.5).shape == (0,)
