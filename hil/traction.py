@@ -147,7 +147,9 @@ def _side_ground_speed(
     slip = slip_for_ratio(ratio, mu, k)
     if force * surface >= 0.0:
         return surface * (1.0 - slip)  # driving: the ground lags the tyre
-    return surface / (1.0 - slip)  # braking: the ground runs ahead of the tyre
+    # Braking: the ground runs ahead of the tyre. ``slip`` is below 1 while ``ratio < mu``, but a ratio
+    # within a few ulps of mu can round it to 1: bound the quotient instead of dividing by zero.
+    return surface / max(1.0 - slip, 1e-6)
 
 
 @numba.njit(cache=True)

@@ -303,35 +303,39 @@ class OnboardStack:
         now = self._clock.now_ns()
         if self._deferred is not None:
             self._deferred.hold()
-        if trigger_ns is None:
-            self._read_links(now)
-            trigger = self._pacing_rx_ns
-        else:
-            # The loop's ``ingest`` read the links an instant ago and found the trigger: reading them
-            # again would only put a CAN poll on the sensor-to-command path.
-            trigger = trigger_ns
-        self._read_commands()
-        self._read_obstacles(now)
+        # Released whatever happens: a tick that raises must not leave its records (and the zero
+        # commands close() sends after it) held back from the recording.
+        try:
+            if trigger_ns is None:
+                self._read_links(now)
+                trigger = self._pacing_rx_ns
+            else:
+                # The loop's ``ingest`` read the links an instant ago and found the trigger: reading them
+                # again would only put a CAN poll on the sensor-to-command path.
+                trigger = trigger_ns
+            self._read_commands()
+            self._read_obstacles(now)
 
-        pose = self.estimator.pose()
-        guidance = self.guidance.tick(now, pose, self._ready(now, pose))
-        decision = self.safety.update(self._safety_inputs(now, pose), self.guidance.mode is Mode.DRIVING)
-        speed = guidance.speed_mps * decision.speed_scale
-        yaw_rate = guidance.yaw_rate_rps * decision.speed_scale
-        self._last_tick_ns = now
+            pose = self.estimator.pose()
+            guidance = self.guidance.tick(now, pose, self._ready(now, pose))
+            decision = self.safety.update(self._safety_inputs(now, pose), self.guidance.mode is Mode.DRIVING)
+            speed = guidance.speed_mps * decision.speed_scale
+            yaw_rate = guidance.yaw_rate_rps * decision.speed_scale
+            self._last_tick_ns = now
 
-        wheel_speeds = mix_skid_steer(speed, yaw_rate, self._config.vehicle)
-        errors_before, tx_before = self._can.counters.bus_errors, self._can.counters.tx
-        erpm = self._can.send_wheel_speeds(wheel_speeds)
-        failed = self._can.counters.tx == tx_before and self._can.counters.bus_errors > errors_before
-        if not failed:
-            self._send_failing_since_ns = None
-        elif self._send_failing_since_ns is None:
-            self._send_failing_since_ns = now
-        self._sent_speed_mps, self._sent_at_ns = speed, now
-        self.last_sensor_to_command_ns = None if trigger is None else self._clock.now_ns() - trigger
-        if self._deferred is not None:
-            self._deferred.release()
+            wheel_speeds = mix_skid_steer(speed, yaw_rate, self._config.vehicle)
+            errors_before, tx_before = self._can.counters.bus_errors, self._can.counters.tx
+            erpm = self._can.send_wheel_speeds(wheel_speeds)
+            failed = self._can.counters.tx == tx_before and self._can.counters.bus_errors > errors_before
+            if not failed:
+                self._send_failing_since_ns = None
+            elif self._send_failing_since_ns is None:
+                self._send_failing_since_ns = now
+            self._sent_speed_mps, self._sent_at_ns = speed, now
+            self.last_sensor_to_command_ns = None if trigger is None else self._clock.now_ns() - trigger
+        finally:
+            if self._deferred is not None:
+                self._deferred.release()
         if not self._map_published:
             self.publish_map()
         if self._last_heartbeat_sent_ns is None or now - self._last_heartbeat_sent_ns >= HEARTBEAT_PERIOD_NS:
@@ -373,12 +377,18 @@ class OnboardStack:
             return
         self._closed = True
         self.guidance.core.close()
+        # Records held by an ingest whose sample started no tick go out first; the zero commands the CAN
+        # link sends on close must reach the recording too.
+        if self._deferred is not None:
+            self._deferred.release()
         try:
             self._can.close()
         finally:
             self._mavlink.close()
             if self._ground_station is not None:
                 self._ground_station.close()
+            if self._deferred is not None:
+                self._deferred.release()
 
     # --- internals ------------------------------------------------------------------------------------
     def _ready(self, now: int, pose: PoseEstimate | None) -> bool:

@@ -74,7 +74,6 @@ class PlanOutcome:
     planned: bool  # a plan was attempted: ``path`` replaces the one followed (None: no path)
     path: Path | None
     repair_kept: bool  # obstacles were added and the followed path is still clear and optimal
-    failure: str = ""  # why planning failed ("" if it did not)
 
 
 def run_plan_request(planner: Planner, request: PlanRequest) -> PlanOutcome:
@@ -104,10 +103,10 @@ def run_plan_request(planner: Planner, request: PlanRequest) -> PlanOutcome:
         path = planner.plan(request.start_xy, request.goal)
     except NoPathError as err:
         details.append(f"no path: {err}")
-        return PlanOutcome(request.generation, tuple(details), True, None, repair_kept, str(err))
+        return PlanOutcome(request.generation, tuple(details), True, None, repair_kept)
     except PlanningError as err:
         details.append(f"cannot plan: {err}")
-        return PlanOutcome(request.generation, tuple(details), True, None, repair_kept, str(err))
+        return PlanOutcome(request.generation, tuple(details), True, None, repair_kept)
     reason = f" ({request.why})" if request.why else ""
     details.append(f"planned {path.length_m:.1f} m, cost {path.cost:.1f}{reason}")
     return PlanOutcome(request.generation, tuple(details), True, path, repair_kept)

@@ -160,8 +160,9 @@ def paced_scheduler(
 
 def warm_up_planner(planner: Planner, clock: Clock) -> None:
     """Plan once on this map before the loop starts, so the A* kernel is compiled (or loaded from numba's
-    cache) now: the first real plan runs inside a control tick, and a compile there stalled the loop for
-    seconds (the safety supervisor then saw a loop stall). A map with no free cell is left to guidance."""
+    cache) now, not on the first real plan: a compile inside a control tick (lockstep) stalled the loop for
+    seconds, and on the planning thread it would hold the rover in PLANNING as long. A map with no free
+    cell is left to guidance."""
     free = np.argwhere(np.isfinite(planner.cost_grid))
     if free.size == 0:
         return

@@ -187,3 +187,39 @@ def test_records_of_the_sensor_to_command_path_wait_until_the_command_is_sent() 
         assert rig.stack.ingest() is None and not rig.deferred.holding
     finally:
         rig.close()
+
+
+def test_close_records_what_was_held_and_the_zero_commands() -> None:
+    # A pacing sample was ingested but its tick never ran (the loop stopped): close() must still put the
+    # held records and the zero wheel commands it sends into the recording.
+    rig = Rig(rig_config(), deferred=True)
+    assert rig.deferred is not None
+    rig.run_for(0.5)
+    received = None
+    while received is None:
+        rig.physics_tick()
+        received = rig.stack.ingest()
+    before = len(rig.sink.records)
+    assert rig.deferred.holding
+    rig.close()
+    new = rig.sink.records[before:]
+    assert not rig.deferred.holding
+    assert any(topic == "sensors/imu" for topic, _, _ in new)
+    assert any(topic == "can/frames" and m["direction"] == "tx" for topic, _, m in new)
+
+
+def test_a_tick_that_raises_releases_its_records() -> None:
+    rig = Rig(rig_config(), deferred=True)
+    assert rig.deferred is not None
+    try:
+        rig.run_for(0.5)
+
+        def broken(*_: object) -> None:
+            raise RuntimeError("guidance failed")
+
+        rig.stack.guidance.tick = broken  # type: ignore[method-assign,assignment]
+        with pytest.raises(RuntimeError):
+            rig.stack.step()
+        assert not rig.deferred.holding
+    finally:
+        rig.close()
