@@ -162,15 +162,21 @@ def test_lockstep_ticks_are_paced_by_the_imu_read_inside_them() -> None:
         rig.close()
 
 
+def _ingest_a_pacing_sample(rig: Rig) -> int:
+    """Drive half a second, then step the simulated rover until an ingest finds a pacing sample."""
+    rig.run_for(0.5)
+    received = None
+    while received is None:
+        rig.physics_tick()
+        received = rig.stack.ingest()
+    return received
+
+
 def test_records_of_the_sensor_to_command_path_wait_until_the_command_is_sent() -> None:
     rig = Rig(rig_config(), deferred=True)
     assert rig.deferred is not None
     try:
-        rig.run_for(0.5)
-        received = None
-        while received is None:
-            rig.physics_tick()
-            received = rig.stack.ingest()
+        received = _ingest_a_pacing_sample(rig)
         before = len(rig.sink.records)
         assert rig.deferred.holding  # the IMU's own records are held for the tick it starts
         rig.stack.step(received)
@@ -194,11 +200,7 @@ def test_close_records_what_was_held_and_the_zero_commands() -> None:
     # held records and the zero wheel commands it sends into the recording.
     rig = Rig(rig_config(), deferred=True)
     assert rig.deferred is not None
-    rig.run_for(0.5)
-    received = None
-    while received is None:
-        rig.physics_tick()
-        received = rig.stack.ingest()
+    _ingest_a_pacing_sample(rig)
     before = len(rig.sink.records)
     assert rig.deferred.holding
     rig.close()
