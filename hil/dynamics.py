@@ -3,7 +3,7 @@
 The model, per step of ``dt`` (semi-implicit Euler, no randomness):
 
 * The terrain under the rover gives roll and pitch (``TerrainMap.tilt_at``'s numbers at its heading, looked up
-  with its class and elevation in one call by ``hil.ground``), the friction
+  with its class and elevation in one call by ``TerrainMap.ground_at``), the friction
   coefficient μ and rolling resistance crr of its class, and the wheel normal forces
   (``navigator.vehicle.wheel_normal_forces``, with the last step's acceleration for weight transfer).
 * Wheels on the ground (``hil.traction``, per wheel, with the class's laws): each rolling wheel meets
@@ -42,8 +42,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hil.ground import GroundProbe, GroundUnder
 from hil.traction import drive_forces, wheel_outputs
+from navigator.ground_kernel import GroundUnder
 from navigator.terrain import TerrainMap
 from navigator.terrain_classes import REFERENCE_WHEEL_LOAD_N, TERRAIN_CLASSES, TerrainClass
 from navigator.vehicle import G, VehicleParams, stability_margins, wheel_normal_forces
@@ -178,9 +178,8 @@ class RoverDynamics:
         self._speed = 0.0
         self._yaw_rate = 0.0
         self._accel = 0.0
-        self._ground = GroundProbe(terrain)
         # The terrain where the rover stands (class, elevation, tilt), kept from the end of the last step.
-        self._under = self._ground.at(self._x, self._y, self._yaw)
+        self._under = terrain.ground_at(self._x, self._y, self._yaw)
         self._energy_j = 0.0
         self._rolled_over = False
         # The clearance and tilt where the rover stands, kept from the end of the last step (same place,
@@ -253,8 +252,7 @@ class RoverDynamics:
         if not terrain.contains(self._x, self._y):
             raise DynamicsError(f"new terrain does not cover the rover at ({self._x:.2f}, {self._y:.2f})")
         self._terrain = terrain
-        self._ground = GroundProbe(terrain)
-        self._under = self._ground.at(self._x, self._y, self._yaw)
+        self._under = self._terrain.ground_at(self._x, self._y, self._yaw)
         self._clearance_here = self._clearance(self._x, self._y)[0]
 
     # --- stepping ---------------------------------------------------------------------------------
@@ -319,7 +317,7 @@ class RoverDynamics:
 
         self._x, self._y, self._yaw = new_x, new_y, new_yaw
         self._speed, self._yaw_rate, self._accel = speed, yaw_rate, accel
-        self._under = under = self._ground.at(new_x, new_y, new_yaw)
+        self._under = under = self._terrain.ground_at(new_x, new_y, new_yaw)
         lateral = speed * yaw_rate
         roll_margin, pitch_margin = stability_margins(p, under.roll_rad, under.pitch_rad, lateral)
         rollover_started = min(roll_margin, pitch_margin) < 0.0

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from navigator.errors import TerrainError
+from navigator.ground_kernel import GroundUnder, ground_at_kernel
 from navigator.terrain_classes import TERRAIN_CLASSES
 
 MAZE_WALL = 1
@@ -133,8 +134,18 @@ class TerrainMap:
 
     def elevation_at(self, x: float, y: float) -> float:
         """Bilinear elevation between cell centres (held constant past the outer centres)."""
-        self.cell_of(x, y)  # raises when off the map
-        return self._bilinear(self.elevation_m, x, y)
+        return self.ground_at(x, y, 0.0).elevation_m
+
+    def ground_at(self, x: float, y: float, yaw: float) -> GroundUnder:
+        """Class, elevation (m) and (roll, pitch) in rad (as ``tilt_at``) at (x, y) for a heading ``yaw``,
+        in one compiled call (``navigator.ground_kernel``); TerrainError when the point is off the map."""
+        class_id, elevation, roll, pitch = ground_at_kernel(
+            self.terrain_class, self.elevation_m, self._grad_x, self._grad_y,
+            self.origin_xy[0], self.origin_xy[1], self.resolution_m, x, y, yaw,
+        )  # fmt: skip
+        if class_id < 0:
+            self.cell_of(x, y)  # raises the map's own error, naming the point and the map's extent
+        return GroundUnder(class_id, elevation, roll, pitch)
 
     def slope_gradient(self) -> tuple[np.ndarray, np.ndarray]:
         """(dz/dx, dz/dy) per cell, dimensionless, central differences with spacing ``resolution_m``."""
@@ -148,15 +159,8 @@ class TerrainMap:
         ``roll = atan2(s_l, sqrt(1 + s_f^2))`` (positive when the ground rises to the left, i.e. the right
         side is lower). These are the exact yaw-pitch-roll angles of a body lying on that plane.
         """
-        self.cell_of(x, y)
-        gx = self._bilinear(self._grad_x, x, y)
-        gy = self._bilinear(self._grad_y, x, y)
-        cos_yaw, sin_yaw = math.cos(yaw), math.sin(yaw)
-        slope_forward = gx * cos_yaw + gy * sin_yaw
-        slope_left = -gx * sin_yaw + gy * cos_yaw
-        pitch = math.atan(slope_forward)
-        roll = math.atan2(slope_left, math.sqrt(1.0 + slope_forward * slope_forward))
-        return roll, pitch
+        ground = self.ground_at(x, y, yaw)
+        return ground.roll_rad, ground.pitch_rad
 
     def with_obstacles(self, extra_mask: np.ndarray) -> TerrainMap:
         """A copy with ``extra_mask`` (bool, map shape) added to the obstacle layer."""
@@ -167,17 +171,6 @@ class TerrainMap:
             self.elevation_m, self.terrain_class, self.obstacles | extra.astype(bool), self.resolution_m,
             self.origin_xy,
         )  # fmt: skip
-
-    def _bilinear(self, layer: np.ndarray, x: float, y: float) -> float:
-        rows, cols = self.shape
-        fx = min(max((x - self.origin_xy[0]) / self.resolution_m - 0.5, 0.0), cols - 1.0)
-        fy = min(max((y - self.origin_xy[1]) / self.resolution_m - 0.5, 0.0), rows - 1.0)
-        c0, r0 = int(fx), int(fy)
-        c1, r1 = min(c0 + 1, cols - 1), min(r0 + 1, rows - 1)
-        tx, ty = fx - c0, fy - r0
-        south = (1.0 - tx) * layer[r0, c0] + tx * layer[r0, c1]
-        north = (1.0 - tx) * layer[r1, c0] + tx * layer[r1, c1]
-        return float((1.0 - ty) * south + ty * north)
 
 
 def _gradient(elevation: np.ndarray, resolution_m: float) -> tuple[np.ndarray, np.ndarray]:
