@@ -31,7 +31,7 @@ from logs.sink import FanoutSink, MessageSink
 from logs.telemetry import ZenohTelemetry, open_session
 from logs.telemetry_station import rate_limited
 from navigator.config import RoverConfig
-from navigator.deferred_sink import DeferredSink
+from navigator.deferred_sink import deferred_sink
 from navigator.errors import NavigatorError
 from navigator.input_wait import input_waiter
 from navigator.links import open_links
@@ -87,7 +87,7 @@ def run_rover(
             publisher = ZenohTelemetry(session, config.rover_id)
             commands = ZenohCommandReceiver(session, config.rover_id, clock)
             sink = FanoutSink([recorder, rate_limited(publisher, config.zenoh.rates_hz)])
-        deferred = DeferredSink(sink)
+        deferred = deferred_sink(sink)
         planning = plan_worker()
         try:
             links = open_links(config, clock, deferred)

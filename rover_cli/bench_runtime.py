@@ -131,7 +131,7 @@ def _full_stack(duration_s: float, telemetry: bool) -> dict[str, Any]:
     from logs.sink import FanoutSink, MessageSink
     from logs.telemetry import ZenohTelemetry, open_session
     from navigator.config import rover_config_from_table
-    from navigator.deferred_sink import DeferredSink
+    from navigator.deferred_sink import deferred_sink
     from navigator.input_wait import input_waiter
     from navigator.onboard import OnboardStack
     from navigator.plan_worker import plan_worker
@@ -159,7 +159,7 @@ def _full_stack(duration_s: float, telemetry: bool) -> dict[str, Any]:
     with tempfile.TemporaryDirectory() as tmp, McapRecorder(Path(tmp) / "bench.mcap") as recorder:
         publisher = ZenohTelemetry(session, config.rover_id) if session is not None else None
         sink: MessageSink = recorder if publisher is None else FanoutSink([recorder, publisher])
-        deferred = DeferredSink(sink)
+        deferred = deferred_sink(sink)
         mavlink_transport = UdpTransport("udpin", "127.0.0.1", 0)
         codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
         can_link = CanLink(open_bus(bus_config), codec, clock, deferred)

@@ -10,8 +10,9 @@ from dataclasses import dataclass, field
 import pytest
 
 from logs.clock import SimClock
+from logs.encoding import EncodedSink
 from logs.sink import MemorySink
-from navigator.deferred_sink import DeferredSink
+from navigator.deferred_sink import DeferredSink, deferred_sink
 from navigator.paced_loop import DEADLINE_GRACE, SensorPacedScheduler, TickSample
 from tests.runtime.rig import Rig, rig_config
 
@@ -225,3 +226,25 @@ def test_a_tick_that_raises_releases_its_records() -> None:
         assert not rig.deferred.holding
     finally:
         rig.close()
+
+
+def test_a_deferred_sink_passes_pre_encoded_records_on_as_such() -> None:
+    class EncodedMemory(MemorySink):
+        def __init__(self) -> None:
+            super().__init__()
+            self.encoded: list[tuple[str, bytes]] = []
+
+        def publish_encoded(self, topic: str, log_time_ns: int, message: dict, data: bytes) -> None:
+            self.encoded.append((topic, data))
+            self.publish(topic, log_time_ns, message)
+
+    inner = EncodedMemory()
+    deferred = deferred_sink(inner)
+    assert isinstance(deferred, EncodedSink) and not isinstance(deferred_sink(MemorySink()), EncodedSink)
+    deferred.hold()
+    deferred.publish("a", 1, {"n": 1})
+    deferred.publish_encoded("b", 2, {"n": 2}, b'{"n":2}')
+    assert inner.records == []
+    deferred.release()
+    assert [topic for topic, _, _ in inner.records] == ["a", "b"]  # in order, nothing dropped
+    assert inner.encoded == [("b", b'{"n":2}')]  # the bytes handed over, not encoded again
