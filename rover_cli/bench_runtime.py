@@ -20,6 +20,7 @@ and the full stack. CPU is the control thread's own (RUSAGE_THREAD).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import json
 import multiprocessing
@@ -154,10 +155,16 @@ def _full_stack(duration_s: float, telemetry: bool) -> dict[str, Any]:
         )
     terrain = from_maze(np.full((20, 20), 2), 2.0)
     clock = MonotonicClock()
-    stop = threading.Event()
-    session = open_session(config.zenoh) if telemetry else None
-    with tempfile.TemporaryDirectory() as tmp, McapRecorder(Path(tmp) / "bench.mcap") as recorder:
+    # Every resource is closed in reverse order however the run ends (a peer that never starts included).
+    with contextlib.ExitStack() as cleanup:
+        session = open_session(config.zenoh) if telemetry else None
+        if session is not None:
+            cleanup.callback(session.close)
+        tmp = cleanup.enter_context(tempfile.TemporaryDirectory())
+        recorder = cleanup.enter_context(McapRecorder(Path(tmp) / "bench.mcap"))
         publisher = ZenohTelemetry(session, config.rover_id) if session is not None else None
+        if publisher is not None:
+            cleanup.callback(publisher.close)
         sink: MessageSink = recorder if publisher is None else FanoutSink([recorder, publisher])
         deferred = deferred_sink(sink)
         mavlink_transport = UdpTransport("udpin", "127.0.0.1", 0)
@@ -165,9 +172,11 @@ def _full_stack(duration_s: float, telemetry: bool) -> dict[str, Any]:
         can_link = CanLink(open_bus(bus_config), codec, clock, deferred)
         mavlink = MavlinkLink(mavlink_transport, clock, deferred)
         planning = plan_worker()
+        cleanup.callback(planning.shutdown, wait=False, cancel_futures=True)
         stack = OnboardStack(
             config, clock, can_link, mavlink, deferred, terrain, deferred=deferred, planning=planning
         )
+        cleanup.callback(stack.close)
         warm_up_planner(stack.planner, clock)
         stack.publish_map()
         stack.set_goal(35.0, 35.0)
@@ -179,9 +188,11 @@ def _full_stack(duration_s: float, telemetry: bool) -> dict[str, Any]:
             peer_stop = context.Event()
             peer = context.Process(target=_sim_peer, args=(peer_stop, *peer_args), daemon=True)
         else:
-            peer_stop = stop
+            peer_stop = threading.Event()
             peer = threading.Thread(target=_sim_peer, args=(peer_stop, *peer_args), daemon=True)
         peer.start()
+        cleanup.callback(peer.join, 5.0)
+        cleanup.callback(peer_stop.set)
         _wait_for_first_sample(mavlink_transport, PEER_START_TIMEOUT_S)
         scheduler = paced_scheduler(stack, clock, config, deferred, input_waiter([mavlink_transport]))
         cpu0, wall0 = _thread_cpu_s(), time.perf_counter()
@@ -190,15 +201,6 @@ def _full_stack(duration_s: float, telemetry: bool) -> dict[str, Any]:
                 stats = scheduler.run(round(duration_s * 1e9))
         finally:
             cpu = 100.0 * (_thread_cpu_s() - cpu0) / (time.perf_counter() - wall0)
-            stop.set()
-            peer_stop.set()
-            peer.join(timeout=5.0)
-            stack.close()
-            planning.shutdown(wait=False, cancel_futures=True)
-            if publisher is not None:
-                publisher.close()
-    if session is not None:
-        session.close()
     figures = stats.summary()
     figures["cpu_pct"] = cpu
     figures["final_mode"] = stack.safety_mode.value
