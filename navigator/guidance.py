@@ -295,11 +295,12 @@ class Guidance:
         limits = [(command.speed_limit_mps, command.speed_limit_reason)]
         terrain = self.planner.terrain
         if terrain.contains(x, y) and command.speed_mps > 0.0:
-            roll, pitch = terrain.tilt_at(x, y, yaw)
+            ground = terrain.ground_at(x, y, yaw)  # class and tilt in one look-up
+            roll, pitch = ground.roll_rad, ground.pitch_rad
             tilt = max(abs(roll), abs(pitch))
             slope_scale = max(0.3, 1.0 - math.tan(tilt) / math.tan(self._params.tip_roll_rad))
             limits.append((cfg.max_speed_mps * slope_scale, REASON_SLOPE))
-            factor = self._classes[terrain.class_at(x, y)].cost_factor
+            factor = self._classes[ground.terrain_class].cost_factor
             limits.append((cfg.max_speed_mps / math.sqrt(max(factor, 1.0)), REASON_TERRAIN))
             room = self._params.tip_roll_rad - cfg.min_tip_margin_rad - abs(roll)
             if abs(command.curvature_1pm) > 1e-9:
