@@ -96,6 +96,20 @@ def _sift_up(hf: np.ndarray, hg: np.ndarray, hc: np.ndarray, i: int, f: float, g
 
 
 @numba.njit(cache=True, error_model="numpy")
+def _grown_heap(
+    hf: np.ndarray, hg: np.ndarray, hc: np.ndarray, size: int, capacity: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The heap's three arrays copied into new ones of ``capacity`` entries (the first ``size`` kept)."""
+    grown_f = np.empty(capacity)
+    grown_f[:size] = hf[:size]
+    grown_g = np.empty(capacity)
+    grown_g[:size] = hg[:size]
+    grown_c = np.empty(capacity, dtype=np.int32)
+    grown_c[:size] = hc[:size]
+    return grown_f, grown_g, grown_c
+
+
+@numba.njit(cache=True, error_model="numpy")
 def _pop(hf: np.ndarray, hg: np.ndarray, hc: np.ndarray, size: int) -> int:
     """Remove the top entry (read it first); returns the new size."""
     size -= 1
@@ -185,13 +199,7 @@ def search(
             return parent, here_g, expanded
         if size + 8 > capacity:
             capacity *= 2
-            grown_f = np.empty(capacity)
-            grown_f[:size] = hf[:size]
-            grown_g = np.empty(capacity)
-            grown_g[:size] = hg[:size]
-            grown_c = np.empty(capacity, dtype=np.int32)
-            grown_c[:size] = hc[:size]
-            hf, hg, hc = grown_f, grown_g, grown_c
+            hf, hg, hc = _grown_heap(hf, hg, hc, size, capacity)
         row = index // cols
         col = index - row * cols
         here_cost = node[index, 0]

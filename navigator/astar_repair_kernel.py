@@ -16,7 +16,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from navigator.astar_kernel import MOVES, _pop, _sift_up
+from navigator.astar_kernel import MOVES, _grown_heap, _pop, _sift_up
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -84,13 +84,7 @@ def search(
             return here_g, expanded
         if size + 8 > capacity:
             capacity *= 2
-            grown_f = np.empty(capacity)
-            grown_f[:size] = hf[:size]
-            grown_g = np.empty(capacity)
-            grown_g[:size] = hg[:size]
-            grown_c = np.empty(capacity, dtype=np.int32)
-            grown_c[:size] = hc[:size]
-            hf, hg, hc = grown_f, grown_g, grown_c
+            hf, hg, hc = _grown_heap(hf, hg, hc, size, capacity)
         row = index // cols
         col = index - row * cols
         here_cost = cost[index]

@@ -22,7 +22,7 @@ import numba
 import numpy as np
 
 from navigator.astar_bucket_kernel import _grown
-from navigator.astar_kernel import MOVES, _pop, _sift_up
+from navigator.astar_kernel import MOVES, _grown_heap, _pop, _sift_up
 
 
 # nogil: in real time the search runs on the planner thread (navigator.plan_worker) and the control
@@ -61,13 +61,7 @@ def cost_to_go(
         closed[index] = 1
         if size + 8 > capacity:
             capacity *= 2
-            grown_f = np.empty(capacity)
-            grown_f[:size] = hf[:size]
-            grown_g = np.empty(capacity)
-            grown_g[:size] = hg[:size]
-            grown_c = np.empty(capacity, dtype=np.int32)
-            grown_c[:size] = hc[:size]
-            hf, hg, hc = grown_f, grown_g, grown_c
+            hf, hg, hc = _grown_heap(hf, hg, hc, size, capacity)
         row = index // cols
         col = index - row * cols
         here_cost = cost[index]
