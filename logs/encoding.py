@@ -3,22 +3,31 @@
 The MCAP recorder and the Zenoh stream carry exactly these bytes, so a ``FanoutSink`` encodes each message
 once and hands the same bytes to every sink that takes them (``EncodedSink``).
 
-This sits on the lockstep trial's hot path (~1300 messages per simulated second), so the common case is
-one call into the C encoder built once for the process. ``json.dumps`` would build a new encoder object
-for every call because our separators are not its defaults; both give the same bytes (a test checks).
+This sits on the lockstep trial's hot path (~1300 messages per simulated second; a 15x15 covariance in
+``estimator/pose`` each tick), so the encoder is orjson: 3-10x faster than the standard library's C
+encoder on our messages, numpy arrays and scalars taken directly, NaN and infinity written as ``null`` in
+one pass. Its floats are the shortest text that reads back to the same double (``7e-05`` is written
+``0.00007``): every reader gets the same numbers as from ``json.dumps``; a test checks the round trip.
+
+What orjson refuses and JSON can still hold (an integer beyond 64 bits, an object with ``tolist``
+orjson does not know) goes through the standard library's encoder instead, with the same rules.
 """
 
 from __future__ import annotations
 
 import json
-import json.encoder
 import math
-from collections.abc import Callable
 from typing import Any, Protocol, runtime_checkable
+
+import orjson
 
 # The same alias as logs.sink.Message (which imports this module, so it cannot be imported from there).
 Message = dict[str, Any]
 _SEPARATORS = (",", ":")
+# numpy arrays and scalars as JSON numbers and lists; int dict keys as strings, as json.dumps does.
+_ORJSON_OPTIONS = orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS
+# orjson's words for data nested deeper than it recurses (a cycle, in practice).
+_ORJSON_RECURSION = "Recursion limit reached"
 
 
 def _json_default(value: Any) -> Any:
@@ -27,34 +36,6 @@ def _json_default(value: Any) -> Any:
     if tolist is not None:
         return tolist()
     raise TypeError(f"{type(value).__name__} value {value!r} is not JSON-serialisable")
-
-
-def _build_encoder() -> Callable[[Any], str]:
-    """One reusable encoder: the C one when this Python has it, else the pure-Python ``JSONEncoder``."""
-    make = getattr(json.encoder, "c_make_encoder", None)
-    if make is None:
-        return json.JSONEncoder(separators=_SEPARATORS, allow_nan=False, default=_json_default).encode
-    # markers=None: no circular-reference bookkeeping. A dict of markers kept across calls would keep
-    # stale entries after a failed call; a cycle ends in RecursionError instead, reported as ValueError.
-    iterencode = make(
-        None,  # markers
-        _json_default,
-        json.encoder.encode_basestring_ascii,  # ensure_ascii=True, as json.dumps
-        None,  # indent
-        _SEPARATORS[1],  # key separator
-        _SEPARATORS[0],  # item separator
-        False,  # sort_keys
-        False,  # skipkeys
-        False,  # allow_nan
-    )
-
-    def encode(value: Any) -> str:
-        return "".join(iterencode(value, 0))
-
-    return encode
-
-
-_encode = _build_encoder()
 
 
 def _finite(value: Any) -> Any:
@@ -71,23 +52,27 @@ def _finite(value: Any) -> Any:
     return value
 
 
-def encode_message(message: Message) -> bytes:
-    """Compact JSON bytes of ``message``; NaN and +/-inf become ``null`` (JSON has no NaN).
-
-    The common case is a single encoder call. Only a message holding a non-finite float pays for a
-    second pass. Raises ``TypeError`` for values JSON cannot hold and ``ValueError`` for circular data.
-    """
-    try:
-        return _encode(message).encode()
-    except ValueError:
-        pass  # a non-finite float (or a cycle in the fallback encoder, which the second pass reports)
-    except RecursionError as err:
-        raise ValueError("message is circular or nested too deeply to encode as JSON") from err
+def _encode_with_json(message: Message) -> bytes:
+    """The standard library's encoder, for what orjson refuses; same output rules (compact, NaN null)."""
     try:
         repaired = _finite(message)
     except RecursionError as err:
         raise ValueError("message is circular or nested too deeply to encode as JSON") from err
-    return _encode(repaired).encode()
+    text = json.dumps(repaired, separators=_SEPARATORS, allow_nan=False, default=_json_default)
+    return text.encode()
+
+
+def encode_message(message: Message) -> bytes:
+    """Compact JSON bytes of ``message``; NaN and +/-inf become ``null`` (JSON has no NaN).
+
+    Raises ``TypeError`` for values JSON cannot hold and ``ValueError`` for circular data.
+    """
+    try:
+        return orjson.dumps(message, default=_json_default, option=_ORJSON_OPTIONS)
+    except TypeError as err:  # orjson.JSONEncodeError is a TypeError
+        if _ORJSON_RECURSION in str(err):
+            raise ValueError("message is circular or nested too deeply to encode as JSON") from err
+    return _encode_with_json(message)
 
 
 @runtime_checkable
