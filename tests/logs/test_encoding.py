@@ -49,7 +49,7 @@ def test_encoder_reads_back_exactly_what_json_dumps_does(seed: int) -> None:
 
 
 def test_numpy_values_big_integers_and_int_keys_encode_as_json_dumps_would() -> None:
-    message = {
+    message: dict[Any, Any] = {
         "array": np.array([[1.0, np.nan], [np.inf, -2.5]]),
         "scalar": np.float32(0.25),
         "count": np.int64(7),
