@@ -11,10 +11,10 @@ multiplexed, choices), ``FramePacker.for_message`` returns ``None`` and callers 
 Values go through the signal's own cantools conversion (``numeric_scaled_to_raw`` / ``raw_to_scaled``),
 so rounding and scaling are cantools' to the last bit; a test compares both on random values.
 
-What this does NOT do is cantools' strict checking: ``pack`` is the equivalent of
+What ``pack`` does NOT do is cantools' range checking: it is the equivalent of
 ``encode(..., strict=False)`` for values already in range (a raw value outside its field falls back to
-cantools, which then behaves as it always does). Frames from outside are decoded strictly by cantools at
-the edge (``VescCodec.decode``); ``unpack`` is for a peer that trusts its bus (the simulator).
+cantools, which then behaves as it always does). ``unpack`` takes data of exactly the message's length:
+``VescCodec.decode`` checks the id, format and length first, as it does before cantools' decode.
 """
 
 from __future__ import annotations

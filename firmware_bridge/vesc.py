@@ -90,13 +90,15 @@ class VescFrame:
 
 
 class VescCodec:
-    """Encodes and decodes VESC frames through cantools, strictly: bad frames raise ``FrameError``.
+    """Encodes and decodes VESC frames defined by the DBC, strictly: bad frames raise ``FrameError``.
 
-    Two hot-path variants use precomputed ``FramePacker``s derived from the same DBC messages (falling
-    back to cantools where a message's layout has none): ``encode_in_range`` for senders whose values are
-    already clamped into their fields (SET_RPM from the link, status from the simulated controllers) and
-    ``decode_fast`` for the simulated controllers. Frames from outside are decoded by ``decode``, strictly,
-    through cantools.
+    Messages whose layout a ``FramePacker`` (derived from the same DBC message) can express are packed and
+    unpacked by it on the hot paths, the rest by cantools: ``encode_in_range`` for senders whose values
+    are already clamped into their fields (SET_RPM from the link, status from the simulated controllers),
+    and ``decode`` for every received frame. Decoding stays strict either way: the id, frame format and
+    length checks come first, and a payload of a plain whole-byte integer layout and the right length has
+    no bit pattern cantools would refuse, so both decoders give the same numbers (a test compares them on
+    random payloads).
     """
 
     def __init__(self, database: cantools.database.can.Database, profile: VescProfile) -> None:
@@ -107,7 +109,7 @@ class VescCodec:
         # computed per access, and decode asks for it on every frame.
         self._by_id: dict[int, tuple[str, int, cantools.database.can.Message, int]] = {}
         self._packers: dict[tuple[str, int], FramePacker | None] = {}
-        self._fast_by_id: dict[int, tuple[str, int, FramePacker, int]] = {}
+        self._unpackers: dict[int, FramePacker] = {}  # frame id -> packer, for messages that have one
         for cid in profile.controller_ids:
             for spec in VESC_MESSAGES:
                 name = message_name(spec.kind, cid)
@@ -125,7 +127,7 @@ class VescCodec:
                 packer = FramePacker.for_message(message)
                 self._packers[(spec.kind, cid)] = packer
                 if packer is not None:
-                    self._fast_by_id[message.frame_id] = (spec.kind, cid, packer, message.length)
+                    self._unpackers[message.frame_id] = packer
 
     def _message(self, kind: str, controller_id: int) -> cantools.database.can.Message:
         try:
@@ -168,19 +170,6 @@ class VescCodec:
             arbitration_id=message.frame_id, is_extended_id=True, data=data, dlc=message.length
         )
 
-    def decode_fast(self, msg: can.Message) -> VescFrame:
-        """``decode`` for a peer that trusts its bus (the simulated controllers): the same id and length
-        checks, the payload unpacked by the precomputed packer (a fixed-layout payload of the right length
-        decodes to the same numbers either way; a test compares them)."""
-        entry = self._fast_by_id.get(msg.arbitration_id)
-        if entry is None or not msg.is_extended_id or msg.is_remote_frame:
-            return self.decode(msg)  # the strict path names whatever is wrong
-        kind, cid, packer, length = entry
-        data = msg.data
-        if msg.dlc != length or len(data) != length:
-            return self.decode(msg)
-        return VescFrame(kind, cid, packer.unpack(bytes(data)))
-
     def decode(self, msg: can.Message) -> VescFrame:
         """Strictly decode a received frame; raises ``FrameError`` with a ``reason`` on anything odd."""
         arbitration_id = msg.arbitration_id
@@ -207,6 +196,9 @@ class VescCodec:
                 reason="wrong_dlc",
                 frame_id=arbitration_id,
             )
+        unpacker = self._unpackers.get(arbitration_id)
+        if unpacker is not None:
+            return VescFrame(kind, cid, unpacker.unpack(bytes(data)))
         try:
             decoded = message.decode(bytes(data), decode_choices=False)
         except (cantools.database.DecodeError, ValueError) as err:

@@ -96,7 +96,7 @@ class SimVescBank:
             if msg.is_error_frame:
                 continue
             try:
-                frame = self._codec.decode_fast(msg)
+                frame = self._codec.decode(msg)
             except FrameError as err:
                 if err.reason == "unknown_id":
                     self.ignored_frames += 1
