@@ -191,6 +191,36 @@ def test_malformed_json_payload_is_skipped_and_counted() -> None:
     assert stats.malformed == 2 and stats.messages == 2
 
 
+def test_foreign_json_only_the_standard_library_reads_is_still_read() -> None:
+    # Another writer's NaN / Infinity literals: Python's json reads them, orjson does not.
+    buffer = io.BytesIO()
+    writer = Writer(buffer)
+    writer.start()
+    schema = writer.register_schema("rover.X", "jsonschema", b"{}")
+    channel = writer.register_channel(LOG, "json", schema)
+    writer.add_message(channel, 1, b'{"a": NaN}', 1)
+    writer.add_message(channel, 2, b'{"b": [Infinity, 2]}', 2)
+    writer.finish()
+    stats = ReadStats()
+    got = list(read_messages(io.BytesIO(buffer.getvalue()), stats=stats))
+    assert math.isnan(got[0].message["a"]) and got[1].message == {"b": [math.inf, 2]}
+    assert stats.malformed == 0 and stats.messages == 2
+
+
+def test_topic_filter_keeps_exactly_the_asked_topics_across_chunks() -> None:
+    buffer = io.BytesIO()
+    with McapRecorder(buffer, chunk_size=200) as recorder:  # many small chunks
+        for i in range(50):
+            recorder.publish(LOG, i, {"timestamp": {"sec": 0, "nsec": i}, "i": i})
+            recorder.publish(NAVIGATOR_STATE, i, {"mode": "DRIVING", "i": i})
+    data = buffer.getvalue()
+    stats = ReadStats()
+    got = list(read_messages(io.BytesIO(data), topics=[NAVIGATOR_STATE], stats=stats))
+    assert [(m.topic, m.message["i"]) for m in got] == [(NAVIGATOR_STATE, i) for i in range(50)]
+    assert stats.messages == 50 and stats.skipped == 0
+    assert len(list(read_messages(io.BytesIO(data)))) == 100
+
+
 def test_nan_and_numpy_values_are_encoded_deterministically() -> None:
     message = {"a": float("nan"), "b": [1.0, float("inf")], "c": np.float32(2.5), "d": np.array([1, 2])}
     assert encode_message(message) == b'{"a":null,"b":[1.0,null],"c":2.5,"d":[1,2]}'
