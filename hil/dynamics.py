@@ -9,8 +9,8 @@ The model, per step of ``dt`` (semi-implicit Euler, no randomness):
 * Wheels on the ground (``hil.traction``, per wheel, with the class's laws): each rolling wheel meets
   motion resistance ``crr N`` whose sinkage part grows with its load (Bekker); the end axles scrub sideways
   in a turn, a moment ``mu_t sum(N |x|)`` against the yaw with ``mu_t`` falling with the turn radius; a wheel
-  pulls along its class's traction-slip curve, at most ``mu N`` and at most what its motor's current limit
-  gives.
+  pulls along its class's traction-slip curve, at most ``mu N``, at most what its motor's current limit
+  gives, and only with the sign of its actual slip (a wheel slower than the ground under it brakes).
 * Longitudinal and yaw: the commanded side speeds, minus the steady-state slip the curve needs for the
   forces that hold them (gravity ``m g sin(pitch)``, resistance, scrub), give a target speed and yaw rate
   ``(v_right − v_left) / (track × skid_factor)``. The wheels pull the body toward them within ``tau`` and
@@ -26,10 +26,11 @@ The model, per step of ``dt`` (semi-implicit Euler, no randomness):
 * Collision when the footprint circle (``footprint_radius_m``) would overlap an obstacle cell or cross the
   map edge: the move is refused and the rover stopped (it may still turn in place and back away). Reported
   once per entry in ``DynamicsStep.collided_obstacle``; ``collided`` is true for as long as it touches.
-* Motors: wheel torque ``F r`` -> motor current ``F r / (gear k_t)`` (so never above the current limit);
-  duty ``(k_t ω_motor + I R) / V``; electrical power ``k_t I ω_motor + I² R`` per motor (no regeneration)
-  integrates to energy. Slip: from the curve while a wheel pulls below its traction limit, from its surface
-  and ground speeds once it spins or slides.
+* Motors: wheel torque ``F r`` -> motor current ``F r / (gear k_t)`` (so never above the current limit; its
+  sign is the force's); duty ``(k_t ω_motor + I R) / V``; electrical power ``k_t I ω_motor + I² R`` per
+  motor, a generating (braking) motor counting 0 (no regeneration), integrates to energy. Slip: from the
+  curve while a wheel pulls below its traction limit, from its surface and ground speeds once it spins or
+  slides (or is held at zero pull by the sign of its slip).
 
 Body axes: x forward, y left, z up; pitch positive nose up, roll positive when the right side is lower.
 """
