@@ -9,8 +9,8 @@ The model, per step of ``dt`` (semi-implicit Euler, no randomness):
 * Wheels on the ground (``hil.traction``, per wheel, with the class's laws): each rolling wheel meets
   motion resistance ``crr N`` whose sinkage part grows with its load (Bekker); the end axles scrub sideways
   in a turn, a moment ``mu_t sum(N |x|)`` against the yaw with ``mu_t`` falling with the turn radius; a wheel
-  pulls along its class's traction-slip curve, at most ``mu N`` and at most what its motor's current limit
-  gives.
+  pulls along its class's traction-slip curve, at most ``mu N``, at most what its motor's current limit
+  gives, and only with the sign of its actual slip (a wheel slower than the ground under it brakes).
 * Longitudinal and yaw: the commanded side speeds, minus the steady-state slip the curve needs for the
   forces that hold them (gravity ``m g sin(pitch)``, resistance, scrub), give a target speed and yaw rate
   ``(v_right − v_left) / (track × skid_factor)``. The wheels pull the body toward them within ``tau`` and
@@ -23,13 +23,17 @@ The model, per step of ``dt`` (semi-implicit Euler, no randomness):
 * No lateral slip (the body moves along its heading); horizontal displacement is ``v cos(pitch) dt``.
 * Rollover when a stability margin (``navigator.vehicle.stability_margins``, lateral acceleration ``v ω``
   included) goes negative: latched, the rover stays stopped.
-* Collision when the footprint circle (``footprint_radius_m``) would overlap an obstacle cell or cross the
-  map edge: the move is refused and the rover stopped (it may still turn in place and back away). Reported
-  once per entry in ``DynamicsStep.collided_obstacle``; ``collided`` is true for as long as it touches.
-* Motors: wheel torque ``F r`` -> motor current ``F r / (gear k_t)`` (so never above the current limit);
-  duty ``(k_t ω_motor + I R) / V``; electrical power ``k_t I ω_motor + I² R`` per motor (no regeneration)
-  integrates to energy. Slip: from the curve while a wheel pulls below its traction limit, from its surface
-  and ground speeds once it spins or slides.
+* Collision when the footprint, the oriented rectangle ``footprint_length_m`` x ``footprint_width_m`` (the
+  planner's exact test, ``navigator.footprint.rectangle_contact``), would overlap an obstacle cell or reach
+  past the map edge: a move that pushes it further in is refused and the rover stopped at the contact. If
+  the turn alone is free it keeps turning (so it can turn in place and back away); if the turn is what hits
+  (a corner swinging into a wall), the turn stops at the contact too. Reported once per entry in
+  ``DynamicsStep.collided_obstacle``; ``collided`` is true for as long as it touches.
+* Motors: wheel torque ``F r`` -> motor current ``F r / (gear k_t)`` (so never above the current limit; its
+  sign is the force's); duty ``(k_t ω_motor + I R) / V``; electrical power ``k_t I ω_motor + I² R`` per
+  motor, a generating (braking) motor counting 0 (no regeneration), integrates to energy. Slip: from the
+  curve while a wheel pulls below its traction limit, from its surface and ground speeds once it spins or
+  slides (or is held at zero pull by the sign of its slip).
 
 Body axes: x forward, y left, z up; pitch positive nose up, roll positive when the right side is lower.
 """
@@ -43,6 +47,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hil.traction import drive_forces, wheel_outputs
+from navigator.footprint import BOUNDARY, CLEAR, OBSTACLE, rectangle_contact
 from navigator.ground_kernel import GroundUnder
 from navigator.terrain import TerrainMap
 from navigator.terrain_classes import REFERENCE_WHEEL_LOAD_N, TERRAIN_CLASSES, TerrainClass
@@ -51,6 +56,8 @@ from navigator.vehicle import G, VehicleParams, stability_margins, wheel_normal_
 # Within this distance of an obstacle the footprint counts as touching it.
 _CONTACT_TOLERANCE_M = 1e-3
 _CONTACT_BISECTIONS = 16
+# Resolution of how deep an overlapping footprint is: 2^-12 of its half width, ~0.1 mm.
+_DEPTH_BISECTIONS = 12
 
 
 class DynamicsError(ValueError):
@@ -182,10 +189,10 @@ class RoverDynamics:
         self._under = terrain.ground_at(self._x, self._y, self._yaw)
         self._energy_j = 0.0
         self._rolled_over = False
-        # The clearance and tilt where the rover stands, kept from the end of the last step (same place,
-        # same terrain) so each step computes them once, not twice.
-        self._clearance_here = self._clearance(self._x, self._y)[0]
-        self._in_contact = self._clearance_here < params.footprint_radius_m
+        self._half_length = 0.5 * params.footprint_length_m
+        self._half_width = 0.5 * params.footprint_width_m
+        self._use_obstacles(terrain)
+        self._in_contact = self._overlap_here
 
     # --- state ------------------------------------------------------------------------------------
     @property
@@ -253,7 +260,7 @@ class RoverDynamics:
             raise DynamicsError(f"new terrain does not cover the rover at ({self._x:.2f}, {self._y:.2f})")
         self._terrain = terrain
         self._under = self._terrain.ground_at(self._x, self._y, self._yaw)
-        self._clearance_here = self._clearance(self._x, self._y)[0]
+        self._use_obstacles(terrain)
 
     # --- stepping ---------------------------------------------------------------------------------
     def step(
@@ -295,23 +302,31 @@ class RoverDynamics:
 
         speed = self._speed + accel * dt_s
         mean_speed = 0.5 * (self._speed + speed)
-        heading = self._yaw + 0.5 * (self._yaw_rate + yaw_rate) * 0.5 * dt_s
+        turn = 0.5 * (self._yaw_rate + yaw_rate) * dt_s
+        heading = self._yaw + 0.5 * turn
         new_x = self._x + mean_speed * math.cos(pitch) * math.cos(heading) * dt_s
         new_y = self._y + mean_speed * math.cos(pitch) * math.sin(heading) * dt_s
-        new_yaw = _wrap(self._yaw + 0.5 * (self._yaw_rate + yaw_rate) * dt_s)
+        new_yaw = _wrap(self._yaw + turn)
 
-        # Contact: refuse a move that pushes the footprint further into an obstacle or over the edge.
-        radius = p.footprint_radius_m
-        old_clearance = self._clearance_here
-        new_clearance, new_kind = self._clearance(new_x, new_y)
-        blocked = new_clearance < radius and new_clearance < old_clearance
-        if blocked:
-            new_x, new_y = self._advance_to_contact(new_x, new_y, old_clearance >= radius)
-            new_clearance, new_kind = self._clearance(new_x, new_y)
+        # Contact: refuse a move that pushes the footprint further into an obstacle or over the edge. Most
+        # steps touch nothing: one test of the rectangle grown by the tolerance settles them.
+        kind = self._contact(new_x, new_y, new_yaw, _CONTACT_TOLERANCE_M)
+        touching = kind != CLEAR
+        overlapping = False
+        if touching and self._refused(new_x, new_y, new_yaw):
+            if not self._refused(self._x, self._y, new_yaw):
+                # The turn alone is free: keep it, and stop the move at the contact.
+                new_x, new_y = self._advance_to_contact(new_x, new_y, new_yaw, 0.0)[:2]
+            else:
+                # The turn is what hits (a corner swinging in): it stops at the contact too.
+                new_x, new_y, new_yaw = self._advance_to_contact(new_x, new_y, self._yaw, turn)
+                yaw_rate = 0.0
             accel = (0.0 - self._speed) / dt_s
             speed = 0.0
-        touching = blocked or new_clearance < radius + _CONTACT_TOLERANCE_M
-        self._clearance_here = new_clearance
+            kind = self._contact(new_x, new_y, new_yaw, _CONTACT_TOLERANCE_M) or kind
+        if touching:
+            overlapping = self._contact(new_x, new_y, new_yaw, 0.0) != CLEAR
+        self._overlap_here = overlapping
         contact_began = touching and not self._in_contact
         self._in_contact = touching
 
@@ -366,7 +381,7 @@ class RoverDynamics:
             rollover_started=rollover_started,
             collided=touching,
             collided_obstacle=contact_began,
-            collision_with=new_kind if touching else "",
+            collision_with=_KIND_NAMES[kind] if touching else "",
             energy_wh=self.energy_wh,
             battery_current_a=power / battery_voltage_v if battery_voltage_v > 0.0 else 0.0,
         )
@@ -418,52 +433,71 @@ class RoverDynamics:
             G * cos_pitch * math.cos(roll),
         )
 
-    def _advance_to_contact(self, new_x: float, new_y: float, clear_now: bool) -> tuple[float, float]:
-        """The furthest point along this step's move that keeps the footprint clear (bisection).
+    def _use_obstacles(self, terrain: TerrainMap) -> None:
+        """Keep the map's obstacle layer and frame for the per-step contact test, and whether the footprint
+        overlaps it where the rover stands."""
+        self._obstacles = np.ascontiguousarray(terrain.obstacles)
+        self._origin_x, self._origin_y = terrain.origin_xy
+        self._resolution_m = terrain.resolution_m
+        self._overlap_here = self._contact(self._x, self._y, self._yaw, 0.0) != CLEAR
+
+    def _contact(self, x: float, y: float, yaw: float, grow_m: float) -> int:
+        """What the footprint at (x, y, yaw), grown by ``grow_m`` on every side, overlaps (CLEAR, OBSTACLE,
+        BOUNDARY of ``navigator.footprint``)."""
+        return int(
+            rectangle_contact(
+                self._obstacles, self._resolution_m, self._origin_x, self._origin_y, x, y, yaw,
+                self._half_length + grow_m, self._half_width + grow_m,
+            )
+        )  # fmt: skip
+
+    def _depth(self, x: float, y: float, yaw: float) -> float:
+        """How far the footprint reaches into obstacles or past the edge: the least shrink of every side (m)
+        that clears it (bisection); 0 when clear, half its width when even its centre line overlaps."""
+        if self._contact(x, y, yaw, 0.0) == CLEAR:
+            return 0.0
+        lo, hi = 0.0, min(self._half_length, self._half_width)
+        if self._contact(x, y, yaw, -hi) != CLEAR:
+            return hi
+        for _ in range(_DEPTH_BISECTIONS):
+            mid = 0.5 * (lo + hi)
+            if self._contact(x, y, yaw, -mid) != CLEAR:
+                lo = mid
+            else:
+                hi = mid
+        return hi
+
+    def _refused(self, x: float, y: float, yaw: float) -> bool:
+        """Whether moving to (x, y, yaw) pushes the footprint further in: into an overlap from clear, or
+        deeper into one it already overlaps (e.g. an obstacle appeared on it: it may still back out)."""
+        if self._contact(x, y, yaw, 0.0) == CLEAR:
+            return False
+        return not self._overlap_here or self._depth(x, y, yaw) > self._depth(self._x, self._y, self._yaw)
+
+    def _advance_to_contact(
+        self, new_x: float, new_y: float, yaw_from: float, turn: float
+    ) -> tuple[float, float, float]:
+        """The furthest pose along this step's move (position, and the heading ``yaw_from`` + part of
+        ``turn``) that keeps the footprint clear (bisection).
 
         Stopping at the contact rather than where the step began means a rover pushing on an obstacle stays
         in touch with it instead of creeping up to it again and again.
         """
-        if not clear_now:
-            return self._x, self._y  # already overlapping (e.g. an obstacle appeared on it): stay put
-        radius = self._params.footprint_radius_m
+        if self._overlap_here:
+            return self._x, self._y, _wrap(yaw_from)  # already overlapping: no move in, stay put
         lo, hi = 0.0, 1.0
         for _ in range(_CONTACT_BISECTIONS):
             mid = 0.5 * (lo + hi)
             x = self._x + mid * (new_x - self._x)
             y = self._y + mid * (new_y - self._y)
-            if self._clearance(x, y)[0] >= radius:
+            if self._contact(x, y, yaw_from + mid * turn, 0.0) == CLEAR:
                 lo = mid
             else:
                 hi = mid
-        return self._x + lo * (new_x - self._x), self._y + lo * (new_y - self._y)
+        return self._x + lo * (new_x - self._x), self._y + lo * (new_y - self._y), _wrap(yaw_from + lo * turn)
 
-    def _clearance(self, x: float, y: float) -> tuple[float, str]:
-        """Distance from (x, y) to the nearest obstacle cell or map edge (capped), and which one it is."""
-        terrain = self._terrain
-        res = terrain.resolution_m
-        ox, oy = terrain.origin_xy
-        width, height = terrain.size_m
-        reach = self._params.footprint_radius_m + res
-        edge = min(x - ox, ox + width - x, y - oy, oy + height - y)
-        rows, cols = terrain.shape
-        c0 = max(math.floor((x - reach - ox) / res), 0)
-        c1 = min(math.floor((x + reach - ox) / res) + 1, cols)
-        r0 = max(math.floor((y - reach - oy) / res), 0)
-        r1 = min(math.floor((y + reach - oy) / res) + 1, rows)
-        nearest = reach
-        if c0 < c1 and r0 < r1:
-            window = terrain.obstacles[r0:r1, c0:c1]
-            if window.any():
-                cell_rows, cell_cols = np.nonzero(window)
-                left = ox + (c0 + cell_cols) * res
-                bottom = oy + (r0 + cell_rows) * res
-                dx = np.maximum(np.maximum(left - x, x - (left + res)), 0.0)
-                dy = np.maximum(np.maximum(bottom - y, y - (bottom + res)), 0.0)
-                nearest = min(reach, float(np.hypot(dx, dy).min()))
-        if edge < nearest:
-            return edge, "boundary"
-        return nearest, "obstacle"
+
+_KIND_NAMES = {CLEAR: "", BOUNDARY: "boundary", OBSTACLE: "obstacle"}
 
 
 def _wrap(angle: float) -> float:

@@ -41,6 +41,9 @@ G = 9.81  # m/s^2, as navigator.vehicle.G (a compile-time constant here)
 ROLLING_SPEED_EPS_MPS = 0.05
 # Slip ratios use at least this speed as denominator, so a wheel at rest does not divide by zero.
 SLIP_SPEED_EPS_MPS = 0.05
+# Within this speed of the ground under it a wheel's slip counts as zero, so it may hold either way (static
+# friction): rounding in the state must not flip the sign of the force a wheel at rest holds a slope with.
+SLIP_SIGN_EPS_MPS = 1e-6
 # Sideways speed added to the end wheels' scrub so a wheel at rest holds with full static friction.
 SCRUB_SPEED_EPS_MPS = 0.01
 # Indices into drive_forces' class-parameter vector.
@@ -99,12 +102,16 @@ def sideways_share(lateral_speed: float, sliding_speed: float) -> float:
 
 
 @numba.njit(cache=True)
-def _share_side(force: float, loads: Array, first: int, mu: float, cap: float, out: Array) -> float:
-    """Split ``force`` over wheels ``first..first+2`` in proportion to load, each within ``mu N`` and
-    ``cap``; a wheel at its cap gives way to the others. Writes ``out``; returns the force / load ratio
-    of the uncapped wheels (>= mu: the side cannot give ``force``, each wheel gives its most)."""
+def _share_side(
+    force: float, loads: Array, first: int, mu: float, forward_caps: Array, backward_caps: Array, out: Array
+) -> float:
+    """Split ``force`` over wheels ``first..first+2`` in proportion to load, each within ``mu N`` and its
+    cap in the force's direction (``forward_caps`` or ``backward_caps``, N); a wheel at its cap gives way
+    to the others. Writes ``out``; returns the force / load ratio of the uncapped wheels (>= mu: the side
+    cannot give ``force``, each wheel gives its most)."""
     magnitude = abs(force)
     sign = 1.0 if force >= 0.0 else -1.0
+    caps = forward_caps if force >= 0.0 else backward_caps
     capped = np.zeros(3, dtype=np.bool_)
     ratio = 0.0
     for _ in range(4):
@@ -112,36 +119,63 @@ def _share_side(force: float, loads: Array, first: int, mu: float, cap: float, o
         taken = 0.0
         for k in range(3):
             if capped[k]:
-                taken += cap
+                taken += caps[first + k]
             else:
                 free_load += loads[first + k]
         if free_load <= 0.0:
             ratio = math.inf if magnitude > taken else 0.0
             break
         ratio = (magnitude - taken) / free_load
+        # Cap first the wheel that reaches its cap at the lowest ratio (with equal caps: the most loaded).
         worst = -1
         for k in range(3):
-            over = not capped[k] and min(ratio, mu) * loads[first + k] > cap
-            if over and (worst < 0 or loads[first + k] > loads[first + worst]):
+            load, cap = loads[first + k], caps[first + k]
+            over = not capped[k] and min(ratio, mu) * load > cap
+            if over and (worst < 0 or cap * loads[first + worst] < caps[first + worst] * load):
                 worst = k
         if worst < 0:
             break
         capped[worst] = True
     for k in range(3):
         if capped[k]:
-            out[first + k] = sign * cap
+            out[first + k] = sign * caps[first + k]
         else:
             out[first + k] = sign * min(ratio, mu) * loads[first + k]
     return ratio
 
 
 @numba.njit(cache=True)
+def _wheel_caps(
+    wheels: Array,
+    speed: float,
+    yaw_rate: float,
+    effective_track: float,
+    cap: float,
+    out_forward: Array,
+    out_backward: Array,
+) -> None:
+    """The most each wheel can pull forward and backward (N, magnitudes): its motor's cap (``mu N`` is
+    applied in the sharing), and nothing against the sign of its slip. The traction curve's force has the
+    sign of the slip, so a wheel turning slower than the ground under it brakes and never pulls forward,
+    and one turning faster never brakes; within ``SLIP_SIGN_EPS_MPS`` of the ground it holds either way
+    (static friction)."""
+    for i in range(6):
+        side = 1.0 if i >= 3 else -1.0
+        sliding = wheels[i] - (speed + side * 0.5 * yaw_rate * effective_track)
+        out_forward[i] = cap if sliding > -SLIP_SIGN_EPS_MPS else 0.0
+        out_backward[i] = cap if sliding < SLIP_SIGN_EPS_MPS else 0.0
+
+
+@numba.njit(cache=True)
 def _side_ground_speed(
     surface: float, force: float, loads: Array, first: int, mu: float, k: float, cap: float
 ) -> float:
-    """Ground speed a side's wheels at ``surface`` m/s settle at while transmitting ``force`` (N)."""
+    """Ground speed a side's wheels at ``surface`` m/s settle at while transmitting ``force`` (N).
+
+    In the steady state the slip has the force's sign by construction, so only the motor cap bounds it."""
     scratch = np.empty(6)
-    ratio = _share_side(force, loads, first, mu, cap, scratch)
+    caps = np.full(6, cap)
+    ratio = _share_side(force, loads, first, mu, caps, caps, scratch)
     if ratio >= mu:
         return surface  # cannot hold it: the wheels spin; the force limit, not slip, sets the motion
     slip = slip_for_ratio(ratio, mu, k)
@@ -230,24 +264,27 @@ def drive_forces(
     v_target = 0.5 * (left_ground + right_ground)
     yaw_target = (right_ground - left_ground) / effective_track
 
-    # Longitudinal: toward the target within tau, as far as the sides' traction and current limits allow.
-    left_capacity = 0.0
-    right_capacity = 0.0
+    # Longitudinal: toward the target within tau, as far as the sides' traction and current limits and the
+    # sign of each wheel's slip allow (a wheel slower than the ground brakes, one faster pulls).
+    forward_caps, backward_caps = np.empty(6), np.empty(6)
+    _wheel_caps(wheels, speed, yaw_rate, effective_track, cap, forward_caps, backward_caps)
+    left_forward = left_backward = right_forward = right_backward = 0.0
     for i in range(6):
-        most = min(mu * normals[i], cap)
+        grip = mu * normals[i]
         if i < 3:
-            left_capacity += most
+            left_forward += min(grip, forward_caps[i])
+            left_backward += min(grip, backward_caps[i])
         else:
-            right_capacity += most
+            right_forward += min(grip, forward_caps[i])
+            right_backward += min(grip, backward_caps[i])
     required = mass * (v_target - speed) / tau_drive - gravity_along - resist_total
-    total_capacity = left_capacity + right_capacity
-    drive = max(-total_capacity, min(total_capacity, required))
+    drive = max(-(left_backward + right_backward), min(left_forward + right_forward, required))
     accel = (drive + gravity_along + resist_total) / mass
 
     # Yaw: the moment toward the target turn plus the scrub, within what each side has left over.
     required_moment = inertia * (yaw_target - yaw_rate) / tau_yaw + turn_sign * scrub - resist_moment
-    low = track * max(-right_capacity - 0.5 * drive, 0.5 * drive - left_capacity)
-    high = track * min(right_capacity - 0.5 * drive, 0.5 * drive + left_capacity)
+    low = track * max(-right_backward - 0.5 * drive, 0.5 * drive - left_forward)
+    high = track * min(right_forward - 0.5 * drive, 0.5 * drive + left_backward)
     if low > high:
         low = high = 0.5 * (low + high)
     moment = max(low, min(high, required_moment))
@@ -261,8 +298,8 @@ def drive_forces(
     else:
         new_yaw_rate = free_yaw_rate + scrub_change
 
-    _share_side(0.5 * drive - moment / track, normals, 0, mu, cap, out_forces)
-    _share_side(0.5 * drive + moment / track, normals, 3, mu, cap, out_forces)
+    _share_side(0.5 * drive - moment / track, normals, 0, mu, forward_caps, backward_caps, out_forces)
+    _share_side(0.5 * drive + moment / track, normals, 3, mu, forward_caps, backward_caps, out_forces)
     return accel, new_yaw_rate
 
 
@@ -284,7 +321,10 @@ def wheel_outputs(
 
     ``motor`` = [wheel radius m, gear ratio, torque constant N m/A, winding resistance ohm, effective
     track m]. A wheel pulling below its traction limit slips as the class's curve says; a saturated or
-    lifted wheel slips as its surface and ground speeds say (it spins or slides).
+    lifted wheel, or one held at zero pull because its slip opposes its side's force, slips as its surface
+    and ground speeds say (it spins or slides). The current has the sign of the wheel's force (negative
+    when braking a forward-turning wheel); a motor that generates (braking, ``k_t omega I + I^2 R < 0``)
+    gives nothing back: no regeneration, as in ``hil.battery``, so the power is never negative.
     """
     radius, gear, k_t, resistance, effective_track = motor[0], motor[1], motor[2], motor[3], motor[4]
     mu, slip_k = ground[MU], ground[SLIP_K]
@@ -292,11 +332,14 @@ def wheel_outputs(
     for i in range(6):
         side = 1.0 if i >= 3 else -1.0
         ground_speed = speed + side * yaw_rate * 0.5 * effective_track
-        if normals[i] > 0.0 and abs(forces[i]) < mu * normals[i] * (1.0 - 1e-9):
+        sliding = wheels[i] - ground_speed
+        # A wheel held at zero pull by the sign of its slip (see _wheel_caps) is not on the curve either.
+        held_off = forces[i] == 0.0 and abs(sliding) >= SLIP_SIGN_EPS_MPS
+        if normals[i] > 0.0 and abs(forces[i]) < mu * normals[i] * (1.0 - 1e-9) and not held_off:
             out_slip[i] = slip_for_ratio(forces[i] / normals[i], mu, slip_k)
         else:
             scale = max(abs(wheels[i]), abs(ground_speed), SLIP_SPEED_EPS_MPS)
-            out_slip[i] = max(-1.0, min(1.0, (wheels[i] - ground_speed) / scale))
+            out_slip[i] = max(-1.0, min(1.0, sliding / scale))
         current = forces[i] * radius / (gear * k_t)
         back_emf = k_t * wheels[i] / radius * gear
         out_current[i] = current

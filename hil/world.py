@@ -130,10 +130,12 @@ class SimWorld:
             self._apply_faults(now)
         self.vescs.poll()
         step = self.body.step(dt_s, self.vescs.wheel_speeds_mps(), self.battery.voltage_v)
+        # Each motor draws I x duty from the pack; a braking motor (current against its duty) generates, and
+        # with no regeneration (hil.battery, the dynamics' motor power) it gives nothing back, nor draws.
         # Plain floats (numpy on six numbers cost more than the sum): the same left-to-right sum np.sum
         # does below eight elements, so the same bits.
         input_current = sum(
-            abs(current) * abs(duty) for current, duty in zip(step.motor_currents_a, step.duty, strict=True)
+            max(current * duty, 0.0) for current, duty in zip(step.motor_currents_a, step.duty, strict=True)
         )
         voltage = self.battery.draw(input_current + ELECTRONICS_CURRENT_A, dt_s)
         self.vescs.set_electrical(step.motor_currents_a, voltage)

@@ -6,6 +6,9 @@ decided exactly by the separating-axis test on the four axes that matter (the ma
 forward and left). With ``edge_is_obstacle`` any part of it off the map collides too, like the planner's
 inflation and the simulator's boundary contact.
 
+``rectangle_contact`` is the same test for one pose on the unpadded obstacle layer, telling obstacle from map
+edge (the simulator's contact test, every physics step).
+
 Walking a path (``first_collision``) samples it: poses every ``step_m`` along each segment with the
 segment's heading (the path tangent), and at each corner the turn on the spot from the incoming to the
 outgoing heading every ``turn_step_rad`` (a skid-steer rover turns in place). Between samples a corner of
@@ -237,6 +240,48 @@ def _rect_overlaps_cell(
 
 
 @numba.njit(cache=True)
+def rectangle_reach(
+    cos_yaw: float, sin_yaw: float, half_length: float, half_width: float
+) -> tuple[float, float]:
+    """Half extents (x, y) of the rectangle's axis-aligned bounding box: attained at its corners, so the
+    rectangle reaches past a line of constant x or y exactly when the box does."""
+    reach_x = half_length * abs(cos_yaw) + half_width * abs(sin_yaw)
+    reach_y = half_length * abs(sin_yaw) + half_width * abs(cos_yaw)
+    return reach_x, reach_y
+
+
+@numba.njit(cache=True)
+def _hits_cells(
+    grid: np.ndarray,
+    res: float,
+    ox: float,
+    oy: float,
+    x: float,
+    y: float,
+    cos_yaw: float,
+    sin_yaw: float,
+    half_length: float,
+    half_width: float,
+) -> bool:
+    """Whether the rectangle at (x, y) overlaps a True cell of ``grid`` (only cells in its bounding box)."""
+    rows, cols = grid.shape
+    half_cell = 0.5 * res
+    reach_x, reach_y = rectangle_reach(cos_yaw, sin_yaw, half_length, half_width)
+    col0 = max(0, math.floor((x - reach_x - ox) / res))
+    col1 = min(cols - 1, math.floor((x + reach_x - ox) / res))
+    row0 = max(0, math.floor((y - reach_y - oy) / res))
+    row1 = min(rows - 1, math.floor((y + reach_y - oy) / res))
+    for row in range(row0, row1 + 1):
+        dy = oy + (row + 0.5) * res - y
+        for col in range(col0, col1 + 1):
+            if grid[row, col] and _rect_overlaps_cell(
+                ox + (col + 0.5) * res - x, dy, cos_yaw, sin_yaw, half_length, half_width, half_cell
+            ):
+                return True
+    return False
+
+
+@numba.njit(cache=True)
 def _first_hit_kernel(
     grid: np.ndarray,
     res: float,
@@ -253,29 +298,48 @@ def _first_hit_kernel(
     (the rectangle's bounding box is attained at its corners, so this is exact) collides too, even far off.
     """
     rows, cols = grid.shape
-    half_cell = 0.5 * res
     ring = 1 if edge else 0
     x_lo, x_hi = ox + ring * res, ox + (cols - ring) * res
     y_lo, y_hi = oy + ring * res, oy + (rows - ring) * res
     for index in range(poses.shape[0]):
         x, y, yaw = poses[index, 0], poses[index, 1], poses[index, 2]
         cos_yaw, sin_yaw = math.cos(yaw), math.sin(yaw)
-        reach_x = half_length * abs(cos_yaw) + half_width * abs(sin_yaw)
-        reach_y = half_length * abs(sin_yaw) + half_width * abs(cos_yaw)
+        reach_x, reach_y = rectangle_reach(cos_yaw, sin_yaw, half_length, half_width)
         if edge and (x - reach_x < x_lo or x + reach_x > x_hi or y - reach_y < y_lo or y + reach_y > y_hi):
             return index
-        col0 = max(0, math.floor((x - reach_x - ox) / res))
-        col1 = min(cols - 1, math.floor((x + reach_x - ox) / res))
-        row0 = max(0, math.floor((y - reach_y - oy) / res))
-        row1 = min(rows - 1, math.floor((y + reach_y - oy) / res))
-        for row in range(row0, row1 + 1):
-            dy = oy + (row + 0.5) * res - y
-            for col in range(col0, col1 + 1):
-                if grid[row, col] and _rect_overlaps_cell(
-                    ox + (col + 0.5) * res - x, dy, cos_yaw, sin_yaw, half_length, half_width, half_cell
-                ):
-                    return index
+        if _hits_cells(grid, res, ox, oy, x, y, cos_yaw, sin_yaw, half_length, half_width):
+            return index
     return -1
+
+
+# What ``rectangle_contact`` found.
+CLEAR, OBSTACLE, BOUNDARY = 0, 1, 2
+
+
+@numba.njit(cache=True)
+def rectangle_contact(
+    obstacles: np.ndarray,
+    res: float,
+    ox: float,
+    oy: float,
+    x: float,
+    y: float,
+    yaw: float,
+    half_length: float,
+    half_width: float,
+) -> int:
+    """One pose of a ``2 half_length`` x ``2 half_width`` rectangle against a map's obstacle layer
+    (``obstacles`` unpadded, its lower-left corner at (ox, oy)): ``BOUNDARY`` when any part of it is off the
+    map, else ``OBSTACLE`` when it overlaps an obstacle cell (positive area, as ``footprint_collides``),
+    else ``CLEAR``. The same exact test the planner runs, for one pose without building a padded grid."""
+    rows, cols = obstacles.shape
+    cos_yaw, sin_yaw = math.cos(yaw), math.sin(yaw)
+    reach_x, reach_y = rectangle_reach(cos_yaw, sin_yaw, half_length, half_width)
+    if x - reach_x < ox or x + reach_x > ox + cols * res or y - reach_y < oy or y + reach_y > oy + rows * res:
+        return BOUNDARY
+    if _hits_cells(obstacles, res, ox, oy, x, y, cos_yaw, sin_yaw, half_length, half_width):
+        return OBSTACLE
+    return CLEAR
 
 
 def disc_gap_m(

@@ -6,6 +6,7 @@ import pytest
 from hil.dynamics import DynamicsError, RoverDynamics
 from hil.traction import slip_for_ratio
 from navigator.follower import FollowerConfig, PurePursuit
+from navigator.footprint import Footprint, footprint_collides
 from navigator.mixing import mix_skid_steer
 from navigator.planner import Planner
 from navigator.terrain import TerrainMap, from_maze
@@ -122,8 +123,9 @@ def test_collision_with_an_obstacle_is_reported_once_and_not_entered():
     steps = run(body, [1.0] * 6, 6.0)
     assert sum(s.collided_obstacle for s in steps) == 1
     assert steps[-1].collided and steps[-1].collision_with == "obstacle"
-    assert body.x <= 15.0 - PARAMS.footprint_radius_m + 1e-9
-    assert body.x > 15.0 - PARAMS.footprint_radius_m - 0.05
+    # The rectangle's nose stops at the wall (half its length ahead of the centre), not a circle's rim.
+    half_length = PARAMS.footprint_length_m / 2.0
+    assert 15.0 - half_length - 1e-4 < body.x <= 15.0 - half_length
     # Backing away ends the contact; driving in again is a new one.
     steps = run(body, [-0.5] * 6, 1.0) + run(body, [1.0] * 6, 2.0)
     assert not steps[50].collided
@@ -134,7 +136,55 @@ def test_leaving_the_map_is_a_boundary_collision():
     body = RoverDynamics(plane(size=(40, 40)), PARAMS, x=5.0, y=5.0, yaw=math.pi)
     steps = run(body, [1.0] * 6, 8.0)
     assert steps[-1].collision_with == "boundary"
-    assert body.x >= PARAMS.footprint_radius_m - 1e-9
+    assert PARAMS.footprint_length_m / 2.0 <= body.x < PARAMS.footprint_length_m / 2.0 + 1e-4
+
+
+def corridor(y_low_m, y_high_m, size=(80, 80), res=0.25):
+    """Obstacles everywhere but a corridor along x between y_low_m and y_high_m (cell edges)."""
+    obstacles = np.ones(size, bool)
+    obstacles[round(y_low_m / res) : round(y_high_m / res), :] = False
+    return obstacles
+
+
+def test_drives_lengthwise_through_a_corridor_narrower_than_its_diagonal():
+    footprint = Footprint.of(PARAMS)
+    assert PARAMS.footprint_width_m < 1.0 < 2.0 * footprint.circumscribed_radius_m
+    body = RoverDynamics(plane(obstacles=corridor(9.5, 10.5)), PARAMS, x=2.0, y=10.0, yaw=0.0)
+    steps = run(body, [1.0] * 6, 5.0)
+    assert not any(s.collided for s in steps)
+    assert body.x > 6.5 and body.y == pytest.approx(10.0)
+
+
+def test_turning_on_the_spot_next_to_a_wall_its_corner_hits_it():
+    """Side 0.15 m from a wall: the front-left corner (at the circumscribed radius r, angle phi off the
+    heading) swings into it once r sin(yaw + phi) reaches the wall, 0.5 m from the centre."""
+    obstacles = np.zeros((80, 80), bool)
+    obstacles[42:, :] = True  # a wall at y >= 10.5 m, on the rover's left
+    body = RoverDynamics(plane(obstacles=obstacles), PARAMS, x=10.0, y=10.0, yaw=0.0)
+    footprint = Footprint.of(PARAMS)
+    radius = footprint.circumscribed_radius_m
+    phi = math.atan2(PARAMS.footprint_width_m, PARAMS.footprint_length_m)
+    contact_yaw = math.asin(0.5 / radius) - phi
+    steps = run(body, [-0.4] * 3 + [0.4] * 3, 2.0)  # left turn: ~0.8 rad/s, far past contact_yaw
+    assert sum(s.collided_obstacle for s in steps) == 1
+    assert steps[-1].collided and steps[-1].collision_with == "obstacle"
+    assert body.yaw == pytest.approx(contact_yaw, abs=1e-4) and body.yaw <= contact_yaw
+    assert body.yaw_rate == 0.0 and (body.x, body.y) == pytest.approx((10.0, 10.0), abs=1e-9)
+    assert not footprint_collides(body.terrain, (body.x, body.y, body.yaw), footprint)
+    # Turning the other way swings the corner out again: the contact ends.
+    steps = run(body, [0.4] * 3 + [-0.4] * 3, 0.5)
+    assert not steps[-1].collided and body.yaw < contact_yaw - 0.1
+
+
+def test_an_obstacle_appearing_on_the_rover_lets_it_back_out_but_not_go_deeper():
+    body = RoverDynamics(plane(), PARAMS, x=10.0, y=10.0, yaw=0.0)
+    obstacles = np.zeros((80, 80), bool)
+    obstacles[:, 41:] = True  # a wall at x >= 10.25 m: the nose (x + 0.45) is 0.2 m into it
+    body.set_terrain(plane(obstacles=obstacles))
+    steps = run(body, [0.5] * 6, 0.5)
+    assert body.x == 10.0 and all(s.collided and s.collision_with == "obstacle" for s in steps)
+    steps = run(body, [-0.5] * 6, 1.0)
+    assert body.x < 10.25 - PARAMS.footprint_length_m / 2.0 and not steps[-1].collided
 
 
 def test_deterministic():

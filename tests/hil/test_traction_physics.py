@@ -6,10 +6,12 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from firmware_bridge.can_link import CanLink
 from hil.dynamics import RoverDynamics
-from hil.traction import SCRUB_SPEED_EPS_MPS, slip_for_ratio, traction_ratio
+from hil.traction import SCRUB_SPEED_EPS_MPS, SLIP_SIGN_EPS_MPS, slip_for_ratio, traction_ratio
 from hil.vesc_sim import SimVescBank
 from logs.clock import SimClock, to_ns
 from logs.sink import MemorySink
@@ -73,6 +75,101 @@ def test_climbing_slip_follows_the_curve_and_saturates_past_the_climb_limit(clas
     last = settle(body, [0.8] * 6, 1.0)
     assert body.speed < 0.0 and min(last.slip) == 1.0
     assert sum(last.traction_forces_n) == pytest.approx(c.friction_mu * sum(last.normal_forces_n), rel=1e-9)
+
+
+# The motor model of RoverDynamics' defaults: wheel radius from the params, gear 20, k_t 0.07 N m/A, 0.1 ohm.
+GEAR, K_T, WINDING_OHM = 20.0, 0.07, 0.1
+
+
+def test_descending_slower_than_gravity_would_go_the_wheels_brake_at_the_curves_slip():
+    """Downhill with the wheels turning slower than the rover would roll: every wheel brakes with the curve's
+    force for its (negative) slip, the rover runs ahead of its tyres by that slip, the motors generate (so
+    with no regeneration they draw nothing) and the energy is the integral of V I."""
+    firm = TERRAIN_CLASSES[FIRM]
+    theta = math.radians(20.0)
+    wheel = 0.6
+    body = RoverDynamics(plane(-math.tan(theta)), PARAMS, x=3.0, y=10.0, yaw=0.0)  # facing downhill
+    steps = [body.step(DT, [wheel] * 6, VOLTS) for _ in range(300)]
+    last = steps[-1]
+    # Steady: the wheels hold back gravity less rolling resistance, each in proportion to its load.
+    ratio = -(math.tan(theta) - firm.rolling_resistance)
+    slip = slip_for_ratio(ratio, firm.friction_mu, firm.slip_constant)
+    assert slip < 0.0
+    assert sum(last.traction_forces_n) == pytest.approx(
+        -PARAMS.mass_kg * G * (math.sin(theta) - firm.rolling_resistance * math.cos(theta)), rel=1e-6
+    )
+    for force, load, wheel_slip in zip(last.traction_forces_n, last.normal_forces_n, last.slip, strict=True):
+        assert force / load == pytest.approx(ratio, rel=1e-6)
+        assert wheel_slip == pytest.approx(slip, rel=1e-6)
+    assert body.speed == pytest.approx(wheel / (1.0 + slip), rel=1e-6)  # ground ahead of the tyre
+    assert body.speed > wheel
+    # Braking current: the force's sign; the motor turns forward, so it generates and gives nothing back.
+    for force, current, duty in zip(last.traction_forces_n, last.motor_currents_a, last.duty, strict=True):
+        assert current == pytest.approx(force * PARAMS.wheel_radius_m / (GEAR * K_T), rel=1e-12)
+        assert current < 0.0 < duty
+        back_emf = K_T * GEAR * wheel / PARAMS.wheel_radius_m
+        assert back_emf * current + current**2 * WINDING_OHM < 0.0
+    assert last.battery_current_a == 0.0
+    assert last.energy_wh == steps[-100].energy_wh  # nothing drawn once it brakes steadily
+    # Energy is the integral of V I over the whole run (the start drew a little while the wheels pulled).
+    integral_wh = sum(s.battery_current_a * VOLTS * DT for s in steps) / 3600.0
+    assert last.energy_wh == pytest.approx(integral_wh, rel=1e-12)
+
+
+def wrong_way_pulls(body, commands, seconds):
+    """Steps in which a wheel pulled against the sign of its slip at the start of the step:
+    (wheel speed - ground speed under it, force)."""
+    wrong = []
+    for tick in range(round(seconds / DT)):
+        wheels = commands(tick * DT)
+        speed, yaw_rate = body.speed, body.yaw_rate
+        step = body.step(DT, wheels, VOLTS)
+        for i, force in enumerate(step.traction_forces_n):
+            side = 1.0 if i >= 3 else -1.0
+            sliding = wheels[i] - (speed + side * 0.5 * yaw_rate * PARAMS.effective_track_m)
+            slower, faster = sliding < -SLIP_SIGN_EPS_MPS, sliding > SLIP_SIGN_EPS_MPS
+            if (slower and force > 0.0) or (faster and force < 0.0):
+                wrong.append((sliding, force))
+            assert (step.motor_currents_a[i] > 0.0) == (force > 0.0)
+    return wrong
+
+
+@pytest.mark.parametrize(("class_id", "degrees", "wheel"), [(MUDDY, 22.0, 0.5), (SANDY, 26.0, 0.6)])
+def test_on_a_slippery_descent_a_wheel_slower_than_the_ground_never_pulls_forward(class_id, degrees, wheel):
+    """Starting from rest the rover overtakes its wheels on the way to the steady braking slip; from then
+    on the wheels may only brake (the force was once clipped to the traction limits only, and pulled)."""
+    body = RoverDynamics(
+        plane(-math.tan(math.radians(degrees)), class_id, size=(80, 400)), PARAMS, x=3.0, y=10.0, yaw=0.0
+    )
+    assert wrong_way_pulls(body, lambda _t: [wheel] * 6, 4.0) == []
+    last = body.step(DT, [wheel] * 6, VOLTS)
+    assert all(f < 0.0 for f in last.traction_forces_n) and all(s < 0.0 for s in last.slip)
+    assert body.speed > wheel
+
+
+PROPERTY = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+
+@PROPERTY
+@given(
+    class_id=st.sampled_from(sorted(TERRAIN_CLASSES)),
+    degrees=st.floats(-30.0, 30.0),
+    heading=st.floats(-math.pi, math.pi),
+    first=st.tuples(st.floats(-1.5, 1.5), st.floats(-1.5, 1.5)),
+    second=st.tuples(st.floats(-1.5, 1.5), st.floats(-1.5, 1.5)),
+)
+def test_no_wheel_ever_pulls_against_the_sign_of_its_slip(class_id, degrees, heading, first, second):
+    """Any class, slope, heading and change of command: a wheel slower than the ground under it never pulls
+    forward, one faster never brakes, and its motor current has the sign of its force."""
+    body = RoverDynamics(
+        plane(math.tan(math.radians(degrees)), class_id, size=(120, 120)), PARAMS, x=15.0, y=15.0, yaw=heading
+    )
+
+    def commands(t):
+        left, right = first if t < 0.6 else second
+        return [left] * 3 + [right] * 3
+
+    assert wrong_way_pulls(body, commands, 1.2) == []
 
 
 def steady_turn_slip(class_id, wheel_speed):
