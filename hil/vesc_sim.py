@@ -69,6 +69,7 @@ class SimVescBank:
         self._tacho_erev = [0.0] * WHEEL_COUNT
         self._last_command_ns: list[int | None] = [None] * WHEEL_COUNT
         self._motor_current_a = [0.0] * WHEEL_COUNT
+        self._physics_duty: list[float] | None = None  # from set_electrical; None: estimated from ERPM
         self._input_voltage_v = input_voltage_v
         self.commands_applied = 0
         self.timeouts = 0
@@ -168,16 +169,30 @@ class SimVescBank:
             self._tacho_erev[i] += 0.5 * (before + after) * dt_s / 60.0
         self._send_due_status(now)
 
-    def set_electrical(self, motor_currents_a: Sequence[float], input_voltage_v: float) -> None:
-        """Loads from the physics engine, reported in the next status frames."""
+    def set_electrical(
+        self,
+        motor_currents_a: Sequence[float],
+        input_voltage_v: float,
+        duties: Sequence[float] | None = None,
+    ) -> None:
+        """Loads from the physics engine, reported in the next status frames.
+
+        ``duties`` are the motors' duty cycles from the physics (signed, as ``DynamicsStep.duty``);
+        without them each controller estimates its duty from its ERPM (back-EMF over the supply).
+        """
         if len(motor_currents_a) != WHEEL_COUNT:
             raise ValueError(f"need {WHEEL_COUNT} motor currents in wheel order, got {len(motor_currents_a)}")
+        if duties is not None and len(duties) != WHEEL_COUNT:
+            raise ValueError(f"need {WHEEL_COUNT} duty cycles in wheel order, got {len(duties)}")
         self._motor_current_a = [_clamp_current(c) for c in motor_currents_a]
+        self._physics_duty = None if duties is None else [max(-1.0, min(1.0, d)) for d in duties]
         voltage = input_voltage_v if math.isfinite(input_voltage_v) else 0.0
         self._input_voltage_v = max(0.0, min(_VOLTAGE_FIELD_MAX_V, voltage))
 
     # --- status out ----------------------------------------------------------------------------
     def _duty(self, wheel: int) -> float:
+        if self._physics_duty is not None:
+            return self._physics_duty[wheel]
         return max(-1.0, min(1.0, self._erpm[wheel] / self._max_erpm))
 
     def _send_due_status(self, now: int) -> None:
@@ -204,7 +219,9 @@ class SimVescBank:
                     cid,
                     temp_fet=_IDLE_TEMPERATURE_C,
                     temp_motor=_IDLE_TEMPERATURE_C,
-                    current_in=current * abs(self._duty(i)),
+                    # What the motor takes from the pack: I x duty, signed as power flows. A braking
+                    # motor generates, and with no regeneration (hil.battery) the pack sees nothing.
+                    current_in=max(current * self._duty(i), 0.0),
                     pid_pos=0.0,
                 )
                 self._send(

@@ -138,7 +138,7 @@ class SimWorld:
             max(current * duty, 0.0) for current, duty in zip(step.motor_currents_a, step.duty, strict=True)
         )
         voltage = self.battery.draw(input_current + ELECTRONICS_CURRENT_A, dt_s)
-        self.vescs.set_electrical(step.motor_currents_a, voltage)
+        self.vescs.set_electrical(step.motor_currents_a, voltage, step.duty)
         self.vescs.step(dt_s)
         body = self.body
         truth = AutopilotTruth(
