@@ -33,10 +33,10 @@ from logs.telemetry_station import rate_limited
 from navigator.config import RoverConfig
 from navigator.deferred_sink import deferred_sink
 from navigator.errors import NavigatorError
-from navigator.input_wait import input_waiter
+from navigator.input_wait import input_poller, input_waiter
 from navigator.links import open_links
 from navigator.onboard import OnboardStack
-from navigator.paced_loop import SensorPacedScheduler
+from navigator.paced_loop import SensorPacedScheduler, TickSample
 from navigator.plan_worker import plan_worker
 from navigator.planner import Planner
 from navigator.runtime import TimingStats, realtime_switch_interval
@@ -108,7 +108,14 @@ def run_rover(
                 if goal is not None:
                     stack.set_goal(*goal)
                 scheduler = paced_scheduler(
-                    stack, clock, config, deferred, wait or input_waiter(links.pacing_sources), stop
+                    stack,
+                    clock,
+                    config,
+                    deferred,
+                    wait or input_waiter(links.pacing_sources),
+                    stop,
+                    # A caller's own wait (a test's) is the whole wait: no busy-poll around it.
+                    poll=input_poller(links.pacing_sources) if wait is None else None,
                 )
                 _log.info(
                     "rover %s running at %.0f Hz, paced by %s",
@@ -142,10 +149,20 @@ def paced_scheduler(
     sink: MessageSink,
     wait: Callable[[float], None],
     stop: threading.Event | None = None,
+    *,
+    poll: Callable[[], bool] | None = None,
+    observe: Callable[[TickSample], None] | None = None,
 ) -> SensorPacedScheduler:
-    """The sensor-synchronous loop around ``stack``, publishing ``runtime/timing`` to ``sink``."""
+    """The sensor-synchronous loop around ``stack``, publishing ``runtime/timing`` to ``sink``.
+
+    ``poll`` (``navigator.input_wait.input_poller``) enables busy-polling for ``config.busy_poll_ms``;
+    ``observe`` (optional) also gets every tick's ``TickSample`` (a diagnostic's trace).
+    """
     period_ns = round(1e9 / config.control_rate_hz)
     timing = TimingPublisher(clock, sink, period_ns)
+    on_tick: Callable[[TickSample], None] = timing.observe
+    if observe is not None:
+        on_tick = _both(timing.observe, observe)
     return SensorPacedScheduler(
         clock,
         config.control_rate_hz,
@@ -153,9 +170,21 @@ def paced_scheduler(
         ingest=stack.ingest,
         wait=wait,
         latency=lambda: stack.last_sensor_to_command_ns,
-        on_tick=timing.observe,
+        on_tick=on_tick,
         stop=stop,
+        poll=poll,
+        busy_poll_ns=round(config.busy_poll_ms * 1e6),
     )
+
+
+def _both(
+    first: Callable[[TickSample], None], second: Callable[[TickSample], None]
+) -> Callable[[TickSample], None]:
+    def both(sample: TickSample) -> None:
+        first(sample)
+        second(sample)
+
+    return both
 
 
 def warm_up_planner(planner: Planner, clock: Clock) -> None:
