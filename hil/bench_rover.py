@@ -5,8 +5,9 @@ onboard loop, not the world. It runs as a process's target (the bench spawns it 
 network namespace, CAN on ``udp_multicast``) or in a thread (a ``virtual`` bus); it opens its own bus.
 
 Each step waits for its deadline with ``navigator.precise_wait.sleep_until`` (sleep, then spin the last
-``spin_ns``): a real IMU samples on a hardware timer, and the sensor-paced loop takes whatever jitter the
-IMU's send has as its own. ``spin_ns`` 0 is the plain sleep (with the OS's wake-up overshoot).
+``spin_ns``), and the autopilot reads the step's due time as its clock (``StepClock``): a real IMU samples
+on a hardware timer, and the sensor-paced loop takes whatever jitter the IMU's send has as its own.
+``spin_ns`` 0 is the plain sleep (with the OS's wake-up overshoot).
 """
 
 from __future__ import annotations
@@ -27,10 +28,27 @@ from hil.vesc_sim import SimVescBank
 from logs.clock import MonotonicClock, seconds
 from navigator.config import RoverConfig
 from navigator.precise_wait import sleep_until
+from navigator.runtime import freeze_start_up_heap
 from navigator.terrain import TerrainMap
 
 DATUM = (47.0, 8.0, 400.0)
 SIM_DT_NS = 10_000_000
+
+
+class StepClock:
+    """The autopilot's clock: the step's due time, as a hardware timer's tick is.
+
+    On the real clock the autopilot's 50 Hz IMU schedule and the 100 Hz steps drift into any phase (after
+    a late step it restarts from the late time); a due time a few microseconds after a step's reading then
+    sends the IMU on this step or the next depending on the wake-up: 10 ms of sensor jitter. On the step
+    times every schedule is a multiple of the step, and a sample's time stamp is when it was due.
+    """
+
+    def __init__(self, t: int) -> None:
+        self.t = t
+
+    def now_ns(self) -> int:
+        return self.t
 
 
 def run_sim_rover(
@@ -47,6 +65,8 @@ def run_sim_rover(
     ``trace_path``: write the IMU frames' due and send times there at the end (``hil.jitter_trace``).
     """
     clock = MonotonicClock()
+    freeze_start_up_heap()  # a full collection would hold up the IMU's send by tens of ms
+    sample_clock = StepClock(clock.now_ns())
     bus = open_bus(bus_config)
     codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
     vescs = SimVescBank(bus, codec, clock)
@@ -55,14 +75,14 @@ def run_sim_rover(
     transport: Transport = send_log if send_log is not None else udp
     autopilot = SimAutopilot(
         transport,
-        clock,
+        sample_clock,
         np.random.default_rng(1),
         datum_lat_deg=DATUM[0],
         datum_lon_deg=DATUM[1],
         datum_alt_m=DATUM[2],
     )
     body = RoverDynamics(terrain, config.vehicle, x=5.0, y=5.0, yaw=0.785)
-    due = clock.now_ns()
+    due = sample_clock.t = clock.now_ns()
     dt_s = seconds(SIM_DT_NS)
     truth: AutopilotTruth | None = None
     try:
@@ -70,6 +90,7 @@ def run_sim_rover(
             # The autopilot sends first, on the wake-up, with the state the last step ended in: a real IMU
             # samples on its own timer. Sending after the physics step would stamp the step's varying
             # compute time onto the IMU's timing, and the sensor-synchronous loop would inherit it.
+            sample_clock.t = due
             if send_log is not None:
                 send_log.due_ns = due
             if truth is not None:

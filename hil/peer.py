@@ -40,7 +40,7 @@ from logs.clock import NS_PER_S, Clock, seconds
 from logs.recorder import McapRecorder
 from navigator.config import RoverConfig
 from navigator.precise_wait import DEFAULT_SPIN_NS
-from navigator.runtime import FixedRateScheduler, TimingStats
+from navigator.runtime import FixedRateScheduler, TimingStats, freeze_start_up_heap
 
 _log = logging.getLogger(__name__)
 
@@ -193,6 +193,7 @@ def run_peer(
         rate_hz = NS_PER_S / PHYSICS_DT_NS
         scheduler = FixedRateScheduler(clock, rate_hz, peer.tick, wait=wait, stop=stop, spin_ns=spin_ns)
         _log.info("HIL peer for %s running in real time at %.0f Hz", scenario.name, rate_hz)
+        freeze_start_up_heap()  # a full collection would hold up the IMU's send by tens of ms
         timing = scheduler.run(duration_ns)
         if status_path is not None:
             peer.write_status()

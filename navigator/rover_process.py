@@ -9,6 +9,8 @@ estimate healthy and settled). Planning runs on a worker thread (``navigator.pla
 plan never delays a tick. The loop is sensor-synchronous (``navigator.paced_loop``): a tick starts
 when the pacing measurement has arrived, with a fixed-rate deadline as the fallback; it publishes
 ``runtime/timing`` once a second.
+Just before the loop, the start-up heap is frozen out of the garbage collector's sight
+(``navigator.runtime.freeze_start_up_heap``: a full collection had stopped every thread for 35-50 ms).
 Shutdown (stop flag set by SIGINT/SIGTERM, or the duration over): the stack sends zero wheel commands
 and closes the links, then the recording is closed with the loop's timing summary as metadata.
 """
@@ -39,7 +41,7 @@ from navigator.onboard import OnboardStack
 from navigator.paced_loop import SensorPacedScheduler, TickSample
 from navigator.plan_worker import plan_worker
 from navigator.planner import Planner
-from navigator.runtime import TimingStats, realtime_switch_interval
+from navigator.runtime import TimingStats, freeze_start_up_heap, realtime_switch_interval
 from navigator.timing_topic import TimingPublisher
 
 _log = logging.getLogger(__name__)
@@ -123,6 +125,7 @@ def run_rover(
                     config.control_rate_hz,
                     config.pacing_sensor,
                 )
+                freeze_start_up_heap()
                 with realtime_switch_interval():
                     timing = scheduler.run(duration_ns)
             finally:

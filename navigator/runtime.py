@@ -15,6 +15,7 @@ arrays (``TimingStats``), summarised as percentiles at the end.
 
 from __future__ import annotations
 
+import gc
 import logging
 import sys
 import threading
@@ -48,6 +49,20 @@ def realtime_switch_interval(interval_s: float = REALTIME_SWITCH_INTERVAL_S) -> 
         yield
     finally:
         sys.setswitchinterval(previous)
+
+
+def freeze_start_up_heap() -> None:
+    """Collect once, then move every object alive now (modules, the map, compiled kernels, the links) to
+    the collector's permanent generation (``gc.freeze``), just before a real-time loop starts.
+
+    Measured in ``rover bench runtime`` (20 s, 140 000 objects alive after start-up): a full (generation
+    2) collection stopped every thread for 35-50 ms, twice in 20 s, whichever thread triggered it; the
+    control thread missed two periods each time. Frozen objects are never scanned again, so the full
+    collections that remain look only at what the run allocates. Garbage from start-up is collected
+    first, so nothing unreachable is kept forever.
+    """
+    gc.collect()
+    gc.freeze()
 
 
 class RingStats:

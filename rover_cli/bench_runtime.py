@@ -47,7 +47,7 @@ from navigator.precise_wait import DEFAULT_SPIN_NS
 
 RATE_HZ = 50.0
 MODES = ("paced", "fixed")
-EMPTY_TICK_S = 5.0  # each empty-tick peer runs this long at most
+EMPTY_TICK_S = 10.0  # each empty-tick peer runs this long at most
 
 
 def register(commands: Any) -> None:
@@ -128,7 +128,12 @@ def _full_stack(run: StackRun) -> dict[str, Any]:
     from navigator.onboard import OnboardStack
     from navigator.plan_worker import plan_worker
     from navigator.rover_process import paced_scheduler, warm_up_planner
-    from navigator.runtime import FixedRateScheduler, TimingStats, realtime_switch_interval
+    from navigator.runtime import (
+        FixedRateScheduler,
+        TimingStats,
+        freeze_start_up_heap,
+        realtime_switch_interval,
+    )
     from navigator.terrain import from_maze
 
     config = rover_config_from_table(parse_toml(Path("configs/rover.toml").read_text(), "configs/rover.toml"))
@@ -224,6 +229,7 @@ def _full_stack(run: StackRun) -> dict[str, Any]:
                 latency=lambda: stack.last_sensor_to_command_ns,
                 spin_ns=DEFAULT_SPIN_NS,
             )
+        freeze_start_up_heap()  # as `rover run` does
         cpu0, wall0 = _thread_cpu_s(), time.perf_counter()
         stats: TimingStats
         try:
