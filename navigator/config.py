@@ -27,6 +27,10 @@ HEURISTICS = ("octile", "euclidean", "manhattan")
 # The measurement whose arrival starts a control tick in real time (navigator.paced_loop); "none": a
 # plain fixed-rate loop.
 PACING_SENSORS = ("imu", "gps", "wheels", "none")
+# Busy-poll the pacing link this long before (and at most after) each expected sample (navigator.paced_loop):
+# the sample is read as it lands, not after the OS wakes the loop. About this much CPU per sample (1 ms at
+# 50 Hz: 5 % of a core); 0 turns it off (a weak companion computer).
+DEFAULT_BUSY_POLL_MS = 1.0
 
 
 @dataclass(frozen=True)
@@ -70,6 +74,7 @@ class RoverConfig:
     source: str = "<defaults>"
     safety: SafetyConfig = dataclasses.field(default_factory=SafetyConfig)
     pacing_sensor: str = "imu"
+    busy_poll_ms: float = DEFAULT_BUSY_POLL_MS
     # [map]: the terrain `rover run` plans on (HIL trials use the scenario's instead); None if absent.
     terrain: TerrainMap | None = dataclasses.field(default=None, compare=False, repr=False)
 
@@ -87,6 +92,7 @@ def rover_config_from_table(root: Table) -> RoverConfig:
         )
     control_rate_hz = root.number("control_rate_hz", 50.0, lo=1.0, hi=1000.0)
     pacing_sensor = root.text("pacing_sensor", "imu", choices=PACING_SENSORS)
+    busy_poll_ms = root.number("busy_poll_ms", DEFAULT_BUSY_POLL_MS, lo=0.0, hi=10.0)
     vehicle = VehicleParams.from_table(root.table("vehicle", optional=True))
     vesc = VescProfile.from_table(root.table("vesc", optional=True), wheel_radius_m=vehicle.wheel_radius_m)
     estimator = EstimatorConfig.from_table(root.table("estimator", optional=True))
@@ -104,6 +110,7 @@ def rover_config_from_table(root: Table) -> RoverConfig:
         follower=FollowerConfig.from_table(root.table("follower", optional=True)),
         safety=SafetyConfig.from_table(root.table("safety", optional=True)),
         pacing_sensor=pacing_sensor,
+        busy_poll_ms=busy_poll_ms,
         terrain=(
             terrain_from_table(root.table("map"), Path(root.source).parent)[0] if root.has("map") else None
         ),

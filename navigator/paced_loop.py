@@ -19,13 +19,24 @@ The minimum gap is ``period - interval / 2`` (at least ``period / 2``), where ``
 sensor's measured sample interval: a sensor at the control rate ticks on every sample even when samples
 arrive a little early, and a 2x, 4x, 8x faster one ticks on every 2nd, 4th, 8th sample.
 
+Busy-polling (``busy_poll_ns`` > 0 and a ``poll`` to call): waking from ``select`` when the sample lands
+takes the OS 0.1-1 ms on a VM (an idle vCPU halts), and that lands on the tick's start. So from
+``busy_poll_ns`` before the next tick-starting sample is expected (the last one plus the measured
+interval, on a grid that follows the earliest arrivals) the loop polls without blocking until it is in,
+for at most ``busy_poll_ns`` past the expected time (in slices of at most a wait slice, with an
+``ingest`` between them), then goes back to waiting: a late or silent sensor costs one bounded spin (for
+the first sample it misses, none after). Its CPU cost is about ``busy_poll_ns`` per sample on time.
+
 Jitter stays what it was: ``|start-to-start period - nominal period|`` over consecutive ticks.
 """
 
 from __future__ import annotations
 
 import logging
+import math
+import statistics
 import threading
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -37,8 +48,11 @@ _log = logging.getLogger(__name__)
 # After the last tick, wait this fraction of a period beyond the nominal period for the pacing sensor
 # before ticking on the deadline: a sample a few ms late still paces the loop.
 DEADLINE_GRACE = 0.5
-# The measured sample interval follows new intervals with this weight (about the last 10 samples).
-_INTERVAL_WEIGHT = 0.1
+# The measured sample interval is the median of this many last gaps: one late sample (a gap too long,
+# then one too short) moves a running average by a tenth of its lateness, and the median not at all.
+_INTERVAL_GAPS = 9
+# A sample later than the grid moves the grid this fraction of the way (an earlier one all the way).
+_GRID_FOLLOW = 0.1
 
 
 @dataclass(frozen=True)
@@ -51,25 +65,48 @@ class TickSample:
     latency_ns: int | None  # the stack's sensor-to-command latency; None if no pacing sample fed the tick
     trigger: str  # "sensor" or "deadline"
     overruns: int  # deadlines skipped after this tick
+    trigger_ns: int | None = None  # receive time of the pacing sample that started the tick
 
 
 class SampleInterval:
-    """The pacing sensor's sample interval, a running average of the gaps between its samples.
+    """The pacing sensor's sample interval, the median of the last gaps between its samples, and the
+    grid its samples land on.
 
-    Gaps longer than two control periods are outages, not the sensor's rate, and are left out.
+    Gaps longer than two control periods are outages, not the sensor's rate, and are left out. The grid
+    follows the *earliest* arrivals: a sample is only ever late (the sender, the transport, our wake-up
+    delay it), so one earlier than the grid moves the grid to it at once, one later only a little. A
+    prediction from the last receive time alone would carry each late wake-up into the next prediction.
     """
 
     def __init__(self, period_ns: int) -> None:
         self._period_ns = period_ns
         self.interval_ns = float(period_ns)
-        self._last_ns: int | None = None
+        self._gaps: deque[int] = deque(maxlen=_INTERVAL_GAPS)
+        self.last_ns: int | None = None
+        self.grid_ns: int | None = None  # where the last sample should have landed
 
     def observe(self, received_ns: int) -> None:
-        if self._last_ns is not None:
-            gap = received_ns - self._last_ns
+        if self.last_ns is not None:
+            gap = received_ns - self.last_ns
             if 0 < gap <= 2 * self._period_ns:
-                self.interval_ns += _INTERVAL_WEIGHT * (gap - self.interval_ns)
-        self._last_ns = received_ns
+                self._gaps.append(gap)
+                self.interval_ns = float(statistics.median(self._gaps))
+        self.last_ns = received_ns
+        grid = self.grid_ns
+        if grid is None or not 0 < received_ns - grid <= 2 * self._period_ns:
+            self.grid_ns = received_ns
+            return
+        predicted = grid + round(max(1, round((received_ns - grid) / self.interval_ns)) * self.interval_ns)
+        late = received_ns - predicted
+        self.grid_ns = received_ns if late <= 0 else predicted + round(_GRID_FOLLOW * late)
+
+    def expected_ns(self, not_before_ns: int) -> int | None:
+        """When the first sample at or after ``not_before_ns`` should land, on the grid; None before the
+        first sample."""
+        if self.grid_ns is None:
+            return None
+        steps = max(1, math.ceil((not_before_ns - self.grid_ns) / self.interval_ns))
+        return self.grid_ns + round(steps * self.interval_ns)
 
     def min_gap_ns(self) -> int:
         return int(max(self._period_ns - self.interval_ns / 2, self._period_ns / 2))
@@ -80,7 +117,9 @@ class SensorPacedScheduler:
     fixed-rate fallback at ``rate_hz``; ``wait(seconds)`` idles until input may have arrived.
 
     ``latency`` (optional) returns the stack's sensor-to-command latency of the tick just run;
-    ``on_tick`` (optional) gets every ``TickSample`` (the ``runtime/timing`` publisher uses it).
+    ``on_tick`` (optional) gets every ``TickSample`` (the ``runtime/timing`` publisher uses it);
+    ``poll`` (optional) says without blocking whether input is waiting, for busy-polling ``busy_poll_ns``
+    around the expected sample (0: never; see the module doc).
     """
 
     def __init__(
@@ -94,9 +133,13 @@ class SensorPacedScheduler:
         latency: Callable[[], int | None] | None = None,
         on_tick: Callable[[TickSample], None] | None = None,
         stop: threading.Event | None = None,
+        poll: Callable[[], bool] | None = None,
+        busy_poll_ns: int = 0,
     ) -> None:
         if not rate_hz > 0:
             raise ValueError(f"rate_hz must be > 0, got {rate_hz}")
+        if busy_poll_ns < 0:
+            raise ValueError(f"busy_poll_ns must be >= 0, got {busy_poll_ns}")
         self._clock = clock
         self.period_ns = round(NS_PER_S / rate_hz)
         self._grace_ns = round(self.period_ns * DEADLINE_GRACE)
@@ -105,6 +148,9 @@ class SensorPacedScheduler:
         self._wait = wait
         self._latency = latency
         self._on_tick = on_tick
+        self._poll = poll if busy_poll_ns > 0 else None
+        self._busy_poll_ns = busy_poll_ns
+        self.busy_polls = 0  # spins started
         self.stop = stop or threading.Event()
         self.stats = TimingStats.empty()
         self.interval = SampleInterval(self.period_ns)
@@ -132,8 +178,40 @@ class SensorPacedScheduler:
             if now >= self._deadline:
                 self._run_tick(now, None)
                 continue
-            self._wait(min(self._deadline - now, WAIT_SLICE_NS) / NS_PER_S)
+            wake = min(self._deadline, now + WAIT_SLICE_NS)
+            spin = self._spin_window(now)
+            if spin is not None:
+                spin_from, spin_to = spin
+                if spin_from <= now:
+                    self._busy_poll(min(spin_to, wake))
+                    continue
+                wake = min(wake, spin_from)
+            self._wait((wake - now) / NS_PER_S)
         return self.stats
+
+    def _spin_window(self, now: int) -> tuple[int, int] | None:
+        """Where to busy-poll for the next tick-starting sample: (from, to), or None (no poll, no sample
+        yet, that sample already missed, or the window over)."""
+        if self._poll is None:
+            return None
+        last = self.interval.last_ns
+        if last is None:
+            return None
+        previous = self._previous_start
+        not_before = last if previous is None else previous + self.interval.min_gap_ns()
+        expected = self.interval.expected_ns(not_before)
+        # Only the first tick-starting sample after the last one: once that is missed the sensor is late
+        # or silent, and the loop waits (its deadline is the fallback) without spinning again.
+        if expected is None or expected - last > 1.5 * self.period_ns or now >= expected + self._busy_poll_ns:
+            return None
+        return expected - self._busy_poll_ns, expected + self._busy_poll_ns
+
+    def _busy_poll(self, until_ns: int) -> None:
+        assert self._poll is not None
+        self.busy_polls += 1
+        poll, clock = self._poll, self._clock
+        while not poll() and clock.now_ns() < until_ns:
+            pass
 
     def _run_tick(self, start: int, trigger_ns: int | None) -> None:
         self._tick(trigger_ns)
@@ -167,4 +245,4 @@ class SensorPacedScheduler:
             self._deadline = end
         if self._on_tick is not None:
             trigger = "deadline" if trigger_ns is None else "sensor"
-            self._on_tick(TickSample(start, period, end - start, latency, trigger, int(missed)))
+            self._on_tick(TickSample(start, period, end - start, latency, trigger, int(missed), trigger_ns))

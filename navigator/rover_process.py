@@ -9,6 +9,8 @@ estimate healthy and settled). Planning runs on a worker thread (``navigator.pla
 plan never delays a tick. The loop is sensor-synchronous (``navigator.paced_loop``): a tick starts
 when the pacing measurement has arrived, with a fixed-rate deadline as the fallback; it publishes
 ``runtime/timing`` once a second.
+Just before the loop, the start-up heap is frozen out of the garbage collector's sight
+(``navigator.runtime.freeze_start_up_heap``: a full collection had stopped every thread for 35-50 ms).
 Shutdown (stop flag set by SIGINT/SIGTERM, or the duration over): the stack sends zero wheel commands
 and closes the links, then the recording is closed with the loop's timing summary as metadata.
 """
@@ -33,13 +35,13 @@ from logs.telemetry_station import rate_limited
 from navigator.config import RoverConfig
 from navigator.deferred_sink import deferred_sink
 from navigator.errors import NavigatorError
-from navigator.input_wait import input_waiter
+from navigator.input_wait import input_poller, input_waiter
 from navigator.links import open_links
 from navigator.onboard import OnboardStack
-from navigator.paced_loop import SensorPacedScheduler
+from navigator.paced_loop import SensorPacedScheduler, TickSample
 from navigator.plan_worker import plan_worker
 from navigator.planner import Planner
-from navigator.runtime import TimingStats, realtime_switch_interval
+from navigator.runtime import TimingStats, freeze_start_up_heap, realtime_switch_interval
 from navigator.timing_topic import TimingPublisher
 
 _log = logging.getLogger(__name__)
@@ -108,7 +110,14 @@ def run_rover(
                 if goal is not None:
                     stack.set_goal(*goal)
                 scheduler = paced_scheduler(
-                    stack, clock, config, deferred, wait or input_waiter(links.pacing_sources), stop
+                    stack,
+                    clock,
+                    config,
+                    deferred,
+                    wait or input_waiter(links.pacing_sources),
+                    stop,
+                    # A caller's own wait (a test's) is the whole wait: no busy-poll around it.
+                    poll=input_poller(links.pacing_sources) if wait is None else None,
                 )
                 _log.info(
                     "rover %s running at %.0f Hz, paced by %s",
@@ -116,6 +125,7 @@ def run_rover(
                     config.control_rate_hz,
                     config.pacing_sensor,
                 )
+                freeze_start_up_heap()
                 with realtime_switch_interval():
                     timing = scheduler.run(duration_ns)
             finally:
@@ -142,10 +152,20 @@ def paced_scheduler(
     sink: MessageSink,
     wait: Callable[[float], None],
     stop: threading.Event | None = None,
+    *,
+    poll: Callable[[], bool] | None = None,
+    observe: Callable[[TickSample], None] | None = None,
 ) -> SensorPacedScheduler:
-    """The sensor-synchronous loop around ``stack``, publishing ``runtime/timing`` to ``sink``."""
+    """The sensor-synchronous loop around ``stack``, publishing ``runtime/timing`` to ``sink``.
+
+    ``poll`` (``navigator.input_wait.input_poller``) enables busy-polling for ``config.busy_poll_ms``;
+    ``observe`` (optional) also gets every tick's ``TickSample`` (a diagnostic's trace).
+    """
     period_ns = round(1e9 / config.control_rate_hz)
     timing = TimingPublisher(clock, sink, period_ns)
+    on_tick: Callable[[TickSample], None] = timing.observe
+    if observe is not None:
+        on_tick = _both(timing.observe, observe)
     return SensorPacedScheduler(
         clock,
         config.control_rate_hz,
@@ -153,9 +173,21 @@ def paced_scheduler(
         ingest=stack.ingest,
         wait=wait,
         latency=lambda: stack.last_sensor_to_command_ns,
-        on_tick=timing.observe,
+        on_tick=on_tick,
         stop=stop,
+        poll=poll,
+        busy_poll_ns=round(config.busy_poll_ms * 1e6),
     )
+
+
+def _both(
+    first: Callable[[TickSample], None], second: Callable[[TickSample], None]
+) -> Callable[[TickSample], None]:
+    def both(sample: TickSample) -> None:
+        first(sample)
+        second(sample)
+
+    return both
 
 
 def warm_up_planner(planner: Planner, clock: Clock) -> None:

@@ -1,8 +1,11 @@
 """The real-time scheduler: a fixed-rate control loop, measurements fused as they arrive in between.
 
 Ticks are due at ``start + k * period`` (absolute deadlines, so no drift). Between ticks the loop waits
-in short slices and calls ``ingest`` so the estimator is current when the tick comes. A tick that runs
-late by more than a whole period skips the missed ticks (counted in ``overruns``) instead of bursting.
+in short slices and calls ``ingest`` so the estimator is current when the tick comes. With ``spin_ns`` the
+last stretch before a deadline is spun on the clock instead (``navigator.precise_wait``), so a tick starts
+on time rather than when the OS gets round to waking the loop; that needs a clock that moves by itself.
+A tick that runs late by more than a whole period skips the missed ticks (counted in ``overruns``)
+instead of bursting.
 The stop flag is polled every slice, so SIGINT/SIGTERM handlers only set it; the caller then stops the
 wheels and closes the recording.
 
@@ -12,6 +15,7 @@ arrays (``TimingStats``), summarised as percentiles at the end.
 
 from __future__ import annotations
 
+import gc
 import logging
 import sys
 import threading
@@ -22,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from logs.clock import NS_PER_S, Clock
+from navigator.precise_wait import spin_until
 
 _log = logging.getLogger(__name__)
 
@@ -44,6 +49,20 @@ def realtime_switch_interval(interval_s: float = REALTIME_SWITCH_INTERVAL_S) -> 
         yield
     finally:
         sys.setswitchinterval(previous)
+
+
+def freeze_start_up_heap() -> None:
+    """Collect once, then move every object alive now (modules, the map, compiled kernels, the links) to
+    the collector's permanent generation (``gc.freeze``), just before a real-time loop starts.
+
+    Measured in ``rover bench runtime`` (20 s, 140 000 objects alive after start-up): a full (generation
+    2) collection stopped every thread for 35-50 ms, twice in 20 s, whichever thread triggered it; the
+    control thread missed two periods each time. Frozen objects are never scanned again, so the full
+    collections that remain look only at what the run allocates. Garbage from start-up is collected
+    first, so nothing unreachable is kept forever.
+    """
+    gc.collect()
+    gc.freeze()
 
 
 class RingStats:
@@ -103,6 +122,8 @@ class FixedRateScheduler:
     """Calls ``tick`` at ``rate_hz`` on ``clock``; ``ingest`` while waiting; ``wait(seconds)`` to idle.
 
     ``latency`` (optional) returns the stack's last sensor-to-command latency after each tick.
+    ``spin_ns`` (default 0: none): spin this last stretch before each deadline instead of waiting (no
+    ``ingest`` in it); only with a real clock.
     """
 
     def __init__(
@@ -111,15 +132,19 @@ class FixedRateScheduler:
         rate_hz: float,
         tick: Callable[[], None],
         *,
-        ingest: Callable[[], None] | None = None,
+        ingest: Callable[[], object] | None = None,
         wait: Callable[[float], None],
         latency: Callable[[], int | None] | None = None,
         stop: threading.Event | None = None,
+        spin_ns: int = 0,
     ) -> None:
         if not rate_hz > 0:
             raise ValueError(f"rate_hz must be > 0, got {rate_hz}")
+        if spin_ns < 0:
+            raise ValueError(f"spin_ns must be >= 0, got {spin_ns}")
         self._clock = clock
         self.period_ns = round(NS_PER_S / rate_hz)
+        self._spin_ns = spin_ns
         self._tick = tick
         self._ingest = ingest
         self._wait = wait
@@ -137,13 +162,15 @@ class FixedRateScheduler:
             now = self._clock.now_ns()
             if end is not None and now >= end:
                 break
-            if now < due:
+            if due - now > self._spin_ns:
                 if self._ingest is not None:
                     self._ingest()
-                remaining = due - self._clock.now_ns()
+                remaining = due - self._clock.now_ns() - self._spin_ns
                 if remaining > 0:
                     self._wait(min(remaining, WAIT_SLICE_NS) / NS_PER_S)
                 continue
+            if now < due:
+                now = spin_until(self._clock, due)
             tick_start = now
             self._tick()
             tick_end = self._clock.now_ns()

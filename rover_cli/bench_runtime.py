@@ -1,20 +1,28 @@
 """``rover bench runtime``: real-time HIL at the control rate; loop jitter, sensor-to-command latency, CPU.
 
-The onboard stack runs in this thread in the sensor-synchronous loop ``rover run`` uses
-(``navigator.rover_process.paced_scheduler``: a tick on each IMU sample, a fixed-rate deadline as the
-fallback), with planning on a worker thread, after the same start-up warm-up; it records to MCAP and
-(unless ``--no-telemetry``) publishes on Zenoh with the shipped loopback config. The simulated rover runs
-at 100 Hz: six VESCs on CAN and the autopilot over MAVLink on UDP 127.0.0.1 (a port from the OS).
+The onboard stack runs in this thread after the same start-up warm-up as ``rover run``, with planning on a
+worker thread, recording to MCAP and (unless ``--no-telemetry``) publishing on Zenoh with the shipped
+loopback config, in one or both of two loops (``--modes``), one after the other against the same kind of
+simulated rover:
 
-Where it can, the simulated rover is a separate process, as the real rover's autopilot and motor
+* ``paced``: the sensor-synchronous loop ``rover run`` uses (``navigator.rover_process.paced_scheduler``:
+  a tick on each IMU sample, busy-polling the MAVLink socket around the expected sample for
+  ``busy_poll_ms`` of the config, a fixed-rate deadline as the fallback);
+* ``fixed``: ``navigator.runtime.FixedRateScheduler`` at the control rate, with the precise wait (sleep,
+  then spin the last millisecond), reading the links between ticks (``navigator.fixed_rate_stack``).
+
+The simulated rover (``hil.bench_rover``) runs at 100 Hz: six VESCs on CAN and the autopilot over MAVLink
+on UDP 127.0.0.1 (a port from the OS), each step on a precise timer as a real IMU is (``--peer-spin-ms``,
+0: a plain sleep). Where it can, it is a separate process, as the real rover's autopilot and motor
 controllers are separate hardware: CAN is python-can ``udp_multicast``, which runs only inside the private
 loopback-only network namespace (``scripts/in-private-netns`` sets ``ROVER_IN_NETNS=1``). Elsewhere it is
 a thread in this process on a ``virtual`` bus, and then shares the GIL with the control loop: its IMU
-timing, which paces the loop, takes the stack's compute time as jitter (measured: p99 2.3 ms in a thread,
-against well under 1 ms as a process). The table says which mode ran.
+timing, which paces the loop, takes the stack's compute time as jitter. The table says which mode ran.
 
-Peers measured in the same run: the scheduler with an empty tick (what the OS and Python give at best)
-and the full stack. CPU is the control thread's own (RUSAGE_THREAD).
+Peers measured in the same run: the fixed-rate scheduler with an empty tick, waiting with a plain sleep
+and with the precise wait (what the OS and Python give at best), and the full stack in each loop. CPU is
+the control thread's own (RUSAGE_THREAD). ``--trace`` adds, for the paced loop, where each tick's jitter
+and latency came from (``hil.jitter_trace``).
 """
 
 from __future__ import annotations
@@ -34,18 +42,44 @@ from typing import Any
 
 import numpy as np
 
-from logs.clock import MonotonicClock, seconds
+from logs.clock import MonotonicClock
+from navigator.precise_wait import DEFAULT_SPIN_NS
 
-DATUM = (47.0, 8.0, 400.0)
-SIM_DT_NS = 10_000_000
+RATE_HZ = 50.0
+MODES = ("paced", "fixed")
+EMPTY_TICK_S = 10.0  # each empty-tick peer runs this long at most
 
 
 def register(commands: Any) -> None:
     bench = commands.add_parser("runtime", help="real-time loop jitter and sensor-to-command latency")
-    bench.add_argument("--seconds", type=float, default=60.0, help="length of the full-stack run")
+    bench.add_argument("--seconds", type=float, default=60.0, help="length of each full-stack run")
     bench.add_argument("--no-telemetry", action="store_true", help="record only (no Zenoh)")
     bench.add_argument("--json", action="store_true", help="print the figures as one JSON object")
+    bench.add_argument(
+        "--modes",
+        type=_modes,
+        default=MODES,
+        help="loops to run, comma-separated: paced, fixed (default both)",
+    )
+    bench.add_argument(
+        "--peer-spin-ms",
+        type=float,
+        default=DEFAULT_SPIN_NS / 1e6,
+        help="the simulated rover spins this long before each step (0: plain sleep)",
+    )
+    bench.add_argument(
+        "--busy-poll-ms", type=float, default=None, help="override the config's busy_poll_ms (paced loop)"
+    )
+    bench.add_argument("--trace", action="store_true", help="split the paced loop's jitter and latency")
     bench.set_defaults(handler=run_bench)
+
+
+def _modes(text: str) -> tuple[str, ...]:
+    modes = tuple(m.strip() for m in text.split(",") if m.strip())
+    unknown = [m for m in modes if m not in MODES]
+    if not modes or unknown:
+        raise argparse.ArgumentTypeError(f"modes are {', '.join(MODES)}; got {text!r}")
+    return modes
 
 
 def _thread_cpu_s() -> float:
@@ -53,101 +87,66 @@ def _thread_cpu_s() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
-def _empty_loop(duration_s: float) -> dict[str, Any]:
+def _empty_loop(duration_s: float, spin_ns: int) -> dict[str, Any]:
     from navigator.runtime import FixedRateScheduler
 
     cpu0, wall0 = _thread_cpu_s(), time.perf_counter()
-    stats = FixedRateScheduler(MonotonicClock(), 50.0, lambda: None, wait=time.sleep).run(
-        round(duration_s * 1e9)
-    )
-    figures = stats.summary()
+    scheduler = FixedRateScheduler(MonotonicClock(), RATE_HZ, lambda: None, wait=time.sleep, spin_ns=spin_ns)
+    figures = scheduler.run(round(duration_s * 1e9)).summary()
     figures["cpu_pct"] = 100.0 * (_thread_cpu_s() - cpu0) / (time.perf_counter() - wall0)
     return figures
 
 
-def _sim_peer(stop: Any, bus_config: Any, mavlink_port: int, config: Any, terrain: Any) -> None:
-    """The simulated rover, paced on the monotonic clock at 100 Hz until ``stop`` (a threading or a
-    multiprocessing event) is set. Runs in a thread or as a process's target: it opens its own bus."""
-    from firmware_bridge.can_link import open_bus
-    from firmware_bridge.mavlink_transport import UdpTransport
-    from firmware_bridge.vesc import VescCodec
-    from firmware_bridge.vesc_dbc import load_vesc_database
-    from hil.autopilot_sim import AutopilotTruth, SimAutopilot
-    from hil.dynamics import RoverDynamics
-    from hil.vesc_sim import SimVescBank
+@dataclasses.dataclass(frozen=True)
+class StackRun:
+    """One full-stack run's settings."""
 
-    clock = MonotonicClock()
-    bus = open_bus(bus_config)
-    codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
-    vescs = SimVescBank(bus, codec, clock)
-    transport = UdpTransport("udpout", "127.0.0.1", mavlink_port)
-    autopilot = SimAutopilot(
-        transport,
-        clock,
-        np.random.default_rng(1),
-        datum_lat_deg=DATUM[0],
-        datum_lon_deg=DATUM[1],
-        datum_alt_m=DATUM[2],
-    )
-    body = RoverDynamics(terrain, config.vehicle, x=5.0, y=5.0, yaw=0.785)
-    due = clock.now_ns()
-    dt_s = seconds(SIM_DT_NS)
-    truth: AutopilotTruth | None = None
-    while not stop.is_set():
-        # The autopilot sends first, on the wake-up, with the state the last step ended in: a real IMU
-        # samples on its own timer. Sending after the physics step would stamp the step's varying compute
-        # time onto the IMU's timing, and the sensor-synchronous loop would inherit it as jitter.
-        if truth is not None:
-            autopilot.step(truth)
-        autopilot.poll()
-        vescs.poll()
-        step = body.step(dt_s, vescs.wheel_speeds_mps(), 24.0)
-        vescs.set_electrical(step.motor_currents_a, 24.0)
-        vescs.step(dt_s)
-        truth = AutopilotTruth(
-            x_m=body.x,
-            y_m=body.y,
-            z_m=0.0,
-            yaw_rad=body.yaw,
-            speed_mps=body.speed,
-            yaw_rate_rps=body.yaw_rate,
-            accel_body_mps2=step.specific_force_body_mps2,
-        )
-        due += SIM_DT_NS
-        remaining = due - clock.now_ns()
-        if remaining > 0:
-            time.sleep(remaining / 1e9)
-    transport.close()
-    bus.shutdown()
+    seconds: float
+    telemetry: bool
+    mode: str  # "paced" or "fixed"
+    peer_spin_ns: int
+    busy_poll_ms: float | None  # None: the config's
+    trace: bool
 
 
-def _full_stack(duration_s: float, telemetry: bool) -> dict[str, Any]:
+def _full_stack(run: StackRun) -> dict[str, Any]:
     from firmware_bridge.can_link import CanLink, open_bus
     from firmware_bridge.mavlink_link import MavlinkLink
     from firmware_bridge.mavlink_transport import UdpTransport
     from firmware_bridge.vesc import VescCodec
     from firmware_bridge.vesc_dbc import load_vesc_database
+    from hil.bench_rover import DATUM, run_sim_rover
+    from hil.jitter_trace import RoverTrace, breakdown
     from logs.recorder import McapRecorder
     from logs.settings import parse_toml
     from logs.sink import FanoutSink, MessageSink
     from logs.telemetry import ZenohTelemetry, open_session
     from navigator.config import rover_config_from_table
     from navigator.deferred_sink import deferred_sink
-    from navigator.input_wait import input_waiter
+    from navigator.fixed_rate_stack import FixedRateFeed
+    from navigator.input_wait import input_poller, input_waiter
     from navigator.onboard import OnboardStack
     from navigator.plan_worker import plan_worker
     from navigator.rover_process import paced_scheduler, warm_up_planner
-    from navigator.runtime import realtime_switch_interval
+    from navigator.runtime import (
+        FixedRateScheduler,
+        TimingStats,
+        freeze_start_up_heap,
+        realtime_switch_interval,
+    )
     from navigator.terrain import from_maze
 
     config = rover_config_from_table(parse_toml(Path("configs/rover.toml").read_text(), "configs/rover.toml"))
     estimator = dataclasses.replace(
         config.estimator, datum_lat_deg=DATUM[0], datum_lon_deg=DATUM[1], datum_alt_m=DATUM[2]
     )
-    config = dataclasses.replace(config, estimator=estimator)
+    config = dataclasses.replace(config, estimator=estimator, control_rate_hz=RATE_HZ)
+    if run.busy_poll_ms is not None:
+        config = dataclasses.replace(config, busy_poll_ms=run.busy_poll_ms)
     if _peer_as_process():
-        # A group of its own per bench process, so a leftover peer can never talk to this rover.
-        group = f"239.76.{(os.getpid() >> 8) % 200 + 10}.{os.getpid() % 250 + 1}"
+        # A group of its own per bench run, so a leftover peer can never talk to this rover.
+        salt = os.getpid() + (1 if run.mode == "fixed" else 0) * 97
+        group = f"239.76.{(salt >> 8) % 200 + 10}.{salt % 250 + 1}"
         bus_config = dataclasses.replace(config.can, interface="udp_multicast", channel=group)
     else:
         bus_config = dataclasses.replace(
@@ -155,13 +154,14 @@ def _full_stack(duration_s: float, telemetry: bool) -> dict[str, Any]:
         )
     terrain = from_maze(np.full((20, 20), 2), 2.0)
     clock = MonotonicClock()
+    trace = RoverTrace() if run.trace and run.mode == "paced" else None
     # Every resource is closed in reverse order however the run ends (a peer that never starts included).
     with contextlib.ExitStack() as cleanup:
-        session = open_session(config.zenoh) if telemetry else None
+        session = open_session(config.zenoh) if run.telemetry else None
         if session is not None:
             cleanup.callback(session.close)
-        tmp = cleanup.enter_context(tempfile.TemporaryDirectory())
-        recorder = cleanup.enter_context(McapRecorder(Path(tmp) / "bench.mcap"))
+        tmp = Path(cleanup.enter_context(tempfile.TemporaryDirectory()))
+        recorder = cleanup.enter_context(McapRecorder(tmp / "bench.mcap"))
         publisher = ZenohTelemetry(session, config.rover_id) if session is not None else None
         if publisher is not None:
             cleanup.callback(publisher.close)
@@ -180,31 +180,79 @@ def _full_stack(duration_s: float, telemetry: bool) -> dict[str, Any]:
         warm_up_planner(stack.planner, clock)
         stack.publish_map()
         stack.set_goal(35.0, 35.0)
-        peer_args = (bus_config, mavlink_transport.local_address[1], config, terrain)
+        trace_path = tmp / "imu_sends.npy" if trace is not None else None
+        peer_args = (
+            bus_config,
+            mavlink_transport.local_address[1],
+            config,
+            terrain,
+            run.peer_spin_ns,
+            trace_path,
+        )
         peer: threading.Thread | multiprocessing.process.BaseProcess
         peer_stop: Any
         if _peer_as_process():
             context = multiprocessing.get_context("spawn")  # a fresh interpreter: no inherited threads
             peer_stop = context.Event()
-            peer = context.Process(target=_sim_peer, args=(peer_stop, *peer_args), daemon=True)
+            peer = context.Process(target=run_sim_rover, args=(peer_stop, *peer_args), daemon=True)
         else:
             peer_stop = threading.Event()
-            peer = threading.Thread(target=_sim_peer, args=(peer_stop, *peer_args), daemon=True)
+            peer = threading.Thread(target=run_sim_rover, args=(peer_stop, *peer_args), daemon=True)
         peer.start()
         cleanup.callback(peer.join, 5.0)
         cleanup.callback(peer_stop.set)
         _wait_for_first_sample(mavlink_transport, PEER_START_TIMEOUT_S)
-        scheduler = paced_scheduler(stack, clock, config, deferred, input_waiter([mavlink_transport]))
+        wait = input_waiter([mavlink_transport])
+        poll = input_poller([mavlink_transport])
+        if trace is not None:
+            wait = trace.wrap_wait(wait)
+            poll = trace.wrap_poll(poll) if poll is not None else None
+        scheduler: Any
+        if run.mode == "paced":
+            scheduler = paced_scheduler(
+                stack,
+                clock,
+                config,
+                deferred,
+                wait,
+                poll=poll,
+                observe=trace.observe if trace is not None else None,
+            )
+        else:
+            feed = FixedRateFeed(stack)
+            scheduler = FixedRateScheduler(
+                clock,
+                RATE_HZ,
+                feed.tick,
+                ingest=feed.ingest,
+                wait=wait,
+                latency=lambda: stack.last_sensor_to_command_ns,
+                spin_ns=DEFAULT_SPIN_NS,
+            )
+        freeze_start_up_heap()  # as `rover run` does
         cpu0, wall0 = _thread_cpu_s(), time.perf_counter()
+        stats: TimingStats
         try:
             with realtime_switch_interval():
-                stats = scheduler.run(round(duration_s * 1e9))
+                stats = scheduler.run(round(run.seconds * 1e9))
         finally:
             cpu = 100.0 * (_thread_cpu_s() - cpu0) / (time.perf_counter() - wall0)
+        peer_stop.set()
+        peer.join(5.0)
+        imu_sends = np.load(trace_path) if trace_path is not None and trace_path.exists() else None
     figures = stats.summary()
     figures["cpu_pct"] = cpu
     figures["final_mode"] = stack.safety_mode.value
     figures["simulated_rover"] = "process" if _peer_as_process() else "thread"
+    figures["busy_poll_ms"] = config.busy_poll_ms if run.mode == "paced" else None
+    if run.mode == "paced":
+        figures["busy_polls"] = scheduler.busy_polls
+    if trace is not None:
+        figures["trace"] = (
+            breakdown(imu_sends, trace, round(1e9 / RATE_HZ))
+            if imu_sends is not None
+            else {"error": "the simulated rover wrote no trace"}
+        )
     return figures
 
 
@@ -226,26 +274,48 @@ def _wait_for_first_sample(transport: Any, timeout_s: float) -> None:
 
 
 def run_bench(args: argparse.Namespace) -> int:
+    empty_s = min(EMPTY_TICK_S, args.seconds)
     peers = {
-        "empty tick (scheduler only)": _empty_loop(min(10.0, args.seconds)),
-        "stack + recording" + ("" if args.no_telemetry else " + telemetry"): _full_stack(
-            args.seconds, not args.no_telemetry
-        ),
+        "empty tick, sleep": _empty_loop(empty_s, 0),
+        "empty tick, precise wait": _empty_loop(empty_s, DEFAULT_SPIN_NS),
     }
+    extras = "recording" + ("" if args.no_telemetry else " + telemetry")
+    for mode in args.modes:
+        loop = "sensor-paced" if mode == "paced" else "fixed-rate"
+        peers[f"stack, {loop} + {extras}"] = _full_stack(
+            StackRun(
+                seconds=args.seconds,
+                telemetry=not args.no_telemetry,
+                mode=mode,
+                peer_spin_ns=round(args.peer_spin_ms * 1e6),
+                busy_poll_ms=args.busy_poll_ms,
+                trace=args.trace,
+            )
+        )
     if args.json:
         # NaN (no latency samples for the empty tick) is not JSON: write null.
-        print(json.dumps(_no_nan({"rate_hz": 50.0, "peers": peers}), indent=2))
+        print(json.dumps(_no_nan({"rate_hz": RATE_HZ, "peers": peers}), indent=2))
         return 0
+    _print_tables(args, peers)
+    return 0
+
+
+def _print_tables(args: argparse.Namespace, peers: dict[str, dict[str, Any]]) -> None:
     from rich.console import Console
     from rich.table import Table
 
     table = Table(
-        title=f"rover bench runtime: 50 Hz real-time HIL, {args.seconds:g} s "
+        title=f"rover bench runtime: {RATE_HZ:g} Hz real-time HIL, {args.seconds:g} s per loop "
         "(goals: p99 jitter <= 1 ms, p99 latency <= 2 ms)"
     )
     columns = ("peer", "ticks (sensor/deadline)", "overruns", "jitter p50/p99/max ms", "latency p50/p99/max")
-    full = next(f for name, f in peers.items() if name.startswith("stack"))
-    table.caption = f"simulated rover ran as a {full['simulated_rover']}"
+    stacks = [f for name, f in peers.items() if name.startswith("stack")]
+    busy = next((f["busy_poll_ms"] for f in stacks if f.get("busy_poll_ms") is not None), None)
+    table.caption = (
+        f"simulated rover ran as a {stacks[0]['simulated_rover']}, stepping on a "
+        + (f"{args.peer_spin_ms:g} ms spin" if args.peer_spin_ms > 0 else "plain sleep")
+        + ("" if busy is None else f"; paced loop busy-polls {busy:g} ms")
+    )
     for column in (*columns, "CPU %"):
         table.add_column(column)
     for name, f in peers.items():
@@ -257,8 +327,30 @@ def run_bench(args: argparse.Namespace) -> int:
             _triple(f["latency"]),
             f"{f['cpu_pct']:.1f}",
         )
-    Console().print(table)
-    return 0
+    console = Console()
+    console.print(table)
+    for f in stacks:
+        if "trace" in f and "parts" in f["trace"]:
+            console.print(_trace_table(f["trace"]))
+
+
+def _trace_table(trace: dict[str, Any]) -> Any:
+    from rich.table import Table
+
+    table = Table(
+        title=f"sensor-paced loop, where it went ({trace['matched_ticks']} ticks matched to IMU sends): "
+        "as it is, and its change tick to tick (adds to period jitter), p50/p99/max ms"
+    )
+    for column in ("part", "as it is", "tick-to-tick change"):
+        table.add_column(column)
+    table.add_row("IMU send period jitter", "", _triple(trace["imu_period_jitter"]))
+    for name, summary in trace["parts"].items():
+        change = trace["parts_jitter"].get(name)
+        table.add_row(name, _triple(summary), "" if change is None else _triple(change))
+    table.add_row("tick period jitter (matched)", "", _triple(trace["tick_period_jitter"]))
+    busy = 100 * trace["wait_returned_before_send"]
+    table.caption = f"the rover's wait returned before the IMU send on {busy:.0f} % of ticks (it was busy)"
+    return table
 
 
 def _triple(summary: Any) -> str:

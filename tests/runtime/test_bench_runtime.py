@@ -1,4 +1,4 @@
-"""``rover bench runtime`` runs end to end and reports figures for both peers (a short run)."""
+"""``rover bench runtime`` runs end to end and reports figures for every peer, both loops (a short run)."""
 
 from __future__ import annotations
 
@@ -10,16 +10,39 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def test_bench_runtime_reports_jitter_and_latency_for_both_peers() -> None:
+def test_bench_runtime_reports_both_loops_side_by_side_with_the_trace() -> None:
     command = [sys.executable, "-m", "rover_cli.main", "bench", "runtime", "--seconds", "2", "--json"]
     done = subprocess.run(
-        [*command, "--no-telemetry"], cwd=ROOT, capture_output=True, text=True, timeout=120, check=False
+        [*command, "--no-telemetry", "--modes", "paced,fixed", "--trace"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=180,
+        check=False,
     )
     assert done.returncode == 0, done.stderr[-2000:]
-    figures = json.loads(done.stdout)
-    empty, stack = figures["peers"]["empty tick (scheduler only)"], figures["peers"]["stack + recording"]
-    assert empty["ticks"] >= 90 and empty["latency"]["p99_ms"] is None  # an empty tick commands nothing
-    # The stack ticked on its sensor about 50 times a second and measured its sensor-to-command latency.
-    assert stack["ticks"] >= 80 and stack["sensor_ticks"] > 0
-    assert 0.0 < stack["latency"]["p50_ms"] <= stack["latency"]["p99_ms"] <= stack["latency"]["max_ms"]
-    assert stack["simulated_rover"] in ("process", "thread")
+    peers = json.loads(done.stdout)["peers"]
+    for name in ("empty tick, sleep", "empty tick, precise wait"):
+        assert peers[name]["ticks"] >= 90 and peers[name]["latency"]["p99_ms"] is None  # commands nothing
+    paced = peers["stack, sensor-paced + recording"]
+    fixed = peers["stack, fixed-rate + recording"]
+    # The paced stack ticked on its sensor about 50 times a second and measured its latency.
+    assert paced["ticks"] >= 80 and paced["sensor_ticks"] > 0 and paced["busy_poll_ms"] == 1.0
+    assert 0.0 < paced["latency"]["p50_ms"] <= paced["latency"]["p99_ms"] <= paced["latency"]["max_ms"]
+    assert paced["trace"]["matched_ticks"] > 0 and "send_late" in paced["trace"]["parts"]
+    # The fixed-rate stack ticked on the clock only, and its latency includes the wait for the tick.
+    assert fixed["ticks"] >= 80 and fixed["sensor_ticks"] == 0 and fixed["deadline_ticks"] == fixed["ticks"]
+    assert 0.0 < fixed["latency"]["p50_ms"] <= fixed["latency"]["max_ms"] <= 25.0
+    assert paced["simulated_rover"] == fixed["simulated_rover"] in ("process", "thread")
+
+
+def test_an_unknown_mode_is_refused() -> None:
+    done = subprocess.run(
+        [sys.executable, "-m", "rover_cli.main", "bench", "runtime", "--modes", "paced,turbo"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert done.returncode == 2 and "modes are paced, fixed" in done.stderr
