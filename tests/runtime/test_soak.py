@@ -42,8 +42,9 @@ def test_a_short_soak_injects_sees_and_recovers_every_fault(tmp_path: Path) -> N
     names = [f.name.split("[")[0] for f in report.faults]
     assert names == ["vesc", "estop/command", "imu/off", "can/off"], report.faults
     assert report.ok, report.to_json()
-    # Mostly sensor-paced: the silent IMU's 3 s (~150 ticks) and the ticks before the peer's first IMU
-    # sample (its start-up, 1-3 s on a loaded 2-core machine) run on the deadline; 0.8 was seen at 0.798.
+    # Mostly sensor-paced: the silent IMU's 3 s (~150 ticks) run on the deadline, and so does every tick
+    # whose sample comes later than the grace, which on a 2-core machine running the peer, the rover and
+    # the test side by side is a few percent of them (0.80-0.87 sensor-paced seen; 0.8 once failed).
     assert not report.crashes and report.ticks > 1000 and report.sensor_ticks > 0.65 * report.ticks
     assert report.deadline_ticks > 0  # the silent IMU's fallback ticks
     # A normal start does not trip the stall failsafe (the first plan runs off the control thread).
