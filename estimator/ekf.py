@@ -358,3 +358,13 @@ def _check_std(where: str, **values: float) -> None:
     for name, value in values.items():
         if not math.isfinite(value) or value <= 0.0:
             raise EstimatorOperationError(f"{where}: {name} must be a finite std > 0, got {value}")
+
+
+def load_kernels(config: EstimatorConfig) -> None:
+    """Run a throwaway filter through a predict and an update, so the compiled kernels are loaded from
+    numba's cache (or compiled, on a machine's first run) now: a real-time process calls this before its
+    loop, where a first-use compile would stall the control tick for seconds."""
+    ekf = RoverEkf(config)
+    ekf.initialise(0.0, 0.0, 0.0, 0, 1.0, 1.0)
+    ekf.predict(10_000_000)
+    ekf.update_position(0.1, 0.1, 1.0, gated=False)

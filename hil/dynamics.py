@@ -40,6 +40,7 @@ Body axes: x forward, y left, z up; pitch positive nose up, roll positive when t
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -261,6 +262,13 @@ class RoverDynamics:
         self._terrain = terrain
         self._under = self._terrain.ground_at(self._x, self._y, self._yaw)
         self._use_obstacles(terrain)
+
+    def warm_up(self) -> None:
+        """Step a throwaway copy once, so the compiled kernels every step runs (traction, ground look-up,
+        footprint contact) are loaded from numba's cache, or compiled, now: a real-time peer calls this
+        before its clock starts. On a cold cache the first step compiles for seconds, and in real time
+        that is seconds of silent controllers and a missing IMU, which the rover's failsafes report."""
+        copy.deepcopy(self).step(0.01, [0.0] * 6, 24.0)
 
     # --- stepping ---------------------------------------------------------------------------------
     def step(

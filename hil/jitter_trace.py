@@ -131,9 +131,8 @@ def breakdown(imu: np.ndarray, rover: RoverTrace, nominal_period_ns: int) -> dic
         rows.append(
             (int(due[index]), int(sent[index]), wake, rx, sample.start_ns, rx + sample.latency_ns, index)
         )
-    if len(rows) < 2:
-        return {"matched_ticks": len(rows)}
-    table = np.array(rows, dtype=np.int64)
+    # The same keys however few ticks matched (a short or stalled run): empty parts summarise as None.
+    table = np.array(rows, dtype=np.int64).reshape(-1, 7)
     due_t, sent_t, wake_t, rx_t, start_t, command_t, index_t = table.T
     woke_after_send = np.maximum(wake_t, sent_t)
     parts = {
@@ -157,6 +156,6 @@ def breakdown(imu: np.ndarray, rover: RoverTrace, nominal_period_ns: int) -> dic
             for name, values in parts.items()
             if name != "compute"
         },
-        "wait_returned_before_send": float(np.mean(wake_t < sent_t)),
+        "wait_returned_before_send": float(np.mean(wake_t < sent_t)) if len(rows) else None,
     }
     return result

@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from estimator.ekf import load_kernels
 from logs.clock import Clock
 from logs.commands import ZenohCommandReceiver
 from logs.recorder import McapRecorder
@@ -41,6 +42,7 @@ from navigator.onboard import OnboardStack
 from navigator.paced_loop import SensorPacedScheduler, TickSample
 from navigator.plan_worker import plan_worker
 from navigator.planner import Planner
+from navigator.projection_kernel import nearest_segment
 from navigator.runtime import TimingStats, freeze_start_up_heap, realtime_switch_interval
 from navigator.timing_topic import TimingPublisher
 
@@ -106,6 +108,7 @@ def run_rover(
             )
             try:
                 warm_up_planner(stack.guidance.planner, clock)
+                warm_up_control_kernels(stack.guidance.planner, config)
                 stack.publish_map()
                 if goal is not None:
                     stack.set_goal(*goal)
@@ -188,6 +191,19 @@ def _both(
         second(sample)
 
     return both
+
+
+def warm_up_control_kernels(planner: Planner, config: RoverConfig) -> None:
+    """Load (or, on a machine's first run, compile) the kernels a control tick runs, before the loop: the
+    EKF's predict and update, the follower's path projection and the terrain look-up under the rover. On a
+    cold numba cache they compiled inside the first ticks, stalling the loop for ~3 s (the stall
+    failsafe fired on start-up)."""
+    load_kernels(config.estimator)
+    nearest_segment(np.array([[0.0, 0.0], [1.0, 0.0]]), 0, 1, 0.5, 0.5)
+    free = np.argwhere(np.isfinite(planner.cost_grid))
+    if free.size:
+        x, y = planner.terrain.center_of(int(free[0][0]), int(free[0][1]))
+        planner.terrain.ground_at(x, y, 0.0)
 
 
 def warm_up_planner(planner: Planner, clock: Clock) -> None:

@@ -227,3 +227,13 @@ def test_closed_loop_through_the_paper_maze():
         contacts += body.step(DT, wheels, VOLTS).collided_obstacle
     assert arrived and contacts == 0
     assert math.hypot(body.x - 4.5, body.y - 10.5) <= FollowerConfig().goal_tolerance_m
+
+
+def test_warm_up_steps_a_copy_and_leaves_the_body_where_it_was() -> None:
+    terrain = from_maze(np.full((10, 10), 2), 1.0)
+    body = RoverDynamics(terrain, PARAMS, x=5.0, y=5.0, yaw=0.3)
+    before = (body.x, body.y, body.yaw, body.speed, body.yaw_rate, body.energy_wh)
+    body.warm_up()
+    assert (body.x, body.y, body.yaw, body.speed, body.yaw_rate, body.energy_wh) == before
+    step = body.step(0.01, [1.0] * 6, 24.0)  # and the real body still steps from its own state
+    assert step.energy_wh > 0.0

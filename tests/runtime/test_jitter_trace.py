@@ -46,7 +46,11 @@ def test_a_tick_without_a_matching_send_is_left_out() -> None:
     trace = RoverTrace()
     trace.observe(TickSample(50 * PERIOD, None, 1, 1, "sensor", 0, 50 * PERIOD - 1))  # no send near it
     trace.observe(TickSample(51 * PERIOD, None, 1, None, "deadline", 0, None))
-    assert breakdown(np.array([[0], [0]]), trace, PERIOD) == {"matched_ticks": 0}
+    result = breakdown(np.array([[0], [0]]), trace, PERIOD)
+    # The same keys as a run with matches, empty: a JSON reader never meets a missing key.
+    assert result["matched_ticks"] == 0 and result["wait_returned_before_send"] is None
+    assert result["parts"]["send_late"] == {"p50_ms": None, "p99_ms": None, "max_ms": None}
+    assert result["tick_period_jitter"]["p99_ms"] is None
 
 
 class _Sink:
