@@ -153,22 +153,34 @@ def _judge_fault(
         recovered = any(m["ticks"] > 0 and m["sensor_ticks"] >= 0.8 * m["ticks"] for m in after)
         detail = f"deadline ticks in {sum(m['deadline_ticks'] for m in during)} of the silent window's ticks"
         return FaultResult(fault.name, *at, True, seen, recovered, detail)
-    fired = [
-        t
-        for t, kind in events
-        if kind == f"failsafe.{fault.failsafe}" and start <= t <= end + SEEN_SLACK_S * NS
-    ]
+    raised, lowered = f"failsafe.{fault.failsafe}", f"cleared.{fault.failsafe}"
+    fired = [t for t, kind in events if kind == raised and start <= t <= end + SEEN_SLACK_S * NS]
+    # Already raised when the fault began (the same failsafe, for another cause: all controllers silent
+    # through a stall of the peer just then) and not cleared before it: the rover is holding for it.
+    holding = _active_at(events, raised, lowered, start)
+    if holding is not None:
+        fired = [holding]
     if not fired:
-        return FaultResult(fault.name, *at, True, False, False, f"no failsafe.{fault.failsafe}")
-    cleared = [
-        t
-        for t, kind in events
-        if kind == f"cleared.{fault.failsafe}" and fired[0] < t <= end + RECOVER_LIMIT_S * NS
-    ]
-    detail = f"failsafe.{fault.failsafe} {(fired[0] - start) / NS:.2f} s after the start"
+        return FaultResult(fault.name, *at, True, False, False, f"no {raised}")
+    cleared = [t for t, kind in events if kind == lowered and fired[0] < t <= end + RECOVER_LIMIT_S * NS]
+    when = "after" if fired[0] >= start else "before"
+    detail = f"{raised} {abs(fired[0] - start) / NS:.2f} s {when} the start"
     if cleared:
         detail += f", cleared {(cleared[0] - end) / NS:.2f} s after the end"
     return FaultResult(fault.name, *at, True, True, bool(cleared), detail)
+
+
+def _active_at(events: list[tuple[int, str]], raised: str, lowered: str, t_ns: int) -> int | None:
+    """When the failsafe active at ``t_ns`` was raised (events in time order), or None if it was not."""
+    since = None
+    for t, kind in events:
+        if t >= t_ns:
+            break
+        if kind == raised:
+            since = t
+        elif kind == lowered:
+            since = None
+    return since
 
 
 def _fault_windows(truth_mcap: Path) -> dict[str, list[tuple[float, float]]]:
