@@ -125,7 +125,7 @@ def run_can_bench(rounds: int = 20_000) -> CanBenchResult:
             strict_message.decode(bytes(msg.data))
 
         _time_rounds("warm-up", 500, ours)
-        ours_figures = _time_rounds("ours (cantools, strict decode)", rounds, ours)
+        ours_figures = _time_rounds("ours (DBC packer, strict checks)", rounds, ours)
         peers = [
             _time_rounds("python-can + struct (no DBC)", rounds, raw_struct),
             _time_rounds("cantools strict encode + decode", rounds, cantools_strict),
