@@ -99,7 +99,7 @@ def run_sim_rover(
             autopilot.poll()
             vescs.poll()
             step = body.step(dt_s, vescs.wheel_speeds_mps(), 24.0)
-            vescs.set_electrical(step.motor_currents_a, 24.0)
+            vescs.set_electrical(step.motor_currents_a, 24.0, step.duty)
             vescs.step(dt_s)
             truth = AutopilotTruth(
                 x_m=body.x,

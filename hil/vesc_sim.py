@@ -69,7 +69,7 @@ class SimVescBank:
         self._tacho_erev = [0.0] * WHEEL_COUNT
         self._last_command_ns: list[int | None] = [None] * WHEEL_COUNT
         self._motor_current_a = [0.0] * WHEEL_COUNT
-        self._physics_duty: list[float] | None = None  # from set_electrical; None: estimated from ERPM
+        self._duty_cycle = [0.0] * WHEEL_COUNT  # the motors' duty from the physics (set_electrical)
         self._input_voltage_v = input_voltage_v
         self.commands_applied = 0
         self.timeouts = 0
@@ -173,27 +173,22 @@ class SimVescBank:
         self,
         motor_currents_a: Sequence[float],
         input_voltage_v: float,
-        duties: Sequence[float] | None = None,
+        duties: Sequence[float],
     ) -> None:
-        """Loads from the physics engine, reported in the next status frames.
-
-        ``duties`` are the motors' duty cycles from the physics (signed, as ``DynamicsStep.duty``);
-        without them each controller estimates its duty from its ERPM (back-EMF over the supply).
-        """
+        """Loads from the physics engine, reported in the next status frames: motor currents, the supply
+        voltage and the motors' duty cycles (signed, as ``DynamicsStep.duty``)."""
         if len(motor_currents_a) != WHEEL_COUNT:
             raise ValueError(f"need {WHEEL_COUNT} motor currents in wheel order, got {len(motor_currents_a)}")
-        if duties is not None and len(duties) != WHEEL_COUNT:
+        if len(duties) != WHEEL_COUNT:
             raise ValueError(f"need {WHEEL_COUNT} duty cycles in wheel order, got {len(duties)}")
         self._motor_current_a = [_clamp_current(c) for c in motor_currents_a]
-        self._physics_duty = None if duties is None else [max(-1.0, min(1.0, d)) for d in duties]
+        self._duty_cycle = [max(-1.0, min(1.0, d)) for d in duties]
         voltage = input_voltage_v if math.isfinite(input_voltage_v) else 0.0
         self._input_voltage_v = max(0.0, min(_VOLTAGE_FIELD_MAX_V, voltage))
 
     # --- status out ----------------------------------------------------------------------------
     def _duty(self, wheel: int) -> float:
-        if self._physics_duty is not None:
-            return self._physics_duty[wheel]
-        return max(-1.0, min(1.0, self._erpm[wheel] / self._max_erpm))
+        return self._duty_cycle[wheel]
 
     def _send_due_status(self, now: int) -> None:
         if now >= self._next_status_ns:

@@ -284,7 +284,7 @@ def test_commanded_beyond_the_current_limit_the_rover_stalls_and_the_vesc_report
         vescs.poll()
         clock.advance(to_ns(DT))
         step = body.step(DT, vescs.wheel_speeds_mps(), VOLTS)
-        vescs.set_electrical(step.motor_currents_a, VOLTS)
+        vescs.set_electrical(step.motor_currents_a, VOLTS, step.duty)
         vescs.step(DT)
         link.poll()
         reported.extend(r.motor_current_a for r in link.readings())

@@ -51,9 +51,9 @@ def test_commands_reach_the_motors_and_status_comes_back(buses):
     clock, sink = SimClock(), MemorySink()
     link, sim = make_pair(buses, clock, sink)
     speeds = [0.5, 0.5, 0.5, -0.3, -0.3, -0.3]
-    sim.set_electrical([2.0] * 6, 25.2)
-    run(link, sim, clock, 1.0, speeds)
     expected = [round(TEST_PROFILE.erpm_from_speed(s)) for s in speeds]
+    sim.set_electrical([2.0] * 6, 25.2, [e / 30_000 for e in expected])  # duty as the physics gives it
+    run(link, sim, clock, 1.0, speeds)
     assert sim.targets_erpm() == expected
     assert sim.wheel_speeds_mps() == pytest.approx(speeds, abs=1e-3)
     readings = link.readings()
