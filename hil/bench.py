@@ -29,6 +29,7 @@ import dataclasses
 import functools
 import os
 import shutil
+import statistics
 import tempfile
 import time
 from collections.abc import Callable
@@ -134,6 +135,18 @@ class PeerFigure:
     wall_s: float
     simulated_s: float
     cpu_s: float = 0.0  # process CPU time, all threads
+    runs_wall_s: tuple[float, ...] = ()  # each repeat's wall time, when this is their median
+
+    @classmethod
+    def median_of(cls, runs: list[PeerFigure]) -> PeerFigure:
+        """One figure for repeated runs of a peer: the median wall and CPU time, every wall time kept."""
+        return cls(
+            runs[0].name,
+            statistics.median(r.wall_s for r in runs),
+            runs[0].simulated_s,
+            statistics.median(r.cpu_s for r in runs),
+            tuple(r.wall_s for r in runs),
+        )
 
     @property
     def real_time_factor(self) -> float:
@@ -239,6 +252,7 @@ class BenchReport:
             "wall_s": {p.name: round(p.wall_s, 3) for p in self.peers},
             "cpu_real_time_factor": {p.name: round(p.cpu_real_time_factor, 2) for p in self.peers},
             "cpu_s": {p.name: round(p.cpu_s, 3) for p in self.peers},
+            "runs_wall_s": {p.name: [round(w, 3) for w in p.runs_wall_s] for p in self.peers},
             "goal_real_time_factor": GOAL_REAL_TIME_FACTOR,
             "named_baselines": {name: list(span) for name, span in NAMED_BASELINES.items()},
             "warmup_wall_s": round(self.warmup_s, 3),
@@ -263,26 +277,37 @@ def run_bench(
     telemetry_factory: Callable[[], tuple[MessageSink | None, Callable[[], None]]],
     one_core: bool = True,
     keep_dir: Path | None = None,
+    repeats: int = 1,
 ) -> BenchReport:
-    """Measure every peer and the breakdown; ``telemetry_factory`` gives (sink or None, closer) per run."""
+    """Measure every peer and the breakdown; ``telemetry_factory`` gives (sink or None, closer) per run.
+
+    ``repeats``: each peer is timed this many times, in interleaved rounds (every peer once per round, so
+    a noisy stretch of the machine hits them alike); the figure is the median (``PeerFigure.median_of``).
+    """
+    if repeats < 1:
+        raise ValueError(f"repeats must be >= 1, got {repeats}")
     cpu = pin_to_one_core() if one_core else None
     work_dir = keep_dir or Path(tempfile.mkdtemp(prefix="rover-bench-hil-"))
     try:
         warmup_s = _warm_up(scenario, config, work_dir, telemetry_factory)
-        peers = []
         trial_peers: tuple[tuple[str, CanBackend], ...] = (
             ("lockstep", "lockstep"),
             ("lockstep-virtual-can", "virtual"),
         )
-        for name, backend in trial_peers:
-            telemetry, close = telemetry_factory()
-            try:
-                peers.append(
-                    time_trial(scenario, config, work_dir, name, telemetry=telemetry, can_backend=backend)
-                )
-            finally:
-                close()
-        peers.append(time_world_only(scenario, config, peers[0].simulated_s))
+        rounds: list[list[PeerFigure]] = []
+        for _ in range(repeats):
+            figures = []
+            for name, backend in trial_peers:
+                telemetry, close = telemetry_factory()
+                try:
+                    figures.append(
+                        time_trial(scenario, config, work_dir, name, telemetry=telemetry, can_backend=backend)
+                    )
+                finally:
+                    close()
+            figures.append(time_world_only(scenario, config, figures[0].simulated_s))
+            rounds.append(figures)
+        peers = [PeerFigure.median_of([r[i] for r in rounds]) for i in range(len(rounds[0]))]
 
         timer = ExclusiveTimer()
         telemetry, close = telemetry_factory()

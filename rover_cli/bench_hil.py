@@ -23,6 +23,12 @@ def register(commands: Any) -> None:
     bench.add_argument("--config", type=Path, default=None, help="rover config TOML (default: built-in)")
     bench.add_argument("--no-zenoh", action="store_true", help="do not publish telemetry on Zenoh")
     bench.add_argument("--all-cores", action="store_true", help="do not pin the benchmark to one core")
+    bench.add_argument(
+        "--repeats",
+        type=int,
+        default=3,
+        help="time each peer this many times, interleaved, and report the median (default 3)",
+    )
     bench.add_argument("--json", action="store_true", help="print the figures as one JSON object")
     bench.set_defaults(handler=run_bench_command)
 
@@ -58,19 +64,32 @@ def run_bench_command(args: argparse.Namespace) -> int:
         # As `rover hil trial` publishes: thinned to the config's [zenoh.rates] (the MCAP keeps everything).
         return rate_limited(telemetry, config.zenoh.rates_hz), close
 
-    report = run_bench(scenario, config, telemetry_factory=telemetry_factory, one_core=not args.all_cores)
+    if args.repeats < 1:
+        console.print(f"[red]error:[/red] --repeats must be >= 1, got {args.repeats}")
+        return 2
+    report = run_bench(
+        scenario,
+        config,
+        telemetry_factory=telemetry_factory,
+        one_core=not args.all_cores,
+        repeats=args.repeats,
+    )
     figures = report.as_dict()
     if args.json:
         print(json.dumps(figures, indent=2))
         return 0
     goal = figures["goal_real_time_factor"]
-    peers = RichTable(title=f"rover bench hil: {scenario.name}, {figures['simulated_s']} s simulated")
+    peers = RichTable(
+        title=f"rover bench hil: {scenario.name}, {figures['simulated_s']} s simulated, "
+        f"median of {args.repeats} interleaved run(s)"
+    )
     peers.add_column("peer / baseline", no_wrap=True)
     peers.add_column("wall s", justify="right")
     peers.add_column("real-time factor", justify="right")
     peers.add_column("CPU s", justify="right")
     peers.add_column("on CPU time", justify="right")
     peers.add_column("of goal", justify="right", no_wrap=True)
+    peers.add_column("wall s of each run", justify="right")
     for name, factor in figures["real_time_factor"].items():
         peers.add_row(
             name,
@@ -79,11 +98,12 @@ def run_bench_command(args: argparse.Namespace) -> int:
             f"{figures['cpu_s'][name]:.2f}",
             f"{figures['cpu_real_time_factor'][name]:.1f}x",
             f"{100.0 * factor / goal:.0f} %",
+            " ".join(f"{w:.2f}" for w in figures["runs_wall_s"][name]),
         )
     for name, (low, high) in figures["named_baselines"].items():
         span = f"<= {high:.0f}x" if low == 0 else f"{low:.0f}-{high:.0f}x"
-        peers.add_row(f"[dim]{name}[/dim]", "", f"[dim]{span}[/dim]", "", "", "[dim]elsewhere[/dim]")
-    peers.add_row("[bold]goal[/bold]", "", f"[bold]{goal:.0f}x[/bold]", "", "", "100 %")
+        peers.add_row(f"[dim]{name}[/dim]", "", f"[dim]{span}[/dim]", "", "", "[dim]elsewhere[/dim]", "")
+    peers.add_row("[bold]goal[/bold]", "", f"[bold]{goal:.0f}x[/bold]", "", "", "100 %", "")
     console.print(peers)
     breakdown = RichTable(title="per component (instrumented run, exclusive time)")
     breakdown.add_column("component", no_wrap=True)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import time
 
+import pytest
+
 from hil.bench import GOAL_REAL_TIME_FACTOR, NAMED_BASELINES, BenchReport, ExclusiveTimer, PeerFigure
 from logs.sink import FanoutSink, MemorySink, Message
 
@@ -64,3 +66,12 @@ def test_report_gives_wall_and_cpu_factors_against_the_goal_and_baselines() -> N
     assert figures["goal_real_time_factor"] == GOAL_REAL_TIME_FACTOR
     assert figures["named_baselines"] == {name: list(span) for name, span in NAMED_BASELINES.items()}
     assert [entry["share_pct"] for entry in figures["breakdown"].values()] == [75.0, 25.0]
+
+
+def test_repeated_runs_report_their_median_and_keep_every_wall_time() -> None:
+    runs = [PeerFigure("lockstep", wall, 40.0, cpu_s=wall - 0.1) for wall in (2.5, 1.8, 2.0)]
+    median = PeerFigure.median_of(runs)
+    assert (median.wall_s, median.cpu_s, median.runs_wall_s) == (2.0, pytest.approx(1.9), (2.5, 1.8, 2.0))
+    assert median.real_time_factor == 20.0
+    report = BenchReport("s", None, False, (median,), {}, {}, 0.0, 0.0, 40.0).as_dict()
+    assert report["runs_wall_s"] == {"lockstep": [2.5, 1.8, 2.0]}
