@@ -15,7 +15,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/rover hil trial $(SCENARIO) --seed $(SEED) --config configs/rover.toml
+	$(BIN)/rover hil trial $(SCENARIO) --seed $(SEED) --config configs/rover.toml --report
 
 test: $(STAMP)
 	scripts/in-private-netns $(BIN)/python -m pytest -q $(PYTEST_ARGS)

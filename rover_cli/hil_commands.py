@@ -27,6 +27,9 @@ def register(families: Any) -> None:
     trial.add_argument("--config", type=Path, default=None, help="rover config TOML (default: built-in)")
     trial.add_argument("--out", type=Path, default=None, help="output directory (default: logs/trials/<run>)")
     trial.add_argument("--no-telemetry", action="store_true", help="do not publish on Zenoh")
+    trial.add_argument(
+        "--report", action="store_true", help="also write report.html/.md/.json next to the recording"
+    )
     trial.set_defaults(handler=run_trial_command)
     campaign = commands.add_parser(
         "campaign", help="run terrains x variants x seeds on all cores; write the paper-style summary"
@@ -131,6 +134,22 @@ def run_trial_command(args: argparse.Namespace) -> int:
         table.add_row(name, value)
     console.print(table)
     console.print(f"recording: {result.mcap_path}\nmetrics:   {result.metrics_path}")
+    if args.report:
+        return _write_trial_report(console, result.mcap_path, out_dir)
+    return 0
+
+
+def _write_trial_report(console: Console, mcap_path: Path, out_dir: Path) -> int:
+    """``rover logs report`` of the trial just run, into its own folder (after the timed trial)."""
+    from logs.errors import LogsError
+    from logs.report import write_report
+
+    try:
+        report = write_report([mcap_path], out_dir)
+    except LogsError as err:
+        console.print(f"[red]error:[/red] report: {err}")
+        return 2
+    console.print(f"report:    {report.html}\n           {report.markdown}\n           {report.json}")
     return 0
 
 

@@ -138,3 +138,18 @@ def test_scenario_config_and_map_are_attached(small_trial, small_scenario):
     metadata = read_metadata(small_trial.mcap_path)
     assert metadata["trial"]["mode"] == "sim-lockstep"
     assert metadata["scenario"]["terrain_class"] == "rocky"
+
+
+def test_trial_command_with_report_writes_the_report_beside_the_recording(tmp_path, capsys):
+    from rover_cli.main import main
+
+    out = tmp_path / "run"
+    scenario = Path(__file__).resolve().parents[1] / "data" / "small_rocky.toml"
+    assert main(["hil", "trial", str(scenario), "--out", str(out), "--no-telemetry", "--report"]) == 0
+    assert {p.name for p in out.iterdir()} >= {"trial.mcap", "metrics.json", "report.html", "report.md"}
+    report = json.loads((out / "report.json").read_text())
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert "report.html" in capsys.readouterr().out
+    (run,) = report["runs"]
+    assert Path(run["path"]).name == "trial.mcap" and not run["missing"]
+    assert run["metrics"]["distance_m"] == pytest.approx(metrics["distance_m"])  # the trial's own figures
