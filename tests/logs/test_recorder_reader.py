@@ -174,35 +174,32 @@ def test_damaged_chunk_raises_log_read_error(recording: tuple[bytes, list]) -> N
         list(read_messages(io.BytesIO(bytes(damaged))))
 
 
-def test_malformed_json_payload_is_skipped_and_counted() -> None:
+def _raw_payloads_on_one_channel(payloads: list[bytes]) -> bytes:
+    """An MCAP file (the library's writer) whose JSON channel holds ``payloads`` as they are, at 1, 2, ..."""
     buffer = io.BytesIO()
     writer = Writer(buffer)
     writer.start()
     schema = writer.register_schema("rover.X", "jsonschema", b"{}")
     channel = writer.register_channel(LOG, "json", schema)
-    writer.add_message(channel, 1, b'{"a": 1}', 1)
-    writer.add_message(channel, 2, b"{not json", 2)
-    writer.add_message(channel, 3, b"[1, 2]", 3)
-    writer.add_message(channel, 4, b'{"b": 2}', 4)
+    for t, payload in enumerate(payloads, start=1):
+        writer.add_message(channel, t, payload, t)
     writer.finish()
+    return buffer.getvalue()
+
+
+def test_malformed_json_payload_is_skipped_and_counted() -> None:
+    data = _raw_payloads_on_one_channel([b'{"a": 1}', b"{not json", b"[1, 2]", b'{"b": 2}'])
     stats = ReadStats()
-    got = list(read_messages(io.BytesIO(buffer.getvalue()), stats=stats))
+    got = list(read_messages(io.BytesIO(data), stats=stats))
     assert [(m.log_time_ns, m.message) for m in got] == [(1, {"a": 1}), (4, {"b": 2})]
     assert stats.malformed == 2 and stats.messages == 2
 
 
 def test_foreign_json_only_the_standard_library_reads_is_still_read() -> None:
     # Another writer's NaN / Infinity literals: Python's json reads them, orjson does not.
-    buffer = io.BytesIO()
-    writer = Writer(buffer)
-    writer.start()
-    schema = writer.register_schema("rover.X", "jsonschema", b"{}")
-    channel = writer.register_channel(LOG, "json", schema)
-    writer.add_message(channel, 1, b'{"a": NaN}', 1)
-    writer.add_message(channel, 2, b'{"b": [Infinity, 2]}', 2)
-    writer.finish()
+    data = _raw_payloads_on_one_channel([b'{"a": NaN}', b'{"b": [Infinity, 2]}'])
     stats = ReadStats()
-    got = list(read_messages(io.BytesIO(buffer.getvalue()), stats=stats))
+    got = list(read_messages(io.BytesIO(data), stats=stats))
     assert math.isnan(got[0].message["a"]) and got[1].message == {"b": [math.inf, 2]}
     assert stats.malformed == 0 and stats.messages == 2
 
