@@ -107,8 +107,7 @@ def run_rover(
                 planning=planning,
             )
             try:
-                warm_up_planner(stack.guidance.planner, clock)
-                warm_up_control_kernels(stack.guidance.planner, config)
+                warm_up(stack.guidance.planner, config, clock)
                 stack.publish_map()
                 if goal is not None:
                     stack.set_goal(*goal)
@@ -193,28 +192,21 @@ def _both(
     return both
 
 
-def warm_up_control_kernels(planner: Planner, config: RoverConfig) -> None:
-    """Load (or, on a machine's first run, compile) the kernels a control tick runs, before the loop: the
-    EKF's predict and update, the follower's path projection and the terrain look-up under the rover. On a
-    cold numba cache they compiled inside the first ticks, stalling the loop for ~3 s (the stall
-    failsafe fired on start-up)."""
+def warm_up(planner: Planner, config: RoverConfig, clock: Clock) -> None:
+    """Before the loop starts, load (or, on a machine's first run, compile) every kernel the process runs,
+    so none is compiled inside a tick: the EKF's predict and update, the follower's path projection, the
+    terrain look-up under the rover, and the A* kernels (one plan on this map). On a cold numba cache the
+    control kernels compiled inside the first ticks (a ~3 s stall: the stall failsafe fired on start-up),
+    and a first plan compiled for seconds (on the planning thread it holds the rover in PLANNING as long).
+    A map with no free cell leaves the terrain look-up and the plan to guidance."""
     load_kernels(config.estimator)
     nearest_segment(np.array([[0.0, 0.0], [1.0, 0.0]]), 0, 1, 0.5, 0.5)
-    free = np.argwhere(np.isfinite(planner.cost_grid))
-    if free.size:
-        x, y = planner.terrain.center_of(int(free[0][0]), int(free[0][1]))
-        planner.terrain.ground_at(x, y, 0.0)
-
-
-def warm_up_planner(planner: Planner, clock: Clock) -> None:
-    """Plan once on this map before the loop starts, so the A* kernel is compiled (or loaded from numba's
-    cache) now, not on the first real plan: a compile inside a control tick (lockstep) stalled the loop for
-    seconds, and on the planning thread it would hold the rover in PLANNING as long. A map with no free
-    cell is left to guidance."""
     free = np.argwhere(np.isfinite(planner.cost_grid))
     if free.size == 0:
         return
     cell = (int(free[0][0]), int(free[0][1]))
+    x, y = planner.terrain.center_of(*cell)
+    planner.terrain.ground_at(x, y, 0.0)
     started = clock.now_ns()
     try:
         planner.plan_cells(cell, cell)

@@ -127,7 +127,7 @@ def _full_stack(run: StackRun) -> dict[str, Any]:
     from navigator.input_wait import input_poller, input_waiter
     from navigator.onboard import OnboardStack
     from navigator.plan_worker import plan_worker
-    from navigator.rover_process import paced_scheduler, warm_up_control_kernels, warm_up_planner
+    from navigator.rover_process import paced_scheduler, warm_up
     from navigator.runtime import (
         FixedRateScheduler,
         TimingStats,
@@ -177,8 +177,7 @@ def _full_stack(run: StackRun) -> dict[str, Any]:
             config, clock, can_link, mavlink, deferred, terrain, deferred=deferred, planning=planning
         )
         cleanup.callback(stack.close)
-        warm_up_planner(stack.planner, clock)
-        warm_up_control_kernels(stack.planner, config)
+        warm_up(stack.planner, config, clock)
         stack.publish_map()
         stack.set_goal(35.0, 35.0)
         trace_path = tmp / "imu_sends.npy" if trace is not None else None
