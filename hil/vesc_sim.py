@@ -187,9 +187,6 @@ class SimVescBank:
         self._input_voltage_v = max(0.0, min(_VOLTAGE_FIELD_MAX_V, voltage))
 
     # --- status out ----------------------------------------------------------------------------
-    def _duty(self, wheel: int) -> float:
-        return self._duty_cycle[wheel]
-
     def _send_due_status(self, now: int) -> None:
         if now >= self._next_status_ns:
             self._next_status_ns = _next_due(self._next_status_ns, self._status_period_ns, now)
@@ -201,7 +198,7 @@ class SimVescBank:
                     cid,
                     erpm=max(-_INT32_MAX, min(_INT32_MAX, round(self._erpm[i]))),
                     current=self._motor_current_a[i],
-                    duty=self._duty(i),
+                    duty=self._duty_cycle[i],
                 )
         if now >= self._next_slow_ns:
             self._next_slow_ns = _next_due(self._next_slow_ns, self._slow_period_ns, now)
@@ -216,7 +213,7 @@ class SimVescBank:
                     temp_motor=_IDLE_TEMPERATURE_C,
                     # What the motor takes from the pack: I x duty, signed as power flows. A braking
                     # motor generates, and with no regeneration (hil.battery) the pack sees nothing.
-                    current_in=max(current * self._duty(i), 0.0),
+                    current_in=max(current * self._duty_cycle[i], 0.0),
                     pid_pos=0.0,
                 )
                 self._send(

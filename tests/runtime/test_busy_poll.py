@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 
 from logs.clock import SimClock
 from navigator.paced_loop import DEADLINE_GRACE, SampleInterval, SensorPacedScheduler
+from tests.runtime.fake_sensor import FakeSensor
 
 MS = 1_000_000
 PERIOD = 20 * MS
@@ -17,19 +18,9 @@ POLL_COST = 5_000  # one non-blocking poll
 
 
 @dataclass
-class LateWakingLink:
-    clock: SimClock
-    arrivals: list[int]
-    read: int = 0
+class LateWakingLink(FakeSensor):
     polling_ns: int = 0  # simulated time spent in poll()
     polls_by_time: list[int] = field(default_factory=list)
-
-    def ingest(self) -> int | None:
-        newest = None
-        while self.read < len(self.arrivals) and self.arrivals[self.read] <= self.clock.now_ns():
-            newest = self.arrivals[self.read]
-            self.read += 1
-        return newest
 
     def wait(self, seconds: float) -> None:
         now = self.clock.now_ns()

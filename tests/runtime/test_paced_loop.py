@@ -14,27 +14,12 @@ from logs.encoding import EncodedSink
 from logs.sink import MemorySink
 from navigator.deferred_sink import DeferredSink, deferred_sink
 from navigator.paced_loop import DEADLINE_GRACE, SensorPacedScheduler, TickSample
+from tests.runtime.fake_sensor import FakeSensor
 from tests.runtime.rig import Rig, rig_config
 
 MS = 1_000_000
 PERIOD = 20 * MS  # 50 Hz
 TICK_COST = 300_000  # each tick takes 0.3 ms of (simulated) time
-
-
-@dataclass
-class FakeSensor:
-    """Samples land at ``arrivals`` (clock ns); ``ingest`` returns the newest one not yet read."""
-
-    clock: SimClock
-    arrivals: list[int]
-    read: int = 0
-
-    def ingest(self) -> int | None:
-        newest = None
-        while self.read < len(self.arrivals) and self.arrivals[self.read] <= self.clock.now_ns():
-            newest = self.arrivals[self.read]
-            self.read += 1
-        return newest
 
 
 @dataclass
