@@ -154,10 +154,26 @@ class SimAutopilot:
         )
 
     def step(self, truth: AutopilotTruth) -> None:
-        """Send what is due at the clock's now, in a fixed order: heartbeat, status, GPS, IMU, attitude."""
+        """Send what is due at the clock's now, in a fixed order: IMU, attitude, GPS, status, heartbeat.
+
+        The IMU goes first: it paces the rover's control loop, and a real IMU samples on its own timer;
+        behind the GPS fix's geodesy and the other encodings it would leave 0.1-0.3 ms later on the steps
+        where those are due, and the loop would take that as period jitter."""
         now = self._clock.now_ns()
         if not self._gps.has_history():
             self.record_truth(truth)
+        if self._due("imu", now):
+            imu = self._imu_message(truth, now)
+            if imu is not None:
+                self._send("imu", imu)
+        if self._due("attitude", now):
+            self._send("attitude", self._attitude_message(truth, now))
+        if self._due("gps", now):
+            gps = self._gps_message(now)
+            if gps is not None:
+                self._send("gps", gps)
+        if self._due("sys_status", now):
+            self._send("sys_status", self._sys_status_message(truth))
         if self._due("heartbeat", now):
             self._send(
                 "heartbeat",
@@ -169,18 +185,6 @@ class SimAutopilot:
                     mavlink2.MAV_STATE_ACTIVE,
                 ),
             )
-        if self._due("sys_status", now):
-            self._send("sys_status", self._sys_status_message(truth))
-        if self._due("gps", now):
-            gps = self._gps_message(now)
-            if gps is not None:
-                self._send("gps", gps)
-        if self._due("imu", now):
-            imu = self._imu_message(truth, now)
-            if imu is not None:
-                self._send("imu", imu)
-        if self._due("attitude", now):
-            self._send("attitude", self._attitude_message(truth, now))
 
     def _due(self, stream: str, now: int) -> bool:
         due = self._next_ns[stream]

@@ -119,3 +119,13 @@ def test_reversing_reports_course_opposite_to_yaw():
     fix = next(r for r in run(clock, link, sim, reverse, 0.1) if isinstance(r, GpsFix))
     assert fix.speed_mps == pytest.approx(0.5)
     assert abs(fix.course_rad) == pytest.approx(math.pi, abs=1e-3)
+
+
+def test_the_imu_leaves_first_on_a_step_where_every_stream_is_due():
+    # The IMU paces the rover's control loop: the other streams' encoding must not delay its send.
+    _clock, sink, link, sim = make_pair()
+    sim.step(TRUTH)  # at t = 0 every stream is due
+    link.poll()
+    names = [r["name"] for r in sink.on(MAVLINK_RAW)]
+    assert set(names) == {"HEARTBEAT", "SYS_STATUS", "GPS_RAW_INT", "SCALED_IMU", "ATTITUDE"}
+    assert names[0] == "SCALED_IMU"
