@@ -9,6 +9,7 @@ from typing import Any
 import can
 
 from firmware_bridge.errors import BridgeSetupError
+from firmware_bridge.private_network import require_loopback_only
 from logs.settings import Table
 
 logger = logging.getLogger(__name__)
@@ -74,6 +75,8 @@ def open_bus(config: CanConfig, receive_own_messages: bool = False) -> can.BusAB
     None of our three backends takes a bitrate: socketcan's is set with ``ip link`` outside the process,
     and virtual / udp_multicast have none. ``config.bitrate`` is still what bus-load figures use.
     """
+    if config.interface == "udp_multicast":
+        require_loopback_only(f"CAN over udp_multicast ({config.channel})")
     kwargs: dict[str, Any] = {"receive_own_messages": receive_own_messages}
     try:
         bus = can.Bus(

@@ -23,6 +23,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from firmware_bridge.errors import BridgeSetupError
+from firmware_bridge.private_network import require_loopback_only
 from hil.soak_plan import PATROL, PATROL_PERIOD_S, SoakFault, fault_plan, scenario_text
 from hil.soak_report import ProcessRun, SoakReport, judge_soak
 from logs.commands import send_command
@@ -54,11 +56,11 @@ class SoakSettings:
 
 def run_soak(settings: SoakSettings) -> SoakReport:
     """Run the soak; returns the judged report (also written to ``OUT/soak.json``)."""
-    if settings.can_interface == "udp_multicast" and os.environ.get("ROVER_IN_NETNS") != "1":
-        raise SoakSetupError(
-            "udp_multicast CAN runs only inside a private loopback-only network namespace: "
-            "run the soak under scripts/in-private-netns (or use --can-interface socketcan on vcan0)"
-        )
+    if settings.can_interface == "udp_multicast":
+        try:
+            require_loopback_only("the soak's udp_multicast CAN")
+        except BridgeSetupError as err:
+            raise SoakSetupError(str(err)) from err
     out = settings.out_dir
     out.mkdir(parents=True, exist_ok=True)
     plan = fault_plan(settings.seed, settings.seconds, settings.warmup_s, settings.gap_s)

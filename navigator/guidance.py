@@ -121,7 +121,9 @@ class Guidance:
         self._mode = IDLE
         self._needs_plan = False
         self._known_static: set[str] = set()
-        self._pending: list[ObstacleObservation] = []
+        # Static obstacles seen but not yet in the map, by id: the newest sighting of each (perception
+        # reports an obstacle every cycle while it is in view, and the rover may take minutes to get near).
+        self._pending: dict[str, ObstacleObservation] = {}
         self._moving: dict[str, ObstacleObservation] = {}
         self._last_xy: tuple[float, float] | None = None
         self.replans = 0
@@ -169,7 +171,7 @@ class Guidance:
                 self._moving[obs.obstacle_id] = obs
             elif obs.obstacle_id not in self._known_static:
                 self._moving.pop(obs.obstacle_id, None)  # it stopped: from now on part of the map
-                self._pending.append(obs)
+                self._pending[obs.obstacle_id] = obs
 
     def update(self, t_ns: int, x: float, y: float, yaw: float, speed: float) -> GuidanceOutput:
         """One tick: repair or make the plan as needed, then the command for the pose (ENU m, rad, m/s)."""
@@ -216,12 +218,13 @@ class Guidance:
     # --- planning -------------------------------------------------------------------------------------
     def _submit(self, x: float, y: float, *, why: str = "", must_plan: bool = False) -> None:
         """Start a planning job if there is work: static obstacles now within range, or a plan needed."""
-        near = [o for o in self._pending if in_range(o, (x, y), self._config.sensing_range_m)]
+        near = [o for o in self._pending.values() if in_range(o, (x, y), self._config.sensing_range_m)]
         must_plan = must_plan or (self._needs_plan and self._goal is not None and self._mode != ARRIVED)
         if not near and not must_plan:
             return
         # Obstacles not yet within sensing range wait until the rover is near.
-        self._pending = [o for o in self._pending if o not in near]
+        for obstacle in near:
+            del self._pending[obstacle.obstacle_id]
         self._known_static.update(o.obstacle_id for o in near)
         if must_plan:
             self._needs_plan = False

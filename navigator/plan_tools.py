@@ -107,5 +107,5 @@ def draw_png(planner: Planner, report: PlanReport, out: FilePath) -> None:
     axes.set_ylabel("north (m)")
     axes.set_title(f"{planner.cost_mode} cost: {report.cost:.1f}, {report.length_m:.1f} m")
     figure.colorbar(image, ax=axes, label="cell cost (grey: lethal)")
-    figure.savefig(out, dpi=120, bbox_inches="tight")
+    figure.savefig(out, format="png", dpi=120, bbox_inches="tight")  # --png is PNG whatever its name ends in
     plt.close(figure)

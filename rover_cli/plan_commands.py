@@ -70,12 +70,16 @@ def run_plan(args: argparse.Namespace) -> int:
         "cost_mode": args.cost_mode,
         "points": len(report.points),
     }
-    if args.export_costs is not None:
-        export_costs(planner, report, args.export_costs)
-        figures["export"] = str(args.export_costs)
-    if args.png is not None:
-        draw_png(planner, report, args.png)
-        figures["png"] = str(args.png)
+    try:
+        if args.export_costs is not None:
+            export_costs(planner, report, args.export_costs)
+            figures["export"] = str(args.export_costs)
+        if args.png is not None:
+            draw_png(planner, report, args.png)
+            figures["png"] = str(args.png)
+    except OSError as err:
+        print(f"rover plan: cannot write {err.filename or 'the output'}: {err.strerror or err}")
+        return 2
     if args.json:
         print(json.dumps(figures))
     else:

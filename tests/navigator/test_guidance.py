@@ -145,3 +145,17 @@ def test_side_slope_turn_is_slowed_by_the_tip_margin() -> None:
     out = guidance.update(0, 5.0, 5.0, 0.0, 1.0)  # heading east across the slope, the goal up-left
     assert out.speed_limit_reason in ("tip_margin", "slope")
     assert out.speed_limit_mps < 2.0
+
+
+def test_a_far_obstacle_seen_every_cycle_waits_once_and_enters_the_map_at_its_newest_sighting() -> None:
+    # Perception reports an obstacle every cycle while in view; beyond sensing range it waits for the rover,
+    # and a long wait must not pile up one entry per sighting (memory, per-tick work, repeated ids in logs).
+    guidance = _guidance(_flat(), sensing_range_m=5.0)
+    guidance.set_goal(27.0, 10.0)
+    guidance.update(0, 2.0, 10.0, 0.0, 0.0)
+    for k in range(600):  # a minute at 10 Hz, the last sighting a little further east
+        guidance.observe([ObstacleObservation(k, "rock", 14.0 + (0.2 if k == 599 else 0.0), 10.0, 1.0)])
+        guidance.update(k, 2.0, 10.0, 0.0, 0.0)
+    out = guidance.update(600, 11.0, 10.0, 0.0, 0.0)  # now within 5 m
+    assert out.path_changed and out.detail.count("rock") == 1
+    assert guidance.planner.cost_grid[guidance.planner.terrain.cell_of(14.2 + 0.9, 10.0)] == np.inf

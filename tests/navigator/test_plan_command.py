@@ -34,3 +34,13 @@ def test_plan_json_png_and_exported_costs_agree_with_dijkstra(
 def test_plan_reports_an_off_map_goal(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["plan", str(SCENARIO), "--start", "3,12", "--goal", "300,12"]) == 2
     assert "off the map" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("option", ["--png", "--export-costs"])
+def test_plan_names_an_output_it_cannot_write(
+    option: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "no-such-dir" / "out.file"
+    assert main(["plan", str(SCENARIO), "--start", "3,12", "--goal", "25,5", option, str(out)]) == 2
+    printed = capsys.readouterr().out
+    assert "cannot write" in printed and str(out) in printed
