@@ -12,7 +12,14 @@ class ParameterError(NavigatorError, ValueError):
 
 
 class TerrainError(NavigatorError, ValueError):
-    """A terrain map or a query on it is unusable (bad layers, unknown class, point off the map)."""
+    """A terrain map or a query on it is unusable (bad layers, unknown class, point off the map).
+
+    ``key``: the map table's key the problem is in (a layer: "elevation", "classes", "obstacles"), when
+    known, so a config error can name it."""
+
+    def __init__(self, message: str, *, key: str | None = None) -> None:
+        super().__init__(message)
+        self.key = key
 
 
 class PlanningError(NavigatorError):

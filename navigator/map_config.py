@@ -67,7 +67,8 @@ def terrain_from_table(table: Table, base_dir: Path) -> tuple[TerrainMap, str]:
             )
             summary = f"npy layers {terrain.shape[0]}x{terrain.shape[1]} at {resolution} m"
     except TerrainError as err:
-        raise ConfigError(table.source, table.prefix, str(err)) from err
+        key = table.prefix if err.key is None else table.key_path(err.key)
+        raise ConfigError(table.source, key, str(err)) from err
     table.finish()
     return terrain, summary
 

@@ -64,7 +64,8 @@ class PngImage:
             row, col = _first(np.any(colour != colour[..., :1], axis=-1), self.channels.shape[0])
             raise TerrainError(
                 f"{self.name} layer {str(self.path)!r} must be greyscale but pixel (image row {row}, col "
-                f"{col}) has colour; save it as grey (equal R, G, B)"
+                f"{col}) has colour; save it as grey (equal R, G, B)",
+                key=self.name,
             )
         return np.rint(colour[..., 0].astype(np.float64) * self.header.max_level).astype(np.int64)
 
@@ -72,7 +73,7 @@ class PngImage:
         """The palette index of each pixel ``(rows, cols)`` int64 (first index when colours repeat)."""
         palette = self.header.palette
         if palette is None:
-            raise TerrainError(f"{self.name} layer {str(self.path)!r} has no palette")
+            raise TerrainError(f"{self.name} layer {str(self.path)!r} has no palette", key=self.name)
         rgb = np.rint(self.channels[..., :3].astype(np.float64) * 255.0).astype(np.int64)
         packed = (rgb[..., 0] << 16) | (rgb[..., 1] << 8) | rgb[..., 2]
         entries = palette.astype(np.int64)
@@ -81,7 +82,9 @@ class PngImage:
         unique_keys, first_index = np.unique(keys, return_index=True)
         position = np.clip(np.searchsorted(unique_keys, packed), 0, unique_keys.size - 1)
         if not np.all(unique_keys[position] == packed):
-            raise TerrainError(f"{self.name} layer {str(self.path)!r} holds a colour not in its palette")
+            raise TerrainError(
+                f"{self.name} layer {str(self.path)!r} holds a colour not in its palette", key=self.name
+            )
         return first_index[position].astype(np.int64)
 
 
@@ -90,11 +93,11 @@ def read_png_header(path: Path, name: str) -> PngHeader:
     try:
         data = path.read_bytes()
     except FileNotFoundError as err:
-        raise TerrainError(f"{name} layer file {str(path)!r} not found") from err
+        raise TerrainError(f"{name} layer file {str(path)!r} not found", key=name) from err
     except OSError as err:
-        raise TerrainError(f"{name} layer file {str(path)!r} is not readable: {err}") from err
+        raise TerrainError(f"{name} layer file {str(path)!r} is not readable: {err}", key=name) from err
     if not data.startswith(PNG_SIGNATURE) or data[12:16] != b"IHDR" or len(data) < 33:
-        raise TerrainError(f"{name} layer file {str(path)!r} is not a PNG image")
+        raise TerrainError(f"{name} layer file {str(path)!r} is not a PNG image", key=name)
     bit_depth, colour_type = data[24], data[25]
     palette = None
     offset = 8
@@ -108,7 +111,7 @@ def read_png_header(path: Path, name: str) -> PngHeader:
             break  # PLTE must come before the image data
         offset += 12 + length  # length, type, data, CRC
     if colour_type == _PALETTE and palette is None:
-        raise TerrainError(f"{name} layer file {str(path)!r} is a palette PNG without a palette")
+        raise TerrainError(f"{name} layer file {str(path)!r} is a palette PNG without a palette", key=name)
     return PngHeader(bit_depth, colour_type, palette)
 
 
@@ -121,18 +124,21 @@ def read_png(path: str | Path, name: str) -> PngImage:
     try:
         pixels = np.asarray(mpl_image.imread(file, format="png"))
     except (OSError, ValueError, SyntaxError) as err:  # Pillow signals a corrupt PNG with SyntaxError
-        raise TerrainError(f"{name} layer file {str(file)!r} is not a readable PNG: {err}") from err
+        raise TerrainError(f"{name} layer file {str(file)!r} is not a readable PNG: {err}", key=name) from err
     if pixels.ndim == 2:
         pixels = pixels[..., np.newaxis]
     if pixels.ndim != 3 or pixels.shape[0] == 0 or pixels.shape[1] == 0:
-        raise TerrainError(f"{name} layer file {str(file)!r} has an unusable image shape {pixels.shape}")
+        raise TerrainError(
+            f"{name} layer file {str(file)!r} has an unusable image shape {pixels.shape}", key=name
+        )
     if pixels.shape[-1] in (2, 4):
         transparent = pixels[..., -1] < 1.0
         if np.any(transparent):
             row, col = _first(transparent, 0)
             raise TerrainError(
                 f"{name} layer {str(file)!r}: pixel (image row {row}, col {col}) is transparent, i.e. no "
-                "data; every pixel of a terrain layer must be opaque"
+                "data; every pixel of a terrain layer must be opaque",
+                key=name,
             )
         pixels = pixels[..., :-1]
     return PngImage(file, name, header, pixels[::-1])

@@ -111,8 +111,8 @@ class TerrainMap:
             width, height = self.size_m
             ox, oy = self.origin_xy
             raise TerrainError(
-                f"point ({x:.3f}, {y:.3f}) is off the map, which covers x [{ox}, {ox + width}) "
-                f"and y [{oy}, {oy + height})"
+                f"point ({x:.3f}, {y:.3f}) is off the map, which covers x [{ox:g}, {ox + width:g}) "
+                f"and y [{oy:g}, {oy + height:g})"
             )
         rows, cols = self.shape
         col = min(int((x - self.origin_xy[0]) // self.resolution_m), cols - 1)
@@ -228,15 +228,29 @@ def from_maze(
     )
 
 
+NPY_MAGIC = b"\x93NUMPY"
+
+
 def _load_layer(path: str | Path, name: str) -> np.ndarray:
     try:
+        with open(path, "rb") as file:
+            head = file.read(len(NPY_MAGIC))
+        # np.load takes anything without the magic for a pickle and says so, which misleads.
+        if head != NPY_MAGIC:
+            raise TerrainError(
+                f"{name} layer file {str(path)!r} is not a .npy array "
+                f"(it starts with {head!r}, not {NPY_MAGIC!r})",
+                key=name,
+            )
         layer = np.load(path, allow_pickle=False)
     except FileNotFoundError as err:
-        raise TerrainError(f"{name} layer file {str(path)!r} not found") from err
+        raise TerrainError(f"{name} layer file {str(path)!r} not found", key=name) from err
     except (OSError, ValueError) as err:
-        raise TerrainError(f"{name} layer file {str(path)!r} is not a readable .npy array: {err}") from err
+        raise TerrainError(
+            f"{name} layer file {str(path)!r} is not a readable .npy array: {err}", key=name
+        ) from err
     if not isinstance(layer, np.ndarray) or layer.ndim != 2:
-        raise TerrainError(f"{name} layer file {str(path)!r} must hold one 2-D array")
+        raise TerrainError(f"{name} layer file {str(path)!r} must hold one 2-D array", key=name)
     return layer
 
 

@@ -125,8 +125,13 @@ def test_png_kind_in_toml_and_example_scenario(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match=r"class_values\.x"):
         terrain_from_table(load_toml(tmp_path / "bad.toml").table("terrain"), tmp_path)
     (tmp_path / "typo.toml").write_text('[terrain]\nkind = "png"\nresolution_m = 1.0\nobstacles = "o.png"\n')
-    with pytest.raises(ConfigError, match="not found"):
+    with pytest.raises(ConfigError, match="not found") as missing:
         terrain_from_table(load_toml(tmp_path / "typo.toml").table("terrain"), tmp_path)
+    assert missing.value.key == "terrain.obstacles"  # the key to fix, not just the table
+    (tmp_path / "npy.toml").write_text('[terrain]\nkind = "npy"\nresolution_m = 1.0\nelevation = "z.npy"\n')
+    with pytest.raises(ConfigError, match="not found") as missing:
+        terrain_from_table(load_toml(tmp_path / "npy.toml").table("terrain"), tmp_path)
+    assert missing.value.key == "terrain.elevation"
 
 
 def test_rover_plan_takes_a_png_obstacle_image_and_the_png_scenario(
