@@ -129,5 +129,5 @@ def test_load_npy_layers(tmp_path):
     with pytest.raises(TerrainError, match=r"junk\.npy' is not a \.npy array \(it starts with b'not nu'"):
         load_npy_layers(obstacles=tmp_path / "junk.npy", resolution_m=1.0)
     (tmp_path / "one-byte.npy").write_bytes(b"\x93")  # numpy alone would call it pickled data
-    with pytest.raises(TerrainError, match="is not a .npy array"):
+    with pytest.raises(TerrainError, match=r"is not a \.npy array"):
         load_npy_layers(tmp_path / "one-byte.npy", resolution_m=1.0)
