@@ -13,6 +13,7 @@ from rich.table import Table as RichTable
 
 from logs.settings import ConfigError
 from logs.sink import MessageSink
+from rover_cli.errors import print_error
 
 DEFAULT_SCENARIO = Path("scenarios/default.toml")
 
@@ -45,7 +46,7 @@ def run_bench_command(args: argparse.Namespace) -> int:
         scenario = load_scenario(args.scenario)
         config = load_config(args.config)
     except ConfigError as err:
-        console.print(f"[red]error:[/red] {err}")
+        print_error(console, err)
         return 2
 
     def telemetry_factory() -> tuple[MessageSink | None, Callable[[], None]]:

@@ -8,9 +8,11 @@ from pathlib import Path
 from typing import Any
 
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table as RichTable
 
 from logs.errors import LogsError
+from rover_cli.errors import print_error
 
 
 def register(families: Any) -> None:
@@ -46,7 +48,7 @@ def doctor_command(args: argparse.Namespace) -> int:
     try:
         report = diagnose(args.file)
     except LogsError as err:
-        console.print(f"[red]error:[/red] {err}")
+        print_error(console, err)
         return 2
     if args.json:
         console.print_json(json.dumps(report.to_dict(), default=str))
@@ -72,7 +74,7 @@ def doctor_command(args: argparse.Namespace) -> int:
         f"metadata: {', '.join(report.metadata) or '-'}; attachments: {', '.join(report.attachments) or '-'}"
     )
     for problem in report.problems:
-        console.print(f"[red]problem:[/red] {problem}")
+        console.print(f"[red]problem:[/red] {escape(problem)}")
     return 0 if report.healthy else 1
 
 
@@ -83,7 +85,7 @@ def recover_command(args: argparse.Namespace) -> int:
     try:
         result = recover(args.file, args.out)
     except LogsError as err:
-        console.print(f"[red]error:[/red] {err}")
+        print_error(console, err)
         return 2
     if args.json:
         console.print_json(json.dumps(result.to_dict()))
@@ -104,7 +106,7 @@ def report_command(args: argparse.Namespace) -> int:
     try:
         result = write_report(args.inputs, args.out, plots=not args.no_plots)
     except LogsError as err:
-        console.print(f"[red]error:[/red] {err}")
+        print_error(console, err)
         return 2
     for path, reason in result.failed.items():
         console.print(f"[yellow]skipped[/yellow] {path}: {reason}")

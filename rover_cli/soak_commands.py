@@ -12,6 +12,8 @@ from typing import Any
 from rich.console import Console
 from rich.table import Table
 
+from rover_cli.errors import print_error
+
 
 def register(commands: Any) -> None:
     soak = commands.add_parser(
@@ -48,7 +50,7 @@ def run_soak_command(args: argparse.Namespace) -> int:
         with console.status(f"soaking for {args.minutes:g} min (seed {args.seed}) ..."):
             report = run_soak(settings)
     except SoakSetupError as err:
-        console.print(f"[red]error:[/red] {err}")
+        print_error(console, err)
         return 2
     faults = Table(title=f"soak {args.minutes:g} min, seed {args.seed}: faults")
     for column in ("fault", "from s", "to s", "injected", "seen", "recovered", "evidence"):
