@@ -125,3 +125,15 @@ def test_campaign_lists_failed_trials_and_recordings_name_their_variant(tmp_path
     assert {"config.planner.cost_mode", "trial.variant"} <= differing
     rows = {(row["terrain"], row["variant"]): row["runs"] for row in report.terrain_table}
     assert rows == {("rocky", "classical"): 1, ("rocky", "terrain-aware"): 1}
+    assert "| distance to goal at end (m, truth) | 5.148 |" in report.markdown.read_text(encoding="utf-8")
+
+
+def test_a_metadata_record_only_one_run_has_is_one_comparison_row():
+    from logs.compare import _metadata_differences
+
+    sim = {"trial": {"mode": "sim-lockstep"}, "config": {"planner.cost_mode": "terrain", "rover_id": "r1"}}
+    real = {"trial": {"mode": "rover-run"}}
+    assert _metadata_differences(sim, real) == [
+        {"key": "config.*", "a": "2 keys", "b": None},
+        {"key": "trial.mode", "a": "sim-lockstep", "b": "rover-run"},
+    ]
