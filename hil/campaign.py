@@ -101,6 +101,8 @@ def load_campaign(path: str | Path) -> Campaign:
         seeds = tuple(range(root.integer("seed_count", lo=1, hi=10_000)))
     else:
         seeds = tuple(root.integers("seeds", [0]))
+    if not seeds:
+        raise root.error("seeds", "at least one seed is needed, got []")
     if len(set(seeds)) != len(seeds) or any(s < 0 for s in seeds):
         raise root.error("seeds", f"seeds must be distinct and >= 0, got {list(seeds)}")
     workers = root.integer("workers", 0, lo=0, hi=256)

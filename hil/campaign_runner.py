@@ -45,7 +45,7 @@ def run_one(spec: TrialSpec) -> TrialOutcome:
     try:
         scenario = load_scenario(spec.scenario_path)
         config = campaign_config(spec.config_path, spec.overrides, spec.label)
-        result = run_trial(scenario, config, spec.out_dir, seed=spec.seed)
+        result = run_trial(scenario, config, spec.out_dir, seed=spec.seed, variant=spec.variant)
     except Exception as err:  # a broken trial must not take the campaign down; it is reported
         logger.exception("trial %s failed", spec.label)
         return TrialOutcome(

@@ -6,9 +6,11 @@ obstacle-avoidance success %, rollovers (mean per trial, as the paper's "Stabili
 plus path accuracy % of the driven distance (``path_accuracy_pct``: the driven distance spent within
 tolerance of the path, which says how well a run tracked while it lasted, not how much of the route it
 did), energy Wh/m, duration,
-collisions and the share of trials meeting the scenario's success criteria (docs/metrics.md defines
-both accuracies). Table 2: the same per run (seed), as the paper lists its simulation runs. Every
-figure comes from the trials' ``metrics.json``.
+collisions, the ground-truth distance to the goal at the end, the share of trials whose rover reported
+ARRIVED (``goal_reached``, judged on its estimate) and the share meeting the scenario's success criteria
+(docs/metrics.md defines both accuracies). Table 2: the same per run (seed), as the paper lists its
+simulation runs, with each failed criterion in words. Every figure comes from the trials'
+``metrics.json``; the JSON's means are rounded to six significant digits, its seconds to the millisecond.
 """
 
 from __future__ import annotations
@@ -20,20 +22,32 @@ from typing import Any
 
 from hil.campaign import Campaign
 
-TABLE1_COLUMNS = (
-    ("route_accuracy_pct", "Path Accuracy (% of route)", "{:.1f}"),
-    ("obstacle_avoidance_success_pct", "Obstacle Avoidance Success (%)", "{:.1f}"),
-    ("rollovers", "Stability (No. of Rollovers)", "{:.2f}"),
-    ("path_accuracy_pct", "Path Accuracy (% of driven)", "{:.1f}"),
-    ("energy_wh_per_m", "Energy (Wh/m)", "{:.4f}"),
-    ("duration_s", "Duration (s)", "{:.1f}"),
-    ("collisions", "Collisions", "{:.2f}"),
+# (metrics.json key, title, Table 1 format of the mean over seeds, Table 2 format of one run). Counts are
+# whole numbers per run; their mean over seeds keeps two decimals, as the paper's rollover averages.
+COLUMNS = (
+    ("route_accuracy_pct", "Path Accuracy (% of route)", "{:.1f}", "{:.1f}"),
+    ("obstacle_avoidance_success_pct", "Obstacle Avoidance Success (%)", "{:.1f}", "{:.1f}"),
+    ("rollovers", "Stability (No. of Rollovers)", "{:.2f}", "{:d}"),
+    ("path_accuracy_pct", "Path Accuracy (% of driven)", "{:.1f}", "{:.1f}"),
+    ("energy_wh_per_m", "Energy (Wh/m)", "{:.4f}", "{:.4f}"),
+    ("duration_s", "Duration (s)", "{:.1f}", "{:.1f}"),
+    ("collisions", "Collisions", "{:.2f}", "{:d}"),
+    # Beside goal_reached (the rover's own ARRIVED, judged on its estimate): where it really stopped.
+    ("final_distance_to_goal_m", "Final Distance to Goal (m, truth)", "{:.2f}", "{:.2f}"),
 )
+TABLE1_COLUMNS = tuple((key, title, mean_fmt) for key, title, mean_fmt, _run_fmt in COLUMNS)
+SIGNIFICANT_DIGITS = 6  # means in summary.json: enough for Wh/m (~0.01) and seconds alike
+TIME_DECIMALS = 3  # simulated and wall seconds: milliseconds (the physics step is 10 ms)
 
 
 def _mean(values: list[float]) -> float | None:
     finite = [v for v in values if v is not None and math.isfinite(v)]
-    return sum(finite) / len(finite) if finite else None
+    return _significant(sum(finite) / len(finite)) if finite else None
+
+
+def _significant(value: float) -> float:
+    """Rounded to ``SIGNIFICANT_DIGITS``: 38.800000000000004 -> 38.8, 0.0123456789 -> 0.0123457."""
+    return float(f"{value:.{SIGNIFICANT_DIGITS}g}")
 
 
 def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -44,16 +58,29 @@ def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     table = []
     for (terrain, variant), members in groups.items():
         entry: dict[str, Any] = {"terrain": terrain, "variant": variant, "trials": len(members)}
+        ran = [m for m in members if m["ok"]]
         for key, _title, _fmt in TABLE1_COLUMNS:
-            entry[key] = _mean([m["metrics"].get(key) for m in members if m["ok"]])
-        entry["success_pct"] = 100.0 * sum(1 for m in members if m["success"]) / len(members)
-        entry["errors"] = sum(1 for m in members if not m["ok"])
+            entry[key] = _mean([m["metrics"].get(key) for m in ran])
+        reached = [m["metrics"].get("goal_reached") for m in ran]
+        entry["goal_reached_pct"] = _mean([100.0 * bool(r) for r in reached if r is not None])
+        entry["success_pct"] = _significant(100.0 * sum(1 for m in members if m["success"]) / len(members))
+        entry["errors"] = len(members) - len(ran)
         table.append(entry)
     return table
 
 
+def rounded_times(row: dict[str, Any]) -> dict[str, Any]:
+    """A Table 2 row with its simulated and wall seconds to the millisecond (float sums carry noise)."""
+    return {
+        **row,
+        "simulated_s": round(row["simulated_s"], TIME_DECIMALS),
+        "wall_s": round(row["wall_s"], TIME_DECIMALS),
+    }
+
+
 def write_summary(campaign: Campaign, rows: list[dict[str, Any]], out_dir: Path) -> tuple[Path, Path]:
     out_dir.mkdir(parents=True, exist_ok=True)
+    rows = [rounded_times(row) for row in rows]
     table1 = summarise(rows)
     json_path = out_dir / "summary.json"
     json_path.write_text(
@@ -71,41 +98,60 @@ def write_summary(campaign: Campaign, rows: list[dict[str, Any]], out_dir: Path)
 
 
 def _cell(value: Any, pattern: str) -> str:
-    return "n/a" if value is None else pattern.format(value)
+    if value is None:
+        return "n/a"
+    if pattern == "{:d}" and isinstance(value, float) and value.is_integer():
+        value = int(value)  # a count read back from JSON as 1.0
+    return pattern.format(value)
+
+
+def _goal_cell(value: Any) -> str:
+    return "n/a" if value is None else ("yes" if value else "no")
+
+
+def _text_cell(text: str) -> str:
+    return text.replace("|", "\\|")
 
 
 def _markdown(campaign: Campaign, table1: list[dict[str, Any]], rows: list[dict[str, Any]]) -> str:
-    titles = [title for _key, title, _fmt in TABLE1_COLUMNS]
+    titles = [title for _key, title, _mean_fmt, _run_fmt in COLUMNS]
     lines = [
         f"# Campaign {campaign.name}",
         "",
         f"Source: `{Path(campaign.source).name}`; seeds {list(campaign.seeds)}. "
-        "Every figure is computed from each trial's metrics.json (from its MCAP).",
+        "Every figure is computed from each trial's metrics.json (from its MCAP). Goal reached is the "
+        "rover's own ARRIVED (judged on its estimate); the final distance to goal is the ground truth.",
         "",
         "## Table 1. Average results across terrains",
         "",
-        "| Terrain Type | Variant | Trials | " + " | ".join(titles) + " | Success (%) |",
-        "|---|---|---:|" + "---:|" * len(titles) + "---:|",
+        "| Terrain Type | Variant | Trials | " + " | ".join(titles) + " | Goal Reached (%) | Success (%) |",
+        "|---|---|---:|" + "---:|" * len(titles) + "---:|---:|",
     ]
     for entry in table1:
-        cells = [_cell(entry[key], fmt) for key, _title, fmt in TABLE1_COLUMNS]
+        cells = [_cell(entry[key], mean_fmt) for key, _title, mean_fmt, _run_fmt in COLUMNS]
         lines.append(
             f"| {entry['terrain']} | {entry['variant']} | {entry['trials']} | "
             + " | ".join(cells)
-            + f" | {entry['success_pct']:.0f} |"
+            + f" | {_cell(entry['goal_reached_pct'], '{:.0f}')} | {entry['success_pct']:.0f} |"
         )
     lines += [
         "",
         "## Table 2. Results per run",
         "",
-        "| Terrain Type | Variant | Simulation Run (seed) | End | " + " | ".join(titles) + " |",
-        "|---|---|---:|---|" + "---:|" * len(titles),
+        "| Terrain Type | Variant | Simulation Run (seed) | End | "
+        + " | ".join(titles)
+        + " | Goal Reached | Success | Failed Criteria |",
+        "|---|---|---:|---|" + "---:|" * len(titles) + "---|---|---|",
     ]
     for row in rows:
         metrics = row["metrics"]
-        cells = [_cell(metrics.get(key), fmt) for key, _title, fmt in TABLE1_COLUMNS]
-        end = row["end_reason"] if row["ok"] else f"error: {row['error']}"
+        cells = [_cell(metrics.get(key), run_fmt) for key, _title, _mean_fmt, run_fmt in COLUMNS]
+        end = row["end_reason"] if row["ok"] else f"error: {_text_cell(row['error'])}"
+        failed = "; ".join(row["failures"]) if row["ok"] else "(trial did not run to the end)"
         lines.append(
-            f"| {row['terrain']} | {row['variant']} | {row['seed']} | {end} | " + " | ".join(cells) + " |"
+            f"| {row['terrain']} | {row['variant']} | {row['seed']} | {end} | "
+            + " | ".join(cells)
+            + f" | {_goal_cell(metrics.get('goal_reached'))} | {'yes' if row['success'] else 'no'}"
+            + f" | {_text_cell(failed) or '-'} |"
         )
     return "\n".join(lines) + "\n"

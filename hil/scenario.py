@@ -87,6 +87,8 @@ class SuccessCriteria:
     max_collisions: int | None = None  # None: not checked
     min_path_accuracy_pct: float | None = None
     max_duration_s: float | None = None
+    # Checked on the ground truth, unlike goal_reached (the rover's own ARRIVED, judged on its estimate).
+    max_final_distance_m: float | None = None
 
     @classmethod
     def from_table(cls, table: Table) -> SuccessCriteria:
@@ -100,6 +102,9 @@ class SuccessCriteria:
                 else None
             ),
             max_duration_s=(table.number("max_duration_s", lo=0.0) if table.has("max_duration_s") else None),
+            max_final_distance_m=(
+                table.number("max_final_distance_m", lo=0.0) if table.has("max_final_distance_m") else None
+            ),
         )
         table.finish()
         return criteria

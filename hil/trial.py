@@ -25,6 +25,7 @@ from firmware_bridge.mavlink_link import MavlinkLink
 from firmware_bridge.mavlink_transport import Transport
 from firmware_bridge.vesc import VescCodec
 from firmware_bridge.vesc_dbc import load_vesc_database
+from hil.config_record import effective_config, flattened
 from hil.lockstep import CanBackend, lockstep_wires
 from hil.scenario import Scenario
 from hil.success import judge
@@ -80,8 +81,12 @@ def run_trial(
     on_components: ComponentHook | None = None,
     commands: CommandSource | None = None,
     ground_station: Transport | None = None,
+    variant: str = "",
 ) -> TrialResult:
-    """Run one lockstep trial; writes ``trial.mcap`` and ``metrics.json`` into ``out_dir``."""
+    """Run one lockstep trial; writes ``trial.mcap`` and ``metrics.json`` into ``out_dir``.
+
+    ``variant`` names the campaign variant the config belongs to (recorded in the ``trial`` metadata).
+    """
     seed = scenario.seed if seed is None else seed
     config = _georeferenced(config, scenario)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -89,7 +94,7 @@ def run_trial(
     clock = SimClock()
 
     with McapRecorder(mcap_path) as recorder:
-        write_header(recorder, scenario, config, seed)
+        write_header(recorder, scenario, config, seed, variant=variant)
         sink: MessageSink = recorder if telemetry is None else FanoutSink([recorder, telemetry])
         with lockstep_wires(config.can, clock=clock, can_backend=can_backend) as wires:
             codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
@@ -190,9 +195,16 @@ def _run_loop(
 
 
 def write_header(
-    recorder: McapRecorder, scenario: Scenario, config: RoverConfig, seed: int, *, mode: str = "sim-lockstep"
+    recorder: McapRecorder,
+    scenario: Scenario,
+    config: RoverConfig,
+    seed: int,
+    *,
+    mode: str = "sim-lockstep",
+    variant: str = "",
 ) -> None:
-    """Metadata (scenario, trial) and attachments (scenario, config) that make a recording self-describing."""
+    """Metadata (scenario, trial, config) and attachments (scenario, config) that make a recording
+    self-describing."""
     obstacles = [{"id": o.id, "x": o.x, "y": o.y, "radius": o.radius_m} for o in scenario.obstacles]
     moving = [
         {"id": m.id, "radius": m.radius_m, "waypoints": m.waypoints, "speed_mps": m.speed_mps}
@@ -217,18 +229,27 @@ def write_header(
             "terrain_class": _dominant_class(scenario),
         },
     )
-    recorder.add_metadata(
-        "trial",
-        {
-            "mode": mode,
-            "rover_id": config.rover_id,
-            "config": Path(config.source).name,
-            "software_version": software_version(),
-            "can_bitrate": str(config.can.bitrate),
-        },
-    )
+    trial = {
+        "mode": mode,
+        "rover_id": config.rover_id,
+        # The whole source: a campaign variant's is "<base> + overrides of <terrain>/<variant>/seed<N>".
+        "config": config.source,
+        "software_version": software_version(),
+        "can_bitrate": str(config.can.bitrate),
+    }
+    if variant:
+        trial["variant"] = variant
+    recorder.add_metadata("trial", trial)
+    effective = effective_config(config)
+    recorder.add_metadata("config", flattened(effective))
     recorder.add_attachment("scenario.toml", "application/toml", scenario.text.encode("utf-8"), 0)
     recorder.add_attachment("map.npz", "application/x-npz", _map_archive(scenario), 0)
+    recorder.add_attachment(
+        "config.effective.json",
+        "application/json",
+        json.dumps(effective, indent=2, sort_keys=True).encode("utf-8"),
+        0,
+    )
     config_path = Path(config.source)
     if config_path.is_file():
         recorder.add_attachment("config.toml", "application/toml", config_path.read_bytes(), 0)

@@ -125,7 +125,15 @@ def _metadata_differences(
     out: list[dict[str, str | None]] = []
     for record in sorted(set(a) | set(b)):
         ra, rb = a.get(record, {}), b.get(record, {})
+        if (record in a) != (record in b):
+            # One row, not one per key: a real run has no simulator records, an older one no ``config``.
+            out.append({"key": f"{record}.*", "a": _keys(a.get(record)), "b": _keys(b.get(record))})
+            continue
         for key in sorted(set(ra) | set(rb)):
             if ra.get(key) != rb.get(key):
                 out.append({"key": f"{record}.{key}", "a": ra.get(key), "b": rb.get(key)})
     return out
+
+
+def _keys(record: dict[str, str] | None) -> str | None:
+    return None if record is None else f"{len(record)} keys"

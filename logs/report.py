@@ -37,6 +37,7 @@ HEADLINE_METRICS = (
     ("distance_m", "distance (m)"),
     ("duration_s", "duration (s)"),
     ("goal_reached", "goal reached"),
+    ("final_distance_to_goal_m", "distance to goal at end (m, truth)"),
 )
 
 
@@ -100,28 +101,37 @@ def write_report(inputs: Sequence[str | Path], out_dir: str | Path, *, plots: bo
 
 # --- tables -------------------------------------------------------------------------------------
 def terrain_table(runs: Sequence[TrialAnalysis]) -> list[dict[str, Any]]:
-    """Per terrain class: number of runs, mean path accuracy (of the driven distance and of the route)
+    """Per terrain class (and per campaign variant, when the runs hold more than one): number of runs,
+    mean path accuracy (of the driven distance and of the route)
     and avoidance success, total rollovers,
     mean Wh/m (means over the runs where the metric is known)."""
-    groups: dict[str, list[TrialAnalysis]] = {}
+    split = len({_variant(run) for run in runs}) > 1
+    groups: dict[tuple[str, str], list[TrialAnalysis]] = {}
     for run in runs:
-        groups.setdefault(run.terrain_class, []).append(run)
+        groups.setdefault((run.terrain_class, _variant(run) if split else ""), []).append(run)
     rows = []
-    for terrain, members in sorted(groups.items()):
+    for (terrain, variant), members in sorted(groups.items()):
         metrics = [run.metrics for run in members]
         rows.append(
             {
                 "terrain": terrain,
+                **({"variant": variant or "n/a"} if split else {}),
                 "runs": len(members),
                 "path_accuracy_pct": _mean([m.path_accuracy_pct for m in metrics]),
                 "route_accuracy_pct": _mean([m.route_accuracy_pct for m in metrics]),
                 "obstacle_avoidance_success_pct": _mean([m.obstacle_avoidance_success_pct for m in metrics]),
                 "rollovers": sum(m.rollovers or 0 for m in metrics),
                 "goal_reached_pct": _mean([100.0 * bool(m.goal_reached) for m in metrics]),
+                "final_distance_to_goal_m": _mean([m.final_distance_to_goal_m for m in metrics]),
                 "energy_wh_per_m": _mean([m.energy_wh_per_m for m in metrics]),
             }
         )
     return rows
+
+
+def _variant(run: TrialAnalysis) -> str:
+    """The campaign variant a trial ran (``trial.variant`` metadata; empty for a lone trial)."""
+    return run.metadata.get("trial", {}).get("variant", "")
 
 
 def _mean(values: Sequence[float | None]) -> float | None:

@@ -5,15 +5,20 @@ from __future__ import annotations
 import argparse
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table as RichTable
 
 from logs.settings import ConfigError, parse_toml
 from logs.sink import MessageSink
 from navigator.config import RoverConfig, load_rover_config, rover_config_from_table
 from rover_cli import soak_commands
+
+if TYPE_CHECKING:
+    from hil.campaign_runner import TrialOutcome
+    from hil.trial import TrialResult
 
 DEFAULT_TRIALS_DIR = Path("logs/trials")
 
@@ -71,6 +76,11 @@ def load_config(path: Path | None) -> RoverConfig:
     return load_rover_config(path)
 
 
+def _error(console: Console, text: str) -> None:
+    """An error line; the text is printed as is (a config key like ``[zenoh]`` is not rich markup)."""
+    console.print(f"[red]error:[/red] {escape(text)}", soft_wrap=True)
+
+
 def _unique_run_dir(base: Path, name: str) -> Path:
     candidate = base / name
     counter = 2
@@ -80,9 +90,22 @@ def _unique_run_dir(base: Path, name: str) -> Path:
     return candidate
 
 
+def _usable_out_dir(path: Path) -> str | None:
+    """Create the output folder now, so a bad ``--out`` is bad input (exit 2), not a traceback later."""
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        return f"--out {path}: exists and is not a directory"
+    except OSError as err:
+        return f"--out {path}: cannot create the folder: {err.strerror or err}"
+    return None
+
+
 def run_trial_command(args: argparse.Namespace) -> int:
+    """Exit 0: the scenario's success criteria held; 1: they failed (each reason printed); 2: bad input."""
     from hil.scenario import load_scenario
     from hil.trial import run_trial
+    from logs.errors import TelemetrySetupError
     from logs.telemetry import ZenohTelemetry, open_session
     from logs.telemetry_station import rate_limited
 
@@ -91,22 +114,29 @@ def run_trial_command(args: argparse.Namespace) -> int:
         scenario = load_scenario(args.scenario)
         config = load_config(args.config)
     except ConfigError as err:
-        console.print(f"[red]error:[/red] {err}")
+        _error(console, str(err))
         return 2
     seed = scenario.seed if args.seed is None else args.seed
     out_dir = args.out or _unique_run_dir(DEFAULT_TRIALS_DIR, f"{scenario.name}-seed{seed}")
+    problem = _usable_out_dir(out_dir)
+    if problem is not None:
+        _error(console, problem)
+        return 2
 
     session = None
     telemetry = None
     live: MessageSink | None = None
-    if config.zenoh.enabled and not args.no_telemetry:
-        session = open_session(config.zenoh)
-        telemetry = ZenohTelemetry(session, config.rover_id)
-        live = rate_limited(telemetry, config.zenoh.rates_hz)
     started = time.perf_counter()
     try:
+        if config.zenoh.enabled and not args.no_telemetry:
+            session = open_session(config.zenoh)
+            telemetry = ZenohTelemetry(session, config.rover_id)
+            live = rate_limited(telemetry, config.zenoh.rates_hz)
         with console.status(f"running {scenario.name} (seed {seed}) ..."):
             result = run_trial(scenario, config, out_dir, seed=seed, telemetry=live)
+    except TelemetrySetupError as err:
+        _error(console, f"{config.source}: telemetry: {err}")
+        return 2
     finally:
         if telemetry is not None:
             telemetry.close()
@@ -114,8 +144,19 @@ def run_trial_command(args: argparse.Namespace) -> int:
             session.close()
     wall_s = time.perf_counter() - started
 
+    console.print(_trial_table(f"{scenario.name}, seed {seed}: {result.end_reason}", result, wall_s))
+    console.print(f"recording: {result.mcap_path}\nmetrics:   {result.metrics_path}")
+    verdict = _print_verdict(console, result.success, result.failures)
+    if args.report:
+        report_code = _write_trial_report(console, result.mcap_path, out_dir)
+        if report_code != 0:
+            return report_code
+    return verdict
+
+
+def _trial_table(title: str, result: TrialResult, wall_s: float) -> RichTable:
     metrics = result.metrics
-    table = RichTable(title=f"{scenario.name}, seed {seed}: {result.end_reason}")
+    table = RichTable(title=title)
     table.add_column("metric")
     table.add_column("value", justify="right")
     rows = [
@@ -127,16 +168,24 @@ def run_trial_command(args: argparse.Namespace) -> int:
         ("energy (Wh)", _fmt(metrics.energy_wh, "{:.3f}")),
         ("distance (m)", _fmt(metrics.distance_m, "{:.2f}")),
         ("duration (s)", _fmt(metrics.duration_s, "{:.2f}")),
-        ("goal reached", _fmt(metrics.goal_reached, "{}")),
+        ("goal reached (rover's ARRIVED)", _fmt(metrics.goal_reached, "{}")),
+        ("distance to goal at end (m, truth)", _fmt(metrics.final_distance_to_goal_m, "{:.2f}")),
         ("real-time factor", f"{result.simulated_s / wall_s:.1f}x"),
     ]
     for name, value in rows:
         table.add_row(name, value)
-    console.print(table)
-    console.print(f"recording: {result.mcap_path}\nmetrics:   {result.metrics_path}")
-    if args.report:
-        return _write_trial_report(console, result.mcap_path, out_dir)
-    return 0
+    return table
+
+
+def _print_verdict(console: Console, success: bool, failures: tuple[str, ...]) -> int:
+    """The scenario's success verdict and every failed criterion; the exit code a gate reads."""
+    if success:
+        console.print("success criteria: [green]PASSED[/green]")
+        return 0
+    console.print("success criteria: [red]FAILED[/red]")
+    for failure in failures:
+        console.print(f"  - {failure}", markup=False, soft_wrap=True)
+    return 1
 
 
 def _write_trial_report(console: Console, mcap_path: Path, out_dir: Path) -> int:
@@ -147,7 +196,7 @@ def _write_trial_report(console: Console, mcap_path: Path, out_dir: Path) -> int
     try:
         report = write_report([mcap_path], out_dir)
     except LogsError as err:
-        console.print(f"[red]error:[/red] report: {err}")
+        _error(console, f"report: {err}")
         return 2
     console.print(f"report:    {report.html}\n           {report.markdown}\n           {report.json}")
     return 0
@@ -161,18 +210,22 @@ def run_campaign_command(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from hil.campaign import load_campaign
-    from hil.campaign_runner import TrialOutcome, run_campaign
+    from hil.campaign_runner import run_campaign
 
     console = Console()
     try:
         campaign = load_campaign(args.campaign)
     except ConfigError as err:
-        console.print(f"[red]error:[/red] {err}")
+        _error(console, str(err))
         return 2
     if args.workers is not None and args.workers < 1:
-        console.print("[red]error:[/red] --workers must be >= 1")
+        _error(console, "--workers must be >= 1")
         return 2
     out_dir = args.out or _unique_run_dir(DEFAULT_TRIALS_DIR, f"campaign-{campaign.name}")
+    problem = _usable_out_dir(out_dir)
+    if problem is not None:
+        _error(console, problem)
+        return 2
     total = len(campaign.terrains) * len(campaign.variants) * len(campaign.seeds)
     with Progress(
         TextColumn("{task.description}"),
@@ -184,14 +237,31 @@ def run_campaign_command(args: argparse.Namespace) -> int:
         task = progress.add_task(f"campaign {campaign.name}", total=total)
 
         def on_done(outcome: TrialOutcome) -> None:
-            status = outcome.end_reason if outcome.ok else f"[red]error[/red] {outcome.error}"
+            if not outcome.ok:
+                status = f"[red]error[/red] {outcome.error}"
+            else:
+                status = f"{outcome.end_reason}, " + ("passed" if outcome.success else "[red]FAILED[/red]")
             progress.console.print(f"{outcome.spec.label}: {status} ({outcome.wall_s:.1f} s)")
             progress.advance(task)
 
         outcomes, markdown, json_path = run_campaign(campaign, out_dir, workers=args.workers, on_done=on_done)
     console.print(markdown.read_text(encoding="utf-8"), soft_wrap=True, markup=False)
     console.print(f"summary: {markdown}\n         {json_path}")
-    return 0 if all(o.ok for o in outcomes) else 1
+    return _print_campaign_verdict(console, outcomes)
+
+
+def _print_campaign_verdict(console: Console, outcomes: list[TrialOutcome]) -> int:
+    """Exit 0 only if every trial ran and met its scenario's success criteria; else 1, each failure listed."""
+    failed = [o for o in outcomes if not (o.ok and o.success)]
+    if not failed:
+        console.print(f"success criteria: [green]PASSED[/green] in all {len(outcomes)} trials")
+        return 0
+    console.print(f"success criteria: [red]FAILED[/red] in {len(failed)} of {len(outcomes)} trials")
+    for outcome in failed:
+        reasons = [f"error: {outcome.error}"] if not outcome.ok else list(outcome.failures)
+        line = f"  {outcome.spec.label} ({outcome.end_reason}): {'; '.join(reasons)}"
+        console.print(line, markup=False, soft_wrap=True)
+    return 1
 
 
 def run_peer_command(args: argparse.Namespace) -> int:
@@ -217,7 +287,7 @@ def run_peer_command(args: argparse.Namespace) -> int:
         config = dataclasses.replace(config, can=can_config)
         bus, transport = open_peer_wires(can_config, args.mavlink)
     except (ConfigError, BridgeError) as err:
-        console.print(f"[red]error:[/red] {err}")
+        _error(console, str(err))
         return 2
     seed = scenario.seed if args.seed is None else args.seed
     out_dir = args.out or _unique_run_dir(DEFAULT_TRIALS_DIR, f"{scenario.name}-seed{seed}-peer")

@@ -1,0 +1,69 @@
+"""Campaign tables: whole counts per run, rounded JSON, failed criteria and truth goal distance shown."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from hil.campaign import Campaign
+from hil.campaign_summary import write_summary
+
+CAMPAIGN = Campaign("mini", "mini.toml", (("rocky", Path("rocky.toml")),), (), (1, 2), None, 1)
+
+
+def _row(seed: int, *, success: bool, failures: list[str], **metrics: Any) -> dict[str, Any]:
+    base = {"collisions": 0, "rollovers": 0, "duration_s": 38.8, "goal_reached": True}
+    return {
+        "terrain": "rocky",
+        "variant": "classical",
+        "seed": seed,
+        "ok": True,
+        "end_reason": "arrived",
+        "success": success,
+        "failures": failures,
+        "error": "",
+        "mcap": None,
+        "simulated_s": 38.800000000000004,
+        "wall_s": 2.123456789,
+        "metrics": {**base, **metrics},
+    }
+
+
+ROWS = [
+    _row(1, success=True, failures=[], final_distance_to_goal_m=0.31, energy_wh_per_m=0.1),
+    _row(
+        2,
+        success=False,
+        failures=["final distance to goal (ground truth) 0.71 m > 0.5 m"],
+        final_distance_to_goal_m=0.71,
+        energy_wh_per_m=0.2,
+    ),
+]
+
+
+def test_per_run_counts_are_whole_numbers_and_failures_are_named(tmp_path):
+    markdown, _json_path = write_summary(CAMPAIGN, ROWS, tmp_path)
+    table2 = markdown.read_text(encoding="utf-8").split("## Table 2")[1]
+    header, _rule, first, second = table2.strip().splitlines()[-4:]
+    columns = [c.strip() for c in header.strip("|").split("|")]
+    cells = [[c.strip() for c in line.strip("|").split("|")] for line in (first, second)]
+    at = {name: index for index, name in enumerate(columns)}
+    assert cells[0][at["Collisions"]] == "0" and cells[0][at["Stability (No. of Rollovers)"]] == "0"
+    assert cells[0][at["Goal Reached"]] == "yes"
+    assert cells[1][at["Final Distance to Goal (m, truth)"]] == "0.71"
+    assert cells[1][at["Success"]] == "no"
+    assert cells[1][at["Failed Criteria"]] == "final distance to goal (ground truth) 0.71 m > 0.5 m"
+    assert cells[0][at["Failed Criteria"]] == "-"
+
+
+def test_summary_json_is_rounded(tmp_path):
+    _markdown, json_path = write_summary(CAMPAIGN, ROWS, tmp_path)
+    summary = json.loads(json_path.read_text(encoding="utf-8"))
+    assert [row["simulated_s"] for row in summary["table2"]] == [38.8, 38.8]
+    assert summary["table2"][0]["wall_s"] == 2.123
+    (entry,) = summary["table1"]
+    assert entry["energy_wh_per_m"] == 0.15  # 0.15000000000000002 before rounding
+    assert entry["final_distance_to_goal_m"] == 0.51
+    assert entry["goal_reached_pct"] == 100.0 and entry["success_pct"] == 50.0
+    assert entry["collisions"] == 0.0
