@@ -8,13 +8,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rich.console import Console
-from rich.markup import escape
 from rich.table import Table as RichTable
 
 from logs.settings import ConfigError, parse_toml
 from logs.sink import MessageSink
 from navigator.config import RoverConfig, load_rover_config, rover_config_from_table
 from rover_cli import soak_commands
+from rover_cli.errors import print_error
 
 if TYPE_CHECKING:
     from hil.campaign_runner import TrialOutcome
@@ -76,11 +76,6 @@ def load_config(path: Path | None) -> RoverConfig:
     return load_rover_config(path)
 
 
-def _error(console: Console, text: str) -> None:
-    """An error line; the text is printed as is (a config key like ``[zenoh]`` is not rich markup)."""
-    console.print(f"[red]error:[/red] {escape(text)}", soft_wrap=True)
-
-
 def _unique_run_dir(base: Path, name: str) -> Path:
     candidate = base / name
     counter = 2
@@ -114,13 +109,13 @@ def run_trial_command(args: argparse.Namespace) -> int:
         scenario = load_scenario(args.scenario)
         config = load_config(args.config)
     except ConfigError as err:
-        _error(console, str(err))
+        print_error(console, err)
         return 2
     seed = scenario.seed if args.seed is None else args.seed
     out_dir = args.out or _unique_run_dir(DEFAULT_TRIALS_DIR, f"{scenario.name}-seed{seed}")
     problem = _usable_out_dir(out_dir)
     if problem is not None:
-        _error(console, problem)
+        print_error(console, problem)
         return 2
 
     session = None
@@ -135,7 +130,7 @@ def run_trial_command(args: argparse.Namespace) -> int:
         with console.status(f"running {scenario.name} (seed {seed}) ..."):
             result = run_trial(scenario, config, out_dir, seed=seed, telemetry=live)
     except TelemetrySetupError as err:
-        _error(console, f"{config.source}: telemetry: {err}")
+        print_error(console, err, f"{config.source}: telemetry")
         return 2
     finally:
         if telemetry is not None:
@@ -196,7 +191,7 @@ def _write_trial_report(console: Console, mcap_path: Path, out_dir: Path) -> int
     try:
         report = write_report([mcap_path], out_dir)
     except LogsError as err:
-        _error(console, f"report: {err}")
+        print_error(console, err, "report")
         return 2
     console.print(f"report:    {report.html}\n           {report.markdown}\n           {report.json}")
     return 0
@@ -216,15 +211,15 @@ def run_campaign_command(args: argparse.Namespace) -> int:
     try:
         campaign = load_campaign(args.campaign)
     except ConfigError as err:
-        _error(console, str(err))
+        print_error(console, err)
         return 2
     if args.workers is not None and args.workers < 1:
-        _error(console, "--workers must be >= 1")
+        print_error(console, "--workers must be >= 1")
         return 2
     out_dir = args.out or _unique_run_dir(DEFAULT_TRIALS_DIR, f"campaign-{campaign.name}")
     problem = _usable_out_dir(out_dir)
     if problem is not None:
-        _error(console, problem)
+        print_error(console, problem)
         return 2
     total = len(campaign.terrains) * len(campaign.variants) * len(campaign.seeds)
     with Progress(
@@ -287,7 +282,7 @@ def run_peer_command(args: argparse.Namespace) -> int:
         config = dataclasses.replace(config, can=can_config)
         bus, transport = open_peer_wires(can_config, args.mavlink)
     except (ConfigError, BridgeError) as err:
-        _error(console, str(err))
+        print_error(console, err)
         return 2
     seed = scenario.seed if args.seed is None else args.seed
     out_dir = args.out or _unique_run_dir(DEFAULT_TRIALS_DIR, f"{scenario.name}-seed{seed}-peer")
