@@ -40,6 +40,10 @@ TRUTH_CONTACTS = "truth/contacts"
 
 ENU_FRAME = "enu"
 
+# Metadata record of a file the ground station recorded from the live stream (``rover telemetry record``):
+# its topics may be thinned ([zenoh.rates]), so nothing may be counted from them as if complete.
+LIVE_STREAM_METADATA = "live_stream"
+
 
 @dataclass(frozen=True)
 class TopicSpec:
