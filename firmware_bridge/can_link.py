@@ -66,7 +66,6 @@ class CanCounters:
 
     tx: int = 0
     rx: int = 0
-    bits: int = 0  # bits of every frame sent or received (logs.can_load.frame_bits), for the bus load
     own_echoes: int = 0  # our own frames the bus delivered back (udp_multicast), not counted as rx
     unknown_id: int = 0
     wrong_dlc: int = 0
@@ -156,6 +155,8 @@ class CanLink(ClosesOnExit):
         silent_after_ns = to_ns(config.liveness_periods / config.status_rate_hz)
         self._liveness = ControllerLiveness(self._ids, silent_after_ns, clock.now_ns())
         self._load = BusLoadMeter(config.bitrate, clock.now_ns())
+        # Bits of every frame sent or received (logs.can_load.frame_bits): the bus load's running count.
+        self.bits_total = 0
         self._echoes = OwnEchoFilter() if echoes_own_sends(bus) else None
         self._zero_erpm = [0] * WHEEL_COUNT
         self._latest_erpm: list[int] = list(self._zero_erpm)
@@ -248,7 +249,7 @@ class CanLink(ClosesOnExit):
             )
             return False
         self.counters.tx += 1
-        self.counters.bits += frame_bits(msg.is_extended_id, msg.dlc)
+        self.bits_total += frame_bits(msg.is_extended_id, msg.dlc)
         if self._echoes is not None:
             self._echoes.sent(msg)
         if background:
@@ -320,7 +321,7 @@ class CanLink(ClosesOnExit):
     def _publish_load(self, t_ns: int) -> None:
         c = self.counters
         stats = self._load.message(
-            t_ns, tx_total=c.tx, rx_total=c.rx, bits_total=c.bits, own_echoes_total=c.own_echoes
+            t_ns, tx_total=c.tx, rx_total=c.rx, bits_total=self.bits_total, own_echoes_total=c.own_echoes
         )
         if stats is not None:
             self._sink.publish(CAN_STATS, t_ns, stats)
@@ -351,7 +352,7 @@ class CanLink(ClosesOnExit):
             self.counters.own_echoes += 1
             return False
         self.counters.rx += 1
-        self.counters.bits += frame_bits(msg.is_extended_id, msg.dlc)
+        self.bits_total += frame_bits(msg.is_extended_id, msg.dlc)
         self._publish_frame(t_ns, "rx", msg)
         try:
             frame = self._codec.decode(msg)
