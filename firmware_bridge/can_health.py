@@ -1,4 +1,5 @@
-"""The health of the CAN link: bus state (from error frames and the interface), per-controller liveness.
+"""The health of the CAN link: bus state (from error frames and the interface), per-controller liveness,
+and the bus load the link measures itself (``can/stats``).
 
 Error frames follow Linux SocketCAN's layout (``linux/can/error.h``): the error class is in the
 arbitration id, controller status details in data byte 1. python-can delivers them with
@@ -10,8 +11,12 @@ from __future__ import annotations
 import enum
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import can
+
+from logs.can_load import WINDOW_NS
+from logs.topics import stamp
 
 # Error classes (arbitration id bits of an error frame).
 CAN_ERR_CRTL = 0x0004  # controller problem, details in data[1]
@@ -166,3 +171,46 @@ class ControllerLiveness:
 
     def alive(self) -> dict[int, bool]:
         return dict(self._alive)
+
+
+class BusLoadMeter:
+    """One ``can/stats`` message per window of log time, from the link's running counters.
+
+    The link sees every frame on the bus (it sends the commands and receives everything else), so its
+    count is right wherever the recorded or streamed ``can/frames`` are thinned. Pure: the link counts bits
+    per frame and asks ``message()`` at each poll; a window is closed by the first poll at or after its end
+    (``window_s`` is the real length).
+    """
+
+    def __init__(self, bitrate: int, start_ns: int, window_ns: int = WINDOW_NS) -> None:
+        self._bitrate = bitrate
+        self._window_ns = window_ns
+        self._start_ns = start_ns
+        self._frames_at_start = 0
+        self._bits_at_start = 0
+
+    def message(
+        self, now_ns: int, *, tx_total: int, rx_total: int, bits_total: int, own_echoes_total: int
+    ) -> dict[str, Any] | None:
+        """The window's stats if it is over, else ``None``."""
+        elapsed_ns = now_ns - self._start_ns
+        if elapsed_ns < self._window_ns:
+            return None
+        frames_total = tx_total + rx_total
+        frames = frames_total - self._frames_at_start
+        bits = bits_total - self._bits_at_start
+        window_s = elapsed_ns / 1e9
+        self._start_ns = now_ns
+        self._frames_at_start = frames_total
+        self._bits_at_start = bits_total
+        return {
+            "timestamp": stamp(now_ns),
+            "window_s": window_s,
+            "bitrate": self._bitrate,
+            "frames": frames,
+            "bits": bits,
+            "load_pct": 100.0 * bits / window_s / self._bitrate,
+            "tx_total": tx_total,
+            "rx_total": rx_total,
+            "own_echoes_total": own_echoes_total,
+        }

@@ -1,4 +1,5 @@
-"""The companion's side of the CAN bus: six wheel commands out, VESC status in, every frame recorded."""
+"""The companion's side of the CAN bus: six wheel commands out, VESC status in, every frame recorded, the
+bus load counted (``can/stats``)."""
 
 from __future__ import annotations
 
@@ -13,7 +14,9 @@ from typing import Any
 import can
 
 from firmware_bridge.can_bus import CanConfig, open_bus
+from firmware_bridge.can_echo import OwnEchoFilter, echoes_own_sends
 from firmware_bridge.can_health import (
+    BusLoadMeter,
     BusSignal,
     BusStateMachine,
     CanLinkState,
@@ -24,11 +27,12 @@ from firmware_bridge.can_health import (
 )
 from firmware_bridge.errors import BridgeOperationError, FrameError
 from firmware_bridge.vesc import WHEEL_COUNT, VescCodec, VescFrame, erpm_command
+from logs.can_load import frame_bits
 from logs.clock import Clock, to_ns
 from logs.closing import ClosesOnExit
 from logs.encoding import EncodedSink
 from logs.sink import MessageSink
-from logs.topics import CAN_FRAMES, SAFETY_EVENTS, WHEELS_STATUS, stamp
+from logs.topics import CAN_FRAMES, CAN_STATS, SAFETY_EVENTS, WHEELS_STATUS, stamp
 
 __all__ = ["CanConfig", "CanCounters", "CanLink", "CanLinkState", "WheelReading", "open_bus"]
 
@@ -62,6 +66,7 @@ class CanCounters:
 
     tx: int = 0
     rx: int = 0
+    own_echoes: int = 0  # our own frames the bus delivered back (udp_multicast), not counted as rx
     unknown_id: int = 0
     wrong_dlc: int = 0
     decode_errors: int = 0
@@ -149,6 +154,10 @@ class CanLink(ClosesOnExit):
         self._bus_state = BusStateMachine(self._ids)
         silent_after_ns = to_ns(config.liveness_periods / config.status_rate_hz)
         self._liveness = ControllerLiveness(self._ids, silent_after_ns, clock.now_ns())
+        self._load = BusLoadMeter(config.bitrate, clock.now_ns())
+        # Bits of every frame sent or received (logs.can_load.frame_bits): the bus load's running count.
+        self.bits_total = 0
+        self._echoes = OwnEchoFilter() if echoes_own_sends(bus) else None
         self._zero_erpm = [0] * WHEEL_COUNT
         self._latest_erpm: list[int] = list(self._zero_erpm)
         self._latest_ns: int | None = None  # when the control loop last asked for wheel speeds
@@ -240,6 +249,9 @@ class CanLink(ClosesOnExit):
             )
             return False
         self.counters.tx += 1
+        self.bits_total += frame_bits(msg.is_extended_id, msg.dlc)
+        if self._echoes is not None:
+            self._echoes.sent(msg)
         if background:
             self._record(CAN_FRAMES, t_ns, _frame_record(t_ns, "tx", msg), background)
         else:
@@ -303,7 +315,16 @@ class CanLink(ClosesOnExit):
                 self._apply(t_ns, change, background=False)
             if status_seen:
                 self._publish_status(t_ns)
+            self._publish_load(t_ns)
             return frames
+
+    def _publish_load(self, t_ns: int) -> None:
+        c = self.counters
+        stats = self._load.message(
+            t_ns, tx_total=c.tx, rx_total=c.rx, bits_total=self.bits_total, own_echoes_total=c.own_echoes
+        )
+        if stats is not None:
+            self._sink.publish(CAN_STATS, t_ns, stats)
 
     def _next_frame(self) -> can.Message | None:
         try:
@@ -326,7 +347,12 @@ class CanLink(ClosesOnExit):
                 t_ns, self._bus_state.on_signal(signal, f"error frame 0x{msg.arbitration_id:x}"), False
             )
             return False
+        if self._echoes is not None and self._echoes.is_echo(msg):
+            # Our own send coming back: it crossed the wire once, counted and recorded as tx.
+            self.counters.own_echoes += 1
+            return False
         self.counters.rx += 1
+        self.bits_total += frame_bits(msg.is_extended_id, msg.dlc)
         self._publish_frame(t_ns, "rx", msg)
         try:
             frame = self._codec.decode(msg)

@@ -2,15 +2,18 @@
 engineering figures (estimator error, control-loop timing, CAN bus load, error counts).
 
 Definitions and tolerances: docs/metrics.md ("Report figures"). Absent topics never raise: the figure is
-``None`` and the topic is listed in ``missing``.
+``None`` and the topic is listed in ``missing``. The messages-per-topic table comes from the MCAP summary's
+statistics (every channel, without reading the messages the report skips).
 """
 
 from __future__ import annotations
 
 import base64
 import gc
+import logging
 import math
 import re
+import struct
 from collections import Counter
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -19,8 +22,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from mcap.exceptions import McapError
+from mcap.reader import make_reader
 from numpy.typing import NDArray
 
+from logs.can_load import WINDOW_NS, BusLoad, frame_bits, load_from_frame_windows, load_from_stats
 from logs.errors import LogReadError
 from logs.metrics import METRIC_TOPICS, TrialMetrics, metrics_from_entries
 from logs.reader import (
@@ -34,8 +40,10 @@ from logs.reader import (
 )
 from logs.topics import (
     CAN_FRAMES,
+    CAN_STATS,
     ESTIMATOR_INNOVATIONS,
     ESTIMATOR_POSE,
+    LIVE_STREAM_METADATA,
     LOG,
     NAVIGATOR_MAP,
     NAVIGATOR_PATH,
@@ -47,16 +55,21 @@ from logs.topics import (
     yaw_of,
 )
 
+logger = logging.getLogger(__name__)
+
 FloatArray = NDArray[np.float64]
 DEFAULT_CAN_BITRATE = 500_000
-# Bits on the wire per classic CAN frame before bit stuffing: SOF, id, control, CRC, ACK, EOF, IFS.
-_CAN_OVERHEAD_BITS = {False: 47, True: 67}
+# can/frames are complete when they hold this share of the frames the link counted (can/stats): the
+# recorder keeps everything, so only a thinned live stream falls short; a little slack for the frames of a
+# poll that straddles a window's end.
+_COMPLETE_SHARE = 0.99
 # CAN frames are most of a recording; the bus load needs only dlc and the id kind, found without a JSON
 # decode in the compact payload the recorder writes (``"extended":true,"dlc":8``).
 _DLC = re.compile(rb'"dlc":(\d+)')
 _EXTENDED = b'"extended":true'
 RAW_TOPICS = frozenset({CAN_FRAMES})
 REPORT_TOPICS = frozenset(METRIC_TOPICS) | {
+    CAN_STATS,
     ESTIMATOR_INNOVATIONS,
     LOG,
     NAVIGATOR_MAP,
@@ -100,6 +113,8 @@ class TrialAnalysis:
     counts: dict[str, int]
     missing: list[str]
     terrain_class: str = "unknown"
+    can_load_source: str = "none: no CAN data"  # where the bus-load figures come from, said in the report
+    counts_source: str = "MCAP summary"
     grid: FloatArray | None = None  # elevation layer of navigator/map, rows north, for the background
     grid_extent: tuple[float, float, float, float] | None = None
 
@@ -110,6 +125,8 @@ class TrialAnalysis:
             "metrics": self.metrics.to_dict(),
             "figures": {key: _round(value) for key, value in self.figures.items()},
             "counts": self.counts,
+            "counts_source": self.counts_source,
+            "can_load_source": self.can_load_source,
             "missing": self.missing,
             "metadata": self.metadata,
             "attachments": self.attachments,
@@ -137,10 +154,15 @@ class _Collector:
     innovations: dict[str, Series] = field(default_factory=dict)
     rejected_innovations: int = 0
     state_times: list[int] = field(default_factory=list)
-    can_bits: Counter[int] = field(default_factory=Counter)  # second -> bits
+    can_bits: Counter[int] = field(default_factory=Counter)  # window since the first frame -> bits
     can_frames: int = 0
-    can_first_s: float | None = None
-    can_last_s: float = 0.0
+    can_first_ns: int | None = None
+    can_last_ns: int = 0
+    # can/stats: (window_s, bits, bitrate) per message; frames on the bus (tx + rx totals) and frames
+    # recorded so far, at the first and the latest message, for the completeness of can/frames.
+    can_stats: list[tuple[float, int, int]] = field(default_factory=list)
+    can_stats_first: tuple[int, int] | None = None
+    can_stats_last: tuple[int, int] = (0, 0)
     safety: Counter[str] = field(default_factory=Counter)
     log_levels: Counter[int] = field(default_factory=Counter)
     unusable: Counter[str] = field(default_factory=Counter)
@@ -176,13 +198,24 @@ class _Collector:
         if found is None:
             self.unusable[entry.topic] += 1
             return
-        bits = _CAN_OVERHEAD_BITS[_EXTENDED in entry.data] + 8 * min(int(found.group(1)), 8)
-        t = self.seconds(entry.log_time_ns)
-        self.can_bits[int(t)] += bits
+        t_ns = entry.log_time_ns
+        if self.t0 is None:
+            self.t0 = t_ns  # plots count time from the first message of any topic
+        if self.can_first_ns is None:
+            self.can_first_ns = t_ns
+        self.can_bits[(t_ns - self.can_first_ns) // WINDOW_NS] += frame_bits(
+            _EXTENDED in entry.data, int(found.group(1))
+        )
         self.can_frames += 1
-        if self.can_first_s is None:
-            self.can_first_s = t
-        self.can_last_s = t
+        self.can_last_ns = t_ns
+
+    def _can_stats(self, message: dict[str, Any]) -> None:
+        window = (float(message["window_s"]), int(message["bits"]), int(message["bitrate"]))
+        on_bus = int(message["tx_total"]) + int(message["rx_total"])
+        self.can_stats.append(window)
+        if self.can_stats_first is None:
+            self.can_stats_first = (on_bus, self.can_frames)
+        self.can_stats_last = (on_bus, self.can_frames)
 
     def _message(self, entry: RecordedMessage) -> None:
         topic, message, t = entry.topic, entry.message, self.seconds(entry.log_time_ns)
@@ -216,6 +249,8 @@ class _Collector:
             self.log_levels[int(message["level"])] += 1
         elif topic == NAVIGATOR_MAP:
             self._grid(message)
+        elif topic == CAN_STATS:
+            self._can_stats(message)
 
     def _grid(self, message: dict[str, Any]) -> None:
         columns = int(message["column_count"])
@@ -260,11 +295,36 @@ def analyse(path: str | Path, *, can_bitrate: int | None = None) -> TrialAnalysi
         metrics = metrics_from_entries(tee(), stats)
     if not collector.counts and not collector.metadata and not stats.truncated:
         raise LogReadError(f"{path} holds no messages or metadata at all")
-    return _finish(str(path), metrics, collector, stats, can_bitrate)
+    summary_counts = _summary_counts(path) if stats.complete and not stats.truncated else None
+    return _finish(str(path), metrics, collector, stats, can_bitrate, summary_counts)
+
+
+def _summary_counts(path: str | Path) -> dict[str, int] | None:
+    """Messages per topic from the MCAP summary's statistics record (every channel), or ``None`` when the
+    file has no usable summary: the table then lists only the topics the report read."""
+    try:
+        with Path(path).open("rb") as stream:
+            summary = make_reader(stream).get_summary()
+    except (McapError, OSError, ValueError, struct.error, EOFError, KeyError) as err:
+        logger.debug("%s: no usable summary (%s); counting the topics read", path, err)
+        return None
+    if summary is None or summary.statistics is None:
+        return None
+    counts: Counter[str] = Counter()
+    for channel_id, count in summary.statistics.channel_message_counts.items():
+        channel = summary.channels.get(channel_id)
+        if channel is not None:
+            counts[channel.topic] += count
+    return dict(sorted(counts.items()))
 
 
 def _finish(
-    path: str, metrics: TrialMetrics, c: _Collector, stats: ReadStats, can_bitrate: int | None
+    path: str,
+    metrics: TrialMetrics,
+    c: _Collector,
+    stats: ReadStats,
+    can_bitrate: int | None,
+    summary_counts: dict[str, int] | None,
 ) -> TrialAnalysis:
     missing = [topic for topic in EXPECTED_TOPICS if c.counts[topic] == 0]
     missing += [item for item in metrics.missing if item not in missing]
@@ -272,7 +332,8 @@ def _finish(
     figures.update(_estimator_error(c))
     figures.update(_loop_timing(c.state_times))
     bitrate = can_bitrate or _bitrate(c.metadata)
-    figures.update(_bus_load(c, bitrate))
+    can_figures, can_load_source = _bus_load(c, bitrate)
+    figures.update(can_figures)
     figures["innovations_rejected"] = c.rejected_innovations
     figures["safety_warnings"] = c.safety["warning"]
     figures["safety_errors"] = c.safety["error"] + c.safety["fatal"]
@@ -294,8 +355,10 @@ def _finish(
         stability=c.stability,
         innovations=c.innovations,
         figures=figures,
-        counts=dict(sorted(c.counts.items())),
+        counts=summary_counts if summary_counts is not None else dict(sorted(c.counts.items())),
+        counts_source="MCAP summary" if summary_counts is not None else "topics read (no MCAP summary)",
         missing=missing,
+        can_load_source=can_load_source,
         terrain_class=_terrain_class(c),
         grid=c.grid,
         grid_extent=c.grid_extent,
@@ -360,18 +423,46 @@ def _loop_timing(times_ns: list[int]) -> dict[str, float | None]:
     }
 
 
-def _bus_load(c: _Collector, bitrate: int) -> dict[str, float | int | None]:
-    if not c.can_bits:
-        return {"can_frames": 0, "can_bus_load_mean_pct": None, "can_bus_load_peak_pct": None}
-    per_second = np.array(list(c.can_bits.values()), dtype=np.float64)
-    span_s = c.can_last_s - (c.can_first_s or 0.0)
-    mean = 100.0 * per_second.sum() / span_s / bitrate if span_s > 0.0 else None
-    return {
+def _bus_load(c: _Collector, bitrate: int) -> tuple[dict[str, float | int | None], str]:
+    """Bus-load figures and where they come from: the link's own count (``can/stats``) when recorded;
+    else the recorded frames, but only when they are known to be every frame (never a live-stream file,
+    whose can/frames may be thinned)."""
+    recorded_pct = _frames_recorded_pct(c)
+    figures: dict[str, float | int | None] = {
         "can_frames": c.can_frames,
-        "can_bitrate": bitrate,
-        "can_bus_load_mean_pct": mean,
-        "can_bus_load_peak_pct": float(100.0 * per_second.max() / bitrate),
+        "can_frames_recorded_pct": recorded_pct,
     }
+    if c.can_stats:
+        load = load_from_stats(c.can_stats)
+        source = "can/stats (the link's own count)"
+        if recorded_pct is not None and recorded_pct < 100.0 * _COMPLETE_SHARE:
+            source += f"; can/frames holds only {recorded_pct:.1f} % of the frames (thinned)"
+        return _load_figures(figures, load, c.can_stats[-1][2]), source
+    if c.can_first_ns is None:
+        return _load_figures(figures, BusLoad(None, None, 0), bitrate), "none: no CAN data"
+    if LIVE_STREAM_METADATA in c.metadata:
+        source = "none: a live-stream recording without can/stats; its can/frames may be thinned"
+        return _load_figures(figures, BusLoad(None, None, 0), bitrate), source
+    load = load_from_frame_windows(c.can_bits, c.can_first_ns, c.can_last_ns, bitrate)
+    return _load_figures(figures, load, bitrate), "can/frames (every frame recorded)"
+
+
+def _frames_recorded_pct(c: _Collector) -> float | None:
+    """Share of the frames the link counted between its first and last can/stats that were recorded."""
+    if c.can_stats_first is None:
+        return None
+    on_bus = c.can_stats_last[0] - c.can_stats_first[0]
+    recorded = c.can_stats_last[1] - c.can_stats_first[1]
+    return 100.0 * recorded / on_bus if on_bus > 0 else None
+
+
+def _load_figures(
+    figures: dict[str, float | int | None], load: BusLoad, bitrate: int
+) -> dict[str, float | int | None]:
+    figures["can_bitrate"] = bitrate
+    figures["can_bus_load_mean_pct"] = load.mean_pct
+    figures["can_bus_load_peak_pct"] = load.peak_pct
+    return figures
 
 
 def distance_along(xy: FloatArray) -> FloatArray:

@@ -160,6 +160,14 @@ def _run_rows(run: TrialAnalysis) -> list[tuple[str, str]]:
     metrics = run.metrics.to_dict()
     rows = [(label, _fmt(metrics.get(key))) for key, label in HEADLINE_METRICS]
     rows += [(key.replace("_", " "), _fmt(value)) for key, value in run.figures.items()]
+    rows.append(("can bus load from", run.can_load_source))
+    return rows
+
+
+def _count_rows(run: TrialAnalysis) -> list[tuple[str, str]]:
+    """Messages per topic; the last row says where the counts come from."""
+    rows = [(topic, str(n)) for topic, n in run.counts.items()]
+    rows.append((f"({len(run.counts)} topics, from the {run.counts_source})", str(sum(run.counts.values()))))
     return rows
 
 
@@ -182,7 +190,7 @@ def _markdown(result: ReportResult) -> str:
         for problem in run.metrics.problems:
             parts.append(f"- problem: {problem}\n")
         parts.append(_md_table(("metric", "value"), _run_rows(run)))
-        parts.append(_md_table(("topic", "messages"), [(t, str(n)) for t, n in run.counts.items()]))
+        parts.append(_md_table(("topic", "messages"), _count_rows(run)))
     for comparison in result.comparisons:
         parts.append(f"## Comparison: A = {comparison.a}, B = {comparison.b}\n")
         parts.append(
@@ -238,7 +246,7 @@ def _html(result: ReportResult, plots: bool) -> str:
         if plots:
             for draw in (plot.trajectory_svg, plot.cross_track_svg, plot.vehicle_svg, plot.innovations_svg):
                 parts.append(f"<div>{draw(run)}</div>")
-        parts.append(_html_table(("topic", "messages"), [(t, str(n)) for t, n in run.counts.items()]))
+        parts.append(_html_table(("topic", "messages"), _count_rows(run)))
     for comparison in result.comparisons:
         parts.append(
             f"<h2>Comparison</h2><p>A = {html.escape(comparison.a)}<br>B = {html.escape(comparison.b)}</p>"

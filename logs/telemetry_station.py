@@ -3,9 +3,14 @@ thin the rover's stream to configured rates.
 
 ``StreamRecorder`` writes every received sample into an ``McapRecorder`` with the rover's log time, so the
 ground-station file reads back like the rover's own (same topics, payloads and log times; ``rover logs
-report`` works on it). ``LiveView`` keeps the latest pose, speed, mode, health and CAN bus load for
+report`` works on it), marked as a live-stream recording (``LIVE_STREAM_METADATA``) because its topics may
+be thinned. ``LiveView`` keeps the latest pose, speed, mode, health and CAN bus load for
 ``rover telemetry watch``. ``RateLimitedSink`` sits in front of the Zenoh publisher on the rover: per-topic
-maximum rates judged on log time, so lockstep trials stay deterministic.
+maximum rates judged on log time, so lockstep trials stay deterministic; ``can/stats`` is never thinned.
+
+The bus load shown is the rover link's own count (``can/stats``): the live ``can/frames`` are usually
+thinned, so counting them would understate it. Without ``can/stats`` (an older rover) the view counts the
+frames it receives and says that this is a lower bound.
 """
 
 from __future__ import annotations
@@ -18,17 +23,28 @@ from collections.abc import Mapping
 
 import zenoh
 
+from logs.can_load import WINDOW_NS, frame_bits
 from logs.encoding import EncodedSink
 from logs.errors import LogsError, TelemetrySetupError
 from logs.recorder import McapRecorder
 from logs.sink import Message, MessageSink
 from logs.telemetry import TelemetrySample, TelemetrySubscription, subscribe
-from logs.topics import CAN_FRAMES, ESTIMATOR_POSE, NAVIGATOR_STATE, SAFETY_EVENTS, TOPICS, TRUTH_POSE, yaw_of
+from logs.topics import (
+    CAN_FRAMES,
+    CAN_STATS,
+    ESTIMATOR_POSE,
+    LIVE_STREAM_METADATA,
+    NAVIGATOR_STATE,
+    SAFETY_EVENTS,
+    TOPICS,
+    TRUTH_POSE,
+    yaw_of,
+)
 
 logger = logging.getLogger(__name__)
 
-CAN_BITS_PER_FRAME = 131  # extended id, 8 data bytes, before stuffing: the VESC status frames
-BUS_WINDOW_NS = 1_000_000_000
+# Topics the live stream must carry whole: the station's figures depend on every message of them.
+NEVER_THINNED = frozenset({CAN_STATS})
 
 
 class RateLimitedSink:
@@ -38,6 +54,11 @@ class RateLimitedSink:
         for topic, rate in rates_hz.items():
             if topic not in TOPICS:
                 raise TelemetrySetupError(f"telemetry rate for unknown topic {topic!r}")
+            if topic in NEVER_THINNED:
+                raise TelemetrySetupError(
+                    f"{topic} is never thinned (the ground station's bus load comes from it; ~1 message/s): "
+                    "remove it from [zenoh.rates]"
+                )
             if not math.isfinite(rate) or rate <= 0.0:
                 raise TelemetrySetupError(f"telemetry rate for {topic} must be > 0 Hz, got {rate!r}")
         self._sink = sink
@@ -79,6 +100,13 @@ class StreamRecorder:
         self.recorded = 0
         self.failed = 0
         self.topics: set[str] = set()
+        recorder.add_metadata(
+            LIVE_STREAM_METADATA,
+            {
+                "rover_id": rover_id,
+                "note": "recorded from the live stream; topics may be thinned ([zenoh.rates])",
+            },
+        )
         self._subscription: TelemetrySubscription = subscribe(session, rover_id, self._on_sample)
 
     @property
@@ -106,10 +134,14 @@ class StreamRecorder:
 class LiveView:
     """Latest state of one rover from its stream; ``rows()`` for a table. Thread-safe."""
 
-    def __init__(self) -> None:
+    def __init__(self, bitrate: int | None = None) -> None:
+        """``bitrate`` (the rover config's, when the station has it) is used only without ``can/stats``."""
         self._lock = threading.Lock()
         self._values: dict[str, str] = {}
-        self._can_times: deque[int] = deque()
+        self._bitrate = bitrate
+        self._stats: tuple[float, int] | None = None  # the latest can/stats: load %, bitrate
+        self._can_frames: deque[tuple[int, int]] = deque()  # (log time, bits) of the last second
+        self._can_bits = 0
         self.samples = 0
 
     def update(self, sample: TelemetrySample) -> None:
@@ -142,21 +174,37 @@ class LiveView:
             self._values["last safety event"] = (
                 f"{message['severity']}: {message['kind']} {message['detail']}"
             )
+        elif topic == CAN_STATS:
+            self._stats = (float(message["load_pct"]), int(message["bitrate"]))
         elif topic == CAN_FRAMES:
-            self._can_times.append(t_ns)
-            while self._can_times and self._can_times[0] <= t_ns - BUS_WINDOW_NS:
-                self._can_times.popleft()
+            bits = frame_bits(bool(message["extended"]), int(message["dlc"]))
+            self._can_frames.append((t_ns, bits))
+            self._can_bits += bits
+            while self._can_frames and self._can_frames[0][0] <= t_ns - WINDOW_NS:
+                self._can_bits -= self._can_frames.popleft()[1]
 
-    def bus_load_pct(self, bitrate: int = 500_000) -> float:
-        """CAN frames seen in the last second of log time, as a share of ``bitrate``."""
+    def bus_load_pct(self) -> float | None:
+        """The rover's own bus load over its last window (``can/stats``); ``None`` until one arrives."""
         with self._lock:
-            return 100.0 * len(self._can_times) * CAN_BITS_PER_FRAME / bitrate
+            return None if self._stats is None else self._stats[0]
+
+    def _bus_load_row(self) -> str:
+        if self._stats is not None:
+            load, bitrate = self._stats
+            return f"{load:.1f} (rover's count at {bitrate / 1000:.0f} kbit/s)"
+        if not self._can_frames:
+            return "n/a (no can/stats or can/frames yet)"
+        if self._bitrate is None:
+            return (
+                f"n/a (no can/stats; {len(self._can_frames)} can/frames in the last second, may be thinned)"
+            )
+        load = 100.0 * self._can_bits / self._bitrate
+        return f">= {load:.1f} (no can/stats: counted from can/frames, which may be thinned)"
 
     def rows(self) -> list[tuple[str, str]]:
-        load = self.bus_load_pct()
         with self._lock:
             rows = sorted(self._values.items())
-        rows.append(("CAN bus load (%)", f"{load:.1f}"))
+            rows.append(("CAN bus load (%)", self._bus_load_row()))
         return rows
 
 

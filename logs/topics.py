@@ -18,6 +18,7 @@ from typing import Any
 JsonSchema = dict[str, Any]
 
 CAN_FRAMES = "can/frames"
+CAN_STATS = "can/stats"
 MAVLINK_RAW = "mavlink/raw"
 SENSORS_GPS = "sensors/gps"
 SENSORS_IMU = "sensors/imu"
@@ -38,6 +39,10 @@ TRUTH_STABILITY = "truth/stability"
 TRUTH_CONTACTS = "truth/contacts"
 
 ENU_FRAME = "enu"
+
+# Metadata record of a file the ground station recorded from the live stream (``rover telemetry record``):
+# its topics may be thinned ([zenoh.rates]), so nothing may be counted from them as if complete.
+LIVE_STREAM_METADATA = "live_stream"
 
 
 @dataclass(frozen=True)
@@ -94,6 +99,26 @@ _SPECS = [
             }
         ),
         "Every CAN frame the companion sent (tx) or received (rx), raw.",
+    ),
+    TopicSpec(
+        CAN_STATS,
+        "rover.CanStats",
+        _obj(
+            {
+                "timestamp": _TIME,
+                "window_s": _NUM,
+                "bitrate": _INT,
+                "frames": _INT,
+                "bits": _INT,
+                "load_pct": _NUM,
+                "tx_total": _INT,
+                "rx_total": _INT,
+                "own_echoes_total": _INT,
+            }
+        ),
+        "The link's own count of the bus over the last window (~1 s): frames and bits (both directions, "
+        "each frame on the wire once, before bit stuffing), load as % of the bitrate, running totals. "
+        "Never thinned on the live stream: the ground station's bus load comes from it.",
     ),
     TopicSpec(
         MAVLINK_RAW,

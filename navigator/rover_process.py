@@ -82,8 +82,15 @@ def run_rover(
     publisher: ZenohTelemetry | None = None
     commands: ZenohCommandReceiver | None = None
     with McapRecorder(mcap_path) as recorder:
+        # can_bitrate: the report's bus load for frames counted from the recording (as hil.trial writes it)
         recorder.add_metadata(
-            "trial", {"mode": "rover-run", "rover_id": config.rover_id, "config": config.source}
+            "trial",
+            {
+                "mode": "rover-run",
+                "rover_id": config.rover_id,
+                "config": config.source,
+                "can_bitrate": str(config.can.bitrate),
+            },
         )
         sink: MessageSink = recorder
         if telemetry and config.zenoh.enabled:

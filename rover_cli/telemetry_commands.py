@@ -65,6 +65,14 @@ def _session(args: argparse.Namespace) -> Any:
     return open_session(settings)
 
 
+def _config_bitrate(args: argparse.Namespace) -> int | None:
+    if args.config is None:
+        return None
+    from navigator.config import load_rover_config
+
+    return load_rover_config(args.config).can.bitrate
+
+
 def _wait(duration_s: float | None, tick: Any = None) -> None:
     """Until the duration has passed or Ctrl-C; ``tick()`` four times a second."""
     stop = threading.Event()
@@ -88,7 +96,8 @@ def watch_command(args: argparse.Namespace) -> int:
     except LogsError as err:
         console.print(f"[red]error:[/red] {err}")
         return 2
-    view = LiveView()
+    # The rover reports its bus load itself (can/stats); the config's bitrate only serves an older rover.
+    view = LiveView(bitrate=_config_bitrate(args))
     subscription = subscribe(session, args.rover_id, view.update)
 
     def table() -> RichTable:

@@ -25,9 +25,10 @@ import pytest
 
 from firmware_bridge.can_link import CanLink
 from hil.vesc_sim import SimVescBank
+from logs.can_load import frame_bits
 from logs.clock import Clock, MonotonicClock, SimClock, to_ns
 from logs.sink import MemorySink
-from logs.topics import SAFETY_EVENTS
+from logs.topics import CAN_FRAMES, SAFETY_EVENTS
 from tests.firmware_bridge.virtual_can import make_codec, virtual_bus_pair
 
 REPO = Path(__file__).resolve().parents[2]
@@ -173,3 +174,19 @@ def test_silent_controllers_are_reported_dead(rig: Rig) -> None:
         assert kinds, "a silent controller must leave a safety event"
     finally:
         link.close()
+
+
+def test_each_frame_on_the_wire_is_counted_and_recorded_once(rig: Rig) -> None:
+    """udp_multicast delivers our own sends back to us: they must not come back as received frames."""
+    sink = MemorySink()
+    with CanLink(rig.bus, make_codec(), rig.clock, sink) as link:
+        assert drive(link, rig, 150, lambda: all(r.last_status_ns is not None for r in link.readings()))
+        frames = sink.on(CAN_FRAMES)
+        sent_ids = {f["id"] for f in frames if f["direction"] == "tx"}
+        received = [f for f in frames if f["direction"] == "rx"]
+        assert sent_ids and received
+        assert not [f for f in received if f["id"] in sent_ids], "our own commands came back as rx"
+        counters = link.counters
+        assert counters.tx == len(frames) - len(received) and counters.rx == len(received)
+        assert link.bits_total == sum(frame_bits(f["extended"], f["dlc"]) for f in frames)
+        assert (counters.own_echoes > 0) == (rig.bus.__class__.__name__ == "UdpMulticastBus")

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import pytest
 
+from logs.can_load import frame_bits
 from logs.errors import TelemetrySetupError
 from logs.sink import MemorySink
 from logs.telemetry import TelemetrySample
-from logs.telemetry_station import CAN_BITS_PER_FRAME, LiveView, RateLimitedSink
-from logs.topics import CAN_FRAMES, ESTIMATOR_POSE, LOG, NAVIGATOR_STATE, planar_pose, stamp
+from logs.telemetry_station import LiveView, RateLimitedSink
+from logs.topics import CAN_FRAMES, CAN_STATS, ESTIMATOR_POSE, LOG, NAVIGATOR_STATE, planar_pose, stamp
 
 
 def test_rate_limit_is_judged_on_log_time() -> None:
@@ -23,13 +24,17 @@ def test_rate_limit_is_judged_on_log_time() -> None:
     assert sink.dropped == 80
 
 
-@pytest.mark.parametrize("rates", [{"no/such": 1.0}, {LOG: 0.0}, {LOG: float("nan")}])
+@pytest.mark.parametrize("rates", [{"no/such": 1.0}, {LOG: 0.0}, {LOG: float("nan")}, {CAN_STATS: 100.0}])
 def test_bad_rates_are_setup_errors(rates: dict[str, float]) -> None:
     with pytest.raises(TelemetrySetupError):
         RateLimitedSink(MemorySink(), rates)
 
 
-def test_live_view_shows_latest_state_and_bus_load() -> None:
+def _frame(dlc: int = 8) -> dict[str, object]:
+    return {"extended": True, "dlc": dlc}
+
+
+def test_live_view_shows_latest_state() -> None:
     view = LiveView()
     pose = {"pose": planar_pose(1.0, 2.0, 0.0), "speed_mps": 0.5, "healthy": True}
     view.update(TelemetrySample(ESTIMATOR_POSE, 1_000, pose))
@@ -41,12 +46,33 @@ def test_live_view_shows_latest_state_and_bus_load() -> None:
         "timestamp": stamp(0),
     }
     view.update(TelemetrySample(NAVIGATOR_STATE, 2_000, state))
-    for i in range(1500):  # 1500 frames over 1.5 s: 1000 in the last second
-        view.update(TelemetrySample(CAN_FRAMES, i * 1_000_000, {"dlc": 8}))
     view.update(TelemetrySample(ESTIMATOR_POSE, 3_000, {"pose": "broken"}))  # counted, not raised
     rows = dict(view.rows())
     assert rows["pose (estimate)"].startswith("x 1.00 m, y 2.00 m")
     assert rows["mode"] == "DRIVING" and rows["estimator"] == "healthy"
     assert rows["speed limit"] == "0.8 m/s (slope)" and rows["cross-track error (m)"] == "n/a"
-    assert view.bus_load_pct() == pytest.approx(100.0 * 1000 * CAN_BITS_PER_FRAME / 500_000)
     assert rows["last problem"] == f"unusable {ESTIMATOR_POSE} message"
+
+
+def test_live_view_shows_the_rovers_own_bus_load_whatever_the_stream_thinned() -> None:
+    view = LiveView(bitrate=1_000_000)
+    for i in range(100):  # the thinned stream: 100 frames a second
+        view.update(TelemetrySample(CAN_FRAMES, i * 10_000_000, _frame()))
+    stats = {"load_pct": 8.48, "bitrate": 1_000_000, "window_s": 1.0, "bits": 84_800}
+    view.update(TelemetrySample(CAN_STATS, 1_000_000_000, stats))
+    assert view.bus_load_pct() == pytest.approx(8.48)
+    assert dict(view.rows())["CAN bus load (%)"] == "8.5 (rover's count at 1000 kbit/s)"
+
+
+def test_live_view_without_stats_never_shows_frames_as_the_whole_load() -> None:
+    view = LiveView(bitrate=500_000)
+    assert dict(view.rows())["CAN bus load (%)"].startswith("n/a")
+    for i in range(1500):  # 1500 frames over 1.5 s: 1000 in the last second
+        view.update(TelemetrySample(CAN_FRAMES, i * 1_000_000, _frame()))
+    assert view.bus_load_pct() is None
+    row = dict(view.rows())["CAN bus load (%)"]
+    load = 100.0 * 1000 * frame_bits(True, 8) / 500_000
+    assert row == f">= {load:.1f} (no can/stats: counted from can/frames, which may be thinned)"
+    no_bitrate = LiveView()
+    no_bitrate.update(TelemetrySample(CAN_FRAMES, 0, _frame()))
+    assert "may be thinned" in dict(no_bitrate.rows())["CAN bus load (%)"]

@@ -19,11 +19,11 @@ import zenoh
 from logs.clock import SimClock
 from logs.commands import ZenohCommandReceiver, send_command
 from logs.errors import TelemetrySetupError
-from logs.reader import read_messages
+from logs.reader import read_messages, read_metadata
 from logs.recorder import McapRecorder
 from logs.telemetry import ZenohSettings, ZenohTelemetry, open_session
 from logs.telemetry_station import StreamRecorder
-from logs.topics import LOG, NAVIGATOR_STATE, stamp
+from logs.topics import LIVE_STREAM_METADATA, LOG, NAVIGATOR_STATE, stamp
 
 WAIT_S = 10.0
 
@@ -229,3 +229,4 @@ def test_ground_station_records_the_same_messages(tmp_path: Path) -> None:
             recorder.close()
     got = [(m.topic, m.log_time_ns, m.message) for m in read_messages(out) if m.topic == NAVIGATOR_STATE]
     assert got == sent and stream.rejected == 0 and stream.failed == 0
+    assert read_metadata(out)[LIVE_STREAM_METADATA]["rover_id"] == "r1"  # its topics may be thinned

@@ -110,7 +110,9 @@ def test_rover_run_stops_wheels_and_closes_recording_on_signal(tmp_path: Path, s
             process.kill()
     assert process.returncode == 0, stdout
     mcap = out / "rover.mcap"
-    timing = json.loads(read_metadata(mcap)["runtime"]["timing_json"])
+    metadata = read_metadata(mcap)
+    assert metadata["trial"]["can_bitrate"] == "1000000"  # the config's default, for the report's bus load
+    timing = json.loads(metadata["runtime"]["timing_json"])
     assert timing["ticks"] >= 20
     # No autopilot, so no IMU: every tick ran on the fixed-rate fallback deadline.
     assert timing["deadline_ticks"] == timing["ticks"] and timing["sensor_ticks"] == 0
@@ -121,3 +123,5 @@ def test_rover_run_stops_wheels_and_closes_recording_on_signal(tmp_path: Path, s
     assert len(frames) >= 6 and all(f["data"] == "00000000" for f in frames[-6:])  # the last six: zero rpm
     events = [m.message for m in read_messages(mcap, ["safety/events"])]
     assert any(e["kind"] == "failsafe.wheel_silent" for e in events)  # no controllers on this bus
+    stats = [m.message for m in read_messages(mcap, ["can/stats"])]  # the link's own bus load, once a second
+    assert stats and all(s["bitrate"] == 1_000_000 and s["load_pct"] > 0.0 for s in stats)
