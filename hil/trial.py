@@ -251,7 +251,9 @@ def write_header(
         0,
     )
     config_path = Path(config.source)
-    if config_path.is_file():
+    # The file as written, unless it holds the MAVLink signing key: recordings get shared, the key must
+    # not travel with them (config.effective.json has every other value, the key redacted).
+    if config_path.is_file() and not config.mavlink.signing_key:
         recorder.add_attachment("config.toml", "application/toml", config_path.read_bytes(), 0)
 
 

@@ -137,3 +137,26 @@ def test_a_metadata_record_only_one_run_has_is_one_comparison_row():
         {"key": "config.*", "a": "2 keys", "b": None},
         {"key": "trial.mode", "a": "sim-lockstep", "b": "rover-run"},
     ]
+
+
+def test_a_config_file_with_a_signing_key_is_not_attached(tmp_path):
+    # Recordings get shared: the MAVLink signing key must not travel in them, not even in the file's copy.
+    from hil.scenario import load_scenario
+    from hil.trial import write_header
+    from logs.recorder import McapRecorder
+    from navigator.config import load_rover_config
+
+    key = "5a" * 32
+    config_path = tmp_path / "signed.toml"
+    config_path.write_text(f'[mavlink]\nsigning_key = "{key}"\n', encoding="utf-8")
+    scenario = load_scenario(_boulder_scenario(tmp_path))
+    for name, config in (
+        ("signed", load_rover_config(config_path)),
+        ("plain", load_rover_config(Path(__file__).resolve().parents[2] / "configs" / "rover.toml")),
+    ):
+        recording = tmp_path / f"{name}.mcap"
+        with McapRecorder(recording) as recorder:
+            write_header(recorder, scenario, config, 1)
+        attached = read_attachments(recording)
+        assert ("config.toml" in attached) == (name == "plain")
+        assert key.encode() not in recording.read_bytes()
