@@ -63,10 +63,18 @@ def send_confirmed(
             undo.callback(publisher.declare_matching_listener(on_matching).undeclare)
             if not _wait(heard, clock, deadline_ns):
                 # Zenoh drops a put nobody subscribes to at the sender: not putting changes nothing.
+                info = session.info
+                peers, routers = len(info.peers_zid()), len(info.routers_zid())
+                reached = (
+                    "no Zenoh peer or router"
+                    if peers + routers == 0
+                    else f"{peers} Zenoh peer(s) and {routers} router(s), none subscribed to the command"
+                )
                 return SendOutcome(
                     Verdict.NO_LISTENER,
                     f"no rover is listening: nothing subscribed to {key} within {timeout_s:g} s, so the "
-                    f"command was not sent; this station is connected to {_connections(session)}",
+                    f"command was not sent; this station is connected to {reached}",
+                    connections=peers + routers,
                 )
             publisher.put(payload)
         except zenoh.ZError as err:
@@ -85,11 +93,3 @@ def send_confirmed(
 def _wait(event: threading.Event, clock: Clock, deadline_ns: int) -> bool:
     remaining_s = (deadline_ns - clock.now_ns()) / 1e9
     return event.is_set() if remaining_s <= 0 else event.wait(remaining_s)
-
-
-def _connections(session: zenoh.Session) -> str:
-    info = session.info
-    peers, routers = len(info.peers_zid()), len(info.routers_zid())
-    if peers == 0 and routers == 0:
-        return "no Zenoh peer or router"
-    return f"{peers} Zenoh peer(s) and {routers} router(s), none subscribed to the command"

@@ -52,6 +52,8 @@ class Verdict(enum.StrEnum):
 class SendOutcome:
     verdict: Verdict
     detail: str
+    # NO_LISTENER only: Zenoh peers and routers the station was connected to (0: it reached nobody).
+    connections: int | None = None
 
     @property
     def confirmed(self) -> bool:

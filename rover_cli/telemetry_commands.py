@@ -216,8 +216,10 @@ def send_command_line(args: argparse.Namespace) -> int:
         )
         return 0
     hint = ""
-    if outcome.verdict is Verdict.NO_LISTENER and args.connect:
+    if outcome.verdict is Verdict.NO_LISTENER and outcome.connections == 0 and args.connect:
         hint = f"; is the rover (or its router) up at --connect {' '.join(args.connect)}?"
+    elif outcome.verdict is Verdict.NO_LISTENER and outcome.connections:
+        hint = f"; is {args.rover_id!r} the rover's id (--rover-id)?"
     console.print(
         f"[red]NOT confirmed:[/red] rover {args.rover_id} {what}: {outcome.detail}{hint}", highlight=False
     )

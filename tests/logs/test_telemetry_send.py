@@ -154,6 +154,20 @@ def test_no_rover_exits_non_zero_within_the_timeout(
     assert SHORT_TIMEOUT_S * 0.9 <= taken < SHORT_TIMEOUT_S + 1.5
 
 
+def test_a_wrong_rover_id_is_told_apart_from_an_unreachable_rover(
+    rover: FakeRover, endpoint: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    timeout = str(SHORT_TIMEOUT_S)
+    code = main(
+        ["telemetry", "send", "estop", "--rover-id", "r2", "--connect", endpoint, "--timeout-s", timeout]
+    )
+    out = " ".join(capsys.readouterr().out.split())
+    assert code == 1, out
+    assert "connected to 1 Zenoh peer(s) and 0 router(s), none subscribed" in out, out
+    assert "is 'r2' the rover's id (--rover-id)?" in out, out
+    assert not rover.estopped
+
+
 def test_a_rover_that_hears_but_does_not_answer_is_not_confirmed(
     deaf_rover: FakeRover, endpoint: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
