@@ -131,19 +131,22 @@ class ZenohCommandReceiver:
         undeclare_quietly(self._subscriber, self._prefix)
 
 
-def send_command(
-    session: zenoh.Session, rover_id: str, kind: CommandKind, x: float | None = None, y: float | None = None
-) -> None:
-    """Publish one command (the ground station's side). ``TelemetryError`` if the put fails."""
+def command_payload(kind: CommandKind, x: float | None = None, y: float | None = None) -> bytes:
+    """The JSON a command travels as; ``TelemetryError`` for a goal without both coordinates."""
     if kind == "goal":
         if x is None or y is None:
             raise TelemetryError("a goal command needs x and y (ENU metres)")
-        body: dict[str, float] = {"x": float(x), "y": float(y)}
-    else:
-        body = {}
+        return json.dumps({"x": float(x), "y": float(y)}).encode()
+    return b"{}"
+
+
+def send_command(
+    session: zenoh.Session, rover_id: str, kind: CommandKind, x: float | None = None, y: float | None = None
+) -> None:
+    """Publish one command, fire and forget (nothing says whether a rover heard it; for that, see
+    ``logs.command_confirm.send_confirmed``). ``TelemetryError`` if the put fails."""
+    payload = command_payload(kind, x, y)
     try:
-        session.put(
-            command_key(rover_id, kind), json.dumps(body).encode(), encoding=zenoh.Encoding.APPLICATION_JSON
-        )
+        session.put(command_key(rover_id, kind), payload, encoding=zenoh.Encoding.APPLICATION_JSON)
     except zenoh.ZError as err:
         raise TelemetryError(f"cannot send {kind} to rover {rover_id!r}: {err}") from err

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import logging
+import re
 import struct
 import threading
 from collections.abc import Callable
@@ -38,6 +39,8 @@ _LOG_TIME = struct.Struct("<q")
 _MODES = ("peer", "client")
 _FORBIDDEN_IN_ID = set("/*$?#")
 _MAX_WARNINGS = 10
+_ZENOH_MSG = re.compile(r'msg: "(.*?)"(?:, location|\s*\})')
+_RUST_LOCATION = re.compile(r" at \S+\.rs:\d+\.?")
 
 
 @dataclass(frozen=True)
@@ -105,10 +108,18 @@ def _endpoints(table: Table, key: str, default: tuple[str, ...]) -> tuple[str, .
     if not isinstance(value, list) or not all(isinstance(item, str) for item in value):
         raise table.error(key, f"expected a list of endpoints like ['tcp/127.0.0.1:7447'], got {value!r}")
     for item in value:
-        protocol, slash, address = item.partition("/")
-        if not protocol or not slash or not address:
-            raise table.error(key, f"endpoint {item!r} is not '<protocol>/<address>' ('tcp/127.0.0.1:7447')")
+        problem = endpoint_problem(item)
+        if problem is not None:
+            raise table.error(key, problem)
     return tuple(value)
+
+
+def endpoint_problem(endpoint: str) -> str | None:
+    """Why ``endpoint`` is not a Zenoh endpoint, or None; zenoh checks the rest when the config is built."""
+    protocol, slash, address = endpoint.partition("/")
+    if not protocol or not slash or not address:
+        return f"endpoint {endpoint!r} is not '<protocol>/<address>' ('tcp/127.0.0.1:7447')"
+    return None
 
 
 def zenoh_config(settings: ZenohSettings) -> zenoh.Config:
@@ -116,22 +127,33 @@ def zenoh_config(settings: ZenohSettings) -> zenoh.Config:
     try:
         text = resources.files("logs").joinpath(DEFAULT_CONFIG_RESOURCE).read_text(encoding="utf-8")
         config = zenoh.Config.from_json5(text)
-        config.insert_json5("mode", json.dumps(settings.mode))
-        config.insert_json5("listen/endpoints", json.dumps(list(settings.listen)))
-        config.insert_json5("connect/endpoints", json.dumps(list(settings.connect)))
-        config.insert_json5("scouting/multicast/enabled", json.dumps(settings.multicast_scouting))
-        for path, value in settings.overrides:
-            try:
-                config.insert_json5(path, json.dumps(value))
-            except (zenoh.ZError, TypeError) as err:
-                raise TelemetrySetupError(
-                    f"[zenoh.overrides] {path!r} = {value!r} is refused by zenoh: {err}"
-                ) from err
-    except (OSError, zenoh.ZError, TypeError) as err:
+    except (OSError, zenoh.ZError) as err:
         raise TelemetrySetupError(
-            f"cannot build the Zenoh config from the shipped {DEFAULT_CONFIG_RESOURCE}: {err}"
+            f"cannot load the shipped Zenoh config {DEFAULT_CONFIG_RESOURCE}: {err}"
         ) from err
+    # Each setting is written on its own so a refusal names the value the user gave (an endpoint typed on
+    # the command line or in the rover config), not the shipped file.
+    written: list[tuple[str, str, object]] = [
+        ("mode", "mode", settings.mode),
+        ("listen/endpoints", "listen endpoints", list(settings.listen)),
+        ("connect/endpoints", "connect endpoints", list(settings.connect)),
+        ("scouting/multicast/enabled", "multicast_scouting", settings.multicast_scouting),
+    ]
+    written += [(path, f"[zenoh.overrides] {path!r} =", value) for path, value in settings.overrides]
+    for path, what, value in written:
+        try:
+            config.insert_json5(path, json.dumps(value))
+        except (zenoh.ZError, TypeError) as err:
+            raise TelemetrySetupError(f"{what} {value!r} is refused by zenoh: {_zenoh_reason(err)}") from err
     return config
+
+
+def _zenoh_reason(err: Exception) -> str:
+    """zenoh's message without its Rust wrapping (``Json5Err(Message { msg: ...``) and source locations."""
+    text = str(err)
+    inner = _ZENOH_MSG.search(text)
+    reason = _RUST_LOCATION.sub("", inner.group(1) if inner else text).strip()
+    return reason or type(err).__name__
 
 
 def open_session(settings: ZenohSettings) -> zenoh.Session:
@@ -232,10 +254,15 @@ class TelemetrySample:
 
 
 class TelemetrySubscription:
-    """A subscriber on ``rover/<rover_id>/**``; samples that do not decode are counted, not raised."""
+    """A subscriber on ``rover/<rover_id>/<topic>`` (every topic: ``**``); samples that do not decode are
+    counted, not raised."""
 
     def __init__(
-        self, session: zenoh.Session, rover_id: str, callback: Callable[[TelemetrySample], None]
+        self,
+        session: zenoh.Session,
+        rover_id: str,
+        callback: Callable[[TelemetrySample], None],
+        topic: str = "**",
     ) -> None:
         self._prefix = key_prefix(rover_id) + "/"
         self._callback = callback
@@ -243,10 +270,11 @@ class TelemetrySubscription:
         self.received = 0
         self.rejected = 0
         self._closed = False
+        key = self._prefix + topic
         try:
-            self._subscriber = session.declare_subscriber(self._prefix + "**", self._on_sample)
+            self._subscriber = session.declare_subscriber(key, self._on_sample)
         except zenoh.ZError as err:
-            raise TelemetrySetupError(f"cannot subscribe to {self._prefix}**: {err}") from err
+            raise TelemetrySetupError(f"cannot subscribe to {key}: {err}") from err
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         key = str(sample.key_expr)
@@ -295,7 +323,8 @@ def undeclare_quietly(subscriber: zenoh.Subscriber, key: str) -> None:
 
 
 def subscribe(
-    session: zenoh.Session, rover_id: str, callback: Callable[[TelemetrySample], None]
+    session: zenoh.Session, rover_id: str, callback: Callable[[TelemetrySample], None], topic: str = "**"
 ) -> TelemetrySubscription:
-    """Receive a rover's telemetry; ``callback`` runs on a Zenoh thread, so keep it short."""
-    return TelemetrySubscription(session, rover_id, callback)
+    """Receive a rover's telemetry (one ``topic``, or all); ``callback`` runs on a Zenoh thread, so keep it
+    short."""
+    return TelemetrySubscription(session, rover_id, callback, topic)

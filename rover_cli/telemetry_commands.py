@@ -14,6 +14,12 @@ from rich.table import Table as RichTable
 
 from logs.errors import LogsError
 
+# Long enough for a rover that publishes navigator/state at a thinned live rate (1-2 Hz) to show its
+# next state; short enough that an operator is told quickly that an e-stop was not confirmed.
+DEFAULT_CONFIRM_TIMEOUT_S = 5.0
+# --no-wait only: let the put leave before the session closes (no component waits like this).
+_FLUSH_S = 0.2
+
 
 def register(families: Any) -> None:
     telemetry = families.add_parser("telemetry", help="watch, record and command a rover over Zenoh")
@@ -43,17 +49,35 @@ def register(families: Any) -> None:
     )
     record.set_defaults(handler=record_command)
 
-    send = commands.add_parser("send", help="send a command: goal X Y | estop | resume")
+    send = commands.add_parser(
+        "send",
+        help="send a command (goal X Y | estop | resume) and confirm it from the rover's own streams",
+        description="Exit status: 0 confirmed by the rover's safety/events or navigator/state; 1 not "
+        "confirmed (nobody listening, refused, or no sign of the effect within the timeout); 2 bad "
+        "arguments or Zenoh setup.",
+    )
     connection(send)
     send.add_argument("kind", choices=("goal", "estop", "resume"))
     send.add_argument("xy", type=float, nargs="*", help="goal x y in ENU metres")
+    send.add_argument(
+        "--timeout-s",
+        type=float,
+        default=DEFAULT_CONFIRM_TIMEOUT_S,
+        help=f"how long to wait for the rover to confirm (default {DEFAULT_CONFIRM_TIMEOUT_S:g} s)",
+    )
+    send.add_argument(
+        "--no-wait",
+        action="store_true",
+        help="fire and forget: send and exit 0 without checking that any rover heard it (UNCONFIRMED)",
+    )
     send.set_defaults(handler=send_command_line)
 
 
 def _session(args: argparse.Namespace) -> Any:
     import dataclasses
 
-    from logs.telemetry import ZenohSettings, open_session
+    from logs.errors import TelemetrySetupError
+    from logs.telemetry import ZenohSettings, endpoint_problem, open_session
 
     settings = ZenohSettings(enabled=True)
     if args.config is not None:
@@ -61,8 +85,17 @@ def _session(args: argparse.Namespace) -> Any:
 
         settings = load_rover_config(args.config).zenoh
     if args.connect:
+        for endpoint in args.connect:
+            problem = endpoint_problem(endpoint)
+            if problem is not None:
+                raise TelemetrySetupError(f"--connect {endpoint!r}: {problem}")
         settings = dataclasses.replace(settings, connect=tuple(args.connect), listen=())
-    return open_session(settings)
+    try:
+        return open_session(settings)
+    except TelemetrySetupError as err:
+        if not args.connect:
+            raise
+        raise TelemetrySetupError(f"--connect {' '.join(args.connect)}: {err}") from err
 
 
 def _config_bitrate(args: argparse.Namespace) -> int | None:
@@ -144,6 +177,9 @@ def record_command(args: argparse.Namespace) -> int:
 
 
 def send_command_line(args: argparse.Namespace) -> int:
+    from logs.clock import MonotonicClock
+    from logs.command_confirm import send_confirmed
+    from logs.command_watch import Verdict
     from logs.commands import send_command
 
     console = Console()
@@ -152,19 +188,48 @@ def send_command_line(args: argparse.Namespace) -> int:
             "[red]error:[/red] goal takes exactly two numbers (x y, metres); estop/resume take none"
         )
         return 2
+    if not args.timeout_s > 0:
+        console.print(f"[red]error:[/red] --timeout-s must be > 0, got {args.timeout_s:g}")
+        return 2
     try:
         session = _session(args)
     except LogsError as err:
         console.print(f"[red]error:[/red] {err}")
         return 2
+    x, y = [*args.xy, None, None][:2]
+    what = f"{args.kind} {x:g} {y:g}" if args.kind == "goal" else args.kind
     try:
-        x, y = [*args.xy, None, None][:2]
-        send_command(session, args.rover_id, args.kind, x, y)
-        time.sleep(0.2)  # let the put leave before the session closes (CLI only; no component waits so)
+        if args.no_wait:
+            send_command(session, args.rover_id, args.kind, x, y)
+            time.sleep(_FLUSH_S)
+        else:
+            with console.status(f"sending {what} to rover {args.rover_id}, waiting for it to confirm ..."):
+                outcome = send_confirmed(
+                    session, args.rover_id, args.kind, x, y, timeout_s=args.timeout_s, clock=MonotonicClock()
+                )
     except LogsError as err:
         console.print(f"[red]error:[/red] {err}")
         return 2
     finally:
         session.close()
-    console.print(f"sent {args.kind} to rover {args.rover_id}")
-    return 0
+    if args.no_wait:
+        console.print(
+            f"sent {what} to rover {args.rover_id} [yellow]UNCONFIRMED[/yellow] "
+            "(--no-wait: nothing checked that a rover heard it)",
+            highlight=False,
+        )
+        return 0
+    if outcome.confirmed:
+        console.print(
+            f"[green]confirmed:[/green] rover {args.rover_id} {what}: {outcome.detail}", highlight=False
+        )
+        return 0
+    hint = ""
+    if outcome.verdict is Verdict.NO_LISTENER and outcome.connections == 0 and args.connect:
+        hint = f"; is the rover (or its router) up at --connect {' '.join(args.connect)}?"
+    elif outcome.verdict is Verdict.NO_LISTENER and outcome.connections:
+        hint = f"; is {args.rover_id!r} the rover's id (--rover-id)?"
+    console.print(
+        f"[red]NOT confirmed:[/red] rover {args.rover_id} {what}: {outcome.detail}{hint}", highlight=False
+    )
+    return 1

@@ -1,0 +1,224 @@
+"""``rover telemetry send`` over real loopback Zenoh: confirmed by a rover that answers, refused, or not.
+
+The fake rover is a listening session with the real ``ZenohCommandReceiver`` and ``ZenohTelemetry``; a
+thread plays the onboard loop: every tick it reads commands and publishes ``navigator/state`` (and the
+``safety/events`` entries ``navigator.onboard`` would). Multicast scouting off, OS-chosen ports.
+"""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+import zenoh
+
+from logs import topics
+from logs.clock import MonotonicClock
+from logs.command_confirm import send_confirmed
+from logs.command_watch import Verdict
+from logs.commands import ZenohCommandReceiver
+from logs.errors import TelemetryError, TelemetrySetupError
+from logs.telemetry import ZenohSettings, ZenohTelemetry, open_session, zenoh_config
+from rover_cli.main import main
+
+TICK_S = 0.02
+SHORT_TIMEOUT_S = 1.0
+
+
+def _free_loopback_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+class FakeRover:
+    """Acts on commands the way the onboard loop does, or (``answers=False``) hears them and says nothing."""
+
+    def __init__(self, session: zenoh.Session, rover_id: str, *, answers: bool, max_goal_m: float) -> None:
+        self.receiver = ZenohCommandReceiver(session, rover_id, MonotonicClock())
+        self._telemetry = ZenohTelemetry(session, rover_id)
+        self._answers = answers
+        self._max_goal_m = max_goal_m
+        self.estopped = False
+        self.goal: tuple[float, float] | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="fake-rover", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.wait(TICK_S):
+            for command in self.receiver.poll():
+                if command.kind == "estop":
+                    self.estopped = True
+                    self._publish(
+                        topics.SAFETY_EVENTS, _event("failsafe.estop", "emergency stop from ground")
+                    )
+                elif command.kind == "resume":
+                    self.estopped = False
+                    self._publish(topics.SAFETY_EVENTS, _event("cleared.estop", "resume from ground station"))
+                elif command.x is not None and command.y is not None:
+                    if max(abs(command.x), abs(command.y)) > self._max_goal_m:
+                        detail = f"goal ({command.x:.2f}, {command.y:.2f}) is outside the geofence"
+                        self._publish(topics.SAFETY_EVENTS, _event("goal_rejected", detail))
+                    else:
+                        self.goal = (command.x, command.y)
+            goal = self.goal or (float("nan"), float("nan"))
+            reason = "safety estop" if self.estopped else "cruise"
+            self._publish(
+                topics.NAVIGATOR_STATE,
+                {"mode": "DRIVING", "goal": {"x": goal[0], "y": goal[1]}, "speed_limit_reason": reason},
+            )
+
+    def _publish(self, topic: str, message: dict[str, Any]) -> None:
+        if self._answers:
+            self._telemetry.publish(topic, time.monotonic_ns(), message)
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=2.0)
+        self._telemetry.close()
+        self.receiver.close()
+
+
+def _event(kind: str, detail: str) -> dict[str, Any]:
+    return {"kind": kind, "severity": "info", "detail": detail}
+
+
+@pytest.fixture
+def endpoint() -> str:
+    return f"tcp/127.0.0.1:{_free_loopback_port()}"
+
+
+def _rover(endpoint: str, *, answers: bool = True, max_goal_m: float = 100.0) -> Iterator[FakeRover]:
+    session = open_session(ZenohSettings(enabled=True, listen=(endpoint,)))
+    rover = FakeRover(session, "r1", answers=answers, max_goal_m=max_goal_m)
+    try:
+        yield rover
+    finally:
+        rover.close()
+        session.close()
+
+
+@pytest.fixture
+def rover(endpoint: str) -> Iterator[FakeRover]:
+    yield from _rover(endpoint)
+
+
+@pytest.fixture
+def deaf_rover(endpoint: str) -> Iterator[FakeRover]:
+    yield from _rover(endpoint, answers=False)
+
+
+def _send(capsys: pytest.CaptureFixture[str], endpoint: str, *words: str) -> tuple[int, str, float]:
+    """Run ``rover telemetry send`` in-process: (exit code, output on one line, seconds taken)."""
+    started = time.monotonic()
+    code = main(["telemetry", "send", *words, "--rover-id", "r1", "--connect", endpoint])
+    taken = time.monotonic() - started
+    return code, " ".join(capsys.readouterr().out.split()), taken
+
+
+def test_estop_goal_resume_confirmed_by_a_rover_that_answers(
+    rover: FakeRover, endpoint: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # The event and the state come from two publishers and reach the station on separate threads, so
+    # either may confirm first; both mean the rover acted on the command.
+    code, out, _ = _send(capsys, endpoint, "estop", "--timeout-s", "5")
+    assert code == 0, out
+    assert out.startswith("confirmed: rover r1 estop:"), out
+    assert "failsafe.estop" in out or "'safety estop'" in out, out
+    assert rover.estopped
+
+    code, out, _ = _send(capsys, endpoint, "goal", "3.5", "-2", "--timeout-s", "5")
+    assert code == 0, out
+    assert out.startswith("confirmed: rover r1 goal 3.5 -2: navigator/state:"), out
+    assert "goal (3.50, -2.00)" in out, out
+
+    code, out, _ = _send(capsys, endpoint, "resume", "--timeout-s", "5")
+    assert code == 0, out
+    assert out.startswith("confirmed: rover r1 resume:"), out
+    assert "cleared.estop" in out or "'cruise'" in out, out
+    assert not rover.estopped
+
+
+def test_no_rover_exits_non_zero_within_the_timeout(
+    endpoint: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, out, taken = _send(capsys, endpoint, "estop", "--timeout-s", str(SHORT_TIMEOUT_S))
+    assert code == 1, out
+    assert "NOT confirmed" in out and "no rover is listening" in out and "rover/r1/cmd/estop" in out, out
+    assert f"--connect {endpoint}" in out
+    assert SHORT_TIMEOUT_S * 0.9 <= taken < SHORT_TIMEOUT_S + 1.5
+
+
+def test_a_wrong_rover_id_is_told_apart_from_an_unreachable_rover(
+    rover: FakeRover, endpoint: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    timeout = str(SHORT_TIMEOUT_S)
+    code = main(
+        ["telemetry", "send", "estop", "--rover-id", "r2", "--connect", endpoint, "--timeout-s", timeout]
+    )
+    out = " ".join(capsys.readouterr().out.split())
+    assert code == 1, out
+    assert "connected to 1 Zenoh peer(s) and 0 router(s), none subscribed" in out, out
+    assert "is 'r2' the rover's id (--rover-id)?" in out, out
+    assert not rover.estopped
+
+
+def test_a_rover_that_hears_but_does_not_answer_is_not_confirmed(
+    deaf_rover: FakeRover, endpoint: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, out, taken = _send(capsys, endpoint, "goal", "1", "2", "--timeout-s", str(SHORT_TIMEOUT_S))
+    assert code == 1, out
+    assert "reached a subscriber" in out and "navigator/state's goal becoming (1.00, 2.00)" in out, out
+    assert "heard nothing on safety/events or navigator/state" in out, out
+    assert deaf_rover.goal == (1.0, 2.0)  # it did arrive: only the confirmation is missing
+    assert taken < SHORT_TIMEOUT_S + 1.5
+
+
+def test_a_refused_goal_exits_non_zero_with_the_rovers_reason(
+    endpoint: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    for _ in _rover(endpoint, max_goal_m=10.0):
+        code, out, _ = _send(capsys, endpoint, "goal", "30", "3", "--timeout-s", "5")
+        assert code == 1, out
+        assert "NOT confirmed" in out and "refused the goal" in out and "geofence" in out, out
+
+
+def test_no_wait_is_fire_and_forget_and_says_so(endpoint: str, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = _send(capsys, endpoint, "estop", "--no-wait")
+    assert code == 0
+    assert "sent estop to rover r1 UNCONFIRMED" in out and "nothing checked" in out, out
+
+
+def test_send_confirmed_refuses_a_non_positive_timeout(rover: FakeRover, endpoint: str) -> None:
+    session = open_session(ZenohSettings(enabled=True, listen=(), connect=(endpoint,)))
+    try:
+        with pytest.raises(TelemetryError, match="timeout"):
+            send_confirmed(session, "r1", "estop", timeout_s=0.0, clock=MonotonicClock())
+        outcome = send_confirmed(session, "r1", "estop", timeout_s=5.0, clock=MonotonicClock())
+        assert outcome.verdict is Verdict.CONFIRMED
+    finally:
+        session.close()
+
+
+@pytest.mark.parametrize("bad", ["nonsense", "tcp/"])
+def test_a_bad_connect_value_is_named_not_the_shipped_config(
+    bad: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code = main(["telemetry", "send", "estop", "--connect", bad])
+    out = " ".join(capsys.readouterr().out.split())
+    assert code == 2
+    assert f"--connect {bad!r}" in out and "shipped" not in out, out
+
+
+def test_zenoh_config_names_the_endpoint_zenoh_refuses() -> None:
+    # Past our own '<protocol>/<address>' check, zenoh's refusal still names the value, not the file.
+    with pytest.raises(TelemetrySetupError) as caught:
+        zenoh_config(ZenohSettings(enabled=True, listen=("tcp/127.0.0.1:0?x",), connect=("nonsense",)))
+    message = str(caught.value)
+    assert "connect endpoints ['nonsense']" in message and "shipped" not in message
+    assert ".rs:" not in message  # zenoh's Rust source location is noise to an operator

@@ -1,0 +1,101 @@
+"""``CommandWatch`` on hand-made samples: what confirms, refuses or leaves a command unconfirmed."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import pytest
+
+from logs.command_watch import CommandWatch, Verdict, expected_effect
+from logs.telemetry import TelemetrySample
+
+
+def state(
+    reason: str = "cruise", goal: tuple[float, float] | None = None, mode: str = "DRIVING"
+) -> TelemetrySample:
+    where: dict[str, Any] = {"x": None, "y": None} if goal is None else {"x": goal[0], "y": goal[1]}
+    return TelemetrySample(
+        "navigator/state",
+        1,
+        {"mode": mode, "goal": where, "speed_limit_reason": reason, "speed_limit_mps": 1.0},
+    )
+
+
+def event(kind: str, detail: str) -> TelemetrySample:
+    return TelemetrySample("safety/events", 1, {"kind": kind, "severity": "info", "detail": detail})
+
+
+def test_estop_is_not_confirmed_by_a_driving_state_but_by_the_latch_or_the_estop_state() -> None:
+    watch = CommandWatch("estop")
+    watch.observe(state("cruise"))
+    watch.observe(event("mode", "ESTOP -> IDLE: nothing to drive to"))  # leaving ESTOP is the opposite
+    watch.observe(TelemetrySample("estimator/pose", 1, {"kind": "failsafe.estop"}))  # not a watched topic
+    assert watch.outcome is None and not watch.decided.is_set()
+    watch.observe(event("failsafe.estop", "emergency stop from ground station"))
+    assert watch.decided.is_set() and watch.outcome is not None
+    assert watch.outcome.verdict is Verdict.CONFIRMED and "failsafe.estop" in watch.outcome.detail
+
+    by_state = CommandWatch("estop")
+    by_state.observe(state("safety estop", mode="IDLE"))
+    assert by_state.outcome is not None and by_state.outcome.confirmed
+
+    by_mode = CommandWatch("estop")
+    by_mode.observe(event("mode", "DRIVING -> ESTOP: emergency stop from ground station"))
+    assert by_mode.outcome is not None and by_mode.outcome.confirmed
+
+
+def test_resume_waits_for_the_state_to_leave_estop_and_says_what_holds_instead() -> None:
+    watch = CommandWatch("resume")
+    watch.observe(state("safety estop"))
+    watch.observe(event("failsafe.estop", "emergency stop from ground station"))
+    assert watch.outcome is None
+    watch.observe(state("safety hold"))
+    assert watch.outcome is not None and watch.outcome.confirmed
+    assert "'safety hold'" in watch.outcome.detail  # out of ESTOP, but the operator learns it still holds
+
+    cleared = CommandWatch("resume")
+    cleared.observe(event("cleared.estop", "resume from ground station"))
+    assert cleared.outcome is not None and cleared.outcome.confirmed
+
+
+def test_goal_is_confirmed_only_by_its_own_coordinates_and_refused_by_its_own_rejection() -> None:
+    watch = CommandWatch("goal", 3.5, -2.0)
+    watch.observe(state(goal=None, mode="IDLE"))
+    watch.observe(state(goal=(3.5, 2.0)))
+    watch.observe(TelemetrySample("navigator/state", 1, {"goal": "3.5,-2", "speed_limit_reason": "x"}))
+    watch.observe(event("goal_rejected", "goal (9.00, 9.00) is outside the geofence"))
+    assert watch.outcome is None
+    watch.observe(state(goal=(3.5, -2.0), mode="PLANNING"))
+    assert watch.outcome is not None and watch.outcome.confirmed
+    assert "mode PLANNING, goal (3.50, -2.00)" in watch.outcome.detail
+
+    refused = CommandWatch("goal", 30.0, 3.0)
+    refused.observe(event("goal_rejected", "goal (30.00, 3.00) is outside the geofence"))
+    assert refused.outcome is not None and refused.outcome.verdict is Verdict.REJECTED
+    assert "refused" in refused.outcome.detail and "geofence" in refused.outcome.detail
+
+
+def test_the_first_verdict_stands() -> None:
+    watch = CommandWatch("goal", 30.0, 3.0)
+    watch.observe(event("goal_rejected", "goal (30.00, 3.00) is outside the geofence"))
+    watch.observe(state(goal=(30.0, 3.0)))
+    assert watch.outcome is not None and watch.outcome.verdict is Verdict.REJECTED
+    assert watch.seen == {"safety/events": 1, "navigator/state": 1}
+
+
+def test_what_was_seen_says_whether_the_rover_published_anything() -> None:
+    watch = CommandWatch("estop")
+    assert "heard nothing" in watch.what_was_seen()
+    watch.observe(event("failsafe.gps", "no GPS for 2 s"))
+    assert "1 on safety/events" in watch.what_was_seen()
+    watch.observe(state("cruise", goal=(1.0, math.inf)))
+    assert "the last navigator/state: mode DRIVING, goal none" in watch.what_was_seen()
+
+
+def test_expected_effect_names_the_stream_and_a_goal_needs_coordinates() -> None:
+    assert "ESTOP transition" in expected_effect("estop") and "safety/events" in expected_effect("estop")
+    assert "leaving ESTOP" in expected_effect("resume")
+    assert "goal becoming (1.00, 2.00)" in expected_effect("goal", 1.0, 2.0)
+    with pytest.raises(ValueError, match="x and y"):
+        CommandWatch("goal", 1.0, None)
