@@ -13,6 +13,7 @@ from rich.live import Live
 from rich.table import Table as RichTable
 
 from logs.errors import LogsError
+from rover_cli.errors import print_error
 
 # Long enough for a rover that publishes navigator/state at a thinned live rate (1-2 Hz) to show its
 # next state; short enough that an operator is told quickly that an e-stop was not confirmed.
@@ -127,7 +128,7 @@ def watch_command(args: argparse.Namespace) -> int:
     try:
         session = _session(args)
     except LogsError as err:
-        console.print(f"[red]error:[/red] {err}")
+        print_error(console, err)
         return 2
     # The rover reports its bus load itself (can/stats); the config's bitrate only serves an older rover.
     view = LiveView(bitrate=_config_bitrate(args))
@@ -159,7 +160,7 @@ def record_command(args: argparse.Namespace) -> int:
         session = _session(args)
         recorder = McapRecorder(args.out)
     except LogsError as err:
-        console.print(f"[red]error:[/red] {err}")
+        print_error(console, err)
         return 2
     stream = StreamRecorder(session, args.rover_id, recorder)
     try:
@@ -194,7 +195,7 @@ def send_command_line(args: argparse.Namespace) -> int:
     try:
         session = _session(args)
     except LogsError as err:
-        console.print(f"[red]error:[/red] {err}")
+        print_error(console, err)
         return 2
     x, y = [*args.xy, None, None][:2]
     what = f"{args.kind} {x:g} {y:g}" if args.kind == "goal" else args.kind
@@ -208,7 +209,7 @@ def send_command_line(args: argparse.Namespace) -> int:
                     session, args.rover_id, args.kind, x, y, timeout_s=args.timeout_s, clock=MonotonicClock()
                 )
     except LogsError as err:
-        console.print(f"[red]error:[/red] {err}")
+        print_error(console, err)
         return 2
     finally:
         session.close()
