@@ -127,7 +127,7 @@ def _full_stack(run: StackRun) -> dict[str, Any]:
     from navigator.input_wait import input_poller, input_waiter
     from navigator.onboard import OnboardStack
     from navigator.plan_worker import plan_worker
-    from navigator.rover_process import paced_scheduler, warm_up
+    from navigator.rover_process import paced_scheduler
     from navigator.runtime import (
         FixedRateScheduler,
         TimingStats,
@@ -135,6 +135,7 @@ def _full_stack(run: StackRun) -> dict[str, Any]:
         realtime_switch_interval,
     )
     from navigator.terrain import from_maze
+    from navigator.warm_up import warm_up
 
     config = rover_config_from_table(parse_toml(Path("configs/rover.toml").read_text(), "configs/rover.toml"))
     estimator = dataclasses.replace(

@@ -8,9 +8,9 @@ from logs.clock import SimClock
 from logs.settings import parse_toml
 from navigator.config import rover_config_from_table
 from navigator.planner import Planner
-from navigator.rover_process import warm_up
 from navigator.terrain import from_maze
 from navigator.vehicle import VehicleParams
+from navigator.warm_up import warm_up
 
 
 def test_warm_up_runs_every_control_kernel_on_a_map_and_on_one_with_no_free_cell() -> None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import base64
 import json
+import time
 from pathlib import Path
 
 import cantools
@@ -67,7 +68,10 @@ def test_every_skeleton_topic_is_recorded(small_trial):
 def test_same_seed_gives_identical_recording_and_metrics(
     small_scenario, default_config, small_trial, tmp_path
 ):
+    started = time.perf_counter()
     again = run_trial(small_scenario, default_config, tmp_path / "again")
+    # The real-time factor's time is the loop alone: less than the whole call (header, warm-up, metrics).
+    assert 0.0 < again.loop_wall_s < time.perf_counter() - started
     assert again.metrics_path.read_text() == small_trial.metrics_path.read_text()
     first = [(m.topic, m.log_time_ns, m.message) for m in read_messages(small_trial.mcap_path)]
     second = [(m.topic, m.log_time_ns, m.message) for m in read_messages(again.mcap_path)]
