@@ -20,6 +20,7 @@ from typing import Any
 from hil.campaign import Campaign, TrialSpec, campaign_config
 from hil.campaign_summary import write_summary
 from hil.scenario import load_scenario
+from hil.trial_log_label import trial_log_label
 
 logger = logging.getLogger(__name__)
 
@@ -43,9 +44,10 @@ def run_one(spec: TrialSpec) -> TrialOutcome:
 
     started = time.perf_counter()
     try:
-        scenario = load_scenario(spec.scenario_path)
-        config = campaign_config(spec.config_path, spec.overrides, spec.label)
-        result = run_trial(scenario, config, spec.out_dir, seed=spec.seed, variant=spec.variant)
+        with trial_log_label(spec.label):
+            scenario = load_scenario(spec.scenario_path)
+            config = campaign_config(spec.config_path, spec.overrides, spec.label)
+            result = run_trial(scenario, config, spec.out_dir, seed=spec.seed, variant=spec.variant)
     except Exception as err:  # a broken trial must not take the campaign down; it is reported
         logger.exception("trial %s failed", spec.label)
         return TrialOutcome(
