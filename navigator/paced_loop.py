@@ -15,9 +15,11 @@ latency is the tick's own compute time, not the wait for the next fixed-rate tic
 * a tick that ends past the next deadline is followed by one tick at once; the deadlines missed beyond
   that one are skipped and counted (``overruns``), and the grid starts again from the late tick.
 
-The minimum gap is ``period - interval / 2`` (at least ``period / 2``), where ``interval`` is the pacing
-sensor's measured sample interval: a sensor at the control rate ticks on every sample even when samples
-arrive a little early, and a 2x, 4x, 8x faster one ticks on every 2nd, 4th, 8th sample.
+The minimum gap is ``period - interval / 2`` (at least ``period / 2``) since the last *sensor* tick (a
+deadline tick does not count: a sample landing just after one starts its own tick, or a sensor back in a
+new phase would be dropped for good), where ``interval`` is the pacing sensor's measured sample
+interval: a sensor at the control rate ticks on every sample even when samples arrive a little early, and
+a 2x, 4x, 8x faster one ticks on every 2nd, 4th, 8th sample.
 
 Busy-polling (``busy_poll_ns`` > 0 and a ``poll`` to call): waking from ``select`` when the sample lands
 takes the OS 0.1-1 ms on a VM (an idle vCPU halts), and that lands on the tick's start. So from
@@ -155,6 +157,9 @@ class SensorPacedScheduler:
         self.stats = TimingStats.empty()
         self.interval = SampleInterval(self.period_ns)
         self._previous_start: int | None = None
+        # Decimation counts from the last *sensor* tick: measured from a deadline tick, a sample landing
+        # just after each one would be dropped for good and the loop would stay on its deadlines.
+        self._previous_sensor_start: int | None = None
         self._deadline = 0
 
     def run(self, duration_ns: int | None = None) -> TimingStats:
@@ -171,7 +176,10 @@ class SensorPacedScheduler:
             if received is not None:
                 self.interval.observe(received)
                 now = self._clock.now_ns()
-                if self._previous_start is None or now - self._previous_start >= self.interval.min_gap_ns():
+                if (
+                    self._previous_sensor_start is None
+                    or now - self._previous_sensor_start >= self.interval.min_gap_ns()
+                ):
                     self._run_tick(now, received)
                     continue
             now = self._clock.now_ns()
@@ -197,7 +205,7 @@ class SensorPacedScheduler:
         last = self.interval.last_ns
         if last is None:
             return None
-        previous = self._previous_start
+        previous = self._previous_sensor_start
         not_before = last if previous is None else previous + self.interval.min_gap_ns()
         expected = self.interval.expected_ns(not_before)
         # Only the first tick-starting sample after the last one: once that is missed the sensor is late
@@ -225,6 +233,7 @@ class SensorPacedScheduler:
         self._previous_start = start
         latency = self._latency() if self._latency is not None else None
         if trigger_ns is not None:
+            self._previous_sensor_start = start
             stats.sensor_ticks += 1
             # From the sensor's tick the next deadline is a period plus grace away; deadline ticks keep
             # to their absolute grid so a silent sensor leaves a steady fixed-rate loop.

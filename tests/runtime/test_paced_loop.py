@@ -94,6 +94,19 @@ def test_a_silent_sensor_falls_back_to_fixed_rate_deadlines_and_back() -> None:
     assert sum(1 for _, trigger in loop.ticks if trigger is not None) == 20
 
 
+def test_a_sensor_back_just_after_each_deadline_tick_paces_the_loop_again() -> None:
+    # The sensor comes back (an autopilot reboot) in a new phase: each sample lands 2 ms after one of the
+    # fallback's deadline ticks. Decimating those samples against the deadline tick would keep the loop
+    # on deadlines for good (seen in `rover bench runtime`: half of a 60 s run on deadline ticks).
+    first = [k * PERIOD for k in range(5)]  # ticks at 0..80 ms; deadlines then at 110, 130, 150, ...
+    resumed = [152 * MS + k * PERIOD for k in range(20)]
+    loop = _loop(first + resumed)
+    loop.run(resumed[-1] + MS)
+    after = [(t, trigger) for t, trigger in loop.ticks if t >= 152 * MS]
+    assert after[0] == (152 * MS, 152 * MS)  # the first sample back starts a tick at once
+    assert all(trigger == t for t, trigger in after) and len(after) == 20
+
+
 def test_a_faster_sensor_is_decimated_to_the_control_rate() -> None:
     arrivals = [k * 5 * MS + MS for k in range(400)]  # 200 Hz
     loop = _loop(arrivals)
