@@ -82,12 +82,17 @@ def write_report(inputs: Sequence[str | Path], out_dir: str | Path, *, plots: bo
     result = ReportResult(out / "report.html", out / "report.md", out / "report.json")
     for path in files:
         try:
-            result.runs.append(analyse(path))
+            run = analyse(path)
         except LogReadError as err:
             result.failed[str(path)] = str(err)
             logger.warning("skipped %s: %s", path, err)
-    if len(result.runs) >= 2:
-        result.comparisons = [compare_runs(result.runs[0], other) for other in result.runs[1:]]
+            continue
+        if not any(run.counts.values()):
+            # An empty file, or one cut before its first message: a report of it would be all blanks.
+            result.failed[str(path)] = "holds no messages (cut before the first one?)"
+            continue
+        result.runs.append(run)
+    result.comparisons = [compare_runs(a, b) for a, b in comparison_pairs(result.runs, campaign=campaign)]
     if campaign or len(result.runs) > 2:
         result.terrain_table = terrain_table(result.runs)
     document = _document(result)
@@ -127,6 +132,30 @@ def terrain_table(runs: Sequence[TrialAnalysis]) -> list[dict[str, Any]]:
             }
         )
     return rows
+
+
+def comparison_pairs(
+    runs: Sequence[TrialAnalysis], *, campaign: bool
+) -> list[tuple[TrialAnalysis, TrialAnalysis]]:
+    """Which runs are compared point by point.
+
+    Files given one by one: the first against each other one (a sim run against the real runs, say). A
+    campaign: only runs that differ in nothing but the variant (the same scenario and seed), the first
+    variant against each other one; across terrains or seeds a point-by-point gap says nothing, and the
+    per-terrain table compares those.
+    """
+    if not campaign:
+        return [(runs[0], other) for other in runs[1:]]
+    groups: dict[tuple[str, str], list[TrialAnalysis]] = {}
+    for run in runs:
+        scenario = run.metadata.get("scenario", {})
+        groups.setdefault((scenario.get("name", run.path), scenario.get("seed", "")), []).append(run)
+    return [
+        (members[0], other)
+        for members in groups.values()
+        for other in members[1:]
+        if _variant(other) != _variant(members[0])
+    ]
 
 
 def _variant(run: TrialAnalysis) -> str:

@@ -109,9 +109,19 @@ def report_command(args: argparse.Namespace) -> int:
         print_error(console, err)
         return 2
     for path, reason in result.failed.items():
-        console.print(f"[yellow]skipped[/yellow] {path}: {reason}")
+        console.print(f"[yellow]skipped[/yellow] {escape(path)}: {escape(reason)}", soft_wrap=True)
+    if result.failed:
+        console.print(
+            "  `rover logs doctor FILE` says what is wrong with a file; `rover logs recover FILE OUT` "
+            "rescues every complete chunk of a damaged or cut one.",
+            soft_wrap=True,
+        )
     for run in result.runs:
         if run.missing:
-            console.print(f"[yellow]partial[/yellow] {run.path}: missing {', '.join(run.missing)}")
+            console.print(f"[yellow]partial[/yellow] {escape(run.path)}: missing {', '.join(run.missing)}")
     console.print(f"report: {result.html}\n        {result.markdown}\n        {result.json}")
-    return 0 if result.runs else 2
+    if not result.runs:
+        print_error(console, "no input could be read: the report only says why")
+        return 2
+    # 1: a report was written, but without some of the inputs (a script must not take it for all of them).
+    return 1 if result.failed else 0

@@ -47,3 +47,21 @@ def test_recover_then_report(recording: Path, tmp_path: Path, capsys: pytest.Cap
     )
     assert (tmp_path / "r" / "report.html").exists() and (tmp_path / "r" / "report.json").exists()
     assert main(["logs", "report", str(tmp_path / "absent.mcap"), "--out", str(tmp_path / "r2")]) == 2
+
+
+def test_report_exit_codes_say_whether_every_input_made_it(
+    recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    empty = tmp_path / "empty.mcap"
+    empty.write_bytes(b"")  # a recorder that died before its first byte
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"PK\x03\x04 a zip file")
+    out = ["--out", str(tmp_path / "r"), "--no-plots"]
+    # A report of the good file, without the two others: 1, each named with why, and where to look next.
+    assert main(["logs", "report", str(recording), str(empty), str(junk), *out]) == 1
+    printed = " ".join(capsys.readouterr().out.split())
+    assert "empty.mcap: holds no messages" in printed and "junk.mcap" in printed
+    assert "rover logs recover" in printed
+    # Nothing readable at all: 2.
+    assert main(["logs", "report", str(empty), *out]) == 2
+    assert main(["logs", "report", str(recording), *out]) == 0
