@@ -136,7 +136,7 @@ def run_rover(
             finally:
                 stack.close()  # zero wheel commands, links closed
             summary = timing.summary()
-            _log.info("stopped: %s", summary)
+            _log.info("stopped: %s", timing.describe())
             recorder.add_metadata("runtime", {"timing_json": json.dumps(summary)})
         finally:
             # A plan still running is not waited for: its outcome would never be read.

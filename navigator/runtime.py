@@ -117,6 +117,21 @@ class TimingStats:
             "tick_time": self.tick_ns.summary_ms(),
         }
 
+    def describe(self) -> str:
+        """One line for a person: ticks and what started them, overruns, jitter / latency / tick time."""
+
+        def triple(ring: RingStats) -> str:
+            if ring.count == 0:
+                return "none"
+            figures = ring.summary_ms()
+            return f"{figures['p50_ms']:.2f} / {figures['p99_ms']:.2f} / {figures['max_ms']:.2f} ms"
+
+        return (
+            f"{self.ticks} ticks ({self.sensor_ticks} sensor, {self.deadline_ticks} deadline), "
+            f"{self.overruns} overruns; p50 / p99 / max: jitter {triple(self.jitter_ns)}, "
+            f"latency {triple(self.latency_ns)}, tick time {triple(self.tick_ns)}"
+        )
+
 
 class FixedRateScheduler:
     """Calls ``tick`` at ``rate_hz`` on ``clock``; ``ingest`` while waiting; ``wait(seconds)`` to idle.

@@ -331,6 +331,6 @@ def run_peer_command(args: argparse.Namespace) -> int:
     print(f"truth: {result.mcap_path}")
     print(
         f"simulated {result.simulated_s:.1f} s; VESC commands {result.commands_applied}, "
-        f"command timeouts {result.vesc_timeouts}; timing {result.timing.summary()}"
+        f"command timeouts {result.vesc_timeouts}; steps: {result.timing.describe()}"
     )
     return 0

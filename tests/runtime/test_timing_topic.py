@@ -52,3 +52,15 @@ def test_one_message_per_window_with_that_windows_figures() -> None:
     assert second["jitter"]["max_ms"] == 0.0
     schema = topics.spec(topics.RUNTIME_TIMING).schema
     assert all(_matches(m, schema) for m in messages)
+
+
+def test_timing_stats_describe_themselves_in_one_line_even_without_samples() -> None:
+    from navigator.runtime import TimingStats
+
+    stats = TimingStats.empty()
+    stats.ticks, stats.sensor_ticks, stats.deadline_ticks = 3, 2, 1
+    for value in (1_000_000, 2_000_000):
+        stats.jitter_ns.add(value)
+    line = stats.describe()
+    assert line.startswith("3 ticks (2 sensor, 1 deadline), 0 overruns")
+    assert "jitter 1.50 / 1.99 / 2.00 ms" in line and "latency none" in line and "nan" not in line
