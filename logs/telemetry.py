@@ -29,7 +29,7 @@ from logs.encoding import encode_message
 from logs.errors import TelemetryError, TelemetrySetupError
 from logs.settings import Table
 from logs.sink import Message
-from logs.topics import TOPICS
+from logs.topics import CAN_STATS, TOPICS
 
 logger = logging.getLogger(__name__)
 
@@ -90,6 +90,10 @@ def _overrides(table: Table) -> tuple[tuple[str, Any], ...]:
     return tuple(sorted(value.items()))
 
 
+# Topics the live stream must carry whole: the station's figures depend on every message of them.
+NEVER_THINNED = frozenset({CAN_STATS})
+
+
 def _rates(table: Table) -> tuple[tuple[str, float], ...]:
     if not table.has("rates"):
         return ()
@@ -98,6 +102,9 @@ def _rates(table: Table) -> tuple[tuple[str, float], ...]:
     for topic in sorted(rates.keys()):
         if topic not in TOPICS:
             raise rates.error(topic, f"unknown topic; known topics: {', '.join(sorted(TOPICS))}")
+        if topic in NEVER_THINNED:
+            # Refused on load, not when the stream opens: the rover must not get as far as its links.
+            raise rates.error(topic, "is never thinned (the ground station's bus load comes from it; ~1/s)")
         result.append((topic, rates.number(topic, lo=0.01, hi=10_000.0)))
     rates.finish()
     return tuple(result)

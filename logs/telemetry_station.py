@@ -28,7 +28,7 @@ from logs.encoding import EncodedSink
 from logs.errors import LogsError, TelemetrySetupError
 from logs.recorder import McapRecorder
 from logs.sink import Message, MessageSink
-from logs.telemetry import TelemetrySample, TelemetrySubscription, subscribe
+from logs.telemetry import NEVER_THINNED, TelemetrySample, TelemetrySubscription, subscribe
 from logs.topics import (
     CAN_FRAMES,
     CAN_STATS,
@@ -42,9 +42,6 @@ from logs.topics import (
 )
 
 logger = logging.getLogger(__name__)
-
-# Topics the live stream must carry whole: the station's figures depend on every message of them.
-NEVER_THINNED = frozenset({CAN_STATS})
 
 
 class RateLimitedSink:

@@ -89,14 +89,16 @@ def run_rover(
             },
         )
         sink: MessageSink = recorder
-        if telemetry and config.zenoh.enabled:
-            session = open_session(config.zenoh)
-            publisher = ZenohTelemetry(session, config.rover_id)
-            commands = ZenohCommandReceiver(session, config.rover_id, clock)
-            sink = FanoutSink([recorder, rate_limited(publisher, config.zenoh.rates_hz)])
-        deferred = deferred_sink(sink)
         planning = plan_worker()
+        # Everything opened from here on is closed in the finally, whatever fails on the way: a Zenoh
+        # session or command receiver left open keeps the process from exiting (SIGTERM included).
         try:
+            if telemetry and config.zenoh.enabled:
+                session = open_session(config.zenoh)
+                publisher = ZenohTelemetry(session, config.rover_id)
+                commands = ZenohCommandReceiver(session, config.rover_id, clock)
+                sink = FanoutSink([recorder, rate_limited(publisher, config.zenoh.rates_hz)])
+            deferred = deferred_sink(sink)
             links = open_links(config, clock, deferred)
             stack = OnboardStack(
                 config,

@@ -38,6 +38,7 @@ def _point(text: str) -> tuple[float, float]:
 def run_command(args: argparse.Namespace) -> int:
     from firmware_bridge.errors import BridgeError
     from logs.clock import MonotonicClock
+    from logs.errors import TelemetrySetupError
     from logs.settings import ConfigError
     from navigator.config import load_rover_config
     from navigator.rover_process import RoverSetupError, run_rover
@@ -68,7 +69,7 @@ def run_command(args: argparse.Namespace) -> int:
             duration_ns=duration_ns,
             telemetry=not args.no_telemetry,
         )
-    except (RoverSetupError, BridgeError) as err:
+    except (RoverSetupError, BridgeError, TelemetrySetupError) as err:
         _log.error("cannot start: %s", err)
         return 2
     print(f"recording: {result.mcap_path}")

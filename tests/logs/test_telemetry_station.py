@@ -76,3 +76,16 @@ def test_live_view_without_stats_never_shows_frames_as_the_whole_load() -> None:
     no_bitrate = LiveView()
     no_bitrate.update(TelemetrySample(CAN_FRAMES, 0, _frame()))
     assert "may be thinned" in dict(no_bitrate.rows())["CAN bus load (%)"]
+
+
+def test_a_rover_config_thinning_can_stats_is_refused_on_load(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    # Refused when the file is read, naming the key: `rover run` once got as far as opening Zenoh,
+    # failed there with a traceback and then hung at exit with the session still open.
+    from logs.settings import ConfigError
+    from navigator.config import load_rover_config
+
+    path = tmp_path / "rover.toml"
+    path.write_text('[zenoh.rates]\n"can/stats" = 10.0\n', encoding="utf-8")
+    with pytest.raises(ConfigError, match="never thinned") as refused:
+        load_rover_config(path)
+    assert refused.value.key == "zenoh.rates.can/stats"
