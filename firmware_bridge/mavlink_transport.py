@@ -97,7 +97,12 @@ def _resolve_host(host: str, allow_remote: bool, connection: str) -> str:
 
 
 class UdpTransport:
-    """MAVLink over UDP. ``udpin`` binds and replies to the last sender; ``udpout`` sends to the address."""
+    """MAVLink over UDP. ``udpin`` binds and replies to the last sender; ``udpout`` sends to the address.
+
+    ``udpout`` talks to its configured peer only: a datagram from anyone else is dropped and counted
+    (``foreign_datagrams``); replying to it would hand the link to whoever sent one datagram. To a
+    loopback peer the socket is bound to loopback too, so nothing off the machine can reach it.
+    """
 
     def __init__(self, mode: str, host: str, port: int, *, allow_remote: bool = False) -> None:
         connection = f"{mode}:{host}:{port}"
@@ -114,11 +119,15 @@ class UdpTransport:
                 self._socket.bind((address, port))
             else:
                 self._peer = (address, port)
+                if ipaddress.ip_address(address).is_loopback:
+                    self._socket.bind((address, 0))
         except OSError as err:
             self._socket.close()
             raise BridgeSetupError(f"{connection!r}: cannot bind: {err}") from err
         self._closed = False
+        self._fixed_peer = mode == "udpout"
         self.dropped_writes = 0
+        self.foreign_datagrams = 0
 
     @property
     def local_address(self) -> tuple[str, int]:
@@ -155,8 +164,18 @@ class UdpTransport:
                 # e.g. ICMP port unreachable from a udpout peer that is not up yet: not fatal.
                 logger.debug("UDP receive failed: %s", err)
                 break
+            origin = (str(sender[0]), int(sender[1]))
+            if self._fixed_peer and origin != self._peer:
+                self.foreign_datagrams += 1
+                if self.foreign_datagrams % 100 == 1:
+                    logger.warning(
+                        "MAVLink UDP: dropped a datagram from %s:%d, not our peer (%d so far)",
+                        *origin,
+                        self.foreign_datagrams,
+                    )
+                continue
             chunks.append(data)
-            self._peer = (str(sender[0]), int(sender[1]))
+            self._peer = origin
         return b"".join(chunks)
 
     def close(self) -> None:

@@ -73,5 +73,5 @@ def run_command(args: argparse.Namespace) -> int:
         _log.error("cannot start: %s", err)
         return 2
     print(f"recording: {result.mcap_path}")
-    print(f"timing: {result.timing.summary()}")
+    print(f"timing: {result.timing.describe()}")
     return 0
