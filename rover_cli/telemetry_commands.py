@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import signal
 import threading
 import time
 from pathlib import Path
@@ -108,16 +109,20 @@ def _config_bitrate(args: argparse.Namespace) -> int | None:
 
 
 def _wait(duration_s: float | None, tick: Any = None) -> None:
-    """Until the duration has passed or Ctrl-C; ``tick()`` four times a second."""
+    """Until the duration has passed, Ctrl-C or SIGTERM (a station under systemd or docker is stopped that
+    way: the recording must still be closed); ``tick()`` four times a second."""
     stop = threading.Event()
     deadline = None if duration_s is None else time.monotonic() + duration_s
+    previous = signal.signal(signal.SIGTERM, lambda signum, frame: stop.set())
     try:
-        while deadline is None or time.monotonic() < deadline:
+        while not stop.is_set() and (deadline is None or time.monotonic() < deadline):
             if tick is not None:
                 tick()
             stop.wait(0.25)
     except KeyboardInterrupt:
         pass
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def watch_command(args: argparse.Namespace) -> int:
