@@ -9,6 +9,7 @@ the ``log`` topic, and its ``truth/wheels`` must show the wheel surfaces at rest
 
 from __future__ import annotations
 
+import itertools
 import os
 import signal
 import time
@@ -49,7 +50,9 @@ def _timeouts_after(peer: Peer, count: int) -> int | None:
     return status["vesc_timeouts"] if status and status["vesc_timeouts"] >= count else None
 
 
-def _check_stopped(truth: Path, signal_ns: int, label: str) -> None:
+def _check_stopped(truth: Path, signal_ns: int, label: str, resumed_ns: int | None = None) -> None:
+    """``resumed_ns``: when the rover was let go again (SIGCONT); its fresh commands may turn the wheels
+    from then on, so the at-rest window ends there."""
     timeouts = [
         m.log_time_ns
         for m in read_messages(truth, ["log"])
@@ -61,14 +64,19 @@ def _check_stopped(truth: Path, signal_ns: int, label: str) -> None:
         f"{label}: wheels released {stopped_after_s:.3f} s after (bound {BOUND_S})"
     )
     rest_from = timeouts[0] + round(AT_REST_AFTER_S * 1e9)
+    rest_until = rest_from + 500_000_000
+    if resumed_ns is not None:
+        rest_until = min(rest_until, resumed_ns)
     wheels = [
-        m.message
-        for m in read_messages(truth, ["truth/wheels"])
-        if rest_from <= m.log_time_ns <= rest_from + 500_000_000
+        m.message for m in read_messages(truth, ["truth/wheels"]) if rest_from <= m.log_time_ns <= rest_until
     ]
     assert wheels, f"{label}: no truth/wheels after the timeout"
-    fastest = max(abs(w["surface_speed_mps"]) for message in wheels for w in message["wheels"])
-    assert fastest < AT_REST_MPS, f"{label}: a wheel still turns at {fastest:.3f} m/s"
+    fastest = [max(abs(w["surface_speed_mps"]) for w in message["wheels"]) for message in wheels]
+    # Released motors only slow down; and by the window's end they are at rest. (Not "at rest all
+    # through the window": the peer caps a late step at MAX_SUBSTEPS, so a peer scheduled late on a loaded
+    # machine lets less simulated time pass than wall time, and the decay takes longer on the wall clock.)
+    assert all(b <= a + 1e-9 for a, b in itertools.pairwise(fastest)), f"{label}: a wheel sped up: {fastest}"
+    assert fastest[-1] < AT_REST_MPS, f"{label}: a wheel still turns at {fastest[-1]:.3f} m/s"
 
 
 @needs_netns
@@ -87,6 +95,7 @@ def test_frozen_then_killed_rover_has_its_wheels_stopped_by_the_controllers(tmp_
         os.kill(rover.pid, signal.SIGSTOP)
         wait_for(lambda: _timeouts_after(peer, before["vesc_timeouts"] + 6), 5.0, "six timeouts (frozen)")
         time.sleep(AT_REST_AFTER_S + 0.5)
+        cont_ns = time.monotonic_ns()
         os.kill(rover.pid, signal.SIGCONT)
         # Resumed: the supervisor sees the stall, then drives again on fresh commands.
         wait_for(lambda: _driving(peer), 20.0, "the rover to drive again after SIGCONT", rover, peer.process)
@@ -98,5 +107,5 @@ def test_frozen_then_killed_rover_has_its_wheels_stopped_by_the_controllers(tmp_
         wait_for(lambda: _timeouts_after(peer, resumed["vesc_timeouts"] + 6), 5.0, "six timeouts (killed)")
         time.sleep(AT_REST_AFTER_S + 0.6)
     truth = tmp_path / "peer" / "truth.mcap"
-    _check_stopped(truth, stop_ns, "SIGSTOP")
+    _check_stopped(truth, stop_ns, "SIGSTOP", resumed_ns=cont_ns)
     _check_stopped(truth, kill_ns, "SIGKILL")
