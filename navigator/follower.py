@@ -33,6 +33,9 @@ class FollowerConfig:
     max_yaw_rate_rps: float = 1.2
     max_lateral_accel_mps2: float = 1.0
     goal_tolerance_m: float = 0.5
+    # Inside the tolerance the rover keeps creeping at the goal itself and stops here, or where it passes
+    # the goal: stopping at the tolerance's edge put the true stop at the edge plus the estimate's error.
+    goal_settle_m: float = 0.15
     slowdown_radius_m: float = 2.0
     turn_in_place_rad: float = math.radians(60.0)  # target further off the heading: stop and turn
     min_speed_mps: float = 0.1  # creep speed near the goal, so the approach slowdown still arrives
@@ -60,6 +63,8 @@ class FollowerConfig:
             raise ParameterError(f"follower turn_in_place_rad must be <= pi, got {self.turn_in_place_rad}")
         if self.min_speed_mps > self.max_speed_mps:
             raise ParameterError("follower min_speed_mps must not exceed max_speed_mps")
+        if self.goal_settle_m > self.goal_tolerance_m:
+            raise ParameterError("follower goal_settle_m must not exceed goal_tolerance_m")
 
     @classmethod
     def from_table(cls, table: Table) -> FollowerConfig:
@@ -77,6 +82,10 @@ class FollowerConfig:
             values[field.name] = value
         if values["min_speed_mps"] > values["max_speed_mps"]:
             raise table.error("min_speed_mps", f"must not exceed max_speed_mps ({values['max_speed_mps']})")
+        if values["goal_settle_m"] > values["goal_tolerance_m"]:
+            raise table.error(
+                "goal_settle_m", f"must not exceed goal_tolerance_m ({values['goal_tolerance_m']})"
+            )
         table.finish()
         return cls(controller=controller, **values)
 
@@ -96,10 +105,20 @@ def wrap_angle(angle: float) -> float:
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
+# Inside the tolerance, the goal counts as passed once the rover is this much further from it than at
+# its closest: more than the estimate's tick-to-tick jitter, less than a creep speed's worth of a second.
+GOAL_PASSED_MARGIN_M = 0.05
+
+
 class PurePursuit:
     """Stateful follower: remembers how far along the current path the rover has got (never backwards).
 
     Passing a different path to ``command`` starts over at its beginning.
+
+    Arrival: within ``goal_tolerance_m`` of the path's end (and near the end of the path) the rover keeps
+    driving at the goal and arrives once it is within ``goal_settle_m``, has passed the goal (the distance
+    grows again), or would have to turn away to reach it; the tolerance is the radius in which it may
+    stop, not the place it aims for.
     """
 
     def __init__(self, config: FollowerConfig) -> None:
@@ -108,6 +127,7 @@ class PurePursuit:
         self._arc: np.ndarray = np.zeros(1)  # cumulative length at each vertex
         self._segment = 0
         self._progress_m = 0.0
+        self._closest_to_goal_m = math.inf
 
     @property
     def config(self) -> FollowerConfig:
@@ -117,6 +137,7 @@ class PurePursuit:
         self._path = None
         self._segment = 0
         self._progress_m = 0.0
+        self._closest_to_goal_m = math.inf
 
     def command(self, x: float, y: float, yaw: float, speed: float, path: np.ndarray) -> FollowCommand:
         """Command for a rover at (x, y) heading ``yaw`` (ENU, rad) moving at ``speed`` along ``path``.
@@ -134,10 +155,17 @@ class PurePursuit:
         goal = points[-1]
         distance_to_goal = math.hypot(goal[0] - x, goal[1] - y)
         remaining = max(total - projection, 0.0)
-        if distance_to_goal <= cfg.goal_tolerance_m and remaining <= max(lookahead, cfg.goal_tolerance_m):
-            return FollowCommand(0.0, 0.0, cross_track, 0.0, REASON_GOAL_APPROACH, True)
+        near_end = remaining <= max(lookahead, cfg.goal_tolerance_m)
+        within = distance_to_goal <= cfg.goal_tolerance_m and near_end
+        passed = distance_to_goal > self._closest_to_goal_m + GOAL_PASSED_MARGIN_M
+        if within:
+            self._closest_to_goal_m = min(self._closest_to_goal_m, distance_to_goal)
+        if within and (distance_to_goal <= cfg.goal_settle_m or passed):
+            return self._arrived(cross_track)
 
         heading_error, curvature = self._steer(points, x, y, yaw, speed, projection, cross_track, lookahead)
+        if within and abs(heading_error) > cfg.turn_in_place_rad:
+            return self._arrived(cross_track)  # the goal is beside or behind: turning back gains little
         if abs(heading_error) > cfg.turn_in_place_rad:
             yaw_rate = math.copysign(cfg.max_yaw_rate_rps, heading_error)
             return FollowCommand(0.0, yaw_rate, cross_track, 0.0, REASON_TURN_IN_PLACE, False)
@@ -158,6 +186,9 @@ class PurePursuit:
         # The first (in listed order) of the smallest limits names the reason.
         limit, reason = min(limits, key=lambda item: item[0])
         return FollowCommand(limit, limit * curvature, cross_track, limit, reason, False, curvature)
+
+    def _arrived(self, cross_track: float) -> FollowCommand:
+        return FollowCommand(0.0, 0.0, cross_track, 0.0, REASON_GOAL_APPROACH, True)
 
     def _steer(
         self,
@@ -191,6 +222,7 @@ class PurePursuit:
             self._arc = np.concatenate([[0.0], np.cumsum(lengths)])
             self._segment = 0
             self._progress_m = 0.0
+            self._closest_to_goal_m = math.inf
         return self._path
 
     def _project(self, points: np.ndarray, x: float, y: float, lookahead: float) -> tuple[float, float]:

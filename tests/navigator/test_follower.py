@@ -96,3 +96,36 @@ def test_config_from_table():
         FollowerConfig.from_table(parse_toml("look_ahead = 2.0\n", "rover.toml"))
     with pytest.raises(ConfigError, match="max_speed_mps"):
         FollowerConfig.from_table(parse_toml("max_speed_mps = 0\n", "rover.toml"))
+    with pytest.raises(ConfigError, match="goal_settle_m"):
+        FollowerConfig.from_table(parse_toml("goal_tolerance_m = 0.3\ngoal_settle_m = 0.4\n", "rover.toml"))
+
+
+def test_inside_the_tolerance_it_creeps_on_to_the_settle_radius():
+    """Stopping at the tolerance's edge would leave the true stop at the edge plus the estimate's error."""
+    path = np.array([[0.0, 0.0], [10.0, 0.0]])
+    cfg = FollowerConfig()
+    history = drive(PurePursuit(cfg), path, 0.0, 0.0, 0.0, seconds=40.0, dt=0.02)
+    assert history[-1][3].arrived
+    first_inside = next(i for i, (x, y, *_) in enumerate(history) if math.hypot(x - 10.0, y) <= 0.5)
+    assert not history[first_inside][3].arrived  # inside the tolerance, not yet arrived
+    final = math.hypot(history[-1][0] - 10.0, history[-1][1])
+    assert final <= cfg.goal_settle_m
+    assert final > cfg.goal_settle_m - 0.02 * cfg.max_speed_mps  # stopped on the tick it got there
+
+
+def test_a_goal_passed_beside_it_inside_the_tolerance_is_arrived_at_without_circling():
+    # The path ends at (10, 0); the rover runs parallel 0.3 m to its left and cannot get within 0.15 m
+    # without turning back: it arrives as the distance grows again (or the goal falls abeam).
+    path = np.array([[0.0, 0.0], [10.0, 0.0]])
+    follower = PurePursuit(FollowerConfig())
+    x, closest, arrived_at = 8.0, math.inf, None
+    for _ in range(400):
+        distance = math.hypot(x - 10.0, 0.3)
+        closest = min(closest, distance)
+        cmd = follower.command(x, 0.3, 0.0, 0.2, path)
+        if cmd.arrived:
+            arrived_at = x
+            break
+        x += 0.01  # keeps going straight whatever it is told: the estimate slides past the goal
+    assert arrived_at is not None and 9.6 <= arrived_at <= 10.5  # 9.6: where the tolerance begins
+    assert math.hypot(arrived_at - 10.0, 0.3) <= FollowerConfig().goal_tolerance_m
