@@ -1,8 +1,8 @@
 """``rover run`` that cannot start, or fails once started: no stray recording, or one that says why.
 
 A run that fails its start-up checks (a link that does not open, a lockstep-only config) creates nothing
-in ``--out``; a run that fails after its recording was opened closes it as a readable MCAP with the
-error on the ``log`` topic.
+in ``--out``, and an ``--out`` that cannot be made is a setup error, not a traceback; a run that fails
+after its recording was opened closes it as a readable MCAP with the error on the ``log`` topic.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from firmware_bridge.errors import BridgeSetupError
 from logs.clock import MonotonicClock
 from logs.reader import read_messages
 from navigator.config import load_rover_config
-from navigator.rover_process import run_rover
+from navigator.rover_process import RoverSetupError, run_rover
 from rover_cli.main import main
 
 REPO = Path(__file__).resolve().parents[2]
@@ -52,6 +52,14 @@ def test_a_link_that_cannot_open_leaves_nothing_in_out(tmp_path: Path) -> None:
     with pytest.raises(BridgeSetupError, match="udpin:HOST:PORT"):
         run_rover(config, MonotonicClock(), out, stop=threading.Event(), telemetry=False)
     assert not out.exists()
+
+
+def test_an_out_folder_that_cannot_be_made_is_a_setup_error(tmp_path: Path) -> None:
+    config = load_rover_config(write_config(tmp_path, "udpin:127.0.0.1:0"))
+    blocker = tmp_path / "not-a-folder"
+    blocker.write_text("")
+    with pytest.raises(RoverSetupError, match="cannot create recording"):
+        run_rover(config, MonotonicClock(), blocker / "run", stop=threading.Event(), telemetry=False)
 
 
 def test_a_failure_after_the_recording_opened_leaves_a_readable_mcap_saying_why(tmp_path: Path) -> None:
