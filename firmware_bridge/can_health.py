@@ -137,7 +137,7 @@ class BusStateMachine:
 class ControllerLiveness:
     """A controller is alive while its STATUS keeps coming: silent for ``silent_after_ns`` means a fault.
 
-    Until a controller is first heard, the silence is counted from the link's start.
+    Until a controller is first heard, the silence is counted from ``start_ns`` (or from ``start()``).
     """
 
     def __init__(self, controller_ids: Sequence[int], silent_after_ns: int, start_ns: int) -> None:
@@ -145,6 +145,10 @@ class ControllerLiveness:
         self._silent_after_ns = silent_after_ns
         self._last_heard = dict.fromkeys(self._ids, start_ns)
         self._alive = dict.fromkeys(self._ids, True)
+
+    def start(self, now_ns: int) -> None:
+        """Count silence from ``now_ns`` for every controller not heard since (the watch's real start)."""
+        self._last_heard = {cid: max(t, now_ns) for cid, t in self._last_heard.items()}
 
     def heard(self, controller_id: int, t_ns: int) -> StateChange | None:
         self._last_heard[controller_id] = t_ns

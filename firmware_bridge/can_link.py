@@ -186,6 +186,13 @@ class CanLink(ClosesOnExit):
         """Controller id -> False when its STATUS has been silent for ``liveness_periods`` periods."""
         return self._liveness.alive()
 
+    def start_watch(self, now_ns: int) -> None:
+        """Count the silence of controllers not heard since ``now_ns`` from then, not from construction:
+        the control loop calls this on its first tick, so a long start-up is not reported as silent
+        controllers (``can_controller_silent``)."""
+        with self._lock:
+            self._liveness.start(now_ns)
+
     # --- commands ------------------------------------------------------------------------------
     def send_wheel_speeds(self, speeds_mps: Sequence[float]) -> list[float]:
         """Ask for six wheel speeds (wheel order); return the ERPM the link stands for on the bus.

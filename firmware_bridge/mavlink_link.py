@@ -233,6 +233,12 @@ class MavlinkLink(ClosesOnExit):
             mav.signing = self._signing
         return mav
 
+    def start_watch(self, now_ns: int) -> None:
+        """Count the autopilot's silence (``mavlink_link_lost``), until its first HEARTBEAT, from ``now_ns``
+        instead of from construction: the control loop calls this on its first tick, so a long start-up
+        between opening the link and using it is not reported as a lost autopilot."""
+        self._started_ns = now_ns
+
     # --- sending -------------------------------------------------------------------------------
     def send(self, msg: Any) -> None:
         """Pack with our ids and sequence, write, record. A failed write is counted and logged."""

@@ -29,6 +29,13 @@ class RoverLinks:
     mavlink: MavlinkLink
     pacing_sources: tuple[object, ...]
 
+    def close(self) -> None:
+        """Close both links (CAN first: it commands zero to every wheel on the way); safe to call twice."""
+        try:
+            self.can.close()
+        finally:
+            self.mavlink.close()
+
 
 def open_links(config: RoverConfig, clock: Clock, sink: MessageSink) -> RoverLinks:
     """Open CAN first, then MAVLink; if MAVLink fails the CAN bus is shut again."""

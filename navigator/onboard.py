@@ -237,6 +237,7 @@ class OnboardStack:
         # started it to its wheel commands handed to the bus (None: no pacing sample fed the tick).
         # Meaningful under a real clock; 0 in lockstep.
         self.last_sensor_to_command_ns: int | None = None
+        self._watching = False  # the link watches count from the first ingest or tick (_start_watches)
         self._closed = False
 
     # --- guidance's view, as hil.trial reads it -------------------------------------------------------
@@ -281,9 +282,12 @@ class OnboardStack:
         """Read whatever arrived on the links now and fuse it; returns the receive time of the newest
         pacing sample among it (None if none). The real-time loop calls this between ticks and starts a
         tick on a pacing sample; records stay held for that tick (released otherwise)."""
+        now = self._clock.now_ns()
+        if not self._watching:
+            self._start_watches(now)
         if self._deferred is not None:
             self._deferred.hold()
-        self._read_links(self._clock.now_ns(), stop_at_pacing=True)
+        self._read_links(now, stop_at_pacing=True)
         received = self._pacing_rx_ns
         if received is None and self._deferred is not None:
             self._deferred.release()
@@ -301,6 +305,8 @@ class OnboardStack:
         ``ingest`` just before (the real-time loop); without it the tick reads the links itself and a
         pacing sample among what it reads is its trigger (lockstep)."""
         now = self._clock.now_ns()
+        if not self._watching:
+            self._start_watches(now)
         if self._deferred is not None:
             self._deferred.hold()
         # Released whatever happens: a tick that raises must not leave its records (and the zero
@@ -391,6 +397,18 @@ class OnboardStack:
                 self._deferred.release()
 
     # --- internals ------------------------------------------------------------------------------------
+    def _start_watches(self, now: int) -> None:
+        """Start every silence budget (the supervisor's GPS, heartbeat, wheel and ground-link watches, the
+        links' own) now, at the loop's first read: what happens between building the stack and running
+        it (the warm-up: ~15 s of compiling on a cold numba cache, while a peer waits for our first
+        heartbeat) must not fail safe. A link silent from here on still does, on its budget."""
+        self._watching = True
+        self.safety.start(now)
+        self._mavlink.start_watch(now)
+        self._can.start_watch(now)
+        if self._ground_station is not None:
+            self._ground_station.start_watch(now)
+
     def _ready(self, now: int, pose: PoseEstimate | None) -> bool:
         """Start-up checks before driving: autopilot heard, every wheel controller heard, estimate settled."""
         healthy = pose is not None and pose.healthy

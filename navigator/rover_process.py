@@ -1,9 +1,12 @@
 """The ``rover run`` process: start-up checks, the real-time loop, and a shutdown that stops the wheels.
 
-Start-up: the config was validated on load; the links are opened here (a failure is a setup error that
-names what to check); the terrain comes from the config's ``[map]``. Before the loop, the A* kernels are
-compiled (or loaded from numba's cache) by a warm-up plan and the map is published: neither lands in a
-tick.
+Start-up: the config was validated on load; ``check_runnable`` refuses what cannot run (a lockstep-only
+``memory`` MAVLink connection, no ``[map]``), then the Zenoh session and the links are opened (a failure
+is a setup error that names what to check). Only then is the recording created, so a run that cannot
+start leaves nothing in ``--out``; a failure after that is recorded on the ``log`` topic and the MCAP
+closed readable. Before the loop, the A* kernels are compiled (or loaded from numba's cache) by a
+warm-up plan and the map is published: neither lands in a tick, and however long the warm-up takes the
+link budgets count from the first tick (``OnboardStack``).
 Driving waits for the start-up checks in ``OnboardStack`` (autopilot heard, all six controllers heard,
 estimate healthy and settled). Planning runs on a worker thread (``navigator.plan_worker``), so a long
 plan never delays a tick. The loop is sensor-synchronous (``navigator.paced_loop``): a tick starts
@@ -24,21 +27,26 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from logs import topics
 from logs.clock import Clock
 from logs.commands import ZenohCommandReceiver
+from logs.encoding import EncodedSink
+from logs.errors import RecordingError
+from logs.pending_sink import PendingSink
 from logs.recorder import McapRecorder
 from logs.sink import FanoutSink, MessageSink
 from logs.telemetry import ZenohTelemetry, open_session
 from logs.telemetry_station import rate_limited
 from navigator.config import RoverConfig
-from navigator.deferred_sink import deferred_sink
+from navigator.deferred_sink import DeferredSink, deferred_sink
 from navigator.errors import NavigatorError
 from navigator.input_wait import input_poller, input_waiter
-from navigator.links import open_links
+from navigator.links import RoverLinks, open_links
 from navigator.onboard import OnboardStack
 from navigator.paced_loop import SensorPacedScheduler, TickSample
 from navigator.plan_worker import plan_worker
 from navigator.runtime import TimingStats, freeze_start_up_heap, realtime_switch_interval
+from navigator.terrain import TerrainMap
 from navigator.timing_topic import TimingPublisher
 from navigator.warm_up import warm_up
 
@@ -55,6 +63,28 @@ class RunResult:
     timing: TimingStats
 
 
+# foxglove.Log level of the record that says why a run ended on an error.
+_LOG_FATAL = 5
+
+
+def check_runnable(config: RoverConfig) -> TerrainMap:
+    """The start-up checks that need nothing opened; returns the map to plan on. ``RoverSetupError``
+    says what is wrong and which config to use instead."""
+    if config.mavlink.connection == "memory":
+        raise RoverSetupError(
+            f'{config.source}: [mavlink] connection = "memory" is the in-process pipe of lockstep trials '
+            "(`rover hil trial --config`), not a link to an autopilot. On the rover, start from "
+            "configs/rover.example-hardware.toml; for real-time HIL, run `rover hil peer SCENARIO --out DIR` "
+            "and pass the DIR/rover-hil.toml it writes"
+        )
+    if config.terrain is None:
+        raise RoverSetupError(
+            f"{config.source}: `rover run` needs a [map] table (the terrain to plan on; "
+            "configs/rover.example-hardware.toml has one)"
+        )
+    return config.terrain
+
+
 def run_rover(
     config: RoverConfig,
     clock: Clock,
@@ -68,88 +98,149 @@ def run_rover(
 ) -> RunResult:
     """Run the onboard stack in real time until ``stop`` is set; returns the recording and timing.
 
+    Nothing is created in ``out_dir`` until every start-up check has passed (the config, the Zenoh
+    session, both links): a run that cannot start leaves no recording behind. A failure after that is
+    recorded on the ``log`` topic, the recording closed as a readable MCAP, and the error raised.
+
     ``wait`` idles the loop between reads (default: ``select`` on the pacing link, ``navigator.input_wait``).
     """
-    if config.terrain is None:
-        raise RoverSetupError(f"{config.source}: `rover run` needs a [map] table (the terrain to plan on)")
-    out_dir.mkdir(parents=True, exist_ok=True)
+    terrain = check_runnable(config)
     mcap_path = out_dir / "rover.mcap"
     session = None
     publisher: ZenohTelemetry | None = None
     commands: ZenohCommandReceiver | None = None
-    with McapRecorder(mcap_path) as recorder:
-        # can_bitrate: the report's bus load for frames counted from the recording (as hil.trial writes it)
-        recorder.add_metadata(
-            "trial",
+    planning = plan_worker()
+    # Everything opened from here on is closed in the finally, whatever fails on the way: a Zenoh
+    # session or command receiver left open keeps the process from exiting (SIGTERM included).
+    try:
+        if telemetry and config.zenoh.enabled:
+            session = open_session(config.zenoh)
+            publisher = ZenohTelemetry(session, config.rover_id)
+            commands = ZenohCommandReceiver(session, config.rover_id, clock)
+        # The links record from the moment they open: into a pending sink until the recording exists.
+        pending = PendingSink()
+        deferred = deferred_sink(pending)
+        links = open_links(config, clock, deferred)
+        try:
+            recorder = _open_recording(mcap_path, config)
+        except RoverSetupError:
+            links.close()
+            raise
+        with recorder:
+            try:
+                sink: EncodedSink = recorder
+                if publisher is not None:
+                    sink = FanoutSink([recorder, rate_limited(publisher, config.zenoh.rates_hz)])
+                pending.connect(sink)
+                stack = OnboardStack(
+                    config,
+                    clock,
+                    links.can,
+                    links.mavlink,
+                    deferred,
+                    terrain,
+                    commands=commands,
+                    deferred=deferred,
+                    planning=planning,
+                )
+                try:
+                    timing = _warm_up_and_run(
+                        stack, config, clock, links, deferred, wait, goal, stop, duration_ns
+                    )
+                finally:
+                    stack.close()  # zero wheel commands, links closed
+            except Exception as err:
+                links.close()  # if the stack was never built; its zero wheel commands are recorded first
+                _record_failure(recorder, clock, err)
+                raise
+            _log.info("stopped: %s", timing.describe())
+            recorder.add_metadata("runtime", {"timing_json": json.dumps(timing.summary())})
+    finally:
+        # A plan still running is not waited for: its outcome would never be read.
+        planning.shutdown(wait=False, cancel_futures=True)
+        if commands is not None:
+            commands.close()
+        if publisher is not None:
+            publisher.close()
+        if session is not None:
+            session.close()
+    return RunResult(mcap_path, timing)
+
+
+def _open_recording(mcap_path: Path, config: RoverConfig) -> McapRecorder:
+    """The run's recording, with its trial metadata; ``RoverSetupError`` if the file cannot be made."""
+    try:
+        recorder = McapRecorder(mcap_path)
+    except RecordingError as err:
+        raise RoverSetupError(f"{err} (--out)") from err
+    # can_bitrate: the report's bus load for frames counted from the recording (as hil.trial writes it)
+    recorder.add_metadata(
+        "trial",
+        {
+            "mode": "rover-run",
+            "rover_id": config.rover_id,
+            "config": config.source,
+            "can_bitrate": str(config.can.bitrate),
+        },
+    )
+    return recorder
+
+
+def _warm_up_and_run(
+    stack: OnboardStack,
+    config: RoverConfig,
+    clock: Clock,
+    links: RoverLinks,
+    deferred: DeferredSink,
+    wait: Callable[[float], None] | None,
+    goal: tuple[float, float] | None,
+    stop: threading.Event,
+    duration_ns: int | None,
+) -> TimingStats:
+    """Load the kernels, publish the map, set the goal, then run the loop until ``stop`` or the duration."""
+    warm_up(stack.guidance.planner, config, clock)
+    stack.publish_map()
+    if goal is not None:
+        stack.set_goal(*goal)
+    scheduler = paced_scheduler(
+        stack,
+        clock,
+        config,
+        deferred,
+        wait or input_waiter(links.pacing_sources),
+        stop,
+        # A caller's own wait (a test's) is the whole wait: no busy-poll around it.
+        poll=input_poller(links.pacing_sources) if wait is None else None,
+    )
+    _log.info(
+        "rover %s running at %.0f Hz, paced by %s",
+        config.rover_id,
+        config.control_rate_hz,
+        config.pacing_sensor,
+    )
+    freeze_start_up_heap()
+    with realtime_switch_interval():
+        return scheduler.run(duration_ns)
+
+
+def _record_failure(recorder: McapRecorder, clock: Clock, err: Exception) -> None:
+    """Put why the run failed on the ``log`` topic (the recording is closed right after)."""
+    now = clock.now_ns()
+    try:
+        recorder.publish(
+            topics.LOG,
+            now,
             {
-                "mode": "rover-run",
-                "rover_id": config.rover_id,
-                "config": config.source,
-                "can_bitrate": str(config.can.bitrate),
+                "timestamp": topics.stamp(now),
+                "level": _LOG_FATAL,
+                "message": f"rover run failed: {type(err).__name__}: {err}",
+                "name": __name__,
+                "file": "",
+                "line": 0,
             },
         )
-        sink: MessageSink = recorder
-        planning = plan_worker()
-        # Everything opened from here on is closed in the finally, whatever fails on the way: a Zenoh
-        # session or command receiver left open keeps the process from exiting (SIGTERM included).
-        try:
-            if telemetry and config.zenoh.enabled:
-                session = open_session(config.zenoh)
-                publisher = ZenohTelemetry(session, config.rover_id)
-                commands = ZenohCommandReceiver(session, config.rover_id, clock)
-                sink = FanoutSink([recorder, rate_limited(publisher, config.zenoh.rates_hz)])
-            deferred = deferred_sink(sink)
-            links = open_links(config, clock, deferred)
-            stack = OnboardStack(
-                config,
-                clock,
-                links.can,
-                links.mavlink,
-                deferred,
-                config.terrain,
-                commands=commands,
-                deferred=deferred,
-                planning=planning,
-            )
-            try:
-                warm_up(stack.guidance.planner, config, clock)
-                stack.publish_map()
-                if goal is not None:
-                    stack.set_goal(*goal)
-                scheduler = paced_scheduler(
-                    stack,
-                    clock,
-                    config,
-                    deferred,
-                    wait or input_waiter(links.pacing_sources),
-                    stop,
-                    # A caller's own wait (a test's) is the whole wait: no busy-poll around it.
-                    poll=input_poller(links.pacing_sources) if wait is None else None,
-                )
-                _log.info(
-                    "rover %s running at %.0f Hz, paced by %s",
-                    config.rover_id,
-                    config.control_rate_hz,
-                    config.pacing_sensor,
-                )
-                freeze_start_up_heap()
-                with realtime_switch_interval():
-                    timing = scheduler.run(duration_ns)
-            finally:
-                stack.close()  # zero wheel commands, links closed
-            summary = timing.summary()
-            _log.info("stopped: %s", timing.describe())
-            recorder.add_metadata("runtime", {"timing_json": json.dumps(summary)})
-        finally:
-            # A plan still running is not waited for: its outcome would never be read.
-            planning.shutdown(wait=False, cancel_futures=True)
-            if commands is not None:
-                commands.close()
-            if publisher is not None:
-                publisher.close()
-            if session is not None:
-                session.close()
-    return RunResult(mcap_path, timing)
+    except RecordingError as record_err:  # the original error is the one to raise
+        _log.error("could not record why the run failed (%s): %s", err, record_err)
 
 
 def paced_scheduler(

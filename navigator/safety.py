@@ -119,6 +119,12 @@ class SafetySupervisor:
     def faults(self) -> tuple[str, ...]:
         return tuple(sorted(self._active))
 
+    def start(self, now_ns: int) -> None:
+        """Count the silence of links never heard (GPS, heartbeat, wheels, ground station) from ``now_ns``:
+        the loop's first tick. Time before it (a warm-up compiling kernels for seconds on a cold cache,
+        while a peer waits for our first heartbeat) is nobody's silence and must not fail safe."""
+        self._start_ns = now_ns
+
     # --- commands -------------------------------------------------------------------------------
     def estop(self, source: str) -> None:
         """Latch the emergency stop (from Zenoh, MAVLink or the operator)."""
@@ -267,7 +273,7 @@ class SafetySupervisor:
 
     # --- helpers --------------------------------------------------------------------------------
     def _age(self, now_ns: int, t_ns: int | None) -> int:
-        """Time since ``t_ns``; never seen counts from the supervisor's start."""
+        """Time since ``t_ns``; never seen counts from the supervisor's start (``start``)."""
         return now_ns - (self._start_ns if t_ns is None else t_ns)
 
     def _sustained(self, key: str, condition: bool, now_ns: int, start_ns: int | None = None) -> int:

@@ -41,11 +41,12 @@ def run_command(args: argparse.Namespace) -> int:
     from logs.errors import TelemetrySetupError
     from logs.settings import ConfigError
     from navigator.config import load_rover_config
-    from navigator.rover_process import RoverSetupError, run_rover
+    from navigator.rover_process import RoverSetupError, check_runnable, run_rover
 
     try:
         config = load_rover_config(args.config)
-    except ConfigError as err:
+        check_runnable(config)
+    except (ConfigError, RoverSetupError) as err:
         _log.error("%s", err)
         return 2
     stop = threading.Event()

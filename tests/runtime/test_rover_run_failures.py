@@ -1,0 +1,95 @@
+"""``rover run`` that cannot start, or fails once started: no stray recording, or one that says why.
+
+A run that fails its start-up checks (a link that does not open, a lockstep-only config) creates nothing
+in ``--out``, and an ``--out`` that cannot be made is a setup error, not a traceback; a run that fails
+after its recording was opened closes it as a readable MCAP with the error on the ``log`` topic.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import threading
+from pathlib import Path
+
+import pytest
+
+from firmware_bridge.errors import BridgeSetupError
+from logs.clock import MonotonicClock
+from logs.reader import read_messages
+from navigator.config import load_rover_config
+from navigator.rover_process import RoverSetupError, run_rover
+from rover_cli.main import main
+
+REPO = Path(__file__).resolve().parents[2]
+_channels = itertools.count()
+
+CONFIG = """
+rover_id = "failtest"
+[can]
+interface = "virtual"
+channel = "failtest-{n}"
+[mavlink]
+connection = "{connection}"
+[zenoh]
+enabled = false
+[map]
+kind = "procedural"
+size_m = [10.0, 10.0]
+resolution_m = 0.5
+"""
+
+
+def write_config(tmp_path: Path, connection: str) -> Path:
+    path = tmp_path / "rover.toml"
+    path.write_text(CONFIG.format(n=next(_channels), connection=connection))
+    return path
+
+
+def test_a_link_that_cannot_open_leaves_nothing_in_out(tmp_path: Path) -> None:
+    config = load_rover_config(write_config(tmp_path, "udpin:127.0.0.1:notaport"))
+    out = tmp_path / "run"
+    with pytest.raises(BridgeSetupError, match="udpin:HOST:PORT"):
+        run_rover(config, MonotonicClock(), out, stop=threading.Event(), telemetry=False)
+    assert not out.exists()
+
+
+def test_an_out_folder_that_cannot_be_made_is_a_setup_error(tmp_path: Path) -> None:
+    config = load_rover_config(write_config(tmp_path, "udpin:127.0.0.1:0"))
+    blocker = tmp_path / "not-a-folder"
+    blocker.write_text("")
+    with pytest.raises(RoverSetupError, match="cannot create recording"):
+        run_rover(config, MonotonicClock(), blocker / "run", stop=threading.Event(), telemetry=False)
+
+
+def test_a_failure_after_the_recording_opened_leaves_a_readable_mcap_saying_why(tmp_path: Path) -> None:
+    config = load_rover_config(write_config(tmp_path, "udpin:127.0.0.1:0"))
+    out = tmp_path / "run"
+
+    def broken_wait(timeout_s: float) -> None:
+        raise OSError(f"select on the MAVLink socket failed (waiting {timeout_s:.3f} s)")
+
+    with pytest.raises(OSError, match="select on the MAVLink socket failed"):
+        run_rover(config, MonotonicClock(), out, stop=threading.Event(), wait=broken_wait, telemetry=False)
+    logged = [m.message for m in read_messages(out / "rover.mcap", topics=["log"])]
+    assert len(logged) == 1
+    assert logged[0]["level"] == 5  # foxglove.Log FATAL: the run ended on it
+    assert "rover run failed" in logged[0]["message"]
+    assert "select on the MAVLink socket failed" in logged[0]["message"]
+    # The rest of what was recorded is still there: the zero wheel commands sent on the way out.
+    frames = [m.message for m in read_messages(out / "rover.mcap", topics=["can/frames"])]
+    assert frames and all(f["direction"] == "tx" for f in frames)
+
+
+def test_the_lockstep_config_is_refused_with_a_pointer_to_the_right_ones(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    out = tmp_path / "run"
+    with caplog.at_level(logging.ERROR):
+        code = main(["run", "--config", str(REPO / "configs" / "rover.toml"), "--out", str(out)])
+    assert code == 2
+    said = caplog.text
+    assert "lockstep" in said
+    assert "configs/rover.example-hardware.toml" in said
+    assert "rover hil peer" in said and "rover-hil.toml" in said
+    assert not out.exists()
