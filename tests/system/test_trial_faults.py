@@ -11,6 +11,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
+
 from hil.scenario import Scenario, load_scenario
 from hil.trial import TrialResult, run_trial
 from logs.reader import read_messages
@@ -77,7 +79,9 @@ def test_a_fault_after_the_arrival_runs_with_the_rover_parked(
     assert small_trial.simulated_s == small_trial.arrived_s  # no faults: it stops at the arrival
 
 
-def test_faults_the_trial_did_not_run_fail_it_with_their_names(tmp_path: Path, capsys) -> None:
+def test_faults_the_trial_did_not_run_fail_it_with_their_names(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     scenario = _boulder_with_faults(tmp_path)
     code = main(["hil", "trial", str(scenario), "--no-telemetry", "--out", str(tmp_path / "run")])
     out = capsys.readouterr().out
@@ -91,7 +95,9 @@ def test_faults_the_trial_did_not_run_fail_it_with_their_names(tmp_path: Path, c
     assert any(NEVER_RUN in m for m in logged) and any(CUT_SHORT in m for m in logged)
 
 
-def test_a_campaign_summary_carries_the_faults_a_trial_did_not_run(tmp_path: Path, capsys) -> None:
+def test_a_campaign_summary_carries_the_faults_a_trial_did_not_run(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     campaign = tmp_path / "campaign.toml"
     campaign.write_text(
         f'name = "faults"\nseeds = [1]\nworkers = 1\n\n[[terrains]]\nname = "rocky"\n'
