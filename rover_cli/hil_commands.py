@@ -336,6 +336,7 @@ def run_peer_command(args: argparse.Namespace) -> int:
     print(f"truth: {result.mcap_path}")
     print(
         f"simulated {result.simulated_s:.1f} s; VESC commands {result.commands_applied}, "
-        f"command timeouts {result.vesc_timeouts}; steps: {result.timing.describe()}"
+        f"command timeouts {result.vesc_timeouts}; steps: {result.timing.describe()}; "
+        f"{result.stalls.describe()}"
     )
     return 0
