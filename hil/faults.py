@@ -163,9 +163,20 @@ def faults_from_tables(tables: Sequence[Table], duration_s: float) -> tuple[Faul
         if kind not in SUPPORTED[target]:
             raise table.error("kind", f"{target} faults can be {', '.join(SUPPORTED[target])}; got {kind!r}")
         start_s = table.number("start_s", 0.0, lo=0.0, hi=duration_s)
+        # A fault the trial cannot run (in full) is a mistake in the scenario: say so now, not after the run.
+        if start_s >= duration_s:
+            raise table.error(
+                "start_s", f"{start_s:g} s is not before the scenario's duration_s {duration_s:g} s"
+            )
         # Without a duration the fault lasts past the trial's end (it never clears).
         if table.has("duration_s"):
             end_s = start_s + table.number("duration_s", lo=0.0, hi=24 * 3600.0)
+            if end_s > duration_s:
+                raise table.error(
+                    "duration_s",
+                    f"the fault would end at {end_s:g} s, after the scenario's duration_s {duration_s:g} s; "
+                    "shorten it, or leave duration_s out for a fault that lasts until the trial ends",
+                )
         else:
             end_s = duration_s + 1.0
         fault = Fault(

@@ -12,7 +12,9 @@ MCAP, so real-time metrics can be computed from it together with the rover's rec
 (``hil.realtime_metrics``).
 
 A late tick integrates the time that really passed, in sub-steps of at most ``PHYSICS_DT_NS``, so the
-simulated rover moves in real time even when the machine is busy; the scheduler counts the overruns.
+simulated rover moves in real time even when the machine is busy; the scheduler counts the overruns. A
+tick later than ``MAX_SUBSTEPS`` steps is a stall: the time beyond them is dropped, counted
+(``hil.peer_stalls``) and recorded on ``log``.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ from firmware_bridge.mavlink_transport import Transport, UdpTransport, open_tran
 from firmware_bridge.vesc import VescCodec
 from firmware_bridge.vesc_dbc import load_vesc_database
 from hil.peer_files import write_peer_files
+from hil.peer_stalls import PeerStalls, stall_message
 from hil.scenario import Scenario
 from hil.world import SimWorld
 from logs import topics
@@ -45,8 +48,8 @@ from navigator.runtime import FixedRateScheduler, TimingStats, freeze_start_up_h
 _log = logging.getLogger(__name__)
 
 PHYSICS_DT_NS = 10_000_000  # 100 Hz rover body, as in lockstep
-# A tick later than this many physics steps is not caught up in full (the world would jump); the lost
-# time is counted by the scheduler as overruns.
+# A tick later than this many physics steps is not caught up in full (the world would jump); the time
+# beyond them is dropped, and counted as a stall (``hil.peer_stalls``).
 MAX_SUBSTEPS = 5
 STATUS_PERIOD_NS = 50_000_000  # the status file is rewritten at 20 Hz
 _LOG_WARNING = 3  # foxglove.Log level
@@ -59,6 +62,7 @@ class PeerResult:
     simulated_s: float
     vesc_timeouts: int
     commands_applied: int
+    stalls: PeerStalls
 
 
 class RealtimePeer:
@@ -80,10 +84,18 @@ class RealtimePeer:
         self._next_status_ns = self._last_ns
         self._timeouts_seen = 0
         self.simulated_ns = 0
+        self.stalls = PeerStalls(MAX_SUBSTEPS * PHYSICS_DT_NS)
+
+    def start(self) -> None:
+        """Time the first step from now: what came before it (start-up) is not a stall."""
+        self._last_ns = self._clock.now_ns()
 
     def tick(self) -> None:
         now = self._clock.now_ns()
-        elapsed = min(now - self._last_ns, MAX_SUBSTEPS * PHYSICS_DT_NS)
+        gap = now - self._last_ns
+        elapsed = self.stalls.note(gap)
+        if elapsed < gap:
+            self._log(now, stall_message(gap, gap - elapsed))
         self._last_ns = now
         steps = max(1, -(-elapsed // PHYSICS_DT_NS))
         dt_s = seconds(elapsed) / steps
@@ -99,19 +111,22 @@ class RealtimePeer:
         """Record each command timeout: the evidence that the controllers stopped a silent rover's wheels."""
         timeouts = self.world.vescs.timeouts
         if timeouts > self._timeouts_seen:
-            self._recorder.publish(
-                topics.LOG,
-                now,
-                {
-                    "timestamp": topics.stamp(now),
-                    "level": _LOG_WARNING,
-                    "message": f"VESC command timeout: {timeouts - self._timeouts_seen} wheel(s) stopped",
-                    "name": "hil.peer",
-                    "file": "",
-                    "line": 0,
-                },
-            )
+            self._log(now, f"VESC command timeout: {timeouts - self._timeouts_seen} wheel(s) stopped")
             self._timeouts_seen = timeouts
+
+    def _log(self, now: int, message: str) -> None:
+        self._recorder.publish(
+            topics.LOG,
+            now,
+            {
+                "timestamp": topics.stamp(now),
+                "level": _LOG_WARNING,
+                "message": message,
+                "name": "hil.peer",
+                "file": "",
+                "line": 0,
+            },
+        )
 
     def write_status(self) -> None:
         assert self._status_path is not None
@@ -127,6 +142,7 @@ class RealtimePeer:
             "vesc_timeouts": self.world.vescs.timeouts,
             "commands_applied": self.world.vescs.commands_applied,
             "rolled_over": self.world.rolled_over,
+            **self.stalls.summary(),
         }
         _write_atomically(self._status_path, json.dumps(status))
 
@@ -195,12 +211,21 @@ def run_peer(
         scheduler = FixedRateScheduler(clock, rate_hz, peer.tick, wait=wait, stop=stop, spin_ns=spin_ns)
         _log.info("HIL peer for %s running in real time at %.0f Hz", scenario.name, rate_hz)
         freeze_start_up_heap()  # a full collection would hold up the IMU's send by tens of ms
+        peer.start()
         timing = scheduler.run(duration_ns)
         if status_path is not None:
             peer.write_status()
-        recorder.add_metadata("runtime", {"timing_json": json.dumps(timing.summary())})
+        recorder.add_metadata(
+            "runtime",
+            {"timing_json": json.dumps(timing.summary()), "stalls_json": json.dumps(peer.stalls.summary())},
+        )
     return PeerResult(
-        mcap_path, timing, seconds(peer.simulated_ns), world.vescs.timeouts, world.vescs.commands_applied
+        mcap_path,
+        timing,
+        seconds(peer.simulated_ns),
+        world.vescs.timeouts,
+        world.vescs.commands_applied,
+        peer.stalls,
     )
 
 

@@ -40,6 +40,11 @@ class SoakFault:
     def end_s(self) -> float:
         return self.start_s + self.duration_s
 
+    @property
+    def may_raise(self) -> tuple[str, ...]:
+        """The failsafes this fault explains on the rover (its evidence first), see ``RAISES``."""
+        return RAISES.get(f"{self.target}/{self.kind}", (self.failsafe,) if self.failsafe else ())
+
 
 # (target, kind, duration s, evidence, failsafe): each long enough to trip its failsafe's threshold
 # (docs/safety.md: GPS 3 s, heartbeat 3 s, wheel status 0.25 s).
@@ -51,6 +56,20 @@ CATALOG: tuple[tuple[str, str, float, str, str], ...] = (
     ("imu", "off", 3.0, DEADLINE_TICKS, ""),
     ("estop", "command", 3.0, FAILSAFE, "estop"),
 )
+
+
+# The failsafes each fault of the catalog may raise on the rover, during it or within the report's slack
+# after it: its own evidence, and what the loss takes with it. GPS and IMU come over MAVLink, so a MAVLink
+# loss is also a GPS loss; without fixes (or without the IMU) the estimate's uncertainty grows until it
+# may be judged unhealthy. Any other failsafe during a soak is unexplained and makes it NOT OK.
+RAISES: dict[str, tuple[str, ...]] = {
+    "gps/off": ("gps_lost", "estimator_unhealthy"),
+    "can/off": ("wheel_silent",),
+    "vesc/off": ("wheel_silent",),
+    "mavlink/off": ("heartbeat_lost", "gps_lost", "estimator_unhealthy"),
+    "imu/off": ("estimator_unhealthy",),
+    "estop/command": ("estop",),
+}
 
 
 def fault_plan(seed: int, duration_s: float, warmup_s: float, gap_s: tuple[float, float]) -> list[SoakFault]:

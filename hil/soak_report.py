@@ -1,5 +1,11 @@
 """Judging a soak from its recordings: each fault injected, seen on the rover and recovered from; memory
-growth; ticks and overruns; crashes.
+growth; ticks and overruns; the peer's stalls; failsafes no planned fault explains; crashes.
+
+Not OK (``SoakReport.problems``): a crash; a fault not injected, seen or recovered; any failsafe that no
+planned fault explains (``hil.soak_plan.RAISES``: what each fault may raise, from its start until
+``SEEN_SLACK_S`` after its end); a stall of the peer (the real time between two of its steps) longer than
+the simulated controllers' command timeout (``PEER_STALL_LIMIT_MS``): beyond it the controllers stop the
+wheels by themselves, and the soak tests the machine's scheduler, not the rover.
 
 Times: both recordings carry the OS monotonic clock (``rover run`` and ``rover hil peer`` both use
 ``MonotonicClock``), so the peer's ``fault injected`` / ``fault cleared`` records (``hil.faults``) and the
@@ -17,13 +23,18 @@ from typing import Any
 
 import numpy as np
 
+from hil.peer_stalls import parse_stall_message
 from hil.soak_plan import DEADLINE_TICKS, SoakFault
+from hil.vesc_sim import DEFAULT_COMMAND_TIMEOUT_S
 from logs import topics
 from logs.reader import read_messages, read_metadata
 
 NS = 1_000_000_000
 SEEN_SLACK_S = 3.0  # a failsafe may fire this long after its fault ended (the tick that judges it)
 RECOVER_LIMIT_S = 15.0  # after the fault ends, it must have cleared within this
+LEAD_SLACK_S = 0.1  # a failsafe this long before its fault's recorded start still counts (e-stop send time)
+PEER_STALL_LIMIT_MS = DEFAULT_COMMAND_TIMEOUT_S * 1000.0
+STALL_HINT_S = 1.0  # a peer stall this long before an unexplained failsafe is named beside it
 _FAULT_LOG = re.compile(r"fault (injected|cleared): (\S+)")
 
 
@@ -56,6 +67,20 @@ class MemoryResult:
     slope_mb_per_min: float  # least-squares fit over the samples after the warm-up
 
 
+@dataclass(frozen=True)
+class PeerTiming:
+    """The real-time peer's own timing (``hil.peer``): its scheduler's skipped ticks and its stalls."""
+
+    overruns: int | None  # None: the peer wrote no summary (it did not stop cleanly)
+    stalls: int  # steps later than the peer integrates in one go
+    dropped_sim_ms: float  # the simulated time those stalls dropped
+    longest_step_gap_ms: float | None  # real time between two steps; None: unknown
+
+    @classmethod
+    def unknown(cls) -> PeerTiming:
+        return cls(None, 0, 0.0, None)
+
+
 @dataclass
 class SoakReport:
     seconds: float
@@ -68,13 +93,37 @@ class SoakReport:
     overruns: int
     crashes: list[str]
     failsafe_events: dict[str, int] = field(default_factory=dict)
+    peer: PeerTiming = field(default_factory=PeerTiming.unknown)
+    unexplained_failsafes: list[str] = field(default_factory=list)  # each with its time and detail
+
+    @property
+    def problems(self) -> list[str]:
+        """Why the soak is not OK, in words; empty when it is."""
+        problems = list(self.crashes)
+        for f in self.faults:
+            checks = (("injected", f.injected), ("seen", f.seen), ("recovered", f.recovered))
+            missing = [word for word, held in checks if not held]
+            if missing:
+                problems.append(
+                    f"fault {f.name} at {f.start_s:.1f} s not {' / '.join(missing)}: {f.evidence}"
+                )
+        problems += [f"unexplained {failsafe}" for failsafe in self.unexplained_failsafes]
+        gap = self.peer.longest_step_gap_ms
+        if gap is not None and gap > PEER_STALL_LIMIT_MS:
+            problems.append(
+                f"the peer stalled {gap:.0f} ms between two steps, longer than the simulated controllers' "
+                f"command timeout ({PEER_STALL_LIMIT_MS:.0f} ms)"
+            )
+        return problems
 
     @property
     def ok(self) -> bool:
-        return not self.crashes and all(f.injected and f.seen and f.recovered for f in self.faults)
+        return not self.problems
 
     def to_json(self) -> str:
-        return json.dumps({**asdict(self), "ok": self.ok}, indent=2, default=_json_default)
+        return json.dumps(
+            {**asdict(self), "ok": self.ok, "problems": self.problems}, indent=2, default=_json_default
+        )
 
 
 def _json_default(value: Any) -> Any:
@@ -99,14 +148,18 @@ def judge_soak(
     estop_windows = [(start * NS + epoch_s * NS, end * NS + epoch_s * NS) for start, end in estops]
     events = _events(rover_mcap) if rover_mcap.exists() else []
     timing = _timing(rover_mcap) if rover_mcap.exists() else []
+    peer, stalls = _peer_timing(truth_mcap) if truth_mcap.exists() else (PeerTiming.unknown(), [])
     results = []
+    placed: list[tuple[SoakFault, tuple[float, float] | None]] = []
     for fault in plan:
         if fault.target == "estop":
             window = estop_windows.pop(0) if estop_windows else None
         else:
             found = windows.get(fault.name, [])
             window = found.pop(0) if found else None
+        placed.append((fault, window))
         results.append(_judge_fault(fault, window, events, timing, epoch_s))
+    failsafes = _failsafes(rover_mcap) if rover_mcap.exists() else []
     totals = _totals(rover_mcap) if rover_mcap.exists() else {}
     crashes = []
     for run in runs:
@@ -131,7 +184,40 @@ def judge_soak(
         overruns=int(totals.get("overruns", 0)),
         crashes=crashes,
         failsafe_events=fired,
+        peer=peer,
+        unexplained_failsafes=unexplained_failsafes(failsafes, placed, stalls, epoch_s),
     )
+
+
+def unexplained_failsafes(
+    failsafes: list[tuple[int, str, str]],
+    placed: list[tuple[SoakFault, tuple[float, float] | None]],
+    stalls: list[tuple[int, float, float]],
+    epoch_s: float,
+) -> list[str]:
+    """Each failsafe raised (``(ns, "failsafe.<name>", detail)``) that no planned fault explains, in words.
+
+    ``placed``: each planned fault with its window as recorded (ns on the shared clock; None: never
+    injected); ``stalls``: the peer's, ``(ns, gap ms, dropped ms)``; a stall shortly before an unexplained
+    failsafe is named beside it, as its likely cause.
+    """
+    unexplained = []
+    for t_ns, kind, detail in failsafes:
+        name = kind.removeprefix("failsafe.")
+        if any(
+            window is not None
+            and name in fault.may_raise
+            and window[0] - LEAD_SLACK_S * NS <= t_ns <= window[1] + SEEN_SLACK_S * NS
+            for fault, window in placed
+        ):
+            continue
+        text = f"{kind} at {t_ns / NS - epoch_s:.1f} s ({detail})"
+        before = [s for s in stalls if t_ns - STALL_HINT_S * NS <= s[0] <= t_ns]
+        if before:
+            at, gap_ms, _dropped = max(before, key=lambda s: s[1])
+            text += f"; the peer stalled {gap_ms:.0f} ms between steps at {at / NS - epoch_s:.1f} s"
+        unexplained.append(text)
+    return unexplained
 
 
 def _judge_fault(
@@ -197,6 +283,40 @@ def _fault_windows(truth_mcap: Path) -> dict[str, list[tuple[float, float]]]:
         elif entries and not math.isfinite(entries[-1][1]):
             entries[-1] = (entries[-1][0], float(message.log_time_ns))
     return windows
+
+
+def _peer_timing(truth_mcap: Path) -> tuple[PeerTiming, list[tuple[int, float, float]]]:
+    """The peer's timing summary and its stalls ``(ns, gap ms, dropped ms)`` from its recording.
+
+    The stalls come from its ``log`` records, so they are there even if the peer was killed; the summary
+    (overruns, longest gap) only if it stopped cleanly, else it is rebuilt from the stalls it recorded.
+    """
+    stalls = []
+    for message in read_messages(truth_mcap, [topics.LOG]):
+        parsed = parse_stall_message(str(message.message.get("message", "")))
+        if message.message.get("name") == "hil.peer" and parsed is not None:
+            stalls.append((message.log_time_ns, *parsed))
+    runtime = read_metadata(truth_mcap).get("runtime", {})
+    if "timing_json" in runtime and "stalls_json" in runtime:
+        timing, summary = json.loads(runtime["timing_json"]), json.loads(runtime["stalls_json"])
+        peer = PeerTiming(
+            int(timing["overruns"]),
+            int(summary["stalls"]),
+            float(summary["dropped_sim_ms"]),
+            float(summary["longest_step_gap_ms"]),
+        )
+    else:
+        gaps = [gap for _, gap, _ in stalls]
+        peer = PeerTiming(None, len(stalls), sum(d for _, _, d in stalls), max(gaps) if gaps else None)
+    return peer, stalls
+
+
+def _failsafes(rover_mcap: Path) -> list[tuple[int, str, str]]:
+    return [
+        (m.log_time_ns, str(m.message["kind"]), str(m.message.get("detail", "")))
+        for m in read_messages(rover_mcap, [topics.SAFETY_EVENTS])
+        if str(m.message["kind"]).startswith("failsafe.")
+    ]
 
 
 def _events(rover_mcap: Path) -> list[tuple[int, str]]:

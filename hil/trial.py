@@ -4,6 +4,10 @@ One tick is ``PHYSICS_DT_NS``. Each tick the simulator reads the wheel commands 
 moves the rover body on the true terrain, answers with status frames and autopilot MAVLink, records ground
 truth, and every ``CONTROL_DIVIDER``-th tick runs one onboard control step. Nothing reads wall time, so the
 same scenario and seed give the same recording, message for message.
+
+After the rover reports ARRIVED at its last goal the trial goes on, the rover parked, while a scenario
+fault has yet to run its course (``hil.fault_coverage``); a fault the trial did not run in full is a
+failed criterion, named in ``TrialResult.failures`` and on the ``log`` topic.
 """
 
 from __future__ import annotations
@@ -27,10 +31,12 @@ from firmware_bridge.mavlink_transport import Transport
 from firmware_bridge.vesc import VescCodec
 from firmware_bridge.vesc_dbc import load_vesc_database
 from hil.config_record import effective_config, flattened
+from hil.fault_coverage import park_until_ns, unexercised_faults
 from hil.lockstep import CanBackend, lockstep_wires
 from hil.scenario import Scenario
 from hil.success import judge
 from hil.world import SimWorld
+from logs import topics
 from logs.clock import NS_PER_S, MonotonicClock, SimClock, seconds, to_ns
 from logs.commands import CommandSource
 from logs.metrics import TrialMetrics, compute_metrics
@@ -42,6 +48,8 @@ from navigator.terrain_classes import TERRAIN_CLASSES
 from navigator.warm_up import warm_up
 
 _log = logging.getLogger(__name__)
+_LOG_WARNING = 3  # foxglove.Log level
+_LOG_INFO = 2
 
 PHYSICS_DT_NS = 10_000_000  # 100 Hz rover body
 CONTROL_DIVIDER = 2  # onboard control at 50 Hz
@@ -59,6 +67,9 @@ class TrialResult:
     failures: tuple[str, ...] = ()
     # Wall time of the simulation loop alone (kernels loaded before it; header and metrics not in it).
     loop_wall_s: float = 0.0
+    # When the rover reported ARRIVED at its last goal (None: it did not); the trial may have run on
+    # after it, parked, for the scenario's faults (``simulated_s`` is then later).
+    arrived_s: float | None = None
 
 
 # Called once the components exist (name -> object), before the first tick: ``rover bench hil`` uses it to
@@ -146,8 +157,13 @@ def run_trial(
             world.body.warm_up()
             warm_up(stack.guidance.planner, config, MonotonicClock())
             loop_started = time.perf_counter()
-            end_reason = _run_loop(scenario, clock, stack, world, on_progress)
+            end_reason, arrived_ns = _run_loop(scenario, clock, stack, world, sink, on_progress)
             loop_wall_s = time.perf_counter() - loop_started
+            fault_failures = unexercised_faults(
+                scenario.faults, clock.now_ns(), to_ns(scenario.duration_s), end_reason, arrived_ns
+            )
+            for failure in fault_failures:
+                _log_record(sink, clock.now_ns(), _LOG_WARNING, failure)
             stack.close()
             world.vescs.poll()  # the zero commands sent on close reach the controllers
         simulated_s = seconds(clock.now_ns())
@@ -155,7 +171,7 @@ def run_trial(
     metrics = compute_metrics(mcap_path)
     metrics_path = out_dir / "metrics.json"
     metrics.write_json(metrics_path)
-    failures = tuple(judge(scenario.success, metrics))
+    failures = (*judge(scenario.success, metrics), *fault_failures)
     return TrialResult(
         mcap_path,
         metrics_path,
@@ -165,6 +181,7 @@ def run_trial(
         success=not failures,
         failures=failures,
         loop_wall_s=loop_wall_s,
+        arrived_s=None if arrived_ns is None else seconds(arrived_ns),
     )
 
 
@@ -180,34 +197,66 @@ def _run_loop(
     clock: SimClock,
     stack: OnboardStack,
     world: SimWorld,
+    sink: MessageSink,
     on_progress: Callable[[float], None] | None,
-) -> str:
+) -> tuple[str, int | None]:
+    """Step until the trial ends; returns why it ended and when the rover arrived at its last goal."""
     dt_s = seconds(PHYSICS_DT_NS)
-    end_ns = to_ns(scenario.duration_s)
+    end_ns = stop_ns = to_ns(scenario.duration_s)
     goals = list(scenario.goals)
     stack.set_goal(goals[0].x, goals[0].y)
     goal_index = 0
+    arrived_ns: int | None = None
     tick = 0
     next_progress_ns = 0
-    while clock.now_ns() < end_ns:
+    while clock.now_ns() < stop_ns:
         now = clock.advance(PHYSICS_DT_NS)
         tick += 1
         world.tick(dt_s)
         if tick % CONTROL_DIVIDER == 0:
             stack.step()
-            if stack.mode is Mode.ARRIVED:
+            if arrived_ns is not None:
+                pass  # parked: ARRIVED holds until a new goal, none is given
+            elif stack.mode is Mode.ARRIVED:
                 goal_index += 1
                 if goal_index == len(goals):
-                    return "arrived"
-                stack.set_goal(goals[goal_index].x, goals[goal_index].y)
+                    arrived_ns = now
+                    stop_ns = park_until_ns(scenario.faults, now, end_ns)
+                    if stop_ns <= now:
+                        return "arrived", arrived_ns
+                    _log_record(
+                        sink,
+                        now,
+                        _LOG_INFO,
+                        f"ARRIVED at {seconds(now):.1f} s; parked until {seconds(stop_ns):.1f} s "
+                        "for the scenario's faults still to run",
+                    )
+                else:
+                    stack.set_goal(goals[goal_index].x, goals[goal_index].y)
             elif stack.mode is Mode.NO_PATH:
-                return "no_path"
+                return "no_path", None
         if world.rolled_over:
-            return "rollover"
+            return "rollover", arrived_ns
         if on_progress is not None and now >= next_progress_ns:
             on_progress(seconds(now) / scenario.duration_s)
             next_progress_ns = now + NS_PER_S
-    return "timeout"
+    return ("timeout", None) if arrived_ns is None else ("arrived", arrived_ns)
+
+
+def _log_record(sink: MessageSink, t_ns: int, level: int, message: str) -> None:
+    """A ``log`` record from the trial runner itself (name ``hil.trial``)."""
+    sink.publish(
+        topics.LOG,
+        t_ns,
+        {
+            "timestamp": topics.stamp(t_ns),
+            "level": level,
+            "message": message,
+            "name": "hil.trial",
+            "file": "",
+            "line": 0,
+        },
+    )
 
 
 def write_header(

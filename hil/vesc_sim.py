@@ -23,6 +23,8 @@ _IDLE_TEMPERATURE_C = 25.0
 _STATUS_CURRENT_LIMIT_A = 3000.0  # the int16 / 10 field holds +-3276.7 A
 _INT32_MAX = (1 << 31) - 1
 _VOLTAGE_FIELD_MAX_V = 3000.0  # int16 / 10
+# No command for this long: the firmware releases the motor (what SimVescBank does by default).
+DEFAULT_COMMAND_TIMEOUT_S = 0.5
 
 
 class SimVescBank:
@@ -36,7 +38,7 @@ class SimVescBank:
         *,
         status_rate_hz: float = 50.0,
         slow_status_rate_hz: float = 10.0,
-        command_timeout_s: float = 0.5,
+        command_timeout_s: float = DEFAULT_COMMAND_TIMEOUT_S,
         motor_time_constant_s: float = 0.05,
         max_erpm: float = 30_000.0,
         input_voltage_v: float = 24.0,

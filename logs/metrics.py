@@ -229,13 +229,14 @@ def metrics_from_entries(entries: Iterable[Entry], stats: ReadStats) -> TrialMet
     has_trajectory = len(times) > 0
     steps = np.hypot(*np.diff(xy, axis=0).T) if len(xy) > 1 else np.zeros(0)
     distance = float(steps.sum()) if has_trajectory else None
-    duration = (int(times[-1]) - int(times[0])) / 1e9 if has_trajectory else None
+    drive_end_ns = _drive_end_ns(trial)
+    duration = _duration_s(times, drive_end_ns)
 
     collisions, rollovers = _contact_counts(trial, trajectory_topic, notes)
     encountered, avoided, success = _obstacle_avoidance(trial, scenario, xy, margin, notes)
     energy = _energy_wh(trial, notes)
     goal_reached, goal_distance = _goal(trial, xy, notes)
-    xte_rms, xte_max = _cross_track(trial)
+    xte_rms, xte_max = _cross_track(trial, drive_end_ns)
     route_length, route_accuracy = _route_accuracy(trial, xy, tolerance)
 
     return TrialMetrics(
@@ -474,9 +475,36 @@ def _goal(trial: _Trial, xy: FloatArray, notes: _Notes) -> tuple[bool | None, fl
     return reached, None
 
 
-def _cross_track(trial: _Trial) -> tuple[float | None, float | None]:
+def _drive_end_ns(trial: _Trial) -> int | None:
+    """When the drive ended: the rover's last arrival (the state that began the final run of ARRIVED
+    states) if the recording ends ARRIVED, else None (the drive lasts to the end of the recording).
+
+    A recording may go on after the arrival (``rover run`` until it is stopped; a lockstep trial parked
+    for its scenario's faults): the time spent standing at the goal is not part of the drive."""
+    states = sorted(trial.states, key=lambda item: item[0])  # stable: file order on ties
+    if not states or states[-1][1]["mode"] != ARRIVED_MODE:
+        return None
+    index = len(states) - 1
+    while index > 0 and states[index - 1][1]["mode"] == ARRIVED_MODE:
+        index -= 1
+    return states[index][0]
+
+
+def _duration_s(times: NDArray[np.int64], drive_end_ns: int | None) -> float | None:
+    """From the first trajectory sample to the last one of the drive (at or before its end)."""
+    if len(times) == 0:
+        return None
+    driven = times if drive_end_ns is None else times[times <= drive_end_ns]
+    if len(driven) == 0:
+        return 0.0  # it reported ARRIVED before the first sample: it never had to move
+    return (int(driven[-1]) - int(times[0])) / 1e9
+
+
+def _cross_track(trial: _Trial, drive_end_ns: int | None) -> tuple[float | None, float | None]:
     errors = []
-    for _, state in trial.states:
+    for t_ns, state in trial.states:
+        if drive_end_ns is not None and t_ns > drive_end_ns:
+            continue  # standing at the goal after the drive: no tracking to judge
         try:
             errors.append(_finite(state["cross_track_error_m"]))
         except (KeyError, TypeError, ValueError):

@@ -140,6 +140,11 @@ def run_trial_command(args: argparse.Namespace) -> int:
     wall_s = time.perf_counter() - started
 
     console.print(_trial_table(f"{scenario.name}, seed {seed}: {result.end_reason}", result))
+    if result.arrived_s is not None and result.simulated_s > result.arrived_s:
+        console.print(
+            f"ARRIVED at {result.arrived_s:.1f} s; parked until {result.simulated_s:.1f} s for the "
+            "scenario's faults still to run (docs/hil.md)"
+        )
     console.print(
         f"wall time: {wall_s:.2f} s in all (the loop {result.loop_wall_s:.2f} s; the rest: start-up, "
         "loading or compiling the kernels, the metrics pass)"
@@ -331,6 +336,7 @@ def run_peer_command(args: argparse.Namespace) -> int:
     print(f"truth: {result.mcap_path}")
     print(
         f"simulated {result.simulated_s:.1f} s; VESC commands {result.commands_applied}, "
-        f"command timeouts {result.vesc_timeouts}; steps: {result.timing.describe()}"
+        f"command timeouts {result.vesc_timeouts}; steps: {result.timing.describe()}; "
+        f"{result.stalls.describe()}"
     )
     return 0

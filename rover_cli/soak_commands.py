@@ -78,8 +78,20 @@ def run_soak_command(args: argparse.Namespace) -> int:
         f"ticks {report.ticks} (sensor {report.sensor_ticks}, deadline {report.deadline_ticks}), "
         f"overruns {report.overruns}; failsafes fired: {report.failsafe_events}"
     )
+    peer = report.peer
+    console.print(
+        f"peer: overruns {'unknown' if peer.overruns is None else peer.overruns}, stalls {peer.stalls} "
+        f"({peer.dropped_sim_ms:.0f} ms of simulated time dropped), longest gap between steps "
+        f"{_mb(peer.longest_step_gap_ms, '{:.0f} ms') if peer.longest_step_gap_ms is not None else 'unknown'}"
+    )
+    unexplained = report.unexplained_failsafes
+    console.print(f"failsafes no planned fault explains: {len(unexplained) or 'none'}")
+    for failsafe in unexplained:
+        console.print(f"  - {failsafe}", markup=False, soft_wrap=True)
     console.print(f"crashes: {', '.join(report.crashes) if report.crashes else 'none'}")
     console.print(f"{'[green]OK[/green]' if report.ok else '[red]NOT OK[/red]'}; report: {out / 'soak.json'}")
+    for problem in report.problems:
+        console.print(f"  - {problem}", markup=False, soft_wrap=True)
     return 0 if report.ok else 1
 
 

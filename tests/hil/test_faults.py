@@ -165,6 +165,9 @@ def test_battery_sag_lowers_the_reported_voltage(baseline):
         ('target = "gps"\nkind = "stuck"', "faults[0].kind"),
         ('target = "laser"\nkind = "off"', "faults[0].target"),
         ('target = "gps"\nkind = "off"\nstart_s = 9999.0', "faults[0].start_s"),
+        # small_rocky.toml lasts 45 s: a fault the trial cannot run in full is refused when loaded.
+        ('target = "gps"\nkind = "off"\nstart_s = 45.0', "faults[0].start_s"),
+        ('target = "gps"\nkind = "off"\nstart_s = 40.0\nduration_s = 6.0', "faults[0].duration_s"),
         ('target = "imu"\nkind = "off"\noffset_m = [1.0, 2.0]', "offset_m"),
     ],
 )

@@ -125,6 +125,37 @@ def test_hand_computed_metrics() -> None:
     assert not metrics.truncated
 
 
+def _parked_after_arrival(last_mode: str) -> bytes:
+    """Drives x = 0..10 m in 10 s (an intermediate goal reached at 5 s), then stands at (10, 0) to 20 s."""
+    buffer = io.BytesIO()
+    with McapRecorder(buffer) as rec:
+        rec.add_metadata("scenario", {"path_tolerance_m": "0.5", "obstacles_json": "[]"})
+        rec.publish(NAVIGATOR_PATH, 0, _path(0, [(0.0, 0.0), (10.0, 0.0)]))
+        for second in range(21):
+            t = to_ns(float(second))
+            rec.publish(TRUTH_POSE, t, _pose(t, float(min(second, 10)), 0.0))
+        states = [(1, "DRIVING", 0.3), (5, "ARRIVED", 0.0), (6, "DRIVING", -0.4), (10, "ARRIVED", 0.0)]
+        states += [(second, "ARRIVED", 0.0) for second in range(11, 20)] + [(20, last_mode, 0.0)]
+        for second, mode, xte in states:
+            t = to_ns(float(second))
+            rec.publish(NAVIGATOR_STATE, t, _state(t, mode, xte))
+    return buffer.getvalue()
+
+
+def test_time_standing_at_the_goal_after_the_last_arrival_is_not_part_of_the_drive() -> None:
+    metrics = compute_metrics(io.BytesIO(_parked_after_arrival("ARRIVED")))
+    assert metrics.duration_s == pytest.approx(10.0)
+    assert metrics.cross_track_error_rms_m == pytest.approx(math.sqrt(0.25 / 4.0))
+    assert metrics.distance_m == pytest.approx(10.0) and metrics.goal_reached is True
+
+
+def test_a_recording_that_does_not_end_arrived_is_a_drive_to_its_end() -> None:
+    metrics = compute_metrics(io.BytesIO(_parked_after_arrival("DRIVING")))
+    assert metrics.duration_s == pytest.approx(20.0)
+    assert metrics.cross_track_error_rms_m == pytest.approx(math.sqrt(0.25 / 14.0))
+    assert metrics.goal_reached is False
+
+
 def test_tolerance_from_metadata_changes_the_share() -> None:
     scenario = {"path_tolerance_m": "1.5", "obstacles_json": "[]"}
     metrics = compute_metrics(io.BytesIO(_sim_trial(scenario=scenario)))

@@ -1,9 +1,25 @@
-"""The soak's judgement of one fault from the rover's safety events."""
+"""The soak's judgement: each fault from the rover's safety events; failsafes no planned fault explains;
+the peer's stalls."""
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+from typing import Any
+
+from hil.peer_stalls import stall_message
 from hil.soak_plan import FAILSAFE, SoakFault
-from hil.soak_report import NS, _judge_fault
+from hil.soak_report import (
+    NS,
+    PeerTiming,
+    ProcessRun,
+    SoakReport,
+    _judge_fault,
+    judge_soak,
+    unexplained_failsafes,
+)
+from logs.recorder import McapRecorder
+from logs.topics import LOG, SAFETY_EVENTS, stamp
 
 FAULT = SoakFault("vesc", "off", 10.0, 1.5, FAILSAFE, "wheel_silent", controller=4)
 WINDOW = (10.0 * NS, 11.5 * NS)  # injected, cleared (ns on the clock; epoch 0)
@@ -35,3 +51,120 @@ def test_a_failsafe_cleared_before_the_fault_began_does_not_count() -> None:
 def test_another_failsafe_does_not_count() -> None:
     events = [(int(10.3 * NS), "failsafe.gps_lost"), (int(11.6 * NS), "cleared.gps_lost")]
     assert _judge(events)[0] is False
+
+
+# --- failsafes no planned fault explains, and the peer's stalls --------------------------------------
+S = NS
+MAVLINK = SoakFault("mavlink", "off", 30.0, 4.5, FAILSAFE, "heartbeat_lost")
+CAN = SoakFault("can", "off", 50.0, 1.0, FAILSAFE, "wheel_silent")
+ALL_SIX = "wheel controller(s) #0, #1, #2, #3, #4, #5 silent for more than 250 ms"
+
+
+def _placed() -> list[tuple[SoakFault, tuple[float, float] | None]]:
+    return [(FAULT, WINDOW), (MAVLINK, (30.0 * S, 34.5 * S)), (CAN, (50.0 * S, 51.0 * S))]
+
+
+def test_a_failsafe_of_a_planned_fault_and_what_the_fault_takes_with_it_are_explained() -> None:
+    failsafes = [
+        (int(10.3 * S), "failsafe.wheel_silent", "wheel controller(s) #4 silent for more than 250 ms"),
+        (int(33.0 * S), "failsafe.heartbeat_lost", "no autopilot heartbeat for 3010 ms"),
+        (int(33.0 * S), "failsafe.gps_lost", "no 3D GPS fix for 3010 ms"),  # GPS comes over MAVLink
+        (int(50.3 * S), "failsafe.wheel_silent", ALL_SIX),
+    ]
+    assert unexplained_failsafes(failsafes, _placed(), [], 0.0) == []
+
+
+def test_a_failsafe_no_planned_fault_explains_is_named_with_the_peer_stall_before_it() -> None:
+    failsafes = [
+        (int(20.25 * S), "failsafe.wheel_silent", ALL_SIX),  # no fault near: the peer stalled just before
+        (int(50.4 * S), "failsafe.gps_lost", "no 3D GPS fix for 3010 ms"),  # a CAN drop does not lose GPS
+    ]
+    stalls = [(int(20.2 * S), 440.0, 390.0), (int(5.0 * S), 60.0, 10.0)]
+    assert unexplained_failsafes(failsafes, _placed(), stalls, 0.0) == [
+        f"failsafe.wheel_silent at 20.2 s ({ALL_SIX}); the peer stalled 440 ms between steps at 20.2 s",
+        "failsafe.gps_lost at 50.4 s (no 3D GPS fix for 3010 ms)",
+    ]
+
+
+def test_a_failsafe_raised_by_a_stall_before_its_fault_began_is_not_explained_by_it() -> None:
+    # It held through the fault's start, so the fault counts as seen; but the fault did not raise it.
+    failsafes = [(int(9.8 * S), "failsafe.wheel_silent", ALL_SIX)]
+    (unexplained,) = unexplained_failsafes(failsafes, _placed(), [(int(9.5 * S), 300.0, 250.0)], 0.0)
+    assert unexplained.startswith("failsafe.wheel_silent at 9.8 s") and "stalled 300 ms" in unexplained
+
+
+def test_a_fault_that_never_ran_explains_nothing() -> None:
+    failsafes = [(int(10.3 * S), "failsafe.wheel_silent", ALL_SIX)]
+    assert len(unexplained_failsafes(failsafes, [(FAULT, None)], [], 0.0)) == 1
+
+
+def _log(t_ns: int, name: str, message: str) -> dict[str, Any]:
+    return {"timestamp": stamp(t_ns), "level": 3, "message": message, "name": name, "file": "", "line": 0}
+
+
+def _soak(
+    tmp_path: Path, failsafes: list[tuple[float, str]], stall_gap_ms: float, peer_summary: bool
+) -> SoakReport:
+    """A soak of one controller reboot (10-11.5 s), judged from recordings written here."""
+    epoch_s = 100.0
+
+    def at(seconds: float) -> int:  # soak seconds -> ns on the shared monotonic clock
+        return round((epoch_s + seconds) * S)
+
+    rover, truth = tmp_path / "rover.mcap", tmp_path / "truth.mcap"
+    with McapRecorder(rover) as recorder:
+        for seconds, detail in [(10.3, "wheel controller(s) #4 silent for more than 250 ms"), *failsafes]:
+            recorder.publish(
+                SAFETY_EVENTS,
+                at(seconds),
+                {"timestamp": stamp(at(seconds)), "kind": "failsafe.wheel_silent", "severity": "warning",
+                 "detail": detail},
+            )  # fmt: skip
+        recorder.publish(
+            SAFETY_EVENTS,
+            at(11.6),
+            {"timestamp": stamp(at(11.6)), "kind": "cleared.wheel_silent", "severity": "info", "detail": ""},
+        )
+    with McapRecorder(truth) as recorder:
+        recorder.publish(LOG, at(10.0), _log(at(10.0), "hil.faults", "fault injected: vesc[4]/off (...)"))
+        recorder.publish(LOG, at(11.5), _log(at(11.5), "hil.faults", "fault cleared: vesc[4]/off"))
+        dropped_ns = round((stall_gap_ms - 50.0) * 1e6)
+        recorder.publish(
+            LOG, at(20.2), _log(at(20.2), "hil.peer", stall_message(round(stall_gap_ms * 1e6), dropped_ns))
+        )
+        if peer_summary:
+            timing = {"ticks": 3000, "overruns": 44}
+            stalls = {"stalls": 1, "dropped_sim_ms": stall_gap_ms - 50.0, "longest_step_gap_ms": stall_gap_ms}
+            recorder.add_metadata(
+                "runtime", {"timing_json": json.dumps(timing), "stalls_json": json.dumps(stalls)}
+            )
+    runs = [ProcessRun("rover", [], None, 0, 0), ProcessRun("peer", [], None, 0, 0)]
+    plan = [SoakFault("vesc", "off", 10.0, 1.5, FAILSAFE, "wheel_silent", controller=4)]
+    return judge_soak(30.0, 1, plan, epoch_s, [], runs, rover, truth, 5.0)
+
+
+def test_a_soak_with_an_unplanned_failsafe_after_a_peer_stall_is_not_ok(tmp_path: Path) -> None:
+    report = _soak(tmp_path, [(20.25, ALL_SIX)], 440.0, peer_summary=True)
+    assert [f.seen and f.recovered for f in report.faults] == [True]
+    assert report.peer == PeerTiming(44, 1, 390.0, 440.0)
+    assert not report.ok
+    assert report.problems == [
+        f"unexplained failsafe.wheel_silent at 20.2 s ({ALL_SIX}); "
+        "the peer stalled 440 ms between steps at 20.2 s"
+    ]
+    assert json.loads(report.to_json())["problems"] == report.problems
+
+
+def test_a_peer_stall_beyond_the_command_timeout_is_not_ok_by_itself(tmp_path: Path) -> None:
+    report = _soak(tmp_path, [], 600.0, peer_summary=False)  # the peer was killed: no summary
+    assert report.unexplained_failsafes == []
+    assert report.peer == PeerTiming(None, 1, 550.0, 600.0)  # rebuilt from its log records
+    assert report.problems == [
+        "the peer stalled 600 ms between two steps, longer than the simulated controllers' command "
+        "timeout (500 ms)"
+    ]
+
+
+def test_a_clean_soak_with_short_stalls_is_ok(tmp_path: Path) -> None:
+    report = _soak(tmp_path, [], 120.0, peer_summary=True)
+    assert report.ok and report.problems == [] and report.peer.dropped_sim_ms == 70.0
