@@ -10,12 +10,18 @@ import base64
 import logging
 import math
 import struct
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Any
 
 from pymavlink.dialects.v20 import common as mavlink2
 
 from firmware_bridge.errors import BridgeOperationError, BridgeSetupError
+from firmware_bridge.mavlink_budget import (
+    DEFAULT_RATE_BYTES_PER_S,
+    ReceiveBudget,
+    admit_datagrams,
+    admit_stream,
+)
 from firmware_bridge.mavlink_commands import (
     COMMAND_MESSAGES,
     GoalRequest,
@@ -24,12 +30,13 @@ from firmware_bridge.mavlink_commands import (
     judge_command,
     statustext_chunks,
 )
-from firmware_bridge.mavlink_transport import Transport
+from firmware_bridge.mavlink_health import MavlinkCounters, MavlinkHealth
+from firmware_bridge.mavlink_transport import DatagramTransport, Transport
 from logs.clock import Clock, to_ns
 from logs.closing import ClosesOnExit
 from logs.settings import Table
 from logs.sink import MessageSink
-from logs.topics import MAVLINK_RAW, SAFETY_EVENTS, SENSORS_GPS, SENSORS_IMU, stamp
+from logs.topics import MAVLINK_RAW, MAVLINK_STATS, SAFETY_EVENTS, SENSORS_GPS, SENSORS_IMU, stamp
 
 logger = logging.getLogger(__name__)
 
@@ -52,10 +59,13 @@ class MavlinkConfig:
     allow_remote: bool = False  # only the real vehicle may talk to a non-loopback address
     link_timeout_s: float = 3.0  # no autopilot HEARTBEAT (1 Hz) for this long: the link is lost
     signing_key: str = ""  # 64 hex digits (32 bytes) turn MAVLink 2 signing on; empty: off
+    # Received bytes parsed per second at most; a flood beyond it is dropped unread (mavlink_budget).
+    rx_budget_bytes_per_s: int = DEFAULT_RATE_BYTES_PER_S
 
     @classmethod
     def from_table(cls, table: Table) -> MavlinkConfig:
-        """Keys: connection, system_id, component_id, autopilot_system_id, allow_remote (all optional)."""
+        """Keys: connection, system_id, component_id, autopilot_system_id, allow_remote, link_timeout_s,
+        signing_key, rx_budget_bytes_per_s (all optional)."""
         d = cls()
         config = cls(
             connection=table.text("connection", d.connection),
@@ -65,6 +75,9 @@ class MavlinkConfig:
             allow_remote=table.flag("allow_remote", d.allow_remote),
             link_timeout_s=table.number("link_timeout_s", d.link_timeout_s, lo=0.1, hi=600.0),
             signing_key=table.text("signing_key", d.signing_key),
+            rx_budget_bytes_per_s=table.integer(
+                "rx_budget_bytes_per_s", d.rx_budget_bytes_per_s, lo=1024, hi=100_000_000
+            ),
         )
         if config.signing_key:
             try:
@@ -141,22 +154,6 @@ class BatteryState:
 Reading = GpsFix | ImuSample | AttitudeSample | BatteryState | GoalRequest | StopRequest
 
 
-@dataclass
-class MavlinkCounters:
-    rx_frames: int = 0
-    bad_frames: int = 0
-    bad_bytes: int = 0
-    tx_frames: int = 0
-    tx_errors: int = 0
-    goals_accepted: int = 0
-    stops_accepted: int = 0  # emergency stops (disarm / flight termination) taken and acknowledged
-    commands_rejected: int = 0  # addressed to us but not a goal we can take (answered with the reason)
-    signature_rejected: int = 0  # unsigned, replayed or wrongly signed commands (signing on)
-
-    def as_dict(self) -> dict[str, int]:
-        return asdict(self)
-
-
 class _TransportFile:
     """The file-like object pymavlink writes packed frames to."""
 
@@ -176,6 +173,15 @@ def _header_fields(frame: bytes) -> tuple[int, int, int]:
     return -1, 0, 0
 
 
+def _garbage_kind(reason: str) -> str:
+    """The counter for one of pymavlink's robust-parsing reasons."""
+    if reason == "Bad prefix":
+        return "noise"
+    if reason.startswith("invalid MAVLink CRC"):
+        return "bad_crc"
+    return "bad_header"  # incompat flags, length or an unpackable header
+
+
 def compass_to_enu_rad(bearing_deg: float) -> float:
     """A compass bearing (degrees clockwise from north) as radians CCW from east, in (-pi, pi]."""
     angle = math.radians(90.0 - bearing_deg)
@@ -186,6 +192,8 @@ class MavlinkLink(ClosesOnExit):
     """Our MAVLink component on the companion computer (``MAV_TYPE_ONBOARD_CONTROLLER``).
 
     ``autopilot_system_id`` (optional) keeps sensors and heartbeats from other systems out.
+    ``rx_budget_bytes_per_s`` bounds the bytes parsed per second of the clock (``mavlink_budget``);
+    ``name`` tells this link's ``mavlink/stats`` and warnings from another's (a ground-station link).
     """
 
     def __init__(
@@ -199,8 +207,12 @@ class MavlinkLink(ClosesOnExit):
         autopilot_system_id: int | None = None,
         link_timeout_s: float | None = 3.0,  # None: no autopilot on this link (a ground-station link)
         signing_key: bytes | None = None,
+        rx_budget_bytes_per_s: int = DEFAULT_RATE_BYTES_PER_S,
+        name: str = "autopilot",
     ) -> None:
         self._transport = transport
+        # UDP keeps message boundaries: each datagram is parsed on its own (DatagramTransport).
+        self._datagrams = transport if isinstance(transport, DatagramTransport) else None
         self._clock = clock
         self._sink = sink
         self.system_id = system_id
@@ -217,6 +229,9 @@ class MavlinkLink(ClosesOnExit):
             self._signing.allow_unsigned_callback = _allow_unsigned
         self._mav = self._new_mavlink()
         self.counters = MavlinkCounters()
+        self.name = name
+        self._budget = ReceiveBudget(rx_budget_bytes_per_s, clock.now_ns())
+        self._health = MavlinkHealth(clock.now_ns(), self.counters, name)
         self.last_heartbeat_ns: int | None = None
         self._link_timeout_ns = None if link_timeout_s is None else to_ns(link_timeout_s)
         self._started_ns = clock.now_ns()
@@ -300,35 +315,69 @@ class MavlinkLink(ClosesOnExit):
 
     # --- receiving -----------------------------------------------------------------------------
     def poll(self) -> list[Reading]:
-        """Read and parse everything available; return readings (sensors, battery, goals, stops) in arrival
-        order.
+        """Read and parse what arrived (within the receive budget); return readings (sensors, battery,
+        goals, stops) in arrival order.
 
         Goals and stops addressed to us are answered here (COMMAND_ACK or the target echo) before they are
         returned; a ``StopRequest`` is also recorded on ``safety/events`` (kind ``mavlink_stop_request``).
+        Once a second the link's counts go to ``mavlink/stats``; garbage is summed up in a WARNING at most
+        every five seconds (``firmware_bridge.mavlink_health``).
         """
         t_ns = self._clock.now_ns()
-        data = self._transport.read()
         readings: list[Reading] = []
-        for msg in self._parse(data) if data else []:
-            frame = bytes(msg.get_msgbuf())
-            if isinstance(msg, mavlink2.MAVLink_unknown):
-                msgid, sysid, compid = _header_fields(frame)
-            else:
-                msgid, sysid, compid = msg.get_msgId(), msg.get_srcSystem(), msg.get_srcComponent()
-            self.counters.rx_frames += 1
-            self._publish_raw(t_ns, "rx", frame, msgid, msg.get_type(), sysid, compid)
-            if msg.get_type() in COMMAND_MESSAGES:
-                request = self._answer_command(msg, t_ns)
-                if request is not None:
-                    readings.append(request)
-                continue
-            if self._autopilot_system_id is not None and sysid != self._autopilot_system_id:
-                continue
-            reading = self._convert(msg, t_ns)
-            if reading is not None:
-                readings.append(reading)
+        for chunk in self._admitted(t_ns):
+            for msg in self._parse(chunk):
+                self._take(msg, t_ns, readings)
+            if self._datagrams is not None:
+                # A frame never spans two datagrams: what is left is cut short, not waiting for more.
+                self._drop_partial_frame()
         self._check_link(t_ns)
+        self._report_health(t_ns)
         return readings
+
+    def _admitted(self, t_ns: int) -> list[bytes]:
+        """What arrived, cut to the receive budget; the rest is counted in ``dropped_bytes``."""
+        allowance = self._budget.allowance(t_ns)
+        if self._datagrams is not None:
+            kept, dropped = admit_datagrams(self._datagrams.read_datagrams(), allowance)
+        else:
+            data, dropped = admit_stream(self._transport.read(), allowance)
+            kept = [data] if data else []
+            if dropped:
+                # The frame whose start the parser holds went on in the bytes just dropped.
+                self._drop_partial_frame()
+        if dropped:
+            self.counters.dropped_bytes += dropped
+            logger.debug("MAVLink receive budget: dropped %d bytes unread", dropped)
+        self._budget.spend(sum(len(chunk) for chunk in kept))
+        return kept
+
+    def _take(self, msg: Any, t_ns: int, readings: list[Reading]) -> None:
+        frame = bytes(msg.get_msgbuf())
+        if isinstance(msg, mavlink2.MAVLink_unknown):
+            msgid, sysid, compid = _header_fields(frame)
+            self.counters.unknown_frames += 1
+        else:
+            msgid, sysid, compid = msg.get_msgId(), msg.get_srcSystem(), msg.get_srcComponent()
+        self.counters.rx_frames += 1
+        self._publish_raw(t_ns, "rx", frame, msgid, msg.get_type(), sysid, compid)
+        if msg.get_type() in COMMAND_MESSAGES:
+            request = self._answer_command(msg, t_ns)
+            if request is not None:
+                readings.append(request)
+            return
+        if self._autopilot_system_id is not None and sysid != self._autopilot_system_id:
+            return
+        reading = self._convert(msg, t_ns)
+        if reading is not None:
+            readings.append(reading)
+
+    def _report_health(self, t_ns: int) -> None:
+        report = self._health.report(t_ns, self.counters)
+        if report.stats is not None:
+            self._sink.publish(MAVLINK_STATS, t_ns, report.stats)
+        if report.warning is not None:
+            logger.warning("%s", report.warning)
 
     def _answer_command(self, msg: Any, t_ns: int) -> GoalRequest | StopRequest | None:
         if not addressed_to(msg, self.system_id, self.component_id):
@@ -420,7 +469,7 @@ class MavlinkLink(ClosesOnExit):
                 msg = self._mav.parse_char(pending)
             except (mavlink2.MAVError, struct.error, ValueError, IndexError) as err:
                 # Should not happen with robust parsing; if it does, drop what is buffered and go on.
-                self._count_bad(len(self._mav.buf) - self._mav.buf_index, str(err))
+                self._count_bad(len(self._mav.buf) - self._mav.buf_index, "bad_header", str(err))
                 self._mav = self._new_mavlink_keeping_sequence()
                 break
             pending = b""
@@ -428,11 +477,13 @@ class MavlinkLink(ClosesOnExit):
                 break
             if isinstance(msg, mavlink2.MAVLink_bad_data):
                 if msg.reason == "Invalid signature":
-                    # A whole, CRC-correct frame refused by the signing check: nothing to rescan.
+                    # A whole, CRC-correct frame refused by the signing check: nothing to rescan. The first
+                    # is logged at once; the rest are summed up in the link's periodic warning.
                     self.counters.signature_rejected += 1
-                    logger.warning("rejected an unsigned, replayed or wrongly signed MAVLink command")
+                    log = logger.warning if self.counters.signature_rejected == 1 else logger.debug
+                    log("rejected an unsigned, replayed or wrongly signed MAVLink command")
                     continue
-                self._count_bad(len(msg.data), msg.reason)
+                self._count_bad(len(msg.data), _garbage_kind(msg.reason), msg.reason)
                 if msg.reason != "Bad prefix" and len(msg.data) > 1:
                     # pymavlink skipped a whole frame's length; a real frame may start inside those bytes
                     # (a stray 0xFD in garbage looks like a start marker), so rescan them from byte 1.
@@ -451,9 +502,23 @@ class MavlinkLink(ClosesOnExit):
         mav.seq = seq
         return mav
 
-    def _count_bad(self, n_bytes: int, reason: str) -> None:
-        self.counters.bad_frames += 1
-        self.counters.bad_bytes += n_bytes
+    def _drop_partial_frame(self) -> None:
+        """Count what the parser holds of an unfinished frame as truncated, and start afresh."""
+        left = len(self._mav.buf) - self._mav.buf_index
+        if left > 0:
+            self._count_bad(left, "truncated", "frame cut short")
+            self._mav = self._new_mavlink_keeping_sequence()
+
+    def _count_bad(self, n_bytes: int, kind: str, reason: str) -> None:
+        """``n_bytes`` skipped: a run of noise (``kind`` "noise") or one bad frame of ``kind`` (the
+        ``MavlinkCounters`` field bad_crc, bad_header or truncated)."""
+        counters = self.counters
+        counters.bad_bytes += n_bytes
+        if kind == "noise":
+            counters.noise_bytes += n_bytes
+        else:
+            counters.bad_frames += 1
+            setattr(counters, kind, getattr(counters, kind) + 1)
         logger.debug("skipped %d bad MAVLink bytes: %s", n_bytes, reason)
 
     def _convert(self, msg: Any, t_ns: int) -> Reading | None:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import ipaddress
 import logging
 import socket
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 from firmware_bridge.errors import BridgeOperationError, BridgeSetupError
 from firmware_bridge.mavlink_stream import SerialTransport, TcpTransport
@@ -27,6 +27,15 @@ class Transport(Protocol):
     def read(self) -> bytes: ...
 
     def close(self) -> None: ...
+
+
+@runtime_checkable
+class DatagramTransport(Transport, Protocol):
+    """A transport that keeps message boundaries (UDP): ``read_datagrams()`` returns what arrived, one
+    ``bytes`` per datagram. A MAVLink frame never spans two datagrams, so the link parses each on its own
+    and garbage in one cannot swallow a frame at the start of the next."""
+
+    def read_datagrams(self) -> list[bytes]: ...
 
 
 class MemoryPipe:
@@ -152,8 +161,12 @@ class UdpTransport:
             raise BridgeOperationError(f"UDP send to {self._peer[0]}:{self._peer[1]} failed: {err}") from err
 
     def read(self) -> bytes:
+        return b"".join(self.read_datagrams())
+
+    def read_datagrams(self) -> list[bytes]:
+        """Every datagram that has arrived from our peer, one ``bytes`` each, oldest first."""
         if self._closed:
-            return b""
+            return []
         chunks: list[bytes] = []
         while True:
             try:
@@ -176,7 +189,7 @@ class UdpTransport:
                 continue
             chunks.append(data)
             self._peer = origin
-        return b"".join(chunks)
+        return chunks
 
     def close(self) -> None:
         if not self._closed:

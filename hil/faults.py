@@ -23,7 +23,7 @@ can       garbage        each frame's payload corrupted with ``probability``
 vesc      off            controller ``controller`` (wheel index 0-5) reboots: silent, then fresh state
 vesc      stuck          wheel ``controller`` seized: it does not turn whatever the command
 mavlink   off            link loss: no byte passes either way
-mavlink   garbage        each outgoing chunk corrupted with ``probability``
+mavlink   garbage        each outgoing chunk corrupted with ``probability`` (seen on ``mavlink/stats``)
 battery   wrong          pack sags: ``sag_v`` volts lower and ``extra_resistance_ohm`` more resistance
 ========  =============  =====================================================================
 

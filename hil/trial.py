@@ -135,7 +135,7 @@ def run_trial(
                 commands=commands,
                 ground_station=None
                 if ground_station is None
-                else MavlinkLink(ground_station, clock, sink, link_timeout_s=None),
+                else MavlinkLink(ground_station, clock, sink, link_timeout_s=None, name="ground_station"),
             )
             if on_components is not None:
                 on_components(

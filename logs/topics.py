@@ -20,6 +20,7 @@ JsonSchema = dict[str, Any]
 CAN_FRAMES = "can/frames"
 CAN_STATS = "can/stats"
 MAVLINK_RAW = "mavlink/raw"
+MAVLINK_STATS = "mavlink/stats"
 SENSORS_GPS = "sensors/gps"
 SENSORS_IMU = "sensors/imu"
 WHEELS_STATUS = "wheels/status"
@@ -135,6 +136,35 @@ _SPECS = [
             }
         ),
         "Every MAVLink frame the companion sent or received, raw bytes.",
+    ),
+    TopicSpec(
+        MAVLINK_STATS,
+        "rover.MavlinkStats",
+        _obj(
+            {
+                "timestamp": _TIME,
+                "link": {"type": "string", "description": "which MAVLink link: autopilot, ground_station"},
+                "window_s": _NUM,
+                "rx_frames": _INT,
+                "unknown_frames": _INT,
+                "bad_frames": _INT,
+                "bad_bytes": _INT,
+                "bad_crc": _INT,
+                "bad_header": _INT,
+                "noise_bytes": _INT,
+                "truncated": _INT,
+                "signature_rejected": _INT,
+                "dropped_bytes": _INT,
+                "rx_frames_total": _INT,
+                "bad_frames_total": _INT,
+                "bad_bytes_total": _INT,
+                "dropped_bytes_total": _INT,
+            }
+        ),
+        "The MAVLink link's own count over the last window (~1 s): frames decoded (of them, ids this "
+        "dialect does not decode), bad frames by reason (bad CRC, bad header, cut short), bytes skipped "
+        "(of them, noise between frames), signed-only commands refused, bytes dropped unread over the "
+        "receive budget; running totals.",
     ),
     TopicSpec(
         SENSORS_GPS,

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 from firmware_bridge.can_link import CanLink, open_bus
 from firmware_bridge.errors import BridgeSetupError
-from firmware_bridge.mavlink_link import MavlinkLink
+from firmware_bridge.mavlink_link import MavlinkLink, signing_key_bytes
 from firmware_bridge.mavlink_transport import open_transport
 from firmware_bridge.vesc import VescCodec
 from firmware_bridge.vesc_dbc import load_vesc_database
@@ -47,13 +47,17 @@ def open_links(config: RoverConfig, clock: Clock, sink: MessageSink) -> RoverLin
     except BridgeSetupError:
         can_link.close()
         raise
+    settings = config.mavlink
     mavlink = MavlinkLink(
         transport,
         clock,
         sink,
-        system_id=config.mavlink.system_id,
-        component_id=config.mavlink.component_id,
-        autopilot_system_id=config.mavlink.autopilot_system_id,
+        system_id=settings.system_id,
+        component_id=settings.component_id,
+        autopilot_system_id=settings.autopilot_system_id,
+        link_timeout_s=settings.link_timeout_s,
+        signing_key=signing_key_bytes(settings.signing_key) if settings.signing_key else None,
+        rx_budget_bytes_per_s=settings.rx_budget_bytes_per_s,
     )
     pacing: dict[str, tuple[object, ...]] = {"imu": (transport,), "gps": (transport,), "wheels": (bus,)}
     return RoverLinks(can_link, mavlink, pacing.get(config.pacing_sensor, ()))

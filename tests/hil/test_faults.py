@@ -148,6 +148,13 @@ def test_mavlink_loss_and_garbage(baseline):
     rx = [m for m in garbled.on("mavlink/raw", 1.05, 3.0) if m["direction"] == "rx"]
     rx_base = [m for m in baseline.on("mavlink/raw", 1.05, 3.0) if m["direction"] == "rx"]
     assert len(rx) < 0.8 * len(rx_base)  # corrupted frames fail their CRC and are not decoded
+    # The link's own count of the garbage is recorded (mavlink/stats, once a second): none before the
+    # fault or in the baseline, bad frames in every window of the fault.
+    assert all(m["bad_frames"] == 0 for m in baseline.on("mavlink/stats"))
+    assert all(m["bad_frames"] == 0 for m in garbled.on("mavlink/stats", 0.0, 1.0))
+    during = garbled.on("mavlink/stats", 2.0, 3.05)  # the windows ending at 2 s and 3 s
+    assert len(during) == 2 and all(m["bad_crc"] > 5 for m in during)
+    assert during[-1]["bad_frames_total"] > during[0]["bad_frames_total"]
 
 
 def test_battery_sag_lowers_the_reported_voltage(baseline):
