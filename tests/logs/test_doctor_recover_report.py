@@ -139,7 +139,8 @@ def test_a_run_without_truth_labels_its_figures_estimate(trial: tuple[Path, int]
     _write(real, skip=frozenset({TRUTH_POSE, TRUTH_STABILITY}))
     result = write_report([real, trial[0]], tmp_path / "out", plots=False)
     assert [run.metrics.trajectory_topic for run in result.runs] == [ESTIMATOR_POSE, TRUTH_POSE]
-    real_part, sim_part = result.markdown.read_text(encoding="utf-8").split("## Comparison")[0].split("## ")[1:]
+    runs_part = result.markdown.read_text(encoding="utf-8").split("## Comparison")[0]
+    real_part, sim_part = runs_part.split("## ")[1:]
     assert "| trajectory from | estimator/pose (estimate) |" in real_part
     assert "| distance to goal at end (m, estimate) |" in real_part
     assert not [row for row in real_part.splitlines() if row.startswith("|") and "truth" in row]
