@@ -20,6 +20,7 @@ from __future__ import annotations
 import json
 import logging
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,6 +31,7 @@ from logs.recorder import McapRecorder
 from logs.sink import FanoutSink, MessageSink
 from logs.telemetry import ZenohTelemetry, open_session
 from logs.telemetry_station import rate_limited
+from logs.wall_clock import WALL_CLOCK_METADATA, take_anchor
 from navigator.config import RoverConfig
 from navigator.deferred_sink import deferred_sink
 from navigator.errors import NavigatorError
@@ -65,8 +67,12 @@ def run_rover(
     goal: tuple[float, float] | None = None,
     duration_ns: int | None = None,
     telemetry: bool = True,
+    wall_ns: Callable[[], int] = time.time_ns,
 ) -> RunResult:
     """Run the onboard stack in real time until ``stop`` is set; returns the recording and timing.
+
+    ``wall_ns`` is read once, as the recording opens, to date it (``logs.wall_clock``); nothing else
+    reads the wall clock.
 
     ``wait`` idles the loop between reads (default: ``select`` on the pacing link, ``navigator.input_wait``).
     """
@@ -88,6 +94,8 @@ def run_rover(
                 "can_bitrate": str(config.can.bitrate),
             },
         )
+        # The date of log time 0 is otherwise unknown (the clock is monotonic): .asc/.trc exports need it.
+        recorder.add_metadata(WALL_CLOCK_METADATA, take_anchor(clock, wall_ns).as_metadata())
         sink: MessageSink = recorder
         planning = plan_worker()
         # Everything opened from here on is closed in the finally, whatever fails on the way: a Zenoh
