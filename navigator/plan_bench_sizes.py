@@ -6,4 +6,4 @@ The CLI prints them in its ``--help``; importing the benchmark itself for that w
 
 from __future__ import annotations
 
-DEFAULT_SIZES = (256, 1024, 2048)  # cells a side: a few metres of map up to a 500 m site at 0.25 m
+DEFAULT_SIZES = (256, 1024, 2048)  # cells a side: 64 m to 512 m squares at 0.25 m
