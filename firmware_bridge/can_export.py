@@ -2,8 +2,10 @@
 
 The default is the candump log format as python-can writes it (``CanutilsLogWriter``; read back with
 ``can.CanutilsLogReader``, replayed with ``python -m can.player``). Other suffixes python-can writes
-(``.asc``, ``.blf``, ``.trc``, ``.csv``) go through ``can.Logger``. Frame times are the recording's log
-times (the rover's clock: simulated seconds in lockstep runs), so a replay keeps the recorded spacing.
+(``.asc``, ``.blf``, ``.trc``, ``.csv``) go through ``can.Logger``. Frame times keep the recorded spacing,
+so a replay does too; they are dated by the recording's wall-clock start when it has one
+(``firmware_bridge.can_log_dates``: Unix time), else they are the recording's log times, with .asc / .trc /
+.blf dated at export (and the header saying so) instead of 1970.
 
 A record that does not describe a frame (bad hex, DLC disagreeing with the payload, id out of range) is
 skipped, counted in ``ExportStats.rejected`` and logged; it never stops the export.
@@ -12,16 +14,20 @@ skipped, counted in ``ExportStats.rejected`` and logged; it never stops the expo
 from __future__ import annotations
 
 import logging
+import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
 import can
 
+from firmware_bridge.can_log_dates import DatedAscWriter, DatedTrcWriter, TimeBase, time_base
 from firmware_bridge.errors import BridgeOperationError, BridgeSetupError, FrameError
 from logs.errors import LogReadError
-from logs.reader import ReadStats, Source, read_messages
+from logs.reader import ReadStats, RecordedMessage, RecordedMetadata, Source, read_entries
 from logs.topics import CAN_FRAMES
+from logs.wall_clock import WALL_CLOCK_METADATA, WallClockAnchor
 
 logger = logging.getLogger(__name__)
 
@@ -45,6 +51,8 @@ class ExportStats:
     first_ns: int | None = None
     last_ns: int | None = None
     truncated: bool = False  # the recording was cut short; everything before the cut was exported
+    # The first frame's wall-clock time (ISO 8601, UTC) when the recording says when it ran; else None.
+    wall_clock_start: str | None = None
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -87,44 +95,77 @@ def record_to_message(record: dict[str, Any], log_time_ns: int, channel: str) ->
     )
 
 
-def _open_writer(output: Path, channel: str) -> can.Listener:
+def _check_suffix(output: Path) -> str:
+    suffix = output.suffix.lower()
+    if suffix != CANDUMP_SUFFIX and suffix not in OTHER_SUFFIXES:
+        raise BridgeSetupError(
+            f"{output}: unknown CAN log suffix {output.suffix!r}; use {CANDUMP_SUFFIX} (candump) or one of "
+            f"{', '.join(OTHER_SUFFIXES)}"
+        )
+    return suffix
+
+
+def _open_writer(output: Path, channel: str, base: TimeBase) -> can.Listener:
     suffix = output.suffix.lower()
     try:
         if suffix == CANDUMP_SUFFIX:
             return can.CanutilsLogWriter(output, channel=channel)
-        if suffix in OTHER_SUFFIXES:
-            return can.Logger(output)
+        if suffix == ".asc":
+            return DatedAscWriter(output, base)
+        if suffix == ".trc":
+            return DatedTrcWriter(output, base)
+        return can.Logger(output)
     except OSError as err:
         raise BridgeSetupError(f"cannot create {output}: {err}; check the folder") from err
-    raise BridgeSetupError(
-        f"{output}: unknown CAN log suffix {output.suffix!r}; use {CANDUMP_SUFFIX} (candump) or one of "
-        f"{', '.join(OTHER_SUFFIXES)}"
-    )
 
 
-def export_can_log(source: Source, output: str | Path, *, channel: str = "can0") -> ExportStats:
+def export_can_log(
+    source: Source,
+    output: str | Path,
+    *,
+    channel: str = "can0",
+    wall_ns: Callable[[], int] = time.time_ns,
+) -> ExportStats:
     """Write every ``can/frames`` record of the recording ``source`` to ``output`` (format by suffix).
 
     ``channel`` is the interface name written on each line (candump needs one; ``can0`` replays on the
-    rover, ``vcan0`` on a HIL host). Raises ``BridgeSetupError`` for an output it cannot create and
+    rover, ``vcan0`` on a HIL host). ``wall_ns`` (Unix ns) dates a log whose recording does not say when it
+    ran (module docstring). Raises ``BridgeSetupError`` for an output it cannot create and
     ``BridgeOperationError`` for a recording it cannot read; a recording cut short is exported up to the
     cut (``truncated``).
     """
     if not channel or any(c.isspace() for c in channel):
         raise BridgeSetupError(f"CAN log channel must be a name without spaces, got {channel!r}")
     path = Path(output)
+    suffix = _check_suffix(path)
     stats = ExportStats()
     read_stats = ReadStats()
-    writer = _open_writer(path, channel)
+    anchor: WallClockAnchor | None = None
+    opened: tuple[TimeBase, can.Listener] | None = None  # from the first frame on
     try:
-        for recorded in read_messages(source, topics=[CAN_FRAMES], stats=read_stats):
+        for entry in read_entries(source, topics=[CAN_FRAMES], stats=read_stats):
+            if isinstance(entry, RecordedMetadata):
+                # rover run writes it before any frame; one met later cannot re-date what is written.
+                if entry.name == WALL_CLOCK_METADATA and opened is None:
+                    anchor = WallClockAnchor.from_metadata(entry.data)
+                continue
+            if not isinstance(entry, RecordedMessage):
+                continue
             try:
-                msg = record_to_message(recorded.message, recorded.log_time_ns, channel)
+                msg = record_to_message(entry.message, entry.log_time_ns, channel)
             except FrameError as err:
                 stats.rejected += 1
                 if stats.rejected <= _MAX_REJECTION_WARNINGS:
-                    logger.warning("skipped can/frames record at %d ns: %s", recorded.log_time_ns, err)
+                    logger.warning("skipped can/frames record at %d ns: %s", entry.log_time_ns, err)
                 continue
+            if opened is None:
+                # The writer opens at the first frame: only then is the file's date known.
+                base = time_base(suffix, anchor, entry.log_time_ns, wall_ns())
+                if base.from_recording:
+                    stats.wall_clock_start = base.start.isoformat(timespec="microseconds")
+                opened = base, _open_writer(path, channel, base)
+            base, writer = opened
+            msg.timestamp = base.stamp_s(entry.log_time_ns)
             writer.on_message_received(msg)
             stats.frames += 1
             if msg.is_rx:
@@ -132,12 +173,15 @@ def export_can_log(source: Source, output: str | Path, *, channel: str = "can0")
             else:
                 stats.tx += 1
             if stats.first_ns is None:
-                stats.first_ns = recorded.log_time_ns
-            stats.last_ns = recorded.log_time_ns
+                stats.first_ns = entry.log_time_ns
+            stats.last_ns = entry.log_time_ns
     except LogReadError as err:
         raise BridgeOperationError(f"cannot export CAN frames: {err}") from err
     finally:
-        writer.stop()
+        if opened is not None:
+            opened[1].stop()
+    if opened is None:  # no frames: the log is written all the same, empty
+        _open_writer(path, channel, time_base(suffix, anchor, 0, wall_ns())).stop()
     stats.truncated = read_stats.truncated
     if stats.rejected > _MAX_REJECTION_WARNINGS:
         logger.warning("skipped %d can/frames records in all", stats.rejected)

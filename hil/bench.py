@@ -202,7 +202,7 @@ def time_world_only(scenario: Scenario, config: RoverConfig, simulated_s: float)
     dt_s = seconds(PHYSICS_DT_NS)
     with lockstep_wires(config.can, clock=clock) as wires:
         codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
-        world = SimWorld(
+        with SimWorld(
             scenario,
             config.vehicle,
             codec,
@@ -211,19 +211,19 @@ def time_world_only(scenario: Scenario, config: RoverConfig, simulated_s: float)
             wires.sim_mavlink,
             _NullSink(),
             scenario.seed,
-        )
-        end_ns = to_ns(simulated_s)
-        started = time.perf_counter()
-        cpu_started = time.process_time()
-        while clock.now_ns() < end_ns:
-            clock.advance(PHYSICS_DT_NS)
-            world.tick(dt_s)
-            # Nobody reads the rover's end: drain it as the onboard would, so queues stay short.
-            while wires.onboard_bus.recv(timeout=0) is not None:
-                pass
-            wires.onboard_mavlink.read()
-        wall = time.perf_counter() - started
-        cpu = time.process_time() - cpu_started
+        ) as world:
+            end_ns = to_ns(simulated_s)
+            started = time.perf_counter()
+            cpu_started = time.process_time()
+            while clock.now_ns() < end_ns:
+                clock.advance(PHYSICS_DT_NS)
+                world.tick(dt_s)
+                # Nobody reads the rover's end: drain it as the onboard would, so queues stay short.
+                while wires.onboard_bus.recv(timeout=0) is not None:
+                    pass
+                wires.onboard_mavlink.read()
+            wall = time.perf_counter() - started
+            cpu = time.process_time() - cpu_started
     return PeerFigure("world-only", wall, seconds(clock.now_ns()), cpu)
 
 

@@ -82,7 +82,8 @@ class FaultyCanBus(can.BusABC):
                 return passed, False
 
     def shutdown(self) -> None:
-        # The inner bus belongs to whoever opened it (the lockstep wiring shuts it down).
+        # The inner bus belongs to whoever opened it (the lockstep wiring shuts it down); this wrapper is
+        # the world's, which shuts it (hil.world.SimWorld.close).
         super().shutdown()
 
 

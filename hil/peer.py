@@ -197,28 +197,31 @@ def run_peer(
     with McapRecorder(mcap_path) as recorder:
         write_peer_header(recorder, scenario, config, seed)
         codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
-        world = SimWorld(scenario, config.vehicle, codec, clock, can_bus, mavlink, recorder, seed)
-        world.body.warm_up()  # before the port file: whoever waits on it meets a peer that runs on time
-        peer = RealtimePeer(world, clock, recorder, status_path)
-        if status_path is not None:
-            peer.write_status()
-        rover_config = write_peer_files(out_dir, scenario, config, mavlink_port)
-        if port_file is not None:
-            _write_atomically(port_file, f"{mavlink_port}\n")
-        if on_ready is not None:
-            on_ready(rover_config)
-        rate_hz = NS_PER_S / PHYSICS_DT_NS
-        scheduler = FixedRateScheduler(clock, rate_hz, peer.tick, wait=wait, stop=stop, spin_ns=spin_ns)
-        _log.info("HIL peer for %s running in real time at %.0f Hz", scenario.name, rate_hz)
-        freeze_start_up_heap()  # a full collection would hold up the IMU's send by tens of ms
-        peer.start()
-        timing = scheduler.run(duration_ns)
-        if status_path is not None:
-            peer.write_status()
-        recorder.add_metadata(
-            "runtime",
-            {"timing_json": json.dumps(timing.summary()), "stalls_json": json.dumps(peer.stalls.summary())},
-        )
+        with SimWorld(scenario, config.vehicle, codec, clock, can_bus, mavlink, recorder, seed) as world:
+            world.body.warm_up()  # before the port file: whoever waits on it meets a peer that runs on time
+            peer = RealtimePeer(world, clock, recorder, status_path)
+            if status_path is not None:
+                peer.write_status()
+            rover_config = write_peer_files(out_dir, scenario, config, mavlink_port)
+            if port_file is not None:
+                _write_atomically(port_file, f"{mavlink_port}\n")
+            if on_ready is not None:
+                on_ready(rover_config)
+            rate_hz = NS_PER_S / PHYSICS_DT_NS
+            scheduler = FixedRateScheduler(clock, rate_hz, peer.tick, wait=wait, stop=stop, spin_ns=spin_ns)
+            _log.info("HIL peer for %s running in real time at %.0f Hz", scenario.name, rate_hz)
+            freeze_start_up_heap()  # a full collection would hold up the IMU's send by tens of ms
+            peer.start()
+            timing = scheduler.run(duration_ns)
+            if status_path is not None:
+                peer.write_status()
+            recorder.add_metadata(
+                "runtime",
+                {
+                    "timing_json": json.dumps(timing.summary()),
+                    "stalls_json": json.dumps(peer.stalls.summary()),
+                },
+            )
     return PeerResult(
         mcap_path,
         timing,

@@ -121,51 +121,52 @@ def run_trial(
                 system_id=config.mavlink.system_id,
                 component_id=config.mavlink.component_id,
             )
-            world = SimWorld(
+            with SimWorld(
                 scenario, config.vehicle, codec, clock, wires.sim_bus, wires.sim_mavlink, sink, seed
-            )
-            stack = OnboardStack(
-                config,
-                clock,
-                can_link,
-                mavlink,
-                sink,
-                scenario.believed_terrain,
-                obstacles=world.perception,
-                commands=commands,
-                ground_station=None
-                if ground_station is None
-                else MavlinkLink(ground_station, clock, sink, link_timeout_s=None, name="ground_station"),
-            )
-            if on_components is not None:
-                on_components(
-                    {
-                        "onboard": stack,
-                        "can_link": can_link,
-                        "mavlink_link": mavlink,
-                        "encoding": sink if isinstance(sink, FanoutSink) else None,
-                        "recorder": recorder,
-                        "telemetry": telemetry,
-                        "world": world,
-                        "vescs": world.vescs,
-                        "autopilot": world.autopilot,
-                        "dynamics": world.body,
-                        "truth": world.truth,
-                    }
+            ) as world:
+                stack = OnboardStack(
+                    config,
+                    clock,
+                    can_link,
+                    mavlink,
+                    sink,
+                    scenario.believed_terrain,
+                    obstacles=world.perception,
+                    commands=commands,
+                    ground_station=None
+                    if ground_station is None
+                    else MavlinkLink(ground_station, clock, sink, link_timeout_s=None, name="ground_station"),
                 )
-            # Kernels load (or, on a machine's first run, compile) before the loop, not in its first steps.
-            world.body.warm_up()
-            warm_up(stack.guidance.planner, config, MonotonicClock())
-            loop_started = time.perf_counter()
-            end_reason, arrived_ns = _run_loop(scenario, clock, stack, world, sink, on_progress)
-            loop_wall_s = time.perf_counter() - loop_started
-            fault_failures = unexercised_faults(
-                scenario.faults, clock.now_ns(), to_ns(scenario.duration_s), end_reason, arrived_ns
-            )
-            for failure in fault_failures:
-                _log_record(sink, clock.now_ns(), _LOG_WARNING, failure)
-            stack.close()
-            world.vescs.poll()  # the zero commands sent on close reach the controllers
+                if on_components is not None:
+                    on_components(
+                        {
+                            "onboard": stack,
+                            "can_link": can_link,
+                            "mavlink_link": mavlink,
+                            "encoding": sink if isinstance(sink, FanoutSink) else None,
+                            "recorder": recorder,
+                            "telemetry": telemetry,
+                            "world": world,
+                            "vescs": world.vescs,
+                            "autopilot": world.autopilot,
+                            "dynamics": world.body,
+                            "truth": world.truth,
+                        }
+                    )
+                # Kernels load (or, on a machine's first run, compile) before the loop, not in its first
+                # steps.
+                world.body.warm_up()
+                warm_up(stack.guidance.planner, config, MonotonicClock())
+                loop_started = time.perf_counter()
+                end_reason, arrived_ns = _run_loop(scenario, clock, stack, world, sink, on_progress)
+                loop_wall_s = time.perf_counter() - loop_started
+                fault_failures = unexercised_faults(
+                    scenario.faults, clock.now_ns(), to_ns(scenario.duration_s), end_reason, arrived_ns
+                )
+                for failure in fault_failures:
+                    _log_record(sink, clock.now_ns(), _LOG_WARNING, failure)
+                stack.close()
+                world.vescs.poll()  # the zero commands sent on close reach the controllers
         simulated_s = seconds(clock.now_ns())
 
     metrics = compute_metrics(mcap_path)

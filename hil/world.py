@@ -9,6 +9,8 @@ wires differ.
 
 from __future__ import annotations
 
+from types import TracebackType
+
 import can
 import numpy as np
 
@@ -57,8 +59,10 @@ class SimWorld:
         fault_rng = np.random.default_rng([seed, 1])
         perception_rng = np.random.default_rng([seed, 2])
         has = {f.target for f in scenario.faults}
+        # The world's own wrapper, shut in close(); the wires themselves belong to whoever opened them.
+        self._faulty_can: FaultyCanBus | None = None
         if "can" in has:
-            can_bus = FaultyCanBus(can_bus, self.faults, clock, fault_rng)
+            can_bus = self._faulty_can = FaultyCanBus(can_bus, self.faults, clock, fault_rng)
         if "mavlink" in has:
             mavlink = FaultyTransport(mavlink, self.faults, clock, fault_rng)
         self._vesc_faults = "vesc" in has
@@ -117,6 +121,22 @@ class SimWorld:
         )
         self._tick = 0
         self.last_step: DynamicsStep | None = None
+
+    def close(self) -> None:
+        """Shut what the world opened itself (the CAN fault wrapper); the caller's wires stay open.
+
+        Safe to call twice. python-can logs "... was not properly shut down" for a bus collected unshut.
+        """
+        if self._faulty_can is not None:
+            self._faulty_can.shutdown()
+
+    def __enter__(self) -> SimWorld:
+        return self
+
+    def __exit__(
+        self, kind: type[BaseException] | None, error: BaseException | None, trace: TracebackType | None
+    ) -> None:
+        self.close()
 
     @property
     def rolled_over(self) -> bool:

@@ -21,6 +21,7 @@ from typing import Any
 from logs.analysis import TrialAnalysis, analyse
 from logs.compare import RunComparison, compare_runs
 from logs.errors import LogReadError, LogsError
+from logs.topics import ESTIMATOR_POSE, TRUTH_POSE
 
 logger = logging.getLogger(__name__)
 
@@ -37,8 +38,11 @@ HEADLINE_METRICS = (
     ("distance_m", "distance (m)"),
     ("duration_s", "duration (s)"),
     ("goal_reached", "goal reached"),
-    ("final_distance_to_goal_m", "distance to goal at end (m, truth)"),
+    ("final_distance_to_goal_m", "distance to goal at end (m, {source})"),
 )
+# What the trajectory metrics (distance, path accuracy, distance to goal...) were measured on
+# (``TrialMetrics.trajectory_topic``): a simulation's ground truth, or a real run's own estimate.
+TRAJECTORY_SOURCES = {TRUTH_POSE: "truth", ESTIMATOR_POSE: "estimate"}
 
 
 class ReportError(LogsError):
@@ -187,7 +191,10 @@ def _fmt(value: Any) -> str:
 
 def _run_rows(run: TrialAnalysis) -> list[tuple[str, str]]:
     metrics = run.metrics.to_dict()
-    rows = [(label, _fmt(metrics.get(key))) for key, label in HEADLINE_METRICS]
+    topic = run.metrics.trajectory_topic
+    source = TRAJECTORY_SOURCES.get(topic or "", "no trajectory")
+    rows = [("trajectory from", f"{topic} ({source})" if topic else source)]
+    rows += [(label.format(source=source), _fmt(metrics.get(key))) for key, label in HEADLINE_METRICS]
     rows += [(key.replace("_", " "), _fmt(value)) for key, value in run.figures.items()]
     rows.append(("can bus load from", run.can_load_source))
     return rows

@@ -17,6 +17,7 @@ from firmware_bridge.mavlink_link import MavlinkConfig
 from firmware_bridge.vesc import VescProfile
 from logs.settings import Table, load_toml
 from logs.telemetry import ZenohSettings
+from navigator.config_checks import check_cross_fields
 from navigator.follower import FollowerConfig
 from navigator.map_config import terrain_from_table
 from navigator.safety_config import SafetyConfig
@@ -117,4 +118,5 @@ def rover_config_from_table(root: Table) -> RoverConfig:
         source=root.source,
     )
     root.finish()
+    check_cross_fields(config)
     return config

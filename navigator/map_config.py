@@ -13,7 +13,7 @@ import numpy as np
 from logs.settings import ConfigError, Table
 from navigator.errors import TerrainError
 from navigator.png_layers import load_png_layers
-from navigator.terrain import TerrainMap, from_maze, load_npy_layers, procedural
+from navigator.terrain import TerrainMap, check_map_cells, from_maze, load_npy_layers, procedural
 from navigator.terrain_classes import class_by_name
 
 TERRAIN_KINDS = ("maze", "procedural", "npy", "png")
@@ -39,6 +39,13 @@ def terrain_from_table(table: Table, base_dir: Path) -> tuple[TerrainMap, str]:
             rows, cols = round(height / resolution), round(width / resolution)
             if rows < 2 or cols < 2:
                 raise table.error("size_m", "the map must be at least two cells each way")
+            check_map_cells(
+                rows,
+                cols,
+                f"{width:,.10g} x {height:,.10g} m at resolution_m {resolution:g} m",
+                "make size_m smaller or resolution_m coarser",
+                key="size_m",
+            )
             terrain = procedural(
                 (rows, cols),
                 resolution,

@@ -44,7 +44,6 @@ from navigator.astar import BUCKET_ALPHA, SQRT2, PlanResult, astar
 from navigator.astar_python import astar_python
 from navigator.replanning import RepairingPlanner
 
-DEFAULT_SIZES = (256, 1024, 2048)
 OBSTACLE_FRACTION = 0.2
 COST_TOLERANCE = 1e-9  # relative; sums of ~10^4 edges in a different order differ in the last bits
 

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from navigator.errors import TerrainError
-from navigator.terrain import TerrainMap
+from navigator.terrain import TerrainMap, check_map_cells
 from navigator.terrain_classes import TERRAIN_CLASSES
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -98,6 +98,9 @@ def read_png_header(path: Path, name: str) -> PngHeader:
         raise TerrainError(f"{name} layer file {str(path)!r} is not readable: {err}", key=name) from err
     if not data.startswith(PNG_SIGNATURE) or data[12:16] != b"IHDR" or len(data) < 33:
         raise TerrainError(f"{name} layer file {str(path)!r} is not a PNG image", key=name)
+    width, height = struct.unpack(">II", data[16:24])
+    # Before any pixel is decoded: a small file can claim (and inflate to) a huge image.
+    check_map_cells(height, width, f"{name} layer file {str(path)!r}", "downsample the layers", key=name)
     bit_depth, colour_type = data[24], data[25]
     palette = None
     offset = 8

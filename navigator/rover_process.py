@@ -23,6 +23,7 @@ from __future__ import annotations
 import json
 import logging
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,6 +38,7 @@ from logs.recorder import McapRecorder
 from logs.sink import FanoutSink, MessageSink
 from logs.telemetry import ZenohTelemetry, open_session
 from logs.telemetry_station import rate_limited
+from logs.wall_clock import WALL_CLOCK_METADATA, take_anchor
 from navigator.config import RoverConfig
 from navigator.deferred_sink import DeferredSink, deferred_sink
 from navigator.errors import NavigatorError
@@ -95,12 +97,16 @@ def run_rover(
     goal: tuple[float, float] | None = None,
     duration_ns: int | None = None,
     telemetry: bool = True,
+    wall_ns: Callable[[], int] = time.time_ns,
 ) -> RunResult:
     """Run the onboard stack in real time until ``stop`` is set; returns the recording and timing.
 
     Nothing is created in ``out_dir`` until every start-up check has passed (the config, the Zenoh
     session, both links): a run that cannot start leaves no recording behind. A failure after that is
     recorded on the ``log`` topic, the recording closed as a readable MCAP, and the error raised.
+
+    ``wall_ns`` is read once, as the recording opens, to date it (``logs.wall_clock``); nothing else
+    reads the wall clock.
 
     ``wait`` idles the loop between reads (default: ``select`` on the pacing link, ``navigator.input_wait``).
     """
@@ -122,7 +128,7 @@ def run_rover(
         deferred = deferred_sink(pending)
         links = open_links(config, clock, deferred)
         try:
-            recorder = _open_recording(mcap_path, config)
+            recorder = _open_recording(mcap_path, config, clock, wall_ns)
         except RoverSetupError:
             links.close()
             raise
@@ -167,8 +173,11 @@ def run_rover(
     return RunResult(mcap_path, timing)
 
 
-def _open_recording(mcap_path: Path, config: RoverConfig) -> McapRecorder:
-    """The run's recording, with its trial metadata; ``RoverSetupError`` if the file cannot be made."""
+def _open_recording(
+    mcap_path: Path, config: RoverConfig, clock: Clock, wall_ns: Callable[[], int]
+) -> McapRecorder:
+    """The run's recording, with its trial metadata and the date of its clock's zero (``wall_clock``);
+    ``RoverSetupError`` if the file cannot be made."""
     try:
         recorder = McapRecorder(mcap_path)
     except RecordingError as err:
@@ -183,6 +192,8 @@ def _open_recording(mcap_path: Path, config: RoverConfig) -> McapRecorder:
             "can_bitrate": str(config.can.bitrate),
         },
     )
+    # The date of log time 0 is otherwise unknown (the clock is monotonic): .asc/.trc exports need it.
+    recorder.add_metadata(WALL_CLOCK_METADATA, take_anchor(clock, wall_ns).as_metadata())
     return recorder
 
 

@@ -21,6 +21,26 @@ from navigator.terrain_classes import TERRAIN_CLASSES
 MAZE_WALL = 1
 MAZE_OPEN = 2
 
+# The most cells a map may have: 4096 x 4096, a 1 km square at 0.25 m. Planning on a map costs about
+# 200 bytes a cell at its peak (layers, slope gradients, eight direction-cost factors, the cost-to-go
+# field; measured ~210 B/cell on a 2048 x 2048 map), so this bound is ~3.5 GB: what a companion computer
+# with 8 GB can still hold next to the rest of the stack. A size past it is a typo in a size or a
+# resolution, and is refused before anything is allocated instead of ending in a MemoryError.
+MAX_MAP_CELLS = 4096 * 4096
+
+
+def check_map_cells(rows: int, cols: int, what: str, remedy: str, *, key: str | None = None) -> None:
+    """TerrainError (naming ``key``) when a ``rows`` x ``cols`` map would exceed ``MAX_MAP_CELLS``.
+
+    ``what``: the input that asks for that size; ``remedy``: what the user can change."""
+    cells = rows * cols
+    if cells > MAX_MAP_CELLS:
+        raise TerrainError(
+            f"{what} would need {rows:,} x {cols:,} = {cells:,} cells; a map may have at most "
+            f"{MAX_MAP_CELLS:,} (planning takes ~200 bytes a cell): {remedy}",
+            key=key,
+        )
+
 
 def _frozen(array: np.ndarray) -> np.ndarray:
     copy = np.array(array, copy=True)
@@ -218,6 +238,16 @@ def from_maze(
             f"maze resolution_m {resolution_m} must be > 0 and divide cell_size_m {cell_size_m} evenly"
         )
     upsample = round(ratio)
+    maze_rows, maze_cols = maze.shape
+    check_map_cells(
+        maze_rows * upsample,
+        maze_cols * upsample,
+        f"a {maze_rows} x {maze_cols} maze of {cell_size_m:g} m cells at resolution_m {resolution:g} m",
+        f"make resolution_m coarser (each maze cell becomes {upsample} x {upsample} grid cells)"
+        if upsample > 1
+        else "use a smaller maze matrix",
+        key="resolution_m" if upsample > 1 else "matrix",
+    )
     walls = np.kron(maze == MAZE_WALL, np.ones((upsample, upsample), dtype=bool))
     return TerrainMap(
         elevation_m=np.zeros(walls.shape),
@@ -242,7 +272,12 @@ def _load_layer(path: str | Path, name: str) -> np.ndarray:
                 f"(it starts with {head!r}, not {NPY_MAGIC!r})",
                 key=name,
             )
-        layer = np.load(path, allow_pickle=False)
+        # Mapped first: the header's shape is checked before the data is read into memory.
+        mapped = np.load(path, mmap_mode="r", allow_pickle=False)
+        if isinstance(mapped, np.ndarray) and mapped.ndim == 2:
+            rows, cols = mapped.shape
+            check_map_cells(rows, cols, f"{name} layer file {str(path)!r}", "downsample the layers", key=name)
+        layer = np.array(mapped)
     except FileNotFoundError as err:
         raise TerrainError(f"{name} layer file {str(path)!r} not found", key=name) from err
     except (OSError, ValueError) as err:
@@ -309,6 +344,7 @@ def procedural(
     rows, cols = shape
     if rows < 1 or cols < 1:
         raise TerrainError(f"procedural terrain shape must be at least 1 x 1, got {shape}")
+    check_map_cells(rows, cols, "procedural terrain", "ask for fewer rows or columns")
     if hill_count < 0 or class_patch_count < 0 or hill_height_m < 0.0:
         raise TerrainError("procedural hill_count, class_patch_count and hill_height_m must be >= 0")
     if base_class not in TERRAIN_CLASSES:

@@ -68,6 +68,14 @@ class VehicleParams:
             if value <= 0.0:
                 raise table.error(field.name, f"must be > 0, got {value}")
             values[field.name] = value
+        # The planner keeps the footprint clear of obstacles: the wheels must stand inside it.
+        for outer, inner in (("footprint_width_m", "track_m"), ("footprint_length_m", "wheelbase_m")):
+            if values[outer] < values[inner]:
+                raise table.error(
+                    outer,
+                    f"{values[outer]:g} m is less than {inner} {values[inner]:g} m: the wheels would stand "
+                    "outside the footprint the planner keeps clear of obstacles",
+                )
         table.finish()
         return cls(**values)
 

@@ -6,11 +6,17 @@ import argparse
 import json
 from typing import Any
 
+from navigator.plan_bench_sizes import DEFAULT_SIZES
+
 
 def register(commands: Any) -> None:
     bench = commands.add_parser("plan", help="A*: ours vs pyastar2d and tcod; plan repair vs fresh plan")
     bench.add_argument(
-        "--sizes", type=int, nargs="+", default=None, help="map sizes (cells; default: DEFAULT_SIZES)"
+        "--sizes",
+        type=int,
+        nargs="+",
+        default=list(DEFAULT_SIZES),
+        help=f"map sizes, cells a side (default: {' '.join(map(str, DEFAULT_SIZES))})",
     )
     bench.add_argument("--repeats", type=int, default=3, help="runs per solver and size (median reported)")
     bench.add_argument("--seed", type=int, default=1)
@@ -20,10 +26,8 @@ def register(commands: Any) -> None:
 
 def run_bench(args: argparse.Namespace) -> int:
     # Imported when picked: the benchmark's peers (scipy.sparse, pyastar2d, tcod) are no other command's cost.
-    from navigator.plan_bench import DEFAULT_SIZES, SizeResult, repair_figures, run_size, warm_up
+    from navigator.plan_bench import SizeResult, repair_figures, run_size, warm_up
 
-    if args.sizes is None:
-        args.sizes = list(DEFAULT_SIZES)
     warm_up()
     smallest = min(args.sizes)
     results: list[SizeResult] = [run_size(s, args.seed, args.repeats, s == smallest) for s in args.sizes]

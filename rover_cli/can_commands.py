@@ -40,4 +40,8 @@ def export_command(args: argparse.Namespace) -> int:
             f"{args.out}: {stats.frames} frames ({stats.tx} tx, {stats.rx} rx), "
             f"{stats.rejected} records skipped{cut}"
         )
+        if stats.wall_clock_start is not None:
+            print(f"dated by the recording's wall clock: first frame at {stats.wall_clock_start}")
+        elif stats.frames:
+            print("no wall-clock start in the recording: its own times (.asc/.trc/.blf dated at export)")
     return 1 if stats.rejected else 0

@@ -1,3 +1,4 @@
+from datetime import UTC, datetime
 from io import BytesIO
 from pathlib import Path
 
@@ -14,6 +15,7 @@ from logs.clock import SimClock
 from logs.reader import read_messages
 from logs.recorder import McapRecorder
 from logs.topics import CAN_FRAMES, stamp
+from logs.wall_clock import WALL_CLOCK_METADATA, WallClockAnchor
 from tests.firmware_bridge.virtual_can import make_codec, virtual_bus_pair
 
 SHIPPED_DBC = Path(firmware_bridge.__file__).parent / "vesc_6wheel.dbc"
@@ -133,3 +135,74 @@ def test_a_recording_cut_short_exports_up_to_the_cut(request, tmp_path):
     assert cut.truncated
     assert cut.frames < whole.frames
     assert len((tmp_path / "cut.log").read_text().splitlines()) == cut.frames
+
+
+EXPORTED_AT = datetime(2026, 3, 4, 5, 6, 7, tzinfo=UTC)  # the "now" handed to an export
+
+
+def exported_at() -> int:
+    return round(EXPORTED_AT.timestamp() * 1e9)
+
+
+def asc_dates(path: Path) -> list[str]:
+    """The header's two dates: the ``date`` line and ``Begin Triggerblock``."""
+    lines = path.read_text().splitlines()
+    return [line.split(" ", 1)[1] for line in lines if line.startswith("date ")] + [
+        line.split(" ", 2)[2] for line in lines if line.startswith("Begin Triggerblock ")
+    ]
+
+
+def local_asc_date(moment: datetime) -> str:
+    local = moment.astimezone()  # ASC dates are local time, milliseconds as python-can writes them
+    return local.strftime(can.ASCWriter.FORMAT_DATE.format(local.microsecond // 1000))
+
+
+def test_a_recording_without_a_wall_clock_is_dated_at_export_and_says_so(request, tmp_path):
+    recording = record_a_run(request.node.name, ticks=6)  # lockstep: simulated time, no wall_clock record
+    first_ns = next(iter(read_messages(BytesIO(recording), topics=[CAN_FRAMES]))).log_time_ns
+    for suffix in (".asc", ".trc"):
+        stats = export_can_log(BytesIO(recording), tmp_path / f"run{suffix}", wall_ns=exported_at)
+        assert stats.wall_clock_start is None
+        text = (tmp_path / f"run{suffix}").read_text()
+        assert "1970" not in text
+        assert "no wall-clock start" in text and "dated at export, 2026-03-04T05:06:07.000+00:00" in text
+    assert asc_dates(tmp_path / "run.asc") == [local_asc_date(EXPORTED_AT)] * 2
+    with can.TRCReader(tmp_path / "run.trc") as reader:
+        frames = list(reader)  # the header is read with the first frame
+        assert reader.start_time == EXPORTED_AT  # frames keep their spacing from the first
+    with can.ASCReader(tmp_path / "run.asc", relative_timestamp=False) as asc:
+        asc_frames = list(asc)
+    recorded = list(read_messages(BytesIO(recording), topics=[CAN_FRAMES]))
+    for rec, trc, asc_frame in zip(recorded, frames, asc_frames, strict=True):
+        expected = EXPORTED_AT.timestamp() + (rec.log_time_ns - first_ns) / 1e9
+        assert trc.timestamp == pytest.approx(expected, abs=1e-3)  # TRC keeps milliseconds
+        assert asc_frame.timestamp == pytest.approx(expected, abs=2e-3)  # ASC: ms header, us frames
+    # candump keeps the recording's own clock: it has no header to date.
+    export_can_log(BytesIO(recording), tmp_path / "run.log", wall_ns=exported_at)
+    read_back = list(can.CanutilsLogReader(tmp_path / "run.log"))
+    assert [round(m.timestamp * 1e9) for m in read_back] == [r.log_time_ns for r in recorded]
+
+
+def test_a_recording_with_a_wall_clock_is_dated_by_it(request, tmp_path):
+    started = datetime(2025, 7, 8, 9, 10, 11, 250_000, tzinfo=UTC)
+    anchor = WallClockAnchor(unix_ns=round(started.timestamp() * 1e9), clock_ns=1_000_000_000)
+    source = BytesIO(record_a_run(request.node.name, ticks=6))
+    recording = BytesIO()
+    with McapRecorder(recording) as recorder:  # the run again, with rover run's wall_clock record first
+        recorder.add_metadata(WALL_CLOCK_METADATA, anchor.as_metadata())
+        for rec in read_messages(source, topics=[CAN_FRAMES]):
+            recorder.publish(CAN_FRAMES, rec.log_time_ns, rec.message)
+    recorded = list(read_messages(BytesIO(recording.getvalue()), topics=[CAN_FRAMES]))
+    first = datetime.fromtimestamp(anchor.unix_ns_at(recorded[0].log_time_ns) / 1e9, UTC)
+    for suffix in (".asc", ".trc", ".log"):
+        stats = export_can_log(BytesIO(recording.getvalue()), tmp_path / f"run{suffix}", wall_ns=exported_at)
+        assert stats.wall_clock_start == first.isoformat(timespec="microseconds")
+        assert "2026" not in (tmp_path / f"run{suffix}").read_text()  # the export time is not used
+    assert asc_dates(tmp_path / "run.asc") == [local_asc_date(first)] * 2
+    assert "the recording's wall-clock start" in (tmp_path / "run.asc").read_text()
+    with can.TRCReader(tmp_path / "run.trc") as reader:
+        assert len(list(reader)) == len(recorded)
+        assert reader.start_time == first
+    read_back = list(can.CanutilsLogReader(tmp_path / "run.log"))  # candump: Unix times, as candump -l
+    for msg, rec in zip(read_back, recorded, strict=True):
+        assert msg.timestamp == pytest.approx(anchor.unix_ns_at(rec.log_time_ns) / 1e9, abs=1e-6)

@@ -42,15 +42,17 @@ def test_braking_downhill_draws_only_the_electronics_current():
     with lockstep_wires(config.can, clock=clock) as wires:
         codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
         link = CanLink(wires.onboard_bus, codec, clock, sink)
-        world = SimWorld(scenario, config.vehicle, codec, clock, wires.sim_bus, wires.sim_mavlink, sink, 1)
-        for tick in range(400):
-            clock.advance(DT_NS)
-            step = world.tick(DT_NS / 1e9)
-            integral_wh += world.battery.voltage_v * world.battery.current_a * DT_NS / 1e9 / 3600.0
-            currents.append((step.motor_currents_a, world.battery.current_a))
-            if tick % 2 == 0:
-                link.poll()
-                link.send_wheel_speeds([0.5] * 6)
+        with SimWorld(
+            scenario, config.vehicle, codec, clock, wires.sim_bus, wires.sim_mavlink, sink, 1
+        ) as world:
+            for tick in range(400):
+                clock.advance(DT_NS)
+                step = world.tick(DT_NS / 1e9)
+                integral_wh += world.battery.voltage_v * world.battery.current_a * DT_NS / 1e9 / 3600.0
+                currents.append((step.motor_currents_a, world.battery.current_a))
+                if tick % 2 == 0:
+                    link.poll()
+                    link.send_wheel_speeds([0.5] * 6)
         link.close()
     assert world.body.speed > 0.5  # the rover runs ahead of its wheels: they brake
     for motor_currents, battery_current in currents[-100:]:

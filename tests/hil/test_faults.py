@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+import dataclasses
+import gc
+import logging
 import math
 
 import numpy as np
 import pytest
 
-from logs.settings import ConfigError
+from hil.trial import run_trial
+from logs.settings import ConfigError, parse_toml
+from navigator.config import rover_config_from_table
 from tests.hil.world_harness import WorldRun, run_world, scenario_with
 
 
@@ -182,3 +187,15 @@ def test_bad_faults_name_the_key(text, key):
     with pytest.raises(ConfigError) as caught:
         scenario_with("[[faults]]\n" + text + "\n")
     assert key in str(caught.value)
+
+
+def test_a_trial_with_can_faults_shuts_its_fault_wrapper(tmp_path, caplog):
+    # python-can logs "<class> was not properly shut down" (logger "can") when it collects a bus left open.
+    faulty = scenario_with(fault("can", "off", start=0.5, duration=0.5))
+    scenario = dataclasses.replace(faulty, duration_s=1.5)
+    config = rover_config_from_table(parse_toml("", "<defaults>"))
+    with caplog.at_level(logging.WARNING, logger="can"):
+        result = run_trial(scenario, config, tmp_path)
+        gc.collect()
+    assert result.simulated_s >= 1.0
+    assert not [r.getMessage() for r in caplog.records if "not properly shut down" in r.getMessage()]

@@ -66,17 +66,17 @@ def run_world(extra: str = "", seconds: float = 4.0, speed_mps: float = 0.6) -> 
         codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
         can_link = CanLink(wires.onboard_bus, codec, clock, sink)
         mavlink = MavlinkLink(wires.onboard_mavlink, clock, sink)
-        world = SimWorld(
+        with SimWorld(
             scenario, config.vehicle, codec, clock, wires.sim_bus, wires.sim_mavlink, sink, scenario.seed
-        )
-        tick = 0
-        while clock.now_ns() < to_ns(seconds):
-            clock.advance(DT_NS)
-            tick += 1
-            world.tick(DT_NS / 1e9)
-            if tick % 2 == 0:
-                can_link.poll()
-                mavlink.poll()
-                can_link.send_wheel_speeds([speed_mps] * 6)
+        ) as world:
+            tick = 0
+            while clock.now_ns() < to_ns(seconds):
+                clock.advance(DT_NS)
+                tick += 1
+                world.tick(DT_NS / 1e9)
+                if tick % 2 == 0:
+                    can_link.poll()
+                    mavlink.poll()
+                    can_link.send_wheel_speeds([speed_mps] * 6)
         can_link.close()
     return WorldRun(sink, world, scenario)

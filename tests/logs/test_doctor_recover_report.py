@@ -15,7 +15,14 @@ from logs.recorder import McapRecorder
 from logs.recover import recover
 from logs.report import ReportError, write_report
 from logs.synthetic import synthetic_metadata, synthetic_trial
-from logs.topics import CAN_FRAMES, ESTIMATOR_POSE, NAVIGATOR_PATH, WHEELS_STATUS
+from logs.topics import (
+    CAN_FRAMES,
+    ESTIMATOR_POSE,
+    NAVIGATOR_PATH,
+    TRUTH_POSE,
+    TRUTH_STABILITY,
+    WHEELS_STATUS,
+)
 
 DURATION_S = 20.0  # one whole wobble period, so RMS values have closed forms
 
@@ -125,6 +132,21 @@ def test_report_with_missing_topics_is_partial_and_says_so(tmp_path: Path) -> No
     assert run.metrics.path_accuracy_pct is None and run.metrics.energy_wh is None
     assert run.metrics.cross_track_error_rms_m is not None  # what is there is still reported
     assert "Partial report, missing" in result.markdown.read_text(encoding="utf-8")
+
+
+def test_a_run_without_truth_labels_its_figures_estimate(trial: tuple[Path, int], tmp_path: Path) -> None:
+    real = tmp_path / "real.mcap"  # what `rover run` records: no truth/* topics
+    _write(real, skip=frozenset({TRUTH_POSE, TRUTH_STABILITY}))
+    result = write_report([real, trial[0]], tmp_path / "out", plots=False)
+    assert [run.metrics.trajectory_topic for run in result.runs] == [ESTIMATOR_POSE, TRUTH_POSE]
+    runs_part = result.markdown.read_text(encoding="utf-8").split("## Comparison")[0]
+    real_part, sim_part = runs_part.split("## ")[1:]
+    assert "| trajectory from | estimator/pose (estimate) |" in real_part
+    assert "| distance to goal at end (m, estimate) |" in real_part
+    assert not [row for row in real_part.splitlines() if row.startswith("|") and "truth" in row]
+    assert "| trajectory from | truth/pose (truth) |" in sim_part
+    assert "| distance to goal at end (m, truth) |" in sim_part
+    assert "distance to goal at end (m, estimate)" in result.html.read_text(encoding="utf-8")
 
 
 def test_report_on_a_cut_file_covers_the_part_before_the_cut(trial: tuple[Path, int], tmp_path: Path) -> None:

@@ -10,10 +10,13 @@ import threading
 import time
 from pathlib import Path
 
+import can
 import pytest
 
+from firmware_bridge.can_export import export_can_log
 from logs.clock import MonotonicClock
 from logs.reader import read_messages, read_metadata
+from logs.wall_clock import WALL_CLOCK_METADATA, WallClockAnchor
 from navigator.runtime import FixedRateScheduler, RingStats
 
 CONFIG = """
@@ -77,6 +80,7 @@ def test_rover_run_stops_wheels_and_closes_recording_on_signal(tmp_path: Path, s
     config = tmp_path / "rover.toml"
     config.write_text(CONFIG.format(n=stop_signal))
     out = tmp_path / "run"
+    started_unix_ns = time.time_ns()
     process = subprocess.Popen(
         [
             sys.executable,
@@ -123,5 +127,14 @@ def test_rover_run_stops_wheels_and_closes_recording_on_signal(tmp_path: Path, s
     assert len(frames) >= 6 and all(f["data"] == "00000000" for f in frames[-6:])  # the last six: zero rpm
     events = [m.message for m in read_messages(mcap, ["safety/events"])]
     assert any(e["kind"] == "failsafe.wheel_silent" for e in events)  # no controllers on this bus
+
+    # The recording says when it ran, so a CAN export is dated today, not 1970.
+    anchor = WallClockAnchor.from_metadata(metadata[WALL_CLOCK_METADATA])
+    assert anchor is not None and started_unix_ns <= anchor.unix_ns <= time.time_ns()
+    exported = export_can_log(mcap, tmp_path / "run.trc")
+    assert exported.frames > 0 and exported.wall_clock_start is not None
+    with can.TRCReader(tmp_path / "run.trc") as reader:
+        first = next(iter(reader))  # stamped from the header's start time, plus its offset (0)
+    assert started_unix_ns / 1e9 <= first.timestamp <= time.time_ns() / 1e9
     stats = [m.message for m in read_messages(mcap, ["can/stats"])]  # the link's own bus load, once a second
     assert stats and all(s["bitrate"] == 1_000_000 and s["load_pct"] > 0.0 for s in stats)

@@ -42,3 +42,19 @@ def test_a_picked_family_leaves_the_others_unimported() -> None:
     others = {module for name, module in FAMILIES.items() if name != "logs"}
     assert imported.isdisjoint(others)
     assert "rover_cli.logs_commands" in imported
+
+
+def test_bench_plan_help_shows_the_default_sizes_themselves() -> None:
+    from navigator.plan_bench_sizes import DEFAULT_SIZES
+    from rover_cli.main import build_parser
+
+    parser = build_parser("bench")
+    args = parser.parse_args(["bench", "plan"])
+    assert args.sizes == list(DEFAULT_SIZES)
+    result = subprocess.run(
+        [sys.executable, "-m", "rover_cli.main", "bench", "plan", "--help"], capture_output=True, text=True
+    )
+    assert result.returncode == 0, result.stderr
+    help_text = " ".join(result.stdout.split())  # argparse wraps lines at the terminal's width
+    assert f"(default: {' '.join(map(str, DEFAULT_SIZES))})" in help_text
+    assert "DEFAULT_SIZES" not in help_text

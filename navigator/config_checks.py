@@ -1,0 +1,55 @@
+"""Rover-config values that are each in range but contradict each other across tables.
+
+Each table checks its own keys when it is read (``from_table``); these checks need two tables at once, so
+they run once the whole config is assembled. Each error names both keys and both values. Only pairs that
+are wrong whatever the rover are checked: a follower faster than the wheels can drive, a lookahead shorter
+than one map cell, a stuck check that can never fire or fires on a rover moving as commanded.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from logs.settings import ConfigError
+
+if TYPE_CHECKING:
+    from navigator.config import RoverConfig
+
+
+def check_cross_fields(config: RoverConfig) -> None:
+    """Raise ``ConfigError`` (naming the file and the first key of the pair) for the first contradiction."""
+    follower, vehicle, safety = config.follower, config.vehicle, config.safety
+
+    def refuse(key: str, problem: str) -> ConfigError:
+        return ConfigError(config.source, key, problem)
+
+    if follower.max_speed_mps > vehicle.max_wheel_speed_mps:
+        # Mixing would scale every command down to the wheel limit: the follower's speed and curvature
+        # limits would no longer be what the rover drives.
+        raise refuse(
+            "follower.max_speed_mps",
+            f"{follower.max_speed_mps:g} m/s is faster than vehicle.max_wheel_speed_mps "
+            f"{vehicle.max_wheel_speed_mps:g} m/s, the fastest the wheels can drive",
+        )
+    if config.terrain is not None and follower.lookahead_m < config.terrain.resolution_m:
+        # The plan runs from cell centre to cell centre; a target closer than one cell chases each step of
+        # that staircase instead of the path's direction.
+        raise refuse(
+            "follower.lookahead_m",
+            f"{follower.lookahead_m:g} m is shorter than one map cell (map.resolution_m "
+            f"{config.terrain.resolution_m:g} m)",
+        )
+    if safety.stuck_time_s > 0.0:
+        if safety.stuck_max_speed_mps >= safety.stuck_min_command_mps:
+            raise refuse(
+                "safety.stuck_max_speed_mps",
+                f"{safety.stuck_max_speed_mps:g} m/s must be below safety.stuck_min_command_mps "
+                f"{safety.stuck_min_command_mps:g} m/s, or a rover driving as commanded counts as stuck",
+            )
+        if safety.stuck_min_command_mps > follower.max_speed_mps:
+            raise refuse(
+                "safety.stuck_min_command_mps",
+                f"{safety.stuck_min_command_mps:g} m/s is above follower.max_speed_mps "
+                f"{follower.max_speed_mps:g} m/s, so the stuck check could never fire "
+                "(set safety.stuck_time_s = 0 to turn it off)",
+            )

@@ -1,0 +1,74 @@
+"""Rover-config values that contradict each other across keys: one ConfigError naming both keys and values."""
+
+from __future__ import annotations
+
+import pytest
+
+from logs.settings import ConfigError, parse_toml
+from navigator.config import RoverConfig, rover_config_from_table
+
+SMALL_MAP = '[map]\nkind = "procedural"\nsize_m = [10.0, 10.0]\nresolution_m = 0.5\n'
+
+
+def load(text: str) -> RoverConfig:
+    return rover_config_from_table(parse_toml(text, "rover.toml"))
+
+
+@pytest.mark.parametrize(
+    ("text", "key", "named"),
+    [
+        (
+            "[vehicle]\nmax_wheel_speed_mps = 1.5\n[follower]\nmax_speed_mps = 2.0\n",
+            "follower.max_speed_mps",
+            ("2 m/s", "vehicle.max_wheel_speed_mps 1.5 m/s"),
+        ),
+        (
+            SMALL_MAP + "[follower]\nlookahead_m = 0.3\n",
+            "follower.lookahead_m",
+            ("0.3 m", "map.resolution_m 0.5 m"),
+        ),
+        (
+            "[safety]\nstuck_min_command_mps = 0.2\nstuck_max_speed_mps = 0.3\n",
+            "safety.stuck_max_speed_mps",
+            ("0.3 m/s", "safety.stuck_min_command_mps 0.2 m/s"),
+        ),
+        (
+            "[follower]\nmax_speed_mps = 0.5\n[safety]\nstuck_min_command_mps = 0.8\n",
+            "safety.stuck_min_command_mps",
+            ("0.8 m/s", "follower.max_speed_mps 0.5 m/s", "stuck_time_s = 0"),
+        ),
+        (
+            "[vehicle]\ntrack_m = 0.8\nfootprint_width_m = 0.7\n",
+            "vehicle.footprint_width_m",
+            ("0.7 m", "track_m 0.8 m"),
+        ),
+        (
+            "[vehicle]\nwheelbase_m = 1.0\nfootprint_length_m = 0.9\n",
+            "vehicle.footprint_length_m",
+            ("0.9 m", "wheelbase_m 1 m"),
+        ),
+    ],
+)
+def test_contradicting_values_name_both_keys(text: str, key: str, named: tuple[str, ...]) -> None:
+    with pytest.raises(ConfigError) as caught:
+        load(text)
+    assert caught.value.source == "rover.toml"
+    assert caught.value.key == key
+    for words in named:
+        assert words in caught.value.problem
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "",  # the shipped defaults
+        "[vehicle]\nmax_wheel_speed_mps = 1.5\n[follower]\nmax_speed_mps = 1.5\n",  # at the limit
+        SMALL_MAP + "[follower]\nlookahead_m = 0.5\n",  # one cell
+        "[follower]\nlookahead_m = 0.1\n",  # no [map]: no cell size to compare with
+        # The stuck check turned off: its speeds are not used, so they cannot contradict anything.
+        "[follower]\nmax_speed_mps = 0.5\n[safety]\nstuck_time_s = 0.0\nstuck_min_command_mps = 0.8\n",
+        "[safety]\nstuck_time_s = 0.0\nstuck_min_command_mps = 0.2\nstuck_max_speed_mps = 0.3\n",
+    ],
+)
+def test_consistent_values_load(text: str) -> None:
+    load(text)
