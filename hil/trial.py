@@ -53,6 +53,9 @@ _LOG_INFO = 2
 
 PHYSICS_DT_NS = 10_000_000  # 100 Hz rover body
 CONTROL_DIVIDER = 2  # onboard control at 50 Hz
+# After the final ARRIVED: the rover counts as stopped below this body speed; the wait for it is bounded.
+AT_REST_MPS = 0.02
+SETTLE_MAX_NS = 3_000_000_000
 ENCOUNTER_MARGIN_M = 2.5  # an obstacle this close to the track (beyond its radius) was "in the way"
 
 
@@ -210,7 +213,7 @@ def _run_loop(
     arrived_ns: int | None = None
     tick = 0
     next_progress_ns = 0
-    while clock.now_ns() < stop_ns:
+    while clock.now_ns() < stop_ns or _still_rolling(clock.now_ns(), arrived_ns, end_ns, world):
         now = clock.advance(PHYSICS_DT_NS)
         tick += 1
         world.tick(dt_s)
@@ -224,7 +227,7 @@ def _run_loop(
                     arrived_ns = now
                     stop_ns = park_until_ns(scenario.faults, now, end_ns)
                     if stop_ns <= now:
-                        return "arrived", arrived_ns
+                        continue  # nothing left to run: stop once the rover has come to rest
                     _log_record(
                         sink,
                         now,
@@ -242,6 +245,15 @@ def _run_loop(
             on_progress(seconds(now) / scenario.duration_s)
             next_progress_ns = now + NS_PER_S
     return ("timeout", None) if arrived_ns is None else ("arrived", arrived_ns)
+
+
+def _still_rolling(now_ns: int, arrived_ns: int | None, end_ns: int, world: SimWorld) -> bool:
+    """After the final ARRIVED the trial runs on until the rover has come to rest (the zero command
+    still has to brake it), so the final pose, and the distance to the goal, is where it really stopped;
+    at most ``SETTLE_MAX_NS``, never past the scenario's duration."""
+    if arrived_ns is None or now_ns >= min(arrived_ns + SETTLE_MAX_NS, end_ns):
+        return False
+    return abs(world.body.speed) >= AT_REST_MPS
 
 
 def _log_record(sink: MessageSink, t_ns: int, level: int, message: str) -> None:

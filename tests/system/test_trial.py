@@ -11,7 +11,7 @@ import cantools
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from hil.trial import run_trial
+from hil.trial import AT_REST_MPS, run_trial
 from hil.world import ELECTRONICS_CURRENT_A
 from logs import topics
 from logs.reader import read_messages
@@ -29,6 +29,21 @@ def test_trial_reaches_goal_and_writes_outputs(small_trial):
     assert metrics["collisions"] == 0
     assert metrics["path_accuracy_pct"] > 50.0
     assert metrics["energy_wh"] > 0.0
+
+
+def test_the_trial_ends_with_the_rover_at_rest_so_the_final_distance_is_where_it_stopped(small_trial):
+    poses = list(read_messages(small_trial.mcap_path, topics=[topics.TRUTH_POSE]))
+    states = list(read_messages(small_trial.mcap_path, topics=[topics.NAVIGATOR_STATE]))
+    arrived_ns = next(m.log_time_ns for m in states if m.message["mode"] == "ARRIVED")
+    # The last truth pose is recorded up to one truth period before the step that found the body at rest.
+    assert abs(poses[-1].message["speed_mps"]) < 2 * AT_REST_MPS
+    assert poses[-1].log_time_ns > arrived_ns  # it braked after the arrival: the trial waited for that
+    metrics = json.loads(small_trial.metrics_path.read_text())
+    goal = states[-1].message["goal"]
+    end = poses[-1].message["pose"]["position"]
+    assert metrics["final_distance_to_goal_m"] == pytest.approx(
+        ((end["x"] - goal["x"]) ** 2 + (end["y"] - goal["y"]) ** 2) ** 0.5, abs=1e-4
+    )
 
 
 def test_reported_energy_is_what_the_motors_took_from_the_simulated_pack(small_trial):
