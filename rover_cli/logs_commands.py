@@ -40,6 +40,16 @@ def register(families: Any) -> None:
     report.add_argument("--no-plots", action="store_true", help="tables only (faster)")
     report.set_defaults(handler=report_command)
 
+    export = commands.add_parser(
+        "csv", help="one CSV file per topic (fields flattened), for pandas or a spreadsheet"
+    )
+    export.add_argument("file", type=Path)
+    export.add_argument("--out", type=Path, required=True, help="folder for the CSV files")
+    export.add_argument(
+        "--topics", type=lambda text: [t for t in text.split(",") if t], help="comma-separated (default: all)"
+    )
+    export.set_defaults(handler=csv_command)
+
 
 def doctor_command(args: argparse.Namespace) -> int:
     from logs.doctor import diagnose
@@ -125,3 +135,32 @@ def report_command(args: argparse.Namespace) -> int:
         return 2
     # 1: a report was written, but without some of the inputs (a script must not take it for all of them).
     return 1 if result.failed else 0
+
+
+def csv_command(args: argparse.Namespace) -> int:
+    from logs.csv_export import export_csv
+
+    console = Console()
+    try:
+        result = export_csv(args.file, args.out, args.topics)
+    except LogsError as err:
+        print_error(console, err)
+        return 2
+    table = RichTable()
+    for column in ("topic", "rows", "file"):
+        table.add_column(column, justify="right" if column == "rows" else "left")
+    for topic, path in result.files.items():
+        table.add_row(escape(topic), str(result.rows[topic]), escape(str(path)))
+    console.print(table)
+    if result.skipped_messages:
+        console.print(
+            f"[yellow]skipped[/yellow] {result.skipped_messages} message(s) that could not be decoded"
+        )
+    if result.truncated:
+        console.print(
+            f"[yellow]cut short[/yellow] {escape(str(args.file))}: the CSV files hold its readable part; "
+            "`rover logs doctor FILE` says more",
+            soft_wrap=True,
+        )
+        return 1
+    return 0
