@@ -51,6 +51,8 @@ class TrialSpec:
     config_path: Path | None
     overrides: dict[str, Any]
     out_dir: Path
+    terrain_index: int = 0  # positions in the campaign file, recorded so reports keep its order
+    variant_index: int = 0
 
     @property
     def label(self) -> str:
@@ -78,9 +80,11 @@ class Campaign:
                 self.config_path,
                 variant.overrides,
                 out_dir / terrain / variant.name / f"seed{seed}",
+                terrain_index,
+                variant_index,
             )
-            for terrain, scenario in self.terrains
-            for variant in self.variants
+            for terrain_index, (terrain, scenario) in enumerate(self.terrains)
+            for variant_index, variant in enumerate(self.variants)
             for seed in self.seeds
         ]
 

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from hil.campaign import Campaign, TrialSpec, campaign_config
+from hil.campaign_place import CampaignPlace
 from hil.campaign_summary import write_summary
 from hil.scenario import load_scenario
 from hil.trial_log_label import trial_log_label
@@ -47,7 +48,8 @@ def run_one(spec: TrialSpec) -> TrialOutcome:
         with trial_log_label(spec.label):
             scenario = load_scenario(spec.scenario_path)
             config = campaign_config(spec.config_path, spec.overrides, spec.label)
-            result = run_trial(scenario, config, spec.out_dir, seed=spec.seed, variant=spec.variant)
+            place = CampaignPlace(spec.terrain, spec.variant, spec.terrain_index, spec.variant_index)
+            result = run_trial(scenario, config, spec.out_dir, seed=spec.seed, campaign=place)
     except Exception as err:  # a broken trial must not take the campaign down; it is reported
         logger.exception("trial %s failed", spec.label)
         return TrialOutcome(

@@ -16,6 +16,7 @@ import numpy as np
 
 from hil.faults import Fault, faults_from_tables
 from hil.moving_obstacles import MovingObstacle
+from logs.metrics import DEFAULT_ENCOUNTER_MARGIN_M
 from logs.settings import Table, load_toml
 from navigator.map_config import terrain_from_table
 from navigator.terrain import TerrainMap, disc_mask
@@ -131,6 +132,8 @@ class Scenario:
     moving_obstacles: tuple[MovingObstacle, ...] = ()
     faults: tuple[Fault, ...] = ()
     success: SuccessCriteria = SuccessCriteria()
+    # An obstacle whose edge came this close to the track was "in the way" (docs/metrics.md).
+    encounter_margin_m: float = DEFAULT_ENCOUNTER_MARGIN_M
 
 
 def load_scenario(path: str | Path) -> Scenario:
@@ -146,6 +149,9 @@ def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
     duration_s = root.number("duration_s", 120.0, lo=1.0, hi=24 * 3600.0)
     seed = root.integer("seed", 0, lo=0)
     path_tolerance_m = root.number("path_tolerance_m", 0.5, lo=0.01, hi=100.0)
+    encounter_margin_m = root.number("encounter_margin_m", DEFAULT_ENCOUNTER_MARGIN_M, hi=100.0)
+    if encounter_margin_m <= 0.0:
+        raise root.error("encounter_margin_m", f"must be > 0 m, got {encounter_margin_m}")
     datum_values = root.numbers("datum", [47.397742, 8.545594, 488.0], length=3)
     if not (-90.0 <= datum_values[0] <= 90.0 and -180.0 <= datum_values[1] <= 180.0):
         raise root.error(
@@ -228,6 +234,7 @@ def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
         moving_obstacles=tuple(moving),
         faults=faults,
         success=success,
+        encounter_margin_m=encounter_margin_m,
     )
 
 

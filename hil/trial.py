@@ -30,6 +30,7 @@ from firmware_bridge.mavlink_link import MavlinkLink
 from firmware_bridge.mavlink_transport import Transport
 from firmware_bridge.vesc import VescCodec
 from firmware_bridge.vesc_dbc import load_vesc_database
+from hil.campaign_place import CampaignPlace
 from hil.config_record import effective_config, flattened
 from hil.fault_coverage import park_until_ns, unexercised_faults
 from hil.lockstep import CanBackend, lockstep_wires
@@ -56,7 +57,6 @@ CONTROL_DIVIDER = 2  # onboard control at 50 Hz
 # After the final ARRIVED: the rover counts as stopped below this body speed; the wait for it is bounded.
 AT_REST_MPS = 0.02
 SETTLE_MAX_NS = 3_000_000_000
-ENCOUNTER_MARGIN_M = 2.5  # an obstacle this close to the track (beyond its radius) was "in the way"
 
 
 @dataclass(frozen=True)
@@ -99,11 +99,12 @@ def run_trial(
     on_components: ComponentHook | None = None,
     commands: CommandSource | None = None,
     ground_station: Transport | None = None,
-    variant: str = "",
+    campaign: CampaignPlace | None = None,
 ) -> TrialResult:
     """Run one lockstep trial; writes ``trial.mcap`` and ``metrics.json`` into ``out_dir``.
 
-    ``variant`` names the campaign variant the config belongs to (recorded in the ``trial`` metadata).
+    ``campaign`` names the campaign terrain and variant the trial belongs to (recorded in the ``trial``
+    metadata).
     """
     seed = scenario.seed if seed is None else seed
     config = _georeferenced(config, scenario)
@@ -112,7 +113,7 @@ def run_trial(
     clock = SimClock()
 
     with McapRecorder(mcap_path) as recorder:
-        write_header(recorder, scenario, config, seed, variant=variant)
+        write_header(recorder, scenario, config, seed, campaign=campaign)
         sink: MessageSink = recorder if telemetry is None else FanoutSink([recorder, telemetry])
         with lockstep_wires(config.can, clock=clock, can_backend=can_backend) as wires:
             codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
@@ -279,13 +280,19 @@ def write_header(
     seed: int,
     *,
     mode: str = "sim-lockstep",
-    variant: str = "",
+    campaign: CampaignPlace | None = None,
 ) -> None:
     """Metadata (scenario, trial, config) and attachments (scenario, config) that make a recording
     self-describing."""
     obstacles = [{"id": o.id, "x": o.x, "y": o.y, "radius": o.radius_m} for o in scenario.obstacles]
     moving = [
-        {"id": m.id, "radius": m.radius_m, "waypoints": m.waypoints, "speed_mps": m.speed_mps}
+        {
+            "id": m.id,
+            "radius": m.radius_m,
+            "waypoints": m.waypoints,
+            "speed_mps": m.speed_mps,
+            "start_s": m.start_s,
+        }
         for m in scenario.moving_obstacles
     ]
     faults = [dataclasses.asdict(f) for f in scenario.faults]
@@ -299,10 +306,11 @@ def write_header(
             "duration_s": repr(scenario.duration_s),
             "terrain": scenario.terrain_summary,
             "path_tolerance_m": repr(scenario.path_tolerance_m),
-            "encounter_margin_m": repr(ENCOUNTER_MARGIN_M),
+            "encounter_margin_m": repr(scenario.encounter_margin_m),
             "obstacles_json": json.dumps(obstacles, separators=(",", ":")),
             "moving_obstacles_json": json.dumps(moving, separators=(",", ":")),
             "faults_json": json.dumps(faults, separators=(",", ":")),
+            "start_json": json.dumps({"x": scenario.start_xy[0], "y": scenario.start_xy[1]}),
             "goal_json": json.dumps({"x": goal.x, "y": goal.y, "tolerance_m": goal.tolerance_m}),
             "terrain_class": _dominant_class(scenario),
         },
@@ -315,8 +323,8 @@ def write_header(
         "software_version": software_version(),
         "can_bitrate": str(config.can.bitrate),
     }
-    if variant:
-        trial["variant"] = variant
+    if campaign is not None:
+        trial.update(campaign.metadata())
     recorder.add_metadata("trial", trial)
     effective = effective_config(config)
     recorder.add_metadata("config", flattened(effective))

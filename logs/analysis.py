@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 from logs.can_load import WINDOW_NS, BusLoad, frame_bits, load_from_frame_windows, load_from_stats
 from logs.errors import LogReadError
 from logs.metrics import METRIC_TOPICS, TrialMetrics, metrics_from_entries
+from logs.obstacle_motion import MovingObstacle
 from logs.reader import (
     Entry,
     ReadStats,
@@ -38,6 +39,7 @@ from logs.reader import (
     RecordedRaw,
     read_entries,
 )
+from logs.scenario_record import SCENARIO_METADATA, StaticObstacle, moving_obstacles, point, static_obstacles
 from logs.topics import (
     CAN_FRAMES,
     CAN_STATS,
@@ -49,6 +51,7 @@ from logs.topics import (
     NAVIGATOR_PATH,
     NAVIGATOR_STATE,
     SAFETY_EVENTS,
+    TRUTH_CONTACTS,
     TRUTH_POSE,
     TRUTH_STABILITY,
     WHEELS_STATUS,
@@ -94,6 +97,16 @@ class Series:
         return np.asarray(self.values, dtype=np.float64).reshape(len(self.t), -1)
 
 
+@dataclass(frozen=True)
+class Contact:
+    """A contact from ``truth/contacts``: where the rover was (m), its kind and what it touched."""
+
+    x: float
+    y: float
+    kind: str
+    obstacle_id: str
+
+
 @dataclass
 class TrialAnalysis:
     path: str
@@ -117,6 +130,12 @@ class TrialAnalysis:
     counts_source: str = "MCAP summary"
     grid: FloatArray | None = None  # elevation layer of navigator/map, rows north, for the background
     grid_extent: tuple[float, float, float, float] | None = None
+    plans: list[FloatArray] = field(default_factory=list)  # every planned path, in log order
+    start_xy: tuple[float, float] | None = None  # the scenario's start (metadata start_json), if recorded
+    goal_xy: tuple[float, float] | None = None  # the scenario's goal, else the navigator's last goal
+    contacts: list[Contact] = field(default_factory=list)  # truth/contacts (simulation)
+    obstacles: list[StaticObstacle] = field(default_factory=list)  # scenario metadata
+    moving_obstacles: list[MovingObstacle] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -145,7 +164,9 @@ class _Collector:
     truth: Series = field(default_factory=Series)
     truth_yaw: Series = field(default_factory=Series)
     estimate: Series = field(default_factory=Series)
-    plan: list[tuple[float, float]] = field(default_factory=list)
+    plans: list[FloatArray] = field(default_factory=list)
+    goal: tuple[float, float] | None = None
+    contacts: list[Contact] = field(default_factory=list)
     xte: Series = field(default_factory=Series)
     speed_truth: Series = field(default_factory=Series)
     speed_estimate: Series = field(default_factory=Series)
@@ -230,9 +251,13 @@ class _Collector:
             self.estimate.add(t, p["x"], p["y"], yaw_of(message["pose"]))
             self.speed_estimate.add(t, message["speed_mps"])
         elif topic == NAVIGATOR_PATH:
-            self.plan = [(float(q["position"]["x"]), float(q["position"]["y"])) for q in message["poses"]]
+            plan = [(float(q["position"]["x"]), float(q["position"]["y"])) for q in message["poses"]]
+            self.plans.append(np.asarray(plan, dtype=np.float64).reshape(-1, 2))
         elif topic == NAVIGATOR_STATE:
             self.state_times.append(entry.log_time_ns)
+            goal = message.get("goal")
+            if isinstance(goal, dict) and goal.get("x") is not None and goal.get("y") is not None:
+                self.goal = (float(goal["x"]), float(goal["y"]))
             value = message.get("cross_track_error_m")
             if value is not None:
                 self.xte.add(t, value)
@@ -251,6 +276,11 @@ class _Collector:
             self._grid(message)
         elif topic == CAN_STATS:
             self._can_stats(message)
+        elif topic == TRUTH_CONTACTS:
+            contact = Contact(
+                float(message["x"]), float(message["y"]), str(message["kind"]), str(message["obstacle_id"])
+            )
+            self.contacts.append(contact)
 
     def _grid(self, message: dict[str, Any]) -> None:
         columns = int(message["column_count"])
@@ -340,6 +370,9 @@ def _finish(
     figures["log_errors"] = sum(n for level, n in c.log_levels.items() if level >= 4)
     figures["unusable_messages"] = sum(c.unusable.values()) + stats.skipped
     speed = c.speed_truth if c.speed_truth.t else c.speed_estimate
+    scenario = c.metadata.get(SCENARIO_METADATA, {})
+    obstacles, _ = static_obstacles(scenario.get("obstacles_json", "[]"))  # problems: in the metrics
+    movers, _ = moving_obstacles(scenario.get("moving_obstacles_json"))
     return TrialAnalysis(
         path=path,
         metrics=metrics,
@@ -348,7 +381,13 @@ def _finish(
         truth=c.truth,
         estimate=c.estimate,
         truth_yaw=c.truth_yaw,
-        plan=np.asarray(c.plan, dtype=np.float64).reshape(-1, 2),
+        plan=c.plans[-1] if c.plans else np.zeros((0, 2)),
+        plans=c.plans,
+        start_xy=point(scenario.get("start_json")),
+        goal_xy=point(scenario.get("goal_json")) or c.goal,
+        contacts=c.contacts,
+        obstacles=obstacles,
+        moving_obstacles=movers,
         xte=c.xte,
         speed=speed,
         current=c.current,
@@ -463,10 +502,3 @@ def _load_figures(
     figures["can_bus_load_mean_pct"] = load.mean_pct
     figures["can_bus_load_peak_pct"] = load.peak_pct
     return figures
-
-
-def distance_along(xy: FloatArray) -> FloatArray:
-    """Cumulative distance (m) along a polyline of shape (N, 2), starting at 0."""
-    if len(xy) == 0:
-        return np.zeros(0)
-    return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])

@@ -11,7 +11,7 @@ import itertools
 import json
 import math
 from collections import Counter
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from logs.reader import Entry, ReadStats, RecordedMessage, RecordedMetadata, Source, read_entries
+from logs.scenario_record import SCENARIO_METADATA, moving_obstacles, static_obstacles
 from logs.topics import (
     ESTIMATOR_POSE,
     NAVIGATOR_PATH,
@@ -29,8 +30,8 @@ from logs.topics import (
     TRUTH_POSE,
     WHEELS_STATUS,
 )
+from logs.travel import step_lengths, travel_steps
 
-SCENARIO_METADATA = "scenario"
 DEFAULT_PATH_TOLERANCE_M = 0.5
 DEFAULT_ENCOUNTER_MARGIN_M = 1.5
 ARRIVED_MODE = "ARRIVED"
@@ -99,7 +100,7 @@ def _plain(value: Any) -> Any:
 # --- what is gathered from the file ------------------------------------------------------------
 @dataclass
 class _Trial:
-    poses: dict[str, list[tuple[int, float, float]]] = field(default_factory=dict)
+    poses: dict[str, list[tuple[int, float, float, float]]] = field(default_factory=dict)  # t, x, y, speed
     paths: list[tuple[int, FloatArray]] = field(default_factory=list)
     states: list[tuple[int, dict[str, Any]]] = field(default_factory=list)
     contacts: list[dict[str, Any]] = field(default_factory=list)
@@ -135,7 +136,11 @@ def _take(trial: _Trial, entry: RecordedMessage) -> None:
     topic, t_ns, message = entry.topic, entry.log_time_ns, entry.message
     if topic in (TRUTH_POSE, ESTIMATOR_POSE):
         position = message["pose"]["position"]
-        trial.poses.setdefault(topic, []).append((t_ns, _finite(position["x"]), _finite(position["y"])))
+        speed = message.get("speed_mps")
+        speed = float(speed) if isinstance(speed, int | float) and not isinstance(speed, bool) else math.nan
+        trial.poses.setdefault(topic, []).append(
+            (t_ns, _finite(position["x"]), _finite(position["y"]), speed)
+        )
     elif topic == NAVIGATOR_PATH:
         points = [(_finite(p["position"]["x"]), _finite(p["position"]["y"])) for p in message["poses"]]
         trial.paths.append((t_ns, np.asarray(points, dtype=np.float64).reshape(-1, 2)))
@@ -225,15 +230,15 @@ def metrics_from_entries(entries: Iterable[Entry], stats: ReadStats) -> TrialMet
     tolerance = _scenario_length(scenario, "path_tolerance_m", DEFAULT_PATH_TOLERANCE_M, notes)
     margin = _scenario_length(scenario, "encounter_margin_m", DEFAULT_ENCOUNTER_MARGIN_M, notes)
 
-    trajectory_topic, times, xy = _trajectory(trial, notes)
+    trajectory_topic, times, xy, speeds = _trajectory(trial, notes)
     has_trajectory = len(times) > 0
-    steps = np.hypot(*np.diff(xy, axis=0).T) if len(xy) > 1 else np.zeros(0)
+    steps = _travel(trajectory_topic, times, xy, speeds, notes)
     distance = float(steps.sum()) if has_trajectory else None
     drive_end_ns = _drive_end_ns(trial)
     duration = _duration_s(times, drive_end_ns)
 
     collisions, rollovers = _contact_counts(trial, trajectory_topic, notes)
-    encountered, avoided, success = _obstacle_avoidance(trial, scenario, xy, margin, notes)
+    encountered, avoided, success = _obstacle_avoidance(trial, scenario, times, xy, margin, notes)
     energy = _energy_wh(trial, notes)
     goal_reached, goal_distance = _goal(trial, xy, notes)
     xte_rms, xte_max = _cross_track(trial, drive_end_ns)
@@ -282,16 +287,34 @@ def _scenario_length(scenario: dict[str, str], key: str, default: float, notes: 
     return value
 
 
-def _trajectory(trial: _Trial, notes: _Notes) -> tuple[str | None, NDArray[np.int64], FloatArray]:
+def _trajectory(trial: _Trial, notes: _Notes) -> tuple[str | None, NDArray[np.int64], FloatArray, FloatArray]:
+    """(topic, log times ns, positions (N, 2) m, speeds (N,) m/s, NaN where not recorded)."""
     for topic in (TRUTH_POSE, ESTIMATOR_POSE):
         samples = trial.poses.get(topic)
         if samples:
             order = sorted(range(len(samples)), key=lambda i: samples[i][0])  # stable: file order on ties
             times = np.array([samples[i][0] for i in order], dtype=np.int64)
-            xy = np.array([samples[i][1:] for i in order], dtype=np.float64)
-            return topic, times, xy
+            xy = np.array([samples[i][1:3] for i in order], dtype=np.float64)
+            speeds = np.array([samples[i][3] for i in order], dtype=np.float64)
+            return topic, times, xy, speeds
     notes.missing.append(f"{TRUTH_POSE} or {ESTIMATOR_POSE}")
-    return None, np.zeros(0, dtype=np.int64), np.zeros((0, 2), dtype=np.float64)
+    return None, np.zeros(0, dtype=np.int64), np.zeros((0, 2), dtype=np.float64), np.zeros(0)
+
+
+def _travel(
+    topic: str | None, times: NDArray[np.int64], xy: FloatArray, speeds: FloatArray, notes: _Notes
+) -> FloatArray:
+    """Distance driven over each trajectory segment: position steps for the truth, the integrated speed
+    for the estimate, whose position jitter would otherwise count as travel (logs.travel)."""
+    if topic != ESTIMATOR_POSE:
+        return step_lengths(xy)
+    if len(speeds) and not bool(np.all(np.isfinite(speeds))):
+        notes.problems.append(
+            f"{ESTIMATOR_POSE}: speed_mps missing or not finite; distance summed from position steps, "
+            "which counts the estimate's jitter as travel"
+        )
+        return step_lengths(xy)
+    return travel_steps((times - times[0]) / 1e9 if len(times) else np.zeros(0), xy, speeds)
 
 
 def _path_accuracy(
@@ -405,43 +428,41 @@ def _contact_counts(
 
 
 def _obstacle_avoidance(
-    trial: _Trial, scenario: dict[str, str], xy: FloatArray, margin: float, notes: _Notes
+    trial: _Trial,
+    scenario: dict[str, str],
+    times: NDArray[np.int64],
+    xy: FloatArray,
+    margin: float,
+    notes: _Notes,
 ) -> tuple[int | None, int | None, float | None]:
     text = scenario.get("obstacles_json")
     if text is None:
         notes.missing.append(f"metadata:{SCENARIO_METADATA}.obstacles_json")
         return None, None, None
-    obstacles = list(_obstacles(text, notes))
+    obstacles, static_problems = static_obstacles(text)
+    movers, moving_problems = moving_obstacles(scenario.get("moving_obstacles_json"))
+    notes.problems += static_problems + moving_problems
     if len(xy) == 0:
         return None, None, None
-    encountered = 0
-    avoided = 0
     hit = {str(c.get("obstacle_id")) for c in trial.contacts if c["kind"] == "collision"}
-    for obstacle_id, centre, radius in obstacles:
-        closest = float(distances_to_polyline(centre[None, :], xy)[0])
-        if closest <= radius + margin + DISTANCE_EPSILON_M:
-            encountered += 1
-            avoided += obstacle_id not in hit
+    near: dict[str, bool] = {}
+    for obstacle in obstacles:
+        centre = np.array([[obstacle.x, obstacle.y]], dtype=np.float64)
+        closest = float(distances_to_polyline(centre, xy)[0])
+        near[obstacle.id] = closest <= obstacle.radius_m + margin + DISTANCE_EPSILON_M
+    t_s = times / 1e9  # the simulator moves them on the clock that stamps the log (hil.perception_sim)
+    for mover in movers:
+        centres = np.array([mover.state_at(float(t))[:2] for t in t_s], dtype=np.float64)
+        closest = float(np.hypot(*(xy - centres).T).min())
+        near[mover.id] = closest <= mover.radius_m + margin + DISTANCE_EPSILON_M
+    # A collision means the obstacle was in the way and not avoided, whatever the sampled geometry says
+    # (a cart that drives into the rover between two samples, a wall a footprint corner touched).
+    encountered = [obstacle_id for obstacle_id, close in near.items() if close or obstacle_id in hit]
+    avoided = sum(obstacle_id not in hit for obstacle_id in encountered)
     if TRUTH_CONTACTS in notes.missing:
-        return encountered, None, None
-    return encountered, avoided, (100.0 * avoided / encountered if encountered else None)
-
-
-def _obstacles(text: str, notes: _Notes) -> Iterator[tuple[str, FloatArray, float]]:
-    try:
-        items = json.loads(text)
-        if not isinstance(items, list):
-            raise ValueError("not a JSON list")
-    except ValueError as err:
-        notes.problems.append(f"metadata {SCENARIO_METADATA}.obstacles_json is unusable: {err}")
-        return
-    for position, item in enumerate(items):
-        try:
-            centre = np.array([_finite(item["x"]), _finite(item["y"])], dtype=np.float64)
-            radius = _finite(item["radius"])
-            yield str(item["id"]), centre, radius
-        except (KeyError, TypeError, ValueError) as err:
-            notes.problems.append(f"obstacles_json[{position}] skipped: {err!r}")
+        return len(encountered), None, None
+    success = 100.0 * avoided / len(encountered) if encountered else None
+    return len(encountered), avoided, success
 
 
 def _energy_wh(trial: _Trial, notes: _Notes) -> float | None:

@@ -11,13 +11,17 @@ import io
 import matplotlib
 
 matplotlib.use("Agg")  # never a window, whatever the environment says
-
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.patches import Circle
 
-from logs.analysis import FloatArray, Series, TrialAnalysis, distance_along
-from logs.compare import RunComparison
+from logs.analysis import FloatArray, Series, TrialAnalysis
+from logs.compare import RunComparison, track_of
+
+# Text stays text in the SVG (not glyph outlines): a third of the size, and a reader can search and copy
+# the legend and axis labels.
+matplotlib.rcParams["svg.fonttype"] = "none"
 
 MAX_POINTS = 1500
 _SIZE = (7.0, 3.2)
@@ -45,35 +49,91 @@ def _line(axes: plt.Axes, series: Series, label: str, column: int = 0) -> None:
 
 
 def trajectory_svg(run: TrialAnalysis) -> str:
+    """The map: elevation, obstacles (static as circles, moving ones' tracks), every plan (faint; the last
+    bold), truth and estimate, start and goal, and contacts as crosses."""
     figure, axes = plt.subplots(figsize=(7.0, 5.0))
     if run.grid is not None and run.grid_extent is not None:
         image = axes.imshow(run.grid, origin="lower", extent=run.grid_extent, cmap="terrain", alpha=0.6)
         figure.colorbar(image, ax=axes, label="elevation (m)")
+    _obstacles(axes, run)
+    for index, plan in enumerate(run.plans[:-1]):
+        if len(plan):
+            axes.plot(
+                plan[:, 0], plan[:, 1], "k-", linewidth=0.6, alpha=0.25, label="plans" if index == 0 else None
+            )
     if len(run.plan):
-        axes.plot(run.plan[:, 0], run.plan[:, 1], "k--", linewidth=1.0, label="plan")
+        axes.plot(run.plan[:, 0], run.plan[:, 1], "k--", linewidth=1.6, label="last plan")
     for series, label in ((run.truth, "truth"), (run.estimate, "estimate")):
         if series.t:
             _, xy = _thin(np.asarray(series.t), series.array()[:, :2])
             axes.plot(xy[:, 0], xy[:, 1], linewidth=1.2, label=label)
+    _start_goal_contacts(axes, run)
     axes.set_xlabel("east (m)")
     axes.set_ylabel("north (m)")
     axes.set_aspect("equal", adjustable="datalim")
-    axes.legend(loc="best")
+    # below the map: inside it the legend hid obstacles and contacts
+    axes.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=4, fontsize="small")
     axes.set_title("trajectory")
     return _svg(figure)
 
 
+def _obstacles(axes: plt.Axes, run: TrialAnalysis) -> None:
+    for index, obstacle in enumerate(run.obstacles):
+        circle = Circle(
+            (obstacle.x, obstacle.y),
+            obstacle.radius_m,
+            facecolor="#8b5a2b",
+            edgecolor="black",
+            alpha=0.5,
+            label="obstacle" if index == 0 else None,
+        )
+        axes.add_patch(circle)
+    for index, mover in enumerate(run.moving_obstacles):
+        track = np.asarray(mover.waypoints, dtype=np.float64)
+        axes.plot(
+            track[:, 0],
+            track[:, 1],
+            color="#c0392b",
+            linewidth=2.0,
+            alpha=0.5,
+            linestyle=":",
+            label="moving obstacle track" if index == 0 else None,
+        )
+        axes.add_patch(Circle(tuple(track[0]), mover.radius_m, fill=False, edgecolor="#c0392b"))
+
+
+def _start_goal_contacts(axes: plt.Axes, run: TrialAnalysis) -> None:
+    start = run.start_xy
+    if start is None:
+        source = run.truth if run.truth.t else run.estimate
+        start = (source.values[0][0], source.values[0][1]) if source.t else None
+    if start is not None:
+        axes.plot(*start, marker="o", color="green", markersize=8, linestyle="none", label="start")
+    if run.goal_xy is not None:
+        axes.plot(
+            *run.goal_xy,
+            marker="*",
+            color="gold",
+            markeredgecolor="black",
+            markersize=13,
+            linestyle="none",
+            label="goal",
+        )
+    if run.contacts:
+        xy = np.array([(c.x, c.y) for c in run.contacts], dtype=np.float64)
+        axes.plot(xy[:, 0], xy[:, 1], "x", color="red", markersize=9, markeredgewidth=2.0, label="contacts")
+
+
 def cross_track_svg(run: TrialAnalysis) -> str:
     figure, axes = plt.subplots(figsize=_SIZE)
-    source = run.truth if run.truth.t else run.estimate
-    if run.xte.t and len(source.t) >= 2:
-        s = distance_along(source.array()[:, :2])
-        s_at = np.interp(np.asarray(run.xte.t), np.asarray(source.t), s)
+    t, _, s = track_of(run)  # distance driven, robust to an estimate's jitter
+    if run.xte.t and len(t) >= 2:
+        s_at = np.interp(np.asarray(run.xte.t), t, s)
         x, y = _thin(s_at, run.xte.array()[:, 0])
         axes.plot(x, y, linewidth=1.0)
     axes.set_xlabel("distance along the trajectory (m)")
     axes.set_ylabel("cross-track error (m)")
-    axes.set_title("cross-track error against distance")
+    axes.set_title("cross-track error (rover's estimate) against distance")
     return _svg(figure)
 
 

@@ -5,16 +5,21 @@ top-level schema, channel, message, metadata and attachment record. A damaged ch
 dropped and counted, and the copy goes on after it. Message bytes, log and publish times and sequence
 numbers are copied unchanged; schema and channel ids are renumbered in the order first seen (the MCAP
 writer assigns them), which readers never depend on. The output gets a fresh summary and footer.
+
+A file with nothing to keep (empty, cut inside its magic or header, or with no message, metadata or
+attachment that survives) is an error, ``NothingRecoverable``, and no output file is left behind: an
+empty "recovered" MCAP would look like a rescued recording.
 """
 
 from __future__ import annotations
 
 import logging
 import struct
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from io import BytesIO
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
@@ -48,8 +53,13 @@ class RecoverResult:
         return asdict(self)
 
 
+class NothingRecoverable(LogReadError):
+    """The file holds no complete message, metadata or attachment record: there is nothing to keep."""
+
+
 def recover(source: str | Path, output: str | Path) -> RecoverResult:
-    """Copy every complete record of ``source`` into a new, valid MCAP file at ``output``."""
+    """Copy every complete record of ``source`` into a new, valid MCAP file at ``output``;
+    ``NothingRecoverable`` (and no output) when the file holds nothing worth keeping."""
     src, dst = Path(source), Path(output)
     if src.resolve() == dst.resolve():
         raise RecordingError(f"recover writes a new file: give an output path other than {src}")
@@ -57,19 +67,22 @@ def recover(source: str | Path, output: str | Path) -> RecoverResult:
         stream = src.open("rb")
     except OSError as err:
         raise LogReadError(f"cannot open recording {src}: {err}") from err
-    try:
-        dst.parent.mkdir(parents=True, exist_ok=True)
-        out = dst.open("wb")
-    except OSError as err:
-        stream.close()
-        raise RecordingError(f"cannot create {dst}: {err}") from err
-    with stream, out:
-        copier = _Copier(Writer(out, chunk_size=DEFAULT_CHUNK_SIZE, compression=CompressionType.ZSTD))
+    output_file = _LazyOutput(dst)
+    with stream:
+        copier = _Copier(output_file.writer)
         walk = FrameWalk(stream, str(src))
         try:
             copier.copy(walk)
         finally:
-            copier.writer.finish()
+            output_file.close(finish=copier.started)
+    if copier.messages + copier.metadata + copier.attachments == 0:
+        output_file.remove()
+        where = f"cut {walk.cut_reason} at byte {walk.cut_at}" if walk.cut_at is not None else "no records"
+        dropped = f", {copier.chunks_dropped} damaged chunk(s) dropped" if copier.chunks_dropped else ""
+        raise NothingRecoverable(
+            f"nothing recoverable in {src}: no complete message, metadata or attachment ({where}{dropped}); "
+            f"no output written"
+        )
     result = RecoverResult(
         source=str(src),
         output=str(dst),
@@ -88,9 +101,43 @@ def recover(source: str | Path, output: str | Path) -> RecoverResult:
     return result
 
 
+class _LazyOutput:
+    """The output file, created only when the first record worth copying arrives (so a file with nothing
+    to keep neither creates nor overwrites anything)."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self._stream: BinaryIO | None = None
+        self._writer: Writer | None = None
+
+    def writer(self) -> Writer:
+        if self._writer is None:
+            try:
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+                self._stream = self.path.open("wb")
+            except OSError as err:
+                raise RecordingError(f"cannot create {self.path}: {err}") from err
+            self._writer = Writer(
+                self._stream, chunk_size=DEFAULT_CHUNK_SIZE, compression=CompressionType.ZSTD
+            )
+        return self._writer
+
+    def close(self, *, finish: bool) -> None:
+        if self._writer is not None and finish:
+            self._writer.finish()
+        if self._stream is not None:
+            self._stream.close()
+
+    def remove(self) -> None:
+        if self._stream is not None:  # only a file this run created
+            self.path.unlink(missing_ok=True)
+
+
 class _Copier:
-    def __init__(self, writer: Writer) -> None:
-        self.writer = writer
+    def __init__(self, open_writer: Callable[[], Writer]) -> None:
+        self._open_writer = open_writer
+        self.writer: Writer | None = None
+        self.header: tuple[str, str] = ("", "")
         self.started = False
         self.complete = False
         self.schema_ids: dict[int, int] = {0: 0}  # schema id 0 means "no schema" in MCAP
@@ -111,33 +158,35 @@ class _Copier:
                 logger.warning(
                     "record at byte %d (opcode %#x) is damaged, skipped: %s", frame.offset, frame.opcode, err
                 )
-        self._start("", "")
 
-    def _start(self, profile: str, library: str) -> None:
-        if not self.started:
-            self.started = True
+    def _out(self) -> Writer:
+        """The output, opened and started on the first record to copy (with the source's header)."""
+        if self.writer is None:
+            self.writer = self._open_writer()
+            profile, library = self.header
             self.writer.start(profile=profile, library=library or "rover-stack logs (recovered)")
+            self.started = True
+        return self.writer
 
     def _frame(self, frame: Frame) -> None:
         data = ReadDataStream(BytesIO(frame.body))
         if frame.opcode == Opcode.HEADER:
             header = Header.read(data)
-            self._start(header.profile, header.library)
+            self.header = (header.profile, header.library)
             return
-        self._start("", "")
         if frame.opcode == Opcode.CHUNK:
             self._chunk(frame)
         elif frame.opcode in (Opcode.SCHEMA, Opcode.CHANNEL, Opcode.MESSAGE):
             self._record(frame.opcode, frame.body)
         elif frame.opcode == Opcode.METADATA:
             metadata = Metadata.read(data)
-            self.writer.add_metadata(metadata.name, dict(metadata.metadata))
+            self._out().add_metadata(metadata.name, dict(metadata.metadata))
             self.metadata += 1
         elif frame.opcode == Opcode.ATTACHMENT:
             if not attachment_crc_ok(frame.body):
                 raise ValueError("attachment fails its CRC check")
             attachment = Attachment.read(data)
-            self.writer.add_attachment(
+            self._out().add_attachment(
                 create_time=attachment.create_time,
                 log_time=attachment.log_time,
                 name=attachment.name,
@@ -162,14 +211,14 @@ class _Copier:
         if opcode == Opcode.SCHEMA:
             schema = Schema.read(data)
             if schema.id not in self.schema_ids:
-                self.schema_ids[schema.id] = self.writer.register_schema(
+                self.schema_ids[schema.id] = self._out().register_schema(
                     schema.name, schema.encoding, schema.data
                 )
         elif opcode == Opcode.CHANNEL:
             channel = Channel.read(data)
             if channel.id not in self.channel_ids:
                 schema_id = self.schema_ids.get(channel.schema_id, 0)
-                self.channel_ids[channel.id] = self.writer.register_channel(
+                self.channel_ids[channel.id] = self._out().register_channel(
                     channel.topic, channel.message_encoding, schema_id, dict(channel.metadata)
                 )
         elif opcode == Opcode.MESSAGE:
@@ -178,7 +227,7 @@ class _Copier:
             if channel_id is None:
                 self.orphans += 1
                 return
-            self.writer.add_message(
+            self._out().add_message(
                 channel_id=channel_id,
                 log_time=message.log_time,
                 data=message.data,

@@ -21,28 +21,72 @@ from typing import Any
 from logs.analysis import TrialAnalysis, analyse
 from logs.compare import RunComparison, compare_runs
 from logs.errors import LogReadError, LogsError
-from logs.topics import ESTIMATOR_POSE, TRUTH_POSE
+from logs.topics import ESTIMATOR_POSE
 
 logger = logging.getLogger(__name__)
 
+# (metric, label); "{source}" is where the trajectory came from, "truth" or "estimate" (trajectory_topic):
+# a figure from the estimate must say so, it is what the rover believed, not where it was.
 HEADLINE_METRICS = (
-    ("path_accuracy_pct", "path accuracy (% of driven)"),
-    ("route_accuracy_pct", "path accuracy (% of route)"),
-    ("obstacle_avoidance_success_pct", "obstacle-avoidance success (%)"),
+    ("path_accuracy_pct", "path accuracy (% of driven, {source})"),
+    ("route_accuracy_pct", "path accuracy (% of route, {source})"),
+    ("obstacle_avoidance_success_pct", "obstacle-avoidance success (%, {source})"),
     ("rollovers", "rollovers"),
     ("collisions", "collisions"),
-    ("cross_track_error_rms_m", "cross-track error RMS (m)"),
-    ("cross_track_error_max_m", "cross-track error max (m)"),
+    ("cross_track_error_rms_m", "cross-track error RMS (m, rover's estimate)"),
+    ("cross_track_error_max_m", "cross-track error max (m, rover's estimate)"),
     ("energy_wh", "energy (Wh)"),
-    ("energy_wh_per_m", "energy per metre (Wh/m)"),
-    ("distance_m", "distance (m)"),
+    ("energy_wh_per_m", "energy per metre (Wh/m, {source} distance)"),
+    ("distance_m", "distance (m, {source})"),
     ("duration_s", "duration (s)"),
-    ("goal_reached", "goal reached"),
+    ("goal_reached", "goal reached (rover's estimate)"),
     ("final_distance_to_goal_m", "distance to goal at end (m, {source})"),
 )
-# What the trajectory metrics (distance, path accuracy, distance to goal...) were measured on
-# (``TrialMetrics.trajectory_topic``): a simulation's ground truth, or a real run's own estimate.
-TRAJECTORY_SOURCES = {TRUTH_POSE: "truth", ESTIMATOR_POSE: "estimate"}
+FIGURE_LABELS = {
+    "estimator_position_error_rms_m": "estimator position error RMS (m, vs truth)",
+    "estimator_position_error_max_m": "estimator position error max (m, vs truth)",
+    "estimator_yaw_error_rms_rad": "estimator yaw error RMS (rad, vs truth)",
+    "control_period_mean_ms": "control period mean (ms)",
+    "control_period_p99_ms": "control period p99 (ms)",
+    "control_period_max_ms": "control period max (ms)",
+    "can_frames": "CAN frames recorded",
+    "can_frames_recorded_pct": "CAN frames recorded (% of the link's count)",
+    "can_bitrate": "CAN bitrate (bit/s)",
+    "can_bus_load_mean_pct": "CAN bus load mean (%)",
+    "can_bus_load_peak_pct": "CAN bus load peak (%)",
+    "innovations_rejected": "estimator innovations rejected",
+    "safety_warnings": "safety warnings",
+    "safety_errors": "safety errors",
+    "log_errors": "log errors",
+    "unusable_messages": "unusable messages",
+}
+# The other metrics (comparisons list every one) and the per-terrain table's columns.
+OTHER_METRIC_LABELS = {
+    "trajectory_topic": "trajectory from",
+    "path_tolerance_m": "path tolerance (m)",
+    "route_length_m": "planned route length (m)",
+    "encounter_margin_m": "encounter margin (m)",
+    "obstacles_encountered": "obstacles encountered ({source})",
+    "obstacles_avoided": "obstacles avoided ({source})",
+    "truncated": "recording cut short",
+    "skipped_messages": "messages skipped",
+}
+TERRAIN_COLUMNS = {
+    "terrain": "terrain",
+    "terrain_class": "terrain class",
+    "variant": "variant",
+    "runs": "runs",
+    "path_accuracy_pct": "path accuracy (% of driven, mean)",
+    "route_accuracy_pct": "path accuracy (% of route, mean)",
+    "obstacle_avoidance_success_pct": "obstacle-avoidance success (%, mean)",
+    "rollovers": "rollovers (total)",
+    "collisions": "collisions (total)",
+    "goal_reached_pct": "goal reached (% of runs)",
+    "final_distance_to_goal_m": "distance to goal at end (m, mean)",
+    "energy_wh_per_m": "energy per metre (Wh/m, mean)",
+}
+# Shown with 4 significant digits: 3 decimals leave a Wh/m figure (~0.01) with one or two.
+SIGNIFICANT_METRICS = frozenset({"energy_wh_per_m"})
 
 
 class ReportError(LogsError):
@@ -96,6 +140,9 @@ def write_report(inputs: Sequence[str | Path], out_dir: str | Path, *, plots: bo
             result.failed[str(path)] = "holds no messages (cut before the first one?)"
             continue
         result.runs.append(run)
+    # A campaign's order (terrains, then variants, as in its file: the first variant is the baseline);
+    # the sort is stable, so runs without that metadata keep the order they were given in.
+    result.runs.sort(key=campaign_order)
     result.comparisons = [compare_runs(a, b) for a, b in comparison_pairs(result.runs, campaign=campaign)]
     if campaign or len(result.runs) > 2:
         result.terrain_table = terrain_table(result.runs)
@@ -109,27 +156,53 @@ def write_report(inputs: Sequence[str | Path], out_dir: str | Path, *, plots: bo
 
 
 # --- tables -------------------------------------------------------------------------------------
+_UNPLACED = 1 << 30  # runs without campaign metadata come after those with it
+
+
+def campaign_order(run: TrialAnalysis) -> tuple[int, int]:
+    """(terrain index, variant index) in the campaign file, from the ``trial`` metadata."""
+    trial = run.metadata.get("trial", {})
+    return _index(trial.get("terrain_index")), _index(trial.get("variant_index"))
+
+
+def _index(text: str | None) -> int:
+    try:
+        return int(text) if text is not None else _UNPLACED
+    except ValueError:
+        return _UNPLACED
+
+
+def terrain_of(run: TrialAnalysis) -> str:
+    """The campaign terrain the run belongs to (``trial.terrain``), else its terrain class: two campaign
+    terrains of one class (field-a and field-b, both sandy) are two rows, as in the campaign summary."""
+    return run.metadata.get("trial", {}).get("terrain") or run.terrain_class
+
+
 def terrain_table(runs: Sequence[TrialAnalysis]) -> list[dict[str, Any]]:
-    """Per terrain class (and per campaign variant, when the runs hold more than one): number of runs,
-    mean path accuracy (of the driven distance and of the route)
-    and avoidance success, total rollovers,
-    mean Wh/m (means over the runs where the metric is known)."""
+    """Per campaign terrain (and per campaign variant, when the runs hold more than one), in the order the
+    runs come (``campaign_order``): number of runs, mean path accuracy (of the driven distance and of the
+    route) and avoidance success, total rollovers and collisions, mean Wh/m (means over the runs where
+    the metric is known)."""
     split = len({_variant(run) for run in runs}) > 1
     groups: dict[tuple[str, str], list[TrialAnalysis]] = {}
     for run in runs:
-        groups.setdefault((run.terrain_class, _variant(run) if split else ""), []).append(run)
+        groups.setdefault((terrain_of(run), _variant(run) if split else ""), []).append(run)
     rows = []
-    for (terrain, variant), members in sorted(groups.items()):
+    for (terrain, variant), members in groups.items():
         metrics = [run.metrics for run in members]
+        collisions = [m.collisions for m in metrics if m.collisions is not None]
         rows.append(
             {
                 "terrain": terrain,
+                "terrain_class": members[0].terrain_class,
                 **({"variant": variant or "n/a"} if split else {}),
                 "runs": len(members),
                 "path_accuracy_pct": _mean([m.path_accuracy_pct for m in metrics]),
                 "route_accuracy_pct": _mean([m.route_accuracy_pct for m in metrics]),
                 "obstacle_avoidance_success_pct": _mean([m.obstacle_avoidance_success_pct for m in metrics]),
                 "rollovers": sum(m.rollovers or 0 for m in metrics),
+                # unknown in real runs (no truth/contacts): the sum of the known, n/a when none is known
+                "collisions": sum(collisions) if collisions else None,
                 "goal_reached_pct": _mean([100.0 * bool(m.goal_reached) for m in metrics]),
                 "final_distance_to_goal_m": _mean([m.final_distance_to_goal_m for m in metrics]),
                 "energy_wh_per_m": _mean([m.energy_wh_per_m for m in metrics]),
@@ -181,23 +254,86 @@ def _document(result: ReportResult) -> dict[str, Any]:
     }
 
 
-def _fmt(value: Any) -> str:
+def _fmt(value: Any, key: str = "") -> str:
     if value is None:
         return "n/a"
     if isinstance(value, float):
-        return f"{value:.3f}" if math.isfinite(value) else "n/a"
+        if not math.isfinite(value):
+            return "n/a"
+        return f"{value:.4g}" if key in SIGNIFICANT_METRICS else f"{value:.3f}"
     return str(value)
+
+
+def metric_label(key: str, source: str) -> str:
+    """The human label of a ``TrialMetrics`` field; ``source`` says where trajectory figures come from."""
+    label = dict(HEADLINE_METRICS).get(key) or OTHER_METRIC_LABELS.get(key) or key.replace("_", " ")
+    return label.format(source=source)
+
+
+def _pair_source(comparison: RunComparison) -> str:
+    topics = comparison.metrics.get("trajectory_topic", {})
+    a, b = (_source_of_topic(topics.get(side)) for side in ("a", "b"))
+    return a if a == b else f"A {a}, B {b}"
+
+
+def _source_of_topic(topic: Any) -> str:
+    return "estimate" if topic == ESTIMATOR_POSE else "truth"
+
+
+def _terrain_rows(result: ReportResult) -> tuple[list[str], list[list[str]]]:
+    keys = list(result.terrain_table[0])
+    header = [TERRAIN_COLUMNS.get(key, key) for key in keys]
+    return header, [[_fmt(row[key], key) for key in keys] for row in result.terrain_table]
+
+
+def trajectory_source(run: TrialAnalysis) -> str:
+    """ "truth" or "estimate": where the run's trajectory metrics come from."""
+    return _source_of_topic(run.metrics.trajectory_topic)
 
 
 def _run_rows(run: TrialAnalysis) -> list[tuple[str, str]]:
     metrics = run.metrics.to_dict()
-    topic = run.metrics.trajectory_topic
-    source = TRAJECTORY_SOURCES.get(topic or "", "no trajectory")
-    rows = [("trajectory from", f"{topic} ({source})" if topic else source)]
-    rows += [(label.format(source=source), _fmt(metrics.get(key))) for key, label in HEADLINE_METRICS]
-    rows += [(key.replace("_", " "), _fmt(value)) for key, value in run.figures.items()]
-    rows.append(("can bus load from", run.can_load_source))
+    source = trajectory_source(run)
+    rows = [(label.format(source=source), _fmt(metrics.get(key), key)) for key, label in HEADLINE_METRICS]
+    rows += [
+        (FIGURE_LABELS.get(key, key.replace("_", " ")), _fmt(value, key))
+        for key, value in run.figures.items()
+    ]
+    rows.append(("CAN bus load from", run.can_load_source))
     return rows
+
+
+def run_identity(run: TrialAnalysis) -> list[tuple[str, str]]:
+    """What ran: scenario, seed, campaign terrain and variant, config source, mode, trajectory source."""
+    scenario = run.metadata.get("scenario", {})
+    trial = run.metadata.get("trial", {})
+    return [
+        ("scenario", scenario.get("name") or "n/a (not recorded)"),
+        ("seed", scenario.get("seed") or "n/a"),
+        ("terrain", f"{terrain_of(run)} (class {run.terrain_class})"),
+        ("variant", trial.get("variant") or "n/a"),
+        ("config", trial.get("config") or "n/a"),
+        ("mode", trial.get("mode") or "n/a"),
+        ("trajectory", f"{run.metrics.trajectory_topic or 'none'} ({trajectory_source(run)})"),
+    ]
+
+
+def _identity_text(run: TrialAnalysis) -> str:
+    return "; ".join(f"{key}: {value}" for key, value in run_identity(run))
+
+
+def _comparison_text(comparison: RunComparison) -> str:
+    if comparison.not_comparable:
+        return (
+            "not compared point by point: the runs are of different scenarios ("
+            + "; ".join(comparison.not_comparable)
+            + "), so a position gap would mean nothing; per-run metrics above, differences below"
+        )
+    return (
+        f"aligned by distance driven over {len(comparison.s_m)} points every {comparison.step_m} m; "
+        f"position gap (to the other track within an along-track window) RMS {_fmt(comparison.gap_rms_m)} m, "
+        f"max {_fmt(comparison.gap_max_m)} m"
+    )
 
 
 def _count_rows(run: TrialAnalysis) -> list[tuple[str, str]]:
@@ -220,7 +356,7 @@ def _markdown(result: ReportResult) -> str:
         parts.append(f"**Not readable:** `{path}`: {reason}\n")
     for run in result.runs:
         parts.append(f"## {run.path}\n")
-        parts.append(f"terrain: {run.terrain_class}\n")
+        parts.append(f"{_identity_text(run)}\n")
         if run.missing:
             parts.append(f"**Partial report, missing:** {', '.join(run.missing)}\n")
         for problem in run.metrics.problems:
@@ -229,12 +365,10 @@ def _markdown(result: ReportResult) -> str:
         parts.append(_md_table(("topic", "messages"), _count_rows(run)))
     for comparison in result.comparisons:
         parts.append(f"## Comparison: A = {comparison.a}, B = {comparison.b}\n")
-        parts.append(
-            f"aligned over {len(comparison.s_m)} points every {comparison.step_m} m; position gap RMS "
-            f"{_fmt(comparison.gap_rms_m)} m, max {_fmt(comparison.gap_max_m)} m\n"
-        )
+        parts.append(f"{_comparison_text(comparison)}\n")
+        source = _pair_source(comparison)
         rows = [
-            (name, _fmt(v["a"]), _fmt(v["b"]), _fmt(v["difference"]))
+            (metric_label(name, source), _fmt(v["a"], name), _fmt(v["b"], name), _fmt(v["difference"], name))
             for name, v in comparison.metrics.items()
             if not v["same"]
         ]
@@ -243,8 +377,7 @@ def _markdown(result: ReportResult) -> str:
         parts.append(_md_table(("scenario / parameter", "A", "B"), diffs))
     if result.terrain_table:
         parts.append("## Per terrain\n")
-        header = list(result.terrain_table[0])
-        parts.append(_md_table(header, [[_fmt(row[key]) for key in header] for row in result.terrain_table]))
+        parts.append(_md_table(*_terrain_rows(result)))
     return "\n".join(parts)
 
 
@@ -271,7 +404,7 @@ def _html(result: ReportResult, plots: bool) -> str:
     for path, reason in result.failed.items():
         parts.append(f"<p class='warn'><b>Not readable:</b> {html.escape(path)}: {html.escape(reason)}</p>")
     for run in result.runs:
-        parts.append(f"<h2>{html.escape(run.path)}</h2><p>terrain: {html.escape(run.terrain_class)}</p>")
+        parts.append(f"<h2>{html.escape(run.path)}</h2><p>{html.escape(_identity_text(run))}</p>")
         if run.missing:
             parts.append(
                 f"<p class='warn'><b>Partial report, missing:</b> {html.escape(', '.join(run.missing))}</p>"
@@ -287,12 +420,11 @@ def _html(result: ReportResult, plots: bool) -> str:
         parts.append(
             f"<h2>Comparison</h2><p>A = {html.escape(comparison.a)}<br>B = {html.escape(comparison.b)}</p>"
         )
-        parts.append(
-            f"<p>position gap RMS {_fmt(comparison.gap_rms_m)} m, max {_fmt(comparison.gap_max_m)} m "
-            f"over {len(comparison.s_m)} points</p>"
-        )
+        warn = " class='warn'" if comparison.not_comparable else ""
+        parts.append(f"<p{warn}>{html.escape(_comparison_text(comparison))}</p>")
+        source = _pair_source(comparison)
         rows = [
-            (name, _fmt(v["a"]), _fmt(v["b"]), _fmt(v["difference"]))
+            (metric_label(name, source), _fmt(v["a"], name), _fmt(v["b"], name), _fmt(v["difference"], name))
             for name, v in comparison.metrics.items()
         ]
         parts.append(_html_table(("metric", "A", "B", "B - A"), rows))
@@ -301,10 +433,7 @@ def _html(result: ReportResult, plots: bool) -> str:
         if plots and comparison.s_m:
             parts.append(f"<div>{plot.comparison_svg(comparison)}</div>")
     if result.terrain_table:
-        header = list(result.terrain_table[0])
         parts.append("<h2>Per terrain</h2>")
-        parts.append(
-            _html_table(header, [[_fmt(row[key]) for key in header] for row in result.terrain_table])
-        )
+        parts.append(_html_table(*_terrain_rows(result)))
     parts.append("</body></html>\n")
     return "".join(parts)

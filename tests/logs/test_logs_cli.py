@@ -65,3 +65,16 @@ def test_report_exit_codes_say_whether_every_input_made_it(
     # Nothing readable at all: 2.
     assert main(["logs", "report", str(empty), *out]) == 2
     assert main(["logs", "report", str(recording), *out]) == 0
+
+
+@pytest.mark.parametrize("content", [b"", b"\x89MCAP"], ids=["empty", "5-bytes"])
+def test_recover_of_a_file_with_nothing_to_keep_is_an_error_without_output(
+    content: bytes, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    source = tmp_path / "died.mcap"
+    source.write_bytes(content)
+    out = tmp_path / "rescued.mcap"
+    assert main(["logs", "recover", str(source), str(out)]) == 2
+    printed = " ".join(capsys.readouterr().out.split())
+    assert f"nothing recoverable in {source}" in printed
+    assert not out.exists()

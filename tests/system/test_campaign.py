@@ -75,3 +75,27 @@ def test_campaign_runs_every_trial_in_workers_and_writes_tables(tmp_path):
     )
     for entry in summary["table1"]:  # the route-based accuracy is there for every variant
         assert entry["route_accuracy_pct"] is not None
+
+
+def test_a_campaign_report_keeps_the_campaign_terrains_and_variant_order(tmp_path):
+    from logs.report import write_report
+
+    path = tmp_path / "two.toml"
+    # two campaign terrains on one scenario (one terrain class); "terrain-aware" is the first variant,
+    # though "classical" sorts first by name
+    path.write_text(
+        CAMPAIGN + f'\n[[terrains]]\nname = "rocky-b"\nscenario = "{DATA / "small_rocky.toml"}"\n',
+        encoding="utf-8",
+    )
+    campaign = load_campaign(path)
+    outcomes, _, _ = run_campaign(campaign, tmp_path / "out")
+    assert all(o.ok for o in outcomes), [o.error for o in outcomes]
+    result = write_report([tmp_path / "out"], tmp_path / "report", plots=False)
+    assert [(row["terrain"], row["variant"]) for row in result.terrain_table] == [
+        ("rocky", "terrain-aware"),
+        ("rocky", "classical"),
+        ("rocky-b", "terrain-aware"),
+        ("rocky-b", "classical"),
+    ]
+    assert all("collisions" in row for row in result.terrain_table)
+    assert [Path(c.a).parent.parent.name for c in result.comparisons] == ["terrain-aware", "terrain-aware"]

@@ -1,0 +1,89 @@
+"""Obstacle-avoidance success with moving obstacles (judged where they were at each time) and collisions
+(a collision always means "encountered, not avoided")."""
+
+from __future__ import annotations
+
+import io
+import json
+
+import pytest
+
+from logs.clock import to_ns
+from logs.metrics import compute_metrics
+from logs.recorder import McapRecorder
+from logs.topics import TRUTH_CONTACTS, TRUTH_POSE, planar_pose, stamp
+
+# The rover drives y = 0 from x = 0 to x = 20 at 1 m/s (t = x seconds).
+TRACK = [(float(x), 0.0) for x in range(21)]
+# A cart walking x = 10 from y = 12 down to y = -12 at 2 m/s: at y = 0 at t = 6 s (rover at x = 6, 4 m
+# away: beyond radius 0.5 + margin 1.5) and never near the rover at any time; its track crosses the
+# rover's path, so judging its waypoints or its start as if it stood still would get it wrong.
+PASSED_BEHIND = {
+    "id": "early-cart",
+    "radius": 0.5,
+    "waypoints": [[10.0, 12.0], [10.0, -12.0]],
+    "speed_mps": 2.0,
+}
+# A cart that waits 7 s at its first waypoint, 8 m off the path, then drives down x = 15 at 1 m/s: at
+# y = 0 at t = 15 s, exactly where the rover is.
+RAMMER = {
+    "id": "rammer",
+    "radius": 0.5,
+    "waypoints": [[15.0, 8.0], [15.0, -8.0]],
+    "speed_mps": 1.0,
+    "start_s": 7.0,
+}
+STATIC = [{"id": "far-rock", "x": 5.0, "y": 9.0, "radius": 1.0}]  # 8 m off the track: never in the way
+
+
+def _run(contacts: list[tuple[float, str]], moving: list[dict] | None) -> bytes:
+    buffer = io.BytesIO()
+    scenario = {"path_tolerance_m": "0.5", "encounter_margin_m": "1.5", "obstacles_json": json.dumps(STATIC)}
+    if moving is not None:
+        scenario["moving_obstacles_json"] = json.dumps(moving)
+    with McapRecorder(buffer) as recorder:
+        recorder.add_metadata("scenario", scenario)
+        for index, (x, y) in enumerate(TRACK):
+            t = to_ns(float(index))
+            recorder.publish(
+                TRUTH_POSE, t, {"timestamp": stamp(t), "frame_id": "enu", "pose": planar_pose(x, y, 0.0)}
+            )
+        for t_s, obstacle_id in contacts:
+            t = to_ns(t_s)
+            contact = {
+                "timestamp": stamp(t),
+                "kind": "collision",
+                "obstacle_id": obstacle_id,
+                "x": 0.0,
+                "y": 0.0,
+            }
+            recorder.publish(TRUTH_CONTACTS, t, contact)
+    return buffer.getvalue()
+
+
+def test_moving_obstacles_are_judged_where_they_were_at_each_time() -> None:
+    metrics = compute_metrics(io.BytesIO(_run([], [PASSED_BEHIND, RAMMER])))
+    # the rammer met the rover (and was avoided: no collision); the early cart and the far rock did not
+    assert (metrics.obstacles_encountered, metrics.obstacles_avoided) == (1, 1)
+    assert metrics.obstacle_avoidance_success_pct == pytest.approx(100.0)
+
+
+def test_a_collision_with_a_moving_obstacle_is_not_an_avoidance() -> None:
+    metrics = compute_metrics(io.BytesIO(_run([(15.0, "rammer")], [PASSED_BEHIND, RAMMER])))
+    assert metrics.collisions == 1
+    assert (metrics.obstacles_encountered, metrics.obstacles_avoided) == (1, 0)
+    assert metrics.obstacle_avoidance_success_pct == pytest.approx(0.0)
+
+
+def test_a_collision_counts_whatever_the_geometry_says() -> None:
+    # a contact naming an obstacle the sampled track never came near (moving obstacles unknown here)
+    metrics = compute_metrics(io.BytesIO(_run([(5.0, "far-rock")], None)))
+    assert (metrics.obstacles_encountered, metrics.obstacles_avoided) == (1, 0)
+    assert metrics.obstacle_avoidance_success_pct == pytest.approx(0.0)
+
+
+def test_a_bad_moving_obstacle_entry_is_skipped_and_described() -> None:
+    broken = [{"id": "one-point", "radius": 0.5, "waypoints": [[1.0, 1.0]], "speed_mps": 1.0}, RAMMER]
+    metrics = compute_metrics(io.BytesIO(_run([], broken)))
+    assert metrics.obstacles_encountered == 1
+    assert any("moving_obstacles_json[0]" in problem for problem in metrics.problems)

@@ -1,0 +1,120 @@
+"""What ``rover logs report`` tells an analyst: where each figure comes from (truth or estimate), what ran
+(scenario, seed, variant, config), a campaign grouped and ordered as the campaign, and no point-by-point
+gap between runs of different scenarios."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from logs.recorder import McapRecorder
+from logs.report import write_report
+from logs.synthetic import synthetic_metadata, synthetic_trial
+from logs.topics import NAVIGATOR_PATH, TRUTH_CONTACTS, planar_pose, stamp
+
+DURATION_S = 20.0
+TRUTH_TOPICS = frozenset({"truth/pose", "truth/wheels", "truth/stability", "truth/contacts"})
+
+
+def _write(
+    path: Path,
+    *,
+    name: str = "synthetic-rocky",
+    terrain: str = "rocky",
+    trial: dict[str, str] | None = None,
+    skip: frozenset[str] = frozenset(),
+    contact_at: tuple[float, float] | None = None,
+) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    scenario = synthetic_metadata(DURATION_S, terrain) | {"name": name, "seed": "3"}
+    with McapRecorder(path) as recorder:
+        recorder.add_metadata("scenario", scenario)
+        if trial is not None:
+            recorder.add_metadata("trial", trial)
+        for topic, t, message in synthetic_trial(DURATION_S, terrain=terrain):
+            if topic not in skip:
+                recorder.publish(topic, t, message)
+        if contact_at is not None:
+            t = int(DURATION_S * 1e9 / 2)
+            x, y = contact_at
+            contact = {"timestamp": stamp(t), "kind": "collision", "obstacle_id": "far", "x": x, "y": y}
+            recorder.publish(TRUTH_CONTACTS, t, contact)
+            replan = [planar_pose(x, y, 0.0), planar_pose(x + 5.0, 1.0, 0.0)]
+            recorder.publish(
+                NAVIGATOR_PATH,
+                t,
+                {"timestamp": stamp(t), "frame_id": "enu", "poses": replan, "cost": 1.0, "length_m": 5.0},
+            )
+    return path
+
+
+def test_figures_from_the_estimate_say_so(tmp_path: Path) -> None:
+    real = _write(tmp_path / "real.mcap", skip=TRUTH_TOPICS)  # what a `rover run` recording holds
+    text = write_report([real], tmp_path / "out", plots=False).markdown.read_text(encoding="utf-8")
+    assert "| distance to goal at end (m, estimate) |" in text
+    assert "| distance (m, estimate) |" in text
+    assert "| path accuracy (% of driven, estimate) |" in text
+    assert ", truth)" not in text and "truth distance" not in text  # no figure claims to be the truth
+
+
+def test_the_report_says_what_ran_in_words(tmp_path: Path) -> None:
+    trial = {"mode": "sim-lockstep", "config": "configs/fast.toml", "variant": "fast"}
+    run = _write(tmp_path / "sim.mcap", trial=trial, contact_at=(6.0, 0.2))
+    result = write_report([run], tmp_path / "out")
+    text = result.markdown.read_text(encoding="utf-8")
+    for fact in ("scenario: synthetic-rocky", "seed: 3", "variant: fast", "config: configs/fast.toml"):
+        assert fact in text
+    assert "| estimator position error RMS (m, vs truth) |" in text and "error rms m" not in text
+    assert "| CAN bitrate (bit/s) |" in text and "can bitrate" not in text
+    assert "| cross-track error RMS (m, rover's estimate) |" in text
+    per_metre = re.search(r"\| energy per metre \(Wh/m, truth distance\) \| ([0-9.e-]+) \|", text)
+    assert per_metre is not None
+    assert len(per_metre.group(1).replace(".", "").lstrip("0")) == 4  # 4 significant digits
+    trajectory = result.html.read_text(encoding="utf-8").split("<svg")[1]
+    for legend in (">start<", ">goal<", ">contacts<", ">obstacle<", ">plans<", ">last plan<"):
+        assert legend in trajectory
+    assert "rover's estimate" in result.html.read_text(encoding="utf-8").split("<svg")[2]  # cross-track
+
+
+def test_runs_of_different_scenarios_are_not_compared_point_by_point(tmp_path: Path) -> None:
+    a = _write(tmp_path / "a.mcap", name="rocky-boulders")
+    b = _write(tmp_path / "b.mcap", name="te-crossing")
+    result = write_report([a, b], tmp_path / "out", plots=False)
+    comparison = result.comparisons[0]
+    assert comparison.not_comparable == ["scenario name 'rocky-boulders' vs 'te-crossing'"]
+    assert comparison.gap_rms_m is None and comparison.s_m == []
+    text = result.markdown.read_text(encoding="utf-8")
+    assert "different scenarios" in text and "gap RMS" not in text
+    assert comparison.metrics["distance_m"]["a"] is not None  # per-run metrics still compared
+
+
+def test_a_campaign_is_grouped_and_ordered_as_the_campaign(tmp_path: Path) -> None:
+    campaign = tmp_path / "campaign"
+    # two campaign terrains of one class; variants listed terrain-aware first, classical second
+    for terrain_index, terrain in enumerate(("field-b", "field-a")):
+        for variant_index, variant in enumerate(("terrain-aware", "classical")):
+            trial = {
+                "terrain": terrain,
+                "terrain_index": str(terrain_index),
+                "variant": variant,
+                "variant_index": str(variant_index),
+            }
+            contact = (6.0, 0.2) if variant == "classical" else None
+            _write(
+                campaign / terrain / variant / "seed3" / "trial.mcap",
+                terrain="sandy",
+                trial=trial,
+                contact_at=contact,
+            )
+    result = write_report([campaign], tmp_path / "out", plots=False)
+    rows = [(row["terrain"], row["variant"], row["collisions"]) for row in result.terrain_table]
+    assert rows == [
+        ("field-b", "terrain-aware", 0),
+        ("field-b", "classical", 1),
+        ("field-a", "terrain-aware", 0),
+        ("field-a", "classical", 1),
+    ]
+    assert all(row["terrain_class"] == "sandy" for row in result.terrain_table)
+    baselines = {Path(c.a).parent.parent.name for c in result.comparisons}
+    assert baselines == {"terrain-aware"}
+    assert "collisions (total)" in result.markdown.read_text(encoding="utf-8")
