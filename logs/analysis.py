@@ -47,6 +47,7 @@ from logs.topics import (
     ESTIMATOR_POSE,
     LIVE_STREAM_METADATA,
     LOG,
+    MAVLINK_STATS,
     NAVIGATOR_MAP,
     NAVIGATOR_PATH,
     NAVIGATOR_STATE,
@@ -75,9 +76,17 @@ REPORT_TOPICS = frozenset(METRIC_TOPICS) | {
     CAN_STATS,
     ESTIMATOR_INNOVATIONS,
     LOG,
+    MAVLINK_STATS,
     NAVIGATOR_MAP,
     SAFETY_EVENTS,
     TRUTH_STABILITY,
+}
+# mavlink/stats window counters -> report figures: the link's garbage, its receive-budget drops and the
+# commands its signing check refused (firmware_bridge.mavlink_health).
+MAVLINK_FIGURES = {
+    "bad_frames": "mavlink_bad_frames",
+    "dropped_bytes": "mavlink_dropped_bytes",
+    "signature_rejected": "mavlink_commands_refused",
 }
 EXPECTED_TOPICS = (ESTIMATOR_POSE, NAVIGATOR_PATH, NAVIGATOR_STATE, WHEELS_STATUS, CAN_FRAMES)
 
@@ -184,6 +193,8 @@ class _Collector:
     can_stats: list[tuple[float, int, int]] = field(default_factory=list)
     can_stats_first: tuple[int, int] | None = None
     can_stats_last: tuple[int, int] = (0, 0)
+    # mavlink/stats: each window's growth of these counters, summed over windows and links.
+    mavlink: Counter[str] | None = None
     safety: Counter[str] = field(default_factory=Counter)
     log_levels: Counter[int] = field(default_factory=Counter)
     unusable: Counter[str] = field(default_factory=Counter)
@@ -276,6 +287,9 @@ class _Collector:
             self._grid(message)
         elif topic == CAN_STATS:
             self._can_stats(message)
+        elif topic == MAVLINK_STATS:
+            grown = Counter({key: int(message[key]) for key in MAVLINK_FIGURES})
+            self.mavlink = grown if self.mavlink is None else self.mavlink + grown
         elif topic == TRUTH_CONTACTS:
             contact = Contact(
                 float(message["x"]), float(message["y"]), str(message["kind"]), str(message["obstacle_id"])
@@ -364,6 +378,8 @@ def _finish(
     bitrate = can_bitrate or _bitrate(c.metadata)
     can_figures, can_load_source = _bus_load(c, bitrate)
     figures.update(can_figures)
+    for key, figure in MAVLINK_FIGURES.items():  # None: the recording has no mavlink/stats (older files)
+        figures[figure] = None if c.mavlink is None else c.mavlink[key]
     figures["innovations_rejected"] = c.rejected_innovations
     figures["safety_warnings"] = c.safety["warning"]
     figures["safety_errors"] = c.safety["error"] + c.safety["fatal"]
