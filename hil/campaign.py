@@ -5,10 +5,10 @@ A campaign is TOML::
     name = "terrain-vs-classical"
     config = "../configs/rover.toml"   # optional base rover config (default: built-in defaults)
     seeds = [1, 2, 3]                   # or: seed_count = 5  (seeds 0 .. 4)
-    workers = 0                         # 0: one worker process per core
+    workers = 0                         # 0: one worker process per core (as --workers 0)
 
     [[terrains]]
-    name = "rocky"
+    name = "rocky"                      # names are folder names: letters, digits, - _ . only
     scenario = "../scenarios/rocky.toml"
 
     [[variants]]
@@ -17,20 +17,22 @@ A campaign is TOML::
     planner.cost_mode = "terrain"
 
 Paths are relative to the campaign file. Everything (each scenario, each variant's config) is loaded and
-validated before the first trial starts, with errors naming the file and the key.
+validated before the first trial starts, with errors naming the campaign file and the key (and, for a
+scenario or config that is wrong, that file and its key too).
 """
 
 from __future__ import annotations
 
 import copy
-import os
+import re
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from hil.campaign_workers import MAX_WORKERS, resolved_workers
 from hil.scenario import load_scenario
-from logs.settings import ConfigError, Table, load_toml
+from logs.settings import MAX_SEED, ConfigError, Table, load_toml
 from navigator.config import RoverConfig, rover_config_from_table
 
 
@@ -88,17 +90,23 @@ class Campaign:
             for seed in self.seeds
         ]
 
-    def worker_count(self) -> int:
-        return self.workers if self.workers > 0 else max(1, os.cpu_count() or 1)
+    def worker_count(self, requested: int | None = None) -> int:
+        """Worker processes: ``requested`` (the command line's) or the file's; 0 in either: one per core."""
+        return resolved_workers(self.workers if requested is None else requested)
 
 
 def load_campaign(path: str | Path) -> Campaign:
     """Read a campaign file and validate everything it refers to; ``ConfigError`` on any problem."""
     root = load_toml(path)
     base = Path(path).parent
-    name = root.text("name")
+    name = _path_safe_name(root, "name")  # part of the default output folder's name
     root.text("description", "")
     config_path = base / root.text("config") if root.has("config") else None
+    if config_path is not None:
+        try:
+            _read(config_path)  # the variants below report the config's own keys; this, that it is missing
+        except ConfigError as err:
+            raise root.error("config", str(err)) from err
     if root.has("seeds") and root.has("seed_count"):
         raise root.error("seed_count", "give either seeds or seed_count, not both")
     if root.has("seed_count"):
@@ -107,25 +115,28 @@ def load_campaign(path: str | Path) -> Campaign:
         seeds = tuple(root.integers("seeds", [0]))
     if not seeds:
         raise root.error("seeds", "at least one seed is needed, got []")
-    if len(set(seeds)) != len(seeds) or any(s < 0 for s in seeds):
-        raise root.error("seeds", f"seeds must be distinct and >= 0, got {list(seeds)}")
-    workers = root.integer("workers", 0, lo=0, hi=256)
+    if len(set(seeds)) != len(seeds) or any(not 0 <= s <= MAX_SEED for s in seeds):
+        raise root.error("seeds", f"seeds must be distinct and 0 to {MAX_SEED}, got {list(seeds)}")
+    workers = root.integer("workers", 0, lo=0, hi=MAX_WORKERS)
 
     terrains: list[tuple[str, Path]] = []
     for table in root.tables("terrains", optional=False):
-        terrain_name = table.text("name")
+        terrain_name = _path_safe_name(table, "name")
         scenario = base / table.text("scenario")
         table.finish()
         if any(terrain_name == t for t, _ in terrains):
             raise table.error("name", f"duplicate terrain name {terrain_name!r}")
-        load_scenario(scenario)  # validated now, not in a worker half an hour later
+        try:
+            load_scenario(scenario)  # validated now, not in a worker half an hour later
+        except ConfigError as err:
+            raise table.error("scenario", str(err)) from err
         terrains.append((terrain_name, scenario))
     if not terrains:
         raise root.error("terrains", "at least one [[terrains]] entry is needed")
 
     variants: list[Variant] = []
     for table in root.tables("variants"):
-        variant_name = table.text("name")
+        variant_name = _path_safe_name(table, "name")
         overrides = table.raw("overrides", {})
         if not isinstance(overrides, dict):
             raise table.error("overrides", f"must be a table of rover-config keys, got {overrides!r}")
@@ -140,6 +151,22 @@ def load_campaign(path: str | Path) -> Campaign:
         campaign_config(config_path, {}, root.source)
     root.finish()
     return Campaign(name, root.source, tuple(terrains), tuple(variants), seeds, config_path, workers)
+
+
+# Terrain and variant names become folders (<out>/<terrain>/<variant>/seed<N>): one plain path component
+# each, never a separator or a way up (".."), whatever the platform.
+_SAFE_NAME = re.compile(r"[A-Za-z0-9._-]+")
+
+
+def _path_safe_name(table: Table, key: str) -> str:
+    name = table.text(key)
+    if not _SAFE_NAME.fullmatch(name) or name in (".", ".."):
+        raise table.error(
+            key,
+            f"{name!r} is used as a folder name: use letters, digits, '-', '_' and '.' only "
+            "(not '.' or '..' alone)",
+        )
+    return name
 
 
 def campaign_config(config_path: Path | None, overrides: dict[str, Any], where: str) -> RoverConfig:

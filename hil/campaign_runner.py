@@ -74,9 +74,11 @@ def run_campaign(
     workers: int | None = None,
     on_done: Callable[[TrialOutcome], None] | None = None,
 ) -> tuple[list[TrialOutcome], Path, Path]:
-    """Run every trial; returns the outcomes and the Markdown and JSON summary paths."""
+    """Run every trial; returns the outcomes and the Markdown and JSON summary paths.
+
+    ``workers``: worker processes (0: one per core); None: the campaign file's ``workers``."""
     specs = campaign.trials(out_dir)
-    count = workers if workers is not None else campaign.worker_count()
+    count = campaign.worker_count(workers)
     outcomes: list[TrialOutcome] = []
     if count <= 1:
         for spec in specs:

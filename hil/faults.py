@@ -12,7 +12,7 @@ gps       wrong          fixes offset by ``offset_m`` (a glitch / multipath jump
 gps       delayed        fixes report the position of ``delay_s`` ago (latency)
 gps       slow           fixes at the rate divided by ``factor``
 gps       intermittent   each fix dropped with ``probability``
-gps       garbage        fix type 0 (no fix), 0 satellites, position nonsense
+gps       garbage        every fix: type 0 (no fix), 0 satellites, position nonsense
 imu       wrong          gyro / accel biased by ``gyro_bias_rps`` / ``accel_bias_mps2`` (3-vectors)
 imu       stuck          the same reading repeated (frozen sensor)
 imu       off            no SCALED_IMU
@@ -26,6 +26,8 @@ mavlink   off            link loss: no byte passes either way
 mavlink   garbage        each outgoing chunk corrupted with ``probability`` (seen on ``mavlink/stats``)
 battery   wrong          pack sags: ``sag_v`` volts lower and ``extra_resistance_ohm`` more resistance
 ========  =============  =====================================================================
+
+docs/hil.md lists every parameter with its unit, default and range, and an example of each kind.
 
 Faults are applied by the components they break (``hil.fault_links`` for the wires, the sensor models, the
 controllers, the battery); each activation and end is recorded on the ``log`` topic under the name
@@ -130,7 +132,7 @@ def _describe(fault: Fault) -> str:
         parts.append(f"delay {fault.delay_s:g} s")
     if fault.kind == "slow":
         parts.append(f"rate / {fault.factor:g}")
-    if fault.kind in ("intermittent", "garbage"):
+    if _takes_probability(fault.target, fault.kind):
         parts.append(f"probability {fault.probability:g}")
     if fault.target == "imu" and fault.kind == "wrong":
         parts.append(f"gyro bias {fault.gyro_bias_rps} rad/s, accel bias {fault.accel_bias_mps2} m/s2")
@@ -188,9 +190,7 @@ def faults_from_tables(tables: Sequence[Table], duration_s: float) -> tuple[Faul
             delay_s=table.number("delay_s", 0.5, lo=0.0, hi=60.0) if kind == "delayed" else 0.0,
             factor=table.number("factor", 5.0, lo=1.0, hi=1000.0) if kind == "slow" else 1.0,
             probability=(
-                table.number("probability", 0.5, lo=0.0, hi=1.0)
-                if kind in ("intermittent", "garbage")
-                else 1.0
+                table.number("probability", 0.5, lo=0.0, hi=1.0) if _takes_probability(target, kind) else 1.0
             ),
             gyro_bias_rps=_triple(table, "gyro_bias_rps", target == "imu" and kind == "wrong"),
             accel_bias_mps2=_triple(table, "accel_bias_mps2", target == "imu" and kind == "wrong"),
@@ -203,6 +203,11 @@ def faults_from_tables(tables: Sequence[Table], duration_s: float) -> tuple[Faul
         table.finish()
         faults.append(fault)
     return tuple(faults)
+
+
+def _takes_probability(target: str, kind: str) -> bool:
+    """Faults that hit each frame or fix by chance; a GPS gone to garbage reports nonsense on every fix."""
+    return kind == "intermittent" or (kind == "garbage" and target != "gps")
 
 
 def _pair(table: Table, key: str, allowed: bool) -> tuple[float, float]:

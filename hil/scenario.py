@@ -16,8 +16,9 @@ import numpy as np
 
 from hil.faults import Fault, faults_from_tables
 from hil.moving_obstacles import MovingObstacle
+from hil.scenario_placement import check_clear_of_obstacles
 from logs.metrics import DEFAULT_ENCOUNTER_MARGIN_M
-from logs.settings import Table, load_toml
+from logs.settings import MAX_SEED, Table, load_toml
 from navigator.map_config import terrain_from_table
 from navigator.terrain import TerrainMap, disc_mask
 
@@ -147,7 +148,7 @@ def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
     name = root.text("name")
     root.text("description", "")
     duration_s = root.number("duration_s", 120.0, lo=1.0, hi=24 * 3600.0)
-    seed = root.integer("seed", 0, lo=0)
+    seed = root.integer("seed", 0, lo=0, hi=MAX_SEED)
     path_tolerance_m = root.number("path_tolerance_m", 0.5, lo=0.01, hi=100.0)
     encounter_margin_m = root.number("encounter_margin_m", DEFAULT_ENCOUNTER_MARGIN_M, hi=100.0)
     if encounter_margin_m <= 0.0:
@@ -157,7 +158,7 @@ def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
         raise root.error(
             "datum", f"latitude must be in [-90, 90] and longitude in [-180, 180], got {datum_values}"
         )
-    tags = tuple(str(t) for t in root.raw("tags", []))
+    tags = _tags(root)
 
     terrain, summary = terrain_from_table(root.table("terrain"), base_dir)
 
@@ -168,7 +169,8 @@ def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
     _check_inside(terrain, start_xy, start_table, "xy")
 
     goals = []
-    for goal_table in root.tables("goals", optional=False):
+    goal_tables = root.tables("goals", optional=False)
+    for goal_table in goal_tables:
         xy = goal_table.point("xy")
         _check_inside(terrain, xy, goal_table, "xy")
         goals.append(Goal(xy[0], xy[1], goal_table.number("tolerance_m", 0.5, lo=0.05, hi=50.0)))
@@ -189,6 +191,9 @@ def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
         known = obstacle_table.flag("known", True)
         obstacle_table.finish()
         obstacles.append(Obstacle(obstacle_id, xy[0], xy[1], radius, known))
+    check_clear_of_obstacles(terrain, obstacles, start_xy, start_table, "xy")
+    for goal, goal_table in zip(goals, goal_tables, strict=True):
+        check_clear_of_obstacles(terrain, obstacles, (goal.x, goal.y), goal_table, "xy")
     believed_terrain = terrain.with_obstacles(_discs(terrain, [o for o in obstacles if o.known]))
     terrain = terrain.with_obstacles(_discs(terrain, obstacles))
 
@@ -236,6 +241,13 @@ def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
         success=success,
         encounter_margin_m=encounter_margin_m,
     )
+
+
+def _tags(root: Table) -> tuple[str, ...]:
+    tags = root.raw("tags", [])
+    if not isinstance(tags, list) or not all(isinstance(tag, str) for tag in tags):
+        raise root.error("tags", f'expected a list of strings, e.g. tags = ["sandy"], got {tags!r}')
+    return tuple(tags)
 
 
 def _discs(terrain: TerrainMap, obstacles: list[Obstacle]) -> np.ndarray:

@@ -15,6 +15,11 @@ from typing import Any, TypeVar
 
 T = TypeVar("T")
 
+# The largest seed anything takes: TOML's largest integer, so a seed from the command line can always be
+# written into a scenario file and read back (``rover hil soak`` writes its seed into the scenario it
+# generates). numpy's generators take any integer >= 0, so this is the tighter of the two bounds.
+MAX_SEED = 2**63 - 1
+
 
 class ConfigError(ValueError):
     """A settings file is missing, malformed, or holds a value we cannot use."""

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from logs.settings import ConfigError, Table
+from logs.settings import MAX_SEED, ConfigError, Table
 from navigator.errors import TerrainError
 from navigator.png_layers import load_png_layers
 from navigator.terrain import TerrainMap, check_map_cells, from_maze, load_npy_layers, procedural
@@ -49,7 +49,7 @@ def terrain_from_table(table: Table, base_dir: Path) -> tuple[TerrainMap, str]:
             terrain = procedural(
                 (rows, cols),
                 resolution,
-                np.random.default_rng(table.integer("seed", 0, lo=0)),
+                np.random.default_rng(table.integer("seed", 0, lo=0, hi=MAX_SEED)),
                 base_class=_class_id(table, "class", "firm"),
                 hill_height_m=table.number("hill_height_m", 0.5, lo=0.0, hi=100.0),
                 hill_count=table.integer("hill_count", 3, lo=0, hi=1000),

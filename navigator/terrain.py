@@ -71,7 +71,15 @@ class TerrainMap:
             raise TerrainError(f"terrain resolution_m must be a finite number > 0, got {self.resolution_m!r}")
         if len(self.origin_xy) != 2 or not all(math.isfinite(float(v)) for v in self.origin_xy):
             raise TerrainError(f"terrain origin_xy must be two finite numbers, got {self.origin_xy!r}")
-        elevation = np.asarray(self.elevation_m, dtype=np.float64)
+        raw_elevation = np.asarray(self.elevation_m)
+        if not (
+            np.issubdtype(raw_elevation.dtype, np.integer) or np.issubdtype(raw_elevation.dtype, np.floating)
+        ):
+            # numpy would turn text such as "1.5" into numbers without a word: refuse anything not numeric.
+            raise TerrainError(
+                f"elevation layer must hold real numbers (metres), got dtype {raw_elevation.dtype}"
+            )
+        elevation = raw_elevation.astype(np.float64)
         if elevation.ndim != 2 or elevation.size == 0:
             raise TerrainError(f"elevation layer must be a non-empty 2-D array, got shape {elevation.shape}")
         if not np.all(np.isfinite(elevation)):
@@ -265,28 +273,62 @@ def _load_layer(path: str | Path, name: str) -> np.ndarray:
     try:
         with open(path, "rb") as file:
             head = file.read(len(NPY_MAGIC))
-        # np.load takes anything without the magic for a pickle and says so, which misleads.
-        if head != NPY_MAGIC:
-            raise TerrainError(
-                f"{name} layer file {str(path)!r} is not a .npy array "
-                f"(it starts with {head!r}, not {NPY_MAGIC!r})",
-                key=name,
-            )
+    except FileNotFoundError as err:
+        raise TerrainError(f"{name} layer file {str(path)!r} not found", key=name) from err
+    except OSError as err:
+        raise TerrainError(
+            f"{name} layer file {str(path)!r} cannot be read: {err.strerror or err}", key=name
+        ) from err
+    # np.load takes anything without the magic for a pickle and says so, which misleads.
+    if head != NPY_MAGIC:
+        raise TerrainError(
+            f"{name} layer file {str(path)!r} is not a .npy array "
+            f"(it starts with {head!r}, not {NPY_MAGIC!r})",
+            key=name,
+        )
+    try:
         # Mapped first: the header's shape is checked before the data is read into memory.
         mapped = np.load(path, mmap_mode="r", allow_pickle=False)
         if isinstance(mapped, np.ndarray) and mapped.ndim == 2:
             rows, cols = mapped.shape
             check_map_cells(rows, cols, f"{name} layer file {str(path)!r}", "downsample the layers", key=name)
         layer = np.array(mapped)
-    except FileNotFoundError as err:
-        raise TerrainError(f"{name} layer file {str(path)!r} not found", key=name) from err
     except (OSError, ValueError) as err:
         raise TerrainError(
             f"{name} layer file {str(path)!r} is not a readable .npy array: {err}", key=name
         ) from err
     if not isinstance(layer, np.ndarray) or layer.ndim != 2:
         raise TerrainError(f"{name} layer file {str(path)!r} must hold one 2-D array", key=name)
+    _check_layer_values(layer, path, name)
     return layer
+
+
+# The dtypes each layer may hold; anything else (text, objects, complex, dates) is a file mistake, even
+# where numpy would convert it without a word ("1.5" as text becomes 1.5 m of elevation).
+_LAYER_KINDS = {
+    "elevation": (np.integer, np.floating),  # metres
+    "classes": (np.integer, np.floating),  # class ids; floats must be whole (checked in load_npy_layers)
+    "obstacles": (np.bool_, np.integer, np.floating),  # 0/1 (checked by TerrainMap)
+}
+
+
+_DTYPE_WORDS = {"U": "text", "S": "bytes", "O": "Python objects", "b": "booleans", "c": "complex numbers"}
+
+
+def _check_layer_values(layer: np.ndarray, path: str | Path, name: str) -> None:
+    if not any(np.issubdtype(layer.dtype, kind) for kind in _LAYER_KINDS[name]):
+        what = _DTYPE_WORDS.get(layer.dtype.kind, "values")
+        wanted = "booleans or 0/1" if name == "obstacles" else "numbers"
+        raise TerrainError(
+            f"{name} layer file {str(path)!r} holds {what} (dtype {layer.dtype.str}), not {wanted}", key=name
+        )
+    if np.issubdtype(layer.dtype, np.floating) and not np.all(np.isfinite(layer)):
+        row, col = np.argwhere(~np.isfinite(layer))[0]
+        raise TerrainError(
+            f"{name} layer file {str(path)!r} holds a non-finite value ({layer[row, col]}) at cell "
+            f"(row {row}, col {col})",
+            key=name,
+        )
 
 
 def load_npy_layers(

@@ -6,6 +6,8 @@ import argparse
 import json
 from typing import Any
 
+from rover_cli.arg_types import seed
+
 
 def register(commands: Any) -> None:
     bench = commands.add_parser(
@@ -13,7 +15,7 @@ def register(commands: Any) -> None:
     )
     bench.add_argument("--cycles", type=int, default=20_000, help="50 Hz sensor cycles per timing run")
     bench.add_argument("--repeats", type=int, default=3, help="timing runs per contender (fastest reported)")
-    bench.add_argument("--seed", type=int, default=1)
+    bench.add_argument("--seed", type=seed, default=1, help="seed of the generated inputs")
     bench.add_argument("--json", action="store_true", help="print the figures as one JSON object")
     bench.set_defaults(handler=run_bench)
 

@@ -7,6 +7,7 @@ import json
 from typing import Any
 
 from navigator.plan_bench_sizes import DEFAULT_SIZES
+from rover_cli.arg_types import seed
 
 
 def register(commands: Any) -> None:
@@ -19,7 +20,7 @@ def register(commands: Any) -> None:
         help=f"map sizes, cells a side (default: {' '.join(map(str, DEFAULT_SIZES))})",
     )
     bench.add_argument("--repeats", type=int, default=3, help="runs per solver and size (median reported)")
-    bench.add_argument("--seed", type=int, default=1)
+    bench.add_argument("--seed", type=seed, default=1, help="seed of the generated inputs")
     bench.add_argument("--json", action="store_true", help="print the figures as one JSON object")
     bench.set_defaults(handler=run_bench)
 

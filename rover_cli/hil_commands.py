@@ -10,10 +10,12 @@ from typing import TYPE_CHECKING, Any
 from rich.console import Console
 from rich.table import Table as RichTable
 
+from hil.campaign_workers import MAX_WORKERS
 from logs.settings import ConfigError, parse_toml
 from logs.sink import MessageSink
 from navigator.config import RoverConfig, load_rover_config, rover_config_from_table
 from rover_cli import soak_commands
+from rover_cli.arg_types import bounded_int, seed
 from rover_cli.errors import print_error
 
 if TYPE_CHECKING:
@@ -28,7 +30,7 @@ def register(families: Any) -> None:
     commands = hil.add_subparsers(dest="command", required=True, metavar="SUBCOMMAND")
     trial = commands.add_parser("trial", help="run one lockstep HIL trial and report its metrics")
     trial.add_argument("scenario", type=Path, help="scenario TOML file")
-    trial.add_argument("--seed", type=int, default=None, help="random seed (default: the scenario's)")
+    trial.add_argument("--seed", type=seed, default=None, help="random seed (default: the scenario's)")
     trial.add_argument("--config", type=Path, default=None, help="rover config TOML (default: built-in)")
     trial.add_argument("--out", type=Path, default=None, help="output directory (default: logs/trials/<run>)")
     trial.add_argument("--no-telemetry", action="store_true", help="do not publish on Zenoh")
@@ -43,7 +45,12 @@ def register(families: Any) -> None:
     campaign.add_argument(
         "--out", type=Path, default=None, help="output directory (default: logs/trials/<name>)"
     )
-    campaign.add_argument("--workers", type=int, default=None, help="worker processes (default: the file's)")
+    campaign.add_argument(
+        "--workers",
+        type=bounded_int(0, MAX_WORKERS, "0: one per core"),
+        default=None,
+        help="worker processes, 0: one per core (default: the file's `workers`)",
+    )
     campaign.set_defaults(handler=run_campaign_command)
     _register_peer(commands)
     soak_commands.register(commands)
@@ -54,7 +61,7 @@ def _register_peer(commands: Any) -> None:
         "peer", help="the simulated rover in real time, on a CAN bus and a MAVLink UDP port, for `rover run`"
     )
     peer.add_argument("scenario", type=Path, help="scenario TOML file")
-    peer.add_argument("--seed", type=int, default=None, help="random seed (default: the scenario's)")
+    peer.add_argument("--seed", type=seed, default=None, help="random seed (default: the scenario's)")
     peer.add_argument("--config", type=Path, default=None, help="rover config TOML (default: built-in)")
     peer.add_argument("--can-interface", default=None, help="python-can interface (default: the config's)")
     peer.add_argument(
@@ -223,9 +230,6 @@ def run_campaign_command(args: argparse.Namespace) -> int:
         campaign = load_campaign(args.campaign)
     except ConfigError as err:
         print_error(console, err)
-        return 2
-    if args.workers is not None and args.workers < 1:
-        print_error(console, "--workers must be >= 1")
         return 2
     out_dir = args.out or _unique_run_dir(DEFAULT_TRIALS_DIR, f"campaign-{campaign.name}")
     problem = _usable_out_dir(out_dir)

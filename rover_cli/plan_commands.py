@@ -1,4 +1,5 @@
-"""``rover plan MAP --start X,Y --goal X,Y``: plan once, print cost, length, nodes expanded and time."""
+"""``rover plan MAP --start X,Y --goal X,Y``: plan once, print cost, length, nodes expanded and time
+(with ``--json`` also the path, as ``[x, y]`` points in metres from the start to the goal)."""
 
 from __future__ import annotations
 
@@ -81,7 +82,8 @@ def run_plan(args: argparse.Namespace) -> int:
         print(f"rover plan: cannot write {err.filename or 'the output'}: {err.strerror or err}")
         return 2
     if args.json:
-        print(json.dumps(figures))
+        # The path itself only in JSON (a script's input); the text form stays a short summary.
+        print(json.dumps({**figures, "path": [[float(x), float(y)] for x, y in report.points]}))
     else:
         for key, value in figures.items():
             print(f"{key:>10}: {value:.3f}" if isinstance(value, float) else f"{key:>10}: {value}")

@@ -12,6 +12,7 @@ from typing import Any
 from rich.console import Console
 from rich.table import Table
 
+from rover_cli.arg_types import seed
 from rover_cli.errors import print_error
 
 
@@ -20,7 +21,7 @@ def register(commands: Any) -> None:
         "soak", help="real-time HIL (peer + rover run) for minutes with seeded faults; crash / memory report"
     )
     soak.add_argument("--minutes", type=float, default=10.0, help="how long to run (default 10)")
-    soak.add_argument("--seed", type=int, default=1, help="seed of the fault schedule")
+    soak.add_argument("--seed", type=seed, default=1, help="seed of the fault schedule")
     soak.add_argument("--out", type=Path, default=None, help="output directory (default: logs/trials/soak-*)")
     soak.add_argument("--rss-period", type=float, default=5.0, help="seconds between memory samples")
     soak.add_argument("--warmup", type=float, default=20.0, help="seconds before the first fault")

@@ -181,6 +181,8 @@ def test_battery_sag_lowers_the_reported_voltage(baseline):
         ('target = "gps"\nkind = "off"\nstart_s = 45.0', "faults[0].start_s"),
         ('target = "gps"\nkind = "off"\nstart_s = 40.0\nduration_s = 6.0', "faults[0].duration_s"),
         ('target = "imu"\nkind = "off"\noffset_m = [1.0, 2.0]', "offset_m"),
+        # A GPS gone to garbage reports nonsense on every fix: a probability would be silently ignored.
+        ('target = "gps"\nkind = "garbage"\nprobability = 0.2', "faults[0].probability"),
     ],
 )
 def test_bad_faults_name_the_key(text, key):

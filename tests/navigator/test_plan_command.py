@@ -44,3 +44,14 @@ def test_plan_names_an_output_it_cannot_write(
     assert main(["plan", str(SCENARIO), "--start", "3,12", "--goal", "25,5", option, str(out)]) == 2
     printed = capsys.readouterr().out
     assert "cannot write" in printed and str(out) in printed
+
+
+def test_plan_json_gives_the_path_in_metres(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["plan", str(SCENARIO), "--start", "3,12", "--goal", "25,5", "--json"]) == 0
+    figures = json.loads(capsys.readouterr().out)
+    path = np.array(figures["path"])
+    assert path.shape == (figures["points"], 2)
+    assert np.linalg.norm(path[0] - (3.0, 12.0)) < 0.25 and np.linalg.norm(path[-1] - (25.0, 5.0)) < 0.25
+    length = float(np.sum(np.linalg.norm(np.diff(path, axis=0), axis=1)))
+    assert length == pytest.approx(figures["length_m"], rel=1e-6)
+    assert {"cost", "length_m", "expanded", "time_ms", "heuristic", "cost_mode", "points"} <= figures.keys()

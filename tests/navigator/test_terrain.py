@@ -131,3 +131,9 @@ def test_load_npy_layers(tmp_path):
     (tmp_path / "one-byte.npy").write_bytes(b"\x93")  # numpy alone would call it pickled data
     with pytest.raises(TerrainError, match=r"is not a \.npy array"):
         load_npy_layers(tmp_path / "one-byte.npy", resolution_m=1.0)
+
+
+@pytest.mark.parametrize("elevation", [np.full((2, 2), "1.0"), np.ones((2, 2), dtype=bool)])
+def test_an_elevation_layer_of_text_or_booleans_is_not_quietly_converted(elevation: np.ndarray) -> None:
+    with pytest.raises(TerrainError, match="real numbers"):
+        TerrainMap(elevation, np.zeros((2, 2), dtype=int), np.zeros((2, 2), dtype=bool), 1.0)

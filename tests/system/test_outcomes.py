@@ -1,12 +1,13 @@
 """What a test engineer gates on: exit codes, the verdict and its reasons, what a recording says ran.
 
-The trials here are short: the goal sits inside the scenario's rock, so the planner gives up (``no_path``)
-two simulated seconds in.
+The trials here are short: the goal sits inside a closed ring of rocks (on free ground: a goal inside an
+obstacle is refused at load), so the planner gives up (``no_path``) two simulated seconds in.
 """
 
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import pytest
@@ -20,11 +21,22 @@ from rover_cli.main import main
 DATA = Path(__file__).resolve().parents[1] / "data"
 
 
+def _ring_of_rocks(x: float, y: float) -> str:
+    """Eight 0.6 m rocks 1.2 m round (x, y): each overlaps the next, so no way in; the centre is free."""
+    rocks = []
+    for index in range(8):
+        angle = index * math.pi / 4.0
+        cx, cy = x + 1.2 * math.cos(angle), y + 1.2 * math.sin(angle)
+        rocks.append(f'[[obstacles]]\nid = "ring{index}"\nxy = [{cx:.3f}, {cy:.3f}]\nradius_m = 0.6\n')
+    return "\n".join(rocks)
+
+
 def _boulder_scenario(tmp_path: Path, success: str = "") -> Path:
     text = (DATA / "small_rocky.toml").read_text(encoding="utf-8")
-    text = text.replace("xy = [11.5, 7.5]", "xy = [6.5, 4.5]").replace(
+    text = text.replace("xy = [11.5, 7.5]", "xy = [6.5, 7.5]").replace(
         "duration_s = 45.0", "duration_s = 8.0"
     )
+    text += "\n" + _ring_of_rocks(6.5, 7.5)
     path = tmp_path / "boulder.toml"
     path.write_text(text + (f"\n[success]\n{success}\n" if success else ""), encoding="utf-8")
     return path
@@ -125,7 +137,8 @@ def test_campaign_lists_failed_trials_and_recordings_name_their_variant(tmp_path
     assert {"config.planner.cost_mode", "trial.variant"} <= differing
     rows = {(row["terrain"], row["variant"]): row["runs"] for row in report.terrain_table}
     assert rows == {("rocky", "classical"): 1, ("rocky", "terrain-aware"): 1}
-    assert "| distance to goal at end (m, truth) | 5.148 |" in report.markdown.read_text(encoding="utf-8")
+    # The rover never moves: the distance is start (2, 2) to goal (6.5, 7.5).
+    assert "| distance to goal at end (m, truth) | 7.106 |" in report.markdown.read_text(encoding="utf-8")
 
 
 def test_a_metadata_record_only_one_run_has_is_one_comparison_row():

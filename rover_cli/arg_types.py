@@ -1,0 +1,32 @@
+"""argparse types for whole numbers with a range, so a bad value is refused by argparse itself (usage and
+exit 2) before a command opens, creates or writes anything."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+
+from logs.settings import MAX_SEED
+
+
+def bounded_int(lo: int, hi: int, meaning: str = "") -> Callable[[str], int]:
+    """A type converter for a whole number in ``[lo, hi]``; ``meaning`` is said after the range."""
+    note = f" ({meaning})" if meaning else ""
+
+    def convert(text: str) -> int:
+        try:
+            value = int(text, 10)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"expected a whole number {lo} to {hi}{note}, got {text!r}"
+            ) from None
+        if not lo <= value <= hi:
+            raise argparse.ArgumentTypeError(f"must be {lo} to {hi}{note}, got {value}")
+        return value
+
+    convert.__name__ = "whole number"  # argparse names the type in some messages
+    return convert
+
+
+# Every command's --seed: numpy's generators refuse negative seeds, and a seed must fit in a TOML file.
+seed = bounded_int(0, MAX_SEED)
