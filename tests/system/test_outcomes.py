@@ -7,7 +7,6 @@ obstacle is refused at load), so the planner gives up (``no_path``) two simulate
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
 import pytest
@@ -17,18 +16,9 @@ from logs.reader import read_attachments, read_metadata
 from logs.report import write_report
 from logs.settings import ConfigError
 from rover_cli.main import main
+from tests.system.unreachable_goal import ring_of_rocks
 
 DATA = Path(__file__).resolve().parents[1] / "data"
-
-
-def _ring_of_rocks(x: float, y: float) -> str:
-    """Eight 0.6 m rocks 1.2 m round (x, y): each overlaps the next, so no way in; the centre is free."""
-    rocks = []
-    for index in range(8):
-        angle = index * math.pi / 4.0
-        cx, cy = x + 1.2 * math.cos(angle), y + 1.2 * math.sin(angle)
-        rocks.append(f'[[obstacles]]\nid = "ring{index}"\nxy = [{cx:.3f}, {cy:.3f}]\nradius_m = 0.6\n')
-    return "\n".join(rocks)
 
 
 def _boulder_scenario(tmp_path: Path, success: str = "") -> Path:
@@ -36,7 +26,7 @@ def _boulder_scenario(tmp_path: Path, success: str = "") -> Path:
     text = text.replace("xy = [11.5, 7.5]", "xy = [6.5, 7.5]").replace(
         "duration_s = 45.0", "duration_s = 8.0"
     )
-    text += "\n" + _ring_of_rocks(6.5, 7.5)
+    text += "\n" + ring_of_rocks(6.5, 7.5)
     path = tmp_path / "boulder.toml"
     path.write_text(text + (f"\n[success]\n{success}\n" if success else ""), encoding="utf-8")
     return path

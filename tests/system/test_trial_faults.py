@@ -1,9 +1,9 @@
 """A scenario's faults run in a lockstep trial, or the trial fails naming each one that did not.
 
 After its last ARRIVED the trial goes on, the rover parked, until every fault has run its course; a trial
-that ends otherwise first (NO_PATH here: the goal sits inside the rock, the planner gives up two simulated
-seconds in) names each fault it never started or cut short, in the trial's verdict, in its recording and
-in the campaign summary.
+that ends otherwise first (NO_PATH here: the goal sits inside a ring of rocks, the planner gives up two
+simulated seconds in) names each fault it never started or cut short, in the trial's verdict, in its
+recording and in the campaign summary.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from logs.reader import read_messages
 from logs.topics import LOG, SAFETY_EVENTS
 from navigator.config import RoverConfig
 from rover_cli.main import main
+from tests.system.unreachable_goal import ring_of_rocks
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 GPS_OFF_AFTER_ARRIVAL = '\n[[faults]]\ntarget = "gps"\nkind = "off"\nstart_s = 30.0\nduration_s = 5.0\n'
@@ -29,9 +30,10 @@ CUT_SHORT = "fault imu/stuck from 1.0 s to 6.0 s was cut short: the trial ended 
 def _scenario(tmp_path: Path, extra: str, *, boulder: bool = False) -> Path:
     text = (DATA / "small_rocky.toml").read_text(encoding="utf-8")
     if boulder:
-        text = text.replace("xy = [11.5, 7.5]", "xy = [6.5, 4.5]").replace(
+        text = text.replace("xy = [11.5, 7.5]", "xy = [6.5, 7.5]").replace(
             "duration_s = 45.0", "duration_s = 8.0"
         )
+        text += "\n" + ring_of_rocks(6.5, 7.5)
     path = tmp_path / "scenario.toml"
     path.write_text(text + extra, encoding="utf-8")
     return path
