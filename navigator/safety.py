@@ -140,13 +140,18 @@ class SafetySupervisor:
         self._clear(STUCK, "new goal")
 
     # --- the tick -------------------------------------------------------------------------------
-    def update(self, inputs: SafetyInputs, wants_to_drive: bool) -> SafetyDecision:
+    def update(
+        self, inputs: SafetyInputs, wants_to_drive: bool, idle_cause: str = "nothing to drive to"
+    ) -> SafetyDecision:
+        """Judge one tick. ``idle_cause`` says why guidance does not want to drive (its mode and reason,
+        e.g. "guidance BLOCKED: moving obstacle cart-a on the path"); it is the cause a change to IDLE
+        reports, so ``safety/events`` and ``navigator/state`` tell the same story."""
         self._check_loop(inputs)
         self._check_links(inputs)
         self._check_estimate(inputs, wants_to_drive)
         self._check_motion(inputs)
         self._check_battery(inputs)
-        return self._decide(wants_to_drive)
+        return self._decide(wants_to_drive, idle_cause)
 
     def _check_loop(self, i: SafetyInputs) -> None:
         gap = i.tick_gap_ns
@@ -252,7 +257,7 @@ class SafetySupervisor:
             elif v > threshold + c.battery_clear_v:
                 self._clear(name, f"battery back to {v:.2f} V")
 
-    def _decide(self, wants_to_drive: bool) -> SafetyDecision:
+    def _decide(self, wants_to_drive: bool, idle_cause: str) -> SafetyDecision:
         holds = sorted(name for name in self._active if name not in (ESTOP, BATTERY_LOW))
         if ESTOP in self._active:
             mode, cause = SafetyMode.ESTOP, self._active[ESTOP]
@@ -261,7 +266,7 @@ class SafetySupervisor:
         elif wants_to_drive:
             mode, cause = SafetyMode.DRIVING, "guidance has a path and no failsafe is active"
         else:
-            mode, cause = SafetyMode.IDLE, "nothing to drive to"
+            mode, cause = SafetyMode.IDLE, idle_cause
         if mode is not self.mode:
             severity = "info" if mode in (SafetyMode.IDLE, SafetyMode.DRIVING) else "error"
             self._emit("mode", severity, f"{self.mode.value} -> {mode.value}: {cause}")

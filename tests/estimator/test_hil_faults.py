@@ -65,7 +65,7 @@ def test_hil_rejected_glitch_is_no_evidence_of_spinning_wheels(tmp_path):
     and the standing rover's estimate wandered 0.59 m (0.25 m without the false alarm)."""
     components: dict[str, object] = {}
     config = rover_config_from_table(parse_toml("", "<defaults>"))
-    scenario = load_scenario(DATA / "sandy_glitch_blocked.toml")
+    scenario = load_scenario(Path(__file__).resolve().parents[1] / "data" / "sandy_cart_glitch.toml")
     result = run_trial(scenario, config, tmp_path, on_components=components.update)
     stack = components["onboard"]
     assert isinstance(stack, OnboardStack)
