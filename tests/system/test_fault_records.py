@@ -7,6 +7,7 @@ the estimator gates out (its warnings go to the log).
 
 from __future__ import annotations
 
+import re
 from itertools import pairwise
 from pathlib import Path
 
@@ -54,3 +55,16 @@ def test_safety_mode_events_say_what_guidance_says(cart_trial):
         guidance_mode = state_at[_stamp_ns(event)]
         assert f"-> IDLE: guidance {guidance_mode}: " in event["detail"], event
     assert any("guidance BLOCKED: moving obstacle cart-a on the path" in e["detail"] for e in to_idle)
+
+
+def test_the_onboard_stacks_warnings_are_on_the_log_topic(cart_trial):
+    lines = [r.message for r in read_messages(cart_trial.mcap_path, topics=[topics.LOG])]
+    assert any(line["name"] == "hil.faults" for line in lines)  # the simulator's own, as before
+    gated = [
+        line
+        for line in lines
+        if line["name"] == "estimator.estimator" and "rejected a sample (gps_gated" in line["message"]
+    ]
+    assert gated and all(line["level"] == 3 for line in gated)
+    # The residual in metres to the centimetre, not a float's 16 digits.
+    assert re.search(r"residual \(-?\d+\.\d\d, -?\d+\.\d\d\) m$", gated[0]["message"]), gated[0]["message"]
