@@ -244,6 +244,7 @@ class OnboardStack:
         self._last_ground_ns: int | None = None
         self._attitude: AttitudeSample | None = None
         self._sent_speed_mps = 0.0
+        self._sent_wheels_mps: tuple[float, ...] = (0.0,) * len(self._wheels)  # as the bus carried them
         self._send_failing_since_ns: int | None = None
         self._sent_at_ns = clock.now_ns()
         self._deferred = deferred
@@ -359,6 +360,8 @@ class OnboardStack:
             elif self._send_failing_since_ns is None:
                 self._send_failing_since_ns = now
             self._sent_speed_mps, self._sent_at_ns = speed, now
+            erpm_per_mps = self._can.profile.erpm_per_mps
+            self._sent_wheels_mps = tuple(e / erpm_per_mps for e in erpm)
             self.last_sensor_to_command_ns = None if trigger is None else self._clock.now_ns() - trigger
         finally:
             if self._deferred is not None:
@@ -473,6 +476,12 @@ class OnboardStack:
             lateral_accel_mps2=0.0 if pose is None else pose.speed * pose.yaw_rate,
             position_xy=None if pose is None else (pose.x, pose.y),
             battery_v=min(voltages) if voltages else None,
+            wheel_commands_mps=self._sent_wheels_mps,
+            # A controller never heard has no speed to judge (wheel_silent covers it): not stalled.
+            wheel_speeds_mps=tuple(r.speed_mps if r.last_status_ns is not None else 0.0 for r in readings),
+            wheel_currents_a=tuple(
+                r.motor_current_a if r.last_status_ns is not None else 0.0 for r in readings
+            ),
         )
 
     def _ground_contact_ns(self) -> int | None:
