@@ -336,7 +336,7 @@ class Estimator:
             self._last_gps_accepted_xy = (east, north)
             self._judge_spinning(t_fix, east, north, std)
             return
-        if self._still_since_accepted(east, north, std):
+        if self._spin_signature(east, north, std, innovation.residual):
             # Wheels spinning in place dead-reckon the estimate away from a GPS that stands still, so the
             # gate soon throws out the very fixes that show it; those still count as evidence.
             self._judge_spinning(t_fix, east, north, std)
@@ -363,18 +363,22 @@ class Estimator:
         if self._stuck.on_fix(t_fix, east, north, std) != was_spinning:
             self._on_spinning_changed()
 
-    def _still_since_accepted(self, east: float, north: float, std: float) -> bool:
-        """Whether a gated fix is where the last accepted one was, within the noise of the two fixes.
+    def _spin_signature(self, east: float, north: float, std: float, residual: tuple[float, ...]) -> bool:
+        """Whether a gated fix looks like wheels spinning in place: where the last accepted fix was
+        (within the noise of the two fixes) and behind the estimate along its direction of travel.
 
         Only such a fix is evidence about the wheels: the spin hypothesis is "the ground stands still
-        while odometry runs". A glitch jumps away from the track, and a jumped fix fed to the stuck
-        detector made a 3 m glitch read as 2 m of wheel spin (whose covariance inflation then let the next
-        glitched fixes through the gate).
+        while odometry runs the estimate ahead". A glitch jumps away (sideways, or ahead of the estimate),
+        and a jumped fix fed to the stuck detector made a 3 m glitch read as 2 m of wheel spin (whose
+        covariance inflation then let the next glitched fixes through the gate). A glitch straight back
+        along the track can still pass for a while (docs/estimator.md).
         """
         last = self._last_gps_accepted_xy
-        if last is None:
+        if last is None or math.dist((east, north), last) > _STILL_SIGMAS * math.sqrt(2.0) * std:
             return False
-        return math.dist((east, north), last) <= _STILL_SIGMAS * math.sqrt(2.0) * std
+        yaw, speed = self._ekf.state(YAW), self._ekf.state(SPEED)
+        ahead_m = residual[0] * math.cos(yaw) + residual[1] * math.sin(yaw)  # fix minus prior, m
+        return ahead_m * speed < 0.0
 
     def _fuse_late_gps(self, t_fix: int, east: float, north: float, std: float) -> None:
         """Rewind to the fix's time, fuse it there, and re-fuse the IMU / wheel samples since."""

@@ -128,6 +128,10 @@ class Guidance:
         # The moving obstacle holding the rover in BLOCKED: reported when it starts or stops blocking, not
         # on every tick in between (a 10 s wait was 500 identical events).
         self._blocker: str | None = None
+        # The speed it was stopped from: the way counts as clear only for the corridor that speed needs.
+        # Judged at standstill the corridor shrinks to its 3 m minimum, the obstacle falls outside it, the
+        # rover starts, the corridor grows and it stops again: BLOCKED flickered every few ticks.
+        self._blocked_at_speed = 0.0
         self._last_xy: tuple[float, float] | None = None
         self.replans = 0
         self.repairs_kept = 0
@@ -214,8 +218,11 @@ class Guidance:
         if command.arrived:
             self._mode = ARRIVED
             return self._stopped(ARRIVED, detail or "goal reached", path_changed, arrived=True)
-        blocker = self._blocking_obstacle(t_ns, x, y, speed)
+        judged_speed = max(abs(speed), self._blocked_at_speed) if self._blocker is not None else abs(speed)
+        blocker = self._blocking_obstacle(t_ns, x, y, judged_speed)
         if blocker is not None:
+            if self._blocker is None:
+                self._blocked_at_speed = abs(speed)
             if blocker != self._blocker:
                 detail = _joined([detail, f"moving obstacle {blocker} predicted on the path"])
             self._mode, self._blocker = BLOCKED, blocker

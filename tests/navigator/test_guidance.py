@@ -113,6 +113,23 @@ def test_blocked_is_reported_when_it_starts_and_ends_not_on_every_tick() -> None
     assert guidance.blocker is None
 
 
+def test_blocked_stays_blocked_when_stopping_shrinks_the_corridor_it_judges() -> None:
+    guidance = _guidance(_flat())
+    guidance.set_goal(27.0, 10.0)
+    guidance.update(0, 2.0, 10.0, 0.0, 0.0)
+    # A cart standing on the path 5 m ahead: within the corridor at 1 m/s (3 s x 1 m/s + lookahead), not
+    # within the 3 m one at standstill.
+    guidance.observe([ObstacleObservation(0, "cart", 7.0, 10.0, 0.3, vx=0.0, vy=-0.01)])
+    assert guidance.update(20_000_000, 2.0, 10.0, 0.0, 1.0).mode == BLOCKED
+    # Stopped for it: still in the way of the speed it would drive at, so still BLOCKED (it once went
+    # DRIVING here, sped up, and was BLOCKED again: a flicker every few ticks).
+    stopped = [guidance.update(40_000_000 + i * 20_000_000, 2.0, 10.0, 0.0, 0.0) for i in range(20)]
+    assert all(out.mode == BLOCKED for out in stopped)
+    # Gone: clear, and judged at the speed of the moment again.
+    guidance.observe([ObstacleObservation(1_000_000_000, "cart", 7.0, 20.0, 0.3, vx=0.0, vy=1.0)])
+    assert guidance.update(1_000_000_000, 2.0, 10.0, 0.0, 0.0).mode == DRIVING
+
+
 def _drive(
     follower: PurePursuit, path: np.ndarray, pose: tuple[float, float, float], steps: int
 ) -> list[float]:
