@@ -61,6 +61,9 @@ _MAX_ACCEL_MPS2 = 16.0 * 9.80665
 _MAX_WHEEL_SPEED_MPS = 20.0
 # IMU / wheel samples may arrive this much behind the filter (two sources, one loop); older ones are stale.
 _MAX_SAMPLE_LAG_NS = 100_000_000
+# A gated fix within this many sigmas (of the difference of two fixes) of the last accepted fix is
+# "GPS standing still" evidence for the stuck detector; further away it is a glitch (estimator._fuse_gps).
+_STILL_SIGMAS = 3.0
 # How far back the fusion history reaches beyond the configured GPS latency (jitter of the link).
 _HISTORY_MARGIN_NS = 300_000_000
 
@@ -92,6 +95,7 @@ class Estimator:
         self._odometry_seen = False
         self._gps_rejected_since_ns: int | None = None  # fix time of the first gated fix in a row
         self._last_gps_accepted_ns: int | None = None
+        self._last_gps_accepted_xy: tuple[float, float] | None = None  # ENU m of the last accepted fix
         self._last_gps_fix_ns: int | None = None
         self._last_gyro: tuple[int, float] | None = None  # (t_ns, raw gyro z rad/s)
         self._last_wheels_ns: int | None = None
@@ -203,10 +207,8 @@ class Estimator:
         if not self._ekf.initialised:
             self._initialise(t_fix, east, north, std)
             self._last_gps_accepted_ns = t_fix
+            self._last_gps_accepted_xy = (east, north)
             return
-        was_spinning = self._stuck.spinning
-        if self._stuck.on_fix(t_fix, east, north, std) != was_spinning:
-            self._on_spinning_changed()
         if t_fix < self._ekf.t_ns and self._heading_known:
             self._fuse_late_gps(t_fix, east, north, std)
         else:
@@ -248,7 +250,7 @@ class Estimator:
             self._reject("wheels_not_finite", f"left={left_speed_mps}, right={right_speed_mps}")
             return
         if max(abs(left_speed_mps), abs(right_speed_mps)) > _MAX_WHEEL_SPEED_MPS:
-            self._reject("wheels_out_of_range", f"left={left_speed_mps}, right={right_speed_mps} m/s")
+            self._reject("wheels_out_of_range", f"left={left_speed_mps:.2f}, right={right_speed_mps:.2f} m/s")
             return
         motion = side_speeds(left_speed_mps, right_speed_mps, self._config.track_m, self._config.skid_factor)
         self._fuse_wheels(t_ns, motion)
@@ -266,7 +268,7 @@ class Estimator:
             self._reject("wheels_not_finite", f"speeds={list(speeds_mps)}")
             return
         if max(abs(v) for v in speeds_mps) > _MAX_WHEEL_SPEED_MPS:
-            self._reject("wheels_out_of_range", f"speeds={list(speeds_mps)} m/s")
+            self._reject("wheels_out_of_range", f"speeds={_cm(speeds_mps)} m/s")
             return
         self._fuse_wheels(t_ns, six_wheels(speeds_mps, self._config.track_m, self._config.skid_factor))
 
@@ -331,8 +333,14 @@ class Estimator:
             self._learn_heading(east, north, std)
         if innovation.accepted:
             self._gps_accepted(t_fix)
+            self._last_gps_accepted_xy = (east, north)
+            self._judge_spinning(t_fix, east, north, std)
             return
-        self._reject("gps_gated", f"NIS {innovation.nis:.1f}, residual {innovation.residual} m")
+        if self._spin_signature(east, north, std, innovation.residual):
+            # Wheels spinning in place dead-reckon the estimate away from a GPS that stands still, so the
+            # gate soon throws out the very fixes that show it; those still count as evidence.
+            self._judge_spinning(t_fix, east, north, std)
+        self._reject("gps_gated", f"NIS {innovation.nis:.1f}, residual {_cm(innovation.residual)} m")
         if self._gps_rejected_since_ns is None:
             self._gps_rejected_since_ns = t_fix
         gated_for_s = (t_fix - self._gps_rejected_since_ns) * 1e-9
@@ -340,6 +348,7 @@ class Estimator:
             # GPS has disagreed with us for long, fix after fix: more likely we drifted (or the wheels
             # lied) than that GPS is wrong for so long. A short glitch never gets here.
             self._ekf.reset_position(east, north, std)
+            self._last_gps_accepted_xy = (east, north)
             self._counters["gps_reset"] += 1
             logger.warning(
                 "GPS gated out for %.1f s; position re-anchored on GPS at (%.1f, %.1f) m",
@@ -348,6 +357,28 @@ class Estimator:
                 north,
             )
             self._gps_rejected_since_ns = None
+
+    def _judge_spinning(self, t_fix: int, east: float, north: float, std: float) -> None:
+        was_spinning = self._stuck.spinning
+        if self._stuck.on_fix(t_fix, east, north, std) != was_spinning:
+            self._on_spinning_changed()
+
+    def _spin_signature(self, east: float, north: float, std: float, residual: tuple[float, ...]) -> bool:
+        """Whether a gated fix looks like wheels spinning in place: where the last accepted fix was
+        (within the noise of the two fixes) and behind the estimate along its direction of travel.
+
+        Only such a fix is evidence about the wheels: the spin hypothesis is "the ground stands still
+        while odometry runs the estimate ahead". A glitch jumps away (sideways, or ahead of the estimate),
+        and a jumped fix fed to the stuck detector made a 3 m glitch read as 2 m of wheel spin (whose
+        covariance inflation then let the next glitched fixes through the gate). A glitch straight back
+        along the track can still pass for a while (docs/estimator.md).
+        """
+        last = self._last_gps_accepted_xy
+        if last is None or math.dist((east, north), last) > _STILL_SIGMAS * math.sqrt(2.0) * std:
+            return False
+        yaw, speed = self._ekf.state(YAW), self._ekf.state(SPEED)
+        ahead_m = residual[0] * math.cos(yaw) + residual[1] * math.sin(yaw)  # fix minus prior, m
+        return ahead_m * speed < 0.0
 
     def _fuse_late_gps(self, t_fix: int, east: float, north: float, std: float) -> None:
         """Rewind to the fix's time, fuse it there, and re-fuse the IMU / wheel samples since."""
@@ -509,10 +540,15 @@ class Estimator:
         if innovation.accepted:
             self._counters[f"{sensor}_accepted"] += 1
         else:
-            self._reject(f"{sensor}_gated", f"NIS {innovation.nis:.1f}, residual {innovation.residual}")
+            self._reject(f"{sensor}_gated", f"NIS {innovation.nis:.1f}, residual {_cm(innovation.residual)}")
 
     def _reject(self, reason: str, detail: str) -> None:
         self._counters[reason] += 1
         count = self._counters[reason]
         if count == 1 or count % _LOG_EVERY == 0:
             logger.warning("estimator rejected a sample (%s, %d so far): %s", reason, count, detail)
+
+
+def _cm(values: Sequence[float]) -> str:
+    """Values (m, m/s) for a log line: centimetres, not the 16 digits of a float repr."""
+    return "(" + ", ".join(f"{v:.2f}" for v in values) + ")"

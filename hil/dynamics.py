@@ -34,6 +34,10 @@ The model, per step of ``dt`` (semi-implicit Euler, no randomness):
   motor, a generating (braking) motor counting 0 (no regeneration), integrates to energy. Slip: from the
   curve while a wheel pulls below its traction limit, from its surface and ground speeds once it spins or
   slides (or is held at zero pull by the sign of its slip).
+* Seized wheels (``stalled``, the simulated VESCs' stuck fault): the wheel is locked (surface speed 0, on
+  the ground as any wheel slower than its side), while its motor, commanded to turn, is stalled against
+  the lock: its controller drives it at the current limit (signed as the command), duty ``I R / V`` (no
+  back-EMF), and it burns ``I² R`` from the pack.
 
 Body axes: x forward, y left, z up; pitch positive nose up, roll positive when the right side is lower.
 """
@@ -272,9 +276,17 @@ class RoverDynamics:
 
     # --- stepping ---------------------------------------------------------------------------------
     def step(
-        self, dt_s: float, wheel_surface_speeds: Sequence[float], battery_voltage_v: float
+        self,
+        dt_s: float,
+        wheel_surface_speeds: Sequence[float],
+        battery_voltage_v: float,
+        stalled: Sequence[float] = (),
     ) -> DynamicsStep:
-        """Advance ``dt_s`` seconds with the six wheels turning at ``wheel_surface_speeds`` (m/s)."""
+        """Advance ``dt_s`` seconds with the six wheels turning at ``wheel_surface_speeds`` (m/s).
+
+        ``stalled`` (optional, six values in wheel order): -1 / +1 for a seized wheel whose motor is
+        commanded backwards / forwards (it stalls at the current limit), 0 for a wheel that turns freely
+        or is not commanded."""
         if not (math.isfinite(dt_s) and dt_s > 0.0):
             raise DynamicsError(f"time step must be a finite number of seconds > 0, got {dt_s}")
         if len(wheel_surface_speeds) != 6:
@@ -286,6 +298,8 @@ class RoverDynamics:
         wheels = np.array(wheel_surface_speeds, dtype=np.float64)
         if not math.isfinite(battery_voltage_v):
             raise DynamicsError(f"battery voltage must be finite, got {battery_voltage_v}")
+        if stalled and (len(stalled) != 6 or any(d not in (-1.0, 0.0, 1.0) for d in stalled)):
+            raise DynamicsError(f"stalled must be six values of -1, 0 or +1, got {list(stalled)}")
 
         p = self._params
         class_id, _, roll, pitch = self._under  # where the rover stands: from the end of the last step
@@ -362,6 +376,8 @@ class RoverDynamics:
             currents,
             duty,
         )
+        if stalled:
+            power += self._stall(stalled, battery_voltage_v, currents, duty)
         self._energy_j += power * dt_s
 
         return DynamicsStep(
@@ -395,6 +411,25 @@ class RoverDynamics:
         )
 
     # --- pieces -----------------------------------------------------------------------------------
+    def _stall(
+        self, stalled: Sequence[float], battery_voltage_v: float, currents: np.ndarray, duty: np.ndarray
+    ) -> float:
+        """Seized motors under command: current limit, duty ``I R / V``; returns their power (W)."""
+        resistance = float(self._motor_vector[3])
+        power = 0.0
+        for i, direction in enumerate(stalled):
+            if direction == 0.0:
+                continue
+            current = direction * self._current_limit_a
+            currents[i] = current
+            duty[i] = (
+                max(-1.0, min(1.0, current * resistance / battery_voltage_v))
+                if battery_voltage_v > 0
+                else 0.0
+            )
+            power += current * current * resistance
+        return power
+
     def _rolled_over_step(
         self, dt_s: float, wheels: np.ndarray, class_id: int, ground: TerrainClass, roll: float, pitch: float
     ) -> DynamicsStep:

@@ -21,7 +21,7 @@ can       intermittent   each frame dropped with ``probability``
 can       delayed        frames arrive ``delay_s`` late
 can       garbage        each frame's payload corrupted with ``probability``
 vesc      off            controller ``controller`` (wheel index 0-5) reboots: silent, then fresh state
-vesc      stuck          wheel ``controller`` seized: it does not turn whatever the command
+vesc      stuck          seized wheel ``controller``: no turn, stall current when commanded
 mavlink   off            link loss: no byte passes either way
 mavlink   garbage        each outgoing chunk corrupted with ``probability`` (seen on ``mavlink/stats``)
 battery   wrong          pack sags: ``sag_v`` volts lower and ``extra_resistance_ohm`` more resistance

@@ -40,6 +40,7 @@ from hil.world import SimWorld
 from logs import topics
 from logs.clock import NS_PER_S, MonotonicClock, SimClock, seconds, to_ns
 from logs.commands import CommandSource
+from logs.log_topic import recording_logs
 from logs.metrics import TrialMetrics, compute_metrics
 from logs.recorder import McapRecorder
 from logs.sink import FanoutSink, MessageSink
@@ -115,7 +116,11 @@ def run_trial(
     with McapRecorder(mcap_path) as recorder:
         write_header(recorder, scenario, config, seed, campaign=campaign)
         sink: MessageSink = recorder if telemetry is None else FanoutSink([recorder, telemetry])
-        with lockstep_wires(config.can, clock=clock, can_backend=can_backend) as wires:
+        # The onboard stack's warnings go on the recording's log topic too (an analyst reads them there).
+        with (
+            recording_logs(sink, clock),
+            lockstep_wires(config.can, clock=clock, can_backend=can_backend) as wires,
+        ):
             codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
             can_link = CanLink(wires.onboard_bus, codec, clock, sink, config=config.can)
             mavlink = MavlinkLink(

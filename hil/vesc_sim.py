@@ -146,8 +146,16 @@ class SimVescBank:
             self._targets[wheel] = 0.0
 
     def set_stuck(self, wheel: int, stuck: bool) -> None:
-        """A seized wheel does not turn, whatever it is commanded."""
+        """A seized wheel does not turn, whatever it is commanded (its motor stalls: ``stalled``)."""
         self._stuck[wheel] = stuck
+
+    def stalled(self) -> tuple[float, ...]:
+        """Per wheel: the sign of the command a seized wheel's motor is stalled against (0: turning freely,
+        or nothing commanded). The physics (``RoverDynamics.step``) turns it into the stall current."""
+        return tuple(
+            math.copysign(1.0, target) if stuck and target != 0.0 else 0.0
+            for stuck, target in zip(self._stuck, self._targets, strict=True)
+        )
 
     # --- physics -------------------------------------------------------------------------------
     def step(self, dt_s: float) -> None:

@@ -149,7 +149,9 @@ class SimWorld:
         if self.scenario.faults:
             self._apply_faults(now)
         self.vescs.poll()
-        step = self.body.step(dt_s, self.vescs.wheel_speeds_mps(), self.battery.voltage_v)
+        step = self.body.step(
+            dt_s, self.vescs.wheel_speeds_mps(), self.battery.voltage_v, self.vescs.stalled()
+        )
         # Each motor draws I x duty from the pack; a braking motor (current against its duty) generates, and
         # with no regeneration (hil.battery, the dynamics' motor power) it gives nothing back, nor draws.
         # Plain floats (numpy on six numbers cost more than the sum): the same left-to-right sum np.sum

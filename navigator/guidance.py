@@ -125,6 +125,13 @@ class Guidance:
         # reports an obstacle every cycle while it is in view, and the rover may take minutes to get near).
         self._pending: dict[str, ObstacleObservation] = {}
         self._moving: dict[str, ObstacleObservation] = {}
+        # The moving obstacle holding the rover in BLOCKED: reported when it starts or stops blocking, not
+        # on every tick in between (a 10 s wait was 500 identical events).
+        self._blocker: str | None = None
+        # The speed it was stopped from: the way counts as clear only for the corridor that speed needs.
+        # Judged at standstill the corridor shrinks to its 3 m minimum, the obstacle falls outside it, the
+        # rover starts, the corridor grows and it stops again: BLOCKED flickered every few ticks.
+        self._blocked_at_speed = 0.0
         self._last_xy: tuple[float, float] | None = None
         self.replans = 0
         self.repairs_kept = 0
@@ -141,6 +148,11 @@ class Guidance:
     def goal(self) -> tuple[float, float] | None:
         return self._goal
 
+    @property
+    def blocker(self) -> str | None:
+        """Id of the moving obstacle predicted on the path while the mode is ``BLOCKED``, else None."""
+        return self._blocker
+
     def set_goal(self, x: float, y: float) -> None:
         if not (math.isfinite(x) and math.isfinite(y)):
             raise ParameterError(f"goal must be finite, got ({x}, {y})")
@@ -149,6 +161,7 @@ class Guidance:
         self._path = None
         self._needs_plan = True
         self._mode = DRIVING
+        self._blocker = None
         self._follower.reset()
 
     @property
@@ -205,13 +218,21 @@ class Guidance:
         if command.arrived:
             self._mode = ARRIVED
             return self._stopped(ARRIVED, detail or "goal reached", path_changed, arrived=True)
-        blocker = self._blocking_obstacle(t_ns, x, y, speed)
+        judged_speed = max(abs(speed), self._blocked_at_speed) if self._blocker is not None else abs(speed)
+        blocker = self._blocking_obstacle(t_ns, x, y, judged_speed)
         if blocker is not None:
-            self._mode = BLOCKED
+            if self._blocker is None:
+                self._blocked_at_speed = abs(speed)
+            if blocker != self._blocker:
+                detail = _joined([detail, f"moving obstacle {blocker} predicted on the path"])
+            self._mode, self._blocker = BLOCKED, blocker
             return GuidanceOutput(
                 0.0, 0.0, BLOCKED, command.cross_track_error_m, 0.0, REASON_MOVING_OBSTACLE, self._path,
-                path_changed, False, detail or f"moving obstacle {blocker} predicted on the path",
+                path_changed, False, detail,
             )  # fmt: skip
+        if self._blocker is not None:
+            detail = _joined([detail, f"way clear: moving obstacle {self._blocker} no longer on the path"])
+            self._blocker = None
         self._mode = DRIVING
         return self._limited(command, x, y, yaw, path_changed, detail)
 
@@ -335,6 +356,7 @@ class Guidance:
         self, mode: str, detail: str, path_changed: bool, *, arrived: bool = False
     ) -> GuidanceOutput:
         self._mode = mode
+        self._blocker = None
         return GuidanceOutput(
             0.0, 0.0, mode, 0.0, 0.0, REASON_STOPPED, self._path, path_changed, arrived, detail,
         )  # fmt: skip

@@ -122,6 +122,21 @@ class RouteGuidance:
     def observe(self, observations: list[ObstacleObservation]) -> None:
         self.core.observe(observations)
 
+    def why_stopped(self, not_ready: str) -> str:
+        """Why guidance does not want to drive, in its own words: its mode, then the reason
+        (``not_ready``: the start-up checks still failing, for ``WAITING_ESTIMATE``)."""
+        blocker = self.core.blocker
+        reason = {
+            Mode.IDLE: "no goal",
+            Mode.WAITING_ESTIMATE: f"start-up checks not passed ({not_ready})",
+            Mode.PLANNING: "the first plan is being made",
+            Mode.ARRIVED: "goal reached",
+            Mode.NO_PATH: "no path to the goal",
+            Mode.BLOCKED: f"moving obstacle {blocker} on the path",
+            Mode.DRIVING: "following the path",
+        }[self.mode]
+        return f"guidance {self.mode.value}: {reason}"
+
     def tick(self, now: int, pose: PoseEstimate | None, ready: bool) -> GuidanceCommand:
         if self.mode is Mode.IDLE or pose is None:
             return STOPPED
@@ -223,11 +238,13 @@ class OnboardStack:
         self.safety = SafetySupervisor(config.safety, config.vehicle, clock.now_ns(), self._event)
         self._last_heartbeat_sent_ns: int | None = None
         self._healthy_since_ns: int | None = None
+        self._not_ready = "not yet judged"  # the start-up checks failing at the last _ready
         self._last_tick_ns: int | None = None
         self._last_gps_ns: int | None = None
         self._last_ground_ns: int | None = None
         self._attitude: AttitudeSample | None = None
         self._sent_speed_mps = 0.0
+        self._sent_wheels_mps: tuple[float, ...] = (0.0,) * len(self._wheels)  # as the bus carried them
         self._send_failing_since_ns: int | None = None
         self._sent_at_ns = clock.now_ns()
         self._deferred = deferred
@@ -324,7 +341,12 @@ class OnboardStack:
 
             pose = self.estimator.pose()
             guidance = self.guidance.tick(now, pose, self._ready(now, pose))
-            decision = self.safety.update(self._safety_inputs(now, pose), self.guidance.mode is Mode.DRIVING)
+            driving = self.guidance.mode is Mode.DRIVING
+            decision = self.safety.update(
+                self._safety_inputs(now, pose),
+                driving,
+                "" if driving else self.guidance.why_stopped(self._not_ready),
+            )
             speed = guidance.speed_mps * decision.speed_scale
             yaw_rate = guidance.yaw_rate_rps * decision.speed_scale
             self._last_tick_ns = now
@@ -338,6 +360,8 @@ class OnboardStack:
             elif self._send_failing_since_ns is None:
                 self._send_failing_since_ns = now
             self._sent_speed_mps, self._sent_at_ns = speed, now
+            erpm_per_mps = self._can.profile.erpm_per_mps
+            self._sent_wheels_mps = tuple(e / erpm_per_mps for e in erpm)
             self.last_sensor_to_command_ns = None if trigger is None else self._clock.now_ns() - trigger
         finally:
             if self._deferred is not None:
@@ -417,10 +441,19 @@ class OnboardStack:
         elif self._healthy_since_ns is None:
             self._healthy_since_ns = now
         settled = self._healthy_since_ns is not None and now - self._healthy_since_ns >= SETTLE_NS
-        links_up = self._mavlink.last_heartbeat_ns is not None and all(
-            r.last_status_ns is not None for r in self._wheels
-        )
-        return settled and links_up
+        missing = [
+            what
+            for what, failing in (
+                ("no autopilot heartbeat", self._mavlink.last_heartbeat_ns is None),
+                ("wheel controllers not all heard", any(r.last_status_ns is None for r in self._wheels)),
+                ("no estimate yet", pose is None),
+                ("estimate unhealthy", pose is not None and not healthy),
+                (f"estimate healthy for < {SETTLE_NS / NS_PER_S:g} s", healthy and not settled),
+            )
+            if failing
+        ]
+        self._not_ready = ", ".join(missing)
+        return not missing
 
     def _safety_inputs(self, now: int, pose: PoseEstimate | None) -> SafetyInputs:
         readings = self._wheels
@@ -443,6 +476,12 @@ class OnboardStack:
             lateral_accel_mps2=0.0 if pose is None else pose.speed * pose.yaw_rate,
             position_xy=None if pose is None else (pose.x, pose.y),
             battery_v=min(voltages) if voltages else None,
+            wheel_commands_mps=self._sent_wheels_mps,
+            # A controller never heard has no speed to judge (wheel_silent covers it): not stalled.
+            wheel_speeds_mps=tuple(r.speed_mps if r.last_status_ns is not None else 0.0 for r in readings),
+            wheel_currents_a=tuple(
+                r.motor_current_a if r.last_status_ns is not None else 0.0 for r in readings
+            ),
         )
 
     def _ground_contact_ns(self) -> int | None:

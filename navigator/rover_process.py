@@ -33,6 +33,7 @@ from logs.clock import Clock
 from logs.commands import ZenohCommandReceiver
 from logs.encoding import EncodedSink
 from logs.errors import RecordingError
+from logs.log_topic import recording_logs
 from logs.pending_sink import PendingSink
 from logs.recorder import McapRecorder
 from logs.sink import FanoutSink, MessageSink
@@ -138,23 +139,27 @@ def run_rover(
                 if publisher is not None:
                     sink = FanoutSink([recorder, rate_limited(publisher, config.zenoh.rates_hz)])
                 pending.connect(sink)
-                stack = OnboardStack(
-                    config,
-                    clock,
-                    links.can,
-                    links.mavlink,
-                    deferred,
-                    terrain,
-                    commands=commands,
-                    deferred=deferred,
-                    planning=planning,
-                )
-                try:
-                    timing = _warm_up_and_run(
-                        stack, config, clock, links, deferred, wait, goal, stop, duration_ns
+                # The onboard stack's warnings go on the recording's log topic too, published on the
+                # loop's thread (the planning worker's are queued until the next tick).
+                with recording_logs(deferred, clock) as log_lines:
+                    stack = OnboardStack(
+                        config,
+                        clock,
+                        links.can,
+                        links.mavlink,
+                        deferred,
+                        terrain,
+                        commands=commands,
+                        deferred=deferred,
+                        planning=planning,
                     )
-                finally:
-                    stack.close()  # zero wheel commands, links closed
+                    try:
+                        timing = _warm_up_and_run(
+                            stack, config, clock, links, deferred, wait, goal, stop, duration_ns,
+                            lambda _tick: log_lines.publish_pending(),
+                        )  # fmt: skip
+                    finally:
+                        stack.close()  # zero wheel commands, links closed
             except Exception as err:
                 links.close()  # if the stack was never built; its zero wheel commands are recorded first
                 _record_failure(recorder, clock, err)
@@ -207,8 +212,10 @@ def _warm_up_and_run(
     goal: tuple[float, float] | None,
     stop: threading.Event,
     duration_ns: int | None,
+    observe: Callable[[TickSample], None] | None = None,
 ) -> TimingStats:
-    """Load the kernels, publish the map, set the goal, then run the loop until ``stop`` or the duration."""
+    """Load the kernels, publish the map, set the goal, then run the loop until ``stop`` or the duration.
+    ``observe`` (optional) is called after every tick, on the loop's thread."""
     warm_up(stack.guidance.planner, config, clock)
     stack.publish_map()
     if goal is not None:
@@ -222,6 +229,7 @@ def _warm_up_and_run(
         stop,
         # A caller's own wait (a test's) is the whole wait: no busy-poll around it.
         poll=input_poller(links.pacing_sources) if wait is None else None,
+        observe=observe,
     )
     _log.info(
         "rover %s running at %.0f Hz, paced by %s",

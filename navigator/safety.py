@@ -33,12 +33,15 @@ GPS_LOST = "gps_lost"
 HEARTBEAT_LOST = "heartbeat_lost"
 GROUND_LINK_LOST = "ground_link_lost"
 STUCK = "stuck"
+WHEEL_STALLED = "wheel_stalled"
 TIP_OVER = "tip_over"
 GEOFENCE = "geofence"
 BATTERY_CRITICAL = "battery_critical"
 # Failsafes with other actions.
 BATTERY_LOW = "battery_low"  # speed limited
 ESTOP = "estop"  # latched ESTOP mode
+# Wheel order on the CAN link (firmware_bridge.vesc), for naming a stalled wheel.
+WHEEL_NAMES = ("left front", "left middle", "left rear", "right front", "right middle", "right rear")
 # A pack reading below this is "no reading yet" (STATUS_5 not received), not a flat battery.
 _NO_VOLTAGE_V = 1.0
 
@@ -70,6 +73,11 @@ class SafetyInputs:
     lateral_accel_mps2: float
     position_xy: tuple[float, float] | None  # estimated, local ENU
     battery_v: float | None  # pack voltage as the motor controllers see it
+    # Per wheel, in wheel order (empty: not judged): the speed commanded on the previous tick, and the
+    # speed and motor current the controller last reported.
+    wheel_commands_mps: tuple[float, ...] = ()
+    wheel_speeds_mps: tuple[float, ...] = ()
+    wheel_currents_a: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -111,6 +119,9 @@ class SafetySupervisor:
         self._heartbeat_ns = to_ns(c.heartbeat_timeout_s)
         self._ground_ns = to_ns(c.ground_link_timeout_s)
         self._stuck_ns = to_ns(c.stuck_time_s)
+        self._wheel_stall_ns = to_ns(c.wheel_stall_s)
+        self._wheel_stall_hold_ns = to_ns(c.wheel_stall_hold_s)
+        self._stall_held_since: int | None = None
         self._battery_ns = to_ns(c.battery_debounce_s)
         self._tip_rad = math.radians(c.tip_margin_deg)
         self._tip_clear_rad = math.radians(c.tip_margin_deg + c.tip_clear_deg)
@@ -131,22 +142,29 @@ class SafetySupervisor:
         self._trip(ESTOP, "error", f"emergency stop from {source}")
 
     def resume(self, source: str) -> None:
-        """Clear the e-stop and the latched stuck check: the operator has looked and says go."""
-        for name in (ESTOP, STUCK):
+        """Clear the e-stop and the latched stuck and stall checks: the operator has looked and says go."""
+        for name in (ESTOP, STUCK, WHEEL_STALLED):
             self._clear(name, f"resume from {source}")
 
     def new_goal(self) -> None:
-        """A new goal clears the stuck check: the operator chose where to go next."""
+        """A new goal clears the stuck and stall checks: the operator chose where to go next."""
         self._clear(STUCK, "new goal")
+        self._clear(WHEEL_STALLED, "new goal")
 
     # --- the tick -------------------------------------------------------------------------------
-    def update(self, inputs: SafetyInputs, wants_to_drive: bool) -> SafetyDecision:
+    def update(
+        self, inputs: SafetyInputs, wants_to_drive: bool, idle_cause: str = "nothing to drive to"
+    ) -> SafetyDecision:
+        """Judge one tick. ``idle_cause`` says why guidance does not want to drive (its mode and reason,
+        e.g. "guidance BLOCKED: moving obstacle cart-a on the path"); it is the cause a change to IDLE
+        reports, so ``safety/events`` and ``navigator/state`` tell the same story."""
         self._check_loop(inputs)
         self._check_links(inputs)
         self._check_estimate(inputs, wants_to_drive)
         self._check_motion(inputs)
+        self._check_wheels_turn(inputs)
         self._check_battery(inputs)
-        return self._decide(wants_to_drive)
+        return self._decide(wants_to_drive, idle_cause)
 
     def _check_loop(self, i: SafetyInputs) -> None:
         gap = i.tick_gap_ns
@@ -237,6 +255,44 @@ class SafetySupervisor:
             else:
                 self._clear(GEOFENCE, f"back inside the geofence at ({x:.2f}, {y:.2f})")
 
+    def _check_wheels_turn(self, i: SafetyInputs) -> None:
+        """A wheel commanded to turn that does not, while its motor draws current, is stalled (seized
+        gearbox, jammed stone): held at zero so the motor does not burn at its current limit. A wheel
+        drawing no current is not being driven (commands lost: ``stuck``; controller silent:
+        ``wheel_silent``), so it is not judged here."""
+        if self._wheel_stall_ns <= 0:
+            return
+        c = self._config
+        if WHEEL_STALLED in self._active:
+            # Zero commands while held, so the condition is gone: the hold lasts its time, then the wheels
+            # are tried again (a wheel still seized fires again one stall time later).
+            held = i.now_ns - (self._stall_held_since or i.now_ns)
+            if held > self._wheel_stall_hold_ns:
+                self._clear(WHEEL_STALLED, f"held {_ms(held)}: trying the wheels again")
+            return
+        judged = zip(i.wheel_commands_mps, i.wheel_speeds_mps, i.wheel_currents_a, strict=False)
+        for index, (command, speed, current) in enumerate(judged):
+            stalled = (
+                abs(command) >= c.wheel_stall_min_command_mps
+                and abs(speed) < c.wheel_stall_max_speed_mps
+                and abs(current) >= c.wheel_stall_min_current_a
+            )
+            # Counted from when the command went out, as for ``stuck``.
+            key = f"{WHEEL_STALLED}#{index}"
+            held = self._sustained(key, stalled, i.now_ns, start_ns=i.sent_at_ns)
+            if held > self._wheel_stall_ns:
+                name = WHEEL_NAMES[index] if index < len(WHEEL_NAMES) else f"#{index}"
+                self._trip(
+                    WHEEL_STALLED,
+                    "error",
+                    f"wheel {index} ({name}) commanded {command:.2f} m/s but turning at {speed:.2f} m/s "
+                    f"while drawing {current:.1f} A for {_ms(held)} (limit {_ms(self._wheel_stall_ns)})",
+                )
+                self._stall_held_since = i.now_ns
+                for other in range(len(i.wheel_commands_mps)):
+                    self._since.pop(f"{WHEEL_STALLED}#{other}", None)
+                return
+
     def _check_battery(self, i: SafetyInputs) -> None:
         c = self._config
         v = i.battery_v if i.battery_v is not None and i.battery_v > _NO_VOLTAGE_V else None
@@ -252,7 +308,7 @@ class SafetySupervisor:
             elif v > threshold + c.battery_clear_v:
                 self._clear(name, f"battery back to {v:.2f} V")
 
-    def _decide(self, wants_to_drive: bool) -> SafetyDecision:
+    def _decide(self, wants_to_drive: bool, idle_cause: str) -> SafetyDecision:
         holds = sorted(name for name in self._active if name not in (ESTOP, BATTERY_LOW))
         if ESTOP in self._active:
             mode, cause = SafetyMode.ESTOP, self._active[ESTOP]
@@ -261,7 +317,7 @@ class SafetySupervisor:
         elif wants_to_drive:
             mode, cause = SafetyMode.DRIVING, "guidance has a path and no failsafe is active"
         else:
-            mode, cause = SafetyMode.IDLE, "nothing to drive to"
+            mode, cause = SafetyMode.IDLE, idle_cause
         if mode is not self.mode:
             severity = "info" if mode in (SafetyMode.IDLE, SafetyMode.DRIVING) else "error"
             self._emit("mode", severity, f"{self.mode.value} -> {mode.value}: {cause}")

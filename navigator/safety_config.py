@@ -29,6 +29,13 @@ class SafetyConfig:
     stuck_time_s: float = 2.0
     stuck_min_command_mps: float = 0.2
     stuck_max_speed_mps: float = 0.05
+    # A wheel commanded >= min_command, turning < max_speed and drawing >= min_current for longer than
+    # wheel_stall_s is a stalled (seized) motor: HOLD, retried after wheel_stall_hold_s.
+    wheel_stall_s: float = 1.0
+    wheel_stall_min_command_mps: float = 0.1
+    wheel_stall_max_speed_mps: float = 0.02
+    wheel_stall_min_current_a: float = 2.0
+    wheel_stall_hold_s: float = 2.0
     tip_margin_deg: float = 10.0
     tip_clear_deg: float = 3.0  # hysteresis: margin must exceed threshold + this to clear
     fence: tuple[tuple[float, float], ...] = ()  # ENU polygon; empty = no geofence
@@ -68,6 +75,17 @@ class SafetyConfig:
             stuck_time_s=seconds("stuck_time_s", d.stuck_time_s),
             stuck_min_command_mps=table.number("stuck_min_command_mps", d.stuck_min_command_mps, lo=0.0),
             stuck_max_speed_mps=table.number("stuck_max_speed_mps", d.stuck_max_speed_mps, lo=0.0),
+            wheel_stall_s=seconds("wheel_stall_s", d.wheel_stall_s),
+            wheel_stall_min_command_mps=table.number(
+                "wheel_stall_min_command_mps", d.wheel_stall_min_command_mps, lo=0.0, hi=100.0
+            ),
+            wheel_stall_max_speed_mps=table.number(
+                "wheel_stall_max_speed_mps", d.wheel_stall_max_speed_mps, lo=0.0, hi=100.0
+            ),
+            wheel_stall_min_current_a=table.number(
+                "wheel_stall_min_current_a", d.wheel_stall_min_current_a, lo=0.0, hi=1000.0
+            ),
+            wheel_stall_hold_s=seconds("wheel_stall_hold_s", d.wheel_stall_hold_s),
             tip_margin_deg=table.number("tip_margin_deg", d.tip_margin_deg, lo=0.0, hi=90.0),
             tip_clear_deg=table.number("tip_clear_deg", d.tip_clear_deg, lo=0.0, hi=90.0),
             fence=tuple((float(p[0]), float(p[1])) for p in fence_raw),

@@ -138,11 +138,24 @@ def test_controller_reboot_is_silent_then_starts_fresh():
     assert abs(last[2]["tachometer"]) < 0.8 * abs(last[1]["tachometer"])
 
 
-def test_stuck_wheel_does_not_turn():
+def test_stuck_wheel_does_not_turn_and_its_motor_stalls_at_the_current_limit():
     run = run_world(fault("vesc", "stuck", controller=4))
     inside = run.on("wheels/status", 1.5, 3.0)
     assert inside and all(m["wheels"][4]["erpm"] == 0 for m in inside)
     assert all(m["wheels"][3]["erpm"] > 100 for m in inside)
+    # Commanded forward against the lock: the controller drives the stall current (its 10 A limit), at
+    # the duty that takes across the winding (I R / V: 10 A x 0.1 ohm / ~25 V), and the pack pays I^2 R.
+    limit = run.world.body.motor_current_limit_a
+    stalled = [m["wheels"][4] for m in inside]
+    assert all(w["motor_current_a"] == pytest.approx(limit, abs=0.1) for w in stalled)
+    assert all(0.02 < w["duty"] < 0.06 for w in stalled)
+    assert all(w["input_current_a"] >= 0.3 for w in stalled[5:])  # STATUS_4 at 10 Hz: from its first one
+    truth = run.on("truth/wheels", 1.5, 3.0)
+    assert all(m["wheels"][4]["current_a"] == pytest.approx(limit) for m in truth)
+    # Free again after the fault: turning, at a driving current below the limit.
+    after = run.on("wheels/status", 3.5, 4.0)
+    assert after and all(m["wheels"][4]["erpm"] > 100 for m in after)
+    assert all(abs(m["wheels"][4]["motor_current_a"]) < 0.9 * limit for m in after)
 
 
 def test_mavlink_loss_and_garbage(baseline):

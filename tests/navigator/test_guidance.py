@@ -92,6 +92,44 @@ def test_moving_obstacle_crossing_ahead_stops_the_rover_then_it_goes_on() -> Non
     assert guidance.update(4_000_000_000, 2.0, 10.0, 0.0, 0.0).mode == DRIVING
 
 
+def test_blocked_is_reported_when_it_starts_and_ends_not_on_every_tick() -> None:
+    guidance = _guidance(_flat())
+    guidance.set_goal(27.0, 10.0)
+    guidance.update(0, 2.0, 10.0, 0.0, 0.0)
+    # A cart 3 m ahead standing across the path (moving, 0.01 m/s): blocked for as long as it stands.
+    guidance.observe([ObstacleObservation(0, "cart", 5.0, 10.0, 0.5, vx=0.0, vy=-0.01)])
+    ticks = [guidance.update(i * 20_000_000, 2.0, 10.0, 0.0, 0.0) for i in range(50)]
+    assert all(out.mode == BLOCKED for out in ticks)
+    details = [out.detail for out in ticks if out.detail]
+    assert details == ["moving obstacle cart predicted on the path"]
+    assert guidance.blocker == "cart"
+    # It moves away: one "way clear" on the tick the mode goes back to DRIVING, then silence.
+    guidance.observe([ObstacleObservation(1_000_000_000, "cart", 5.0, 20.0, 0.5, vx=0.0, vy=1.0)])
+    after = [guidance.update(1_000_000_000 + i * 20_000_000, 2.0, 10.0, 0.0, 0.0) for i in range(5)]
+    assert [out.mode for out in after] == [DRIVING] * 5
+    assert [out.detail for out in after if out.detail] == [
+        "way clear: moving obstacle cart no longer on the path"
+    ]
+    assert guidance.blocker is None
+
+
+def test_blocked_stays_blocked_when_stopping_shrinks_the_corridor_it_judges() -> None:
+    guidance = _guidance(_flat())
+    guidance.set_goal(27.0, 10.0)
+    guidance.update(0, 2.0, 10.0, 0.0, 0.0)
+    # A cart standing on the path 5 m ahead: within the corridor at 1 m/s (3 s x 1 m/s + lookahead), not
+    # within the 3 m one at standstill.
+    guidance.observe([ObstacleObservation(0, "cart", 7.0, 10.0, 0.3, vx=0.0, vy=-0.01)])
+    assert guidance.update(20_000_000, 2.0, 10.0, 0.0, 1.0).mode == BLOCKED
+    # Stopped for it: still in the way of the speed it would drive at, so still BLOCKED (it once went
+    # DRIVING here, sped up, and was BLOCKED again: a flicker every few ticks).
+    stopped = [guidance.update(40_000_000 + i * 20_000_000, 2.0, 10.0, 0.0, 0.0) for i in range(20)]
+    assert all(out.mode == BLOCKED for out in stopped)
+    # Gone: clear, and judged at the speed of the moment again.
+    guidance.observe([ObstacleObservation(1_000_000_000, "cart", 7.0, 20.0, 0.3, vx=0.0, vy=1.0)])
+    assert guidance.update(1_000_000_000, 2.0, 10.0, 0.0, 0.0).mode == DRIVING
+
+
 def _drive(
     follower: PurePursuit, path: np.ndarray, pose: tuple[float, float, float], steps: int
 ) -> list[float]:

@@ -185,7 +185,9 @@ class Rig:
         self._tick += 1
         dt_s = seconds(PHYSICS_DT_NS)
         self.vescs.poll()
-        step = self.body.step(dt_s, self.vescs.wheel_speeds_mps(), self.battery.voltage_v)
+        step = self.body.step(
+            dt_s, self.vescs.wheel_speeds_mps(), self.battery.voltage_v, self.vescs.stalled()
+        )
         current = float(np.sum(np.abs(step.motor_currents_a) * np.abs(step.duty)))
         voltage = self.battery.draw(current + 0.5, dt_s)
         if self.voltage_override is not None:

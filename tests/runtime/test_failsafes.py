@@ -186,12 +186,52 @@ def test_stuck_when_commanded_but_not_moving_latches_until_new_goal(rig: Rig) ->
         t for tp, t, m in rig.sink.records if tp == "wheels/command" and abs(m["body_speed_mps"]) >= 0.2
     )
     assert_fired_in_window(rig.first_event_ns("failsafe.stuck"), first_push, 2.0)
+    # Commands that never arrive drive no motor: no current, so no wheel counts as stalled.
+    assert rig.first_event_ns("failsafe.wheel_stalled") is None
     rig.bus.drop_commands = False
     rig.run_for(0.5)
     assert rig.stack.safety_mode.value == "HOLD"  # latched
     rig.stack.set_goal(17.0, 16.0)
     assert rig.first_event_ns("cleared.stuck") is not None
     assert_driving_again(rig, within_s=4.0)
+
+
+def test_wheel_stalled_holds_then_retries_and_clears_once_the_wheel_turns(rig: Rig) -> None:
+    rig.drive()
+    rig.vescs.set_stuck(1, True)  # the left middle wheel seizes; its motor stalls at the current limit
+    seized = rig.now_ns
+    rig.run_until(lambda: rig.first_event_ns("failsafe.wheel_stalled") is not None, 3.0, "wheel_stalled")
+    fired = rig.first_event_ns("failsafe.wheel_stalled")
+    assert fired is not None
+    # Counted from the command in force when the controller first reported the wheel stalled: the tick
+    # before the first control tick that read such a status.
+    first_stalled_status = min(
+        t
+        for tp, t, m in rig.sink.records
+        if tp == "wheels/status"
+        and t > seized
+        and m["wheels"][1]["erpm"] == 0
+        and m["wheels"][1]["motor_current_a"] >= 2.0
+    )
+    first_seen_tick = -(-first_stalled_status // TICK_NS) * TICK_NS
+    assert_fired_in_window(fired, first_seen_tick - TICK_NS, 1.0)
+    detail = rig.events("failsafe.wheel_stalled")[0][1]["detail"]
+    assert detail.startswith("wheel 1 (left middle) commanded") and "A for" in detail
+    assert_wheels_stopped(rig, fired)
+    assert rig.stack.safety_mode.value == "HOLD"
+    # Held for 2 s (the motor cools), then tried again: still seized, so it stalls and fires once more.
+    rig.run_until(lambda: rig.first_event_ns("cleared.wheel_stalled") is not None, 3.0, "the retry")
+    cleared = rig.first_event_ns("cleared.wheel_stalled")
+    assert_fired_in_window(cleared, fired, 2.0)
+    rig.run_until(lambda: len(rig.events("failsafe.wheel_stalled")) == 2, 2.0, "the second stall")
+    assert cleared is not None and 1.0 < (rig.events("failsafe.wheel_stalled")[1][0] - cleared) * 1e-9 < 1.2
+    # Free again: the next retry drives on, and nothing fires any more.
+    rig.vescs.set_stuck(1, False)
+    rig.run_until(lambda: len(rig.events("cleared.wheel_stalled")) == 2, 3.0, "the second retry")
+    assert_driving_again(rig)
+    rig.run_for(2.0)
+    assert len(rig.events("failsafe.wheel_stalled")) == 2
+    assert rig.stack.safety_mode.value == "DRIVING"
 
 
 def test_tip_over_margin() -> None:

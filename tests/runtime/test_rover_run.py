@@ -127,6 +127,11 @@ def test_rover_run_stops_wheels_and_closes_recording_on_signal(tmp_path: Path, s
     assert len(frames) >= 6 and all(f["data"] == "00000000" for f in frames[-6:])  # the last six: zero rpm
     events = [m.message for m in read_messages(mcap, ["safety/events"])]
     assert any(e["kind"] == "failsafe.wheel_silent" for e in events)  # no controllers on this bus
+    # The onboard stack's warnings (here the failsafe's) are on the log topic, not only on stderr.
+    logged = [m.message for m in read_messages(mcap, ["log"])]
+    assert any(
+        line["name"] == "navigator.onboard" and "failsafe.wheel_silent" in line["message"] for line in logged
+    )
 
     # The recording says when it ran, so a CAN export is dated today, not 1970.
     anchor = WallClockAnchor.from_metadata(metadata[WALL_CLOCK_METADATA])
