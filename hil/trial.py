@@ -74,6 +74,9 @@ class TrialResult:
     # When the rover reported ARRIVED at its last goal (None: it did not); the trial may have run on
     # after it, parked, for the scenario's faults (``simulated_s`` is then later).
     arrived_s: float | None = None
+    # Until when the trial kept the arrived rover parked for the scenario's faults (None: it did not; a
+    # trial also runs on briefly after ARRIVED until the rover has come to rest, which is not parking).
+    parked_until_s: float | None = None
 
 
 # Called once the components exist (name -> object), before the first tick: ``rover bench hil`` uses it to
@@ -192,7 +195,15 @@ def run_trial(
         failures=failures,
         loop_wall_s=loop_wall_s,
         arrived_s=None if arrived_ns is None else seconds(arrived_ns),
+        parked_until_s=_parked_until_s(scenario, arrived_ns),
     )
+
+
+def _parked_until_s(scenario: Scenario, arrived_ns: int | None) -> float | None:
+    if arrived_ns is None:
+        return None
+    until = park_until_ns(scenario.faults, arrived_ns, to_ns(scenario.duration_s))
+    return seconds(until) if until > arrived_ns else None
 
 
 def _georeferenced(config: RoverConfig, scenario: Scenario) -> RoverConfig:

@@ -147,9 +147,9 @@ def run_trial_command(args: argparse.Namespace) -> int:
     wall_s = time.perf_counter() - started
 
     console.print(_trial_table(f"{scenario.name}, seed {seed}: {result.end_reason}", result))
-    if result.arrived_s is not None and result.simulated_s > result.arrived_s:
+    if result.arrived_s is not None and result.parked_until_s is not None:
         console.print(
-            f"ARRIVED at {result.arrived_s:.1f} s; parked until {result.simulated_s:.1f} s for the "
+            f"ARRIVED at {result.arrived_s:.1f} s; parked until {result.parked_until_s:.1f} s for the "
             "scenario's faults still to run (docs/hil.md)"
         )
     console.print(

@@ -63,6 +63,7 @@ def test_a_fault_after_the_arrival_runs_with_the_rover_parked(
     result = run_trial(scenario, default_config, tmp_path / "run")
     assert result.end_reason == "arrived" and result.success, result.failures
     assert result.arrived_s is not None and result.arrived_s < 30.0 <= 35.0 <= result.simulated_s
+    assert result.parked_until_s == pytest.approx(35.0)
     faults = _logged(result, "hil.faults")
     assert [message for _t, message in faults] == [
         "fault injected: gps/off (from 30 s to 35 s)",
@@ -79,6 +80,7 @@ def test_a_fault_after_the_arrival_runs_with_the_rover_parked(
     assert small_trial.arrived_s == result.arrived_s
     assert result.metrics.duration_s == small_trial.metrics.duration_s
     # No faults: it stops once the rover has come to rest after the arrival (hil.trial.SETTLE_MAX_NS).
+    assert small_trial.parked_until_s is None  # coming to rest is not parking for faults
     assert small_trial.arrived_s is not None
     assert small_trial.arrived_s < small_trial.simulated_s <= small_trial.arrived_s + SETTLE_MAX_NS / 1e9
 
