@@ -108,6 +108,9 @@ def wrap_angle(angle: float) -> float:
 # Inside the tolerance, the goal counts as passed once the rover is this much further from it than at
 # its closest: more than the estimate's tick-to-tick jitter, less than a creep speed's worth of a second.
 GOAL_PASSED_MARGIN_M = 0.05
+# Inside the tolerance, a rover slower than this is not getting any closer (stuck in mud, a seized wheel,
+# held by a failsafe): it has arrived where it is. A creeping rover moves at min_speed_mps (0.1 m/s).
+GOAL_STALLED_MPS = 0.03
 
 
 class PurePursuit:
@@ -117,8 +120,8 @@ class PurePursuit:
 
     Arrival: within ``goal_tolerance_m`` of the path's end (and near the end of the path) the rover keeps
     driving at the goal and arrives once it is within ``goal_settle_m``, has passed the goal (the distance
-    grows again), or would have to turn away to reach it; the tolerance is the radius in which it may
-    stop, not the place it aims for.
+    grows again), would have to turn away to reach it, or is not moving (``GOAL_STALLED_MPS``); the
+    tolerance is the radius in which it may stop, not the place it aims for.
     """
 
     def __init__(self, config: FollowerConfig) -> None:
@@ -160,7 +163,8 @@ class PurePursuit:
         passed = distance_to_goal > self._closest_to_goal_m + GOAL_PASSED_MARGIN_M
         if within:
             self._closest_to_goal_m = min(self._closest_to_goal_m, distance_to_goal)
-        if within and (distance_to_goal <= cfg.goal_settle_m or passed):
+        stalled = abs(speed) < GOAL_STALLED_MPS
+        if within and (distance_to_goal <= cfg.goal_settle_m or passed or stalled):
             return self._arrived(cross_track)
 
         heading_error, curvature = self._steer(points, x, y, yaw, speed, projection, cross_track, lookahead)

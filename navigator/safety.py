@@ -34,6 +34,9 @@ HEARTBEAT_LOST = "heartbeat_lost"
 GROUND_LINK_LOST = "ground_link_lost"
 STUCK = "stuck"
 WHEEL_STALLED = "wheel_stalled"
+# A wheel that stalls this many times within the window is seized, not snagged: held until an operator acts.
+WHEEL_STALL_LATCH_TRIPS = 3
+WHEEL_STALL_LATCH_WINDOW_NS = 30_000_000_000
 TIP_OVER = "tip_over"
 GEOFENCE = "geofence"
 BATTERY_CRITICAL = "battery_critical"
@@ -122,6 +125,8 @@ class SafetySupervisor:
         self._wheel_stall_ns = to_ns(c.wheel_stall_s)
         self._wheel_stall_hold_ns = to_ns(c.wheel_stall_hold_s)
         self._stall_held_since: int | None = None
+        self._stall_trips: list[int] = []  # when wheel_stalled tripped, within the latch window
+        self._stall_latched = False
         self._battery_ns = to_ns(c.battery_debounce_s)
         self._tip_rad = math.radians(c.tip_margin_deg)
         self._tip_clear_rad = math.radians(c.tip_margin_deg + c.tip_clear_deg)
@@ -145,11 +150,17 @@ class SafetySupervisor:
         """Clear the e-stop and the latched stuck and stall checks: the operator has looked and says go."""
         for name in (ESTOP, STUCK, WHEEL_STALLED):
             self._clear(name, f"resume from {source}")
+        self._forget_stalls()
 
     def new_goal(self) -> None:
         """A new goal clears the stuck and stall checks: the operator chose where to go next."""
         self._clear(STUCK, "new goal")
         self._clear(WHEEL_STALLED, "new goal")
+        self._forget_stalls()
+
+    def _forget_stalls(self) -> None:
+        self._stall_trips.clear()
+        self._stall_latched = False
 
     # --- the tick -------------------------------------------------------------------------------
     def update(
@@ -265,9 +276,11 @@ class SafetySupervisor:
         c = self._config
         if WHEEL_STALLED in self._active:
             # Zero commands while held, so the condition is gone: the hold lasts its time, then the wheels
-            # are tried again (a wheel still seized fires again one stall time later).
+            # are tried again (a wheel still seized fires again one stall time later), unless it has
+            # stalled WHEEL_STALL_LATCH_TRIPS times in the window: then it is latched like ``stuck`` (the
+            # retries' zero commands also keep resetting the stuck timer, so stuck alone never fires).
             held = i.now_ns - (self._stall_held_since or i.now_ns)
-            if held > self._wheel_stall_hold_ns:
+            if held > self._wheel_stall_hold_ns and not self._stall_latched:
                 self._clear(WHEEL_STALLED, f"held {_ms(held)}: trying the wheels again")
             return
         judged = zip(i.wheel_commands_mps, i.wheel_speeds_mps, i.wheel_currents_a, strict=False)
@@ -282,11 +295,21 @@ class SafetySupervisor:
             held = self._sustained(key, stalled, i.now_ns, start_ns=i.sent_at_ns)
             if held > self._wheel_stall_ns:
                 name = WHEEL_NAMES[index] if index < len(WHEEL_NAMES) else f"#{index}"
+                window_start = i.now_ns - WHEEL_STALL_LATCH_WINDOW_NS
+                self._stall_trips = [t for t in self._stall_trips if t > window_start] + [i.now_ns]
+                self._stall_latched = len(self._stall_trips) >= WHEEL_STALL_LATCH_TRIPS
+                latched = (
+                    f"; stall {len(self._stall_trips)} in {_ms(WHEEL_STALL_LATCH_WINDOW_NS)}: latched "
+                    "until a new goal or resume"
+                    if self._stall_latched
+                    else ""
+                )
                 self._trip(
                     WHEEL_STALLED,
                     "error",
                     f"wheel {index} ({name}) commanded {command:.2f} m/s but turning at {speed:.2f} m/s "
-                    f"while drawing {current:.1f} A for {_ms(held)} (limit {_ms(self._wheel_stall_ns)})",
+                    f"while drawing {current:.1f} A for {_ms(held)} (limit {_ms(self._wheel_stall_ns)})"
+                    + latched,
                 )
                 self._stall_held_since = i.now_ns
                 for other in range(len(i.wheel_commands_mps)):

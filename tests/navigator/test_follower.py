@@ -6,6 +6,7 @@ import pytest
 from logs.settings import ConfigError, parse_toml
 from navigator.errors import ParameterError
 from navigator.follower import FollowerConfig, PurePursuit
+from navigator.stanley import Stanley
 
 
 def drive(follower, path, x, y, yaw, seconds, dt=0.05):
@@ -129,3 +130,14 @@ def test_a_goal_passed_beside_it_inside_the_tolerance_is_arrived_at_without_circ
         x += 0.01  # keeps going straight whatever it is told: the estimate slides past the goal
     assert arrived_at is not None and 9.6 <= arrived_at <= 10.5  # 9.6: where the tolerance begins
     assert math.hypot(arrived_at - 10.0, 0.3) <= FollowerConfig().goal_tolerance_m
+
+
+@pytest.mark.parametrize("follower_class", [PurePursuit, Stanley])
+def test_a_rover_that_stops_moving_inside_the_tolerance_has_arrived(follower_class):
+    """Stuck 0.3 m short (mud, a seized wheel): creeping on forever would never arrive, and the creep is
+    too slow for the stuck failsafe."""
+    path = np.array([[0.0, 0.0], [10.0, 0.0]])
+    follower = follower_class(FollowerConfig())
+    moving = follower.command(9.7, 0.0, 0.0, 0.12, path)
+    assert not moving.arrived and moving.speed_mps > 0.0  # still creeping on while it moves
+    assert follower.command(9.7, 0.0, 0.0, 0.0, path).arrived

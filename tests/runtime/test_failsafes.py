@@ -234,6 +234,23 @@ def test_wheel_stalled_holds_then_retries_and_clears_once_the_wheel_turns(rig: R
     assert rig.stack.safety_mode.value == "DRIVING"
 
 
+def test_a_wheel_that_keeps_stalling_is_latched_on_its_third_stall(rig: Rig) -> None:
+    """Retrying a seized wheel every 3 s forever would hide ``stuck`` (each hold's zero commands reset
+    its timer): the third stall within 30 s latches, like ``stuck``, until a new goal or resume."""
+    rig.drive()
+    rig.vescs.set_stuck(1, True)
+    rig.run_until(lambda: len(rig.events("failsafe.wheel_stalled")) == 3, 12.0, "three stalls")
+    third = rig.events("failsafe.wheel_stalled")[2][1]["detail"]
+    assert "stall 3 in 30000 ms: latched until a new goal or resume" in third
+    assert "latched" not in rig.events("failsafe.wheel_stalled")[1][1]["detail"]
+    rig.run_for(6.0)  # two hold times and more: no retry now
+    assert len(rig.events("cleared.wheel_stalled")) == 2 and rig.stack.safety_mode.value == "HOLD"
+    rig.vescs.set_stuck(1, False)
+    rig.stack.set_goal(17.0, 16.0)  # the operator has looked: a new goal clears it
+    assert len(rig.events("cleared.wheel_stalled")) == 3
+    assert_driving_again(rig, within_s=4.0)
+
+
 def test_tip_over_margin() -> None:
     config = rig_config()
     tip_roll = config.vehicle.tip_roll_rad
