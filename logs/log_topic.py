@@ -9,9 +9,11 @@ Floods are cut: the same line (digits aside: "rejected a sample (gps_gated, 100 
 as "... 200 so far") is recorded at most ``burst`` times per ``window_s`` of the clock; what was left out
 is counted, and the next line of that kind that gets through says how many, as does ``close()``.
 
-Recorders here are single-threaded (``logs.pending_sink``): a record logged on another thread (the
-planning worker's) is queued and published on the recording thread by ``publish_pending`` or the next
-record logged there.
+Recorders here are single-threaded (``logs.pending_sink``): a line logged on another thread (the
+planning worker's) is formatted there, on the thread that logged it (its arguments may change later),
+queued, and published on the recording thread by ``publish_pending`` or the next line logged there.
+Nothing a handler does may raise into the code that logged: a line that cannot be formatted is recorded
+as its raw text, anything else that fails is counted in ``failed``.
 """
 
 from __future__ import annotations
@@ -41,6 +43,27 @@ def foxglove_level(levelno: int) -> int:
         if levelno >= threshold:
             return level
     return 1
+
+
+@dataclass(frozen=True)
+class _Line:
+    """A log record as text, taken on the thread that logged it."""
+
+    t_ns: int
+    levelno: int
+    name: str
+    message: str
+    pathname: str
+    lineno: int
+
+
+def _text(record: logging.LogRecord) -> str:
+    """The record's message; a call with the wrong arguments (or one whose ``__str__`` raises) still
+    leaves a line: its raw text and why it could not be formatted."""
+    try:
+        return record.getMessage()
+    except Exception as err:
+        return f"{record.msg!r} (unformattable: {type(err).__name__}: {err})"
 
 
 @dataclass
@@ -87,7 +110,7 @@ class LogTopicHandler(logging.Handler):
         self._burst = burst
         self._window_ns = to_ns(window_s)
         self._owner = threading.get_ident()
-        self._queued: deque[tuple[int, logging.LogRecord]] = deque()  # from other threads
+        self._queued: deque[_Line] = deque()  # from other threads
         self._kinds: dict[str, _Kind] = {}
         self._publishing = False
         self.published = 0
@@ -95,20 +118,27 @@ class LogTopicHandler(logging.Handler):
         self.failed = 0  # lines the sink refused (counted, not logged: that would log about logging)
 
     def emit(self, record: logging.LogRecord) -> None:
-        now = self._clock.now_ns()
-        if threading.get_ident() != self._owner:
-            self._queued.append((now, record))  # deque.append is atomic
-            return
-        if self._publishing:
-            return  # a line logged by the sink while it records a line: never recursive
-        self.publish_pending()
-        self._record(now, record)
+        try:
+            line = _Line(self._clock.now_ns(), record.levelno, record.name, _text(record), record.pathname,
+                         record.lineno)  # fmt: skip
+            if threading.get_ident() != self._owner:
+                self._queued.append(line)  # deque.append is atomic
+                return
+            if self._publishing:
+                return  # a line logged by the sink while it records a line: never recursive
+            self.publish_pending()
+            self._record(line)
+        except Exception:  # a logging handler must never raise into the code that logged
+            self.failed += 1
 
     def publish_pending(self) -> None:
         """Publish what other threads logged (call on the recording thread, e.g. once per tick)."""
         while self._queued:
-            now, record = self._queued.popleft()
-            self._record(now, record)
+            line = self._queued.popleft()
+            try:
+                self._record(line)
+            except Exception:  # the loop thread calls this: a bad line must not stop it
+                self.failed += 1
 
     def close(self) -> None:
         """Publish the queue and, per kind of line still being cut, how many were left out."""
@@ -121,12 +151,9 @@ class LogTopicHandler(logging.Handler):
                     kind.suppressed = 0
         super().close()
 
-    def _record(self, now: int, record: logging.LogRecord) -> None:
-        try:
-            message = record.getMessage()
-        except (TypeError, ValueError) as err:  # a call with the wrong arguments still leaves a line
-            message = f"{record.msg!r} (unformattable: {err})"
-        key = f"{record.name}:{_NUMBER.sub('#', message)}"
+    def _record(self, line: _Line) -> None:
+        now, message = line.t_ns, line.message
+        key = f"{line.name}:{_NUMBER.sub('#', message)}"
         kind = self._kinds.get(key)
         if kind is None or now - kind.window_start_ns >= self._window_ns:
             kind = self._kinds[key] = (
@@ -141,11 +168,9 @@ class LogTopicHandler(logging.Handler):
         if kind.suppressed:
             message = f"{message} ({kind.suppressed} similar lines left out before this one)"
             kind.suppressed = 0
-        self._publish(now, foxglove_level(record.levelno), record.name, message, record)
+        self._publish(now, foxglove_level(line.levelno), line.name, message, line)
 
-    def _publish(
-        self, now: int, level: int, name: str, message: str, record: logging.LogRecord | None = None
-    ) -> None:
+    def _publish(self, now: int, level: int, name: str, message: str, line: _Line | None = None) -> None:
         self._publishing = True
         try:
             self._sink.publish(
@@ -156,8 +181,8 @@ class LogTopicHandler(logging.Handler):
                     "level": level,
                     "message": message,
                     "name": name,
-                    "file": "" if record is None else record.pathname,
-                    "line": 0 if record is None else record.lineno,
+                    "file": "" if line is None else line.pathname,
+                    "line": 0 if line is None else line.lineno,
                 },
             )
             self.published += 1

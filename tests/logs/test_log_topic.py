@@ -92,3 +92,25 @@ def test_a_sink_that_fails_is_counted_not_raised() -> None:
 
 def test_levels_are_foxglove_levels() -> None:
     assert [foxglove_level(level) for level in (10, 20, 30, 40, 50)] == [1, 2, 3, 4, 5]
+
+
+class _Unprintable:
+    def __str__(self) -> str:
+        raise AttributeError("no text")
+
+
+def test_a_bad_log_call_never_raises_into_the_code_that_logged_on_any_thread() -> None:
+    clock, sink = SimClock(), MemorySink()
+    logger = logging.getLogger("navigator.test_bad_calls")
+    # Ours alone: pytest's capturing handler (up the hierarchy) re-raises formatting errors on purpose.
+    logger.propagate = False
+    with recording_logs(sink, clock, loggers=("navigator.test_bad_calls",)) as handler:
+        logger.warning("cost %(cost)s", {"other": 1})  # KeyError when formatted
+        logger.warning("value %s", _Unprintable())  # its __str__ raises
+        worker = threading.Thread(target=lambda: logger.warning("plan %(cost)s", {"x": 2}))
+        worker.start()
+        worker.join()
+        handler.publish_pending()  # the loop thread: the worker's bad line must not stop it
+    messages = [m["message"] for m in _lines(sink)]
+    assert len(messages) == 3 and all("unformattable" in m for m in messages), messages
+    assert "KeyError" in messages[0] and "AttributeError" in messages[1] and "KeyError" in messages[2]
