@@ -399,7 +399,9 @@ class Estimator:
             self._reject("wheels_stale", f"sample at {t_ns} ns, filter already at {self._ekf.t_ns} ns")
             return
         if self._last_wheels_ns is not None and t_ns > self._last_wheels_ns:
-            self._stuck.add_odometry(t_ns, motion.speed_mps * (t_ns - self._last_wheels_ns) * 1e-9)
+            self._stuck.add_odometry(
+                t_ns, motion.speed_mps * (t_ns - self._last_wheels_ns) * 1e-9, self._ekf.state(YAW)
+            )
         self._last_wheels_ns = t_ns
         self._transient.add(t_ns, motion.speed_mps)
         speed_std, yaw_rate_std = self._odometry_noise(t_ns, motion)

@@ -2,10 +2,13 @@
 
 A rover pushing against a rock or dug into mud turns its wheels at full speed while going nowhere. The
 odometry scale state absorbs *partial* slip (sand, mud: a few to tens of percent); it cannot absorb
-"wheels at 1 m/s, ground speed 0". Over a sliding window we compare the distance GPS moved (the mean of
-the window's later fixes minus the mean of its earlier ones, which averages the fix noise down) with the
-distance the wheels rolled. When GPS shows less than half of it, by more than three GPS-noise sigmas, the
-wheels are declared spinning and the front end leaves their speed out, so GPS (not odometry) is believed.
+"wheels at 1 m/s, ground speed 0". Over a sliding window we compare how far GPS moved (the mean of the
+window's later fixes minus the mean of its earlier ones, which averages the fix noise down) with how far
+the wheels carried the rover, measured the same way on the odometry's dead-reckoned track (each rolled
+distance along the heading at the time): so a curve or a U-turn, whose GPS chord is shorter than the
+distance rolled, is not taken for spinning. When GPS shows less than half of it, by more than three
+GPS-noise sigmas, the wheels are declared spinning and the front end leaves their speed out, so GPS (not
+odometry) is believed.
 """
 
 from __future__ import annotations
@@ -35,13 +38,16 @@ class StuckDetector:
         self._window_ns = round(window_s * 1e9)
         self._min_distance_m = min_distance_m
         self._fixes: deque[tuple[int, float, float, float]] = deque()  # t_ns, x, y, std
-        self._odometry: deque[tuple[int, float]] = deque()  # t_ns, |distance| rolled since previous
+        # t_ns, |distance| rolled since the previous sample, and that step along the heading (east, north)
+        self._odometry: deque[tuple[int, float, float, float]] = deque()
         self.spinning = False
         self.shortfall_m = 0.0  # odometry travel GPS did not confirm, at the last judgement (m)
 
-    def add_odometry(self, t_ns: int, distance_m: float) -> None:
-        """Distance (m, unsigned) the wheels rolled up to ``t_ns``."""
-        self._odometry.append((t_ns, abs(distance_m)))
+    def add_odometry(self, t_ns: int, distance_m: float, heading_rad: float = 0.0) -> None:
+        """Distance (m, signed: negative reversing) the wheels rolled up to ``t_ns`` while heading
+        ``heading_rad`` (ENU). A heading off by a constant does not matter: only the track's shape does."""
+        east, north = distance_m * math.cos(heading_rad), distance_m * math.sin(heading_rad)
+        self._odometry.append((t_ns, abs(distance_m), east, north))
 
     def on_fix(self, t_ns: int, x_m: float, y_m: float, std_m: float) -> bool:
         """Offer a raw GPS fix (ENU m); returns whether the wheels are judged to be spinning now."""
@@ -53,16 +59,17 @@ class StuckDetector:
             self._odometry.popleft()
         if len(self._fixes) < 4:
             return self.spinning
-        rolled = sum(d for _, d in self._odometry)
+        rolled = sum(step[1] for step in self._odometry)
         if rolled < self._min_distance_m:
             self.spinning = False
             return False
         half = len(self._fixes) // 2
         early, late = list(self._fixes)[:half], list(self._fixes)[half:]
         moved = math.dist(_mean_xy(late), _mean_xy(early))
-        # Odometry rolled over the whole window, GPS "moved" between the two halves' mean times.
+        # The same measure on the odometry's track, sampled at the fixes' times.
+        track = self._track_at([f[0] for f in self._fixes])
+        expected = math.dist(_mean_xy(track[half:]), _mean_xy(track[:half]))
         span_s = (_mean_t(late) - _mean_t(early)) / max(self._fixes[-1][0] - self._fixes[0][0], 1)
-        expected = rolled * span_s
         std = max(f[3] for f in self._fixes)
         noise = _NOISE_SIGMAS * std * math.sqrt(1.0 / len(early) + 1.0 / len(late))
         # Scaled back to the whole window: how far the odometry ran ahead of the ground.
@@ -72,6 +79,20 @@ class StuckDetector:
         else:
             self.spinning = moved < _SPIN_SHARE * expected and expected - moved > noise
         return self.spinning
+
+    def _track_at(self, times: list[int]) -> list[tuple[int, float, float, float]]:
+        """The dead-reckoned position (from the window's first odometry step) at each of ``times``,
+        shaped like fixes for ``_mean_xy``."""
+        positions = []
+        steps = iter(self._odometry)
+        step = next(steps, None)
+        east = north = 0.0
+        for t in times:
+            while step is not None and step[0] <= t:
+                east, north = east + step[2], north + step[3]
+                step = next(steps, None)
+            positions.append((t, east, north, 0.0))
+        return positions
 
 
 def _mean_xy(fixes: list[tuple[int, float, float, float]]) -> tuple[float, float]:
