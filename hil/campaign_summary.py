@@ -11,6 +11,8 @@ ARRIVED (``goal_reached``, judged on its estimate) and the share meeting the sce
 (docs/metrics.md defines both accuracies). Table 2: the same per run (seed), as the paper lists its
 simulation runs, with each failed criterion in words. Every figure comes from the trials'
 ``metrics.json``; the JSON's means are rounded to six significant digits, its seconds to the millisecond.
+The header says what "encountered" meant for the obstacle-avoidance figures: the encounter margins the
+trials recorded (``encounter_margin_m``, distinct values; ``encounter_margins_m`` in the JSON).
 """
 
 from __future__ import annotations
@@ -69,6 +71,30 @@ def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return table
 
 
+def encounter_margins(rows: list[dict[str, Any]]) -> list[float]:
+    """The distinct ``encounter_margin_m`` values (m) the trials that ran recorded, ascending."""
+    margins = {m["metrics"].get("encounter_margin_m") for m in rows if m["ok"]}
+    return sorted(
+        float(v)
+        for v in margins
+        if isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+    )
+
+
+def _encounter_sentence(margins: list[float]) -> str:
+    """What an encounter meant in these trials (docs/metrics.md has the definition)."""
+    if not margins:
+        return (
+            "No trial recorded its encounter margin, so what counted as an encountered obstacle is unknown."
+        )
+    values = " or ".join(f"{m:g} m" for m in margins)
+    per_scenario = " (per scenario)" if len(margins) > 1 else ""
+    return (
+        f"An obstacle counts as encountered when its edge came within {values}{per_scenario} of the rover's "
+        "track, or the rover collided with it (`encounter_margin_m`; docs/metrics.md)."
+    )
+
+
 def rounded_times(row: dict[str, Any]) -> dict[str, Any]:
     """A Table 2 row with its simulated and wall seconds to the millisecond (float sums carry noise)."""
     return {
@@ -85,7 +111,13 @@ def write_summary(campaign: Campaign, rows: list[dict[str, Any]], out_dir: Path)
     json_path = out_dir / "summary.json"
     json_path.write_text(
         json.dumps(
-            {"campaign": campaign.name, "source": campaign.source, "table1": table1, "table2": rows},
+            {
+                "campaign": campaign.name,
+                "source": campaign.source,
+                "encounter_margins_m": encounter_margins(rows),
+                "table1": table1,
+                "table2": rows,
+            },
             indent=2,
             sort_keys=True,
         )
@@ -120,7 +152,8 @@ def _markdown(campaign: Campaign, table1: list[dict[str, Any]], rows: list[dict[
         "",
         f"Source: `{Path(campaign.source).name}`; seeds {list(campaign.seeds)}. "
         "Every figure is computed from each trial's metrics.json (from its MCAP). Goal reached is the "
-        "rover's own ARRIVED (judged on its estimate); the final distance to goal is the ground truth.",
+        "rover's own ARRIVED (judged on its estimate); the final distance to goal is the ground truth. "
+        + _encounter_sentence(encounter_margins(rows)),
         "",
         "## Table 1. Average results across terrains",
         "",

@@ -198,6 +198,7 @@ def run_peer(
         write_peer_header(recorder, scenario, config, seed)
         codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
         with SimWorld(scenario, config.vehicle, codec, clock, can_bus, mavlink, recorder, seed) as world:
+            world.record_start(recorder)  # its obstacles and faults count from here, not from the boot
             world.body.warm_up()  # before the port file: whoever waits on it meets a peer that runs on time
             peer = RealtimePeer(world, clock, recorder, status_path)
             if status_path is not None:

@@ -3,6 +3,9 @@
 Implements ``navigator.perception.ObstacleSource``. At ``rate_hz`` (on the clock's schedule) it reports
 every static and moving obstacle whose nearest edge lies within ``range_m`` of the rover's true position,
 each with its true velocity (zero for static ones) plus optional position noise from a seeded generator.
+Moving obstacles move on the world's time: seconds since ``epoch_ns`` on the clock (the world's start), so
+a cart with ``start_s = 600`` waits 600 s after the world started, whatever the clock read then (the real-time
+peer's monotonic clock counts from the machine's boot).
 """
 
 from __future__ import annotations
@@ -32,7 +35,9 @@ class PerceptionSim:
         range_m: float = 8.0,
         rate_hz: float = 10.0,
         noise_m: float = 0.0,
+        epoch_ns: int | None = None,
     ) -> None:
+        """``epoch_ns``: the world's start on ``clock``, time zero of the moving obstacles (default: now)."""
         if not (math.isfinite(range_m) and range_m > 0.0):
             raise ValueError(f"perception range_m must be > 0, got {range_m}")
         if not (math.isfinite(rate_hz) and rate_hz > 0.0):
@@ -46,9 +51,11 @@ class PerceptionSim:
         self._period_ns = to_ns(1.0 / rate_hz)
         self._noise_m = noise_m
         self._next_ns = clock.now_ns()
+        self._epoch_ns = self._next_ns if epoch_ns is None else epoch_ns
 
     def moving_states(self, t_ns: int) -> list[tuple[MovingObstacle, tuple[float, float, float, float]]]:
-        t_s = seconds(t_ns)
+        """Each moving obstacle's (x, y, vx, vy) at the clock reading ``t_ns``; it moves from the epoch."""
+        t_s = seconds(t_ns - self._epoch_ns)
         return [(m, m.state_at(t_s)) for m in self._moving]
 
     def poll(self) -> list[ObstacleObservation]:

@@ -136,6 +136,7 @@ def run_trial(
             with SimWorld(
                 scenario, config.vehicle, codec, clock, wires.sim_bus, wires.sim_mavlink, sink, seed
             ) as world:
+                world.record_start(recorder)
                 stack = OnboardStack(
                     config,
                     clock,

@@ -27,6 +27,8 @@ from hil.sensors import GpsModel, ImuModel
 from hil.truth import TruthRecorder
 from hil.vesc_sim import SimVescBank
 from logs.clock import Clock
+from logs.recorder import McapRecorder
+from logs.scenario_record import WORLD_METADATA
 from logs.sink import MessageSink
 from navigator.footprint import Footprint, disc_gap_m
 from navigator.vehicle import VehicleParams
@@ -52,8 +54,10 @@ class SimWorld:
         self.scenario = scenario
         self._clock = clock
         self._sink = sink
-        # Fault times count from the world's start (the real-time peer's clock does not start at 0).
-        self.faults = FaultSchedule(scenario.faults, epoch_ns=clock.now_ns())
+        # The world's start on its clock: time zero of the scenario's faults and moving obstacles (the
+        # real-time peer's monotonic clock counts from the boot). Recorded by record_start (metadata "world").
+        self.epoch_ns = clock.now_ns()
+        self.faults = FaultSchedule(scenario.faults, epoch_ns=self.epoch_ns)
         # Separate streams so a fault or an extra obstacle never shifts the sensor noise.
         sensor_rng = np.random.default_rng(seed)
         fault_rng = np.random.default_rng([seed, 1])
@@ -118,6 +122,7 @@ class SimWorld:
             range_m=sensors.perception_range_m,
             rate_hz=sensors.perception_rate_hz,
             noise_m=sensors.perception_noise_m,
+            epoch_ns=self.epoch_ns,
         )
         self._tick = 0
         self.last_step: DynamicsStep | None = None
@@ -137,6 +142,10 @@ class SimWorld:
         self, kind: type[BaseException] | None, error: BaseException | None, trace: TracebackType | None
     ) -> None:
         self.close()
+
+    def record_start(self, recorder: McapRecorder) -> None:
+        """The world's start on its clock (metadata ``world``): the metrics move the obstacles from it."""
+        recorder.add_metadata(WORLD_METADATA, {"epoch_ns": str(self.epoch_ns)})
 
     @property
     def rolled_over(self) -> bool:

@@ -21,7 +21,13 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from logs.reader import Entry, ReadStats, RecordedMessage, RecordedMetadata, Source, read_entries
-from logs.scenario_record import SCENARIO_METADATA, moving_obstacles, static_obstacles
+from logs.scenario_record import (
+    SCENARIO_METADATA,
+    WORLD_METADATA,
+    moving_obstacles,
+    static_obstacles,
+    world_epoch_ns,
+)
 from logs.topics import (
     ESTIMATOR_POSE,
     NAVIGATOR_PATH,
@@ -106,6 +112,7 @@ class _Trial:
     contacts: list[dict[str, Any]] = field(default_factory=list)
     power: list[tuple[int, float]] = field(default_factory=list)
     scenario: dict[str, str] | None = None
+    world: dict[str, str] | None = None  # the simulated world's start (hil.world), when recorded
     seen: set[str] = field(default_factory=set)
     rejected: Counter[str] = field(default_factory=Counter)
 
@@ -116,6 +123,8 @@ def _gather(entries: Iterable[Entry]) -> _Trial:
         if isinstance(entry, RecordedMetadata):
             if entry.name == SCENARIO_METADATA:
                 trial.scenario = entry.data
+            elif entry.name == WORLD_METADATA:
+                trial.world = entry.data
         elif isinstance(entry, RecordedMessage) and entry.topic in _TOPICS:
             trial.seen.add(entry.topic)
             try:
@@ -441,7 +450,8 @@ def _obstacle_avoidance(
         return None, None, None
     obstacles, static_problems = static_obstacles(text)
     movers, moving_problems = moving_obstacles(scenario.get("moving_obstacles_json"))
-    notes.problems += static_problems + moving_problems
+    epoch_ns, epoch_problems = world_epoch_ns(trial.world) if movers else (0, [])
+    notes.problems += static_problems + moving_problems + epoch_problems
     if len(xy) == 0:
         return None, None, None
     hit = {str(c.get("obstacle_id")) for c in trial.contacts if c["kind"] == "collision"}
@@ -450,7 +460,8 @@ def _obstacle_avoidance(
         centre = np.array([[obstacle.x, obstacle.y]], dtype=np.float64)
         closest = float(distances_to_polyline(centre, xy)[0])
         near[obstacle.id] = closest <= obstacle.radius_m + margin + DISTANCE_EPSILON_M
-    t_s = times / 1e9  # the simulator moves them on the clock that stamps the log (hil.perception_sim)
+    # The simulator moves them on the world's time: the clock that stamps the log, from the world's start.
+    t_s = (times - epoch_ns) / 1e9
     for mover in movers:
         centres = np.array([mover.state_at(float(t))[:2] for t in t_s], dtype=np.float64)
         closest = float(np.hypot(*(xy - centres).T).min())

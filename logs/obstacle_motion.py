@@ -1,9 +1,11 @@
 """Moving obstacles: discs that walk a polyline of waypoints back and forth at a constant speed.
 
-The position is a closed-form function of time (no state, no randomness), so lockstep runs stay identical,
-the real-time peer agrees with lockstep about where an obstacle was at any instant, and the trial metrics
-(``logs.metrics``) find it again from the scenario metadata alone. It lives in ``logs`` because both the
-simulator (``hil``) and the metrics need it and ``logs`` is the layer both may import.
+The position is a closed-form function of the time since the world's start (no state, no randomness), so
+lockstep runs stay identical, the real-time peer agrees with lockstep about where an obstacle was at any
+instant of its trial, and the trial metrics (``logs.metrics``) find it again from the recording's metadata
+alone (the scenario, and the world's start on the log's clock: ``logs.scenario_record``). It lives in
+``logs`` because both the simulator (``hil``) and the metrics need it and ``logs`` is the layer both may
+import.
 """
 
 from __future__ import annotations
@@ -18,13 +20,14 @@ class MovingObstacle:
     radius_m: float
     waypoints: tuple[tuple[float, float], ...]  # at least two
     speed_mps: float
-    start_s: float = 0.0  # it waits at the first waypoint until then
+    start_s: float = 0.0  # it waits at the first waypoint until then (s from the world's start)
 
     def _legs(self) -> list[float]:
         return [math.dist(a, b) for a, b in zip(self.waypoints, self.waypoints[1:], strict=False)]
 
     def state_at(self, t_s: float) -> tuple[float, float, float, float]:
-        """(x, y, vx, vy) at ``t_s`` seconds: out along the waypoints, back, and again (ping-pong)."""
+        """(x, y, vx, vy) ``t_s`` seconds after the world's start: out along the waypoints, back, and again
+        (ping-pong)."""
         legs = self._legs()
         length = sum(legs)
         moving_s = t_s - self.start_s

@@ -2,6 +2,8 @@
 
 The trial runner (``hil.trial.write_header``) writes them; the metrics judge obstacle avoidance with them
 and the report draws them. Every value is checked: a bad entry is skipped and described, never raised.
+Beside it the ``world`` record holds the simulated world's start on the clock that stamps the log
+(``epoch_ns``), time zero of the moving obstacles' motion.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from typing import Any
 from logs.obstacle_motion import MovingObstacle
 
 SCENARIO_METADATA = "scenario"
+WORLD_METADATA = "world"
 
 
 @dataclass(frozen=True)
@@ -91,3 +94,20 @@ def point(text: str | None) -> tuple[float, float] | None:
         return _finite(item["x"]), _finite(item["y"])
     except (ValueError, KeyError, TypeError):
         return None
+
+
+def world_epoch_ns(record: dict[str, str] | None) -> tuple[int, list[str]]:
+    """The ``world`` record's ``epoch_ns`` (an integer >= 0), and the problems; 0 when there is no record.
+
+    0 is right for every recording without one: lockstep clocks start at 0, and the real-time peer moved
+    its obstacles on the raw monotonic clock until it started recording the world's start."""
+    if record is None or "epoch_ns" not in record:
+        return 0, []
+    text = record["epoch_ns"]
+    try:
+        epoch = int(text)
+        if not 0 <= epoch < 2**63:  # log times are int64
+            raise ValueError("out of range")
+    except ValueError:
+        return 0, [f"metadata {WORLD_METADATA}.epoch_ns={text!r} is not an int64 >= 0; used 0"]
+    return epoch, []

@@ -45,6 +45,9 @@ class PlannerConfig:
     heuristic_weight: float = 1.0  # > 1: weighted A*, cost at most this times the optimum
     sensing_range_m: float = 8.0  # static obstacles seen within this range repair the plan
     moving_horizon_s: float = 3.0  # a moving obstacle predicted on the path this far ahead blocks it
+    # A BLOCKED rover drives on only once the way has stayed clear this long (s of the guidance clock): a
+    # prediction that clears for a few ticks (a turning cart, a jumpy estimate) does not start it.
+    moving_clear_s: float = 0.5
 
     @classmethod
     def from_table(cls, table: Table) -> PlannerConfig:
@@ -55,6 +58,7 @@ class PlannerConfig:
             heuristic_weight=table.number("heuristic_weight", cls.heuristic_weight, lo=1.0, hi=10.0),
             sensing_range_m=table.number("sensing_range_m", cls.sensing_range_m, lo=0.0, hi=1000.0),
             moving_horizon_s=table.number("moving_horizon_s", cls.moving_horizon_s, lo=0.0, hi=60.0),
+            moving_clear_s=table.number("moving_clear_s", cls.moving_clear_s, lo=0.0, hi=60.0),
         )
         table.finish()
         return config

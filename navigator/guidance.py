@@ -15,7 +15,7 @@ so the plan is there within the same tick. Obstacles seen on the way come in thr
   little more than the detour (``navigator.replanning``) and costs the same as a fresh plan;
 * a *moving* obstacle is tracked (latest observation per id); if its constant-velocity prediction comes
   within clearance of the path ahead within ``moving_horizon_s``, the rover stops (mode ``BLOCKED``) until
-  the way is clear.
+  the way has stayed clear for ``moving_clear_s``.
 
 Speed limits on top of the follower's (curvature, goal approach): the slope under the rover, the terrain
 class, and the predicted tip-over margin: on a side slope of roll ``r`` the lateral acceleration ``v^2 k``
@@ -132,6 +132,11 @@ class Guidance:
         # Judged at standstill the corridor shrinks to its 3 m minimum, the obstacle falls outside it, the
         # rover starts, the corridor grows and it stops again: BLOCKED flickered every few ticks.
         self._blocked_at_speed = 0.0
+        # When the way was first judged clear in this BLOCKED wait (None: not clear, or not blocked). The
+        # rover leaves BLOCKED only after moving_clear_s of it: a cart turning at the end of its track was
+        # once clear for 0.34 s, the rover started, and it was BLOCKED again for 0.24 s.
+        self._clear_since_ns: int | None = None
+        self._clear_hold_ns = round(planner_config.moving_clear_s * 1e9)
         self._last_xy: tuple[float, float] | None = None
         self.replans = 0
         self.repairs_kept = 0
@@ -162,6 +167,7 @@ class Guidance:
         self._needs_plan = True
         self._mode = DRIVING
         self._blocker = None
+        self._clear_since_ns = None
         self._follower.reset()
 
     @property
@@ -221,6 +227,10 @@ class Guidance:
         judged_speed = max(abs(speed), self._blocked_at_speed) if self._blocker is not None else abs(speed)
         blocker = self._blocking_obstacle(t_ns, x, y, judged_speed)
         if blocker is not None:
+            self._clear_since_ns = None
+        elif self._blocker is not None and not self._clear_long_enough(t_ns):
+            blocker = self._blocker  # clear, but not for long enough yet: still waiting
+        if blocker is not None:
             if self._blocker is None:
                 self._blocked_at_speed = abs(speed)
             if blocker != self._blocker:
@@ -233,6 +243,7 @@ class Guidance:
         if self._blocker is not None:
             detail = _joined([detail, f"way clear: moving obstacle {self._blocker} no longer on the path"])
             self._blocker = None
+            self._clear_since_ns = None
         self._mode = DRIVING
         return self._limited(command, x, y, yaw, path_changed, detail)
 
@@ -287,6 +298,12 @@ class Guidance:
         return True
 
     # --- moving obstacles -----------------------------------------------------------------------------
+    def _clear_long_enough(self, t_ns: int) -> bool:
+        """Whether the way, judged clear now, has been clear for ``moving_clear_s`` of this wait."""
+        if self._clear_since_ns is None:
+            self._clear_since_ns = t_ns
+        return t_ns - self._clear_since_ns >= self._clear_hold_ns
+
     def _blocking_obstacle(self, t_ns: int, x: float, y: float, speed: float) -> str | None:
         if not self._moving or self._path is None:
             return None

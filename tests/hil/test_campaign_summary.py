@@ -67,3 +67,31 @@ def test_summary_json_is_rounded(tmp_path):
     assert entry["final_distance_to_goal_m"] == 0.51
     assert entry["goal_reached_pct"] == 100.0 and entry["success_pct"] == 50.0
     assert entry["collisions"] == 0.0
+
+
+def test_the_header_says_what_encountered_meant(tmp_path):
+    rows = [{**row, "metrics": {**row["metrics"], "encounter_margin_m": 1.5}} for row in ROWS]
+    markdown, json_path = write_summary(CAMPAIGN, rows, tmp_path)
+    header = markdown.read_text(encoding="utf-8").split("## Table 1")[0]
+    assert "an obstacle counts as encountered when its edge came within 1.5 m of the rover's track" in (
+        header.lower()
+    )
+    assert "docs/metrics.md" in header
+    assert json.loads(json_path.read_text(encoding="utf-8"))["encounter_margins_m"] == [1.5]
+
+
+def test_several_encounter_margins_are_all_named_and_a_missing_one_is_said(tmp_path):
+    margins = [2.0, 1.0]  # two scenarios with their own margins; a trial that errored recorded none
+    rows = [
+        {**row, "metrics": {**row["metrics"], "encounter_margin_m": m}}
+        for row, m in zip(ROWS, margins, strict=True)
+    ]
+    rows.append({**ROWS[0], "seed": 3, "ok": False, "error": "boom", "metrics": {}})
+    markdown, json_path = write_summary(CAMPAIGN, rows, tmp_path)
+    header = markdown.read_text(encoding="utf-8").split("## Table 1")[0]
+    assert "within 1 m or 2 m (per scenario) of the rover's track" in header
+    assert json.loads(json_path.read_text(encoding="utf-8"))["encounter_margins_m"] == [1.0, 2.0]
+
+    markdown, json_path = write_summary(CAMPAIGN, ROWS, tmp_path / "older")  # metrics without the margin
+    assert "No trial recorded its encounter margin" in markdown.read_text(encoding="utf-8")
+    assert json.loads(json_path.read_text(encoding="utf-8"))["encounter_margins_m"] == []

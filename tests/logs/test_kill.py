@@ -116,9 +116,9 @@ def test_sigkill_then_recover_then_report(tmp_path: Path) -> None:
         assert not result.was_complete and result.chunks_dropped == 0 and result.orphan_messages == 0
         assert result.chunks_kept == findings.chunks  # every complete chunk is kept ...
         assert result.messages == findings.messages  # ... with every message in it
-        # Written before the first chunk: scenario, trial and config metadata; scenario.toml, map.npz and
-        # config.effective.json attachments.
-        assert result.metadata == 3 and result.attachments == 3
+        # Written before the first chunk: scenario, trial, config and world metadata; scenario.toml,
+        # map.npz and config.effective.json attachments.
+        assert result.metadata == 4 and result.attachments == 3
         again = diagnose(recovered)
         assert again.healthy and again.complete and again.footer_present, again.problems
         assert again.messages == result.messages

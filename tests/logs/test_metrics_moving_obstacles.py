@@ -36,20 +36,30 @@ RAMMER = {
 STATIC = [{"id": "far-rock", "x": 5.0, "y": 9.0, "radius": 1.0}]  # 8 m off the track: never in the way
 
 
-def _run(contacts: list[tuple[float, str]], moving: list[dict] | None) -> bytes:
+def _run(
+    contacts: list[tuple[float, str]],
+    moving: list[dict] | None,
+    *,
+    shift_ns: int = 0,
+    world: dict[str, str] | None = None,
+) -> bytes:
+    """The recording; every time later by ``shift_ns`` (a world started then on the clock that stamps the
+    log, as the real-time peer's monotonic clock), ``world`` its ``world`` metadata record if any."""
     buffer = io.BytesIO()
     scenario = {"path_tolerance_m": "0.5", "encounter_margin_m": "1.5", "obstacles_json": json.dumps(STATIC)}
     if moving is not None:
         scenario["moving_obstacles_json"] = json.dumps(moving)
     with McapRecorder(buffer) as recorder:
         recorder.add_metadata("scenario", scenario)
+        if world is not None:
+            recorder.add_metadata("world", world)
         for index, (x, y) in enumerate(TRACK):
-            t = to_ns(float(index))
+            t = shift_ns + to_ns(float(index))
             recorder.publish(
                 TRUTH_POSE, t, {"timestamp": stamp(t), "frame_id": "enu", "pose": planar_pose(x, y, 0.0)}
             )
         for t_s, obstacle_id in contacts:
-            t = to_ns(t_s)
+            t = shift_ns + to_ns(t_s)
             contact = {
                 "timestamp": stamp(t),
                 "kind": "collision",
@@ -87,3 +97,23 @@ def test_a_bad_moving_obstacle_entry_is_skipped_and_described() -> None:
     metrics = compute_metrics(io.BytesIO(_run([], broken)))
     assert metrics.obstacles_encountered == 1
     assert any("moving_obstacles_json[0]" in problem for problem in metrics.problems)
+
+
+@pytest.mark.parametrize(("cart", "encountered"), [(PASSED_BEHIND, 0), (RAMMER, 1)])
+def test_moving_obstacles_move_from_the_recorded_start_of_the_world(cart: dict, encountered: int) -> None:
+    # A real-time peer's world started 10^6 s (and a bit) after the machine booted: each cart is where it
+    # was in the recording that starts at 0. (Timed from the boot instead, the early cart would meet the
+    # rover and the rammer would miss it.)
+    epoch_ns = to_ns(1_000_005.0)
+    recording = _run([], [cart], shift_ns=epoch_ns, world={"epoch_ns": str(epoch_ns)})
+    metrics = compute_metrics(io.BytesIO(recording))
+    assert metrics.obstacles_encountered == encountered
+    assert not metrics.problems
+
+
+def test_an_unusable_world_start_is_described_and_taken_as_zero() -> None:
+    metrics = compute_metrics(io.BytesIO(_run([], [PASSED_BEHIND, RAMMER], world={"epoch_ns": "soon"})))
+    assert (metrics.obstacles_encountered, metrics.obstacles_avoided) == (1, 1)  # timed from 0
+    assert [p for p in metrics.problems if "world.epoch_ns" in p] == [
+        "metadata world.epoch_ns='soon' is not an int64 >= 0; used 0"
+    ]

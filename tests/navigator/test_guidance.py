@@ -6,7 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from navigator.config import PlannerConfig
+from logs.settings import ConfigError, parse_toml
+from navigator.config import PlannerConfig, rover_config_from_table
 from navigator.follower import FollowerConfig, PurePursuit
 from navigator.guidance import ARRIVED, BLOCKED, DRIVING, IDLE, NO_PATH, Guidance
 from navigator.perception import ObstacleObservation
@@ -87,9 +88,11 @@ def test_moving_obstacle_crossing_ahead_stops_the_rover_then_it_goes_on() -> Non
     guidance.observe([ObstacleObservation(0, "walker", 5.0, 12.0, 0.3, vx=0.0, vy=-1.0)])
     out = guidance.update(0, 2.0, 10.0, 0.0, 0.5)
     assert out.mode == BLOCKED and out.speed_mps == 0.0 and out.speed_limit_reason == "moving_obstacle"
-    # Seen again having crossed and walking away: the way is clear.
+    # Seen again having crossed and walking away: the way is clear, and once it has stayed clear for
+    # moving_clear_s (0.5 s) the rover drives on.
     guidance.observe([ObstacleObservation(4_000_000_000, "walker", 5.0, 6.0, 0.3, vx=0.0, vy=-1.0)])
-    assert guidance.update(4_000_000_000, 2.0, 10.0, 0.0, 0.0).mode == DRIVING
+    assert guidance.update(4_000_000_000, 2.0, 10.0, 0.0, 0.0).mode == BLOCKED
+    assert guidance.update(4_500_000_000, 2.0, 10.0, 0.0, 0.0).mode == DRIVING
 
 
 def test_blocked_is_reported_when_it_starts_and_ends_not_on_every_tick() -> None:
@@ -103,14 +106,15 @@ def test_blocked_is_reported_when_it_starts_and_ends_not_on_every_tick() -> None
     details = [out.detail for out in ticks if out.detail]
     assert details == ["moving obstacle cart predicted on the path"]
     assert guidance.blocker == "cart"
-    # It moves away: one "way clear" on the tick the mode goes back to DRIVING, then silence.
+    # It moves away: still BLOCKED until the way has been clear for 0.5 s (25 ticks), then one "way clear"
+    # on the tick the mode goes back to DRIVING, then silence.
     guidance.observe([ObstacleObservation(1_000_000_000, "cart", 5.0, 20.0, 0.5, vx=0.0, vy=1.0)])
-    after = [guidance.update(1_000_000_000 + i * 20_000_000, 2.0, 10.0, 0.0, 0.0) for i in range(5)]
-    assert [out.mode for out in after] == [DRIVING] * 5
+    after = [guidance.update(1_000_000_000 + i * 20_000_000, 2.0, 10.0, 0.0, 0.0) for i in range(30)]
+    assert [out.mode for out in after] == [BLOCKED] * 25 + [DRIVING] * 5
     assert [out.detail for out in after if out.detail] == [
         "way clear: moving obstacle cart no longer on the path"
     ]
-    assert guidance.blocker is None
+    assert after[25].detail and guidance.blocker is None
 
 
 def test_blocked_stays_blocked_when_stopping_shrinks_the_corridor_it_judges() -> None:
@@ -125,9 +129,48 @@ def test_blocked_stays_blocked_when_stopping_shrinks_the_corridor_it_judges() ->
     # DRIVING here, sped up, and was BLOCKED again: a flicker every few ticks).
     stopped = [guidance.update(40_000_000 + i * 20_000_000, 2.0, 10.0, 0.0, 0.0) for i in range(20)]
     assert all(out.mode == BLOCKED for out in stopped)
-    # Gone: clear, and judged at the speed of the moment again.
+    # Gone: clear (for 0.5 s), and judged at the speed of the moment again.
     guidance.observe([ObstacleObservation(1_000_000_000, "cart", 7.0, 20.0, 0.3, vx=0.0, vy=1.0)])
-    assert guidance.update(1_000_000_000, 2.0, 10.0, 0.0, 0.0).mode == DRIVING
+    guidance.update(1_000_000_000, 2.0, 10.0, 0.0, 0.0)
+    assert guidance.update(1_500_000_000, 2.0, 10.0, 0.0, 0.0).mode == DRIVING
+
+
+def test_a_way_clear_for_less_than_moving_clear_s_does_not_end_the_wait() -> None:
+    guidance = _guidance(_flat())
+    guidance.set_goal(27.0, 10.0)
+    guidance.update(0, 2.0, 10.0, 0.0, 0.0)
+    guidance.observe([ObstacleObservation(0, "cart", 5.0, 10.0, 0.5, vx=0.0, vy=-0.01)])
+    assert guidance.update(20_000_000, 2.0, 10.0, 0.0, 0.0).mode == BLOCKED
+    details: list[str] = []
+
+    def tick(t_ns: int, cart_y: float) -> str:
+        guidance.observe([ObstacleObservation(t_ns, "cart", 5.0, cart_y, 0.5, vx=0.0, vy=-0.01)])
+        out = guidance.update(t_ns, 2.0, 10.0, 0.0, 0.0)
+        details.extend([out.detail] if out.detail else [])
+        return out.mode
+
+    # The cart seems off the path for 0.4 s (a jumpy estimate, a turn at the end of its track), then back
+    # on it: the wait goes on, with no event; the clear time starts again from zero.
+    modes = [tick(40_000_000 + i * 20_000_000, 20.0) for i in range(20)]
+    modes += [tick(440_000_000 + i * 20_000_000, 10.0) for i in range(5)]
+    assert modes == [BLOCKED] * 25 and details == []
+    # Off the path for good: BLOCKED for 0.5 s of clear, then DRIVING, with one "way clear".
+    start_ns = 540_000_000
+    modes = [tick(start_ns + i * 20_000_000, 20.0) for i in range(30)]
+    first_driving = modes.index(DRIVING)
+    assert modes[first_driving:] == [DRIVING] * (30 - first_driving)
+    assert first_driving * 20_000_000 == PlannerConfig().moving_clear_s * 1e9
+    assert details == ["way clear: moving obstacle cart no longer on the path"]
+
+
+def test_moving_clear_s_zero_leaves_blocked_on_the_first_clear_tick() -> None:
+    guidance = Guidance(_flat(), PARAMS, PlannerConfig(moving_clear_s=0.0), FollowerConfig())
+    guidance.set_goal(27.0, 10.0)
+    guidance.update(0, 2.0, 10.0, 0.0, 0.0)
+    guidance.observe([ObstacleObservation(0, "cart", 5.0, 10.0, 0.5, vx=0.0, vy=-0.01)])
+    assert guidance.update(20_000_000, 2.0, 10.0, 0.0, 0.0).mode == BLOCKED
+    guidance.observe([ObstacleObservation(40_000_000, "cart", 5.0, 20.0, 0.5, vx=0.0, vy=1.0)])
+    assert guidance.update(40_000_000, 2.0, 10.0, 0.0, 0.0).mode == DRIVING
 
 
 def _drive(
@@ -197,3 +240,10 @@ def test_a_far_obstacle_seen_every_cycle_waits_once_and_enters_the_map_at_its_ne
     out = guidance.update(600, 11.0, 10.0, 0.0, 0.0)  # now within 5 m
     assert out.path_changed and out.detail.count("rock") == 1
     assert guidance.planner.cost_grid[guidance.planner.terrain.cell_of(14.2 + 0.9, 10.0)] == np.inf
+
+
+def test_moving_clear_s_is_read_from_the_planner_table_and_checked() -> None:
+    config = rover_config_from_table(parse_toml("[planner]\nmoving_clear_s = 1.5\n", "<test>"))
+    assert config.planner.moving_clear_s == 1.5
+    with pytest.raises(ConfigError, match=r"planner\.moving_clear_s"):
+        rover_config_from_table(parse_toml("[planner]\nmoving_clear_s = -0.1\n", "<test>"))

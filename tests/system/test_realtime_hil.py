@@ -15,6 +15,7 @@ import pytest
 from hil.realtime_metrics import realtime_metrics
 from hil.scenario import Scenario
 from hil.trial import TrialResult
+from logs.reader import read_metadata
 from tests.system.conftest import DATA
 from tests.system.realtime_rig import (
     START_TIMEOUT_S,
@@ -79,3 +80,5 @@ def test_rover_run_and_peer_reach_the_goal_like_lockstep(
         lockstep.duration_s,
     )
     assert not realtime.missing, realtime.missing
+    # The peer's world started on the monotonic clock (not at 0): the metrics time moving obstacles from it.
+    assert int(read_metadata(tmp_path / "peer" / "truth.mcap")["world"]["epoch_ns"]) > 0
