@@ -107,9 +107,12 @@ def ensure_numba_cache(environ: dict[str, str] | None = None) -> CacheChoice | N
     cache; returns what was set (for the caller to log), or None. Call before numba is imported: numba
     reads the variable once, on import."""
     env = os.environ if environ is None else environ
-    choice = choose_numba_cache_dir(
-        env, kernel_package_dirs(), lambda: private_temp_cache(Path(tempfile.gettempdir()), os.getuid())
-    )
+    try:
+        choice = choose_numba_cache_dir(
+            env, kernel_package_dirs(), lambda: private_temp_cache(Path(tempfile.gettempdir()), os.getuid())
+        )
+    except OSError:  # not even the temp directory is writable: numba's own error will say so
+        return None
     if choice is not None:
         env["NUMBA_CACHE_DIR"] = str(choice.path)
     return choice
