@@ -10,9 +10,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from firmware_bridge.can_link import CanLink, open_bus
-from firmware_bridge.errors import BridgeSetupError
+from firmware_bridge.errors import BridgeOperationError, BridgeSetupError
 from firmware_bridge.mavlink_link import MavlinkLink, signing_key_bytes
-from firmware_bridge.mavlink_transport import open_transport
+from firmware_bridge.mavlink_stream import TcpTransport
+from firmware_bridge.mavlink_transport import Transport, UdpTransport, open_transport
 from firmware_bridge.vesc import VescCodec
 from firmware_bridge.vesc_dbc import load_vesc_database
 from logs.clock import Clock
@@ -28,6 +29,7 @@ class RoverLinks:
     can: CanLink
     mavlink: MavlinkLink
     pacing_sources: tuple[object, ...]
+    mavlink_endpoint: str = ""  # the connection as configured, and where it listens if the OS picked
 
     def close(self) -> None:
         """Close both links (CAN first: it commands zero to every wheel on the way); safe to call twice."""
@@ -60,4 +62,20 @@ def open_links(config: RoverConfig, clock: Clock, sink: MessageSink) -> RoverLin
         rx_budget_bytes_per_s=settings.rx_budget_bytes_per_s,
     )
     pacing: dict[str, tuple[object, ...]] = {"imu": (transport,), "gps": (transport,), "wheels": (bus,)}
-    return RoverLinks(can_link, mavlink, pacing.get(config.pacing_sensor, ()))
+    return RoverLinks(
+        can_link, mavlink, pacing.get(config.pacing_sensor, ()), _endpoint(settings.connection, transport)
+    )
+
+
+def _endpoint(connection: str, transport: Transport) -> str:
+    """``connection`` and, for a listening end (udpin, tcpin), the address it is bound to: with port 0
+    in the config only the socket knows which port an autopilot or HIL peer must send to."""
+    if not connection.startswith(("udpin:", "tcpin:")) or not isinstance(
+        transport, (UdpTransport, TcpTransport)
+    ):
+        return connection
+    try:
+        host, port = transport.local_address
+    except (OSError, BridgeOperationError):
+        return connection
+    return f"{connection} (listening on {host}:{port})"

@@ -239,6 +239,8 @@ class OnboardStack:
         self._last_heartbeat_sent_ns: int | None = None
         self._healthy_since_ns: int | None = None
         self._not_ready = "not yet judged"  # the start-up checks failing at the last _ready
+        self._start_up_reported: str | None = None  # the pending checks the last startup_checks event named
+        self._start_up_passed = False
         self._last_tick_ns: int | None = None
         self._last_gps_ns: int | None = None
         self._last_ground_ns: int | None = None
@@ -340,7 +342,9 @@ class OnboardStack:
             self._read_obstacles(now)
 
             pose = self.estimator.pose()
-            guidance = self.guidance.tick(now, pose, self._ready(now, pose))
+            ready = self._ready(now, pose)
+            self._report_start_up(ready)
+            guidance = self.guidance.tick(now, pose, ready)
             driving = self.guidance.mode is Mode.DRIVING
             decision = self.safety.update(
                 self._safety_inputs(now, pose),
@@ -454,6 +458,25 @@ class OnboardStack:
         ]
         self._not_ready = ", ".join(missing)
         return not missing
+
+    def _report_start_up(self, ready: bool) -> None:
+        """Until the start-up checks first pass: a ``startup_checks`` event naming the pending ones on the
+        first tick and whenever they change, then one when all have passed. Without it nothing said why a
+        rover without a goal waited (the supervisor starts in IDLE: no mode change to report), nor when it
+        became ready; after that, a check failing again shows as guidance's WAITING_ESTIMATE cause."""
+        if self._start_up_passed:
+            return
+        if ready:
+            self._start_up_passed = True
+            settle_s = SETTLE_NS / NS_PER_S
+            self._event(
+                "startup_checks",
+                "info",
+                f"passed: autopilot heard, all wheel controllers heard, estimate healthy for {settle_s:g} s",
+            )
+        elif self._not_ready != self._start_up_reported:
+            self._start_up_reported = self._not_ready
+            self._event("startup_checks", "info", f"pending: {self._not_ready}")
 
     def _safety_inputs(self, now: int, pose: PoseEstimate | None) -> SafetyInputs:
         readings = self._wheels

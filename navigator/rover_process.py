@@ -99,6 +99,7 @@ def run_rover(
     duration_ns: int | None = None,
     telemetry: bool = True,
     wall_ns: Callable[[], int] = time.time_ns,
+    announce: Callable[[str], None] = _log.info,
 ) -> RunResult:
     """Run the onboard stack in real time until ``stop`` is set; returns the recording and timing.
 
@@ -110,6 +111,10 @@ def run_rover(
     reads the wall clock.
 
     ``wait`` idles the loop between reads (default: ``select`` on the pacing link, ``navigator.input_wait``).
+
+    ``announce`` gets one line when the links are open and the recording made (``links_line``) and one
+    when the warm-up is done and the loop starts: the CLI prints them, so an operator sees them whatever
+    the log level.
     """
     terrain = check_runnable(config)
     mcap_path = out_dir / "rover.mcap"
@@ -139,6 +144,7 @@ def run_rover(
                 if publisher is not None:
                     sink = FanoutSink([recorder, rate_limited(publisher, config.zenoh.rates_hz)])
                 pending.connect(sink)
+                announce(links_line(config, links, mcap_path, telemetry=publisher is not None))
                 # The onboard stack's warnings go on the recording's log topic too, published on the
                 # loop's thread (the planning worker's are queued until the next tick).
                 with recording_logs(deferred, clock) as log_lines:
@@ -156,7 +162,7 @@ def run_rover(
                     try:
                         timing = _warm_up_and_run(
                             stack, config, clock, links, deferred, wait, goal, stop, duration_ns,
-                            lambda _tick: log_lines.publish_pending(),
+                            lambda _tick: log_lines.publish_pending(), announce,
                         )  # fmt: skip
                     finally:
                         stack.close()  # zero wheel commands, links closed
@@ -213,9 +219,11 @@ def _warm_up_and_run(
     stop: threading.Event,
     duration_ns: int | None,
     observe: Callable[[TickSample], None] | None = None,
+    announce: Callable[[str], None] = _log.info,
 ) -> TimingStats:
     """Load the kernels, publish the map, set the goal, then run the loop until ``stop`` or the duration.
     ``observe`` (optional) is called after every tick, on the loop's thread."""
+    warm_up_start_ns = clock.now_ns()
     warm_up(stack.guidance.planner, config, clock)
     stack.publish_map()
     if goal is not None:
@@ -231,15 +239,30 @@ def _warm_up_and_run(
         poll=input_poller(links.pacing_sources) if wait is None else None,
         observe=observe,
     )
-    _log.info(
-        "rover %s running at %.0f Hz, paced by %s",
-        config.rover_id,
-        config.control_rate_hz,
-        config.pacing_sensor,
+    announce(
+        f"warm-up done in {(clock.now_ns() - warm_up_start_ns) / 1e9:.1f} s; rover {config.rover_id} "
+        f"running at {config.control_rate_hz:.0f} Hz, paced by {config.pacing_sensor}; driving waits for "
+        "the start-up checks (safety/events: startup_checks)"
     )
     freeze_start_up_heap()
     with realtime_switch_interval():
         return scheduler.run(duration_ns)
+
+
+def links_line(config: RoverConfig, links: RoverLinks, mcap_path: Path, *, telemetry: bool) -> str:
+    """What ``rover run`` opened, in one line: where it records, and what to point the peers at."""
+    if telemetry:
+        zenoh = f"Zenoh {config.zenoh.mode} listening on {', '.join(config.zenoh.listen) or 'nothing'}"
+        if any(endpoint.endswith(":0") for endpoint in config.zenoh.listen):
+            zenoh += " (port 0: the OS picks; set [zenoh] listen to a fixed port for a station to connect)"
+        if config.zenoh.connect:
+            zenoh += f", connecting to {', '.join(config.zenoh.connect)}"
+    else:
+        zenoh = "telemetry off"
+    return (
+        f"links open: recording {mcap_path}; CAN {config.can.interface} {config.can.channel}; "
+        f"MAVLink {links.mavlink_endpoint or config.mavlink.connection}; {zenoh}"
+    )
 
 
 def _record_failure(recorder: McapRecorder, clock: Clock, err: Exception) -> None:

@@ -14,6 +14,8 @@ import logging
 import sys
 from collections.abc import Sequence
 
+from rover_cli.numba_cache import ensure_numba_cache
+
 # family -> module that defines ``register(subparsers)``
 # (one line per family; keep the table sorted)
 FAMILIES = {
@@ -48,10 +50,18 @@ def picked_family(argv: Sequence[str]) -> str | None:
 def main(argv: Sequence[str] | None = None) -> int:
     if argv is None:
         argv = sys.argv[1:]
+    # Before any family is imported: numba reads NUMBA_CACHE_DIR once, when it is first imported.
+    numba_cache = ensure_numba_cache()
     parser = build_parser(picked_family(argv))
     args = parser.parse_args(argv)
     level = logging.WARNING - 10 * min(args.verbose, 2)
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
+    if numba_cache is not None:
+        logging.getLogger(__name__).warning(
+            "numba cache: %s; compiled kernels go to NUMBA_CACHE_DIR=%s (set NUMBA_CACHE_DIR to choose)",
+            numba_cache.reason,
+            numba_cache.path,
+        )
     handler = args.handler
     code: int = handler(args)
     return code

@@ -50,14 +50,7 @@ def run_command(args: argparse.Namespace) -> int:
         _log.error("%s", err)
         return 2
     stop = threading.Event()
-
-    def on_signal(signum: int, frame: FrameType | None) -> None:
-        del frame
-        _log.warning("signal %s: stopping (wheels to zero, recording closed)", signal.Signals(signum).name)
-        stop.set()
-
-    signal.signal(signal.SIGINT, on_signal)
-    signal.signal(signal.SIGTERM, on_signal)
+    _stop_on_signals(stop)
     out_dir = args.out or DEFAULT_RUNS_DIR / time.strftime("run-%Y%m%d-%H%M%S")
     duration_ns = None if args.duration is None else round(args.duration * 1e9)
     try:
@@ -69,10 +62,47 @@ def run_command(args: argparse.Namespace) -> int:
             goal=args.goal,
             duration_ns=duration_ns,
             telemetry=not args.no_telemetry,
+            announce=_announce,
         )
     except (RoverSetupError, BridgeError, TelemetrySetupError) as err:
         _log.error("cannot start: %s", err)
         return 2
+    finally:
+        _ignore_signals_from_now_on()
     print(f"recording: {result.mcap_path}")
     print(f"timing: {result.timing.describe()}")
     return 0
+
+
+def _announce(line: str) -> None:
+    """A start-up milestone, on the console whatever the log level (an operator or journald reads it)."""
+    print(line, flush=True)
+
+
+def _stop_on_signals(stop: threading.Event) -> None:
+    """SIGINT / SIGTERM set ``stop``; one that arrives while stopping is noted and ignored (a second
+    Ctrl-C, or systemd's SIGTERM after an operator's SIGINT, must not cut the shutdown short)."""
+
+    def on_signal(signum: int, frame: FrameType | None) -> None:
+        del frame
+        name = signal.Signals(signum).name
+        if stop.is_set():
+            _log.warning("signal %s: already stopping; ignored", name)
+            return
+        _log.warning("signal %s: stopping (wheels to zero, recording closed)", name)
+        stop.set()
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+
+
+def _ignore_signals_from_now_on() -> None:
+    """Ignore SIGINT / SIGTERM once the run has closed everything.
+
+    While the interpreter shuts down it puts the default handlers back before the last threads (Zenoh's)
+    are gone: a second SIGINT 10 ms after the first then killed the process with status 130 after a
+    clean stop. Nothing is left to protect by then, and a process that hangs here is still killed by
+    systemd's SIGKILL after TimeoutStopSec.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)

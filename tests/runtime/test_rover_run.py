@@ -35,6 +35,34 @@ resolution_m = 0.5
 """
 
 
+def start_rover(config: Path, out: Path, *args: str) -> subprocess.Popen[str]:
+    command = [
+        sys.executable,
+        "-m",
+        "rover_cli.main",
+        "-v",
+        "run",
+        "--config",
+        str(config),
+        "--out",
+        str(out),
+    ]
+    return subprocess.Popen([*command, *args], stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+
+
+def wait_until_running(process: subprocess.Popen[str]) -> list[str]:
+    """The lines ``rover run`` printed up to the one that says its loop runs (the warm-up done)."""
+    assert process.stdout is not None
+    lines = []
+    deadline = time.monotonic() + 60.0
+    for line in process.stdout:
+        lines.append(line.rstrip("\n"))
+        if "running at" in line or time.monotonic() > deadline:
+            break
+    assert lines and "running at" in lines[-1], lines
+    return lines
+
+
 def test_scheduler_holds_its_rate_and_measures_jitter() -> None:
     ticks: list[int] = []
     clock = MonotonicClock()
@@ -81,37 +109,20 @@ def test_rover_run_stops_wheels_and_closes_recording_on_signal(tmp_path: Path, s
     config.write_text(CONFIG.format(n=stop_signal))
     out = tmp_path / "run"
     started_unix_ns = time.time_ns()
-    process = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "rover_cli.main",
-            "-v",
-            "run",
-            "--config",
-            str(config),
-            "--out",
-            str(out),
-            "--goal",
-            "8,8",
-            "--no-telemetry",
-        ],
-        stderr=subprocess.PIPE,
-        stdout=subprocess.PIPE,
-        text=True,
-    )
+    process = start_rover(config, out, "--goal", "8,8", "--no-telemetry")
     try:
-        assert process.stderr is not None
-        deadline = time.monotonic() + 30.0
-        for line in process.stderr:
-            if "running at" in line or time.monotonic() > deadline:
-                break
+        announced = wait_until_running(process)
         time.sleep(1.3)  # ticks with nobody answering: the supervisor holds; one runtime/timing window
         process.send_signal(stop_signal)
         stdout, _ = process.communicate(timeout=20)
     finally:
         if process.poll() is None:
             process.kill()
+    # The operator saw what was opened and when the loop started, before the first tick.
+    assert announced[0].startswith(f"links open: recording {out / 'rover.mcap'}; CAN virtual runtest-")
+    assert "MAVLink udpin:127.0.0.1:0 (listening on 127.0.0.1:" in announced[0]
+    assert announced[0].endswith("; telemetry off")
+    assert announced[1].startswith("warm-up done in ") and "running at 50 Hz" in announced[1]
     assert process.returncode == 0, stdout
     mcap = out / "rover.mcap"
     metadata = read_metadata(mcap)
@@ -143,3 +154,29 @@ def test_rover_run_stops_wheels_and_closes_recording_on_signal(tmp_path: Path, s
     assert started_unix_ns / 1e9 <= first.timestamp <= time.time_ns() / 1e9
     stats = [m.message for m in read_messages(mcap, ["can/stats"])]  # the link's own bus load, once a second
     assert stats and all(s["bitrate"] == 1_000_000 and s["load_pct"] > 0.0 for s in stats)
+
+
+def test_a_second_signal_while_stopping_is_ignored(tmp_path: Path) -> None:
+    """Two SIGINTs 10 ms apart (an impatient Ctrl-C): a clean stop, exit 0, the recording whole. With Zenoh
+    on, the second once landed while the interpreter was finishing and killed it with status 130."""
+    config = tmp_path / "rover.toml"
+    config.write_text(CONFIG.format(n="twice").replace("enabled = false", "enabled = true"))
+    out = tmp_path / "run"
+    process = start_rover(config, out)
+    try:
+        announced = wait_until_running(process)
+        time.sleep(0.5)
+        process.send_signal(signal.SIGINT)
+        time.sleep(0.01)
+        process.send_signal(signal.SIGINT)
+        stdout, stderr = process.communicate(timeout=20)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert "Zenoh peer listening on tcp/127.0.0.1:0 (port 0" in announced[0]
+    assert process.returncode == 0, stderr[-2000:]
+    assert stderr.count("stopping (wheels to zero") == 1
+    assert "Traceback" not in stderr
+    assert f"recording: {out / 'rover.mcap'}" in stdout
+    timing = json.loads(read_metadata(out / "rover.mcap")["runtime"]["timing_json"])
+    assert timing["ticks"] > 0
