@@ -18,6 +18,7 @@ from firmware_bridge.mavlink_transport import Transport
 from firmware_bridge.vesc import WHEEL_COUNT, VescCodec
 from hil.autopilot_sim import AutopilotTruth, SimAutopilot
 from hil.battery import Battery
+from hil.bus_off import BusOffRoverEnd
 from hil.dynamics import DynamicsStep, RoverDynamics
 from hil.fault_links import FaultyCanBus, FaultyTransport
 from hil.faults import FaultSchedule
@@ -59,8 +60,9 @@ class SimWorld:
         fault_rng = np.random.default_rng([seed, 1])
         perception_rng = np.random.default_rng([seed, 2])
         has = {f.target for f in scenario.faults}
-        # The world's own wrapper, shut in close(); the wires themselves belong to whoever opened them.
+        # The world's own wrappers, shut in close(); the wires themselves belong to whoever opened them.
         self._faulty_can: FaultyCanBus | None = None
+        self._rover_ends: list[BusOffRoverEnd] = []
         if "can" in has:
             can_bus = self._faulty_can = FaultyCanBus(can_bus, self.faults, clock, fault_rng)
         if "mavlink" in has:
@@ -129,6 +131,8 @@ class SimWorld:
         """
         if self._faulty_can is not None:
             self._faulty_can.shutdown()
+        for end in self._rover_ends:
+            end.shutdown()
 
     def __enter__(self) -> SimWorld:
         return self
@@ -137,6 +141,19 @@ class SimWorld:
         self, kind: type[BaseException] | None, error: BaseException | None, trace: TracebackType | None
     ) -> None:
         self.close()
+
+    def rover_can_end(self, bus: can.BusABC) -> can.BusABC:
+        """The rover's end of an in-process CAN bus, as the scenario's faults leave it.
+
+        Lockstep only, where one process holds both ends: during a ``can`` ``off`` fault the rover's own
+        controller is bus-off too (``hil.bus_off``: its sends fail, it hears nothing but the error
+        frames). Without such a fault, ``bus`` itself. A wrapper is the world's, shut in ``close()``.
+        """
+        if self.faults.scheduled("can", "off"):
+            end = BusOffRoverEnd(bus, self.faults, self._clock)
+            self._rover_ends.append(end)
+            return end
+        return bus
 
     @property
     def rolled_over(self) -> bool:
