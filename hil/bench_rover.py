@@ -5,8 +5,9 @@ onboard loop, not the world. It runs as a process's target (the bench spawns it 
 network namespace, CAN on ``udp_multicast``) or in a thread (a ``virtual`` bus); it opens its own bus.
 
 Each step waits for its deadline with ``navigator.precise_wait.sleep_until`` (sleep, then spin the last
-``spin_ns``), and the autopilot reads the step's due time as its clock (``StepClock``): a real IMU samples
-on a hardware timer, and the sensor-paced loop takes whatever jitter the IMU's send has as its own.
+``spin_ns``), and the autopilot reads the step's due time as its clock (``hil.step_clock.StepClock``): a
+real IMU samples on a hardware timer, and the sensor-paced loop takes whatever jitter the IMU's send has
+as its own.
 ``spin_ns`` 0 is the plain sleep (with the OS's wake-up overshoot).
 """
 
@@ -24,6 +25,7 @@ from firmware_bridge.vesc_dbc import load_vesc_database
 from hil.autopilot_sim import AutopilotTruth, SimAutopilot
 from hil.dynamics import RoverDynamics
 from hil.jitter_trace import ImuSendLog
+from hil.step_clock import StepClock
 from hil.vesc_sim import SimVescBank
 from logs.clock import MonotonicClock, seconds
 from navigator.config import RoverConfig
@@ -33,22 +35,6 @@ from navigator.terrain import TerrainMap
 
 DATUM = (47.0, 8.0, 400.0)
 SIM_DT_NS = 10_000_000
-
-
-class StepClock:
-    """The autopilot's clock: the step's due time, as a hardware timer's tick is.
-
-    On the real clock the autopilot's 50 Hz IMU schedule and the 100 Hz steps drift into any phase (after
-    a late step it restarts from the late time); a due time a few microseconds after a step's reading then
-    sends the IMU on this step or the next depending on the wake-up: 10 ms of sensor jitter. On the step
-    times every schedule is a multiple of the step, and a sample's time stamp is when it was due.
-    """
-
-    def __init__(self, t: int) -> None:
-        self.t = t
-
-    def now_ns(self) -> int:
-        return self.t
 
 
 def run_sim_rover(

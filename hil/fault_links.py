@@ -1,8 +1,10 @@
 """Fault injection on the wires: the simulator's end of the CAN bus and of the MAVLink link.
 
-Both wrappers sit on the simulator's side, so a fault hits both directions, as a broken cable or a bus-off
-controller would: commands from the rover and status / sensor data to it. Random choices come from a
-generator of their own, so injecting a fault does not shift the sensor noise of the rest of the trial.
+Both wrappers sit on the simulator's side, so a fault hits both directions, as a broken cable would:
+commands from the rover and status / sensor data to it. A bus-off is also the rover's own controller's
+state (its sends fail); where one process holds both ends, ``hil.bus_off`` wraps the rover's end for that.
+Random choices come from a generator of their own, so injecting a fault does not shift the sensor noise of
+the rest of the trial.
 """
 
 from __future__ import annotations

@@ -16,7 +16,7 @@ gps       garbage        every fix: type 0 (no fix), 0 satellites, position nons
 imu       wrong          gyro / accel biased by ``gyro_bias_rps`` / ``accel_bias_mps2`` (3-vectors)
 imu       stuck          the same reading repeated (frozen sensor)
 imu       off            no SCALED_IMU
-can       off            bus-off: no frame passes either way
+can       off            bus-off: no frame passes either way (lockstep: rover's sends fail)
 can       intermittent   each frame dropped with ``probability``
 can       delayed        frames arrive ``delay_s`` late
 can       garbage        each frame's payload corrupted with ``probability``
@@ -107,6 +107,10 @@ class FaultSchedule:
             if fault.target == target and fault.active_at(t_ns) and (kind is None or fault.kind == kind):
                 return fault
         return None
+
+    def scheduled(self, target: str, kind: str) -> bool:
+        """Whether any fault on ``target`` of ``kind`` is scheduled at all."""
+        return any(f.target == target and f.kind == kind for f in self.faults)
 
     def active_all(self, target: str, t_ns: int) -> list[Fault]:
         t_ns -= self.epoch_ns

@@ -5,16 +5,19 @@ The same ``SimWorld`` the lockstep trial steps is paced here by ``navigator.runt
 inside a private network namespace, ``socketcan``/``vcan0`` where the kernel has it) and its autopilot
 answers on a UDP MAVLink port on 127.0.0.1 that the OS picked (``rover run`` connects with
 ``udpout:127.0.0.1:PORT``). Each step starts on the precise wait (``navigator.precise_wait``: sleep, then
-spin the last ``spin_ns``; about 9 % of a core at 1 ms): the simulated IMU samples on the step, and a real
-one samples on a hardware timer, not on the OS's wake-up overshoot.
+spin the last ``spin_ns``; about 9 % of a core at 1 ms), and the world's clock is the step's deadline on the
+scheduler's grid (``hil.step_clock.StepClock``), not the time the step woke up: a real IMU samples on a
+hardware timer, not on the OS's wake-up overshoot, so the simulated one is stamped and sent every 20 ms of
+the grid and the rover's sensor-paced loop meets only the send's own lateness.
 Everything the world publishes (ground truth, faults) goes to the peer's own
 MCAP, so real-time metrics can be computed from it together with the rover's recording
 (``hil.realtime_metrics``).
 
-A late tick integrates the time that really passed, in sub-steps of at most ``PHYSICS_DT_NS``, so the
-simulated rover moves in real time even when the machine is busy; the scheduler counts the overruns. A
-tick later than ``MAX_SUBSTEPS`` steps is a stall: the time beyond them is dropped, counted
-(``hil.peer_stalls``) and recorded on ``log``.
+The world moves from one step's deadline to the next. When steps ran so late that the scheduler skipped
+some (it counts them as overruns), the next deadline is several steps on and the world catches up in
+sub-steps of ``PHYSICS_DT_NS``, each on its own grid time, so the simulated rover keeps to real time even
+when the machine is busy. A gap of more than ``MAX_SUBSTEPS`` steps is a stall: the time beyond them is
+dropped, counted (``hil.peer_stalls``) and recorded on ``log``.
 """
 
 from __future__ import annotations
@@ -37,6 +40,7 @@ from firmware_bridge.vesc_dbc import load_vesc_database
 from hil.peer_files import write_peer_files
 from hil.peer_stalls import PeerStalls, stall_message
 from hil.scenario import Scenario
+from hil.step_clock import StepClock
 from hil.world import SimWorld
 from logs import topics
 from logs.clock import NS_PER_S, Clock, seconds
@@ -66,45 +70,53 @@ class PeerResult:
 
 
 class RealtimePeer:
-    """One ``SimWorld`` stepped in real time; ``tick()`` is the scheduler's callback.
+    """One ``SimWorld`` stepped in real time; ``tick(due_ns)`` is the scheduler's callback.
 
-    ``status_path`` (optional) is rewritten atomically every ``STATUS_PERIOD_NS`` with the body's pose and
-    speed and the wheels' speeds and command timeouts, so a test or an operator can watch the simulated
-    rover without opening the MCAP that is still being written.
+    The world's clock is ``clock``, a ``StepClock`` this peer sets to each physics step's due time on the
+    scheduler's grid, never to when the step woke up: the simulated controllers and sensors run on the
+    grid as hardware on its own timer does, and each IMU sample is stamped (``time_boot_ms``) and sent on
+    its 20 ms. ``status_path`` (optional) is rewritten atomically every ``STATUS_PERIOD_NS`` with the
+    body's pose and speed and the wheels' speeds and command timeouts, so a test or an operator can watch
+    the simulated rover without opening the MCAP that is still being written.
     """
 
     def __init__(
-        self, world: SimWorld, clock: Clock, recorder: McapRecorder, status_path: Path | None
+        self, world: SimWorld, clock: StepClock, recorder: McapRecorder, status_path: Path | None
     ) -> None:
         self.world = world
         self._clock = clock
         self._recorder = recorder
         self._status_path = status_path
-        self._last_ns = clock.now_ns()
-        self._next_status_ns = self._last_ns
+        self._last_ns: int | None = None  # the previous step's due time; None before the first step
+        self._next_status_ns = clock.now_ns()
         self._timeouts_seen = 0
         self.simulated_ns = 0
         self.stalls = PeerStalls(MAX_SUBSTEPS * PHYSICS_DT_NS)
 
-    def start(self) -> None:
-        """Time the first step from now: what came before it (start-up) is not a stall."""
-        self._last_ns = self._clock.now_ns()
+    def tick(self, due_ns: int) -> None:
+        """Move the world on to ``due_ns`` (the scheduler's deadline for this step, on its grid).
 
-    def tick(self) -> None:
-        now = self._clock.now_ns()
-        gap = now - self._last_ns
+        Normally that is one physics step; after the scheduler skipped late ticks it is several, each
+        stamped with its own grid time so the sensors keep their cadence. The first step is one physics
+        step: what came before it (start-up) is not a stall.
+        """
+        gap = PHYSICS_DT_NS if self._last_ns is None else due_ns - self._last_ns
+        if gap <= 0:
+            return  # the same deadline twice: nothing to integrate (the scheduler never does this)
         elapsed = self.stalls.note(gap)
         if elapsed < gap:
-            self._log(now, stall_message(gap, gap - elapsed))
-        self._last_ns = now
+            self._log(due_ns, stall_message(gap, gap - elapsed))
+        self._last_ns = due_ns
         steps = max(1, -(-elapsed // PHYSICS_DT_NS))
         dt_s = seconds(elapsed) / steps
-        for _ in range(steps):
+        for index in range(steps):
+            # The sub-steps end at the deadline; time dropped in a stall is before them.
+            self._clock.t = due_ns - (steps - 1 - index) * elapsed // steps
             self.world.tick(dt_s)
         self.simulated_ns += elapsed
-        self._note_timeouts(now)
-        if self._status_path is not None and now >= self._next_status_ns:
-            self._next_status_ns = now + STATUS_PERIOD_NS
+        self._note_timeouts(due_ns)
+        if self._status_path is not None and due_ns >= self._next_status_ns:
+            self._next_status_ns = due_ns + STATUS_PERIOD_NS
             self.write_status()
 
     def _note_timeouts(self, now: int) -> None:
@@ -132,7 +144,7 @@ class RealtimePeer:
         assert self._status_path is not None
         body = self.world.body
         status = {
-            "t_ns": self._last_ns,
+            "t_ns": self._clock.now_ns(),
             "x_m": body.x,
             "y_m": body.y,
             "yaw_rad": body.yaw,
@@ -197,10 +209,11 @@ def run_peer(
     with McapRecorder(mcap_path) as recorder:
         write_peer_header(recorder, scenario, config, seed)
         codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
-        with SimWorld(scenario, config.vehicle, codec, clock, can_bus, mavlink, recorder, seed) as world:
+        step_clock = StepClock(clock.now_ns())
+        with SimWorld(scenario, config.vehicle, codec, step_clock, can_bus, mavlink, recorder, seed) as world:
             world.record_start(recorder)  # its obstacles and faults count from here, not from the boot
             world.body.warm_up()  # before the port file: whoever waits on it meets a peer that runs on time
-            peer = RealtimePeer(world, clock, recorder, status_path)
+            peer = RealtimePeer(world, step_clock, recorder, status_path)
             if status_path is not None:
                 peer.write_status()
             rover_config = write_peer_files(out_dir, scenario, config, mavlink_port)
@@ -209,10 +222,11 @@ def run_peer(
             if on_ready is not None:
                 on_ready(rover_config)
             rate_hz = NS_PER_S / PHYSICS_DT_NS
-            scheduler = FixedRateScheduler(clock, rate_hz, peer.tick, wait=wait, stop=stop, spin_ns=spin_ns)
+            scheduler = FixedRateScheduler(
+                clock, rate_hz, lambda: peer.tick(scheduler.due_ns), wait=wait, stop=stop, spin_ns=spin_ns
+            )
             _log.info("HIL peer for %s running in real time at %.0f Hz", scenario.name, rate_hz)
             freeze_start_up_heap()  # a full collection would hold up the IMU's send by tens of ms
-            peer.start()
             timing = scheduler.run(duration_ns)
             if status_path is not None:
                 peer.write_status()

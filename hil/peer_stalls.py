@@ -1,9 +1,11 @@
 """Stalls of the real-time peer: steps so late that the simulated world dropped time.
 
-``hil.peer.RealtimePeer`` integrates the real time since its previous step, but at most ``cap_ns`` of it in
-one step (a longer jump would move the rover through walls); whatever is beyond the cap is simulated time
-that never happened. A stall means the simulated world stood still while the rover's clock ran on: no
-status frames, no IMU, no GPS, and the simulated controllers' command timeout measured on a frozen world.
+``hil.peer.RealtimePeer`` integrates the time from its previous step's deadline to this one's (the
+scheduler's grid, which skips the ticks a late step overran, so it keeps to real time), but at most
+``cap_ns`` of it in one step (a longer jump would move the rover through walls); whatever is beyond the
+cap is simulated time that never happened. A stall means the simulated world stood still while the
+rover's clock ran on: no status frames, no IMU, no GPS, and the simulated controllers' command timeout
+measured on a frozen world.
 Each stall is counted here and recorded on the peer's ``log`` topic (name ``hil.peer``) in the words of
 ``stall_message``, which ``parse_stall_message`` reads back (``hil.soak_report``), so a soak can say when
 the peer stalled even if the peer was killed before writing its summary.
@@ -22,7 +24,7 @@ _STALL = re.compile(
 
 @dataclass
 class PeerStalls:
-    """The peer's step gaps: how many stalled, the simulated time dropped, the longest gap (real ns)."""
+    """The peer's step gaps: how many stalled, the simulated time dropped, the longest gap (ns)."""
 
     cap_ns: int  # the most simulated time one step integrates
     stalls: int = 0
@@ -30,7 +32,7 @@ class PeerStalls:
     longest_gap_ns: int = 0
 
     def note(self, gap_ns: int) -> int:
-        """Take the real time since the previous step; returns the simulated time to integrate now."""
+        """Take the time since the previous step's deadline; returns the simulated time to integrate now."""
         self.longest_gap_ns = max(self.longest_gap_ns, gap_ns)
         if gap_ns <= self.cap_ns:
             return gap_ns

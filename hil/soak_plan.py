@@ -50,6 +50,8 @@ class SoakFault:
 # (docs/safety.md: GPS 3 s, heartbeat 3 s, wheel status 0.25 s).
 CATALOG: tuple[tuple[str, str, float, str, str], ...] = (
     ("gps", "off", 5.0, FAILSAFE, "gps_lost"),
+    # Across processes a bus-off is silence alone (the rover's sends still succeed: docs/hil.md), so the
+    # rover sees its controllers go quiet, not can_bus_off (which lockstep's hil.bus_off raises).
     ("can", "off", 1.0, FAILSAFE, "wheel_silent"),
     ("vesc", "off", 1.5, FAILSAFE, "wheel_silent"),  # a controller reboots
     ("mavlink", "off", 4.5, FAILSAFE, "heartbeat_lost"),

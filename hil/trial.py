@@ -125,18 +125,20 @@ def run_trial(
             lockstep_wires(config.can, clock=clock, can_backend=can_backend) as wires,
         ):
             codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
-            can_link = CanLink(wires.onboard_bus, codec, clock, sink, config=config.can)
-            mavlink = MavlinkLink(
-                wires.onboard_mavlink,
-                clock,
-                sink,
-                system_id=config.mavlink.system_id,
-                component_id=config.mavlink.component_id,
-            )
             with SimWorld(
                 scenario, config.vehicle, codec, clock, wires.sim_bus, wires.sim_mavlink, sink, seed
             ) as world:
                 world.record_start(recorder)
+                # The rover's CAN end as the scenario's faults leave it (a bus-off refuses its sends).
+                onboard_bus = world.rover_can_end(wires.onboard_bus)
+                can_link = CanLink(onboard_bus, codec, clock, sink, config=config.can)
+                mavlink = MavlinkLink(
+                    wires.onboard_mavlink,
+                    clock,
+                    sink,
+                    system_id=config.mavlink.system_id,
+                    component_id=config.mavlink.component_id,
+                )
                 stack = OnboardStack(
                     config,
                     clock,

@@ -18,6 +18,7 @@ from firmware_bridge.mavlink_transport import Transport
 from firmware_bridge.vesc import WHEEL_COUNT, VescCodec
 from hil.autopilot_sim import AutopilotTruth, SimAutopilot
 from hil.battery import Battery
+from hil.bus_off import BusOffRoverEnd
 from hil.dynamics import DynamicsStep, RoverDynamics
 from hil.fault_links import FaultyCanBus, FaultyTransport
 from hil.faults import FaultSchedule
@@ -63,8 +64,9 @@ class SimWorld:
         fault_rng = np.random.default_rng([seed, 1])
         perception_rng = np.random.default_rng([seed, 2])
         has = {f.target for f in scenario.faults}
-        # The world's own wrapper, shut in close(); the wires themselves belong to whoever opened them.
+        # The world's own wrappers, shut in close(); the wires themselves belong to whoever opened them.
         self._faulty_can: FaultyCanBus | None = None
+        self._rover_ends: list[BusOffRoverEnd] = []
         if "can" in has:
             can_bus = self._faulty_can = FaultyCanBus(can_bus, self.faults, clock, fault_rng)
         if "mavlink" in has:
@@ -134,6 +136,8 @@ class SimWorld:
         """
         if self._faulty_can is not None:
             self._faulty_can.shutdown()
+        for end in self._rover_ends:
+            end.shutdown()
 
     def __enter__(self) -> SimWorld:
         return self
@@ -146,6 +150,19 @@ class SimWorld:
     def record_start(self, recorder: McapRecorder) -> None:
         """The world's start on its clock (metadata ``world``): the metrics move the obstacles from it."""
         recorder.add_metadata(WORLD_METADATA, {"epoch_ns": str(self.epoch_ns)})
+
+    def rover_can_end(self, bus: can.BusABC) -> can.BusABC:
+        """The rover's end of an in-process CAN bus, as the scenario's faults leave it.
+
+        Lockstep only, where one process holds both ends: during a ``can`` ``off`` fault the rover's own
+        controller is bus-off too (``hil.bus_off``: its sends fail, it hears nothing but the error
+        frames). Without such a fault, ``bus`` itself. A wrapper is the world's, shut in ``close()``.
+        """
+        if self.faults.scheduled("can", "off"):
+            end = BusOffRoverEnd(bus, self.faults, self._clock)
+            self._rover_ends.append(end)
+            return end
+        return bus
 
     @property
     def rolled_over(self) -> bool:

@@ -138,7 +138,7 @@ class FixedRateScheduler:
 
     ``latency`` (optional) returns the stack's last sensor-to-command latency after each tick.
     ``spin_ns`` (default 0: none): spin this last stretch before each deadline instead of waiting (no
-    ``ingest`` in it); only with a real clock.
+    ``ingest`` in it); only with a real clock. ``due_ns`` is the running tick's deadline.
     """
 
     def __init__(
@@ -166,6 +166,9 @@ class FixedRateScheduler:
         self._latency = latency
         self.stop = stop or threading.Event()
         self.stats = TimingStats.empty()
+        # The deadline of the tick being run (``start + k * period``), whenever it actually started: a tick
+        # that stands for a hardware timer's tick (the simulated peer's sensors) reads its time here.
+        self.due_ns = 0
 
     def run(self, duration_ns: int | None = None) -> TimingStats:
         """Run until ``stop`` is set (or ``duration_ns`` has passed); returns the timing statistics."""
@@ -187,6 +190,7 @@ class FixedRateScheduler:
             if now < due:
                 now = spin_until(self._clock, due)
             tick_start = now
+            self.due_ns = due
             self._tick()
             tick_end = self._clock.now_ns()
             self.stats.ticks += 1

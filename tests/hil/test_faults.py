@@ -11,7 +11,9 @@ import numpy as np
 import pytest
 
 from hil.trial import run_trial
+from logs.reader import read_messages
 from logs.settings import ConfigError, parse_toml
+from logs.topics import SAFETY_EVENTS
 from navigator.config import rover_config_from_table
 from tests.hil.world_harness import WorldRun, run_world, scenario_with
 
@@ -214,3 +216,25 @@ def test_a_trial_with_can_faults_shuts_its_fault_wrapper(tmp_path, caplog):
         gc.collect()
     assert result.simulated_s >= 1.0
     assert not [r.getMessage() for r in caplog.records if "not properly shut down" in r.getMessage()]
+
+
+def test_can_bus_off_fires_the_rovers_can_bus_off_failsafe_in_a_lockstep_trial(tmp_path):
+    # The rover's own controller goes bus-off (hil.bus_off), not only the wire: the link says so and the
+    # supervisor holds the rover, then lets it drive on once the bus is back.
+    scenario = scenario_with(fault("can", "off", start=8.0, duration=1.0))
+    config = rover_config_from_table(parse_toml("", "<defaults>"))
+    result = run_trial(scenario, config, tmp_path)
+    events = [
+        (m.log_time_ns / 1e9, m.message["kind"]) for m in read_messages(result.mcap_path, [SAFETY_EVENTS])
+    ]
+    fired = [t for t, kind in events if kind == "failsafe.can_bus_off"]
+    cleared = [t for t, kind in events if kind == "cleared.can_bus_off"]
+    assert fired and 8.0 <= fired[0] < 8.02, events  # on the first control tick of the fault
+    assert len(fired) == 1 and cleared and 9.0 <= cleared[0] < 9.1
+    sent = [
+        m.log_time_ns / 1e9
+        for m in read_messages(result.mcap_path, ["can/frames"])
+        if m.message["direction"] == "tx" and 8.0 <= m.log_time_ns / 1e9 < 9.0
+    ]
+    assert sent == []
+    assert result.end_reason == "arrived", result.failures

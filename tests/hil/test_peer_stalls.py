@@ -10,8 +10,8 @@ from firmware_bridge.vesc_dbc import load_vesc_database
 from hil.lockstep import lockstep_wires
 from hil.peer import MAX_SUBSTEPS, PHYSICS_DT_NS, RealtimePeer
 from hil.peer_stalls import PeerStalls, parse_stall_message, stall_message
+from hil.step_clock import StepClock
 from hil.world import SimWorld
-from logs.clock import SimClock
 from logs.reader import read_messages
 from logs.recorder import McapRecorder
 from logs.settings import parse_toml
@@ -40,7 +40,7 @@ def test_the_stall_message_reads_back() -> None:
 def test_a_late_step_drops_simulated_time_and_the_peer_records_and_reports_it(tmp_path: Path) -> None:
     scenario = scenario_with("")
     config = rover_config_from_table(parse_toml("", "<defaults>"))
-    clock = SimClock()
+    clock = StepClock(0)
     status = tmp_path / "status.json"
     with (
         lockstep_wires(config.can, clock=clock) as wires,
@@ -50,14 +50,13 @@ def test_a_late_step_drops_simulated_time_and_the_peer_records_and_reports_it(tm
         world = SimWorld(
             scenario, config.vehicle, codec, clock, wires.sim_bus, wires.sim_mavlink, recorder, scenario.seed
         )
-        clock.advance(2_000 * MS)  # start-up before the first step is not a stall
         peer = RealtimePeer(world, clock, recorder, status)
-        peer.start()
+        due = 2_000 * MS  # start-up before the first step is not a stall
         for _ in range(3):
-            clock.advance(PHYSICS_DT_NS)
-            peer.tick()
-        clock.advance(440 * MS)  # the peer's process was not scheduled for 440 ms
-        peer.tick()
+            peer.tick(due)
+            due += PHYSICS_DT_NS
+        due += 430 * MS  # the peer's process was not scheduled for 440 ms: the scheduler skipped 43 ticks
+        peer.tick(due)
         peer.write_status()
     cap_ms = MAX_SUBSTEPS * PHYSICS_DT_NS / MS
     assert peer.simulated_ns == 3 * PHYSICS_DT_NS + MAX_SUBSTEPS * PHYSICS_DT_NS
@@ -70,4 +69,4 @@ def test_a_late_step_drops_simulated_time_and_the_peer_records_and_reports_it(tm
     )
     logged = [m for m in read_messages(tmp_path / "truth.mcap", [LOG]) if m.message["name"] == "hil.peer"]
     assert [parse_stall_message(m.message["message"]) for m in logged] == [(440.0, 440 - cap_ms)]
-    assert logged[0].log_time_ns == clock.now_ns()
+    assert logged[0].log_time_ns == due == clock.now_ns()

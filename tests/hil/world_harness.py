@@ -64,11 +64,11 @@ def run_world(extra: str = "", seconds: float = 4.0, speed_mps: float = 0.6) -> 
     clock, sink = SimClock(), MemorySink()
     with lockstep_wires(config.can, clock=clock) as wires:
         codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
-        can_link = CanLink(wires.onboard_bus, codec, clock, sink)
-        mavlink = MavlinkLink(wires.onboard_mavlink, clock, sink)
         with SimWorld(
             scenario, config.vehicle, codec, clock, wires.sim_bus, wires.sim_mavlink, sink, scenario.seed
         ) as world:
+            can_link = CanLink(world.rover_can_end(wires.onboard_bus), codec, clock, sink)
+            mavlink = MavlinkLink(wires.onboard_mavlink, clock, sink)
             tick = 0
             while clock.now_ns() < to_ns(seconds):
                 clock.advance(DT_NS)
