@@ -9,7 +9,7 @@ spin the last ``spin_ns``; about 9 % of a core at 1 ms): the simulated IMU sampl
 one samples on a hardware timer, not on the OS's wake-up overshoot.
 Everything the world publishes (ground truth, faults) goes to the peer's own
 MCAP, so real-time metrics can be computed from it together with the rover's recording
-(``hil.realtime_metrics``).
+(``rover logs report ROVER.mcap --truth TRUTH.mcap``, ``logs.paired_run``; ``hil.realtime_metrics``).
 
 A late tick integrates the time that really passed, in sub-steps of at most ``PHYSICS_DT_NS``, so the
 simulated rover moves in real time even when the machine is busy; the scheduler counts the overruns. A
