@@ -11,7 +11,7 @@ hardware timer, not on the OS's wake-up overshoot, so the simulated one is stamp
 the grid and the rover's sensor-paced loop meets only the send's own lateness.
 Everything the world publishes (ground truth, faults) goes to the peer's own
 MCAP, so real-time metrics can be computed from it together with the rover's recording
-(``hil.realtime_metrics``).
+(``rover logs report ROVER.mcap --truth TRUTH.mcap``, ``logs.paired_run``; ``hil.realtime_metrics``).
 
 The world moves from one step's deadline to the next. When steps ran so late that the scheduler skipped
 some (it counts them as overruns), the next deadline is several steps on and the world catches up in

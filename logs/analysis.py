@@ -15,7 +15,7 @@ import math
 import re
 import struct
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,6 +30,7 @@ from logs.can_load import WINDOW_NS, BusLoad, frame_bits, load_from_frame_window
 from logs.errors import LogReadError
 from logs.metrics import METRIC_TOPICS, TrialMetrics, metrics_from_entries
 from logs.obstacle_motion import MovingObstacle
+from logs.paired_run import TRUTH_TOPICS, PairedRead, part_sources, read_paired, with_problems
 from logs.reader import (
     Entry,
     ReadStats,
@@ -145,10 +146,15 @@ class TrialAnalysis:
     contacts: list[Contact] = field(default_factory=list)  # truth/contacts (simulation)
     obstacles: list[StaticObstacle] = field(default_factory=list)  # scenario metadata
     moving_obstacles: list[MovingObstacle] = field(default_factory=list)
+    # A real-time HIL run: the peer's truth file merged with the rover's ``path`` (logs.paired_run), and
+    # (part of the report, file it came from) for each part.
+    truth_path: str | None = None
+    sources: list[tuple[str, str]] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         return {
             "path": self.path,
+            **({"truth_path": self.truth_path, "sources": dict(self.sources)} if self.truth_path else {}),
             "terrain_class": self.terrain_class,
             "metrics": self.metrics.to_dict(),
             "figures": {key: _round(value) for key, value in self.figures.items()},
@@ -325,22 +331,52 @@ def _cyclic_gc_paused() -> Iterator[None]:
             gc.enable()
 
 
-def analyse(path: str | Path, *, can_bitrate: int | None = None) -> TrialAnalysis:
-    """Read ``path`` once and compute everything the report shows. ``LogReadError`` for non-MCAP files."""
+def analyse(
+    path: str | Path, *, truth: str | Path | None = None, can_bitrate: int | None = None
+) -> TrialAnalysis:
+    """Read ``path`` once and compute everything the report shows. ``LogReadError`` for non-MCAP files.
+
+    ``truth``: the ground truth of a real-time HIL run (``rover hil peer``'s ``truth.mcap``), ``path``
+    being the rover's recording of it (``rover run``): the two are merged by log time (``logs.paired_run``)
+    and analysed in the same single pass as one lockstep recording.
+    """
     stats = ReadStats()
     collector = _Collector()
-
-    def tee() -> Iterator[Entry]:
-        for entry in read_entries(path, topics=REPORT_TOPICS, stats=stats, raw_topics=RAW_TOPICS):
-            collector.take(entry)
-            yield entry
-
+    paired: PairedRead | None = None
     with _cyclic_gc_paused():
+        if truth is None:
+            entries: Iterable[Entry] = read_entries(
+                path, topics=REPORT_TOPICS, stats=stats, raw_topics=RAW_TOPICS
+            )
+        else:
+            paired = read_paired(path, truth, topics=REPORT_TOPICS, raw_topics=RAW_TOPICS)
+            entries, stats = paired.entries, paired.stats
+
+        def tee() -> Iterator[Entry]:
+            for entry in entries:
+                collector.take(entry)
+                yield entry
+
         metrics = metrics_from_entries(tee(), stats)
     if not collector.counts and not collector.metadata and not stats.truncated:
         raise LogReadError(f"{path} holds no messages or metadata at all")
-    summary_counts = _summary_counts(path) if stats.complete and not stats.truncated else None
-    return _finish(str(path), metrics, collector, stats, can_bitrate, summary_counts)
+    if paired is None:
+        summary_counts = _summary_counts(path) if stats.complete and not stats.truncated else None
+        return _finish(str(path), metrics, collector, stats, can_bitrate, summary_counts)
+    rover_counts = (
+        _summary_counts(path) if paired.rover_stats.complete and not paired.rover_stats.truncated else None
+    )
+    run = _finish(str(path), with_problems(metrics, paired.problems), collector, stats, can_bitrate, None)
+    run.truth_path = str(paired.truth)
+    run.sources = part_sources(paired)
+    if rover_counts is not None:
+        truth_counts = {topic: n for topic, n in collector.counts.items() if topic in TRUTH_TOPICS}
+        rover_only = {topic: n for topic, n in rover_counts.items() if topic not in TRUTH_TOPICS}
+        run.counts = dict(sorted((rover_only | truth_counts).items()))
+        run.counts_source = "rover file's MCAP summary; truth/* read from the truth file, inside the drive"
+    else:
+        run.counts_source = "topics read (rover file without a summary); truth/* inside the drive"
+    return run
 
 
 def _summary_counts(path: str | Path) -> dict[str, int] | None:

@@ -4,7 +4,9 @@ Inputs are recordings and/or directories (a campaign: every ``*.mcap`` below it)
 metrics, figures and plots; the first run is compared with each other run (aligned by distance); with more
 than two runs, or a directory, the per-terrain table of the paper's metrics is added. A recording that
 cannot be read at all is listed with the reason and the report goes on; one with missing topics gets a
-partial section that lists what is missing.
+partial section that lists what is missing. A real-time HIL run (``rover run``'s recording and
+``rover hil peer``'s ground truth, two files) is one run: ``--truth``, or the two files given alone
+(``realtime_pairs``), merged by log time (``logs.paired_run``).
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from typing import Any
 from logs.analysis import TrialAnalysis, analyse
 from logs.compare import RunComparison, compare_runs
 from logs.errors import LogReadError, LogsError
+from logs.reader import read_metadata
 from logs.topics import ESTIMATOR_POSE
 
 logger = logging.getLogger(__name__)
@@ -88,6 +91,7 @@ TERRAIN_COLUMNS = {
     "final_distance_to_goal_m": "distance to goal at end (m, mean)",
     "energy_wh_per_m": "energy per metre (Wh/m, mean)",
 }
+ROVER_RUN_MODE = "rover-run"  # trial.mode of a `rover run` recording (navigator.rover_process)
 # Shown with 4 significant digits: 3 decimals leave a Wh/m figure (~0.01) with one or two.
 SIGNIFICANT_METRICS = frozenset({"energy_wh_per_m"})
 
@@ -121,10 +125,20 @@ def expand_inputs(inputs: Sequence[str | Path]) -> tuple[list[Path], bool]:
     return files, campaign
 
 
-def write_report(inputs: Sequence[str | Path], out_dir: str | Path, *, plots: bool = True) -> ReportResult:
+def write_report(
+    inputs: Sequence[str | Path], out_dir: str | Path, *, plots: bool = True, truth: str | Path | None = None
+) -> ReportResult:
+    """``truth``: the peer's ground truth of a real-time HIL run, ``inputs`` being the one rover recording
+    of that run; without it, a lone real-time pair among the files is found by ``realtime_pairs``."""
     files, campaign = expand_inputs(inputs)
     if not files:
         raise ReportError(f"no recordings found in {', '.join(map(str, inputs))}")
+    if truth is not None and len(files) != 1:
+        raise ReportError(
+            f"--truth {truth} pairs with one rover recording (rover run's rover.mcap); {len(files)} given"
+        )
+    truths = {files[0]: Path(truth)} if truth is not None else ({} if campaign else realtime_pairs(files))
+    files = [path for path in files if path not in truths.values()]
     out = Path(out_dir)
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -133,7 +147,7 @@ def write_report(inputs: Sequence[str | Path], out_dir: str | Path, *, plots: bo
     result = ReportResult(out / "report.html", out / "report.md", out / "report.json")
     for path in files:
         try:
-            run = analyse(path)
+            run = analyse(path, truth=truths.get(path))
         except LogReadError as err:
             result.failed[str(path)] = str(err)
             logger.warning("skipped %s: %s", path, err)
@@ -156,6 +170,25 @@ def write_report(inputs: Sequence[str | Path], out_dir: str | Path, *, plots: bo
     result.markdown.write_text(_markdown(result), encoding="utf-8")
     result.html.write_text(_html(result, plots), encoding="utf-8")
     return result
+
+
+def realtime_pairs(files: Sequence[Path]) -> dict[Path, Path]:
+    """rover file -> truth file, when the files given one by one hold exactly one real-time HIL run: one
+    ``rover run`` recording (metadata ``trial.mode`` = ``rover-run``) and one ``rover hil peer`` truth
+    file (a ``peer`` metadata record), beside any other runs (a lockstep trial to compare with). With two
+    of either, which goes with which is not guessed: each file is its own run (report each pair with
+    ``--truth``)."""
+    rovers, truths = [], []
+    for path in files:
+        try:
+            metadata = read_metadata(path)
+        except LogsError:
+            continue  # unreadable: analyse says why, in its place in the report
+        if "peer" in metadata:
+            truths.append(path)
+        elif metadata.get("trial", {}).get("mode") == ROVER_RUN_MODE:
+            rovers.append(path)
+    return {rovers[0]: truths[0]} if len(rovers) == 1 and len(truths) == 1 else {}
 
 
 # --- tables -------------------------------------------------------------------------------------
@@ -325,6 +358,13 @@ def _identity_text(run: TrialAnalysis) -> str:
     return "; ".join(f"{key}: {value}" for key, value in run_identity(run))
 
 
+def _paired_text(run: TrialAnalysis) -> str:
+    return (
+        f"One real-time HIL run from two recordings, merged by log time (the OS monotonic clock both "
+        f"stamp): the rover's {run.path} and the peer's ground truth {run.truth_path}."
+    )
+
+
 def _comparison_text(comparison: RunComparison) -> str:
     if comparison.not_comparable:
         return (
@@ -360,6 +400,9 @@ def _markdown(result: ReportResult) -> str:
     for run in result.runs:
         parts.append(f"## {run.path}\n")
         parts.append(f"{_identity_text(run)}\n")
+        if run.truth_path:
+            parts.append(f"{_paired_text(run)}\n")
+            parts.append(_md_table(("part", "from"), run.sources))
         if run.missing:
             parts.append(f"**Partial report, missing:** {', '.join(run.missing)}\n")
         for problem in run.metrics.problems:
@@ -408,6 +451,9 @@ def _html(result: ReportResult, plots: bool) -> str:
         parts.append(f"<p class='warn'><b>Not readable:</b> {html.escape(path)}: {html.escape(reason)}</p>")
     for run in result.runs:
         parts.append(f"<h2>{html.escape(run.path)}</h2><p>{html.escape(_identity_text(run))}</p>")
+        if run.truth_path:
+            parts.append(f"<p>{html.escape(_paired_text(run))}</p>")
+            parts.append(_html_table(("part", "from"), run.sources))
         if run.missing:
             parts.append(
                 f"<p class='warn'><b>Partial report, missing:</b> {html.escape(', '.join(run.missing))}</p>"

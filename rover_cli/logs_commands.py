@@ -38,6 +38,12 @@ def register(families: Any) -> None:
     report.add_argument("inputs", type=Path, nargs="+", help="recordings and/or campaign directories")
     report.add_argument("--out", type=Path, required=True, help="folder for report.html/.md/.json")
     report.add_argument("--no-plots", action="store_true", help="tables only (faster)")
+    report.add_argument(
+        "--truth",
+        type=Path,
+        help="the ground truth (truth.mcap of `rover hil peer`) of the one rover recording given: reported "
+        "as one real-time HIL run, merged by log time",
+    )
     report.set_defaults(handler=report_command)
 
     export = commands.add_parser(
@@ -114,7 +120,7 @@ def report_command(args: argparse.Namespace) -> int:
 
     console = Console()
     try:
-        result = write_report(args.inputs, args.out, plots=not args.no_plots)
+        result = write_report(args.inputs, args.out, plots=not args.no_plots, truth=args.truth)
     except LogsError as err:
         print_error(console, err)
         return 2
@@ -127,6 +133,10 @@ def report_command(args: argparse.Namespace) -> int:
             soft_wrap=True,
         )
     for run in result.runs:
+        if run.truth_path:
+            console.print(
+                f"real-time run: {escape(run.path)} + truth {escape(run.truth_path)}", soft_wrap=True
+            )
         if run.missing:
             console.print(f"[yellow]partial[/yellow] {escape(run.path)}: missing {', '.join(run.missing)}")
     console.print(f"report: {result.html}\n        {result.markdown}\n        {result.json}")

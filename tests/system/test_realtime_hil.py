@@ -2,7 +2,9 @@
 
 The same small scenario as the lockstep tests. Tolerances against the lockstep run of that scenario
 (real time adds OS scheduling and UDP delivery, so the runs differ, but not by much): both arrive, no
-collisions or rollovers, path accuracy within 15 points, drive duration within 30 %.
+collisions or rollovers, path accuracy within 15 points, drive duration within 30 %. The pair's report
+(``rover logs report ROVER --truth TRUTH``) is one run with those metrics and the estimator's error
+against the peer's truth, within 0.3 m RMS of lockstep's.
 """
 
 from __future__ import annotations
@@ -15,7 +17,9 @@ import pytest
 from hil.realtime_metrics import realtime_metrics
 from hil.scenario import Scenario
 from hil.trial import TrialResult
+from logs.analysis import analyse
 from logs.reader import read_metadata
+from logs.report import write_report
 from tests.system.conftest import DATA
 from tests.system.realtime_rig import (
     START_TIMEOUT_S,
@@ -31,6 +35,9 @@ PATH_ACCURACY_POINTS = 15.0
 DURATION_RATIO = 0.30
 # Once driving has begun, the drive itself must finish within this (lockstep needs ~16 s).
 DRIVE_TIMEOUT_S = 60.0
+# The report's estimator error against the peer's truth: within this of lockstep's (0.14 m RMS on this
+# scenario; a real-time run measured 0.12 m), a clock or pairing error would be metres.
+ESTIMATOR_ERROR_SLACK_M = 0.3
 ARRIVED_LOG_LINE = "guidance.arrived"  # what `rover run -v` logs when guidance declares the goal reached
 
 BUSES = [
@@ -68,7 +75,8 @@ def test_rover_run_and_peer_reach_the_goal_like_lockstep(
         rover.send_signal(signal.SIGINT)
         assert rover.wait(timeout=20) == 0
 
-    realtime = realtime_metrics(tmp_path / "rover" / "rover.mcap", tmp_path / "peer" / "truth.mcap")
+    rover_mcap, truth_mcap = tmp_path / "rover" / "rover.mcap", tmp_path / "peer" / "truth.mcap"
+    realtime = realtime_metrics(rover_mcap, truth_mcap)
     lockstep = small_trial.metrics
     assert lockstep.goal_reached and realtime.goal_reached, realtime
     assert realtime.collisions == 0 and realtime.rollovers == 0, realtime
@@ -82,3 +90,12 @@ def test_rover_run_and_peer_reach_the_goal_like_lockstep(
     assert not realtime.missing, realtime.missing
     # The peer's world started on the monotonic clock (not at 0): the metrics time moving obstacles from it.
     assert int(read_metadata(tmp_path / "peer" / "truth.mcap")["world"]["epoch_ns"]) > 0
+
+    # `rover logs report ROVER --truth TRUTH`: the same run on the truth, with the estimator's error.
+    (run,) = write_report([rover_mcap], tmp_path / "report", plots=False, truth=truth_mcap).runs
+    assert run.metrics == realtime and not run.missing, run.missing
+    error = run.figures["estimator_position_error_rms_m"]
+    lockstep_error = analyse(small_trial.mcap_path).figures["estimator_position_error_rms_m"]
+    assert isinstance(error, float) and isinstance(lockstep_error, float)
+    assert abs(error - lockstep_error) <= ESTIMATOR_ERROR_SLACK_M, (error, lockstep_error)
+    assert dict(run.sources)["estimator error"].startswith(f"rover: {rover_mcap}")

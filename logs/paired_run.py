@@ -1,0 +1,199 @@
+"""One real-time HIL run from two recordings: the rover's (``rover run``) and the peer's ground truth
+(``rover hil peer``), merged into one stream of entries by log time.
+
+In lockstep one MCAP holds everything. Across processes the rover records what it sensed, planned and
+decided, and the peer records the ground truth (``truth/*``) and the scenario metadata. Both stamp their
+messages with the OS monotonic clock, which every process on the machine shares, so the two streams merge
+by ``log_time`` and the merged stream is analysed like one lockstep recording (``logs.analysis`` and
+``logs.metrics`` take it in their single pass).
+
+What comes from where: ``truth/*`` messages from the truth file only, cut to the rover's drive (its first
+control tick, the first ``navigator/state``, to its last one: the peer runs before the rover
+starts and after it stops, with the rover standing still); every other message from the rover's file,
+whole. Metadata: the rover's records as they are; the truth file's ``scenario`` record (the metrics need
+its obstacles, tolerances and goal) when the rover has none; the truth file's other records and its
+attachments under ``truth:NAME``, so the peer's own ``trial`` and ``config`` are never taken for the
+rover's.
+"""
+
+from __future__ import annotations
+
+import heapq
+from collections.abc import Collection, Iterable, Iterator, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+from logs.metrics import METRIC_TOPICS, TrialMetrics, metrics_from_entries
+from logs.reader import (
+    Entry,
+    ReadStats,
+    RecordedAttachment,
+    RecordedMessage,
+    RecordedMetadata,
+    RecordedRaw,
+    read_entries,
+)
+from logs.scenario_record import SCENARIO_METADATA
+from logs.topics import NAVIGATOR_STATE, TRUTH_CONTACTS, TRUTH_POSE, TRUTH_STABILITY, TRUTH_WHEELS
+
+# What the peer knows and the rover does not; everything else comes from the rover's file.
+TRUTH_TOPICS = frozenset({TRUTH_POSE, TRUTH_WHEELS, TRUTH_STABILITY, TRUTH_CONTACTS})
+TRUTH_PREFIX = "truth:"  # the truth file's own metadata and attachments, kept apart from the rover's
+
+
+@dataclass
+class PairedRead:
+    """The merged entries of a rover file and a truth file, and what the merge found."""
+
+    rover: Path
+    truth: Path
+    entries: Iterator[Entry]  # one pass; read lazily, so a long run is never all in memory at once
+    stats: ReadStats  # both reads together (cut, skipped): complete once ``entries`` is exhausted
+    rover_stats: ReadStats
+    truth_stats: ReadStats
+    window_ns: tuple[int, int]  # the rover's drive in log time; empty (start > end) if it has no tick
+    truth_kept: int = 0  # truth messages inside the window
+    truth_dropped: int = 0  # truth messages outside it (the peer before the rover started or after it ended)
+    problems: list[str] = field(default_factory=list)
+
+
+def read_paired(
+    rover: str | Path,
+    truth: str | Path,
+    *,
+    topics: Collection[str],
+    raw_topics: Collection[str] = (),
+) -> PairedRead:
+    """Read both files (``LogReadError`` for one that is missing, not MCAP or damaged) and merge them.
+
+    ``topics``: the topics wanted; those in ``TRUTH_TOPICS`` are read from ``truth`` only, the others
+    (and ``raw_topics``) from ``rover`` only. A truth file that has no truth message inside the rover's
+    drive (another run's, or a lockstep trial's, whose clock is simulated) is a problem named in
+    ``problems``: the entries are then the rover's run alone, without the truth file's metadata either.
+
+    The rover's file is read twice: first its control ticks and metadata (the window needs them before
+    the truth is cut), then everything, streamed into the merge; the truth inside the window is held in
+    memory (a fraction of the rover's messages: no CAN frames, no innovations).
+    """
+    rover, truth = Path(rover), Path(truth)
+    rover_stats, truth_stats = ReadStats(), ReadStats()
+    wanted_truth = [topic for topic in topics if topic in TRUTH_TOPICS]
+    wanted_rover = [topic for topic in topics if topic not in TRUTH_TOPICS]
+    ticks = list(read_entries(rover, topics=[NAVIGATOR_STATE]))
+    window = drive_window(ticks)
+    rover_has_scenario = any(isinstance(e, RecordedMetadata) and e.name == SCENARIO_METADATA for e in ticks)
+    result = PairedRead(rover, truth, iter(()), ReadStats(), rover_stats, truth_stats, window)
+    kept: list[Entry] = []
+    truth_metadata: list[Entry] = []
+    first_truth_ns: int | None = None
+    last_truth_ns = 0
+    for entry in read_entries(truth, topics=wanted_truth, stats=truth_stats):
+        if isinstance(entry, RecordedMessage):
+            first_truth_ns = entry.log_time_ns if first_truth_ns is None else first_truth_ns
+            last_truth_ns = entry.log_time_ns
+            if window[0] <= entry.log_time_ns <= window[1]:
+                kept.append(entry)
+            else:
+                result.truth_dropped += 1
+        elif isinstance(entry, RecordedMetadata):
+            keep_name = entry.name == SCENARIO_METADATA and not rover_has_scenario
+            truth_metadata.append(
+                entry if keep_name else RecordedMetadata(TRUTH_PREFIX + entry.name, entry.data)
+            )
+        elif isinstance(entry, RecordedAttachment):
+            truth_metadata.append(
+                RecordedAttachment(TRUTH_PREFIX + entry.name, entry.media_type, entry.log_time_ns, entry.data)
+            )
+    kept.sort(key=_log_time)  # stable
+    result.truth_kept = len(kept)
+    if wanted_truth and not kept:
+        span = None if first_truth_ns is None else (first_truth_ns, last_truth_ns)
+        result.problems.append(_no_overlap(truth, span, window))
+        truth_metadata = []  # another run's scenario would be taken for this one's
+    rover_entries = read_entries(rover, topics=wanted_rover, stats=rover_stats, raw_topics=raw_topics)
+    result.entries = _merged(truth_metadata, rover_entries, kept, result)
+    return result
+
+
+def _log_time(entry: Entry) -> int:
+    """Merge key: a message's log time; metadata and attachments (no place in time) go through at once."""
+    return entry.log_time_ns if isinstance(entry, RecordedMessage | RecordedRaw) else -1
+
+
+def _merged(
+    truth_metadata: list[Entry], rover_entries: Iterator[Entry], truth: list[Entry], result: PairedRead
+) -> Iterator[Entry]:
+    yield from truth_metadata
+    # The rover first: a rover and a truth message of the same log time keep that order, every time.
+    # heapq.merge takes the two streams as they come: a message the rover recorded a little out of order
+    # stays where it was (the metrics sort what they need by log time).
+    yield from heapq.merge(rover_entries, truth, key=_log_time)
+    _combine_into(result.stats, result.rover_stats, result.truth_stats)
+
+
+def drive_window(rover_entries: Iterable[Entry]) -> tuple[int, int]:
+    """(first control tick, last control tick): the span of the rover's ``navigator/state`` in log time;
+    ``(0, -1)`` (empty) when it has none (it never ran its control loop: no drive to measure).
+
+    The end is the last tick, not the first arrival: the rover may be sent on (a patrol), and a lockstep
+    trial also goes on until the rover comes to rest; the metrics end the drive at the last arrival."""
+    ticks = [
+        e.log_time_ns for e in rover_entries if isinstance(e, RecordedMessage) and e.topic == NAVIGATOR_STATE
+    ]
+    return (min(ticks), max(ticks)) if ticks else (0, -1)
+
+
+def _no_overlap(truth: str | Path, span: tuple[int, int] | None, window: tuple[int, int]) -> str:
+    if window[0] > window[1]:
+        return f"{truth}: not merged: the rover recorded no control tick (navigator/state), so no drive"
+    if span is None:
+        return f"{truth}: no truth message (truth/pose, truth/contacts ...): the run is the rover's alone"
+    return (
+        f"{truth}: no truth message inside the rover's drive "
+        f"(truth {span[0] / 1e9:.3f}-{span[1] / 1e9:.3f} s, "
+        f"rover {window[0] / 1e9:.3f}-{window[1] / 1e9:.3f} s of the monotonic clock): not the same run, or "
+        "not recorded on the same machine; the run is the rover's alone"
+    )
+
+
+def _combine_into(stats: ReadStats, a: ReadStats, b: ReadStats) -> None:
+    stats.messages = a.messages + b.messages
+    stats.malformed = a.malformed + b.malformed
+    stats.unknown_channel = a.unknown_channel + b.unknown_channel
+    stats.not_json = a.not_json + b.not_json
+    stats.truncated = a.truncated or b.truncated
+    stats.complete = a.complete and b.complete
+
+
+def paired_metrics(rover: str | Path, truth: str | Path) -> TrialMetrics:
+    """The paper's metrics of one real-time run (``logs.metrics``) on the merged stream; a pairing problem
+    (no truth inside the rover's drive) is among ``problems``."""
+    paired = read_paired(rover, truth, topics=METRIC_TOPICS)
+    return with_problems(metrics_from_entries(paired.entries, paired.stats), paired.problems)
+
+
+def with_problems(metrics: TrialMetrics, problems: Sequence[str]) -> TrialMetrics:
+    return replace(metrics, problems=(*metrics.problems, *problems)) if problems else metrics
+
+
+def part_sources(paired: PairedRead) -> list[tuple[str, str]]:
+    """(part of the report, where it came from), for the report to say which file each figure is from."""
+    rover, truth = paired.rover, paired.truth
+    if paired.truth_kept == 0:
+        return [("everything (no truth inside the rover's drive)", f"rover: {rover}")]
+    start_ns, end_ns = paired.window_ns
+    cut = (
+        f"truth: {truth} (truth/*, cut to the rover's drive {start_ns / 1e9:.3f}-{end_ns / 1e9:.3f} s of "
+        f"the monotonic clock: {paired.truth_kept} messages kept, {paired.truth_dropped} outside dropped)"
+    )
+    return [
+        ("trajectory, distance, duration, path and route accuracy, obstacle avoidance, goal distance", cut),
+        ("collisions and rollovers (truth/contacts), stability margin (truth/stability)", cut),
+        ("scenario: name, seed, start, goal, obstacles, tolerances", f"truth: {truth} (metadata)"),
+        ("estimator error", f"rover: {rover} (estimator/pose) vs truth/pose interpolated by log time"),
+        (
+            "everything else: plans, cross-track error, goal reached, energy, control loop, CAN, MAVLink, "
+            "innovations, safety events, log",
+            f"rover: {rover}",
+        ),
+    ]
