@@ -53,7 +53,9 @@ class SimWorld:
         self._clock = clock
         self._sink = sink
         # Fault times count from the world's start (the real-time peer's clock does not start at 0).
-        self.faults = FaultSchedule(scenario.faults, epoch_ns=clock.now_ns())
+        self.faults = FaultSchedule(
+            scenario.faults, epoch_ns=clock.now_ns(), controller_ids=codec.profile.controller_ids
+        )
         # Separate streams so a fault or an extra obstacle never shifts the sensor noise.
         sensor_rng = np.random.default_rng(seed)
         fault_rng = np.random.default_rng([seed, 1])
