@@ -15,6 +15,7 @@ from typing import Any
 
 import can
 
+from firmware_bridge.wheel_names import wheel_label
 from logs.can_load import WINDOW_NS
 from logs.topics import stamp
 
@@ -155,7 +156,9 @@ class ControllerLiveness:
         if self._alive[controller_id]:
             return None
         self._alive[controller_id] = True
-        return StateChange("can_controller_alive", "info", f"motor controller {controller_id} reports again")
+        return StateChange(
+            "can_controller_alive", "info", f"motor controller of {self._label(controller_id)} reports again"
+        )
 
     def check(self, now_ns: int) -> list[StateChange]:
         changes: list[StateChange] = []
@@ -167,7 +170,7 @@ class ControllerLiveness:
                     StateChange(
                         "can_controller_silent",
                         "error",
-                        f"motor controller {cid} silent for {silence / 1e6:.0f} ms "
+                        f"motor controller of {self._label(cid)} silent for {silence / 1e6:.0f} ms "
                         f"(limit {self._silent_after_ns / 1e6:.0f} ms)",
                     )
                 )
@@ -175,6 +178,9 @@ class ControllerLiveness:
 
     def alive(self) -> dict[int, bool]:
         return dict(self._alive)
+
+    def _label(self, controller_id: int) -> str:
+        return wheel_label(self._ids.index(controller_id), self._ids)
 
 
 class BusLoadMeter:

@@ -27,6 +27,7 @@ from firmware_bridge.can_health import (
 )
 from firmware_bridge.errors import BridgeOperationError, FrameError
 from firmware_bridge.vesc import WHEEL_COUNT, VescCodec, VescFrame, erpm_command
+from firmware_bridge.wheel_names import wheel_label
 from logs.can_load import frame_bits
 from logs.clock import Clock, to_ns
 from logs.closing import ClosesOnExit
@@ -206,11 +207,13 @@ class CanLink(ClosesOnExit):
             )
         erpm_per_mps = self.profile.erpm_per_mps
         requested: list[int] = []
-        for cid, speed in zip(self._ids, speeds_mps, strict=True):
+        for index, speed in enumerate(speeds_mps):
             if not math.isfinite(speed):
                 # A NaN command must never reach a motor; stopping that wheel is the safe reading of it.
                 self.counters.bad_commands += 1
-                logger.warning("wheel speed %r for controller %d is not finite; commanding 0", speed, cid)
+                logger.warning(
+                    "speed %r for %s is not finite; commanding 0", speed, wheel_label(index, self._ids)
+                )
                 speed = 0.0
             requested.append(erpm_command(speed * erpm_per_mps))
         with self._lock:

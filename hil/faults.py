@@ -39,6 +39,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+from firmware_bridge.wheel_names import wheel_label
 from logs import topics
 from logs.clock import to_ns
 from logs.settings import Table
@@ -97,6 +98,9 @@ class FaultSchedule:
 
     faults: tuple[Fault, ...] = ()
     epoch_ns: int = 0
+    # The wheels' CAN ids in wheel order (``[vesc] controller_ids``): a vesc fault's log names its wheel as
+    # the rover's own messages do (``firmware_bridge.wheel_names``).
+    controller_ids: tuple[int, ...] = ()
     _announced: set[int] = field(default_factory=set)
     _ended: set[int] = field(default_factory=set)
 
@@ -122,10 +126,22 @@ class FaultSchedule:
         for index, fault in enumerate(self.faults):
             if index not in self._announced and t_ns >= fault.start_ns:
                 self._announced.add(index)
-                _log(sink, log_ns, _LOG_WARNING, f"fault injected: {fault.name} ({_describe(fault)})")
+                _log(sink, log_ns, _LOG_WARNING, f"fault injected: {fault.name} ({self._describe(fault)})")
             if index not in self._ended and t_ns >= fault.end_ns:
                 self._ended.add(index)
-                _log(sink, log_ns, _LOG_INFO, f"fault cleared: {fault.name}")
+                _log(sink, log_ns, _LOG_INFO, f"fault cleared: {fault.name}{self._on_wheel(fault)}")
+
+    def _wheel(self, fault: Fault) -> str | None:
+        """The wheel a ``vesc`` fault breaks, named as the rover names it; None for other targets."""
+        return wheel_label(fault.controller, self.controller_ids) if fault.target == "vesc" else None
+
+    def _on_wheel(self, fault: Fault) -> str:
+        wheel = self._wheel(fault)
+        return "" if wheel is None else f" on {wheel}"
+
+    def _describe(self, fault: Fault) -> str:
+        wheel = self._wheel(fault)
+        return _describe(fault) + ("" if wheel is None else f", on {wheel}")
 
 
 def _describe(fault: Fault) -> str:

@@ -15,6 +15,7 @@ import can
 
 from firmware_bridge.errors import BridgeError, FrameError
 from firmware_bridge.vesc import WHEEL_COUNT, VescCodec, VescFrame
+from firmware_bridge.wheel_names import wheel_label
 from logs.clock import Clock, to_ns
 
 logger = logging.getLogger(__name__)
@@ -134,7 +135,7 @@ class SimVescBank:
         """While rebooting a controller is silent and its motor coasts; it comes back with fresh state."""
         if rebooting and not self._rebooting[wheel]:
             self.reboots += 1
-            logger.info("simulated VESC %d: rebooting", self._ids[wheel])
+            logger.info("simulated VESC of %s: rebooting", wheel_label(wheel, self._ids))
         elif not rebooting and self._rebooting[wheel]:
             # Fresh firmware state: no target, tachometer from zero, waiting for its first command.
             self._targets[wheel] = 0.0
@@ -171,7 +172,7 @@ class SimVescBank:
                 self._targets[i] = 0.0
                 self._last_command_ns[i] = None
                 self.timeouts += 1
-                logger.debug("simulated VESC %d: command timeout, stopping", self._ids[i])
+                logger.debug("simulated VESC of %s: command timeout, stopping", wheel_label(i, self._ids))
             before = self._erpm[i]
             after = 0.0 if self._stuck[i] else before + (self._targets[i] - before) * blend
             self._erpm[i] = after

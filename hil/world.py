@@ -58,7 +58,9 @@ class SimWorld:
         # The world's start on its clock: time zero of the scenario's faults and moving obstacles (the
         # real-time peer's monotonic clock counts from the boot). Recorded by record_start (metadata "world").
         self.epoch_ns = clock.now_ns()
-        self.faults = FaultSchedule(scenario.faults, epoch_ns=self.epoch_ns)
+        self.faults = FaultSchedule(
+            scenario.faults, epoch_ns=self.epoch_ns, controller_ids=codec.profile.controller_ids
+        )
         # Separate streams so a fault or an extra obstacle never shifts the sensor noise.
         sensor_rng = np.random.default_rng(seed)
         fault_rng = np.random.default_rng([seed, 1])

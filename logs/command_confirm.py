@@ -26,6 +26,10 @@ from logs.telemetry import subscribe
 
 logger = logging.getLogger(__name__)
 
+# The rover publishes the reason (safety/events) in the same tick as the NO_PATH state; on loopback or a
+# LAN it follows within milliseconds, so half a second covers it without keeping the operator waiting.
+REASON_GRACE_NS = 500_000_000
+
 
 def send_confirmed(
     session: zenoh.Session,
@@ -81,6 +85,15 @@ def send_confirmed(
             raise TelemetryError(f"cannot send {kind} to rover {rover_id!r}: {err}") from err
         logger.info("%s sent; waiting for %s", key, expected)
         _wait(watch.decided, clock, deadline_ns)
+        if watch.decided.is_set():
+            # A NO_PATH state may come before the event with the planner's reason: wait a little for it.
+            _wait(watch.complete, clock, min(deadline_ns, clock.now_ns() + REASON_GRACE_NS))
+        if watch.outcome is None and kind == "goal" and watch.accepted:
+            return SendOutcome(
+                Verdict.UNCONFIRMED,
+                f"the rover accepted the goal ({x:.2f}, {y:.2f}) but showed no plan outcome (DRIVING or "
+                f"NO_PATH) within {timeout_s:g} s; {watch.what_was_seen()}",
+            )
         if watch.outcome is None:
             return SendOutcome(
                 Verdict.UNCONFIRMED,

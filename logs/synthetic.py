@@ -102,6 +102,8 @@ def synthetic_trial(
                 "speed_limit_reason": "terrain",
                 "target_speed_mps": SPEED_MPS,
                 "target_yaw_rate_rps": 0.0,
+                "safety_mode": "IDLE" if tick == ticks else "DRIVING",
+                "failsafes": [],
             },
         )
         yield (

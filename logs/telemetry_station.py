@@ -4,7 +4,8 @@ thin the rover's stream to configured rates.
 ``StreamRecorder`` writes every received sample into an ``McapRecorder`` with the rover's log time, so the
 ground-station file reads back like the rover's own (same topics, payloads and log times; ``rover logs
 report`` works on it), marked as a live-stream recording (``LIVE_STREAM_METADATA``) because its topics may
-be thinned. ``LiveView`` keeps the latest pose, speed, mode, health and CAN bus load for
+be thinned. ``LiveView`` keeps the latest pose, speed, both modes (guidance's and the safety
+supervisor's), active failsafes, goal, health, CAN bus load and when the rover was last heard for
 ``rover telemetry watch``. ``RateLimitedSink`` sits in front of the Zenoh publisher on the rover: per-topic
 maximum rates judged on log time, so lockstep trials stay deterministic; ``can/stats`` is never thinned.
 
@@ -24,6 +25,7 @@ from collections.abc import Mapping
 import zenoh
 
 from logs.can_load import WINDOW_NS, frame_bits
+from logs.clock import Clock, to_ns
 from logs.encoding import EncodedSink
 from logs.errors import LogsError, TelemetrySetupError
 from logs.recorder import McapRecorder
@@ -42,6 +44,11 @@ from logs.topics import (
 )
 
 logger = logging.getLogger(__name__)
+
+# The rover publishes navigator/state every tick (~20 Hz, thinned to a few Hz at most): two seconds of
+# silence is a link or a rover in trouble, not a quiet moment.
+STALE_AFTER_S = 2.0
+LAST_HEARD = "last heard"
 
 
 class RateLimitedSink:
@@ -129,22 +136,36 @@ class StreamRecorder:
 
 
 class LiveView:
-    """Latest state of one rover from its stream; ``rows()`` for a table. Thread-safe."""
+    """Latest state of one rover from its stream; ``rows()`` for a table. Thread-safe.
 
-    def __init__(self, bitrate: int | None = None) -> None:
+    Guidance's mode and the safety supervisor's are shown side by side (``navigator/state``): guidance
+    may be DRIVING while the supervisor holds the wheels. The active failsafes are the rover's own list
+    (``navigator/state``'s ``failsafes``), so a view started after a failsafe fired still shows it.
+    "last heard" is judged on ``clock`` (the station's), not on the rover's log time: a rover that went
+    silent keeps its last log time forever.
+    """
+
+    def __init__(
+        self, clock: Clock, bitrate: int | None = None, stale_after_s: float = STALE_AFTER_S
+    ) -> None:
         """``bitrate`` (the rover config's, when the station has it) is used only without ``can/stats``."""
         self._lock = threading.Lock()
+        self._clock = clock
+        self._stale_after_ns = to_ns(stale_after_s)
         self._values: dict[str, str] = {}
         self._bitrate = bitrate
         self._stats: tuple[float, int] | None = None  # the latest can/stats: load %, bitrate
         self._can_frames: deque[tuple[int, int]] = deque()  # (log time, bits) of the last second
         self._can_bits = 0
+        self._heard_ns: int | None = None  # station clock at the last sample
         self.samples = 0
 
     def update(self, sample: TelemetrySample) -> None:
         message = sample.message
+        heard = self._clock.now_ns()
         with self._lock:
             self.samples += 1
+            self._heard_ns = heard
             try:
                 self._take(sample.topic, sample.log_time_ns, message)
             except (KeyError, TypeError, ValueError):
@@ -161,12 +182,7 @@ class LiveView:
             if topic == ESTIMATOR_POSE:
                 self._values["estimator"] = "healthy" if message.get("healthy") else "NOT healthy"
         elif topic == NAVIGATOR_STATE:
-            self._values["mode"] = str(message["mode"])
-            self._values["speed limit"] = (
-                f"{message['speed_limit_mps']} m/s ({message['speed_limit_reason']})"
-            )
-            xte = message.get("cross_track_error_m")
-            self._values["cross-track error (m)"] = "n/a" if xte is None else f"{float(xte):.2f}"
+            self._take_state(message)
         elif topic == SAFETY_EVENTS:
             self._values["last safety event"] = (
                 f"{message['severity']}: {message['kind']} {message['detail']}"
@@ -179,6 +195,43 @@ class LiveView:
             self._can_bits += bits
             while self._can_frames and self._can_frames[0][0] <= t_ns - WINDOW_NS:
                 self._can_bits -= self._can_frames.popleft()[1]
+
+    def _take_state(self, message: Message) -> None:
+        # Parsed whole before anything is shown, so a bad message leaves the previous state standing.
+        limit = f"{float(message['speed_limit_mps']):.2f} m/s ({message['speed_limit_reason']})"
+        xte = message.get("cross_track_error_m")
+        goal = message.get("goal")
+        gx, gy = (_finite(goal.get("x")), _finite(goal.get("y"))) if isinstance(goal, dict) else (None, None)
+        safety = message.get("safety_mode")
+        failsafes = message.get("failsafes")
+        values = {
+            "mode (guidance)": str(message["mode"]),
+            # An older rover does not publish the supervisor's mode; its speed-limit reason names a hold.
+            "mode (safety)": (
+                "n/a (older rover: see the speed limit's reason)" if safety is None else str(safety)
+            ),
+            "failsafes active": (
+                "n/a (older rover: see the safety events)"
+                if failsafes is None
+                else ", ".join(str(f) for f in failsafes) or "none"
+            ),
+            "speed limit": limit,
+            # The rover sends NaN (null in JSON) for "no goal".
+            "goal": "none" if gx is None or gy is None else f"({gx:.2f}, {gy:.2f})",
+            "cross-track error (m)": "n/a" if xte is None else f"{float(xte):.2f}",
+        }
+        self._values.update(values)
+
+    def heard_ago_s(self) -> float | None:
+        """Seconds since the last sample (station clock); ``None`` when nothing was heard."""
+        with self._lock:
+            heard = self._heard_ns
+        return None if heard is None else (self._clock.now_ns() - heard) / 1e9
+
+    def stale(self) -> bool:
+        """Nothing heard at all, or nothing for longer than ``stale_after_s``."""
+        ago = self.heard_ago_s()
+        return ago is None or ago > self._stale_after_ns / 1e9
 
     def bus_load_pct(self) -> float | None:
         """The rover's own bus load over its last window (``can/stats``); ``None`` until one arrives."""
@@ -199,10 +252,21 @@ class LiveView:
         return f">= {load:.1f} (no can/stats: counted from can/frames, which may be thinned)"
 
     def rows(self) -> list[tuple[str, str]]:
+        ago = self.heard_ago_s()
+        if ago is None:
+            heard = "never: nothing received from the rover yet"
+        else:
+            heard = f"{ago:.1f} s ago" + (" (STALE)" if self.stale() else "")
         with self._lock:
-            rows = sorted(self._values.items())
+            rows = [(LAST_HEARD, heard), *sorted(self._values.items())]
             rows.append(("CAN bus load (%)", self._bus_load_row()))
         return rows
+
+
+def _finite(value: object) -> float | None:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        return None
+    return float(value)
 
 
 def rate_limited(sink: MessageSink, rates_hz: tuple[tuple[str, float], ...]) -> MessageSink:

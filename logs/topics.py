@@ -304,9 +304,24 @@ _SPECS = [
                 "speed_limit_reason": _STR,
                 "target_speed_mps": _NUM,
                 "target_yaw_rate_rps": _NUM,
-            }
+                "safety_mode": _STR,
+                "failsafes": _array(_STR),
+            },
+            # Recordings made before the supervisor's mode and failsafes were added still read.
+            required=[
+                "timestamp",
+                "mode",
+                "goal",
+                "cross_track_error_m",
+                "speed_limit_mps",
+                "speed_limit_reason",
+                "target_speed_mps",
+                "target_yaw_rate_rps",
+            ],
         ),
-        "Navigator mode, goal, cross-track error, speed limit and the reason for it.",
+        "Guidance's mode (what it is trying to do) and the safety supervisor's (what reaches the wheels: "
+        "IDLE, DRIVING, HOLD, ESTOP) with its active failsafes, goal, cross-track error, speed limit and "
+        "the reason for it.",
     ),
     TopicSpec(
         PERCEPTION_OBSTACLES,

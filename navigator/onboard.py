@@ -235,7 +235,13 @@ class OnboardStack:
         self._event = _EventFn(clock, sink)
         self.estimator = Estimator(config.estimator, clock, sink)
         self.guidance = RouteGuidance(config, terrain, sink, self._event, planning)
-        self.safety = SafetySupervisor(config.safety, config.vehicle, clock.now_ns(), self._event)
+        self.safety = SafetySupervisor(
+            config.safety,
+            config.vehicle,
+            clock.now_ns(),
+            self._event,
+            controller_ids=config.vesc.controller_ids,
+        )
         self._last_heartbeat_sent_ns: int | None = None
         self._healthy_since_ns: int | None = None
         self._not_ready = "not yet judged"  # the start-up checks failing at the last _ready
@@ -402,6 +408,10 @@ class OnboardStack:
                 "speed_limit_reason": _limit_reason(guidance, decision.mode, decision.speed_scale),
                 "target_speed_mps": speed,
                 "target_yaw_rate_rps": yaw_rate,
+                # The supervisor's word next to guidance's, so the topic never shows DRIVING alone while
+                # the wheels are held.
+                "safety_mode": decision.mode.value,
+                "failsafes": list(decision.faults),
             },
         )
 

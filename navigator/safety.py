@@ -15,9 +15,10 @@ from __future__ import annotations
 
 import enum
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+from firmware_bridge.wheel_names import wheel_label, wheel_labels
 from logs.clock import NS_PER_S, to_ns
 from navigator.safety_config import SafetyConfig
 from navigator.vehicle import VehicleParams, stability_margins
@@ -43,8 +44,6 @@ BATTERY_CRITICAL = "battery_critical"
 # Failsafes with other actions.
 BATTERY_LOW = "battery_low"  # speed limited
 ESTOP = "estop"  # latched ESTOP mode
-# Wheel order on the CAN link (firmware_bridge.vesc), for naming a stalled wheel.
-WHEEL_NAMES = ("left front", "left middle", "left rear", "right front", "right middle", "right rear")
 # A pack reading below this is "no reading yet" (STATUS_5 not received), not a flat battery.
 _NO_VOLTAGE_V = 1.0
 
@@ -105,8 +104,19 @@ def inside_polygon(x: float, y: float, polygon: tuple[tuple[float, float], ...])
 class SafetySupervisor:
     """Turns inputs into a mode; reports every failsafe firing or clearing and every mode change."""
 
-    def __init__(self, config: SafetyConfig, vehicle: VehicleParams, start_ns: int, emit: EventSink) -> None:
+    def __init__(
+        self,
+        config: SafetyConfig,
+        vehicle: VehicleParams,
+        start_ns: int,
+        emit: EventSink,
+        *,
+        controller_ids: Sequence[int] = (),
+    ) -> None:
+        """``controller_ids``: the wheels' CAN ids in wheel order (``[vesc]``), to name a wheel the way the
+        CAN link does (``firmware_bridge.wheel_names``); without them a wheel is named by index and place."""
         self._config = config
+        self._controller_ids = tuple(controller_ids)
         self._vehicle = vehicle
         self._start_ns = start_ns
         self._emit = emit
@@ -187,14 +197,12 @@ class SafetySupervisor:
         )
 
     def _check_links(self, i: SafetyInputs) -> None:
-        silent = [
-            f"#{index}"
-            for index, t in enumerate(i.wheel_last_status_ns)
-            if self._age(i.now_ns, t) > self._silent_ns
-        ]
+        ages = (self._age(i.now_ns, t) for t in i.wheel_last_status_ns)
+        silent = [index for index, age in enumerate(ages) if age > self._silent_ns]
         self._set(
             WHEEL_SILENT,
-            f"wheel controller(s) {', '.join(silent)} silent for more than {_ms(self._silent_ns)}"
+            f"motor controller of {wheel_labels(silent, self._controller_ids)} silent for more than "
+            f"{_ms(self._silent_ns)}"
             if silent
             else None,
         )
@@ -294,7 +302,6 @@ class SafetySupervisor:
             key = f"{WHEEL_STALLED}#{index}"
             held = self._sustained(key, stalled, i.now_ns, start_ns=i.sent_at_ns)
             if held > self._wheel_stall_ns:
-                name = WHEEL_NAMES[index] if index < len(WHEEL_NAMES) else f"#{index}"
                 window_start = i.now_ns - WHEEL_STALL_LATCH_WINDOW_NS
                 self._stall_trips = [t for t in self._stall_trips if t > window_start] + [i.now_ns]
                 self._stall_latched = len(self._stall_trips) >= WHEEL_STALL_LATCH_TRIPS
@@ -307,7 +314,8 @@ class SafetySupervisor:
                 self._trip(
                     WHEEL_STALLED,
                     "error",
-                    f"wheel {index} ({name}) commanded {command:.2f} m/s but turning at {speed:.2f} m/s "
+                    f"{wheel_label(index, self._controller_ids)} commanded {command:.2f} m/s but turning "
+                    f"at {speed:.2f} m/s "
                     f"while drawing {current:.1f} A for {_ms(held)} (limit {_ms(self._wheel_stall_ns)})"
                     + latched,
                 )

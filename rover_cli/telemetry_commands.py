@@ -36,7 +36,12 @@ def register(families: Any) -> None:
             "--connect", action="append", default=[], help="endpoint of the rover or a router (tcp/HOST:PORT)"
         )
 
-    watch = commands.add_parser("watch", help="live table of pose, speed, mode, health and bus load")
+    watch = commands.add_parser(
+        "watch",
+        help="live table of pose, speed, modes, failsafes, goal, health and bus load",
+        description="Exit status: 0 the rover was heard; 1 nothing was heard from it; 2 bad arguments "
+        "or Zenoh setup.",
+    )
     connection(watch)
     watch.add_argument(
         "--duration-s", type=float, default=None, help="stop after this long (default: Ctrl-C)"
@@ -126,8 +131,9 @@ def _wait(duration_s: float | None, tick: Any = None) -> None:
 
 
 def watch_command(args: argparse.Namespace) -> int:
+    from logs.clock import MonotonicClock
     from logs.telemetry import subscribe
-    from logs.telemetry_station import LiveView
+    from logs.telemetry_station import LAST_HEARD, LiveView
 
     console = Console()
     try:
@@ -136,24 +142,46 @@ def watch_command(args: argparse.Namespace) -> int:
         print_error(console, err)
         return 2
     # The rover reports its bus load itself (can/stats); the config's bitrate only serves an older rover.
-    view = LiveView(bitrate=_config_bitrate(args))
+    view = LiveView(MonotonicClock(), bitrate=_config_bitrate(args))
     subscription = subscribe(session, args.rover_id, view.update)
+    started = time.monotonic()
 
     def table() -> RichTable:
         rendered = RichTable(title=f"rover {args.rover_id}: {view.samples} samples")
         rendered.add_column("what")
         rendered.add_column("value")
+        stale = view.stale()
         for name, value in view.rows():
-            rendered.add_row(name, value)
+            # Rows are plain text (a rover's detail may hold brackets rich would read as markup).
+            rendered.add_row(name, value, style="bold red" if name == LAST_HEARD and stale else None)
         return rendered
 
     try:
         with Live(table(), console=console, refresh_per_second=4) as live:
             _wait(args.duration_s, lambda: live.update(table()))
+        if view.samples == 0:
+            info = session.info
+            peers, routers = len(info.peers_zid()), len(info.routers_zid())
     finally:
         subscription.close()
         session.close()
-    return 0
+    if view.samples:
+        return 0
+    reached = (
+        "no Zenoh peer or router"
+        if peers + routers == 0
+        else f"{peers} Zenoh peer(s) and {routers} router(s), none publishing rover/{args.rover_id}/**"
+    )
+    hint = f"is the rover (or its router) up at --connect {' '.join(args.connect)}?" if args.connect else ""
+    if peers + routers:
+        hint = f"is {args.rover_id!r} the rover's id (--rover-id)?"
+    console.print(
+        f"[red]heard nothing:[/red] no message from rover {args.rover_id} in "
+        f"{time.monotonic() - started:.1f} s; this station is connected to {reached}"
+        + (f"; {hint}" if hint else ""),
+        highlight=False,
+    )
+    return 1
 
 
 def record_command(args: argparse.Namespace) -> int:

@@ -26,6 +26,7 @@ from logs.telemetry import ZenohSettings, ZenohTelemetry, open_session, zenoh_co
 from rover_cli.main import main
 
 TICK_S = 0.02
+MAP_M = 20.0
 SHORT_TIMEOUT_S = 1.0
 
 
@@ -38,13 +39,27 @@ def _free_loopback_port() -> int:
 class FakeRover:
     """Acts on commands the way the onboard loop does, or (``answers=False``) hears them and says nothing."""
 
-    def __init__(self, session: zenoh.Session, rover_id: str, *, answers: bool, max_goal_m: float) -> None:
+    def __init__(
+        self,
+        session: zenoh.Session,
+        rover_id: str,
+        *,
+        answers: bool,
+        max_goal_m: float,
+        map_m: float = MAP_M,
+        plans: bool = True,
+    ) -> None:
+        """``max_goal_m``: the geofence; ``map_m``: the map (a goal off it is taken, then found unreachable);
+        ``plans=False``: takes goals but never finishes planning."""
         self.receiver = ZenohCommandReceiver(session, rover_id, MonotonicClock())
         self._telemetry = ZenohTelemetry(session, rover_id)
         self._answers = answers
         self._max_goal_m = max_goal_m
+        self._map_m = map_m
+        self._plans = plans
         self.estopped = False
         self.goal: tuple[float, float] | None = None
+        self.mode = "IDLE"
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="fake-rover", daemon=True)
         self._thread.start()
@@ -66,12 +81,27 @@ class FakeRover:
                         self._publish(topics.SAFETY_EVENTS, _event("goal_rejected", detail))
                     else:
                         self.goal = (command.x, command.y)
+                        self.mode = "PLANNING"  # the state of this tick; the plan's outcome comes next
+                        detail = f"new goal ({command.x:.2f}, {command.y:.2f})"
+                        self._publish(topics.SAFETY_EVENTS, _event("goal", detail))
             goal = self.goal or (float("nan"), float("nan"))
             reason = "safety estop" if self.estopped else "cruise"
             self._publish(
                 topics.NAVIGATOR_STATE,
-                {"mode": "DRIVING", "goal": {"x": goal[0], "y": goal[1]}, "speed_limit_reason": reason},
+                {
+                    "mode": self.mode,
+                    "goal": {"x": goal[0], "y": goal[1]},
+                    "speed_limit_mps": 0.0 if self.estopped else 1.0,
+                    "speed_limit_reason": reason,
+                    "safety_mode": "ESTOP" if self.estopped else "DRIVING",
+                    "failsafes": ["estop"] if self.estopped else [],
+                },
             )
+            if self.mode == "PLANNING" and self._plans:
+                self.mode = "DRIVING" if max(abs(goal[0]), abs(goal[1])) <= self._map_m else "NO_PATH"
+                if self.mode == "NO_PATH":
+                    detail = f"cannot plan: goal position is not on the map: point ({goal[0]:.3f}, ...)"
+                    self._publish(topics.SAFETY_EVENTS, _event("guidance.no_path", detail))
 
     def _publish(self, topic: str, message: dict[str, Any]) -> None:
         if self._answers:
@@ -93,9 +123,11 @@ def endpoint() -> str:
     return f"tcp/127.0.0.1:{_free_loopback_port()}"
 
 
-def _rover(endpoint: str, *, answers: bool = True, max_goal_m: float = 100.0) -> Iterator[FakeRover]:
+def _rover(
+    endpoint: str, *, answers: bool = True, max_goal_m: float = 100.0, plans: bool = True
+) -> Iterator[FakeRover]:
     session = open_session(ZenohSettings(enabled=True, listen=(endpoint,)))
-    rover = FakeRover(session, "r1", answers=answers, max_goal_m=max_goal_m)
+    rover = FakeRover(session, "r1", answers=answers, max_goal_m=max_goal_m, plans=plans)
     try:
         yield rover
     finally:
@@ -186,6 +218,60 @@ def test_a_refused_goal_exits_non_zero_with_the_rovers_reason(
         code, out, _ = _send(capsys, endpoint, "goal", "30", "3", "--timeout-s", "5")
         assert code == 1, out
         assert "NOT confirmed" in out and "refused the goal" in out and "geofence" in out, out
+
+
+def test_a_goal_off_the_map_is_taken_then_refused_with_the_planners_reason(
+    rover: FakeRover, endpoint: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Inside the geofence, so the rover takes it; the planner then proves it unreachable. Acceptance is
+    # not success: the operator must hear "no path" and why, not "confirmed ... PLANNING".
+    code, out, _ = _send(capsys, endpoint, "goal", "30", "3", "--timeout-s", "5")
+    assert code == 1, out
+    assert out.startswith(
+        "NOT confirmed: rover r1 goal 30 3: the rover accepted the goal but cannot reach"
+    ), out
+    assert "guidance.no_path" in out and "goal position is not on the map" in out, out
+    assert rover.goal == (30.0, 3.0) and rover.mode == "NO_PATH"
+
+    code, out, _ = _send(capsys, endpoint, "goal", "3.5", "-2", "--timeout-s", "5")
+    assert code == 0, out
+    assert "mode DRIVING, safety DRIVING, goal (3.50, -2.00)" in out, out
+
+
+def test_a_goal_whose_plan_never_comes_is_not_confirmed_and_says_it_was_accepted(
+    endpoint: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    for _ in _rover(endpoint, plans=False):
+        code, out, taken = _send(capsys, endpoint, "goal", "1", "2", "--timeout-s", str(SHORT_TIMEOUT_S))
+        assert code == 1, out
+        assert "the rover accepted the goal (1.00, 2.00) but showed no plan outcome" in out, out
+        assert "the last navigator/state: mode PLANNING, safety DRIVING, goal (1.00, 2.00)" in out, out
+        assert taken < SHORT_TIMEOUT_S + 1.5
+
+
+def _watch(capsys: pytest.CaptureFixture[str], endpoint: str, duration_s: float) -> tuple[int, str]:
+    code = main(
+        ["telemetry", "watch", "--rover-id", "r1", "--connect", endpoint, "--duration-s", str(duration_s)]
+    )
+    return code, " ".join(capsys.readouterr().out.split())
+
+
+def test_watch_with_no_rover_says_it_heard_nothing_and_exits_non_zero(
+    endpoint: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, out = _watch(capsys, endpoint, SHORT_TIMEOUT_S)
+    assert code == 1, out
+    assert "heard nothing: no message from rover r1" in out, out
+    assert "connected to no Zenoh peer or router" in out and f"--connect {endpoint}" in out, out
+
+
+def test_watch_shows_a_rover_it_hears_and_exits_zero(
+    rover: FakeRover, endpoint: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, out = _watch(capsys, endpoint, SHORT_TIMEOUT_S)
+    assert code == 0, out
+    assert "heard nothing" not in out and "last heard" in out, out
+    assert "mode (guidance)" in out and "mode (safety)" in out and "failsafes active" in out, out
 
 
 def test_no_wait_is_fire_and_forget_and_says_so(endpoint: str, capsys: pytest.CaptureFixture[str]) -> None:

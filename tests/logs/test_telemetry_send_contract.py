@@ -18,6 +18,8 @@ from tests.runtime.rig import FakeGroundStation, Rig, rig_config
 
 FENCE = ((0.0, 0.0), (20.0, 0.0), (20.0, 20.0), (0.0, 20.0))
 TICKS = 5  # the stack reads commands at the start of a tick; a few ticks publish its state after
+PLAN_TICKS = 200  # 10 s of 20 Hz ticks: the start-up checks (2 s of settled estimate) and the first plan
+WIDE_FENCE = ((-50.0, -50.0), (50.0, -50.0), (50.0, 50.0), (-50.0, 50.0))  # the rig's map is 20 x 20 m
 
 
 @pytest.fixture
@@ -32,16 +34,26 @@ def rover() -> Iterator[tuple[Rig, FakeGroundStation]]:
 
 
 def _send(
-    rig: Rig, ground: FakeGroundStation, kind: CommandKind, x: float | None = None, y: float | None = None
+    rig: Rig,
+    ground: FakeGroundStation,
+    kind: CommandKind,
+    x: float | None = None,
+    y: float | None = None,
+    *,
+    ticks: int = TICKS,
 ) -> CommandWatch:
-    """Queue the command, run a few ticks, and show the watch what the rover recorded meanwhile."""
+    """Queue the command, run ``ticks`` ticks (or until the watch decides), and show the watch what the
+    rover recorded meanwhile, tick by tick."""
     watch = CommandWatch(kind, x, y)
-    already = len(rig.sink.records)
+    seen = len(rig.sink.records)
     ground.queued.append(RoverCommand(kind, rig.now_ns, x, y))
-    for _ in range(TICKS):
+    for _ in range(ticks):
         rig.control_tick()
-    for topic, log_time_ns, message in rig.sink.records[already:]:
-        watch.observe(TelemetrySample(topic, log_time_ns, dict(message)))
+        for topic, log_time_ns, message in rig.sink.records[seen:]:
+            watch.observe(TelemetrySample(topic, log_time_ns, dict(message)))
+        seen = len(rig.sink.records)
+        if watch.decided.is_set():
+            break
     return watch
 
 
@@ -69,14 +81,29 @@ def test_goal_is_confirmed_by_navigator_state_and_a_fenced_off_goal_is_refused(
     rover: tuple[Rig, FakeGroundStation],
 ) -> None:
     rig, ground = rover
-    inside = _send(rig, ground, "goal", 12.25, 4.5)
+    # Taken at once, but confirmed only by the plan: after the start-up checks (a settled estimate).
+    inside = _send(rig, ground, "goal", 12.25, 4.5, ticks=PLAN_TICKS)
     assert inside.outcome is not None and inside.outcome.verdict is Verdict.CONFIRMED
-    assert "goal (12.25, 4.50)" in inside.outcome.detail
+    assert "mode DRIVING" in inside.outcome.detail and "goal (12.25, 4.50)" in inside.outcome.detail
 
     outside = _send(rig, ground, "goal", 30.0, 3.0)
     assert outside.outcome is not None and outside.outcome.verdict is Verdict.REJECTED
     assert "geofence" in outside.outcome.detail
     assert rig.stack.goal is not None and (rig.stack.goal.x, rig.stack.goal.y) == (12.25, 4.5)
+
+
+def test_a_goal_off_the_map_inside_the_fence_is_refused_with_the_planners_reason() -> None:
+    ground = FakeGroundStation()
+    rig = Rig(rig_config(fence=WIDE_FENCE), commands=ground)
+    try:
+        rig.run_for(0.2)
+        off_map = _send(rig, ground, "goal", 30.0, 3.0, ticks=PLAN_TICKS)
+        assert off_map.outcome is not None and off_map.outcome.verdict is Verdict.REJECTED
+        assert "guidance.no_path" in off_map.outcome.detail, off_map.outcome.detail
+        assert "goal position is not on the map" in off_map.outcome.detail, off_map.outcome.detail
+        assert rig.stack.mode.value == "NO_PATH"
+    finally:
+        rig.close()
 
 
 def test_an_estop_the_stack_never_reads_is_not_confirmed(rover: tuple[Rig, FakeGroundStation]) -> None:

@@ -67,13 +67,54 @@ def test_goal_is_confirmed_only_by_its_own_coordinates_and_refused_by_its_own_re
     watch.observe(event("goal_rejected", "goal (9.00, 9.00) is outside the geofence"))
     assert watch.outcome is None
     watch.observe(state(goal=(3.5, -2.0), mode="PLANNING"))
+    assert watch.outcome is None and watch.accepted  # taken, but the plan's outcome is not known yet
+    watch.observe(state(goal=(3.5, -2.0), mode="DRIVING"))
     assert watch.outcome is not None and watch.outcome.confirmed
-    assert "mode PLANNING, goal (3.50, -2.00)" in watch.outcome.detail
+    assert "mode DRIVING, goal (3.50, -2.00)" in watch.outcome.detail
 
     refused = CommandWatch("goal", 30.0, 3.0)
     refused.observe(event("goal_rejected", "goal (30.00, 3.00) is outside the geofence"))
     assert refused.outcome is not None and refused.outcome.verdict is Verdict.REJECTED
     assert "refused" in refused.outcome.detail and "geofence" in refused.outcome.detail
+
+
+def test_a_goal_taken_then_found_unreachable_is_refused_with_the_planners_reason() -> None:
+    watch = CommandWatch("goal", 30.0, 3.0)
+    watch.observe(event("guidance.no_path", "cannot plan: an earlier goal"))  # before ours: not about it
+    watch.observe(event("goal", "new goal (30.00, 3.00)"))
+    assert watch.outcome is None and watch.accepted
+    watch.observe(event("guidance.no_path", "cannot plan: goal position is not on the map"))
+    assert watch.outcome is not None and watch.outcome.verdict is Verdict.REJECTED
+    assert "cannot reach it" in watch.outcome.detail and "not on the map" in watch.outcome.detail
+
+    # The reason's event lost (best-effort stream): the NO_PATH state alone still refuses.
+    by_state = CommandWatch("goal", 6.5, 4.5)
+    by_state.observe(state(goal=(6.5, 4.5), mode="WAITING_ESTIMATE"))
+    by_state.observe(state(goal=(6.5, 4.5), mode="NO_PATH"))
+    assert by_state.outcome is not None and by_state.outcome.verdict is Verdict.REJECTED
+    assert "found no path" in by_state.outcome.detail and "mode NO_PATH" in by_state.outcome.detail
+    # The reason travels on safety/events and may come after the state: it is added, and the verdict stands.
+    assert by_state.decided.is_set() and not by_state.complete.is_set()
+    by_state.observe(event("guidance.no_path", "cannot plan: goal cell (18, 26) is lethal"))
+    assert by_state.complete.is_set() and by_state.outcome.verdict is Verdict.REJECTED
+    assert "cannot reach it" in by_state.outcome.detail and "is lethal" in by_state.outcome.detail
+
+
+def test_a_state_from_before_the_goal_was_taken_decides_nothing() -> None:
+    # The same goal sent again: the rover's old state already shows it DRIVING (or NO_PATH). Only what
+    # follows the acceptance (its event, or a state after another goal) is the answer to this send.
+    watch = CommandWatch("goal", 1.0, 2.0)
+    watch.observe(state(goal=(1.0, 2.0), mode="DRIVING"))
+    watch.observe(state(goal=(1.0, 2.0), mode="NO_PATH"))
+    assert watch.outcome is None and not watch.accepted
+    watch.observe(event("goal", "new goal (1.00, 2.00)"))
+    watch.observe(state(goal=(1.0, 2.0), mode="DRIVING"))
+    assert watch.outcome is not None and watch.outcome.confirmed
+
+    after_another = CommandWatch("goal", 1.0, 2.0)
+    after_another.observe(state(goal=(5.0, 5.0), mode="DRIVING"))
+    after_another.observe(state(goal=(1.0, 2.0), mode="DRIVING"))
+    assert after_another.outcome is not None and after_another.outcome.confirmed
 
 
 def test_the_first_verdict_stands() -> None:
@@ -97,5 +138,6 @@ def test_expected_effect_names_the_stream_and_a_goal_needs_coordinates() -> None
     assert "ESTOP transition" in expected_effect("estop") and "safety/events" in expected_effect("estop")
     assert "leaving ESTOP" in expected_effect("resume")
     assert "goal becoming (1.00, 2.00)" in expected_effect("goal", 1.0, 2.0)
+    assert "DRIVING" in expected_effect("goal", 1.0, 2.0)
     with pytest.raises(ValueError, match="x and y"):
         CommandWatch("goal", 1.0, None)

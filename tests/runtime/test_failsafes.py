@@ -77,9 +77,17 @@ def test_wheel_controller_silent(rig: Rig) -> None:
     assert fired is not None
     assert_wheels_stopped(rig, fired)
     assert rig.stack.safety_mode.value == "HOLD"
+    # CAN id 3 is wheel index 2: the link's event and the supervisor's name that wheel the same way.
+    same_wheel = "wheel 2 (left rear, CAN id 3)"
+    link_detail = rig.events("can_controller_silent")[0][1]["detail"]
+    assert link_detail.startswith(f"motor controller of {same_wheel} silent for "), link_detail
+    detail = rig.events("failsafe.wheel_silent")[0][1]["detail"]
+    assert detail == f"motor controller of {same_wheel} silent for more than 250 ms", detail
     rig.bus.silent_ids = set()
     assert_driving_again(rig)
     assert rig.first_event_ns("cleared.wheel_silent") is not None
+    alive = rig.events("can_controller_alive")[0][1]["detail"]
+    assert alive == f"motor controller of {same_wheel} reports again", alive
 
 
 def test_can_bus_off_when_sends_keep_failing(rig: Rig) -> None:
@@ -216,7 +224,7 @@ def test_wheel_stalled_holds_then_retries_and_clears_once_the_wheel_turns(rig: R
     first_seen_tick = -(-first_stalled_status // TICK_NS) * TICK_NS
     assert_fired_in_window(fired, first_seen_tick - TICK_NS, 1.0)
     detail = rig.events("failsafe.wheel_stalled")[0][1]["detail"]
-    assert detail.startswith("wheel 1 (left middle) commanded") and "A for" in detail
+    assert detail.startswith("wheel 1 (left middle, CAN id 2) commanded") and "A for" in detail
     assert_wheels_stopped(rig, fired)
     assert rig.stack.safety_mode.value == "HOLD"
     # Held for 2 s (the motor cools), then tried again: still seized, so it stalls and fires once more.

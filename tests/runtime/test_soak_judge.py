@@ -57,7 +57,10 @@ def test_another_failsafe_does_not_count() -> None:
 S = NS
 MAVLINK = SoakFault("mavlink", "off", 30.0, 4.5, FAILSAFE, "heartbeat_lost")
 CAN = SoakFault("can", "off", 50.0, 1.0, FAILSAFE, "wheel_silent")
-ALL_SIX = "wheel controller(s) #0, #1, #2, #3, #4, #5 silent for more than 250 ms"
+ALL_SIX = (
+    "motor controller of wheel 0 (left front, CAN id 1), ..., wheel 5 (right rear, CAN id 6) silent for "
+    "more than 250 ms"
+)
 
 
 def _placed() -> list[tuple[SoakFault, tuple[float, float] | None]]:
@@ -66,7 +69,11 @@ def _placed() -> list[tuple[SoakFault, tuple[float, float] | None]]:
 
 def test_a_failsafe_of_a_planned_fault_and_what_the_fault_takes_with_it_are_explained() -> None:
     failsafes = [
-        (int(10.3 * S), "failsafe.wheel_silent", "wheel controller(s) #4 silent for more than 250 ms"),
+        (
+            int(10.3 * S),
+            "failsafe.wheel_silent",
+            "motor controller of wheel 4 (right middle, CAN id 5) silent for more than 250 ms",
+        ),
         (int(33.0 * S), "failsafe.heartbeat_lost", "no autopilot heartbeat for 3010 ms"),
         (int(33.0 * S), "failsafe.gps_lost", "no 3D GPS fix for 3010 ms"),  # GPS comes over MAVLink
         (int(50.3 * S), "failsafe.wheel_silent", ALL_SIX),
@@ -113,7 +120,10 @@ def _soak(
 
     rover, truth = tmp_path / "rover.mcap", tmp_path / "truth.mcap"
     with McapRecorder(rover) as recorder:
-        for seconds, detail in [(10.3, "wheel controller(s) #4 silent for more than 250 ms"), *failsafes]:
+        for seconds, detail in [
+            (10.3, "motor controller of wheel 4 (right middle, CAN id 5) silent for more than 250 ms"),
+            *failsafes,
+        ]:
             recorder.publish(
                 SAFETY_EVENTS,
                 at(seconds),

@@ -75,6 +75,16 @@ def test_safety_mode_events_say_what_guidance_says(cart_trial):
 def test_the_onboard_stacks_warnings_are_on_the_log_topic(cart_trial):
     lines = [r.message for r in read_messages(cart_trial.mcap_path, topics=[topics.LOG])]
     assert any(line["name"] == "hil.faults" for line in lines)  # the simulator's own, as before
+    # The simulator names the seized wheel as the rover's wheel_stalled does.
+    injected = [line["message"] for line in lines if line["name"] == "hil.faults"]
+    assert any(
+        m.startswith("fault injected: vesc[1]/stuck (")
+        and m.endswith(", on wheel 1 (left middle, CAN id 2))")
+        for m in injected
+    ), injected
+    assert any(m == "fault cleared: vesc[1]/stuck on wheel 1 (left middle, CAN id 2)" for m in injected), (
+        injected
+    )
     gated = [
         line
         for line in lines
@@ -88,7 +98,7 @@ def test_the_onboard_stacks_warnings_are_on_the_log_topic(cart_trial):
 def test_the_seized_wheel_is_a_failsafe_event_and_its_stall_current_is_reported(cart_trial):
     events = [r.message for r in read_messages(cart_trial.mcap_path, topics=[topics.SAFETY_EVENTS])]
     stalled = [e for e in events if e["kind"] == "failsafe.wheel_stalled"]
-    assert stalled and all(e["detail"].startswith("wheel 1 (left middle)") for e in stalled)
+    assert stalled and all(e["detail"].startswith("wheel 1 (left middle, CAN id 2)") for e in stalled)
     assert any(e["kind"] == "cleared.wheel_stalled" for e in events)
     status = [
         r.message["wheels"][1]
