@@ -11,7 +11,8 @@ What comes from where: ``truth/*`` messages from the truth file only, cut to the
 control tick, the first ``navigator/state``, to its last one: the peer runs before the rover
 starts and after it stops, with the rover standing still); every other message from the rover's file,
 whole. Metadata: the rover's records as they are; the truth file's ``scenario`` record (the metrics need
-its obstacles, tolerances and goal) when the rover has none; the truth file's other records and its
+its obstacles, tolerances and goal) when the rover has none, and its ``world`` record (when the peer's
+world started: its moving obstacles are timed from it); the truth file's other records and its
 attachments under ``truth:NAME``, so the peer's own ``trial`` and ``config`` are never taken for the
 rover's.
 """
@@ -33,7 +34,7 @@ from logs.reader import (
     RecordedRaw,
     read_entries,
 )
-from logs.scenario_record import SCENARIO_METADATA
+from logs.scenario_record import SCENARIO_METADATA, WORLD_METADATA
 from logs.topics import NAVIGATOR_STATE, TRUTH_CONTACTS, TRUTH_POSE, TRUTH_STABILITY, TRUTH_WHEELS
 
 # What the peer knows and the rover does not; everything else comes from the rover's file.
@@ -96,7 +97,9 @@ def read_paired(
             else:
                 result.truth_dropped += 1
         elif isinstance(entry, RecordedMetadata):
-            keep_name = entry.name == SCENARIO_METADATA and not rover_has_scenario
+            keep_name = entry.name == WORLD_METADATA or (
+                entry.name == SCENARIO_METADATA and not rover_has_scenario
+            )
             truth_metadata.append(
                 entry if keep_name else RecordedMetadata(TRUTH_PREFIX + entry.name, entry.data)
             )
