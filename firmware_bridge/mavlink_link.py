@@ -31,7 +31,7 @@ from firmware_bridge.mavlink_commands import (
     statustext_chunks,
 )
 from firmware_bridge.mavlink_health import MavlinkCounters, MavlinkHealth
-from firmware_bridge.mavlink_transport import DatagramTransport, Transport
+from firmware_bridge.mavlink_transport import DatagramTransport, Transport, check_connection
 from logs.clock import Clock, to_ns
 from logs.closing import ClosesOnExit
 from logs.settings import Table
@@ -79,6 +79,10 @@ class MavlinkConfig:
                 "rx_budget_bytes_per_s", d.rx_budget_bytes_per_s, lo=1024, hi=100_000_000
             ),
         )
+        try:
+            check_connection(config.connection, allow_remote=config.allow_remote)
+        except BridgeSetupError as err:
+            raise table.error("connection", str(err)) from None
         if config.signing_key:
             try:
                 signing_key_bytes(config.signing_key)

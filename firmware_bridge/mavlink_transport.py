@@ -220,6 +220,46 @@ def _serial_device_and_baud(connection: str) -> tuple[str, int]:
     return spec, DEFAULT_SERIAL_BAUD
 
 
+def _check_host(host: str, allow_remote: bool, connection: str) -> None:
+    """``_resolve_host``'s loopback rule without a name lookup (a config is checked before the network)."""
+    if allow_remote or host == "localhost":
+        return
+    try:
+        loopback = ipaddress.IPv4Address(host).is_loopback
+    except ValueError:
+        loopback = False
+    if not loopback:
+        raise BridgeSetupError(
+            f"{connection!r}: host {host!r} is not a loopback IPv4 address; use 127.0.0.1, or set "
+            "allow_remote on the real vehicle"
+        )
+
+
+def check_connection(connection: str, *, allow_remote: bool = False) -> None:
+    """Refuse a connection string ``open_transport`` would refuse for its spelling alone, opening nothing.
+
+    Called when the config loads, so a typo is reported with the file and key before anything starts
+    (``open_transport`` still reports what only opening can find: a busy port, a missing device).
+    """
+    if connection == "memory":
+        return
+    scheme, _, rest = connection.partition(":")
+    if scheme in ("udpin", "udpout", "tcp", "tcpin"):
+        host, port = _split_host_port(connection, scheme, rest)
+        # Port 0 means "any" only for a listener; a sender needs a real one.
+        if not 0 <= port <= 65535 or (scheme in ("udpout", "tcp") and port == 0):
+            raise BridgeSetupError(f"{connection!r}: port {port} is out of range")
+        _check_host(host, allow_remote, connection)
+        return
+    if scheme == "serial" or connection.startswith("/dev/"):
+        _serial_device_and_baud(connection)
+        return
+    raise BridgeSetupError(
+        f"unknown MAVLink connection {connection!r}; expected udpin:HOST:PORT, udpout:HOST:PORT, "
+        "tcp:HOST:PORT, tcpin:HOST:PORT, serial:DEVICE:BAUD or memory"
+    )
+
+
 def open_transport(connection: str, *, allow_remote: bool = False) -> Transport:
     """A transport from a connection string as MAVLink users know them.
 

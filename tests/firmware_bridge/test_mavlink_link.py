@@ -1,5 +1,6 @@
 import base64
 import math
+import re
 
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
@@ -204,6 +205,39 @@ def test_mavlink_config_from_table():
     assert config == MavlinkConfig(connection="udpin:127.0.0.1:0")
     with pytest.raises(ConfigError, match="system_id"):
         MavlinkConfig.from_table(parse_toml("system_id = 0", "rover.toml"))
+
+
+@pytest.mark.parametrize(
+    ("connection", "text"),
+    [
+        ("udpin:127.0.0.1", "must look like udpin:HOST:PORT"),
+        ("udpout:127.0.0.1:99999", "port 99999 is out of range"),
+        ("tcp:127.0.0.1:0", "port 0 is out of range"),
+        ("udpout:192.0.2.7:14550", "not a loopback"),
+        ("serial:/dev/ttyS0:fast", "baud 'fast' is not a number"),
+        ("udp:127.0.0.1:14550", "unknown MAVLink connection"),
+        ("", "unknown MAVLink connection"),
+    ],
+)
+def test_mavlink_config_names_a_bad_connection_string_at_load(connection, text):
+    # A typo in the connection is a config error naming the file and key, found before anything opens.
+    with pytest.raises(ConfigError, match=rf"rover\.toml: connection: .*{re.escape(text)}"):
+        MavlinkConfig.from_table(parse_toml(f'connection = "{connection}"', "rover.toml"))
+
+
+@pytest.mark.parametrize(
+    "connection", ["memory", "udpin:127.0.0.1:0", "tcp:localhost:5760", "/dev/ttyACM0,57600", "serial:/dev/x"]
+)
+def test_mavlink_config_takes_a_well_formed_connection_without_opening_it(connection):
+    assert (
+        MavlinkConfig.from_table(parse_toml(f'connection = "{connection}"', "rover.toml")).connection
+        == connection
+    )
+
+
+def test_mavlink_config_takes_a_remote_host_only_with_allow_remote():
+    text = 'connection = "udpout:192.0.2.7:14550"\nallow_remote = true'
+    assert MavlinkConfig.from_table(parse_toml(text, "rover.toml")).allow_remote
 
 
 def test_compass_to_enu():

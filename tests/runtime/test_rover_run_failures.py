@@ -47,9 +47,10 @@ def write_config(tmp_path: Path, connection: str) -> Path:
 
 
 def test_a_link_that_cannot_open_leaves_nothing_in_out(tmp_path: Path) -> None:
-    config = load_rover_config(write_config(tmp_path, "udpin:127.0.0.1:notaport"))
+    # Well formed (a misspelt one is refused when the config loads), but no such device is plugged in.
+    config = load_rover_config(write_config(tmp_path, "serial:/dev/no-such-rover-tty:57600"))
     out = tmp_path / "run"
-    with pytest.raises(BridgeSetupError, match="udpin:HOST:PORT"):
+    with pytest.raises(BridgeSetupError, match=r"no-such-rover-tty.*cannot open"):
         run_rover(config, MonotonicClock(), out, stop=threading.Event(), telemetry=False)
     assert not out.exists()
 
