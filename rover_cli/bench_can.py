@@ -9,10 +9,21 @@ from typing import Any
 from rich.console import Console
 from rich.table import Table as RichTable
 
+from rover_cli.arg_types import bounded_int
+
+# Fewer frames than this measure the timer more than the codec; a smaller --rounds is refused, not rounded up.
+MIN_ROUNDS = 200
+MAX_ROUNDS = 10_000_000
+
 
 def register(commands: Any) -> None:
     bench = commands.add_parser("can", help="CAN rounds/s, receive latency and bus load (virtual bus)")
-    bench.add_argument("--rounds", type=int, default=20_000, help="frames per measurement (default 20000)")
+    bench.add_argument(
+        "--rounds",
+        type=bounded_int(MIN_ROUNDS, MAX_ROUNDS),
+        default=20_000,
+        help=f"frames per measurement (default 20000, at least {MIN_ROUNDS})",
+    )
     bench.add_argument("--json", action="store_true", help="print the figures as one JSON object")
     bench.set_defaults(handler=run)
 
@@ -20,7 +31,7 @@ def register(commands: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     from firmware_bridge.can_bench import run_can_bench  # imported when picked, like every benchmark
 
-    result = run_can_bench(max(args.rounds, 200))
+    result = run_can_bench(args.rounds)
     if args.json:
         print(json.dumps(result.as_dict()))
         return 0

@@ -2,6 +2,7 @@ import pytest
 
 from firmware_bridge.can_bench import bus_load, frame_bits, run_can_bench
 from firmware_bridge.can_bus import CanConfig
+from rover_cli.main import main
 
 
 def test_frame_bits_match_the_classic_can_budget():
@@ -32,3 +33,12 @@ def test_bench_runs_and_reports_every_figure():
     ]
     assert 0 < result.latency_p50_us <= result.latency_p99_us
     assert result.bus_load.frames_per_s == 6 * (50 + 50 + 10 + 10)
+
+
+@pytest.mark.parametrize("rounds", ["0", "-5", "199"])
+def test_bench_can_refuses_too_few_rounds_instead_of_running_others(rounds, capsys):
+    # It used to run 200 frames whatever smaller number was asked for.
+    with pytest.raises(SystemExit) as exit_info:
+        main(["bench", "can", "--rounds", rounds])
+    assert exit_info.value.code == 2
+    assert f"--rounds: must be 200 to 10000000, got {int(rounds)}" in capsys.readouterr().err
