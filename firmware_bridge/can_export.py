@@ -2,10 +2,11 @@
 
 The default is the candump log format as python-can writes it (``CanutilsLogWriter``; read back with
 ``can.CanutilsLogReader``, replayed with ``python -m can.player``). Other suffixes python-can writes
-(``.asc``, ``.blf``, ``.trc``, ``.csv``) go through ``can.Logger``. Frame times keep the recorded spacing,
-so a replay does too; they are dated by the recording's wall-clock start when it has one
-(``firmware_bridge.can_log_dates``: Unix time), else they are the recording's log times, with .asc / .trc /
-.blf dated at export (and the header saying so) instead of 1970.
+(``.asc``, ``.blf``, ``.trc``, ``.csv``) go through ``can.Logger``; ``.csv`` has no direction column
+(python-can's format), so an export with sent frames warns that they read back as received. Frame times
+keep the recorded spacing, so a replay does too; they are dated by the recording's wall-clock start when
+it has one (``firmware_bridge.can_log_dates``: Unix time), else they are the recording's log times, with
+.asc / .trc / .blf dated at export (and the header saying so) instead of 1970.
 
 A record that does not describe a frame (bad hex, DLC disagreeing with the payload, id out of range) is
 skipped, counted in ``ExportStats.rejected`` and logged; it never stops the export.
@@ -37,6 +38,9 @@ OTHER_SUFFIXES = (".asc", ".blf", ".trc", ".csv")
 _STANDARD_ID_MAX = 0x7FF
 _EXTENDED_ID_MAX = 0x1FFFFFFF
 _CLASSIC_MAX_DLC = 8
+# python-can's CSV columns are timestamp, id, extended, remote, error, dlc, data: no rx/tx, so its reader
+# returns every frame as received.
+_NO_DIRECTION_SUFFIXES = (".csv",)
 _MAX_REJECTION_WARNINGS = 10  # the first few bad records are logged in full, the rest only counted
 
 
@@ -183,6 +187,14 @@ def export_can_log(
     if opened is None:  # no frames: the log is written all the same, empty
         _open_writer(path, channel, time_base(suffix, anchor, 0, wall_ns())).stop()
     stats.truncated = read_stats.truncated
+    if suffix in _NO_DIRECTION_SUFFIXES and stats.tx:
+        logger.warning(
+            "%s: python-can's %s format has no direction column: the %d frames the companion sent read "
+            "back as received; export to .log, .asc, .blf or .trc to keep the direction",
+            path,
+            suffix,
+            stats.tx,
+        )
     if stats.rejected > _MAX_REJECTION_WARNINGS:
         logger.warning("skipped %d can/frames records in all", stats.rejected)
     logger.info("exported %d CAN frames to %s", stats.frames, path)

@@ -128,6 +128,38 @@ def test_other_formats_by_suffix_and_refusals(request, tmp_path):
         export_can_log(BytesIO(b"not an mcap file at all"), tmp_path / "x.log")
 
 
+def frame_fields(msg: can.Message) -> tuple[int, bool, int, bytes]:
+    return msg.arbitration_id, msg.is_extended_id, msg.dlc, bytes(msg.data)
+
+
+@pytest.mark.parametrize("suffix", [".log", ".asc", ".blf", ".trc", ".csv"])
+def test_python_can_reads_every_export_format_back_with_the_same_frames(request, tmp_path, suffix):
+    recording = record_a_run(request.node.name, ticks=6)
+    recorded = [m.message for m in read_messages(BytesIO(recording), topics=[CAN_FRAMES])]
+    out = tmp_path / f"run{suffix}"
+    stats = export_can_log(BytesIO(recording), out)
+    read_back = list(can.LogReader(out))
+    assert len(read_back) == stats.frames == len(recorded) > 0
+    expected = [(r["id"], r["extended"], r["dlc"], bytes.fromhex(r["data"])) for r in recorded]
+    assert [frame_fields(m) for m in read_back] == expected
+    if suffix != ".csv":  # python-can's CSV has no direction column (next test)
+        assert [m.is_rx for m in read_back] == [r["direction"] == "rx" for r in recorded]
+
+
+def test_a_csv_export_warns_that_sent_frames_read_back_as_received(request, tmp_path, caplog):
+    recording = record_a_run(request.node.name, ticks=4)
+    with caplog.at_level("WARNING", logger="firmware_bridge.can_export"):
+        stats = export_can_log(BytesIO(recording), tmp_path / "run.csv")
+    assert stats.tx > 0
+    assert (
+        f"no direction column: the {stats.tx} frames the companion sent read back as received" in caplog.text
+    )
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="firmware_bridge.can_export"):
+        export_can_log(BytesIO(recording), tmp_path / "run.log")
+    assert "direction" not in caplog.text
+
+
 def test_a_recording_cut_short_exports_up_to_the_cut(request, tmp_path):
     recording = record_a_run(request.node.name)
     whole = export_can_log(BytesIO(recording), tmp_path / "whole.log")
