@@ -12,7 +12,13 @@ import cantools.database
 
 from firmware_bridge.errors import BridgeOperationError, BridgeSetupError, FrameError
 from firmware_bridge.frame_packer import FramePacker
-from firmware_bridge.vesc_dbc import DEFAULT_CONTROLLER_IDS, VESC_MESSAGES, message_name
+from firmware_bridge.vesc_dbc import (
+    BROADCAST_NOTE,
+    DEFAULT_CONTROLLER_IDS,
+    MAX_CONTROLLER_ID,
+    VESC_MESSAGES,
+    message_name,
+)
 from logs.settings import Table
 
 WHEEL_COUNT = 6
@@ -40,8 +46,12 @@ class VescProfile:
             raise BridgeSetupError(
                 f"need {WHEEL_COUNT} distinct VESC controller ids in wheel order, got {ids}"
             )
-        if not all(isinstance(c, int) and not isinstance(c, bool) and 0 <= c <= 255 for c in ids):
-            raise BridgeSetupError(f"VESC controller ids must be integers 0..255, got {ids}")
+        if not all(
+            isinstance(c, int) and not isinstance(c, bool) and 0 <= c <= MAX_CONTROLLER_ID for c in ids
+        ):
+            raise BridgeSetupError(
+                f"VESC controller ids must be integers 0..{MAX_CONTROLLER_ID}, got {ids} ({BROADCAST_NOTE})"
+            )
         if self.pole_pairs < 1:
             raise BridgeSetupError(f"pole_pairs must be >= 1, got {self.pole_pairs}")
         if not (math.isfinite(self.gear_ratio) and self.gear_ratio > 0):
@@ -61,12 +71,14 @@ class VescProfile:
 
     @classmethod
     def from_table(cls, table: Table, wheel_radius_m: float) -> VescProfile:
-        """Keys: controller_ids (6 distinct ints 0..255, default 1..6), pole_pairs (7), gear_ratio (20.0)."""
+        """Keys: controller_ids (6 distinct ints 0..254, default 1..6), pole_pairs (7), gear_ratio (20.0)."""
         ids = table.integers("controller_ids", list(DEFAULT_CONTROLLER_IDS), length=WHEEL_COUNT)
         if len(set(ids)) != WHEEL_COUNT:
             raise table.error("controller_ids", f"ids must be distinct, got {ids}")
-        if not all(0 <= c <= 255 for c in ids):
-            raise table.error("controller_ids", f"ids must be within 0..255, got {ids}")
+        if not all(0 <= c <= MAX_CONTROLLER_ID for c in ids):
+            raise table.error(
+                "controller_ids", f"ids must be within 0..{MAX_CONTROLLER_ID}, got {ids} ({BROADCAST_NOTE})"
+            )
         pole_pairs = table.integer("pole_pairs", 7, lo=1)
         gear_ratio = table.number("gear_ratio", 20.0, lo=1e-6)
         table.finish()

@@ -19,6 +19,11 @@ from firmware_bridge.errors import BridgeSetupError
 
 DEFAULT_CONTROLLER_IDS: tuple[int, ...] = (1, 2, 3, 4, 5, 6)
 SHIPPED_DBC_NAME = "vesc_6wheel.dbc"
+# The VESC firmware obeys a command addressed to 255 whatever its own id (comm_can.c: ``id == 255 ||
+# id == controller_id``): a wheel given id 255 would drive all six, so the highest usable id is 254.
+BROADCAST_CONTROLLER_ID = 255
+MAX_CONTROLLER_ID = BROADCAST_CONTROLLER_ID - 1
+BROADCAST_NOTE = "255 is the VESC broadcast id: every controller obeys a command sent to it"
 
 # DBC marks a 29-bit frame id by setting bit 31 of the number written in the file.
 _DBC_EXTENDED_FLAG = 0x8000_0000
@@ -144,8 +149,10 @@ def _check_ids(controller_ids: Sequence[int]) -> None:
     if len(set(controller_ids)) != len(controller_ids):
         raise BridgeSetupError(f"VESC controller ids must be distinct, got {list(controller_ids)}")
     for cid in controller_ids:
-        if isinstance(cid, bool) or not isinstance(cid, int) or not 0 <= cid <= 255:
-            raise BridgeSetupError(f"VESC controller id must be an integer 0..255, got {cid!r}")
+        if isinstance(cid, bool) or not isinstance(cid, int) or not 0 <= cid <= MAX_CONTROLLER_ID:
+            raise BridgeSetupError(
+                f"VESC controller id must be an integer 0..{MAX_CONTROLLER_ID}, got {cid!r}; {BROADCAST_NOTE}"
+            )
 
 
 def generate_dbc(controller_ids: Sequence[int]) -> str:
