@@ -23,6 +23,8 @@ from navigator.planner import Planner
 from navigator.png_layers import load_png_layers
 from navigator.terrain import TerrainMap, load_npy_layers
 
+Point = tuple[float, float]  # x, y in local ENU metres
+
 EDGE_MODEL = (
     "edge(a -> b by move m) = step(m) * (cost[a] + cost[b]) / 2 * factors[m, a]; step = 1 orthogonal, "
     f"{SQRT2!r} diagonal; a diagonal move needs both orthogonal neighbours finite; inf = not allowed"
@@ -52,6 +54,20 @@ def load_map(path: FilePath, resolution_m: float | None) -> TerrainMap:
     root = load_toml(path)
     terrain, _ = terrain_from_table(root.table("terrain"), path.parent)
     return terrain
+
+
+def scenario_endpoints(path: FilePath) -> tuple[Point | None, Point | None]:
+    """The start (``[start] xy``) and first goal (``[[goals]] xy``) a scenario TOML names, each ``None``
+    where the file has none (an ``.npy`` / ``.png`` map, a bare ``[terrain]`` file); a malformed one is a
+    ``ConfigError`` naming the key."""
+    if path.suffix.lower() in (".npy", ".png"):
+        return None, None
+    root = load_toml(path)
+    start_table = root.table("start", optional=True)
+    start = start_table.point("xy") if start_table.has("xy") else None
+    goals = root.tables("goals")
+    goal = goals[0].point("xy") if goals and goals[0].has("xy") else None
+    return start, goal
 
 
 def plan_once(planner: Planner, start_xy: tuple[float, float], goal_xy: tuple[float, float]) -> PlanReport:
