@@ -51,6 +51,9 @@ def load_map(path: FilePath, resolution_m: float | None) -> TerrainMap:
         if suffix == ".png":
             return load_png_layers(obstacles=path, resolution_m=resolution_m)
         return load_npy_layers(elevation=path, resolution_m=resolution_m)
+    if resolution_m is not None:
+        # A TOML map sets its own cell size; ignoring the option would plan at a resolution not asked for.
+        raise TerrainError(f"--resolution-m is for a .npy / .png map; {path} sets resolution_m in [terrain]")
     root = load_toml(path)
     terrain, _ = terrain_from_table(root.table("terrain"), path.parent)
     return terrain

@@ -55,7 +55,12 @@ def register(families: Any) -> None:
         default="circumscribed",
         help="circle obstacles are inflated by before the oriented-rectangle check (docs/planning.md)",
     )
-    plan.add_argument("--resolution-m", type=float, default=None, help="cell size of an .npy / .png map")
+    plan.add_argument(
+        "--resolution-m",
+        type=float,
+        default=None,
+        help="cell size of an .npy / .png map (a TOML sets its own)",
+    )
     plan.add_argument("--json", action="store_true", help="print the figures as one JSON object")
     plan.add_argument("--png", type=Path, default=None, help="draw the path over the cost map")
     plan.add_argument(

@@ -75,3 +75,10 @@ def test_plan_names_the_missing_endpoint_of_a_bare_map(capsys: pytest.CaptureFix
     assert main(["plan", str(elevation), "--resolution-m", "0.25", "--start", "3,12"]) == 2
     printed = capsys.readouterr()
     assert "no --goal given" in printed.err and "[[goals]] xy" in printed.err and printed.out == ""
+
+
+def test_plan_refuses_a_resolution_for_a_map_that_sets_its_own(capsys: pytest.CaptureFixture[str]) -> None:
+    # It used to be ignored silently: the plan ran at the scenario's 0.25 m, not the 1 m asked for.
+    assert main(["plan", str(SCENARIO), "--resolution-m", "1"]) == 2
+    printed = capsys.readouterr()
+    assert "--resolution-m" in printed.err and str(SCENARIO) in printed.err and printed.out == ""
