@@ -82,3 +82,22 @@ def test_plan_refuses_a_resolution_for_a_map_that_sets_its_own(capsys: pytest.Ca
     assert main(["plan", str(SCENARIO), "--resolution-m", "1"]) == 2
     printed = capsys.readouterr()
     assert "--resolution-m" in printed.err and str(SCENARIO) in printed.err and printed.out == ""
+
+
+def test_plan_starts_from_a_clearance_band_as_the_rover_does(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # (7.5, 3.3) is in the maze's corridor but within the footprint's clearance of its southern wall: the
+    # rover's planner escapes to the nearest free cell; `rover plan` used to refuse it as a lethal start.
+    maze = SCENARIO.with_name("maze.toml")
+    export = tmp_path / "costs.npz"
+    code = main(["plan", str(maze), "--start", "7.5,3.3", "--json", "--export-costs", str(export)])
+    assert code == 0
+    figures = json.loads(capsys.readouterr().out)
+    assert figures["path"][0] == [7.5, 3.3]
+    data = np.load(export)
+    assert np.isinf(data["cost"][13, 30])  # the cell holding (7.5, 3.3) at 0.25 m: lethal (clearance)
+    start, goal = tuple(data["start"]), tuple(data["goal"])
+    assert np.isfinite(data["cost"][start]) and tuple(data["path"][0]) == start
+    expected = _dijkstra_cost(data["cost"], data["factors"], start, goal)
+    assert float(data["path_cost"]) == pytest.approx(expected, rel=1e-9)
