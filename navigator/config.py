@@ -28,6 +28,8 @@ HEURISTICS = ("octile", "euclidean", "manhattan")
 # The measurement whose arrival starts a control tick in real time (navigator.paced_loop); "none": a
 # plain fixed-rate loop.
 PACING_SENSORS = ("imu", "gps", "wheels", "none")
+# Skid-steer kinematics the estimator shares with the vehicle: single-sourced from [vehicle].
+_VEHICLE_KINEMATICS = ("track_m", "skid_factor")
 # Busy-poll the pacing link this long before (and at most after) each expected sample (navigator.paced_loop):
 # the sample is read as it lands, not after the OS wakes the loop. About this much CPU per sample (1 ms at
 # 50 Hz: 5 % of a core); 0 turns it off (a weak companion computer).
@@ -100,7 +102,14 @@ def rover_config_from_table(root: Table) -> RoverConfig:
     busy_poll_ms = root.number("busy_poll_ms", DEFAULT_BUSY_POLL_MS, lo=0.0, hi=10.0)
     vehicle = VehicleParams.from_table(root.table("vehicle", optional=True))
     vesc = VescProfile.from_table(root.table("vesc", optional=True), wheel_radius_m=vehicle.wheel_radius_m)
-    estimator = EstimatorConfig.from_table(root.table("estimator", optional=True))
+    estimator_table = root.table("estimator", optional=True)
+    for key in _VEHICLE_KINEMATICS:
+        # Read here, these would be silently replaced by the vehicle's values below: refuse them instead.
+        if estimator_table.has(key):
+            raise estimator_table.error(
+                key, f"the estimator's odometry uses [vehicle] {key}; set it there, not in [estimator]"
+            )
+    estimator = EstimatorConfig.from_table(estimator_table)
     estimator = dataclasses.replace(estimator, track_m=vehicle.track_m, skid_factor=vehicle.skid_factor)
     config = RoverConfig(
         rover_id=rover_id,

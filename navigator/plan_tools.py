@@ -15,13 +15,15 @@ from pathlib import Path as FilePath
 import numpy as np
 
 from logs.settings import load_toml
-from navigator.astar import SQRT2, PlanResult, astar
+from navigator.astar import SQRT2, astar
 from navigator.astar_kernel import MOVES
 from navigator.errors import TerrainError
 from navigator.map_config import terrain_from_table
 from navigator.planner import Planner
 from navigator.png_layers import load_png_layers
 from navigator.terrain import TerrainMap, load_npy_layers
+
+Point = tuple[float, float]  # x, y in local ENU metres
 
 EDGE_MODEL = (
     "edge(a -> b by move m) = step(m) * (cost[a] + cost[b]) / 2 * factors[m, a]; step = 1 orthogonal, "
@@ -49,21 +51,37 @@ def load_map(path: FilePath, resolution_m: float | None) -> TerrainMap:
         if suffix == ".png":
             return load_png_layers(obstacles=path, resolution_m=resolution_m)
         return load_npy_layers(elevation=path, resolution_m=resolution_m)
+    if resolution_m is not None:
+        # A TOML map sets its own cell size; ignoring the option would plan at a resolution not asked for.
+        raise TerrainError(f"--resolution-m is for a .npy / .png map; {path} sets resolution_m in [terrain]")
     root = load_toml(path)
     terrain, _ = terrain_from_table(root.table("terrain"), path.parent)
     return terrain
 
 
-def plan_once(planner: Planner, start_xy: tuple[float, float], goal_xy: tuple[float, float]) -> PlanReport:
-    astar(np.ones((2, 2)), (0, 0), (1, 1))  # load the compiled kernel before the stopwatch starts
+def scenario_endpoints(path: FilePath) -> tuple[Point | None, Point | None]:
+    """The start (``[start] xy``) and first goal (``[[goals]] xy``) a scenario TOML names, each ``None``
+    where the file has none (an ``.npy`` / ``.png`` map, a bare ``[terrain]`` file); a malformed one is a
+    ``ConfigError`` naming the key."""
+    if path.suffix.lower() in (".npy", ".png"):
+        return None, None
+    root = load_toml(path)
+    start_table = root.table("start", optional=True)
+    start = start_table.point("xy") if start_table.has("xy") else None
+    goals = root.tables("goals")
+    goal = goals[0].point("xy") if goals and goals[0].has("xy") else None
+    return start, goal
+
+
+def plan_once(planner: Planner, start_xy: Point, goal_xy: Point) -> PlanReport:
+    """One ``Planner.plan``, as the rover plans: a start in an obstacle's clearance band escapes to the
+    nearest free cell, and the footprint post-check may replan; ``cells`` are the cells of that path."""
+    for search in ("bucket", "heap"):  # load both compiled kernels before the stopwatch starts
+        astar(np.ones((2, 2)), (0, 0), (1, 1), search=search)
     began = time.perf_counter()  # the CLI's stopwatch: this is a user-facing timing, not a component clock
-    terrain = planner.terrain
-    start = terrain.cell_of(*start_xy)
-    goal = terrain.cell_of(*goal_xy)
-    result: PlanResult = planner.plan_cells(start, goal)
     path = planner.plan(start_xy, goal_xy)
-    elapsed = (time.perf_counter() - began) * 1e3 / 2.0  # two searches above; report one
-    return PlanReport(path.cost, path.length_m, path.expanded, elapsed, path.points, result.cells)
+    elapsed = (time.perf_counter() - began) * 1e3
+    return PlanReport(path.cost, path.length_m, path.expanded, elapsed, path.points, list(path.cells))
 
 
 def export_costs(planner: Planner, report: PlanReport, out: FilePath) -> None:

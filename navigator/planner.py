@@ -57,6 +57,7 @@ class Path:
     ``cost``: the A* cost times the map resolution (cost-weighted metres). ``length_m``: polyline length.
     ``checked_from_m``: the oriented footprint is clear of obstacles from this distance along the path on;
     before it the rover gets from where it is to the search's first cell centre (its start is a fact).
+    ``cells``: the searched ``(row, col)`` cells, from the (escaped) start cell to the goal cell.
     """
 
     points: np.ndarray
@@ -64,6 +65,7 @@ class Path:
     length_m: float
     expanded: int
     checked_from_m: float = 0.0
+    cells: tuple[tuple[int, int], ...] = ()
 
 
 class Planner:
@@ -233,7 +235,8 @@ class Planner:
         inner = centres[1:-1]
         points = np.array([tuple(map(float, start_xy)), *inner, tuple(map(float, goal_xy))], dtype=np.float64)
         length = float(np.sum(np.hypot(*np.diff(points, axis=0).T)))
-        path = Path(points, result.cost * self._terrain.resolution_m, length, result.expanded)
+        cells = tuple((int(row), int(col)) for row, col in result.cells)
+        path = Path(points, result.cost * self._terrain.resolution_m, length, result.expanded, cells=cells)
         _log.debug(
             "planned %d points, %.1f m, cost %.1f, %d cells expanded",
             len(points),

@@ -1,17 +1,19 @@
-"""``rover plan MAP --start X,Y --goal X,Y``: plan once, print cost, length, nodes expanded and time
-(with ``--json`` also the path, as ``[x, y]`` points in metres from the start to the goal)."""
+"""``rover plan MAP [--start X,Y] [--goal X,Y]``: plan once, print cost, length, nodes expanded and time
+(with ``--json`` also the path, as ``[x, y]`` points in metres from the start to the goal). A scenario's own
+``[start]`` and first ``[[goals]]`` are the defaults."""
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
 from logs.settings import ConfigError
 from navigator.astar import HEURISTICS
 from navigator.errors import NavigatorError
-from navigator.plan_tools import draw_png, export_costs, load_map, plan_once
+from navigator.plan_tools import Point, draw_png, export_costs, load_map, plan_once, scenario_endpoints
 from navigator.planner import COST_MODES, FOOTPRINT_INFLATIONS, Planner
 from navigator.vehicle import VehicleParams
 
@@ -31,8 +33,19 @@ def register(families: Any) -> None:
         type=Path,
         help="TOML with a [terrain] table (e.g. a scenario), an .npy elevation or a .png obstacle image",
     )
-    plan.add_argument("--start", type=_point, required=True, help="start X,Y (ENU metres)")
-    plan.add_argument("--goal", type=_point, required=True, help="goal X,Y (ENU metres)")
+    # argparse reads "-5,3" as an option, so a negative X is given as --start=-5,3.
+    plan.add_argument(
+        "--start",
+        type=_point,
+        default=None,
+        help="start X,Y (ENU metres; default: the scenario's [start] xy; negative X: --start=-5,3)",
+    )
+    plan.add_argument(
+        "--goal",
+        type=_point,
+        default=None,
+        help="goal X,Y (ENU metres; default: the scenario's first [[goals]] xy)",
+    )
     plan.add_argument("--heuristic", choices=HEURISTICS, default="octile")
     plan.add_argument("--weight", type=float, default=1.0, help="heuristic weight (> 1: bounded suboptimal)")
     plan.add_argument("--cost-mode", choices=COST_MODES, default="terrain")
@@ -42,7 +55,12 @@ def register(families: Any) -> None:
         default="circumscribed",
         help="circle obstacles are inflated by before the oriented-rectangle check (docs/planning.md)",
     )
-    plan.add_argument("--resolution-m", type=float, default=None, help="cell size of an .npy / .png map")
+    plan.add_argument(
+        "--resolution-m",
+        type=float,
+        default=None,
+        help="cell size of an .npy / .png map (a TOML sets its own)",
+    )
     plan.add_argument("--json", action="store_true", help="print the figures as one JSON object")
     plan.add_argument("--png", type=Path, default=None, help="draw the path over the cost map")
     plan.add_argument(
@@ -51,16 +69,36 @@ def register(families: Any) -> None:
     plan.set_defaults(handler=run_plan)
 
 
+def _endpoints(args: argparse.Namespace) -> tuple[Point, Point]:
+    """``--start`` / ``--goal`` as given, else the scenario's; a ``ConfigError`` when neither says."""
+    named_start, named_goal = scenario_endpoints(args.map)
+    return (
+        _given_or_named(args.map, "--start", args.start, named_start, "[start] xy"),
+        _given_or_named(args.map, "--goal", args.goal, named_goal, "[[goals]] xy"),
+    )
+
+
+def _given_or_named(map_path: Path, option: str, given: Point | None, named: Point | None, key: str) -> Point:
+    if given is not None:
+        return given
+    if named is None:
+        raise ConfigError(
+            str(map_path), "", f"no {option} given and the map names no {key}; give {option} X,Y"
+        )
+    return named
+
+
 def run_plan(args: argparse.Namespace) -> int:
     try:
         terrain = load_map(args.map, args.resolution_m)
+        start, goal = _endpoints(args)
         planner = Planner(
             terrain, VehicleParams(), heuristic=args.heuristic, cost_mode=args.cost_mode,
             heuristic_weight=args.weight, footprint_inflation=args.footprint_inflation,
         )  # fmt: skip
-        report = plan_once(planner, args.start, args.goal)
+        report = plan_once(planner, start, goal)
     except (NavigatorError, ConfigError) as err:
-        print(f"rover plan: {err}")
+        print(f"rover plan: {err}", file=sys.stderr)  # stdout stays the figures (or JSON) only
         return 2
     figures = {
         "cost": report.cost,
@@ -79,7 +117,9 @@ def run_plan(args: argparse.Namespace) -> int:
             draw_png(planner, report, args.png)
             figures["png"] = str(args.png)
     except OSError as err:
-        print(f"rover plan: cannot write {err.filename or 'the output'}: {err.strerror or err}")
+        print(
+            f"rover plan: cannot write {err.filename or 'the output'}: {err.strerror or err}", file=sys.stderr
+        )
         return 2
     if args.json:
         # The path itself only in JSON (a script's input); the text form stays a short summary.

@@ -72,3 +72,17 @@ def test_contradicting_values_name_both_keys(text: str, key: str, named: tuple[s
 )
 def test_consistent_values_load(text: str) -> None:
     load(text)
+
+
+@pytest.mark.parametrize(
+    ("key", "vehicle_value", "estimator_value"), [("track_m", 0.5, 0.6), ("skid_factor", 1.5, 1.8)]
+)
+def test_estimator_kinematics_are_set_in_vehicle_only(
+    key: str, vehicle_value: float, estimator_value: float
+) -> None:
+    # The estimator takes them from [vehicle]; one given in [estimator] used to be read and then silently
+    # replaced, so a user's edit there did nothing.
+    with pytest.raises(ConfigError) as caught:
+        load(f"[vehicle]\n{key} = {vehicle_value}\n[estimator]\n{key} = {estimator_value}\n")
+    assert caught.value.key == f"estimator.{key}"
+    assert f"[vehicle] {key}" in caught.value.problem

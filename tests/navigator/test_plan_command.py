@@ -32,8 +32,10 @@ def test_plan_json_png_and_exported_costs_agree_with_dijkstra(
 
 
 def test_plan_reports_an_off_map_goal(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["plan", str(SCENARIO), "--start", "3,12", "--goal", "300,12"]) == 2
-    assert "off the map" in capsys.readouterr().out
+    assert main(["plan", str(SCENARIO), "--start", "3,12", "--goal", "300,12", "--json"]) == 2
+    printed = capsys.readouterr()
+    assert "off the map" in printed.err
+    assert printed.out == ""  # a script reading the JSON on stdout gets nothing, not an error sentence
 
 
 @pytest.mark.parametrize("option", ["--png", "--export-costs"])
@@ -42,8 +44,9 @@ def test_plan_names_an_output_it_cannot_write(
 ) -> None:
     out = tmp_path / "no-such-dir" / "out.file"
     assert main(["plan", str(SCENARIO), "--start", "3,12", "--goal", "25,5", option, str(out)]) == 2
-    printed = capsys.readouterr().out
-    assert "cannot write" in printed and str(out) in printed
+    printed = capsys.readouterr()
+    assert "cannot write" in printed.err and str(out) in printed.err
+    assert "cannot write" not in printed.out
 
 
 def test_plan_json_gives_the_path_in_metres(capsys: pytest.CaptureFixture[str]) -> None:
@@ -55,3 +58,46 @@ def test_plan_json_gives_the_path_in_metres(capsys: pytest.CaptureFixture[str]) 
     length = float(np.sum(np.linalg.norm(np.diff(path, axis=0), axis=1)))
     assert length == pytest.approx(figures["length_m"], rel=1e-6)
     assert {"cost", "length_m", "expanded", "time_ms", "heuristic", "cost_mode", "points"} <= figures.keys()
+
+
+def test_plan_takes_the_scenarios_own_start_and_goal(capsys: pytest.CaptureFixture[str]) -> None:
+    # hills-2.toml: [start] xy = [3, 12], first [[goals]] xy = [47, 12]; --goal given overrides its goal.
+    assert main(["plan", str(SCENARIO), "--json"]) == 0
+    path = np.array(json.loads(capsys.readouterr().out)["path"])
+    assert np.linalg.norm(path[0] - (3.0, 12.0)) < 0.25 and np.linalg.norm(path[-1] - (47.0, 12.0)) < 0.25
+    assert main(["plan", str(SCENARIO), "--goal", "25,5", "--json"]) == 0
+    path = np.array(json.loads(capsys.readouterr().out)["path"])
+    assert np.linalg.norm(path[0] - (3.0, 12.0)) < 0.25 and np.linalg.norm(path[-1] - (25.0, 5.0)) < 0.25
+
+
+def test_plan_names_the_missing_endpoint_of_a_bare_map(capsys: pytest.CaptureFixture[str]) -> None:
+    elevation = SCENARIO.with_name("hills-2.elevation.npy")  # a bare layer: no [start] nor [[goals]]
+    assert main(["plan", str(elevation), "--resolution-m", "0.25", "--start", "3,12"]) == 2
+    printed = capsys.readouterr()
+    assert "no --goal given" in printed.err and "[[goals]] xy" in printed.err and printed.out == ""
+
+
+def test_plan_refuses_a_resolution_for_a_map_that_sets_its_own(capsys: pytest.CaptureFixture[str]) -> None:
+    # It used to be ignored silently: the plan ran at the scenario's 0.25 m, not the 1 m asked for.
+    assert main(["plan", str(SCENARIO), "--resolution-m", "1"]) == 2
+    printed = capsys.readouterr()
+    assert "--resolution-m" in printed.err and str(SCENARIO) in printed.err and printed.out == ""
+
+
+def test_plan_starts_from_a_clearance_band_as_the_rover_does(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # (7.5, 3.3) is in the maze's corridor but within the footprint's clearance of its southern wall: the
+    # rover's planner escapes to the nearest free cell; `rover plan` used to refuse it as a lethal start.
+    maze = SCENARIO.with_name("maze.toml")
+    export = tmp_path / "costs.npz"
+    code = main(["plan", str(maze), "--start", "7.5,3.3", "--json", "--export-costs", str(export)])
+    assert code == 0
+    figures = json.loads(capsys.readouterr().out)
+    assert figures["path"][0] == [7.5, 3.3]
+    data = np.load(export)
+    assert np.isinf(data["cost"][13, 30])  # the cell holding (7.5, 3.3) at 0.25 m: lethal (clearance)
+    start, goal = tuple(data["start"]), tuple(data["goal"])
+    assert np.isfinite(data["cost"][start]) and tuple(data["path"][0]) == start
+    expected = _dijkstra_cost(data["cost"], data["factors"], start, goal)
+    assert float(data["path_cost"]) == pytest.approx(expected, rel=1e-9)

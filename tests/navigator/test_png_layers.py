@@ -150,6 +150,6 @@ def test_rover_plan_takes_a_png_obstacle_image_and_the_png_scenario(
     straight = 8.0
     assert json.loads(capsys.readouterr().out)["length_m"] > straight + 1.0
     assert main(["plan", str(png), "--start", "1,4", "--goal", "9,4"]) == 2
-    assert "--resolution-m" in capsys.readouterr().out
+    assert "--resolution-m" in capsys.readouterr().err
     assert main(["plan", str(DATA / "png_walls.toml"), "--start", "2,6", "--goal", "10,6", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["length_m"] > straight + 1.0
