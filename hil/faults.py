@@ -57,9 +57,6 @@ SUPPORTED: dict[str, tuple[str, ...]] = {
     "battery": ("wrong",),
 }
 
-_LOG_WARNING = 3  # foxglove.Log level
-_LOG_INFO = 2
-
 
 @dataclass(frozen=True)
 class Fault:
@@ -126,10 +123,15 @@ class FaultSchedule:
         for index, fault in enumerate(self.faults):
             if index not in self._announced and t_ns >= fault.start_ns:
                 self._announced.add(index)
-                _log(sink, log_ns, _LOG_WARNING, f"fault injected: {fault.name} ({self._describe(fault)})")
+                _log(
+                    sink,
+                    log_ns,
+                    topics.LOG_WARNING,
+                    f"fault injected: {fault.name} ({self._describe(fault)})",
+                )
             if index not in self._ended and t_ns >= fault.end_ns:
                 self._ended.add(index)
-                _log(sink, log_ns, _LOG_INFO, f"fault cleared: {fault.name}{self._on_wheel(fault)}")
+                _log(sink, log_ns, topics.LOG_INFO, f"fault cleared: {fault.name}{self._on_wheel(fault)}")
 
     def _wheel(self, fault: Fault) -> str | None:
         """The wheel a ``vesc`` fault breaks, named as the rover names it; None for other targets."""
@@ -162,18 +164,7 @@ def _describe(fault: Fault) -> str:
 
 
 def _log(sink: MessageSink, t_ns: int, level: int, message: str) -> None:
-    sink.publish(
-        topics.LOG,
-        t_ns,
-        {
-            "timestamp": topics.stamp(t_ns),
-            "level": level,
-            "message": message,
-            "name": "hil.faults",
-            "file": "",
-            "line": 0,
-        },
-    )
+    sink.publish(topics.LOG, t_ns, topics.log_message(t_ns, level, "hil.faults", message))
 
 
 def faults_from_tables(tables: Sequence[Table], duration_s: float) -> tuple[Fault, ...]:

@@ -56,7 +56,6 @@ PHYSICS_DT_NS = 10_000_000  # 100 Hz rover body, as in lockstep
 # beyond them is dropped, and counted as a stall (``hil.peer_stalls``).
 MAX_SUBSTEPS = 5
 STATUS_PERIOD_NS = 50_000_000  # the status file is rewritten at 20 Hz
-_LOG_WARNING = 3  # foxglove.Log level
 
 
 @dataclass(frozen=True)
@@ -128,16 +127,7 @@ class RealtimePeer:
 
     def _log(self, now: int, message: str) -> None:
         self._recorder.publish(
-            topics.LOG,
-            now,
-            {
-                "timestamp": topics.stamp(now),
-                "level": _LOG_WARNING,
-                "message": message,
-                "name": "hil.peer",
-                "file": "",
-                "line": 0,
-            },
+            topics.LOG, now, topics.log_message(now, topics.LOG_WARNING, "hil.peer", message)
         )
 
     def write_status(self) -> None:

@@ -50,8 +50,6 @@ from navigator.terrain_classes import TERRAIN_CLASSES
 from navigator.warm_up import warm_up
 
 _log = logging.getLogger(__name__)
-_LOG_WARNING = 3  # foxglove.Log level
-_LOG_INFO = 2
 
 PHYSICS_DT_NS = 10_000_000  # 100 Hz rover body
 CONTROL_DIVIDER = 2  # onboard control at 50 Hz
@@ -179,7 +177,7 @@ def run_trial(
                     scenario.faults, clock.now_ns(), to_ns(scenario.duration_s), end_reason, arrived_ns
                 )
                 for failure in fault_failures:
-                    _log_record(sink, clock.now_ns(), _LOG_WARNING, failure)
+                    _log_record(sink, clock.now_ns(), topics.LOG_WARNING, failure)
                 stack.close()
                 world.vescs.poll()  # the zero commands sent on close reach the controllers
         simulated_s = seconds(clock.now_ns())
@@ -251,7 +249,7 @@ def _run_loop(
                     _log_record(
                         sink,
                         now,
-                        _LOG_INFO,
+                        topics.LOG_INFO,
                         f"ARRIVED at {seconds(now):.1f} s; parked until {seconds(stop_ns):.1f} s "
                         "for the scenario's faults still to run",
                     )
@@ -278,18 +276,7 @@ def _still_rolling(now_ns: int, arrived_ns: int | None, end_ns: int, world: SimW
 
 def _log_record(sink: MessageSink, t_ns: int, level: int, message: str) -> None:
     """A ``log`` record from the trial runner itself (name ``hil.trial``)."""
-    sink.publish(
-        topics.LOG,
-        t_ns,
-        {
-            "timestamp": topics.stamp(t_ns),
-            "level": level,
-            "message": message,
-            "name": "hil.trial",
-            "file": "",
-            "line": 0,
-        },
-    )
+    sink.publish(topics.LOG, t_ns, topics.log_message(t_ns, level, "hil.trial", message))
 
 
 def write_header(

@@ -32,8 +32,13 @@ from logs.sink import MessageSink
 
 # The onboard stack's packages: estimator, guidance and safety (navigator), links (firmware_bridge).
 ONBOARD_LOGGERS = ("estimator", "navigator", "firmware_bridge")
-# Foxglove's log levels (logs.topics LOG schema): 1 debug, 2 info, 3 warning, 4 error, 5 fatal.
-_FOXGLOVE_LEVELS = ((logging.CRITICAL, 5), (logging.ERROR, 4), (logging.WARNING, 3), (logging.INFO, 2))
+# Python logging levels as Foxglove's (logs.topics LOG_*).
+_FOXGLOVE_LEVELS = (
+    (logging.CRITICAL, topics.LOG_FATAL),
+    (logging.ERROR, topics.LOG_ERROR),
+    (logging.WARNING, topics.LOG_WARNING),
+    (logging.INFO, topics.LOG_INFO),
+)
 _NUMBER = re.compile(r"[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?")
 
 
@@ -42,7 +47,7 @@ def foxglove_level(levelno: int) -> int:
     for threshold, level in _FOXGLOVE_LEVELS:
         if levelno >= threshold:
             return level
-    return 1
+    return topics.LOG_DEBUG
 
 
 @dataclass(frozen=True)
@@ -147,7 +152,8 @@ class LogTopicHandler(logging.Handler):
             now = self._clock.now_ns()
             for kind in self._kinds.values():
                 if kind.suppressed:
-                    self._publish(now, 3, __name__, f"{kind.suppressed} more like: {kind.example}")
+                    left_out = f"{kind.suppressed} more like: {kind.example}"
+                    self._publish(now, topics.LOG_WARNING, __name__, left_out)
                     kind.suppressed = 0
         super().close()
 
@@ -173,18 +179,8 @@ class LogTopicHandler(logging.Handler):
     def _publish(self, now: int, level: int, name: str, message: str, line: _Line | None = None) -> None:
         self._publishing = True
         try:
-            self._sink.publish(
-                topics.LOG,
-                now,
-                {
-                    "timestamp": topics.stamp(now),
-                    "level": level,
-                    "message": message,
-                    "name": name,
-                    "file": "" if line is None else line.pathname,
-                    "line": 0 if line is None else line.lineno,
-                },
-            )
+            file, lineno = ("", 0) if line is None else (line.pathname, line.lineno)
+            self._sink.publish(topics.LOG, now, topics.log_message(now, level, name, message, file, lineno))
             self.published += 1
         except Exception:  # a logging handler must never raise into the code that logged
             self.failed += 1

@@ -455,6 +455,24 @@ def stamp(t_ns: int) -> dict[str, int]:
     return {"sec": t_ns // 1_000_000_000, "nsec": t_ns % 1_000_000_000}
 
 
+# Foxglove Log levels (the ``log`` topic's ``level``).
+LOG_DEBUG, LOG_INFO, LOG_WARNING, LOG_ERROR, LOG_FATAL = 1, 2, 3, 4, 5
+
+
+def log_message(
+    t_ns: int, level: int, name: str, message: str, file: str = "", line: int = 0
+) -> dict[str, Any]:
+    """A ``log`` topic message (foxglove.Log): ``name`` says who wrote it (a logger, ``hil.faults``...)."""
+    return {
+        "timestamp": stamp(t_ns),
+        "level": level,
+        "message": message,
+        "name": name,
+        "file": file,
+        "line": line,
+    }
+
+
 def stamp_ns(timestamp: dict[str, int]) -> int:
     return int(timestamp["sec"]) * 1_000_000_000 + int(timestamp["nsec"])
 

@@ -67,7 +67,6 @@ class RunResult:
 
 
 # foxglove.Log level of the record that says why a run ended on an error.
-_LOG_FATAL = 5
 
 
 def check_runnable(config: RoverConfig) -> TerrainMap:
@@ -269,18 +268,8 @@ def _record_failure(recorder: McapRecorder, clock: Clock, err: Exception) -> Non
     """Put why the run failed on the ``log`` topic (the recording is closed right after)."""
     now = clock.now_ns()
     try:
-        recorder.publish(
-            topics.LOG,
-            now,
-            {
-                "timestamp": topics.stamp(now),
-                "level": _LOG_FATAL,
-                "message": f"rover run failed: {type(err).__name__}: {err}",
-                "name": __name__,
-                "file": "",
-                "line": 0,
-            },
-        )
+        message = f"rover run failed: {type(err).__name__}: {err}"
+        recorder.publish(topics.LOG, now, topics.log_message(now, topics.LOG_FATAL, __name__, message))
     except RecordingError as record_err:  # the original error is the one to raise
         _log.error("could not record why the run failed (%s): %s", err, record_err)
 
