@@ -18,21 +18,7 @@ from logs.clock import MonotonicClock
 from logs.reader import read_messages, read_metadata
 from logs.wall_clock import WALL_CLOCK_METADATA, WallClockAnchor
 from navigator.runtime import FixedRateScheduler, RingStats
-
-CONFIG = """
-rover_id = "runtest"
-[can]
-interface = "virtual"
-channel = "runtest-{n}"
-[mavlink]
-connection = "udpin:127.0.0.1:0"
-[zenoh]
-enabled = false
-[map]
-kind = "procedural"
-size_m = [10.0, 10.0]
-resolution_m = 0.5
-"""
+from tests.runtime.run_config import rover_run_config
 
 
 def start_rover(config: Path, out: Path, *args: str) -> subprocess.Popen[str]:
@@ -106,7 +92,7 @@ def test_ring_stats_are_bounded() -> None:
 @pytest.mark.parametrize("stop_signal", [signal.SIGTERM, signal.SIGINT])
 def test_rover_run_stops_wheels_and_closes_recording_on_signal(tmp_path: Path, stop_signal: int) -> None:
     config = tmp_path / "rover.toml"
-    config.write_text(CONFIG.format(n=stop_signal))
+    config.write_text(rover_run_config("runtest", f"runtest-{stop_signal}"))
     out = tmp_path / "run"
     started_unix_ns = time.time_ns()
     process = start_rover(config, out, "--goal", "8,8", "--no-telemetry")
@@ -160,7 +146,7 @@ def test_a_second_signal_while_stopping_is_ignored(tmp_path: Path) -> None:
     """Two SIGINTs 10 ms apart (an impatient Ctrl-C): a clean stop, exit 0, the recording whole. With Zenoh
     on, the second once landed while the interpreter was finishing and killed it with status 130."""
     config = tmp_path / "rover.toml"
-    config.write_text(CONFIG.format(n="twice").replace("enabled = false", "enabled = true"))
+    config.write_text(rover_run_config("runtest", "runtest-twice", zenoh=True))
     out = tmp_path / "run"
     process = start_rover(config, out)
     try:

@@ -20,29 +20,15 @@ from logs.reader import read_messages
 from navigator.config import load_rover_config
 from navigator.rover_process import RoverSetupError, run_rover
 from rover_cli.main import main
+from tests.runtime.run_config import rover_run_config
 
 REPO = Path(__file__).resolve().parents[2]
 _channels = itertools.count()
 
-CONFIG = """
-rover_id = "failtest"
-[can]
-interface = "virtual"
-channel = "failtest-{n}"
-[mavlink]
-connection = "{connection}"
-[zenoh]
-enabled = false
-[map]
-kind = "procedural"
-size_m = [10.0, 10.0]
-resolution_m = 0.5
-"""
-
 
 def write_config(tmp_path: Path, connection: str) -> Path:
     path = tmp_path / "rover.toml"
-    path.write_text(CONFIG.format(n=next(_channels), connection=connection))
+    path.write_text(rover_run_config("failtest", f"failtest-{next(_channels)}", connection))
     return path
 
 
