@@ -34,6 +34,12 @@ _VEHICLE_KINEMATICS = ("track_m", "skid_factor")
 # the sample is read as it lands, not after the OS wakes the loop. About this much CPU per sample (1 ms at
 # 50 Hz: 5 % of a core); 0 turns it off (a weak companion computer).
 DEFAULT_BUSY_POLL_MS = 1.0
+# The real-time control loop (docs/runtime.md): "sensor-paced" starts a tick when the pacing sample lands
+# (navigator.paced_loop); "phase-locked" ticks on its own steady clock, steered to `phase_offset_ms` after
+# the pacing sample is expected (navigator.phase_locked_loop).
+CONTROL_LOOPS = ("sensor-paced", "phase-locked")
+DEFAULT_CONTROL_LOOP = "sensor-paced"
+DEFAULT_PHASE_OFFSET_MS = 0.8
 
 
 @dataclass(frozen=True)
@@ -82,6 +88,8 @@ class RoverConfig:
     safety: SafetyConfig = dataclasses.field(default_factory=SafetyConfig)
     pacing_sensor: str = "imu"
     busy_poll_ms: float = DEFAULT_BUSY_POLL_MS
+    control_loop: str = DEFAULT_CONTROL_LOOP
+    phase_offset_ms: float = DEFAULT_PHASE_OFFSET_MS
     # [map]: the terrain `rover run` plans on (HIL trials use the scenario's instead); None if absent.
     terrain: TerrainMap | None = dataclasses.field(default=None, compare=False, repr=False)
 
@@ -100,6 +108,11 @@ def rover_config_from_table(root: Table) -> RoverConfig:
     control_rate_hz = root.number("control_rate_hz", 50.0, lo=1.0, hi=1000.0)
     pacing_sensor = root.text("pacing_sensor", "imu", choices=PACING_SENSORS)
     busy_poll_ms = root.number("busy_poll_ms", DEFAULT_BUSY_POLL_MS, lo=0.0, hi=10.0)
+    control_loop = root.text("control_loop", DEFAULT_CONTROL_LOOP, choices=CONTROL_LOOPS)
+    # At most half a period: a sample is answered before the next one is due.
+    phase_offset_ms = root.number(
+        "phase_offset_ms", DEFAULT_PHASE_OFFSET_MS, lo=0.0, hi=500.0 / control_rate_hz
+    )
     vehicle = VehicleParams.from_table(root.table("vehicle", optional=True))
     vesc = VescProfile.from_table(root.table("vesc", optional=True), wheel_radius_m=vehicle.wheel_radius_m)
     estimator_table = root.table("estimator", optional=True)
@@ -125,6 +138,8 @@ def rover_config_from_table(root: Table) -> RoverConfig:
         safety=SafetyConfig.from_table(root.table("safety", optional=True)),
         pacing_sensor=pacing_sensor,
         busy_poll_ms=busy_poll_ms,
+        control_loop=control_loop,
+        phase_offset_ms=phase_offset_ms,
         terrain=(
             terrain_from_table(root.table("map"), Path(root.source).parent)[0] if root.has("map") else None
         ),

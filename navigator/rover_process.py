@@ -47,7 +47,9 @@ from navigator.input_wait import input_poller, input_waiter
 from navigator.links import RoverLinks, open_links
 from navigator.onboard import OnboardStack
 from navigator.paced_loop import SensorPacedScheduler, TickSample
+from navigator.phase_locked_loop import PhaseLockedScheduler
 from navigator.plan_worker import plan_worker
+from navigator.precise_wait import DEFAULT_SPIN_NS
 from navigator.runtime import TimingStats, freeze_start_up_heap, realtime_switch_interval
 from navigator.terrain import TerrainMap
 from navigator.timing_topic import TimingPublisher
@@ -227,7 +229,7 @@ def _warm_up_and_run(
     stack.publish_map()
     if goal is not None:
         stack.set_goal(*goal)
-    scheduler = paced_scheduler(
+    scheduler = control_scheduler(
         stack,
         clock,
         config,
@@ -240,12 +242,18 @@ def _warm_up_and_run(
     )
     announce(
         f"warm-up done in {(clock.now_ns() - warm_up_start_ns) / 1e9:.1f} s; rover {config.rover_id} "
-        f"running at {config.control_rate_hz:.0f} Hz, paced by {config.pacing_sensor}; driving waits for "
+        f"running at {config.control_rate_hz:.0f} Hz, {_loop_phrase(config)}; driving waits for "
         "the start-up checks (safety/events: startup_checks)"
     )
     freeze_start_up_heap()
     with realtime_switch_interval():
         return scheduler.run(duration_ns)
+
+
+def _loop_phrase(config: RoverConfig) -> str:
+    if config.control_loop == "phase-locked":
+        return f"phase-locked {config.phase_offset_ms:g} ms after {config.pacing_sensor}"
+    return f"paced by {config.pacing_sensor}"
 
 
 def links_line(config: RoverConfig, links: RoverLinks, mcap_path: Path, *, telemetry: bool) -> str:
@@ -274,7 +282,7 @@ def _record_failure(recorder: McapRecorder, clock: Clock, err: Exception) -> Non
         _log.error("could not record why the run failed (%s): %s", err, record_err)
 
 
-def paced_scheduler(
+def control_scheduler(
     stack: OnboardStack,
     clock: Clock,
     config: RoverConfig,
@@ -284,10 +292,14 @@ def paced_scheduler(
     *,
     poll: Callable[[], bool] | None = None,
     observe: Callable[[TickSample], None] | None = None,
-) -> SensorPacedScheduler:
-    """The sensor-synchronous loop around ``stack``, publishing ``runtime/timing`` to ``sink``.
+) -> SensorPacedScheduler | PhaseLockedScheduler:
+    """The real-time loop ``config.control_loop`` names, around ``stack``, publishing ``runtime/timing``
+    to ``sink``.
 
-    ``poll`` (``navigator.input_wait.input_poller``) enables busy-polling for ``config.busy_poll_ms``;
+    ``poll`` (``navigator.input_wait.input_poller``) says input waits without blocking: the sensor-paced
+    loop busy-polls ``config.busy_poll_ms`` around each expected sample with it, the phase-locked loop
+    spins the last stretch before each tick on the clock (``navigator.precise_wait``), fusing what lands
+    meanwhile; without it neither spins (a caller's own ``wait``, a test's, is then the whole wait).
     ``observe`` (optional) also gets every tick's ``TickSample`` (a diagnostic's trace).
     """
     period_ns = round(1e9 / config.control_rate_hz)
@@ -295,6 +307,20 @@ def paced_scheduler(
     on_tick: Callable[[TickSample], None] = timing.observe
     if observe is not None:
         on_tick = _both(timing.observe, observe)
+    if config.control_loop == "phase-locked":
+        return PhaseLockedScheduler(
+            clock,
+            config.control_rate_hz,
+            stack.step,
+            ingest=stack.ingest,
+            wait=wait,
+            latency=lambda: stack.last_sensor_to_command_ns,
+            on_tick=on_tick,
+            stop=stop,
+            poll=poll,
+            offset_ns=round(config.phase_offset_ms * 1e6),
+            spin_ns=DEFAULT_SPIN_NS if poll is not None else 0,
+        )
     return SensorPacedScheduler(
         clock,
         config.control_rate_hz,

@@ -46,7 +46,9 @@ from logs.clock import MonotonicClock
 from navigator.precise_wait import DEFAULT_SPIN_NS
 
 RATE_HZ = 50.0
-MODES = ("paced", "fixed")
+MODES = ("paced", "fixed", "locked")
+# The modes that run `rover run`'s own loop (`control_loop`); "fixed" is the free-running comparison.
+LOOPS = {"paced": "sensor-paced", "locked": "phase-locked"}
 EMPTY_TICK_S = 10.0  # each empty-tick peer runs this long at most
 
 
@@ -59,7 +61,7 @@ def register(commands: Any) -> None:
         "--modes",
         type=_modes,
         default=MODES,
-        help="loops to run, comma-separated: paced, fixed (default both)",
+        help="loops to run, comma-separated: paced, fixed, locked (default all three)",
     )
     bench.add_argument(
         "--peer-spin-ms",
@@ -69,6 +71,12 @@ def register(commands: Any) -> None:
     )
     bench.add_argument(
         "--busy-poll-ms", type=float, default=None, help="override the config's busy_poll_ms (paced loop)"
+    )
+    bench.add_argument(
+        "--phase-offset-ms",
+        type=float,
+        default=None,
+        help="override the config's phase_offset_ms (phase-locked loop)",
     )
     bench.add_argument("--trace", action="store_true", help="split the paced loop's jitter and latency")
     bench.set_defaults(handler=run_bench)
@@ -103,9 +111,10 @@ class StackRun:
 
     seconds: float
     telemetry: bool
-    mode: str  # "paced" or "fixed"
+    mode: str  # one of MODES
     peer_spin_ns: int
     busy_poll_ms: float | None  # None: the config's
+    phase_offset_ms: float | None  # None: the config's
     trace: bool
 
 
@@ -127,7 +136,7 @@ def _full_stack(run: StackRun) -> dict[str, Any]:
     from navigator.input_wait import input_poller, input_waiter
     from navigator.onboard import OnboardStack
     from navigator.plan_worker import plan_worker
-    from navigator.rover_process import paced_scheduler
+    from navigator.rover_process import control_scheduler
     from navigator.runtime import (
         FixedRateScheduler,
         TimingStats,
@@ -144,9 +153,11 @@ def _full_stack(run: StackRun) -> dict[str, Any]:
     config = dataclasses.replace(config, estimator=estimator, control_rate_hz=RATE_HZ)
     if run.busy_poll_ms is not None:
         config = dataclasses.replace(config, busy_poll_ms=run.busy_poll_ms)
+    if run.phase_offset_ms is not None:
+        config = dataclasses.replace(config, phase_offset_ms=run.phase_offset_ms)
     if _peer_as_process():
         # A group of its own per bench run, so a leftover peer can never talk to this rover.
-        salt = os.getpid() + (1 if run.mode == "fixed" else 0) * 97
+        salt = os.getpid() + MODES.index(run.mode) * 97
         group = f"239.76.{(salt >> 8) % 200 + 10}.{salt % 250 + 1}"
         bus_config = dataclasses.replace(config.can, interface="udp_multicast", channel=group)
     else:
@@ -209,11 +220,11 @@ def _full_stack(run: StackRun) -> dict[str, Any]:
             wait = trace.wrap_wait(wait)
             poll = trace.wrap_poll(poll) if poll is not None else None
         scheduler: Any
-        if run.mode == "paced":
-            scheduler = paced_scheduler(
+        if run.mode in LOOPS:
+            scheduler = control_scheduler(
                 stack,
                 clock,
-                config,
+                dataclasses.replace(config, control_loop=LOOPS[run.mode]),
                 deferred,
                 wait,
                 poll=poll,
@@ -248,6 +259,9 @@ def _full_stack(run: StackRun) -> dict[str, Any]:
     figures["busy_poll_ms"] = config.busy_poll_ms if run.mode == "paced" else None
     if run.mode == "paced":
         figures["busy_polls"] = scheduler.busy_polls
+    figures["phase_offset_ms"] = config.phase_offset_ms if run.mode == "locked" else None
+    if run.mode == "locked":
+        figures["locks"] = scheduler.locks
     if trace is not None:
         figures["trace"] = (
             breakdown(imu_sends, trace, round(1e9 / RATE_HZ))
@@ -282,7 +296,7 @@ def run_bench(args: argparse.Namespace) -> int:
     }
     extras = "recording" + ("" if args.no_telemetry else " + telemetry")
     for mode in args.modes:
-        loop = "sensor-paced" if mode == "paced" else "fixed-rate"
+        loop = LOOPS.get(mode, "fixed-rate")
         peers[f"stack, {loop} + {extras}"] = _full_stack(
             StackRun(
                 seconds=args.seconds,
@@ -290,6 +304,7 @@ def run_bench(args: argparse.Namespace) -> int:
                 mode=mode,
                 peer_spin_ns=round(args.peer_spin_ms * 1e6),
                 busy_poll_ms=args.busy_poll_ms,
+                phase_offset_ms=args.phase_offset_ms,
                 trace=args.trace,
             )
         )
@@ -312,10 +327,12 @@ def _print_tables(args: argparse.Namespace, peers: dict[str, dict[str, Any]]) ->
     columns = ("peer", "ticks (sensor/deadline)", "overruns", "jitter p50/p99/max ms", "latency p50/p99/max")
     stacks = [f for name, f in peers.items() if name.startswith("stack")]
     busy = next((f["busy_poll_ms"] for f in stacks if f.get("busy_poll_ms") is not None), None)
+    offset = next((f["phase_offset_ms"] for f in stacks if f.get("phase_offset_ms") is not None), None)
     table.caption = (
         f"simulated rover ran as a {stacks[0]['simulated_rover']}, stepping on a "
         + (f"{args.peer_spin_ms:g} ms spin" if args.peer_spin_ms > 0 else "plain sleep")
         + ("" if busy is None else f"; paced loop busy-polls {busy:g} ms")
+        + ("" if offset is None else f"; phase-locked loop ticks {offset:g} ms after the expected IMU sample")
     )
     for column in (*columns, "CPU %"):
         table.add_column(column)

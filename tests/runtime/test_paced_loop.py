@@ -5,42 +5,21 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
-from dataclasses import dataclass, field
 
 import pytest
 
-from logs.clock import SimClock
 from logs.encoding import EncodedSink
 from logs.sink import MemorySink
 from navigator.deferred_sink import DeferredSink, deferred_sink
-from navigator.paced_loop import DEADLINE_GRACE, SensorPacedScheduler, TickSample
-from tests.runtime.fake_sensor import FakeSensor
+from navigator.paced_loop import DEADLINE_GRACE, SensorPacedScheduler
+from tests.runtime.fake_sensor import TICK_COST, SensorLoop
 from tests.runtime.rig import Rig, rig_config
 
 MS = 1_000_000
 PERIOD = 20 * MS  # 50 Hz
-TICK_COST = 300_000  # each tick takes 0.3 ms of (simulated) time
 
 
-@dataclass
-class Loop:
-    clock: SimClock
-    sensor: FakeSensor
-    ticks: list[tuple[int, int | None]] = field(default_factory=list)
-    samples: list[TickSample] = field(default_factory=list)
-
-    def tick(self, trigger_ns: int | None) -> None:
-        self.ticks.append((self.clock.now_ns(), trigger_ns))
-        self.clock.advance(TICK_COST)
-
-    def wait(self, seconds: float) -> None:
-        # Like select on the socket: wake at the timeout or when the next sample lands, whichever first.
-        wake = self.clock.now_ns() + max(1, round(seconds * 1e9))
-        pending = self.sensor.arrivals[self.sensor.read :]
-        if pending and self.clock.now_ns() < pending[0] < wake:
-            wake = pending[0]
-        self.clock.advance(max(1, wake - self.clock.now_ns()))
-
+class Loop(SensorLoop):
     def run(self, duration_ns: int) -> SensorPacedScheduler:
         scheduler = SensorPacedScheduler(
             self.clock,
@@ -48,7 +27,7 @@ class Loop:
             self.tick,
             ingest=self.sensor.ingest,
             wait=self.wait,
-            latency=lambda: None if self.ticks[-1][1] is None else self.clock.now_ns() - self.ticks[-1][1],
+            latency=self.latency,
             on_tick=self.samples.append,
         )
         scheduler.run(duration_ns)
@@ -56,8 +35,7 @@ class Loop:
 
 
 def _loop(arrivals: list[int]) -> Loop:
-    clock = SimClock()
-    return Loop(clock, FakeSensor(clock, arrivals))
+    return Loop.on(arrivals)
 
 
 def test_each_sample_starts_a_tick_at_once() -> None:

@@ -1,0 +1,218 @@
+"""The phase-locked fixed-rate loop on a simulated clock: steady ticks locked ``offset`` after the pacing
+sample, steered by at most the slew a tick, late samples not waited for (and their latency counted), a
+silent sensor leaving a free-running fixed-rate loop, overruns skipped."""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import threading
+
+import pytest
+
+from logs.clock import NS_PER_S, SimClock
+from logs.settings import ConfigError, parse_toml
+from navigator.config import rover_config_from_table
+from navigator.paced_loop import SensorPacedScheduler
+from navigator.phase_locked_loop import PhaseLockedScheduler
+from navigator.rover_process import control_scheduler
+from tests.runtime.fake_sensor import TICK_COST, SensorLoop
+from tests.runtime.rig import Rig, rig_config
+
+MS = 1_000_000
+PERIOD = 20 * MS  # 50 Hz
+OFFSET = 800_000
+LATE_WAIT = 700_000
+SLEW = 50_000
+
+
+class Loop(SensorLoop):
+    def run(self, duration_ns: int) -> PhaseLockedScheduler:
+        scheduler = PhaseLockedScheduler(
+            self.clock,
+            1e9 / PERIOD,
+            self.tick,
+            ingest=self.sensor.ingest,
+            wait=self.wait,
+            latency=self.latency,
+            on_tick=self.samples.append,
+            offset_ns=OFFSET,
+            late_wait_ns=LATE_WAIT,
+            slew_ns=SLEW,
+            spin_ns=0,  # a simulated clock does not move by itself
+        )
+        scheduler.run(duration_ns)
+        return scheduler
+
+
+def _loop(arrivals: list[int]) -> Loop:
+    return Loop.on(arrivals)
+
+
+def _periods(loop: Loop, after_ns: int = 0) -> list[int]:
+    starts = [t for t, _ in loop.ticks if t >= after_ns]
+    return [b - a for a, b in itertools.pairwise(starts)]
+
+
+def test_ticks_lock_offset_after_the_sample_and_then_keep_the_period() -> None:
+    # A 50 Hz sensor 7.3 ms out of phase with the loop's start.
+    arrivals = [round(7.3 * MS) + k * PERIOD for k in range(100)]
+    loop = _loop(arrivals)
+    scheduler = loop.run(arrivals[-1] + 5 * MS)
+    assert scheduler.locks == 1
+    locked = [(t, trigger) for t, trigger in loop.ticks if t > 3 * PERIOD]
+    # Every tick after locking on starts exactly `offset` after its sample, and answers that sample.
+    assert locked and all(trigger is not None and t - trigger == OFFSET for t, trigger in locked)
+    assert set(_periods(loop, after_ns=3 * PERIOD)) == {PERIOD}
+    # Latency: the offset plus the tick's own time to its command (before the lock, up to a period).
+    assert {s.latency_ns for s in loop.samples if s.start_ns > 3 * PERIOD} == {OFFSET + TICK_COST}
+
+
+def test_arrival_jitter_does_not_move_the_ticks() -> None:
+    # Samples late by 0..0.5 ms at random-looking steps: the sensor-paced loop's period would follow them.
+    late = [0, 500_000, 100_000, 0, 300_000, 0, 450_000, 200_000]
+    arrivals = [5 * MS + k * PERIOD + late[k % len(late)] for k in range(150)]
+    loop = _loop(arrivals)
+    scheduler = loop.run(arrivals[-1] + 5 * MS)
+    # The grid follows the earliest arrivals, so ticks stay `offset` after the on-time samples, and a
+    # period stays a period give or take the slew.
+    periods = _periods(loop, after_ns=20 * PERIOD)
+    assert max(abs(p - PERIOD) for p in periods) <= SLEW
+    assert scheduler.stats.deadline_ticks <= 2  # every late sample still made its tick
+
+
+def test_a_small_phase_step_is_steered_to_at_the_slew_rate() -> None:
+    # The sensor's phase moves 0.5 ms later halfway (an autopilot's scheduler change, say): inside the
+    # late wait, so every sample is still answered at once while the grid steers over.
+    first = [5 * MS + k * PERIOD for k in range(50)]
+    second = [first[-1] + PERIOD + 500_000 + k * PERIOD for k in range(100)]
+    loop = _loop(first + second)
+    scheduler = loop.run(second[-1] + 5 * MS)
+    assert scheduler.locks == 1 and scheduler.stats.deadline_ticks == 0
+    assert max(abs(p - PERIOD) for p in _periods(loop, after_ns=3 * PERIOD)) <= 500_000
+    tail = [(t, trigger) for t, trigger in loop.ticks if t > second[60]]
+    assert tail and all(trigger is not None and abs(t - trigger - OFFSET) <= 10_000 for t, trigger in tail)
+
+
+def test_a_large_phase_step_locks_on_afresh() -> None:
+    # 5 ms later: beyond the offset and the late wait. Three missed samples, then a new lock.
+    first = [5 * MS + k * PERIOD for k in range(50)]
+    second = [first[-1] + PERIOD + 5 * MS + k * PERIOD for k in range(100)]
+    loop = _loop(first + second)
+    scheduler = loop.run(second[-1] + 5 * MS)
+    assert scheduler.locks == 2 and scheduler.late_waits_missed == 3
+    # Each missed tick is late by the late wait, never more; the new lock is one step.
+    off_period = [p for p in _periods(loop, after_ns=3 * PERIOD) if abs(p - PERIOD) > LATE_WAIT + SLEW]
+    assert len(off_period) == 1
+    tail = [(t, trigger) for t, trigger in loop.ticks if t > second[5]]
+    assert tail and all(trigger is not None and t - trigger == OFFSET for t, trigger in tail)
+
+
+def test_a_late_sample_is_not_waited_for_and_its_latency_is_counted() -> None:
+    arrivals = [5 * MS + k * PERIOD for k in range(60)]
+    arrivals[40] += 3 * MS  # 3 ms late: after its tick (due 0.8 ms after it was expected) and its late wait
+    loop = _loop(arrivals)
+    scheduler = loop.run(arrivals[-1] + 5 * MS)
+    missed = [s for s in loop.samples if s.trigger == "deadline" and s.start_ns > 3 * PERIOD]
+    assert len(missed) == 1 and scheduler.late_waits_missed == 1
+    # It waited the late wait for the sample, then ran: late by that, and no more.
+    assert missed[0].start_ns - (arrivals[40] - 3 * MS + OFFSET) == LATE_WAIT
+    # The late sample is answered by the next tick: its latency is that wait plus the tick, and shows.
+    worst = scheduler.stats.latency_ns.summary_ms()["max_ms"]
+    expected_wait = PERIOD + OFFSET - 3 * MS + TICK_COST
+    assert worst == pytest.approx(expected_wait / 1e6)
+
+
+def test_a_silent_sensor_leaves_a_fixed_rate_loop_that_locks_again_when_it_is_back() -> None:
+    first = [5 * MS + k * PERIOD for k in range(10)]
+    resumed = [713 * MS + k * PERIOD for k in range(20)]  # back in another phase
+    loop = _loop(first + resumed)
+    scheduler = loop.run(resumed[-1] + 5 * MS)
+    silent = [t for t, trigger in loop.ticks if first[-1] + PERIOD < t < resumed[0]]
+    # Three ticks wait the late wait for the sample, then the loop runs free on the period.
+    assert scheduler.late_waits_missed == 3
+    assert silent and {b - a for a, b in itertools.pairwise(silent[4:])} == {PERIOD}
+    assert scheduler.locks == 2
+    after = [(t, trigger) for t, trigger in loop.ticks if t > resumed[1] + PERIOD]
+    assert after and all(trigger is not None and t - trigger == OFFSET for t, trigger in after)
+
+
+def test_without_a_sensor_it_is_a_plain_fixed_rate_loop() -> None:
+    loop = _loop([])
+    scheduler = loop.run(500 * MS)
+    assert scheduler.locks == 0 and scheduler.stats.sensor_ticks == 0
+    assert set(_periods(loop)) == {PERIOD}
+    assert scheduler.stats.latency_ns.count == 0
+
+
+def test_a_long_tick_counts_overruns_instead_of_bursting() -> None:
+    loop = _loop([])
+
+    def slow_tick(trigger_ns: int | None) -> None:
+        loop.ticks.append((loop.clock.now_ns(), trigger_ns))
+        loop.clock.advance(95 * MS if len(loop.ticks) == 3 else TICK_COST)
+
+    loop.tick = slow_tick  # type: ignore[method-assign]
+    stats = loop.run(400 * MS).stats
+    assert stats.overruns >= 3
+    assert min(_periods(loop)) >= PERIOD // 2
+
+
+@pytest.mark.parametrize(
+    ("offset_ns", "slew_ns", "spin_ns"),
+    [(-1, SLEW, 0), (PERIOD, SLEW, 0), (OFFSET, 0, 0), (OFFSET, PERIOD, 0), (OFFSET, SLEW, -1)],
+)
+def test_settings_out_of_range_are_refused(offset_ns: int, slew_ns: int, spin_ns: int) -> None:
+    clock = SimClock()
+    with pytest.raises(ValueError):
+        PhaseLockedScheduler(
+            clock, 50.0, lambda _: None, ingest=lambda: None, wait=lambda _: None,
+            offset_ns=offset_ns, slew_ns=slew_ns, spin_ns=spin_ns,
+        )  # fmt: skip
+
+
+def test_a_slightly_late_sample_is_waited_for_up_to_the_late_wait() -> None:
+    arrivals = [5 * MS + k * PERIOD for k in range(60)]
+    arrivals[40] += OFFSET + 400_000  # 0.4 ms after its tick was due: inside the late wait
+    loop = _loop(arrivals)
+    scheduler = loop.run(arrivals[-1] + 5 * MS)
+    tick = next((t, trigger) for t, trigger in loop.ticks if trigger == arrivals[40])
+    assert tick == (arrivals[40], arrivals[40])  # started the instant it landed
+    assert scheduler.stats.deadline_ticks == 0 and scheduler.late_waits_missed == 0
+    # The late tick is late by 0.4 ms, and the one after is back on the grid: jitter 0.4 ms, twice.
+    late_periods = sorted(abs(p - PERIOD) for p in _periods(loop, after_ns=3 * PERIOD))[-2:]
+    assert late_periods == [pytest.approx(400_000, abs=SLEW)] * 2
+
+
+def test_the_config_names_the_loop_and_the_rover_drives_on_the_phase_locked_one() -> None:
+    config = dataclasses.replace(rig_config(), control_loop="phase-locked", phase_offset_ms=1.5)
+    rig = Rig(config)
+    try:
+        stop = threading.Event()
+        end = rig.now_ns + 8 * NS_PER_S
+
+        def wait(_seconds: float) -> None:
+            # Time moves in the simulated rover's physics steps; its IMU lands on them.
+            rig.physics_tick()
+            if rig.now_ns >= end or rig.body.speed > 0.3:
+                stop.set()
+
+        scheduler = control_scheduler(rig.stack, rig.clock, config, rig.sink, wait, stop)
+        assert isinstance(scheduler, PhaseLockedScheduler) and scheduler.offset_ns == 1_500_000
+        stats = scheduler.run()
+        assert scheduler.locks >= 1 and stats.sensor_ticks > 0
+        assert rig.stack.safety_mode.value == "DRIVING" and rig.body.speed > 0.3
+        assert any(topic == "runtime/timing" for topic, _, _ in rig.sink.records)
+    finally:
+        rig.close()
+    paced = control_scheduler(rig.stack, rig.clock, rig_config(), rig.sink, lambda _: None)
+    assert isinstance(paced, SensorPacedScheduler)
+
+
+@pytest.mark.parametrize(
+    ("text", "key"),
+    [('control_loop = "fast"', "control_loop"), ("phase_offset_ms = 10.5", "phase_offset_ms")],
+)
+def test_the_config_refuses_an_unknown_loop_and_an_offset_past_half_a_period(text: str, key: str) -> None:
+    with pytest.raises(ConfigError, match=key):
+        rover_config_from_table(parse_toml(text, "<test>"))
