@@ -9,7 +9,10 @@ it has one (``firmware_bridge.can_log_dates``: Unix time), else they are the rec
 .asc / .trc / .blf dated at export (and the header saying so) instead of 1970.
 
 A record that does not describe a frame (bad hex, DLC disagreeing with the payload, id out of range) is
-skipped, counted in ``ExportStats.rejected`` and logged; it never stops the export.
+skipped, counted in ``ExportStats.rejected`` and logged; it never stops the export. A recording cut short
+or damaged partway is exported up to that point, and ``ExportStats.stop`` says where (``logs.read_stop``):
+the log holds what was recorded, and the caller says it is not all. A file with no recording in it (empty,
+or not MCAP) is an error, and no log is written.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ import can
 from firmware_bridge.can_log_dates import DatedAscWriter, DatedTrcWriter, TimeBase, time_base
 from firmware_bridge.errors import BridgeOperationError, BridgeSetupError, FrameError
 from logs.errors import LogReadError
+from logs.read_stop import ReadStop
 from logs.reader import ReadStats, RecordedMessage, RecordedMetadata, Source, read_entries
 from logs.topics import CAN_FRAMES
 from logs.wall_clock import WALL_CLOCK_METADATA, WallClockAnchor
@@ -55,6 +59,8 @@ class ExportStats:
     first_ns: int | None = None
     last_ns: int | None = None
     truncated: bool = False  # the recording was cut short; everything before the cut was exported
+    # Where the export stopped before the recording's end (a cut, or damage), else None.
+    stop: ReadStop | None = None
     # The first frame's wall-clock time (ISO 8601, UTC) when the recording says when it ran; else None.
     wall_clock_start: str | None = None
 
@@ -135,8 +141,8 @@ def export_can_log(
     ``channel`` is the interface name written on each line (candump needs one; ``can0`` replays on the
     rover, ``vcan0`` on a HIL host). ``wall_ns`` (Unix ns) dates a log whose recording does not say when it
     ran (module docstring). Raises ``BridgeSetupError`` for an output it cannot create and
-    ``BridgeOperationError`` for a recording it cannot read; a recording cut short is exported up to the
-    cut (``truncated``).
+    ``BridgeOperationError`` for a recording it cannot read (missing, empty, not MCAP: nothing is
+    written); a recording cut short or damaged is exported up to that point (``stop``, ``truncated``).
     """
     if not channel or any(c.isspace() for c in channel):
         raise BridgeSetupError(f"CAN log channel must be a name without spaces, got {channel!r}")
@@ -147,7 +153,10 @@ def export_can_log(
     anchor: WallClockAnchor | None = None
     opened: tuple[TimeBase, can.Listener] | None = None  # from the first frame on
     try:
-        for entry in read_entries(source, topics=[CAN_FRAMES], stats=read_stats):
+        entries = read_entries(
+            source, topics=[CAN_FRAMES], stats=read_stats, stop_at_damage=True, refuse_empty=True
+        )
+        for entry in entries:
             if isinstance(entry, RecordedMetadata):
                 # rover run writes it before any frame; one met later cannot re-date what is written.
                 if entry.name == WALL_CLOCK_METADATA and opened is None:
@@ -184,9 +193,10 @@ def export_can_log(
     finally:
         if opened is not None:
             opened[1].stop()
-    if opened is None:  # no frames: the log is written all the same, empty
+    if opened is None:  # a recording without frames: the log is written all the same, empty
         _open_writer(path, channel, time_base(suffix, anchor, 0, wall_ns())).stop()
     stats.truncated = read_stats.truncated
+    stats.stop = read_stats.stop
     if suffix in _NO_DIRECTION_SUFFIXES and stats.tx:
         logger.warning(
             "%s: python-can's %s format has no direction column: the %d frames the companion sent read "

@@ -5,6 +5,9 @@ with dots (``pose.position.x``); a short list is spread over indexed columns (``
 one (a planned path) stays one cell holding its JSON, so a topic's column count stays bounded. The columns
 of a topic are every field any of its messages had, in order of first appearance; a message without one
 leaves the cell empty. Two passes over the file: the first learns the columns, the second writes.
+
+A recording cut short or damaged partway is exported up to that point (``CsvExport.stop`` says where:
+``logs.read_stop``); a file with no recording in it (empty, not MCAP) is an error and writes nothing.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from logs.errors import LogsError
+from logs.read_stop import ReadStop
 from logs.reader import ReadStats, RecordedMessage, read_entries, topic_counts
 
 TIME_COLUMNS = ("log_time_ns", "log_time_s")
@@ -40,6 +44,7 @@ class CsvExport:
     files: dict[str, Path] = field(default_factory=dict)  # topic -> CSV file
     rows: dict[str, int] = field(default_factory=dict)  # topic -> rows written
     truncated: bool = False  # the recording was cut short: the rows are its readable part
+    stop: ReadStop | None = None  # where a cut or damage ended the export early (None: read to the end)
     skipped_messages: int = 0  # messages that could not be decoded (counted by the reader)
 
 
@@ -79,16 +84,18 @@ def file_name_for(topic: str, taken: Collection[str]) -> str:
 def export_csv(source: Path, out_dir: Path, topics: Collection[str] | None = None) -> CsvExport:
     """Write one CSV per topic of ``source`` (all topics, or ``topics``) into ``out_dir``.
 
-    ``LogReadError`` for a file that is not a readable MCAP; ``CsvExportError`` for a topic that is not in
-    the recording or an ``out_dir`` that cannot be written. A cut recording exports its readable part
-    (``truncated``).
+    ``LogReadError`` for a file that is not a readable MCAP (``NotARecording``: empty, or not MCAP);
+    ``CsvExportError`` for a topic that is not in the recording or an ``out_dir`` that cannot be written.
+    A recording cut short or damaged exports its readable part (``stop``; ``truncated`` for a cut).
     """
-    present = topic_counts(source)
+    counted = ReadStats()
+    present = topic_counts(source, stats=counted, stop_at_damage=True, refuse_empty=True)
     if topics is not None:
         missing = sorted(set(topics) - set(present))
         if missing:
+            readable = "" if counted.stop is None else f" before it is {counted.stop.describe()}"
             raise CsvExportError(
-                f"{source}: no topic {', '.join(missing)} in this recording; "
+                f"{source}: no topic {', '.join(missing)} in this recording{readable}; "
                 f"it has {', '.join(present) or 'no messages'}"
             )
     wanted = sorted(present) if topics is None else sorted(set(topics))
@@ -123,6 +130,7 @@ def export_csv(source: Path, out_dir: Path, topics: Collection[str] | None = Non
             writer.writerow(row)
             result.rows[message.topic] += 1
         result.truncated = stats.truncated
+        result.stop = stats.stop
         result.skipped_messages = stats.skipped
     except OSError as err:
         raise CsvExportError(f"cannot write the CSV files in {out_dir}: {err.strerror or err}") from err
@@ -143,6 +151,7 @@ def _columns(source: Path, topics: Collection[str]) -> dict[str, list[str]]:
 
 
 def _messages(source: Path, topics: Collection[str], stats: ReadStats) -> Iterator[RecordedMessage]:
-    for entry in read_entries(source, topics=topics, stats=stats):
+    # Up to damage, as up to a cut: what was recorded before it is exported, and ``stats.stop`` says so.
+    for entry in read_entries(source, topics=topics, stats=stats, stop_at_damage=True, refuse_empty=True):
         if isinstance(entry, RecordedMessage):
             yield entry

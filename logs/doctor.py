@@ -4,7 +4,9 @@ Checks: the magic at both ends; every record framed completely (else: where the 
 chunk decompresses to its stated size and matches its CRC; every attachment matches its CRC; the data
 section CRC in DataEnd; the Statistics record (if any) agrees with what was counted. Counts per topic
 with first / last log time, metadata and attachment names. Problems are listed, never raised, except for
-a file that is missing or not MCAP at all (``LogReadError``).
+a file that is missing or holds no recording at all (``LogReadError``; ``NotARecording`` for an empty file,
+one that ends inside the MCAP magic, or one that is not MCAP), as ``rover can export`` and ``rover logs
+csv`` refuse them. A cut and damage are worded as those tools word them (``logs.read_stop``).
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from logs.frames import (
     chunk_payload,
     inner_frames,
 )
+from logs.read_stop import DAMAGED, ReadStop
 
 
 @dataclass
@@ -81,14 +84,13 @@ def diagnose(path: str | Path) -> DoctorReport:
         raise LogReadError(f"cannot open recording {source}: {err}") from err
     report = DoctorReport(str(source), size_bytes=size)
     with stream:
-        walk = FrameWalk(stream, str(source))
+        walk = FrameWalk(stream, str(source), refuse_empty=True)
         _Checker(report).run(walk)
-    if walk.cut_at is not None:
-        report.cut_at = walk.cut_at
+    if walk.stop is not None:
+        report.cut_at = walk.stop.offset
         report.bytes_after_last_record = size - walk.end
         report.problems.append(
-            f"file is cut short at byte {walk.cut_at} of {size}, {walk.cut_reason}; "
-            "`rover logs recover` keeps every complete chunk"
+            f"file ({size} bytes) is {walk.stop.describe()}; `rover logs recover` keeps every complete chunk"
         )
     elif report.complete and not walk.trailing_magic:
         report.problems.append("the closing magic bytes are missing")
@@ -107,9 +109,8 @@ class _Checker:
             try:
                 self._frame(frame)
             except (ValueError, struct.error, UnicodeDecodeError) as err:
-                self.report.problems.append(
-                    f"record at byte {frame.offset} (opcode {frame.opcode:#x}): {err}"
-                )
+                damage = ReadStop(DAMAGED, frame.offset, f"opcode {frame.opcode:#x}: {err}")
+                self.report.problems.append(f"record {damage.describe()}")
 
     def _frame(self, frame: Frame) -> None:
         report = self.report
@@ -160,7 +161,7 @@ class _Checker:
             records = list(inner_frames(payload))
         except ValueError as err:
             report.chunks_damaged += 1
-            report.problems.append(f"chunk at byte {frame.offset} is damaged: {err}")
+            report.problems.append(f"chunk {ReadStop(DAMAGED, frame.offset, str(err)).describe()}")
             return
         for opcode, body in records:
             if opcode == Opcode.CHANNEL:

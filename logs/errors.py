@@ -5,6 +5,8 @@ Messages say what failed and what to do about it; the original exception rides a
 
 from __future__ import annotations
 
+from logs.read_stop import ReadStop
+
 
 class LogsError(Exception):
     """Base of every error raised by the ``logs`` package."""
@@ -20,6 +22,20 @@ class LogReadError(LogsError):
     A file merely cut short (a crash while recording) is *not* an error: readers return the complete
     prefix and log a warning.
     """
+
+
+class NotARecording(LogReadError):
+    """The file holds no MCAP recording at all: it starts with other bytes, or (for tools that refuse it)
+    it is empty or ends inside the MCAP magic."""
+
+
+class RecordingDamaged(LogReadError):
+    """A complete record of the recording does not parse (a flipped bit, a chunk failing its CRC);
+    ``stop`` says where, for a tool that keeps what it read before it."""
+
+    def __init__(self, name: str, stop: ReadStop) -> None:
+        super().__init__(f"{name} is {stop.describe()}")
+        self.stop = stop
 
 
 class TelemetryError(LogsError):

@@ -19,12 +19,32 @@ from mcap.data_stream import ReadDataStream
 from mcap.opcode import Opcode
 from mcap.records import Chunk
 
-from logs.errors import LogReadError
+from logs.errors import LogReadError, NotARecording, RecordingDamaged
+from logs.read_stop import CUT, DAMAGED, ReadStop
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 FRAME_HEAD = struct.Struct("<BQ")  # opcode uint8, record length uint64
 MAX_RECORD_BYTES = 1 << 30  # a damaged length must not make us allocate terabytes
 _READ_PIECE = 1 << 20
+
+
+def magic_complete(magic: bytes, name: str, *, refuse_empty: bool) -> bool:
+    """Whether ``magic`` (the file's first bytes, up to the magic's length) is the MCAP magic. A file that
+    ends inside it is a cut before anything was recorded (False), or with ``refuse_empty`` a
+    ``NotARecording``, as is a file starting with other bytes."""
+    if magic == MCAP_MAGIC:
+        return True
+    if not MCAP_MAGIC.startswith(magic):
+        raise NotARecording(f"{name} is not an MCAP file (it starts with {magic!r}); pass an .mcap recording")
+    if refuse_empty:
+        what = "is empty (0 bytes)" if not magic else f"holds only {len(magic)} bytes, part of the MCAP magic"
+        raise NotARecording(f"{name} {what}: no recording in it (the recorder stopped before writing one?)")
+    return False
+
+
+def oversized_record(offset: int, opcode: int, length: int) -> ReadStop:
+    """A record claiming more than ``MAX_RECORD_BYTES``: a damaged length field, not a record of ours."""
+    return ReadStop(DAMAGED, offset, f"opcode {opcode:#x}: the record claims {length} bytes")
 
 
 @dataclass(frozen=True)
@@ -40,10 +60,13 @@ class Frame:
 
 @dataclass
 class FrameWalk:
-    """Iterate ``frames()``; afterwards ``cut_at`` (byte offset of a cut, or None) and ``end`` are set."""
+    """Iterate ``frames()``; afterwards ``cut_at`` (byte offset of a cut, or None) and ``end`` are set.
+
+    ``refuse_empty``: a file that ends before its magic is complete is a ``NotARecording``, not a cut."""
 
     stream: BinaryIO
     name: str
+    refuse_empty: bool = False
     cut_at: int | None = None
     cut_reason: str = ""
     end: int = 0  # offset just after the last complete frame (or magic)
@@ -51,11 +74,9 @@ class FrameWalk:
 
     def frames(self) -> Iterator[Frame]:
         magic = self._read(len(MCAP_MAGIC))
-        if magic != MCAP_MAGIC:
-            if MCAP_MAGIC.startswith(magic):
-                self._cut(len(magic), "inside the file magic")
-                return
-            raise LogReadError(f"{self.name} is not an MCAP file (it starts with {magic[:8]!r})")
+        if not magic_complete(magic, self.name, refuse_empty=self.refuse_empty):
+            self._cut(len(magic), "inside the file magic")
+            return
         offset = self.end = len(MCAP_MAGIC)
         while True:
             head = self._read(FRAME_HEAD.size)
@@ -71,17 +92,19 @@ class FrameWalk:
                 return
             opcode, length = FRAME_HEAD.unpack(head)
             if length > MAX_RECORD_BYTES:
-                raise LogReadError(
-                    f"{self.name} is damaged: record at byte {offset} claims {length} bytes "
-                    f"(opcode {opcode:#x})"
-                )
+                raise RecordingDamaged(self.name, oversized_record(offset, opcode, length))
             body = self._read(length)
             if len(body) < length:
-                self._cut(offset, f"inside a record ({len(body)} of its {length} bytes present)")
+                self._cut(offset, f"inside a record: {len(body)} of its {length} bytes present")
                 return
             yield Frame(offset, opcode, body)
             offset += FRAME_HEAD.size + length
             self.end = offset
+
+    @property
+    def stop(self) -> ReadStop | None:
+        """The cut as ``logs.read_stop`` words it (None: the walk reached the end, or has not yet)."""
+        return None if self.cut_at is None else ReadStop(CUT, self.cut_at, self.cut_reason)
 
     def _cut(self, offset: int, reason: str) -> None:
         self.cut_at = offset

@@ -3,8 +3,10 @@
 The reader walks the data section front to back and never seeks, so it reads a file that is still being
 written, a pipe, or a file whose summary and footer were never written. Record framing (opcode + length)
 is read here so that a cut is told apart from damage: a record whose bytes end early is the cut (stop,
-warn, keep everything before it); a record that is complete but does not parse is damage (``LogReadError``).
-Record bodies are parsed with the ``mcap`` library's record classes.
+warn, keep everything before it); a record that is complete but does not parse is damage
+(``RecordingDamaged``, or with ``stop_at_damage`` a stop like the cut's, for tools that keep what they read).
+Either way ``ReadStats.stop`` says where (``logs.read_stop``). Record bodies are parsed with the ``mcap``
+library's record classes.
 
 Only our own recordings are in scope: JSON messages (``logs.recorder``). A message whose payload is not a
 JSON object is skipped and counted in ``ReadStats``, never raised.
@@ -30,17 +32,16 @@ from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.records import Attachment, Channel, Chunk, McapRecord, Message, Metadata
 
-from logs.errors import LogReadError
+from logs.errors import LogReadError, RecordingDamaged
+from logs.frames import MAX_RECORD_BYTES, MCAP_MAGIC, magic_complete, oversized_record
+from logs.read_stop import CUT, DAMAGED, ReadStop
 
 logger = logging.getLogger(__name__)
 
 Source = str | Path | BinaryIO
 
-MCAP_MAGIC = b"\x89MCAP0\r\n"
 _FRAME_HEAD = struct.Struct("<BQ")  # opcode uint8, record length uint64
 _MESSAGE_HEAD = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time; then the data
-# A damaged length field must not make us try to allocate terabytes; no record of ours comes near this.
-MAX_RECORD_BYTES = 1 << 30
 _READ_PIECE = 1 << 20  # read big records in pieces so memory follows the bytes really present
 _MAX_WARNINGS = 10  # per read: the first few malformed messages are logged, the rest only counted
 
@@ -88,6 +89,7 @@ class ReadStats:
     not_json: int = 0  # channel with another message encoding
     truncated: bool = False
     complete: bool = False  # the data section ended with its DataEnd record
+    stop: ReadStop | None = None  # where a cut (or, with stop_at_damage, damage) ended the read early
 
     @property
     def skipped(self) -> int:
@@ -102,14 +104,20 @@ def read_entries(
     messages: bool = True,
     stats: ReadStats | None = None,
     raw_topics: Collection[str] = (),
+    stop_at_damage: bool = False,
+    refuse_empty: bool = False,
 ) -> Iterator[Entry]:
     """Messages, metadata and attachments in file order, in one pass.
 
     ``topics`` limits the messages to those topics; ``messages=False`` skips them all without
     decompressing chunks (fast for metadata and attachments). Messages on ``raw_topics`` come as
     ``RecordedRaw`` without JSON decoding (for analyses that only count or scan them). Raises
-    ``LogReadError`` for a file that is missing, not MCAP or damaged; a cut file ends the iteration
-    early with a warning.
+    ``LogReadError`` for a file that is missing or not MCAP (``NotARecording``) and ``RecordingDamaged``
+    for damage; a cut file ends the iteration early with a warning (``stats.truncated``, ``stats.stop``).
+
+    For tools whose output is what was read (exports): ``stop_at_damage`` ends the iteration at damage
+    as at a cut (``stats.stop``) instead of raising; ``refuse_empty`` raises ``NotARecording`` for a file
+    that ends before its magic is complete (empty: nothing to export) instead of reading it as cut.
     """
     stats = stats if stats is not None else ReadStats()
     wanted = frozenset(topics) if topics is not None else None
@@ -121,7 +129,15 @@ def read_entries(
     unwanted: set[int] = set()
     with ExitStack() as stack:
         stream, name = _open(source, stack)
-        for record in _records(stream, name, stats, decode_chunks=messages, skip_channels=unwanted):
+        for record in _records(
+            stream,
+            name,
+            stats,
+            decode_chunks=messages,
+            skip_channels=unwanted,
+            stop_at_damage=stop_at_damage,
+            refuse_empty=refuse_empty,
+        ):
             if isinstance(record, Message):
                 if messages:
                     decoded = _decode(record, channels, wanted, stats, name, raw)
@@ -164,13 +180,28 @@ def read_attachments(source: Source) -> dict[str, bytes]:
     }
 
 
-def topic_counts(source: Source) -> dict[str, int]:
-    """Number of messages per topic (payloads are not decoded), sorted by topic."""
+def topic_counts(
+    source: Source,
+    *,
+    stats: ReadStats | None = None,
+    stop_at_damage: bool = False,
+    refuse_empty: bool = False,
+) -> dict[str, int]:
+    """Number of messages per topic (payloads are not decoded), sorted by topic; the keywords as for
+    ``read_entries``."""
     counts: dict[str, int] = {}
     channels: dict[int, str] = {}
     with ExitStack() as stack:
         stream, name = _open(source, stack)
-        for record in _records(stream, name, ReadStats(), decode_chunks=True):
+        records = _records(
+            stream,
+            name,
+            stats if stats is not None else ReadStats(),
+            decode_chunks=True,
+            stop_at_damage=stop_at_damage,
+            refuse_empty=refuse_empty,
+        )
+        for record in records:
             if isinstance(record, Message):
                 topic = channels.get(record.channel_id)
                 if topic is not None:
@@ -275,44 +306,51 @@ def _records(
     *,
     decode_chunks: bool,
     skip_channels: Collection[int] = frozenset(),
+    stop_at_damage: bool = False,
+    refuse_empty: bool = False,
 ) -> Iterator[McapRecord]:
-    """Records of the data section, chunks opened up; stops at DataEnd or, with a warning, at a cut.
+    """Records of the data section, chunks opened up; stops at DataEnd or, with a warning, at a cut (and
+    with ``stop_at_damage`` at damage).
 
     Messages inside chunks on ``skip_channels`` (which the caller may grow while reading) are left out."""
     magic = _read_up_to(stream, len(MCAP_MAGIC), name)
-    if magic != MCAP_MAGIC:
-        if MCAP_MAGIC.startswith(magic):
-            _cut(stats, name, "inside the file magic")
-            return
-        raise LogReadError(f"{name} is not an MCAP file (it starts with {magic!r}); pass an .mcap recording")
+    if not magic_complete(magic, name, refuse_empty=refuse_empty):
+        _cut(stats, name, len(magic), "inside the file magic")
+        return
     offset = len(MCAP_MAGIC)
     while True:
         head = _read_up_to(stream, _FRAME_HEAD.size, name)
         if len(head) < _FRAME_HEAD.size:
-            _cut(stats, name, f"at byte {offset + len(head)}, before the end of the data section")
+            _cut(stats, name, offset, "inside a record header" if head else "before the data section ended")
             return
         opcode, length = _FRAME_HEAD.unpack(head)
-        if length > MAX_RECORD_BYTES:
-            raise LogReadError(
-                f"{name} is damaged: record at byte {offset} claims {length} bytes (opcode {opcode:#x})"
-            )
-        body = _read_up_to(stream, length, name)
-        if len(body) < length:
-            _cut(stats, name, f"inside the record at byte {offset} ({len(body)} of {length} bytes present)")
+        try:
+            if length > MAX_RECORD_BYTES:
+                raise RecordingDamaged(name, oversized_record(offset, opcode, length))
+            body = _read_up_to(stream, length, name)
+            if len(body) < length:
+                _cut(stats, name, offset, f"inside a record: {len(body)} of its {length} bytes present")
+                return
+            if opcode == Opcode.DATA_END:
+                stats.complete = True
+                return  # the summary section repeats what we have already read
+            records: list[McapRecord] = []
+            if opcode != Opcode.CHUNK or decode_chunks:
+                records = _parse(opcode, body, name, offset, skip_channels)
+        except RecordingDamaged as err:
+            if not stop_at_damage:
+                raise
+            stats.stop = err.stop
+            logger.warning("%s is %s; read everything before it", name, err.stop.describe())
             return
-        if opcode == Opcode.DATA_END:
-            stats.complete = True
-            return  # the summary section repeats what we have already read
-        if opcode == Opcode.CHUNK and not decode_chunks:
-            pass
-        else:
-            yield from _parse(opcode, body, name, offset, skip_channels)
+        yield from records
         offset += _FRAME_HEAD.size + length
 
 
-def _cut(stats: ReadStats, name: str, where: str) -> None:
+def _cut(stats: ReadStats, name: str, offset: int, reason: str) -> None:
     stats.truncated = True
-    logger.warning("%s is cut short %s; read everything before the cut", name, where)
+    stats.stop = ReadStop(CUT, offset, reason)
+    logger.warning("%s is %s; read everything before the cut", name, stats.stop.describe())
 
 
 _PLAIN_RECORDS: dict[int, Any] = {
@@ -338,7 +376,7 @@ def _parse(
     except LogReadError:
         raise
     except (McapError, struct.error, UnicodeDecodeError, ValueError, zstandard.ZstdError) as err:
-        raise LogReadError(f"{name} is damaged: record at byte {offset} (opcode {opcode:#x}): {err}") from err
+        raise RecordingDamaged(name, ReadStop(DAMAGED, offset, f"opcode {opcode:#x}: {err}")) from err
 
 
 def _chunk_records(chunk: Chunk, name: str, offset: int, skip_channels: Collection[int]) -> list[McapRecord]:
@@ -352,17 +390,17 @@ def _chunk_records(chunk: Chunk, name: str, offset: int, skip_channels: Collecti
             "only zstd and uncompressed recordings are supported"
         )
     if chunk.uncompressed_crc != 0 and zlib.crc32(data) != chunk.uncompressed_crc:
-        raise LogReadError(f"{name} is damaged: chunk at byte {offset} fails its CRC check")
+        raise RecordingDamaged(name, ReadStop(DAMAGED, offset, "the chunk fails its CRC check"))
     records: list[McapRecord] = []
     position = 0
     while position < len(data):
         if position + _FRAME_HEAD.size > len(data):
-            raise LogReadError(f"{name} is damaged: chunk at byte {offset} ends inside a record header")
+            raise RecordingDamaged(name, ReadStop(DAMAGED, offset, "the chunk ends inside a record header"))
         opcode, length = _FRAME_HEAD.unpack_from(data, position)
         start = position + _FRAME_HEAD.size
         end = start + length
         if end > len(data):
-            raise LogReadError(f"{name} is damaged: chunk at byte {offset} ends inside a record")
+            raise RecordingDamaged(name, ReadStop(DAMAGED, offset, "the chunk ends inside a record"))
         if opcode == Opcode.MESSAGE and length >= _MESSAGE_HEAD.size:
             # The hot path of every analysis: unpack in place instead of a stream object per message.
             channel_id, sequence, log_time, publish_time = _MESSAGE_HEAD.unpack_from(data, start)

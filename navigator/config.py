@@ -17,14 +17,19 @@ from firmware_bridge.mavlink_link import MavlinkConfig
 from firmware_bridge.vesc import VescProfile
 from logs.settings import Table, load_toml
 from logs.telemetry import ZenohSettings
+from navigator.astar import HEURISTICS
 from navigator.config_checks import check_cross_fields
 from navigator.follower import FollowerConfig
 from navigator.map_config import terrain_from_table
+from navigator.planner import COST_MODES, FOOTPRINT_INFLATIONS
 from navigator.safety_config import SafetyConfig
 from navigator.terrain import TerrainMap
 from navigator.vehicle import VehicleParams
 
-HEURISTICS = ("octile", "euclidean", "manhattan")
+# [planner] heuristic_weight: 1 is plain A* (optimal); w > 1 finds a path costing at most w times the optimum
+# with fewer expansions; below 1 it only slows the search towards Dijkstra, past 10 it is a greedy search
+# with no useful bound. `rover plan --weight` refuses what this refuses.
+HEURISTIC_WEIGHT_RANGE = (1.0, 10.0)
 # The measurement whose arrival starts a control tick in real time (navigator.paced_loop); "none": a
 # plain fixed-rate loop.
 PACING_SENSORS = ("imu", "gps", "wheels", "none")
@@ -44,13 +49,16 @@ DEFAULT_PHASE_OFFSET_MS = 0.8
 
 @dataclass(frozen=True)
 class PlannerConfig:
-    """A* settings: heuristic name, extra obstacle inflation beyond the footprint (m)."""
+    """A* settings: heuristic name, extra obstacle inflation beyond the footprint (m). ``Planner.from_config``
+    builds the planner from them, on the rover and in ``rover plan --config`` alike."""
 
     heuristic: str = "octile"
     inflation_m: float = 0.1
     # "terrain": class, slope, roughness and direction costs; "classical": obstacles only (the baseline).
     cost_mode: str = "terrain"
     heuristic_weight: float = 1.0  # > 1: weighted A*, cost at most this times the optimum
+    # The circle the cost grid inflates obstacles by before the oriented-rectangle check (navigator.planner).
+    footprint_inflation: str = "circumscribed"
     sensing_range_m: float = 8.0  # static obstacles seen within this range repair the plan
     moving_horizon_s: float = 3.0  # a moving obstacle predicted on the path this far ahead blocks it
     # A BLOCKED rover drives on only once the way has stayed clear this long (s of the guidance clock): a
@@ -59,11 +67,15 @@ class PlannerConfig:
 
     @classmethod
     def from_table(cls, table: Table) -> PlannerConfig:
+        low, high = HEURISTIC_WEIGHT_RANGE
         config = cls(
             heuristic=table.text("heuristic", cls.heuristic, choices=HEURISTICS),
             inflation_m=table.number("inflation_m", cls.inflation_m, lo=0.0, hi=10.0),
-            cost_mode=table.text("cost_mode", cls.cost_mode, choices=("terrain", "classical")),
-            heuristic_weight=table.number("heuristic_weight", cls.heuristic_weight, lo=1.0, hi=10.0),
+            cost_mode=table.text("cost_mode", cls.cost_mode, choices=COST_MODES),
+            heuristic_weight=table.number("heuristic_weight", cls.heuristic_weight, lo=low, hi=high),
+            footprint_inflation=table.text(
+                "footprint_inflation", cls.footprint_inflation, choices=FOOTPRINT_INFLATIONS
+            ),
             sensing_range_m=table.number("sensing_range_m", cls.sensing_range_m, lo=0.0, hi=1000.0),
             moving_horizon_s=table.number("moving_horizon_s", cls.moving_horizon_s, lo=0.0, hi=60.0),
             moving_clear_s=table.number("moving_clear_s", cls.moving_clear_s, lo=0.0, hi=60.0),

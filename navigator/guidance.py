@@ -98,14 +98,11 @@ class Guidance:
         self._classes = classes
         self._config = planner_config
         self._follower_config = follower_config
-        self.planner = Planner(
+        self.planner = Planner.from_config(
             terrain,
             params,
-            heuristic=planner_config.heuristic,
-            inflation_m=planner_config.inflation_m,
+            planner_config,
             classes=classes,
-            cost_mode=planner_config.cost_mode,
-            heuristic_weight=planner_config.heuristic_weight,
             # Every replan to the same goal reuses its cost-to-go field: a repair after new obstacles
             # or from a new pose expands little more than the new path (navigator.replanning).
             reuse_goal_field=True,

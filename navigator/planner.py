@@ -26,6 +26,7 @@ import dataclasses
 import logging
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -39,6 +40,9 @@ from navigator.replanning import RepairingPlanner
 from navigator.terrain import TerrainMap
 from navigator.terrain_classes import TERRAIN_CLASSES, TerrainClass
 from navigator.vehicle import VehicleParams
+
+if TYPE_CHECKING:  # navigator.config imports this module for its choices
+    from navigator.config import PlannerConfig
 
 _log = logging.getLogger(__name__)
 
@@ -124,6 +128,30 @@ class Planner:
         self._repairing: RepairingPlanner | None = None
         if reuse_goal_field:
             self._repairing = RepairingPlanner(self._cost, self._factors, heuristic_weight)
+
+    @classmethod
+    def from_config(
+        cls,
+        terrain: TerrainMap,
+        params: VehicleParams,
+        config: PlannerConfig,
+        *,
+        classes: dict[int, TerrainClass] = TERRAIN_CLASSES,
+        reuse_goal_field: bool = False,
+    ) -> Planner:
+        """The planner a rover config's ``[planner]`` describes: the one way guidance (on the rover, in HIL)
+        and ``rover plan --config`` build it, so a setting added to ``PlannerConfig`` reaches both."""
+        return cls(
+            terrain,
+            params,
+            heuristic=config.heuristic,
+            inflation_m=config.inflation_m,
+            classes=classes,
+            cost_mode=config.cost_mode,
+            heuristic_weight=config.heuristic_weight,
+            reuse_goal_field=reuse_goal_field,
+            footprint_inflation=config.footprint_inflation,
+        )
 
     @property
     def terrain(self) -> TerrainMap:

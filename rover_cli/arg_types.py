@@ -1,9 +1,10 @@
-"""argparse types for whole numbers with a range, so a bad value is refused by argparse itself (usage and
-exit 2) before a command opens, creates or writes anything."""
+"""argparse types for numbers with a range, so a bad value is refused by argparse itself (usage and exit 2)
+before a command opens, creates or writes anything."""
 
 from __future__ import annotations
 
 import argparse
+import math
 from collections.abc import Callable
 
 from logs.settings import MAX_SEED
@@ -25,6 +26,25 @@ def bounded_int(lo: int, hi: int, meaning: str = "") -> Callable[[str], int]:
         return value
 
     convert.__name__ = "whole number"  # argparse names the type in some messages
+    return convert
+
+
+def bounded_float(lo: float, hi: float, meaning: str = "") -> Callable[[str], float]:
+    """A type converter for a finite number in ``[lo, hi]``; ``meaning`` is said after the range."""
+    note = f" ({meaning})" if meaning else ""
+
+    def convert(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"expected a number {lo:g} to {hi:g}{note}, got {text!r}"
+            ) from None
+        if not (math.isfinite(value) and lo <= value <= hi):
+            raise argparse.ArgumentTypeError(f"must be {lo:g} to {hi:g}{note}, got {text}")
+        return value
+
+    convert.__name__ = "number"  # argparse names the type in some messages
     return convert
 
 

@@ -24,8 +24,11 @@ def register(families: Any) -> None:
 
 
 def export_command(args: argparse.Namespace) -> int:
+    """Exit 0: every frame exported; 1: a log was written, but without some records (skipped, or the
+    recording was cut short or damaged: stderr says where); 2: bad input, no log written."""
     from firmware_bridge.can_export import export_can_log
     from firmware_bridge.errors import BridgeError
+    from logs.read_stop import partial_notice
 
     try:
         stats = export_can_log(args.trial, args.out, channel=args.channel)
@@ -35,13 +38,13 @@ def export_command(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps({"out": str(args.out), **stats.as_dict()}))
     else:
-        cut = " (recording cut short: exported up to the cut)" if stats.truncated else ""
-        print(
-            f"{args.out}: {stats.frames} frames ({stats.tx} tx, {stats.rx} rx), "
-            f"{stats.rejected} records skipped{cut}"
-        )
+        figures = f"{stats.frames} frames ({stats.tx} tx, {stats.rx} rx), {stats.rejected} records skipped"
+        print(f"{args.out}: {figures}")
         if stats.wall_clock_start is not None:
             print(f"dated by the recording's wall clock: first frame at {stats.wall_clock_start}")
         elif stats.frames:
             print("no wall-clock start in the recording: its own times (.asc/.trc/.blf dated at export)")
-    return 1 if stats.rejected else 0
+    if stats.stop is not None:
+        kept = f"wrote the {stats.frames} frames before it to {args.out}"
+        print(f"rover can export: {partial_notice(args.trial, stats.stop, kept)}", file=sys.stderr)
+    return 1 if stats.rejected or stats.stop is not None else 0

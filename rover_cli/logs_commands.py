@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -148,7 +149,10 @@ def report_command(args: argparse.Namespace) -> int:
 
 
 def csv_command(args: argparse.Namespace) -> int:
+    """Exit 0: every message exported; 1: CSV files written from the part of a recording before a cut or
+    damage (stderr says where); 2: bad input, nothing written."""
     from logs.csv_export import export_csv
+    from logs.read_stop import partial_notice
 
     console = Console()
     try:
@@ -166,11 +170,9 @@ def csv_command(args: argparse.Namespace) -> int:
         console.print(
             f"[yellow]skipped[/yellow] {result.skipped_messages} message(s) that could not be decoded"
         )
-    if result.truncated:
-        console.print(
-            f"[yellow]cut short[/yellow] {escape(str(args.file))}: the CSV files hold its readable part; "
-            "`rover logs doctor FILE` says more",
-            soft_wrap=True,
-        )
+    if result.stop is not None:
+        kept = f"the CSV files in {args.out} hold the {sum(result.rows.values())} messages before it"
+        # As `rover can export` says it: one line on stderr, stdout stays the table.
+        print(f"rover logs csv: {partial_notice(args.file, result.stop, kept)}", file=sys.stderr)
         return 1
     return 0

@@ -1,10 +1,13 @@
-"""``rover plan MAP [--start X,Y] [--goal X,Y]``: plan once, print cost, length, nodes expanded and time
-(with ``--json`` also the path, as ``[x, y]`` points in metres from the start to the goal). A scenario's own
-``[start]`` and first ``[[goals]]`` are the defaults."""
+"""``rover plan MAP [--start X,Y] [--goal X,Y] [--config rover.toml]``: plan once, print cost, length, nodes
+expanded and time (with ``--json`` also the path, as ``[x, y]`` points in metres from the start to the
+goal). A scenario's own ``[start]`` and first ``[[goals]]`` are the defaults. The vehicle and the planner
+settings are a rover config's (``--config``, read as ``rover hil trial --config`` reads it) or the built-in
+defaults; ``--heuristic``, ``--weight``, ``--cost-mode`` and ``--footprint-inflation`` override them."""
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 from pathlib import Path
@@ -12,10 +15,20 @@ from typing import Any
 
 from logs.settings import ConfigError
 from navigator.astar import HEURISTICS
+from navigator.config import HEURISTIC_WEIGHT_RANGE, PlannerConfig, load_rover_config
 from navigator.errors import NavigatorError
 from navigator.plan_tools import Point, draw_png, export_costs, load_map, plan_once, scenario_endpoints
 from navigator.planner import COST_MODES, FOOTPRINT_INFLATIONS, Planner
 from navigator.vehicle import VehicleParams
+from rover_cli.arg_types import bounded_float
+
+# option -> the PlannerConfig field it overrides (an option not given leaves the config's value)
+_PLANNER_OPTIONS = {
+    "heuristic": "heuristic",
+    "weight": "heuristic_weight",
+    "cost_mode": "cost_mode",
+    "footprint_inflation": "footprint_inflation",
+}
 
 
 def _point(text: str) -> tuple[float, float]:
@@ -46,14 +59,39 @@ def register(families: Any) -> None:
         default=None,
         help="goal X,Y (ENU metres; default: the scenario's first [[goals]] xy)",
     )
-    plan.add_argument("--heuristic", choices=HEURISTICS, default="octile")
-    plan.add_argument("--weight", type=float, default=1.0, help="heuristic weight (> 1: bounded suboptimal)")
-    plan.add_argument("--cost-mode", choices=COST_MODES, default="terrain")
+    plan.add_argument(
+        "--config",
+        type=Path,
+        default=None,
+        help="rover config TOML: plan with its [vehicle] and [planner] (the options below override them)",
+    )
+    defaults = PlannerConfig()
+    plan.add_argument(
+        "--heuristic",
+        choices=HEURISTICS,
+        default=None,
+        help=f"default: the config's, else {defaults.heuristic}",
+    )
+    low, high = HEURISTIC_WEIGHT_RANGE
+    plan.add_argument(
+        "--weight",
+        type=bounded_float(low, high, "the range of [planner] heuristic_weight"),
+        default=None,
+        help=f"heuristic weight, {low:g} to {high:g} (> 1: bounded suboptimal; default: the config's, "
+        f"else {defaults.heuristic_weight:g})",
+    )
+    plan.add_argument(
+        "--cost-mode",
+        choices=COST_MODES,
+        default=None,
+        help=f"default: the config's, else {defaults.cost_mode}",
+    )
     plan.add_argument(
         "--footprint-inflation",
         choices=FOOTPRINT_INFLATIONS,
-        default="circumscribed",
-        help="circle obstacles are inflated by before the oriented-rectangle check (docs/planning.md)",
+        default=None,
+        help="circle obstacles are inflated by before the oriented-rectangle check (docs/planning.md; "
+        f"default: the config's, else {defaults.footprint_inflation})",
     )
     plan.add_argument(
         "--resolution-m",
@@ -88,14 +126,25 @@ def _given_or_named(map_path: Path, option: str, given: Point | None, named: Poi
     return named
 
 
+def _settings(args: argparse.Namespace) -> tuple[VehicleParams, PlannerConfig]:
+    """The vehicle and planner settings: the config's (or the defaults), with the options given on top."""
+    if args.config is None:
+        vehicle, planner = VehicleParams(), PlannerConfig()
+    else:
+        config = load_rover_config(args.config)  # ConfigError names the file and the key
+        vehicle, planner = config.vehicle, config.planner
+    given = {field: getattr(args, option) for option, field in _PLANNER_OPTIONS.items()}
+    return vehicle, dataclasses.replace(planner, **{k: v for k, v in given.items() if v is not None})
+
+
 def run_plan(args: argparse.Namespace) -> int:
     try:
+        vehicle, settings = _settings(args)
         terrain = load_map(args.map, args.resolution_m)
         start, goal = _endpoints(args)
-        planner = Planner(
-            terrain, VehicleParams(), heuristic=args.heuristic, cost_mode=args.cost_mode,
-            heuristic_weight=args.weight, footprint_inflation=args.footprint_inflation,
-        )  # fmt: skip
+        # As guidance builds it, but without the goal's cost-to-go field: that pays off over replans, and
+        # one plan built on it would report a full Dijkstra's expansions and time.
+        planner = Planner.from_config(terrain, vehicle, settings)
         report = plan_once(planner, start, goal)
     except (NavigatorError, ConfigError) as err:
         print(f"rover plan: {err}", file=sys.stderr)  # stdout stays the figures (or JSON) only
@@ -105,8 +154,10 @@ def run_plan(args: argparse.Namespace) -> int:
         "length_m": report.length_m,
         "expanded": report.expanded,
         "time_ms": report.time_ms,
-        "heuristic": args.heuristic,
-        "cost_mode": args.cost_mode,
+        "heuristic": settings.heuristic,
+        "heuristic_weight": settings.heuristic_weight,
+        "cost_mode": settings.cost_mode,
+        "footprint_inflation": settings.footprint_inflation,
         "points": len(report.points),
     }
     try:
@@ -125,6 +176,7 @@ def run_plan(args: argparse.Namespace) -> int:
         # The path itself only in JSON (a script's input); the text form stays a short summary.
         print(json.dumps({**figures, "path": [[float(x), float(y)] for x, y in report.points]}))
     else:
+        width = max(map(len, figures))
         for key, value in figures.items():
-            print(f"{key:>10}: {value:.3f}" if isinstance(value, float) else f"{key:>10}: {value}")
+            print(f"{key:>{width}}: {value:.3f}" if isinstance(value, float) else f"{key:>{width}}: {value}")
     return 0

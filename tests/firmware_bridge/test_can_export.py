@@ -12,11 +12,15 @@ from firmware_bridge.can_link import CanLink
 from firmware_bridge.errors import BridgeOperationError, BridgeSetupError, FrameError
 from hil.vesc_sim import SimVescBank
 from logs.clock import SimClock
+from logs.errors import NotARecording
+from logs.read_stop import CUT, DAMAGED
 from logs.reader import read_messages
 from logs.recorder import McapRecorder
 from logs.topics import CAN_FRAMES, stamp
 from logs.wall_clock import WALL_CLOCK_METADATA, WallClockAnchor
+from rover_cli.main import main
 from tests.firmware_bridge.virtual_can import make_codec, virtual_bus_pair
+from tests.logs.damaged_recording import damage_a_middle_chunk
 
 SHIPPED_DBC = Path(firmware_bridge.__file__).parent / "vesc_6wheel.dbc"
 TICK_NS = 10_000_000
@@ -238,3 +242,56 @@ def test_a_recording_with_a_wall_clock_is_dated_by_it(request, tmp_path):
     read_back = list(can.CanutilsLogReader(tmp_path / "run.log"))  # candump: Unix times, as candump -l
     for msg, rec in zip(read_back, recorded, strict=True):
         assert msg.timestamp == pytest.approx(anchor.unix_ns_at(rec.log_time_ns) / 1e9, abs=1e-6)
+
+
+def test_a_recording_damaged_partway_exports_up_to_the_damage_and_says_where(request, tmp_path):
+    recording, damaged_at = damage_a_middle_chunk(record_a_run(request.node.name))
+    before = list(read_messages(BytesIO(recording[:damaged_at]), topics=[CAN_FRAMES]))
+    stats = export_can_log(BytesIO(recording), tmp_path / "damaged.log")
+    assert stats.stop is not None and (stats.stop.kind, stats.stop.offset) == (DAMAGED, damaged_at)
+    assert not stats.truncated  # damaged, not cut: the bytes go on after it
+    assert stats.frames == len(before) > 0
+    lines = (tmp_path / "damaged.log").read_text().splitlines()
+    assert [int(line.split()[2].split("#")[0], 16) for line in lines] == [r.message["id"] for r in before]
+
+
+def test_a_cut_recording_says_where_it_was_cut(request, tmp_path):
+    recording = record_a_run(request.node.name)
+    stats = export_can_log(BytesIO(recording[: len(recording) // 2]), tmp_path / "cut.log")
+    assert stats.stop is not None and stats.stop.kind == CUT and 0 < stats.stop.offset < len(recording) // 2
+
+
+@pytest.mark.parametrize(
+    "content", [b"", b"\x89MCAP", b"PK\x03\x04 a zip file"], ids=["empty", "5-bytes", "zip"]
+)
+def test_a_file_with_no_recording_in_it_is_an_error_and_writes_nothing(content, tmp_path):
+    out = tmp_path / "run.log"
+    with pytest.raises(BridgeOperationError, match=r"no recording in it|not an MCAP file") as caught:
+        export_can_log(BytesIO(content), out)
+    assert isinstance(caught.value.__cause__, NotARecording)
+    assert not out.exists()
+
+
+def test_the_command_says_how_much_of_a_damaged_or_cut_recording_it_exported(request, tmp_path, capsys):
+    whole = record_a_run(request.node.name)
+    damaged, damaged_at = damage_a_middle_chunk(whole)
+    cut = whole[: len(whole) // 2]
+    for name, content, where in [
+        ("damaged", damaged, f"damaged at byte {damaged_at}"),
+        ("cut", cut, "cut short"),
+    ]:
+        source, out = tmp_path / f"{name}.mcap", tmp_path / f"{name}.log"
+        source.write_bytes(content)
+        assert main(["can", "export", str(source), str(out)]) == 1  # a script notices
+        err = capsys.readouterr().err
+        frames = len(out.read_text().splitlines())
+        assert (
+            frames > 0
+            and f"{source} is {where}" in err
+            and f"wrote the {frames} frames before it to {out}" in err
+        )
+    empty = tmp_path / "empty.mcap"
+    empty.write_bytes(b"")
+    assert main(["can", "export", str(empty), str(tmp_path / "empty.log")]) == 2
+    assert f"{empty} is empty (0 bytes)" in capsys.readouterr().err
+    assert not (tmp_path / "empty.log").exists()

@@ -4,16 +4,19 @@ from __future__ import annotations
 
 import csv
 import math
+from io import BytesIO
 from pathlib import Path
 
 import pytest
 
 from logs.csv_export import CsvExportError, export_csv, file_name_for, flatten
-from logs.errors import LogReadError
+from logs.errors import LogReadError, NotARecording
+from logs.read_stop import DAMAGED
 from logs.reader import RecordedMessage, read_messages
 from logs.recorder import McapRecorder
 from logs.synthetic import synthetic_metadata, write_synthetic_trial
 from rover_cli.main import main
+from tests.logs.damaged_recording import damage_a_middle_chunk
 
 
 @pytest.fixture(scope="module")
@@ -77,7 +80,7 @@ def test_cli_exit_codes(recording: Path, tmp_path: Path, capsys: pytest.CaptureF
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(recording.read_bytes()[: recording.stat().st_size // 2])
     assert main(["logs", "csv", str(cut), "--out", str(tmp_path / "cut")]) == 1  # the readable part, said
-    assert "cut short" in " ".join(capsys.readouterr().out.split())
+    assert "cut short at byte" in capsys.readouterr().err
     assert any(_rows(p) for p in (tmp_path / "cut").iterdir())
     junk = tmp_path / "junk.mcap"
     junk.write_bytes(b"PK\x03\x04 a zip file")
@@ -88,3 +91,32 @@ def test_cli_exit_codes(recording: Path, tmp_path: Path, capsys: pytest.CaptureF
     blocked = tmp_path / "file"
     blocked.write_text("")
     assert main(["logs", "csv", str(recording), "--out", str(blocked / "sub")]) == 2
+
+
+def test_a_recording_damaged_partway_exports_what_comes_before_the_damage(
+    recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    content, damaged_at = damage_a_middle_chunk(recording.read_bytes())
+    damaged = tmp_path / "damaged.mcap"
+    damaged.write_bytes(content)
+    before = list(read_messages(BytesIO(content[:damaged_at])))  # what a cut at the damage would read
+    result = export_csv(damaged, tmp_path / "csv")
+    assert result.stop is not None and (result.stop.kind, result.stop.offset) == (DAMAGED, damaged_at)
+    assert sum(result.rows.values()) == len(before) > 0
+    assert main(["logs", "csv", str(damaged), "--out", str(tmp_path / "cli")]) == 1
+    err = capsys.readouterr().err
+    assert f"{damaged} is damaged at byte {damaged_at}" in err
+    assert f"the CSV files in {tmp_path / 'cli'} hold the {len(before)} messages before it" in err
+
+
+@pytest.mark.parametrize("content", [b"", b"\x89MCAP"], ids=["empty", "5-bytes"])
+def test_a_file_with_no_recording_in_it_is_an_error_and_writes_nothing(
+    content: bytes, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    source = tmp_path / "died.mcap"
+    source.write_bytes(content)
+    with pytest.raises(NotARecording, match="no recording in it"):
+        export_csv(source, tmp_path / "csv")
+    assert main(["logs", "csv", str(source), "--out", str(tmp_path / "cli")]) == 2
+    assert "no recording in it" in " ".join(capsys.readouterr().out.split())
+    assert not (tmp_path / "csv").exists() and not (tmp_path / "cli").exists()

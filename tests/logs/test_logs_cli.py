@@ -7,9 +7,13 @@ from pathlib import Path
 
 import pytest
 
+from logs.doctor import diagnose
+from logs.errors import NotARecording
+from logs.reader import ReadStats, read_entries
 from logs.recorder import McapRecorder
 from logs.synthetic import synthetic_metadata, write_synthetic_trial
 from rover_cli.main import main
+from tests.logs.damaged_recording import damage_a_middle_chunk
 
 
 @pytest.fixture(scope="module")
@@ -78,3 +82,31 @@ def test_recover_of_a_file_with_nothing_to_keep_is_an_error_without_output(
     printed = " ".join(capsys.readouterr().out.split())
     assert f"nothing recoverable in {source}" in printed
     assert not out.exists()
+
+
+@pytest.mark.parametrize("content", [b"", b"\x89MCAP"], ids=["empty", "5-bytes"])
+def test_doctor_calls_a_file_with_no_recording_in_it_bad_input(
+    content: bytes, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # As `rover can export` and `rover logs csv` do: it is not a recording cut short that recover could help.
+    source = tmp_path / "died.mcap"
+    source.write_bytes(content)
+    with pytest.raises(NotARecording, match="no recording in it"):
+        diagnose(source)
+    assert main(["logs", "doctor", str(source)]) == 2
+    assert f"{source} " in (printed := " ".join(capsys.readouterr().out.split()))
+    assert "no recording in it" in printed and "rover logs recover" not in printed
+
+
+def test_doctor_words_a_cut_and_damage_as_the_exports_do(recording: Path, tmp_path: Path) -> None:
+    content, damaged_at = damage_a_middle_chunk(recording.read_bytes())
+    damaged = tmp_path / "damaged.mcap"
+    damaged.write_bytes(content)
+    assert f"chunk damaged at byte {damaged_at} (" in " ".join(diagnose(damaged).problems)
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(content[: damaged_at + 20])
+    findings = diagnose(cut)
+    stop = ReadStats()
+    list(read_entries(cut, stats=stop))
+    assert stop.stop is not None and findings.cut_at == stop.stop.offset == damaged_at
+    assert f"is {stop.stop.describe()}" in " ".join(findings.problems)

@@ -247,3 +247,21 @@ def test_moving_clear_s_is_read_from_the_planner_table_and_checked() -> None:
     assert config.planner.moving_clear_s == 1.5
     with pytest.raises(ConfigError, match=r"planner\.moving_clear_s"):
         rover_config_from_table(parse_toml("[planner]\nmoving_clear_s = -0.1\n", "<test>"))
+
+
+def test_footprint_inflation_is_read_from_the_planner_table_and_guidance_plans_with_it() -> None:
+    # A 1.1 m corridor: the circumscribed circle (the default) blocks it, the inscribed one lets the rover
+    # through lengthwise (tests/navigator/test_planner_footprint.py); the config now chooses, as for
+    # `rover plan --config`.
+    walls = np.ones((40, 80), dtype=bool)
+    walls[16:27, :] = False
+    corridor = TerrainMap(np.zeros(walls.shape), np.zeros(walls.shape, np.uint8), walls, 0.1)
+    outcomes = {}
+    for text in ("", 'footprint_inflation = "inscribed"\n'):
+        config = rover_config_from_table(parse_toml(f'[planner]\ncost_mode = "classical"\n{text}', "<test>"))
+        guidance = Guidance(corridor, PARAMS, config.planner, FollowerConfig())
+        guidance.set_goal(7.0, 2.15)
+        outcomes[config.planner.footprint_inflation] = guidance.update(0, 1.0, 2.15, 0.0, 0.0).mode
+    assert outcomes == {"circumscribed": NO_PATH, "inscribed": DRIVING}
+    with pytest.raises(ConfigError, match=r"planner\.footprint_inflation"):
+        rover_config_from_table(parse_toml('[planner]\nfootprint_inflation = "square"\n', "<test>"))

@@ -6,6 +6,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from navigator.config import HEURISTIC_WEIGHT_RANGE
+from navigator.plan_tools import load_map
+from navigator.planner import Planner
+from navigator.vehicle import VehicleParams
 from rover_cli.main import main
 from tests.navigator.test_direction_and_modes import _dijkstra_cost
 
@@ -101,3 +105,65 @@ def test_plan_starts_from_a_clearance_band_as_the_rover_does(
     assert np.isfinite(data["cost"][start]) and tuple(data["path"][0]) == start
     expected = _dijkstra_cost(data["cost"], data["factors"], start, goal)
     assert float(data["path_cost"]) == pytest.approx(expected, rel=1e-9)
+
+
+def _json_plan(capsys: pytest.CaptureFixture[str], *options: str) -> dict:
+    assert main(["plan", str(SCENARIO), "--start", "3,12", "--goal", "25,5", "--json", *options]) == 0
+    return dict(json.loads(capsys.readouterr().out))
+
+
+def test_plan_takes_the_vehicle_and_planner_settings_from_a_config_and_options_override_them(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = tmp_path / "rover.toml"
+    config.write_text(
+        "[vehicle]\nfootprint_width_m = 0.8\n"
+        '[planner]\ncost_mode = "classical"\nheuristic_weight = 2.0\ninflation_m = 0.3\n'
+    )
+    terrain = load_map(SCENARIO, None)
+    wide = VehicleParams(footprint_width_m=0.8)
+    built_in = _json_plan(capsys)
+    from_config = _json_plan(capsys, "--config", str(config))
+    expected = Planner(terrain, wide, cost_mode="classical", heuristic_weight=2.0, inflation_m=0.3).plan(
+        (3.0, 12.0), (25.0, 5.0)
+    )
+    assert (from_config["cost_mode"], from_config["heuristic_weight"]) == ("classical", 2.0)
+    assert from_config["cost"] == pytest.approx(expected.cost)
+    assert from_config["path"] == expected.points.tolist()
+    assert from_config["cost"] != pytest.approx(built_in["cost"])
+    # Options given on the command line win over the config; the rest of the config still holds.
+    overridden = _json_plan(capsys, "--config", str(config), "--cost-mode", "terrain", "--weight", "1")
+    expected = Planner(terrain, wide, inflation_m=0.3).plan((3.0, 12.0), (25.0, 5.0))
+    assert (overridden["cost_mode"], overridden["heuristic_weight"]) == ("terrain", 1.0)
+    assert overridden["cost"] == pytest.approx(expected.cost)
+    assert overridden["path"] == expected.points.tolist()
+
+
+@pytest.mark.parametrize(
+    ("text", "key"),
+    [
+        ("[planner]\nheuristic_weight = 0.5\n", "planner.heuristic_weight"),
+        ('[planner]\nheuristic = "dijkstra"\n', "planner.heuristic"),
+        ("[vehicle]\nmass_kg = -1\n", "vehicle.mass_kg"),
+    ],
+)
+def test_plan_refuses_a_bad_config_naming_the_file_and_key(
+    text: str, key: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = tmp_path / "rover.toml"
+    config.write_text(text)
+    assert main(["plan", str(SCENARIO), "--config", str(config), "--json"]) == 2
+    printed = capsys.readouterr()
+    assert f"{config}: {key}" in printed.err and printed.out == ""
+
+
+@pytest.mark.parametrize("weight", ["0.5", "0", "10.5", "nan", "heavy"])
+def test_plan_refuses_a_weight_the_config_would_refuse(
+    weight: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    with pytest.raises(SystemExit) as exited:
+        main(["plan", str(SCENARIO), "--weight", weight])
+    assert exited.value.code == 2
+    low, high = HEURISTIC_WEIGHT_RANGE
+    assert "argument --weight: " in (err := capsys.readouterr().err) and f"{low:g} to {high:g}" in err
+    assert main(["plan", str(SCENARIO), "--start", "3,12", "--goal", "25,5", "--weight", f"{high:g}"]) == 0
