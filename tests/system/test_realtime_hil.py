@@ -10,6 +10,7 @@ against the peer's truth, within 0.3 m RMS of lockstep's.
 from __future__ import annotations
 
 import signal
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -23,6 +24,7 @@ from logs.report import write_report
 from tests.system.conftest import DATA
 from tests.system.realtime_rig import (
     START_TIMEOUT_S,
+    Peer,
     fresh_multicast_group,
     needs_netns,
     needs_vcan,
@@ -40,41 +42,59 @@ DRIVE_TIMEOUT_S = 60.0
 ESTIMATOR_ERROR_SLACK_M = 0.3
 ARRIVED_LOG_LINE = "guidance.arrived"  # what `rover run -v` logs when guidance declares the goal reached
 
+# (CAN interface, channel, the rover's control loop): the default loop on each bus, and the phase-locked
+# one (docs/runtime.md) on udp_multicast.
 BUSES = [
-    pytest.param("udp_multicast", None, marks=needs_netns, id="udp_multicast"),
-    pytest.param("socketcan", "vcan0", marks=needs_vcan, id="vcan0"),
+    pytest.param("udp_multicast", None, "sensor-paced", marks=needs_netns, id="udp_multicast"),
+    pytest.param("udp_multicast", None, "phase-locked", marks=needs_netns, id="udp_multicast-phase-locked"),
+    pytest.param("socketcan", "vcan0", "sensor-paced", marks=needs_vcan, id="vcan0"),
 ]
 
 
-@pytest.mark.parametrize(("interface", "channel"), BUSES)
+@pytest.mark.parametrize(("interface", "channel", "control_loop"), BUSES)
 def test_rover_run_and_peer_reach_the_goal_like_lockstep(
-    interface: str, channel: str | None, small_scenario: Scenario, small_trial: TrialResult, tmp_path: Path
+    interface: str,
+    channel: str | None,
+    control_loop: str,
+    small_scenario: Scenario,
+    small_trial: TrialResult,
+    tmp_path: Path,
 ) -> None:
     goal = small_scenario.goals[-1]
     channel = channel or fresh_multicast_group()
     scenario_file = DATA / "small_rocky.toml"
-    with (
-        running_peer(scenario_file, tmp_path / "peer", interface, channel) as peer,
-        running_rover(peer.rover_config, (goal.x, goal.y), tmp_path / "rover") as rover,
-    ):
+    with running_peer(scenario_file, tmp_path / "peer", interface, channel) as peer:
+        # A top-level key first in the file the peer wrote (it sets no loop of its own).
+        config = peer.rover_config.read_text()
+        peer.rover_config.write_text(f'control_loop = "{control_loop}"\n{config}')
+        with running_rover(peer.rover_config, (goal.x, goal.y), tmp_path / "rover") as rover:
+            _drive_to_the_goal(peer, rover, tmp_path)
+    _compare_with_lockstep(tmp_path, small_trial, control_loop)
 
-        def driving() -> bool | None:
-            status = peer.status()
-            return True if status and any(t != 0 for t in status["targets_erpm"]) else None
 
-        def parked_at_goal() -> bool | None:
-            # The rover's own word first: wheels at zero near the goal can also be the controllers'
-            # command timeout while a loaded machine holds the rover up, which is not an arrival.
-            if ARRIVED_LOG_LINE not in (tmp_path / "rover" / "rover.log").read_text(errors="replace"):
-                return None
-            status = peer.status()
-            return True if status and all(t == 0 for t in status["targets_erpm"]) else None
+def _drive_to_the_goal(peer: Peer, rover: subprocess.Popen[bytes], tmp_path: Path) -> None:
+    def driving() -> bool | None:
+        status = peer.status()
+        return True if status and any(t != 0 for t in status["targets_erpm"]) else None
 
-        wait_for(driving, START_TIMEOUT_S, "the rover to start driving", rover, peer.process)
-        wait_for(parked_at_goal, DRIVE_TIMEOUT_S, "the rover to stop at the goal", rover, peer.process)
-        rover.send_signal(signal.SIGINT)
-        assert rover.wait(timeout=20) == 0
+    def parked_at_goal() -> bool | None:
+        # The rover's own word first: wheels at zero near the goal can also be the controllers'
+        # command timeout while a loaded machine holds the rover up, which is not an arrival.
+        if ARRIVED_LOG_LINE not in (tmp_path / "rover" / "rover.log").read_text(errors="replace"):
+            return None
+        status = peer.status()
+        return True if status and all(t == 0 for t in status["targets_erpm"]) else None
 
+    wait_for(driving, START_TIMEOUT_S, "the rover to start driving", rover, peer.process)
+    wait_for(parked_at_goal, DRIVE_TIMEOUT_S, "the rover to stop at the goal", rover, peer.process)
+    rover.send_signal(signal.SIGINT)
+    assert rover.wait(timeout=20) == 0
+
+
+def _compare_with_lockstep(tmp_path: Path, small_trial: TrialResult, control_loop: str) -> None:
+    # The rover ran the loop asked for (its start-up line says which).
+    loop_phrase = "phase-locked 0.8 ms after imu" if control_loop == "phase-locked" else "paced by imu"
+    assert loop_phrase in (tmp_path / "rover" / "rover.log").read_text(errors="replace")
     rover_mcap, truth_mcap = tmp_path / "rover" / "rover.mcap", tmp_path / "peer" / "truth.mcap"
     realtime = realtime_metrics(rover_mcap, truth_mcap)
     lockstep = small_trial.metrics
