@@ -47,6 +47,8 @@ from navigator.precise_wait import DEFAULT_SPIN_NS
 
 RATE_HZ = 50.0
 MODES = ("paced", "fixed", "locked")
+# `rover run` runs at this nice value under deploy/rover.service (Nice=); the bench measures it so.
+DEPLOYED_NICE = -10
 # The modes that run `rover run`'s own loop (`control_loop`); "fixed" is the free-running comparison.
 LOOPS = {"paced": "sensor-paced", "locked": "phase-locked"}
 EMPTY_TICK_S = 10.0  # each empty-tick peer runs this long at most
@@ -78,8 +80,29 @@ def register(commands: Any) -> None:
         default=None,
         help="override the config's phase_offset_ms (phase-locked loop)",
     )
+    bench.add_argument(
+        "--nice",
+        type=nice_value,
+        default=DEPLOYED_NICE,
+        help=f"run at this nice value, the simulated rover too (default {DEPLOYED_NICE}, as "
+        "deploy/rover.service; 'keep': leave it)",
+    )
     bench.add_argument("--trace", action="store_true", help="split the paced loop's jitter and latency")
     bench.set_defaults(handler=run_bench)
+
+
+def nice_value(text: str) -> int | None:
+    if text == "keep":
+        return None
+    try:
+        value = int(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(
+            f"expected an integer from -20 to 19 or 'keep', got {text!r}"
+        ) from err
+    if not -20 <= value <= 19:
+        raise argparse.ArgumentTypeError(f"expected an integer from -20 to 19 or 'keep', got {text!r}")
+    return value
 
 
 def _modes(text: str) -> tuple[str, ...]:
@@ -288,7 +311,20 @@ def _wait_for_first_sample(transport: Any, timeout_s: float) -> None:
         raise RuntimeError(f"the simulated rover sent nothing within {timeout_s:g} s")
 
 
+def apply_nice(nice: int | None) -> str:
+    """Run this process (and the simulated rover it starts, which inherits it) at ``nice``, as
+    ``deploy/rover.service`` runs ``rover run``; says what was done (lowering it needs privilege)."""
+    if nice is None:
+        return f"nice {os.getpriority(os.PRIO_PROCESS, 0)} (left as it was)"
+    try:
+        os.setpriority(os.PRIO_PROCESS, 0, nice)
+    except (PermissionError, OSError) as err:
+        return f"nice {os.getpriority(os.PRIO_PROCESS, 0)} (could not set {nice}: {err.strerror or err})"
+    return f"nice {nice}, as deploy/rover.service runs rover run"
+
+
 def run_bench(args: argparse.Namespace) -> int:
+    priority = apply_nice(args.nice)
     empty_s = min(EMPTY_TICK_S, args.seconds)
     peers = {
         "empty tick, sleep": _empty_loop(empty_s, 0),
@@ -310,13 +346,13 @@ def run_bench(args: argparse.Namespace) -> int:
         )
     if args.json:
         # NaN (no latency samples for the empty tick) is not JSON: write null.
-        print(json.dumps(_no_nan({"rate_hz": RATE_HZ, "peers": peers}), indent=2))
+        print(json.dumps(_no_nan({"rate_hz": RATE_HZ, "priority": priority, "peers": peers}), indent=2))
         return 0
-    _print_tables(args, peers)
+    _print_tables(args, peers, priority)
     return 0
 
 
-def _print_tables(args: argparse.Namespace, peers: dict[str, dict[str, Any]]) -> None:
+def _print_tables(args: argparse.Namespace, peers: dict[str, dict[str, Any]], priority: str) -> None:
     from rich.console import Console
     from rich.table import Table
 
@@ -333,6 +369,7 @@ def _print_tables(args: argparse.Namespace, peers: dict[str, dict[str, Any]]) ->
         + (f"{args.peer_spin_ms:g} ms spin" if args.peer_spin_ms > 0 else "plain sleep")
         + ("" if busy is None else f"; paced loop busy-polls {busy:g} ms")
         + ("" if offset is None else f"; phase-locked loop ticks {offset:g} ms after the expected IMU sample")
+        + f"; both at {priority}"
     )
     for column in (*columns, "CPU %"):
         table.add_column(column)
