@@ -260,6 +260,9 @@ class PhaseLockedScheduler:
         latency = self._latency() if self._latency is not None else None
         if trigger is None:
             stats.deadline_ticks += 1
+            if latency is not None:
+                # A sample the tick read itself (it landed after the late wait gave up) is its trigger.
+                stats.latency_ns.add(latency)
         else:
             stats.sensor_ticks += 1
             if latency is not None:
@@ -280,7 +283,7 @@ class PhaseLockedScheduler:
         else:
             following = self._next_due(following, end)
         if self._on_tick is not None:
-            worst = None if latency is None or trigger is None else latency + trigger - pending[0]
+            worst = latency if latency is None or trigger is None else latency + trigger - pending[0]
             kind = "deadline" if trigger is None else "sensor"
             self._on_tick(TickSample(start, period, end - start, worst, kind, int(missed), trigger))
         return following
