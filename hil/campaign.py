@@ -31,7 +31,8 @@ from pathlib import Path
 from typing import Any
 
 from hil.campaign_workers import MAX_WORKERS, resolved_workers
-from hil.scenario import load_scenario
+from hil.scenario import Scenario, load_scenario
+from hil.start_clearance import check_start_clear
 from logs.settings import MAX_SEED, ConfigError, Table, load_toml
 from navigator.config import RoverConfig, rover_config_from_table
 
@@ -121,6 +122,7 @@ def load_campaign(path: str | Path) -> Campaign:
     workers = root.integer("workers", 0, lo=0, hi=MAX_WORKERS)
 
     terrains: list[tuple[str, Path]] = []
+    loaded: list[tuple[Table, Scenario]] = []
     for table in root.tables("terrains", optional=False):
         terrain_name = _path_safe_name(table, "name")
         scenario = base / table.text("scenario")
@@ -128,7 +130,9 @@ def load_campaign(path: str | Path) -> Campaign:
         if any(terrain_name == t for t, _ in terrains):
             raise table.error("name", f"duplicate terrain name {terrain_name!r}")
         try:
-            load_scenario(scenario)  # validated now, not in a worker half an hour later
+            loaded.append(
+                (table, load_scenario(scenario))
+            )  # validated now, not in a worker half an hour later
         except ConfigError as err:
             raise table.error("scenario", str(err)) from err
         terrains.append((terrain_name, scenario))
@@ -146,12 +150,16 @@ def load_campaign(path: str | Path) -> Campaign:
             raise table.error("name", f"duplicate variant name {variant_name!r}")
         variant = Variant(variant_name, overrides)
         try:
-            campaign_config(config_path, variant.overrides, f"{root.source} variant {variant_name!r}")
+            config = campaign_config(
+                config_path, variant.overrides, f"{root.source} variant {variant_name!r}"
+            )
         except ConfigError as err:
             raise _override_error(table, overrides, config_path, err) from err
+        _check_starts(loaded, config, f"variant {variant_name!r}")
         variants.append(variant)
     if not variants:
-        variants.append(Variant("default", {}))  # the base config, checked above
+        variants.append(Variant("default", {}))
+        _check_starts(loaded, campaign_config(config_path, {}, root.source), "the base config")
     root.finish()
     return Campaign(name, root.source, tuple(terrains), tuple(variants), seeds, config_path, workers)
 
@@ -170,6 +178,16 @@ def _path_safe_name(table: Table, key: str) -> str:
             "(not '.' or '..' alone)",
         )
     return name
+
+
+def _check_starts(terrains: list[tuple[Table, Scenario]], config: RoverConfig, whose: str) -> None:
+    """Each terrain's start against this variant's footprint (``hil.start_clearance``), named under the
+    terrain's ``scenario`` key."""
+    for table, scenario in terrains:
+        try:
+            check_start_clear(scenario, config.vehicle)
+        except ConfigError as err:
+            raise table.error("scenario", f"with the footprint of {whose}: {err}") from err
 
 
 def _override_error(
