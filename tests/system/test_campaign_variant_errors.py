@@ -80,3 +80,22 @@ def test_a_mistake_in_the_base_config_is_named_under_config(tmp_path: Path) -> N
         load_campaign(path)
     assert caught.value.source == str(path) and caught.value.key == "config"
     assert f"{tmp_path / 'base.toml'}: planner.cost_mod: unknown key" in caught.value.problem
+
+
+def test_a_quoted_dotted_override_key_is_explained(tmp_path: Path) -> None:
+    # TOML reads "planner.cost_mode" (quoted) as one key with a dot in its name, not cost_mode in
+    # [planner]: "planner.cost_mode: unknown key" alone reads as if the real key were unknown.
+    path = _campaign(tmp_path, '"planner.cost_mode" = "classical"')
+    with pytest.raises(ConfigError) as caught:
+        load_campaign(path)
+    assert caught.value.key == "variants[1].overrides.planner.cost_mode"
+    assert "unknown key" in caught.value.problem
+    assert "one key with a dot in its name" in caught.value.problem
+    assert "write it unquoted" in caught.value.problem
+
+
+def test_a_quoted_dotted_key_in_a_rover_config_is_explained(tmp_path: Path) -> None:
+    path = _campaign(tmp_path, 'planner.cost_mode = "classical"', '"planner.heuristic" = "octile"\n')
+    with pytest.raises(ConfigError) as caught:
+        load_campaign(path)
+    assert caught.value.key == "config" and "one key with a dot in its name" in caught.value.problem
