@@ -31,7 +31,8 @@ from pathlib import Path
 from typing import Any
 
 from hil.campaign_workers import MAX_WORKERS, resolved_workers
-from hil.scenario import load_scenario
+from hil.scenario import Scenario, load_scenario
+from hil.start_clearance import check_start_clear
 from logs.settings import MAX_SEED, ConfigError, Table, load_toml
 from navigator.config import RoverConfig, rover_config_from_table
 
@@ -104,7 +105,8 @@ def load_campaign(path: str | Path) -> Campaign:
     config_path = base / root.text("config") if root.has("config") else None
     if config_path is not None:
         try:
-            _read(config_path)  # the variants below report the config's own keys; this, that it is missing
+            # The base config alone first, so that a variant's error below can only be its overrides'.
+            campaign_config(config_path, {}, root.source)
         except ConfigError as err:
             raise root.error("config", str(err)) from err
     if root.has("seeds") and root.has("seed_count"):
@@ -120,6 +122,7 @@ def load_campaign(path: str | Path) -> Campaign:
     workers = root.integer("workers", 0, lo=0, hi=MAX_WORKERS)
 
     terrains: list[tuple[str, Path]] = []
+    loaded: list[tuple[Table, Scenario]] = []
     for table in root.tables("terrains", optional=False):
         terrain_name = _path_safe_name(table, "name")
         scenario = base / table.text("scenario")
@@ -127,7 +130,9 @@ def load_campaign(path: str | Path) -> Campaign:
         if any(terrain_name == t for t, _ in terrains):
             raise table.error("name", f"duplicate terrain name {terrain_name!r}")
         try:
-            load_scenario(scenario)  # validated now, not in a worker half an hour later
+            loaded.append(
+                (table, load_scenario(scenario))
+            )  # validated now, not in a worker half an hour later
         except ConfigError as err:
             raise table.error("scenario", str(err)) from err
         terrains.append((terrain_name, scenario))
@@ -144,11 +149,17 @@ def load_campaign(path: str | Path) -> Campaign:
         if any(variant_name == v.name for v in variants):
             raise table.error("name", f"duplicate variant name {variant_name!r}")
         variant = Variant(variant_name, overrides)
-        campaign_config(config_path, variant.overrides, f"{root.source} variant {variant_name!r}")
+        try:
+            config = campaign_config(
+                config_path, variant.overrides, f"{root.source} variant {variant_name!r}"
+            )
+        except ConfigError as err:
+            raise _override_error(table, overrides, config_path, err) from err
+        _check_starts(loaded, config, f"variant {variant_name!r}")
         variants.append(variant)
     if not variants:
         variants.append(Variant("default", {}))
-        campaign_config(config_path, {}, root.source)
+        _check_starts(loaded, campaign_config(config_path, {}, root.source), "the base config")
     root.finish()
     return Campaign(name, root.source, tuple(terrains), tuple(variants), seeds, config_path, workers)
 
@@ -167,6 +178,42 @@ def _path_safe_name(table: Table, key: str) -> str:
             "(not '.' or '..' alone)",
         )
     return name
+
+
+def _check_starts(terrains: list[tuple[Table, Scenario]], config: RoverConfig, whose: str) -> None:
+    """Each terrain's start against this variant's footprint (``hil.start_clearance``), named under the
+    terrain's ``scenario`` key."""
+    for table, scenario in terrains:
+        try:
+            check_start_clear(scenario, config.vehicle)
+        except ConfigError as err:
+            raise table.error("scenario", f"with the footprint of {whose}: {err}") from err
+
+
+def _override_error(
+    variant: Table, overrides: dict[str, Any], config_path: Path | None, err: ConfigError
+) -> ConfigError:
+    """``err`` from a variant's merged config, named where a person fixes it: in the campaign file, under
+    ``variants[i].overrides``, at the override's own key when it is one the variant wrote (an unknown
+    key, a value out of range, or one that contradicts the base config); otherwise the base config's key
+    that the overrides now contradict, with that file named."""
+    written = _dotted_keys(overrides)
+    if err.key and any(
+        k == err.key or k.startswith(f"{err.key}.") or err.key.startswith(f"{k}.") for k in written
+    ):
+        return ConfigError(variant.source, variant.key_path(f"overrides.{err.key}"), err.problem)
+    base = "the built-in defaults" if config_path is None else f"the base config {config_path}"
+    where = f"{err.key}: " if err.key else ""
+    return variant.error("overrides", f"merged over {base}: {where}{err.problem}")
+
+
+def _dotted_keys(table: dict[str, Any], prefix: str = "") -> list[str]:
+    """Every leaf of a nested table as a dotted key (``planner.cost_mode``)."""
+    keys: list[str] = []
+    for key, value in table.items():
+        dotted = f"{prefix}{key}"
+        keys.extend(_dotted_keys(value, f"{dotted}.") if isinstance(value, dict) and value else [dotted])
+    return keys
 
 
 def campaign_config(config_path: Path | None, overrides: dict[str, Any], where: str) -> RoverConfig:

@@ -25,7 +25,7 @@ def judge(criteria: SuccessCriteria, metrics: TrialMetrics) -> list[str]:
         metrics.path_accuracy_pct is None or metrics.path_accuracy_pct < criteria.min_path_accuracy_pct
     ):
         failures.append(
-            f"path accuracy {_shown(metrics.path_accuracy_pct, '{:.1f}')} % "
+            f"path accuracy (% of driven) {_shown(metrics.path_accuracy_pct, '{:.1f}')} % "
             f"< {criteria.min_path_accuracy_pct:g} %"
         )
     if criteria.max_duration_s is not None and (

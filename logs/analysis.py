@@ -149,12 +149,17 @@ class TrialAnalysis:
     # A real-time HIL run: the peer's truth file merged with the rover's ``path`` (logs.paired_run), and
     # (part of the report, file it came from) for each part.
     truth_path: str | None = None
+    truth_merged: bool = False  # False: the truth file was given but nothing of it merged (problems say why)
     sources: list[tuple[str, str]] = field(default_factory=list)
+
+    def _truth_dict(self) -> dict[str, Any]:
+        sources = dict(self.sources)
+        return {"truth_path": self.truth_path, "truth_merged": self.truth_merged, "sources": sources}
 
     def to_dict(self) -> dict[str, Any]:
         return {
             "path": self.path,
-            **({"truth_path": self.truth_path, "sources": dict(self.sources)} if self.truth_path else {}),
+            **(self._truth_dict() if self.truth_path else {}),
             "terrain_class": self.terrain_class,
             "metrics": self.metrics.to_dict(),
             "figures": {key: _round(value) for key, value in self.figures.items()},
@@ -360,14 +365,19 @@ def analyse(
         metrics = metrics_from_entries(tee(), stats)
     if not collector.counts and not collector.metadata and not stats.truncated:
         raise LogReadError(f"{path} holds no messages or metadata at all")
-    if paired is None:
+    if paired is None or paired.refused:
         summary_counts = _summary_counts(path) if stats.complete and not stats.truncated else None
-        return _finish(str(path), metrics, collector, stats, can_bitrate, summary_counts)
+        run = _finish(str(path), metrics, collector, stats, can_bitrate, summary_counts)
+        if paired is not None:  # given, refused: the rover's file alone, and the problem says why
+            run.metrics = with_problems(metrics, paired.problems)
+            run.truth_path, run.sources = str(paired.truth), part_sources(paired)
+        return run
     rover_counts = (
         _summary_counts(path) if paired.rover_stats.complete and not paired.rover_stats.truncated else None
     )
     run = _finish(str(path), with_problems(metrics, paired.problems), collector, stats, can_bitrate, None)
     run.truth_path = str(paired.truth)
+    run.truth_merged = paired.truth_kept > 0
     run.sources = part_sources(paired)
     if rover_counts is not None:
         truth_counts = {topic: n for topic, n in collector.counts.items() if topic in TRUTH_TOPICS}

@@ -40,6 +40,10 @@ from logs.topics import NAVIGATOR_STATE, TRUTH_CONTACTS, TRUTH_POSE, TRUTH_STABI
 # What the peer knows and the rover does not; everything else comes from the rover's file.
 TRUTH_TOPICS = frozenset({TRUTH_POSE, TRUTH_WHEELS, TRUTH_STABILITY, TRUTH_CONTACTS})
 TRUTH_PREFIX = "truth:"  # the truth file's own metadata and attachments, kept apart from the rover's
+# ``trial.mode`` of a lockstep trial (``hil.trial``): its log times are a simulated clock counted from 0,
+# so they overlap any other lockstep trial's whichever run that was, and say nothing about pairing.
+LOCKSTEP_MODE = "sim-lockstep"
+TRIAL_METADATA = "trial"
 
 
 @dataclass
@@ -56,6 +60,7 @@ class PairedRead:
     truth_kept: int = 0  # truth messages inside the window
     truth_dropped: int = 0  # truth messages outside it (the peer before the rover started or after it ended)
     problems: list[str] = field(default_factory=list)
+    refused: bool = False  # not merged at all (a lockstep trial on either side): the rover's file alone
 
 
 def read_paired(
@@ -83,6 +88,8 @@ def read_paired(
     ticks = list(read_entries(rover, topics=[NAVIGATOR_STATE]))
     window = drive_window(ticks)
     rover_has_scenario = any(isinstance(e, RecordedMetadata) and e.name == SCENARIO_METADATA for e in ticks)
+    rover_mode = _trial_mode(ticks)
+    truth_mode: str | None = None
     result = PairedRead(rover, truth, iter(()), ReadStats(), rover_stats, truth_stats, window)
     kept: list[Entry] = []
     truth_metadata: list[Entry] = []
@@ -97,6 +104,7 @@ def read_paired(
             else:
                 result.truth_dropped += 1
         elif isinstance(entry, RecordedMetadata):
+            truth_mode = _trial_mode([entry]) or truth_mode
             keep_name = entry.name == WORLD_METADATA or (
                 entry.name == SCENARIO_METADATA and not rover_has_scenario
             )
@@ -108,6 +116,16 @@ def read_paired(
                 RecordedAttachment(TRUTH_PREFIX + entry.name, entry.media_type, entry.log_time_ns, entry.data)
             )
     kept.sort(key=_log_time)  # stable
+    refused = _lockstep_refusal(rover, rover_mode, truth, truth_mode)
+    if refused is not None:
+        result.problems.append(refused)
+        result.refused = True
+        # The rover's file alone, as without --truth: a lockstep trial keeps its own truth/*, and the
+        # truth file's reading (a cut, skipped messages) is no part of this run's.
+        result.truth_stats = ReadStats()
+        rover_entries = read_entries(rover, topics=topics, stats=rover_stats, raw_topics=raw_topics)
+        result.entries = _merged([], rover_entries, [], result)
+        return result
     result.truth_kept = len(kept)
     if wanted_truth and not kept:
         span = None if first_truth_ns is None else (first_truth_ns, last_truth_ns)
@@ -116,6 +134,29 @@ def read_paired(
     rover_entries = read_entries(rover, topics=wanted_rover, stats=rover_stats, raw_topics=raw_topics)
     result.entries = _merged(truth_metadata, rover_entries, kept, result)
     return result
+
+
+def _trial_mode(entries: Iterable[Entry]) -> str | None:
+    """``trial.mode`` among ``entries``' metadata (``rover-run``, ``sim-lockstep`` ...), if recorded."""
+    for entry in entries:
+        if isinstance(entry, RecordedMetadata) and entry.name == TRIAL_METADATA:
+            return entry.data.get("mode")
+    return None
+
+
+def _lockstep_refusal(rover: Path, rover_mode: str | None, truth: Path, truth_mode: str | None) -> str | None:
+    """Why the two files must not be merged by log time, when either is a lockstep trial; else None."""
+    lockstep = [path for path, mode in ((rover, rover_mode), (truth, truth_mode)) if mode == LOCKSTEP_MODE]
+    if not lockstep:
+        return None
+    return (
+        f"{truth}: not merged: {' and '.join(map(str, lockstep))} "
+        f"{'is a lockstep trial' if len(lockstep) == 1 else 'are lockstep trials'} (trial.mode "
+        f"{LOCKSTEP_MODE}), recorded on a simulated clock that starts at 0 in every trial, so log times "
+        "cannot tell whether the two are one run; --truth pairs a `rover run` recording with its "
+        "`rover hil peer` truth.mcap (compare two trials by giving both files instead); "
+        "the run is the rover's file alone"
+    )
 
 
 def _log_time(entry: Entry) -> int:
@@ -182,6 +223,8 @@ def with_problems(metrics: TrialMetrics, problems: Sequence[str]) -> TrialMetric
 def part_sources(paired: PairedRead) -> list[tuple[str, str]]:
     """(part of the report, where it came from), for the report to say which file each figure is from."""
     rover, truth = paired.rover, paired.truth
+    if paired.refused:
+        return [("everything (the truth file was not merged)", f"rover: {rover}")]
     if paired.truth_kept == 0:
         return [("everything (no truth inside the rover's drive)", f"rover: {rover}")]
     start_ns, end_ns = paired.window_ns

@@ -359,6 +359,11 @@ def _identity_text(run: TrialAnalysis) -> str:
 
 
 def _paired_text(run: TrialAnalysis) -> str:
+    if not run.truth_merged:
+        return (
+            f"The ground truth {run.truth_path} was given (--truth) but not merged (the problem below says "
+            f"why): this is the rover's {run.path} alone."
+        )
     return (
         f"One real-time HIL run from two recordings, merged by log time (the OS monotonic clock both "
         f"stamp): the rover's {run.path} and the peer's ground truth {run.truth_path}."

@@ -176,9 +176,16 @@ class Table:
         """Reject keys nobody asked for: they are typos or settings this version does not know."""
         unknown = sorted(set(self._data) - self._used)
         if unknown:
-            raise self.error(
-                unknown[0], f"unknown key (known here: {', '.join(sorted(self._used)) or 'none'})"
-            )
+            key = unknown[0]
+            problem = f"unknown key (known here: {', '.join(sorted(self._used)) or 'none'})"
+            # No setting has a dot in its name: this is a quoted dotted key, which reads as the real one.
+            if "." in key:
+                table, _, leaf = key.rpartition(".")
+                problem += (
+                    f"; TOML read {key!r} (quoted) as one key with a dot in its name: write it unquoted, "
+                    f"{key} = ..., to set {leaf} in [{self.key_path(table)}]"
+                )
+            raise self.error(key, problem)
 
 
 class _Required:

@@ -106,6 +106,7 @@ def _usable_out_dir(path: Path) -> str | None:
 def run_trial_command(args: argparse.Namespace) -> int:
     """Exit 0: the scenario's success criteria held; 1: they failed (each reason printed); 2: bad input."""
     from hil.scenario import load_scenario
+    from hil.start_clearance import check_start_clear
     from hil.trial import run_trial
     from logs.errors import TelemetrySetupError
     from logs.telemetry import ZenohTelemetry, open_session
@@ -115,6 +116,7 @@ def run_trial_command(args: argparse.Namespace) -> int:
     try:
         scenario = load_scenario(args.scenario)
         config = load_config(args.config)
+        check_start_clear(scenario, config.vehicle)
     except ConfigError as err:
         print_error(console, err)
         return 2
@@ -283,12 +285,14 @@ def run_peer_command(args: argparse.Namespace) -> int:
     from firmware_bridge.errors import BridgeError
     from hil.peer import open_peer_wires, run_peer
     from hil.scenario import load_scenario
+    from hil.start_clearance import check_start_clear
     from logs.clock import MonotonicClock
 
     console = Console(stderr=True)
     try:
         scenario = load_scenario(args.scenario)
         config = load_config(args.config)
+        check_start_clear(scenario, config.vehicle)
         can_config = dataclasses.replace(
             config.can,
             interface=args.can_interface or config.can.interface,

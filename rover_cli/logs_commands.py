@@ -133,19 +133,24 @@ def report_command(args: argparse.Namespace) -> int:
             "rescues every complete chunk of a damaged or cut one.",
             soft_wrap=True,
         )
+    unmerged = [run for run in result.runs if run.truth_path and not run.truth_merged]
     for run in result.runs:
-        if run.truth_path:
+        if run.truth_path and run.truth_merged:
             console.print(
                 f"real-time run: {escape(run.path)} + truth {escape(run.truth_path)}", soft_wrap=True
             )
+        elif run.truth_path:
+            why = "; ".join(p for p in run.metrics.problems if str(run.truth_path) in p)
+            console.print(f"[yellow]truth not merged[/yellow] {escape(why)}", soft_wrap=True)
         if run.missing:
             console.print(f"[yellow]partial[/yellow] {escape(run.path)}: missing {', '.join(run.missing)}")
     console.print(f"report: {result.html}\n        {result.markdown}\n        {result.json}")
     if not result.runs:
         print_error(console, "no input could be read: the report only says why")
         return 2
-    # 1: a report was written, but without some of the inputs (a script must not take it for all of them).
-    return 1 if result.failed else 0
+    # 1: a report was written, but without some of the inputs (a script must not take it for all of them);
+    # a --truth file that could not be merged is such an input.
+    return 1 if result.failed or unmerged else 0
 
 
 def csv_command(args: argparse.Namespace) -> int:

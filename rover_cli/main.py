@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import os
 import sys
 from collections.abc import Sequence
 
@@ -63,8 +64,24 @@ def main(argv: Sequence[str] | None = None) -> int:
             numba_cache.path,
         )
     handler = args.handler
-    code: int = handler(args)
+    try:
+        code: int = handler(args)
+        sys.stdout.flush()  # here, not at exit, so that a reader gone by then is caught below too
+    except BrokenPipeError:
+        return _reader_gone()
     return code
+
+
+def _reader_gone() -> int:
+    """Our stdout's reader went away (``rover plan MAP | head -3``): stop quietly with exit 1, as the
+    commands that print through rich do. Stdout goes to /dev/null, so that the interpreter's last flush of
+    what is still buffered does not fail again as a traceback."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):  # a stdout without a file descriptor (a test's stand-in)
+        pass
+    return 1
 
 
 if __name__ == "__main__":
