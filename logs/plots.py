@@ -163,15 +163,17 @@ def innovations_svg(run: TrialAnalysis) -> str:
     return _svg(figure)
 
 
-def comparison_svg(comparison: RunComparison) -> str:
+def comparison_svg(comparison: RunComparison, label_a: str = "A", label_b: str = "B") -> str:
+    """The position gap and both speeds along the distance; the labels say which run (and whether its
+    track is truth or estimate)."""
     figure, (gap, speed) = plt.subplots(2, 1, figsize=(7.0, 4.8), sharex=True)
     s = np.asarray(comparison.s_m, dtype=np.float64)
     gap.plot(s, np.asarray(comparison.position_gap_m, dtype=np.float64), linewidth=1.0)
     gap.set_ylabel("position gap (m)")
-    speed.plot(s, np.asarray(comparison.speed_a, dtype=np.float64), linewidth=1.0, label="A")
-    speed.plot(s, np.asarray(comparison.speed_b, dtype=np.float64), linewidth=1.0, label="B")
+    speed.plot(s, np.asarray(comparison.speed_a, dtype=np.float64), linewidth=1.0, label=label_a)
+    speed.plot(s, np.asarray(comparison.speed_b, dtype=np.float64), linewidth=1.0, label=label_b)
     speed.set_ylabel("speed (m/s)")
     speed.set_xlabel("distance along the trajectory (m)")
     speed.legend(loc="best")
-    gap.set_title("A and B aligned by distance")
+    gap.set_title(f"{label_a} and {label_b} aligned by distance")
     return _svg(figure)

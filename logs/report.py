@@ -307,9 +307,14 @@ def metric_label(key: str, source: str) -> str:
 
 
 def _pair_source(comparison: RunComparison) -> str:
-    topics = comparison.metrics.get("trajectory_topic", {})
-    a, b = (_source_of_topic(topics.get(side)) for side in ("a", "b"))
+    a, b = _side_sources(comparison)
     return a if a == b else f"A {a}, B {b}"
+
+
+def _side_sources(comparison: RunComparison) -> tuple[str, str]:
+    """Whether A's and B's trajectories are their truth or their estimate."""
+    topics = comparison.metrics.get("trajectory_topic", {})
+    return _source_of_topic(topics.get("a")), _source_of_topic(topics.get("b"))
 
 
 def _source_of_topic(topic: Any) -> str:
@@ -485,7 +490,9 @@ def _html(result: ReportResult, plots: bool) -> str:
         diffs = [(d["key"] or "", d["a"] or "", d["b"] or "") for d in comparison.metadata_differences]
         parts.append(_html_table(("scenario / parameter", "A", "B"), diffs))
         if plots and comparison.s_m:
-            parts.append(f"<div>{plot.comparison_svg(comparison)}</div>")
+            source_a, source_b = _side_sources(comparison)
+            svg = plot.comparison_svg(comparison, f"A ({source_a})", f"B ({source_b})")
+            parts.append(f"<div>{svg}</div>")
     if result.terrain_table:
         parts.append("<h2>Per terrain</h2>")
         parts.append(_html_table(*_terrain_rows(result)))

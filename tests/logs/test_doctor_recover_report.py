@@ -157,6 +157,11 @@ def test_a_run_without_truth_labels_its_figures_estimate(trial: tuple[Path, int]
     assert "trajectory: truth/pose (truth)" in sim_part
     assert "| distance to goal at end (m, truth) |" in sim_part
     assert "distance to goal at end (m, estimate)" in result.html.read_text(encoding="utf-8")
+    # The comparison plot's legend says it too.
+    plotted = write_report([real, trial[0]], tmp_path / "plotted", plots=True).html.read_text(
+        encoding="utf-8"
+    )
+    assert "A (estimate)" in plotted and "B (truth)" in plotted
 
 
 def test_report_on_a_cut_file_covers_the_part_before_the_cut(trial: tuple[Path, int], tmp_path: Path) -> None:
