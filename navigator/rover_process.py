@@ -103,7 +103,8 @@ def run_rover(
     """Run the onboard stack in real time until ``stop`` is set; returns the recording and timing.
 
     Nothing is created in ``out_dir`` until every start-up check has passed (the config, the Zenoh
-    session, both links): a run that cannot start leaves no recording behind. A failure after that is
+    session, both links): a run that cannot start leaves no recording behind, and an ``out_dir`` that
+    already holds a ``rover.mcap`` is refused before anything opens. A failure after that is
     recorded on the ``log`` topic, the recording closed as a readable MCAP, and the error raised.
 
     ``wall_ns`` is read once, as the recording opens, to date it (``logs.wall_clock``); nothing else
@@ -117,6 +118,12 @@ def run_rover(
     """
     terrain = check_runnable(config)
     mcap_path = out_dir / "rover.mcap"
+    if mcap_path.exists():
+        # The recorder opens its file for writing: an earlier run's recording there would be emptied.
+        raise RoverSetupError(
+            f"{mcap_path} already exists (an earlier run's recording; it is left as it is): "
+            "give --out a new folder, or move that file away"
+        )
     session = None
     publisher: ZenohTelemetry | None = None
     commands: ZenohCommandReceiver | None = None
