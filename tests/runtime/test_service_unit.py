@@ -39,3 +39,22 @@ def test_numba_caches_where_the_service_user_can_write() -> None:
     assert f"NUMBA_CACHE_DIR=/var/cache/{cache}/numba" in service["Environment"]
     # A real-time policy would cover every thread (planner, Zenoh, busy-poll): see the unit's comment.
     assert "CPUSchedulingPolicy" not in service and "LimitMEMLOCK" not in service
+
+
+def test_the_service_records_where_the_service_user_can_write() -> None:
+    # rover run records under its working directory (logs/trials/run-<time>) unless given --out; the unit
+    # once ran it in the root-owned /opt/rover, where that folder cannot be made: exit 2, never started.
+    service = service_settings()
+    command = service["ExecStart"][0].split()
+    assert command[1:3] == ["run", "--config"] and "--out" not in command
+    state = service["StateDirectory"][0]  # /var/lib/<it>, made and owned for User= by systemd
+    assert service["WorkingDirectory"] == [f"/var/lib/{state}"]
+
+
+def test_the_service_command_line_is_one_rover_run_accepts() -> None:
+    from rover_cli.main import build_parser
+
+    command = service_settings()["ExecStart"][0].split()
+    assert command[0].endswith("/bin/rover")
+    args = build_parser("run").parse_args(command[1:])
+    assert args.config == Path("/etc/rover/rover.toml")
