@@ -86,3 +86,34 @@ def test_estimator_kinematics_are_set_in_vehicle_only(
         load(f"[vehicle]\n{key} = {vehicle_value}\n[estimator]\n{key} = {estimator_value}\n")
     assert caught.value.key == f"estimator.{key}"
     assert f"[vehicle] {key}" in caught.value.problem
+
+
+@pytest.mark.parametrize(
+    ("text", "key", "named"),
+    [
+        ("[vehicle]\nwheel_radius_m = 110\n", "vehicle.wheel_radius_m", ("110 m", "metres", "0.11")),
+        (
+            "[vehicle]\ntrack_m = 550\nwheelbase_m = 700\nfootprint_length_m = 900\nfootprint_width_m = 700\n",
+            "vehicle.wheelbase_m",
+            ("700 m", "metres"),
+        ),
+        # A diameter, or centimetres with the rest in metres: the wheels of a side would overlap.
+        (
+            "[vehicle]\nwheel_radius_m = 0.22\n",
+            "vehicle.wheel_radius_m",
+            ("wheelbase_m 0.7 m / 4", "overlap"),
+        ),
+        ("[vehicle]\nwheel_radius_m = 1.1\n", "vehicle.wheel_radius_m", ("1.1 m", "overlap", "diameter")),
+    ],
+)
+def test_vehicle_lengths_in_the_wrong_unit_are_refused(text: str, key: str, named: tuple[str, ...]) -> None:
+    with pytest.raises(ConfigError) as caught:
+        load(text)
+    assert caught.value.key == key
+    for words in named:
+        assert words in caught.value.problem, caught.value.problem
+
+
+def test_the_shipped_vehicle_loads() -> None:
+    vehicle = load("").vehicle
+    assert vehicle.wheel_radius_m <= vehicle.wheelbase_m / 4
