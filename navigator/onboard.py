@@ -36,12 +36,13 @@ from logs.commands import CommandSource
 from logs.sink import MessageSink
 from navigator.config import RoverConfig
 from navigator.deferred_sink import DeferredSink
+from navigator.fence_shape import inside_polygon
 from navigator.guidance import Guidance
 from navigator.map_message import grid_message
 from navigator.mixing import mix_skid_steer
 from navigator.perception import ObstacleObservation, ObstacleSource
 from navigator.planner import Path, Planner
-from navigator.safety import EventSink, SafetyInputs, SafetyMode, SafetySupervisor, inside_polygon
+from navigator.safety import EventSink, SafetyInputs, SafetyMode, SafetySupervisor
 from navigator.terrain import TerrainMap
 
 _log = logging.getLogger(__name__)
