@@ -65,7 +65,8 @@ def run_command(args: argparse.Namespace) -> int:
             announce=_announce,
         )
     except (RoverSetupError, BridgeError, TelemetrySetupError) as err:
-        _log.error("cannot start: %s", err)
+        # The config first, as in a config error: the settings that opened this link are in it.
+        _log.error("%s: cannot start: %s", args.config, err)
         return 2
     finally:
         _ignore_signals_from_now_on()

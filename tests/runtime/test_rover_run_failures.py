@@ -104,3 +104,17 @@ def test_the_refusal_of_an_earlier_recording_names_it_and_the_fix(tmp_path: Path
     stop, until = threading.Event(), 200_000_000  # a bound, should the run start after all
     with pytest.raises(RoverSetupError, match=r"rover\.mcap already exists.*--out a new folder"):
         run_rover(config, MonotonicClock(), out, stop=stop, telemetry=False, duration_ns=until)
+
+
+def test_a_link_that_cannot_open_is_one_line_naming_the_config_exit_2(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    config = write_config(tmp_path, "serial:/dev/no-such-rover-tty:57600")
+    out = tmp_path / "run"
+    with caplog.at_level(logging.ERROR):
+        code = main(["run", "--config", str(config), "--out", str(out), "--no-telemetry"])
+    assert code == 2
+    errors = [r.getMessage() for r in caplog.records if r.levelno >= logging.ERROR]
+    assert len(errors) == 1 and "\n" not in errors[0]
+    assert errors[0].startswith(f"{config}: cannot start: ") and "no-such-rover-tty" in errors[0], errors
+    assert not out.exists()
