@@ -112,8 +112,9 @@ def run_rover(
 
     ``wait`` idles the loop between reads (default: ``select`` on the pacing link, ``navigator.input_wait``).
 
-    ``announce`` gets one line when the links are open and the recording made (``links_line``) and one
-    when the warm-up is done and the loop starts: the CLI prints them, so an operator sees them whatever
+    ``announce`` gets one line when the links are open and the recording made (``links_line``), one
+    when the warm-up is done and the loop starts, and one per ``startup_checks`` event (what driving
+    still waits for, then that it may drive): the CLI prints them, so an operator sees them whatever
     the log level.
     """
     terrain = check_runnable(config)
@@ -164,6 +165,7 @@ def run_rover(
                         commands=commands,
                         deferred=deferred,
                         planning=planning,
+                        start_up_report=announce,
                     )
                     try:
                         timing = _warm_up_and_run(
@@ -248,7 +250,7 @@ def _warm_up_and_run(
     announce(
         f"warm-up done in {(clock.now_ns() - warm_up_start_ns) / 1e9:.1f} s; rover {config.rover_id} "
         f"running at {config.control_rate_hz:.0f} Hz, paced by {config.pacing_sensor}; driving waits for "
-        "the start-up checks (safety/events: startup_checks)"
+        "the start-up checks (next line; safety/events: startup_checks)"
     )
     freeze_start_up_heap()
     with realtime_switch_interval():
