@@ -15,6 +15,7 @@ from rich.live import Live
 from rich.table import Table as RichTable
 
 from logs.errors import LogsError
+from rover_cli.arg_types import positive_seconds
 from rover_cli.errors import print_error
 
 # Long enough for a rover that publishes navigator/state at a thinned live rate (1-2 Hz) to show its
@@ -45,7 +46,7 @@ def register(families: Any) -> None:
     )
     connection(watch)
     watch.add_argument(
-        "--duration-s", type=float, default=None, help="stop after this long (default: Ctrl-C)"
+        "--duration-s", type=positive_seconds, default=None, help="stop after this long (default: Ctrl-C)"
     )
     watch.set_defaults(handler=watch_command)
 
@@ -53,7 +54,7 @@ def register(families: Any) -> None:
     connection(record)
     record.add_argument("out", type=Path)
     record.add_argument(
-        "--duration-s", type=float, default=None, help="stop after this long (default: Ctrl-C)"
+        "--duration-s", type=positive_seconds, default=None, help="stop after this long (default: Ctrl-C)"
     )
     record.set_defaults(handler=record_command)
 
