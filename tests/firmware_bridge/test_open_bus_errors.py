@@ -1,4 +1,4 @@
-"""A CAN bus or serial autopilot that does not open says what the OS said and what to do about that."""
+"""A CAN bus or MAVLink link that does not open says what the OS said and what to do about that."""
 
 from __future__ import annotations
 
@@ -54,3 +54,18 @@ def test_a_serial_autopilot_that_is_not_there_is_named_with_what_to_check() -> N
     assert message.startswith("MAVLink serial device /dev/no-such-rover-autopilot (921600 baud): cannot open")
     # A missing device is not a permissions problem: the hint names the device list, not dialout.
     assert "is the autopilot plugged in" in message and "dialout" not in message, message
+
+
+def test_a_mavlink_port_already_taken_names_the_likely_holder_and_the_fix() -> None:
+    import socket
+
+    from firmware_bridge.mavlink_transport import open_transport
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as holder:
+        holder.bind(("127.0.0.1", 0))
+        port = holder.getsockname()[1]
+        with pytest.raises(BridgeSetupError) as caught:
+            open_transport(f"udpin:127.0.0.1:{port}")
+    message = str(caught.value)
+    assert message.startswith(f"MAVLink udpin:127.0.0.1:{port}: cannot bind: "), message
+    assert "another program holds that port" in message and "[mavlink] connection" in message, message
