@@ -58,3 +58,11 @@ def test_the_service_command_line_is_one_rover_run_accepts() -> None:
     assert command[0].endswith("/bin/rover")
     args = build_parser("run").parse_args(command[1:])
     assert args.config == Path("/etc/rover/rover.toml")
+
+
+def test_the_service_user_gets_no_capabilities() -> None:
+    # Nothing in rover run uses one: the CAN link is a plain CAN_RAW socket, and bringing can0 up is the
+    # ExecStartPre's, which runs with full privileges ("+") while the service itself does not.
+    service = service_settings()
+    assert "AmbientCapabilities" not in service
+    assert all(line.startswith("-+") for line in service["ExecStartPre"])
