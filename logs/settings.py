@@ -7,6 +7,7 @@ silently falls back to a default.
 
 from __future__ import annotations
 
+import difflib
 import math
 import tomllib
 from collections.abc import Iterator, Sequence
@@ -176,8 +177,11 @@ class Table:
         """Reject keys nobody asked for: they are typos or settings this version does not know."""
         unknown = sorted(set(self._data) - self._used)
         if unknown:
+            # A typo is the usual cause: name the nearest known key first, then all of them.
+            nearest = difflib.get_close_matches(unknown[0], sorted(self._used), n=1, cutoff=0.6)
+            guess = f"did you mean {nearest[0]!r}? " if nearest else ""
             raise self.error(
-                unknown[0], f"unknown key (known here: {', '.join(sorted(self._used)) or 'none'})"
+                unknown[0], f"unknown key ({guess}known here: {', '.join(sorted(self._used)) or 'none'})"
             )
 
 
