@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import logging
 from dataclasses import dataclass
 from typing import Any
@@ -87,8 +88,26 @@ def open_bus(config: CanConfig, receive_own_messages: bool = False) -> can.BusAB
         )
     except (can.CanError, ImportError, OSError, ValueError) as err:
         raise BridgeSetupError(
-            f"cannot open CAN bus {config.interface}:{config.channel}: {err}; check the interface exists "
-            "(ip link show) and the [can] settings"
+            f"cannot open CAN bus {config.interface}:{config.channel}: {err}; {_open_hint(config, err)}"
         ) from err
     logger.info("opened CAN bus %s:%s", config.interface, config.channel)
     return bus
+
+
+def _open_hint(config: CanConfig, err: BaseException) -> str:
+    """What to do about a bus that did not open, from what the OS said (a first day on a new computer
+    meets the first two: a kernel without SocketCAN, an adapter not plugged in or not named so)."""
+    code = getattr(err, "errno", None)
+    if config.interface == "socketcan" and code == errno.EAFNOSUPPORT:
+        # No such interface could exist: "check the interface exists" would send a person to ip link.
+        return (
+            "this kernel has no SocketCAN (load it: modprobe can_raw; a kernel built without CAN cannot "
+            "reach the motor controllers)"
+        )
+    if config.interface == "socketcan" and code == errno.ENODEV:
+        return (
+            f"there is no interface {config.channel} (ip link show: is the CAN adapter plugged in and its "
+            f"driver loaded, and is it named {config.channel}?), then: ip link set {config.channel} up type "
+            f"can bitrate {config.bitrate}"
+        )
+    return "check the interface exists (ip link show) and the [can] settings"

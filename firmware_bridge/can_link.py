@@ -26,6 +26,7 @@ from firmware_bridge.can_health import (
     classify_error_frame,
 )
 from firmware_bridge.errors import BridgeOperationError, FrameError
+from firmware_bridge.foreign_controllers import ForeignControllers
 from firmware_bridge.vesc import WHEEL_COUNT, VescCodec, VescFrame, erpm_command
 from firmware_bridge.wheel_names import wheel_label
 from logs.can_load import frame_bits
@@ -149,6 +150,7 @@ class CanLink(ClosesOnExit):
         self._ids = codec.profile.controller_ids
         self._readings = [WheelReading(cid) for cid in self._ids]
         self._wheel_of = {cid: index for index, cid in enumerate(self._ids)}
+        self._foreign = ForeignControllers(self._ids)
         self._closed = False
         self._period_ns = to_ns(1.0 / config.command_rate_hz)
         self._max_age_ns = to_ns(config.command_max_age_s)
@@ -370,6 +372,10 @@ class CanLink(ClosesOnExit):
             counter = _REJECTION_COUNTER.get(err.reason, "decode_errors")
             setattr(self.counters, counter, getattr(self.counters, counter) + 1)
             logger.debug("rejected CAN frame: %s", err)
+            if err.reason == "unknown_id":
+                foreign = self._foreign.note(msg.arbitration_id, msg.is_extended_id)
+                if foreign is not None:
+                    logger.warning("%s", foreign)
             return False
         self._apply(t_ns, self._bus_state.on_frame_received(), False)
         if frame.kind not in _STATUS_KINDS:

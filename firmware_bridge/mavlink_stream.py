@@ -184,6 +184,17 @@ def _baud_constant(baud: int, name: str) -> int:
     return constant
 
 
+def _serial_open_hint(err: OSError) -> str:
+    """What to check for a serial device that did not open, from what the OS said."""
+    if err.errno == errno.ENOENT:
+        return "is the autopilot plugged in, and is this its name (ls /dev/serial/by-id/ /dev/tty*)?"
+    if err.errno in (errno.EACCES, errno.EPERM):
+        return "the user running rover may not open it: add that user to the device's group (dialout)"
+    if err.errno == errno.EBUSY:
+        return "another program holds it (mavproxy, mavlink-router, ModemManager?)"
+    return "is it plugged in, and may the user running rover open it (dialout)?"
+
+
 class SerialTransport:
     """A serial device (``/dev/ttyUSB0``, ``/dev/ttyACM0``, ``/dev/serial0``...) in raw mode at ``baud``."""
 
@@ -196,7 +207,8 @@ class SerialTransport:
             self._fd = os.open(device, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
         except OSError as err:
             raise BridgeSetupError(
-                f"{self._name!r}: cannot open: {err}; is it plugged in, are you in dialout?"
+                f"MAVLink serial device {device} ({baud} baud): cannot open: {err.strerror or err}; "
+                f"{_serial_open_hint(err)}"
             ) from err
         try:
             tty.setraw(self._fd)

@@ -7,6 +7,7 @@ lockstep loop never waits on a socket.
 
 from __future__ import annotations
 
+import errno
 import ipaddress
 import logging
 import socket
@@ -132,7 +133,7 @@ class UdpTransport:
                     self._socket.bind((address, 0))
         except OSError as err:
             self._socket.close()
-            raise BridgeSetupError(f"{connection!r}: cannot bind: {err}") from err
+            raise BridgeSetupError(f"MAVLink {connection}: cannot bind: {err}{_bind_hint(err)}") from err
         self._closed = False
         self._fixed_peer = mode == "udpout"
         self.dropped_writes = 0
@@ -287,3 +288,13 @@ def open_transport(connection: str, *, allow_remote: bool = False) -> Transport:
         f"unknown MAVLink connection {connection!r}; expected udpin:HOST:PORT, udpout:HOST:PORT, "
         "tcp:HOST:PORT, tcpin:HOST:PORT, serial:DEVICE:BAUD or memory"
     )
+
+
+def _bind_hint(err: OSError) -> str:
+    """What to do about a port already taken: on a rover that is most often another MAVLink program."""
+    if err.errno == errno.EADDRINUSE:
+        return (
+            "; another program holds that port (another rover run, mavlink-router, mavproxy?): stop it, or "
+            "pick another port in [mavlink] connection and send the autopilot's stream there"
+        )
+    return ""

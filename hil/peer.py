@@ -153,7 +153,17 @@ def open_peer_wires(can_config: CanConfig, mavlink_connection: str) -> tuple[can
     """The peer's ends of the wires: the configured CAN bus and a loopback ``udpin`` MAVLink port.
 
     The rover dials the peer (``udpout``), so the peer must listen; port 0 lets the OS pick a free one.
+    python-can's ``virtual`` bus (the built-in config's) is refused: it reaches only this process, so
+    ``rover run`` in another one would hear no motor controller, and nothing would say why.
     """
+    if can_config.interface == "virtual":
+        raise BridgeSetupError(
+            f"HIL peer CAN bus virtual:{can_config.channel}: python-can's virtual bus reaches only this "
+            "process, so `rover run` in another one would hear no motor controller; give "
+            "--can-interface udp_multicast --can-channel 239.X.Y.Z (run both under scripts/in-private-netns) "
+            "or --can-interface socketcan --can-channel vcan0 (scripts/setup-vcan.sh), or a --config whose "
+            "[can] names one"
+        )
     if not mavlink_connection.startswith("udpin:"):
         raise BridgeSetupError(
             f"HIL peer MAVLink {mavlink_connection!r}: the peer listens, use udpin:127.0.0.1:PORT (0: any)"

@@ -7,6 +7,7 @@ silently falls back to a default.
 
 from __future__ import annotations
 
+import difflib
 import math
 import tomllib
 from collections.abc import Iterator, Sequence
@@ -176,6 +177,7 @@ class Table:
         """Reject keys nobody asked for: they are typos or settings this version does not know."""
         unknown = sorted(set(self._data) - self._used)
         if unknown:
+<<<<<<< HEAD
             key = unknown[0]
             problem = f"unknown key (known here: {', '.join(sorted(self._used)) or 'none'})"
             # No setting has a dot in its name: this is a quoted dotted key, which reads as the real one.
@@ -186,6 +188,14 @@ class Table:
                     f"{key} = ..., to set {leaf} in [{self.key_path(table)}]"
                 )
             raise self.error(key, problem)
+=======
+            # A typo is the usual cause: name the nearest known key first, then all of them.
+            nearest = difflib.get_close_matches(unknown[0], sorted(self._used), n=1, cutoff=0.6)
+            guess = f"did you mean {nearest[0]!r}? " if nearest else ""
+            raise self.error(
+                unknown[0], f"unknown key ({guess}known here: {', '.join(sorted(self._used)) or 'none'})"
+            )
+>>>>>>> wt-bringup
 
 
 class _Required:

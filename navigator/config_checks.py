@@ -11,6 +11,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from logs.settings import ConfigError
+from navigator.fence_shape import overlaps_box
 
 if TYPE_CHECKING:
     from navigator.config import RoverConfig
@@ -39,6 +40,19 @@ def check_cross_fields(config: RoverConfig) -> None:
             f"{follower.lookahead_m:g} m is shorter than one map cell (map.resolution_m "
             f"{config.terrain.resolution_m:g} m)",
         )
+    if config.terrain is not None and safety.fence:
+        terrain = config.terrain
+        rows, cols = terrain.shape
+        ox, oy = terrain.origin_xy
+        far = (ox + cols * terrain.resolution_m, oy + rows * terrain.resolution_m)
+        if not overlaps_box(safety.fence, (ox, oy), far):
+            # Every goal on the map would be refused and the rover held wherever it stands: a fence in
+            # another frame (relative to the start, say) than the map's local ENU metres.
+            raise refuse(
+                "safety.fence",
+                f"{list(map(list, safety.fence))} lies wholly off the map, which covers "
+                f"x [{ox:g}, {far[0]:g}) and y [{oy:g}, {far[1]:g}): both are in the map's local ENU metres",
+            )
     if safety.stuck_time_s > 0.0:
         if safety.stuck_max_speed_mps >= safety.stuck_min_command_mps:
             raise refuse(

@@ -62,13 +62,10 @@ def terrain_from_table(table: Table, base_dir: Path) -> tuple[TerrainMap, str]:
         else:
             resolution = table.number("resolution_m", lo=0.01, hi=100.0)
 
-            def layer(key: str) -> Path | None:
-                return base_dir / table.text(key) if table.has(key) else None
-
             terrain = load_npy_layers(
-                elevation=layer("elevation"),
-                classes=layer("classes"),
-                obstacles=layer("obstacles"),
+                elevation=_layer_path(table, "elevation", base_dir),
+                classes=_layer_path(table, "classes", base_dir),
+                obstacles=_layer_path(table, "obstacles", base_dir),
                 resolution_m=resolution,
                 origin=table.point("origin", [0.0, 0.0]),
             )
@@ -83,9 +80,6 @@ def terrain_from_table(table: Table, base_dir: Path) -> tuple[TerrainMap, str]:
 def _png_terrain(table: Table, base_dir: Path) -> TerrainMap:
     """``kind = "png"``: layer paths, the elevation scale, the class table and the obstacle threshold."""
 
-    def layer(key: str) -> Path | None:
-        return base_dir / table.text(key) if table.has(key) else None
-
     class_values: dict[int, int] = {}
     if table.has("class_values"):
         values = table.table("class_values")
@@ -95,9 +89,9 @@ def _png_terrain(table: Table, base_dir: Path) -> TerrainMap:
             class_values[int(key)] = _class_id(values, key, "firm")
         values.finish()
     return load_png_layers(
-        elevation=layer("elevation"),
-        classes=layer("classes"),
-        obstacles=layer("obstacles"),
+        elevation=_layer_path(table, "elevation", base_dir),
+        classes=_layer_path(table, "classes", base_dir),
+        obstacles=_layer_path(table, "obstacles", base_dir),
         resolution_m=table.number("resolution_m", lo=0.01, hi=100.0),
         origin=table.point("origin", [0.0, 0.0]),
         elevation_scale_m=table.number("elevation_scale_m", 0.01, lo=-1000.0, hi=1000.0),
@@ -106,6 +100,29 @@ def _png_terrain(table: Table, base_dir: Path) -> TerrainMap:
         obstacle_threshold=table.number("obstacle_threshold", 0.5, lo=1e-6, hi=1.0),
         base_class=_class_id(table, "class", "firm"),
     )
+
+
+def _layer_path(table: Table, key: str, base_dir: Path) -> Path | None:
+    """The layer file ``key`` names, read relative to ``base_dir`` (the folder of the file the table is in);
+    None if the key is absent. A file that is not there is a ``ConfigError`` saying where it was looked
+    for, and, when the path exists from the current directory instead, that this is the mix-up: a person
+    writes the path from where they stand, not from the config's folder."""
+    if not table.has(key):
+        return None
+    written = table.text(key)
+    path = base_dir / written
+    if path.exists():
+        return path
+    problem = (
+        f"{key} layer file {written!r} not found: a relative path is read from the folder of "
+        f"{table.source} ({base_dir.resolve()}), which gives {path}"
+    )
+    if not Path(written).is_absolute() and Path(written).exists():
+        problem += (
+            f"; {written!r} exists from the current directory ({Path(written).resolve()}): write that "
+            "absolute path, or one relative to the config's folder"
+        )
+    raise table.error(key, problem)
 
 
 def _class_id(table: Table, key: str, default: str) -> int:

@@ -20,6 +20,7 @@ from __future__ import annotations
 import enum
 import logging
 import math
+from collections.abc import Callable
 from concurrent.futures import Executor
 from dataclasses import dataclass
 
@@ -36,12 +37,13 @@ from logs.commands import CommandSource
 from logs.sink import MessageSink
 from navigator.config import RoverConfig
 from navigator.deferred_sink import DeferredSink
+from navigator.fence_shape import inside_polygon
 from navigator.guidance import Guidance
 from navigator.map_message import grid_message
 from navigator.mixing import mix_skid_steer
 from navigator.perception import ObstacleObservation, ObstacleSource
 from navigator.planner import Path, Planner
-from navigator.safety import EventSink, SafetyInputs, SafetyMode, SafetySupervisor, inside_polygon
+from navigator.safety import EventSink, SafetyInputs, SafetyMode, SafetySupervisor
 from navigator.terrain import TerrainMap
 
 _log = logging.getLogger(__name__)
@@ -204,6 +206,8 @@ class OnboardStack:
     from a pacing sample's arrival to the wheel command's send (``navigator.deferred_sink``).
     ``planning`` (optional): the executor planning jobs run on (``navigator.plan_worker``); the default
     plans inline, inside the tick (lockstep: deterministic). The caller owns it and shuts it down.
+    ``start_up_report`` (optional) also gets each ``startup_checks`` event as one line (``rover run``
+    prints them: an operator at the console sees what the rover waits for, e.g. the autopilot's heartbeat).
     """
 
     def __init__(
@@ -220,8 +224,10 @@ class OnboardStack:
         ground_station: MavlinkLink | None = None,
         deferred: DeferredSink | None = None,
         planning: Executor | None = None,
+        start_up_report: Callable[[str], None] | None = None,
     ) -> None:
         self._config = config
+        self._start_up_report = start_up_report
         self._clock = clock
         self._can = can_link
         self._mavlink = mavlink
@@ -479,14 +485,21 @@ class OnboardStack:
         if ready:
             self._start_up_passed = True
             settle_s = SETTLE_NS / NS_PER_S
-            self._event(
-                "startup_checks",
-                "info",
-                f"passed: autopilot heard, all wheel controllers heard, estimate healthy for {settle_s:g} s",
+            detail = (
+                f"passed: autopilot heard, all wheel controllers heard, estimate healthy for {settle_s:g} s"
             )
+            self._event("startup_checks", "info", detail)
+            self._report_start_up_line(f"start-up checks {detail}; driving allowed")
         elif self._not_ready != self._start_up_reported:
             self._start_up_reported = self._not_ready
             self._event("startup_checks", "info", f"pending: {self._not_ready}")
+            self._report_start_up_line(
+                f"start-up checks pending: {self._not_ready}; not driving until they pass"
+            )
+
+    def _report_start_up_line(self, line: str) -> None:
+        if self._start_up_report is not None:
+            self._start_up_report(line)
 
     def _safety_inputs(self, now: int, pose: PoseEstimate | None) -> SafetyInputs:
         readings = self._wheels

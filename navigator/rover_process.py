@@ -105,7 +105,8 @@ def run_rover(
     """Run the onboard stack in real time until ``stop`` is set; returns the recording and timing.
 
     Nothing is created in ``out_dir`` until every start-up check has passed (the config, the Zenoh
-    session, both links): a run that cannot start leaves no recording behind. A failure after that is
+    session, both links): a run that cannot start leaves no recording behind, and an ``out_dir`` that
+    already holds a ``rover.mcap`` is refused before anything opens. A failure after that is
     recorded on the ``log`` topic, the recording closed as a readable MCAP, and the error raised.
 
     ``wall_ns`` is read once, as the recording opens, to date it (``logs.wall_clock``); nothing else
@@ -113,12 +114,19 @@ def run_rover(
 
     ``wait`` idles the loop between reads (default: ``select`` on the pacing link, ``navigator.input_wait``).
 
-    ``announce`` gets one line when the links are open and the recording made (``links_line``) and one
-    when the warm-up is done and the loop starts: the CLI prints them, so an operator sees them whatever
+    ``announce`` gets one line when the links are open and the recording made (``links_line``), one
+    when the warm-up is done and the loop starts, and one per ``startup_checks`` event (what driving
+    still waits for, then that it may drive): the CLI prints them, so an operator sees them whatever
     the log level.
     """
     terrain = check_runnable(config)
     mcap_path = out_dir / "rover.mcap"
+    if mcap_path.exists():
+        # The recorder opens its file for writing: an earlier run's recording there would be emptied.
+        raise RoverSetupError(
+            f"{mcap_path} already exists (an earlier run's recording; it is left as it is): "
+            "give --out a new folder, or move that file away"
+        )
     session = None
     publisher: ZenohTelemetry | None = None
     commands: ZenohCommandReceiver | None = None
@@ -159,6 +167,7 @@ def run_rover(
                         commands=commands,
                         deferred=deferred,
                         planning=planning,
+                        start_up_report=announce,
                     )
                     try:
                         timing = _warm_up_and_run(
@@ -242,8 +251,13 @@ def _warm_up_and_run(
     )
     announce(
         f"warm-up done in {(clock.now_ns() - warm_up_start_ns) / 1e9:.1f} s; rover {config.rover_id} "
+<<<<<<< HEAD
         f"running at {config.control_rate_hz:.0f} Hz, {_loop_phrase(config)}; driving waits for "
         "the start-up checks (safety/events: startup_checks)"
+=======
+        f"running at {config.control_rate_hz:.0f} Hz, paced by {config.pacing_sensor}; driving waits for "
+        "the start-up checks (next line; safety/events: startup_checks)"
+>>>>>>> wt-bringup
     )
     freeze_start_up_heap()
     with realtime_switch_interval():

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 from firmware_bridge.wheel_names import wheel_label, wheel_labels
 from logs.clock import NS_PER_S, to_ns
+from navigator.fence_shape import inside_polygon
 from navigator.safety_config import SafetyConfig
 from navigator.vehicle import VehicleParams, stability_margins
 
@@ -87,18 +88,6 @@ class SafetyDecision:
     mode: SafetyMode
     speed_scale: float  # multiply guidance's speed and yaw rate by this; 0 stops the wheels
     faults: tuple[str, ...]  # active failsafes, sorted
-
-
-def inside_polygon(x: float, y: float, polygon: tuple[tuple[float, float], ...]) -> bool:
-    """Even-odd rule: a ray to +x crosses the polygon's edges an odd number of times iff inside."""
-    inside = False
-    n = len(polygon)
-    for i in range(n):
-        x1, y1 = polygon[i]
-        x2, y2 = polygon[(i + 1) % n]
-        if (y1 > y) != (y2 > y) and x < x1 + (y - y1) * (x2 - x1) / (y2 - y1):
-            inside = not inside
-    return inside
 
 
 class SafetySupervisor:

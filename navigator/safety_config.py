@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass
 
 from logs.settings import Table
+from navigator.fence_shape import Polygon, first_crossing, polygon_area
 
 # A fence polygon needs at least a triangle.
 MIN_FENCE_VERTICES = 3
@@ -64,6 +65,8 @@ class SafetyConfig:
             raise table.error(
                 "fence", f"a fence needs at least {MIN_FENCE_VERTICES} points, got {len(fence_raw)}"
             )
+        fence = tuple((float(p[0]), float(p[1])) for p in fence_raw)
+        _check_fence_shape(table, fence)
         config = cls(
             loop_stall_s=table.number("loop_stall_s", d.loop_stall_s, lo=0.001, hi=10.0),
             wheel_silent_s=seconds("wheel_silent_s", d.wheel_silent_s),
@@ -88,7 +91,7 @@ class SafetyConfig:
             wheel_stall_hold_s=seconds("wheel_stall_hold_s", d.wheel_stall_hold_s),
             tip_margin_deg=table.number("tip_margin_deg", d.tip_margin_deg, lo=0.0, hi=90.0),
             tip_clear_deg=table.number("tip_clear_deg", d.tip_clear_deg, lo=0.0, hi=90.0),
-            fence=tuple((float(p[0]), float(p[1])) for p in fence_raw),
+            fence=fence,
             battery_low_v=table.number("battery_low_v", d.battery_low_v, lo=0.0, hi=1000.0),
             battery_critical_v=table.number("battery_critical_v", d.battery_critical_v, lo=0.0, hi=1000.0),
             battery_debounce_s=seconds("battery_debounce_s", d.battery_debounce_s),
@@ -105,3 +108,22 @@ class SafetyConfig:
             )
         table.finish()
         return config
+
+
+def _check_fence_shape(table: Table, fence: Polygon) -> None:
+    """A fence must enclose an area and be a simple polygon: the even-odd rule answers for any points,
+    so points on one line (nothing inside: every goal refused, the rover always outside) or crossing
+    edges (inside flipping at each crossing) would load and hold the rover where no one meant."""
+    if not fence:
+        return
+    crossing = first_crossing(fence)
+    if crossing is not None:
+        i, j = crossing
+        n = len(fence)
+        raise table.error(
+            "fence",
+            f"edge {list(fence[i])} -> {list(fence[(i + 1) % n])} meets edge {list(fence[j])} -> "
+            f"{list(fence[(j + 1) % n])}: list the points in order around the fence, so no edges cross",
+        )
+    if polygon_area(fence) <= 0.0:
+        raise table.error("fence", f"the points {list(map(list, fence))} enclose no area (all on one line)")

@@ -26,6 +26,17 @@ G = 9.81  # m/s^2
 
 # Axle positions along the body x axis in units of half the wheelbase: front, middle, rear.
 _AXLE_X_UNITS = (1.0, 0.0, -1.0)
+# The body's lengths (metres). None of them reaches this on a rover this stack drives; a config that
+# gives one in millimetres (wheel_radius_m = 110) does, and would otherwise load and drive wrong.
+_LENGTH_KEYS = (
+    "cg_height_m",
+    "wheelbase_m",
+    "track_m",
+    "wheel_radius_m",
+    "footprint_length_m",
+    "footprint_width_m",
+)
+MAX_LENGTH_M = 10.0
 
 
 @dataclass(frozen=True)
@@ -67,7 +78,23 @@ class VehicleParams:
             value = table.number(field.name, getattr(defaults, field.name), lo=lower)
             if value <= 0.0:
                 raise table.error(field.name, f"must be > 0, got {value}")
+            if field.name in _LENGTH_KEYS and value > MAX_LENGTH_M:
+                raise table.error(
+                    field.name,
+                    f"{value:g} m is more than {MAX_LENGTH_M:g} m: lengths are in metres (a 110 mm wheel "
+                    "radius is 0.11)",
+                )
             values[field.name] = value
+        # Three wheels a side, wheelbase_m / 2 apart: a wheel wider than that would overlap its neighbour,
+        # the mark of a radius in the wrong unit (cm, or mm with a long wheelbase) or a diameter.
+        most_m = values["wheelbase_m"] / 4.0
+        if values["wheel_radius_m"] > most_m:
+            raise table.error(
+                "wheel_radius_m",
+                f"{values['wheel_radius_m']:g} m is more than wheelbase_m {values['wheelbase_m']:g} m / 4 = "
+                f"{most_m:g} m: the three wheels of a side would overlap; give the radius (not the "
+                "diameter) in metres",
+            )
         # The planner keeps the footprint clear of obstacles: the wheels must stand inside it.
         for outer, inner in (("footprint_width_m", "track_m"), ("footprint_length_m", "wheelbase_m")):
             if values[outer] < values[inner]:

@@ -50,3 +50,18 @@ def bounded_float(lo: float, hi: float, meaning: str = "") -> Callable[[str], fl
 
 # Every command's --seed: numpy's generators refuse negative seeds, and a seed must fit in a TOML file.
 seed = bounded_int(0, MAX_SEED)
+
+
+def positive_seconds(text: str) -> float:
+    """A duration in seconds: a finite number above 0. (``float`` alone takes 'nan' and 'inf', which ended
+    ``rover run --duration`` in a traceback, and 0 or -1, which ran no tick and exited 0.)"""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected seconds (a number), got {text!r}") from None
+    if not (math.isfinite(value) and value > 0.0):
+        raise argparse.ArgumentTypeError(f"must be a finite number of seconds above 0, got {text!r}")
+    return value
+
+
+positive_seconds.__name__ = "seconds"

@@ -15,7 +15,7 @@ from logs.settings import ConfigError, parse_toml
 from logs.sink import MessageSink
 from navigator.config import RoverConfig, load_rover_config, rover_config_from_table
 from rover_cli import soak_commands
-from rover_cli.arg_types import bounded_int, seed
+from rover_cli.arg_types import bounded_int, positive_seconds, seed
 from rover_cli.errors import print_error
 
 if TYPE_CHECKING:
@@ -72,7 +72,7 @@ def _register_peer(commands: Any) -> None:
     )
     peer.add_argument("--port-file", type=Path, default=None, help="write the bound MAVLink UDP port here")
     peer.add_argument("--status-file", type=Path, default=None, help="keep the body's state here (JSON)")
-    peer.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
+    peer.add_argument("--duration", type=positive_seconds, default=None, help="stop after this many seconds")
     peer.add_argument("--out", type=Path, default=None, help="output directory (default: logs/trials/<run>)")
     peer.set_defaults(handler=run_peer_command)
 

@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 import signal
 import threading
 import time
 from pathlib import Path
 from types import FrameType
 from typing import Any
+
+from rover_cli.arg_types import positive_seconds
 
 _log = logging.getLogger(__name__)
 DEFAULT_RUNS_DIR = Path("logs/trials")
@@ -22,7 +25,7 @@ def register(families: Any) -> None:
     run.add_argument(
         "--out", type=Path, default=None, help="recording directory (default: logs/trials/run-<t>)"
     )
-    run.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
+    run.add_argument("--duration", type=positive_seconds, default=None, help="stop after this many seconds")
     run.add_argument("--no-telemetry", action="store_true", help="do not open Zenoh")
     run.set_defaults(handler=run_command)
 
@@ -32,6 +35,8 @@ def _point(text: str) -> tuple[float, float]:
         x, y = (float(v) for v in text.split(","))
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected X,Y in metres, got {text!r}") from None
+    if not (math.isfinite(x) and math.isfinite(y)):
+        raise argparse.ArgumentTypeError(f"expected X,Y as finite numbers of metres, got {text!r}")
     return x, y
 
 
@@ -65,7 +70,8 @@ def run_command(args: argparse.Namespace) -> int:
             announce=_announce,
         )
     except (RoverSetupError, BridgeError, TelemetrySetupError) as err:
-        _log.error("cannot start: %s", err)
+        # The config first, as in a config error: the settings that opened this link are in it.
+        _log.error("%s: cannot start: %s", args.config, err)
         return 2
     finally:
         _ignore_signals_from_now_on()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import signal
 import threading
 import time
@@ -14,6 +15,7 @@ from rich.live import Live
 from rich.table import Table as RichTable
 
 from logs.errors import LogsError
+from rover_cli.arg_types import positive_seconds
 from rover_cli.errors import print_error
 
 # Long enough for a rover that publishes navigator/state at a thinned live rate (1-2 Hz) to show its
@@ -44,7 +46,7 @@ def register(families: Any) -> None:
     )
     connection(watch)
     watch.add_argument(
-        "--duration-s", type=float, default=None, help="stop after this long (default: Ctrl-C)"
+        "--duration-s", type=positive_seconds, default=None, help="stop after this long (default: Ctrl-C)"
     )
     watch.set_defaults(handler=watch_command)
 
@@ -52,7 +54,7 @@ def register(families: Any) -> None:
     connection(record)
     record.add_argument("out", type=Path)
     record.add_argument(
-        "--duration-s", type=float, default=None, help="stop after this long (default: Ctrl-C)"
+        "--duration-s", type=positive_seconds, default=None, help="stop after this long (default: Ctrl-C)"
     )
     record.set_defaults(handler=record_command)
 
@@ -88,9 +90,7 @@ def _session(args: argparse.Namespace) -> Any:
 
     settings = ZenohSettings(enabled=True)
     if args.config is not None:
-        from navigator.config import load_rover_config
-
-        settings = load_rover_config(args.config).zenoh
+        settings = _station_config(args.config).zenoh
     if args.connect:
         for endpoint in args.connect:
             problem = endpoint_problem(endpoint)
@@ -105,12 +105,23 @@ def _session(args: argparse.Namespace) -> Any:
         raise TelemetrySetupError(f"--connect {' '.join(args.connect)}: {err}") from err
 
 
+def _station_config(path: Path) -> Any:
+    """The rover config ``--config`` names; ``TelemetrySetupError`` (exit 2) naming the file and key if it
+    cannot be used (a missing or bad file had ended the command in a traceback)."""
+    from logs.errors import TelemetrySetupError
+    from logs.settings import ConfigError
+    from navigator.config import load_rover_config
+
+    try:
+        return load_rover_config(path)
+    except ConfigError as err:
+        raise TelemetrySetupError(f"--config: {err}") from err
+
+
 def _config_bitrate(args: argparse.Namespace) -> int | None:
     if args.config is None:
         return None
-    from navigator.config import load_rover_config
-
-    return load_rover_config(args.config).can.bitrate
+    return int(_station_config(args.config).can.bitrate)
 
 
 def _wait(duration_s: float | None, tick: Any = None) -> None:
@@ -128,6 +139,19 @@ def _wait(duration_s: float | None, tick: Any = None) -> None:
         pass
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+def _unreached_hint(args: argparse.Namespace) -> str:
+    """What to check when the station reached no Zenoh peer or router at all."""
+    if args.connect:
+        return f"is the rover (or its router) up at --connect {' '.join(args.connect)}?"
+    if args.config is not None:
+        return f"does --config {args.config}'s [zenoh] connect name the rover (or its router)?"
+    # Without either the station only listens on an OS-picked loopback port: nothing can find it.
+    return (
+        "no --connect given: name the rover's [zenoh] listen endpoint (or its router's), "
+        "e.g. --connect tcp/HOST:7447"
+    )
 
 
 def watch_command(args: argparse.Namespace) -> int:
@@ -172,7 +196,7 @@ def watch_command(args: argparse.Namespace) -> int:
         if peers + routers == 0
         else f"{peers} Zenoh peer(s) and {routers} router(s), none publishing rover/{args.rover_id}/**"
     )
-    hint = f"is the rover (or its router) up at --connect {' '.join(args.connect)}?" if args.connect else ""
+    hint = _unreached_hint(args)
     if peers + routers:
         hint = f"is {args.rover_id!r} the rover's id (--rover-id)?"
     console.print(
@@ -222,6 +246,11 @@ def send_command_line(args: argparse.Namespace) -> int:
             "[red]error:[/red] goal takes exactly two numbers (x y, metres); estop/resume take none"
         )
         return 2
+    if not all(math.isfinite(v) for v in args.xy):
+        # argparse's float takes 'nan' and 'inf'; the rover would only count such a goal as rejected.
+        given = " ".join(f"{v:g}" for v in args.xy)
+        console.print(f"[red]error:[/red] goal x y must be finite numbers (metres), got {given}")
+        return 2
     if not args.timeout_s > 0:
         console.print(f"[red]error:[/red] --timeout-s must be > 0, got {args.timeout_s:g}")
         return 2
@@ -259,8 +288,8 @@ def send_command_line(args: argparse.Namespace) -> int:
         )
         return 0
     hint = ""
-    if outcome.verdict is Verdict.NO_LISTENER and outcome.connections == 0 and args.connect:
-        hint = f"; is the rover (or its router) up at --connect {' '.join(args.connect)}?"
+    if outcome.verdict is Verdict.NO_LISTENER and outcome.connections == 0:
+        hint = f"; {_unreached_hint(args)}"
     elif outcome.verdict is Verdict.NO_LISTENER and outcome.connections:
         hint = f"; is {args.rover_id!r} the rover's id (--rover-id)?"
     console.print(

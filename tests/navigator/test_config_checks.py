@@ -86,3 +86,76 @@ def test_estimator_kinematics_are_set_in_vehicle_only(
         load(f"[vehicle]\n{key} = {vehicle_value}\n[estimator]\n{key} = {estimator_value}\n")
     assert caught.value.key == f"estimator.{key}"
     assert f"[vehicle] {key}" in caught.value.problem
+
+
+@pytest.mark.parametrize(
+    ("text", "key", "named"),
+    [
+        ("[vehicle]\nwheel_radius_m = 110\n", "vehicle.wheel_radius_m", ("110 m", "metres", "0.11")),
+        (
+            "[vehicle]\ntrack_m = 550\nwheelbase_m = 700\n"
+            "footprint_length_m = 900\nfootprint_width_m = 700\n",
+            "vehicle.wheelbase_m",
+            ("700 m", "metres"),
+        ),
+        # A diameter, or centimetres with the rest in metres: the wheels of a side would overlap.
+        (
+            "[vehicle]\nwheel_radius_m = 0.22\n",
+            "vehicle.wheel_radius_m",
+            ("wheelbase_m 0.7 m / 4", "overlap"),
+        ),
+        ("[vehicle]\nwheel_radius_m = 1.1\n", "vehicle.wheel_radius_m", ("1.1 m", "overlap", "diameter")),
+    ],
+)
+def test_vehicle_lengths_in_the_wrong_unit_are_refused(text: str, key: str, named: tuple[str, ...]) -> None:
+    with pytest.raises(ConfigError) as caught:
+        load(text)
+    assert caught.value.key == key
+    for words in named:
+        assert words in caught.value.problem, caught.value.problem
+
+
+def test_the_shipped_vehicle_loads() -> None:
+    vehicle = load("").vehicle
+    assert vehicle.wheel_radius_m <= vehicle.wheelbase_m / 4
+
+
+@pytest.mark.parametrize(
+    ("fence", "key", "named"),
+    [
+        # Points on one line: nothing is inside, so the rover is always outside and every goal refused.
+        ("[[0.0, 0.0], [5.0, 0.0], [10.0, 0.0]]", "safety.fence", ("enclose no area",)),
+        # A bow tie: the points out of order around the square, two edges cross.
+        (
+            "[[0.0, 0.0], [10.0, 10.0], [10.0, 0.0], [0.0, 10.0]]",
+            "safety.fence",
+            ("edge [0.0, 0.0] -> [10.0, 10.0] meets edge [10.0, 0.0] -> [0.0, 10.0]", "in order"),
+        ),
+        # Negative ENU metres, as if relative to the start: wholly off a map at [0, 10) x [0, 10).
+        (
+            "[[-1.0, -1.0], [-10.0, -1.0], [-10.0, -10.0], [-1.0, -10.0]]",
+            "safety.fence",
+            ("lies wholly off the map", "x [0, 10) and y [0, 10)"),
+        ),
+    ],
+)
+def test_a_fence_that_cannot_be_meant_is_refused(fence: str, key: str, named: tuple[str, ...]) -> None:
+    with pytest.raises(ConfigError) as caught:
+        load(SMALL_MAP + f"[safety]\nfence = {fence}\n")
+    assert caught.value.key == key
+    for words in named:
+        assert words in caught.value.problem, caught.value.problem
+
+
+@pytest.mark.parametrize(
+    "fence",
+    [
+        "[[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]]",  # the map's own edge
+        "[[-5.0, -5.0], [5.0, -5.0], [5.0, 5.0], [-5.0, 5.0]]",  # partly off the map
+        "[[0.0, 0.0], [0.0, 10.0], [10.0, 10.0], [10.0, 0.0]]",  # clockwise
+        "[[0.0, 0.0], [8.0, 0.0], [8.0, 8.0], [4.0, 3.0], [0.0, 8.0]]",  # concave
+        "[[-20.0, -20.0], [30.0, -20.0], [30.0, 30.0], [-20.0, 30.0]]",  # round the whole map
+    ],
+)
+def test_fences_a_person_means_load(fence: str) -> None:
+    assert load(SMALL_MAP + f"[safety]\nfence = {fence}\n").safety.fence

@@ -110,6 +110,11 @@ def test_rover_run_stops_wheels_and_closes_recording_on_signal(tmp_path: Path, s
     assert announced[0].endswith("; telemetry off")
     assert announced[1].startswith("warm-up done in ") and "running at 50 Hz" in announced[1]
     assert process.returncode == 0, stdout
+    # ... and, at any log level, what driving waits for: nothing answers on this bus or this port.
+    assert stdout.splitlines()[0] == (
+        "start-up checks pending: no autopilot heartbeat, wheel controllers not all heard, no estimate yet; "
+        "not driving until they pass"
+    ), stdout
     mcap = out / "rover.mcap"
     metadata = read_metadata(mcap)
     assert metadata["trial"]["can_bitrate"] == "1000000"  # the config's default, for the report's bus load

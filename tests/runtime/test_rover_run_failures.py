@@ -80,3 +80,41 @@ def test_the_lockstep_config_is_refused_with_a_pointer_to_the_right_ones(
     assert "configs/rover.example-hardware.toml" in said
     assert "rover hil peer" in said and "rover-hil.toml" in said
     assert not out.exists()
+
+
+def test_an_earlier_recording_in_out_is_refused_and_left_untouched(tmp_path: Path) -> None:
+    # Running twice with the same --out (a field test re-run, a service restarted on a fixed folder)
+    # had emptied the first run's recording as the second opened its file.
+    out = tmp_path / "run"
+    out.mkdir()
+    earlier = out / "rover.mcap"
+    earlier.write_bytes(b"the first run's recording")
+    config = write_config(tmp_path, "udpin:127.0.0.1:0")
+    code = main(["run", "--config", str(config), "--out", str(out), "--duration", "0.2", "--no-telemetry"])
+    assert code == 2
+    assert earlier.read_bytes() == b"the first run's recording"
+    assert sorted(p.name for p in out.iterdir()) == ["rover.mcap"]
+
+
+def test_the_refusal_of_an_earlier_recording_names_it_and_the_fix(tmp_path: Path) -> None:
+    config = load_rover_config(write_config(tmp_path, "udpin:127.0.0.1:0"))
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "rover.mcap").write_bytes(b"")
+    stop, until = threading.Event(), 200_000_000  # a bound, should the run start after all
+    with pytest.raises(RoverSetupError, match=r"rover\.mcap already exists.*--out a new folder"):
+        run_rover(config, MonotonicClock(), out, stop=stop, telemetry=False, duration_ns=until)
+
+
+def test_a_link_that_cannot_open_is_one_line_naming_the_config_exit_2(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    config = write_config(tmp_path, "serial:/dev/no-such-rover-tty:57600")
+    out = tmp_path / "run"
+    with caplog.at_level(logging.ERROR):
+        code = main(["run", "--config", str(config), "--out", str(out), "--no-telemetry"])
+    assert code == 2
+    errors = [r.getMessage() for r in caplog.records if r.levelno >= logging.ERROR]
+    assert len(errors) == 1 and "\n" not in errors[0]
+    assert errors[0].startswith(f"{config}: cannot start: ") and "no-such-rover-tty" in errors[0], errors
+    assert not out.exists()

@@ -56,3 +56,30 @@ def test_bench_runtime_measures_at_the_units_nice_value() -> None:
     with pytest.raises(argparse.ArgumentTypeError, match="-20 to 19"):
         nice_value("-25")
     assert nice_value("keep") is None and nice_value("-10") == -10
+
+
+def test_the_service_records_where_the_service_user_can_write() -> None:
+    # rover run records under its working directory (logs/trials/run-<time>) unless given --out; the unit
+    # once ran it in the root-owned /opt/rover, where that folder cannot be made: exit 2, never started.
+    service = service_settings()
+    command = service["ExecStart"][0].split()
+    assert command[1:3] == ["run", "--config"] and "--out" not in command
+    state = service["StateDirectory"][0]  # /var/lib/<it>, made and owned for User= by systemd
+    assert service["WorkingDirectory"] == [f"/var/lib/{state}"]
+
+
+def test_the_service_command_line_is_one_rover_run_accepts() -> None:
+    from rover_cli.main import build_parser
+
+    command = service_settings()["ExecStart"][0].split()
+    assert command[0].endswith("/bin/rover")
+    args = build_parser("run").parse_args(command[1:])
+    assert args.config == Path("/etc/rover/rover.toml")
+
+
+def test_the_service_user_gets_no_capabilities() -> None:
+    # Nothing in rover run uses one: the CAN link is a plain CAN_RAW socket, and bringing can0 up is the
+    # ExecStartPre's, which runs with full privileges ("+") while the service itself does not.
+    service = service_settings()
+    assert "AmbientCapabilities" not in service
+    assert all(line.startswith("-+") for line in service["ExecStartPre"])

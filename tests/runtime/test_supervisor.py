@@ -5,7 +5,8 @@ from __future__ import annotations
 import pytest
 
 from logs.settings import ConfigError, parse_toml
-from navigator.safety import SafetyInputs, SafetySupervisor, inside_polygon
+from navigator.fence_shape import inside_polygon
+from navigator.safety import SafetyInputs, SafetySupervisor
 from navigator.safety_config import SafetyConfig
 from navigator.vehicle import VehicleParams
 

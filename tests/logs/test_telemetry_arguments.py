@@ -1,0 +1,68 @@
+"""``rover telemetry`` with arguments a person gets wrong: exit 2 and a line naming what, never a traceback;
+and a station that reached nothing says how to reach the rover."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from rover_cli.main import main
+
+
+def _out(capsys: pytest.CaptureFixture[str]) -> str:
+    captured = capsys.readouterr()
+    return " ".join((captured.out + captured.err).split())
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["watch", "--duration-s", "0.1"],
+        ["record", "station.mcap", "--duration-s", "0.1"],
+        ["send", "estop", "--timeout-s", "0.1"],
+    ],
+    ids=lambda c: c[0],
+)
+@pytest.mark.parametrize(
+    ("config_text", "said"),
+    [(None, "file not found"), ("rover_id = 5\n", "rover_id: expected a string")],
+    ids=["missing", "bad"],
+)
+def test_a_config_that_cannot_be_used_is_exit_2_naming_it(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+    command: list[str],
+    config_text: str | None,
+    said: str,
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    config = tmp_path / "station.toml"
+    if config_text is not None:
+        config.write_text(config_text)
+    code = main(["telemetry", *command, "--config", str(config)])
+    out = _out(capsys)
+    assert code == 2, out
+    assert f"--config: {config}" in out and said in out, out
+    assert not (tmp_path / "station.mcap").exists()
+
+
+@pytest.mark.parametrize("xy", [["nan", "2"], ["1", "inf"]])
+def test_a_goal_that_is_not_finite_is_refused_before_anything_is_sent(
+    capsys: pytest.CaptureFixture[str], xy: list[str]
+) -> None:
+    code = main(["telemetry", "send", "goal", *xy, "--connect", "tcp/127.0.0.1:9", "--timeout-s", "0.1"])
+    out = _out(capsys)
+    assert code == 2, out
+    assert "goal x y must be finite numbers" in out, out
+    assert "NOT confirmed" not in out
+
+
+def test_a_station_with_nothing_to_connect_to_says_to_give_connect(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    code = main(["telemetry", "send", "resume", "--timeout-s", "0.2"])
+    out = _out(capsys)
+    assert code == 1, out
+    assert "connected to no Zenoh peer or router" in out and "no --connect given" in out, out
