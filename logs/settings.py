@@ -177,9 +177,11 @@ class Table:
         """Reject keys nobody asked for: they are typos or settings this version does not know."""
         unknown = sorted(set(self._data) - self._used)
         if unknown:
-<<<<<<< HEAD
             key = unknown[0]
-            problem = f"unknown key (known here: {', '.join(sorted(self._used)) or 'none'})"
+            # A typo is the usual cause: name the nearest known key first, then all of them.
+            nearest = difflib.get_close_matches(key, sorted(self._used), n=1, cutoff=0.6)
+            guess = f"did you mean {nearest[0]!r}? " if nearest else ""
+            problem = f"unknown key ({guess}known here: {', '.join(sorted(self._used)) or 'none'})"
             # No setting has a dot in its name: this is a quoted dotted key, which reads as the real one.
             if "." in key:
                 table, _, leaf = key.rpartition(".")
@@ -188,14 +190,6 @@ class Table:
                     f"{key} = ..., to set {leaf} in [{self.key_path(table)}]"
                 )
             raise self.error(key, problem)
-=======
-            # A typo is the usual cause: name the nearest known key first, then all of them.
-            nearest = difflib.get_close_matches(unknown[0], sorted(self._used), n=1, cutoff=0.6)
-            guess = f"did you mean {nearest[0]!r}? " if nearest else ""
-            raise self.error(
-                unknown[0], f"unknown key ({guess}known here: {', '.join(sorted(self._used)) or 'none'})"
-            )
->>>>>>> wt-bringup
 
 
 class _Required:

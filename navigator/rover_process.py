@@ -251,13 +251,8 @@ def _warm_up_and_run(
     )
     announce(
         f"warm-up done in {(clock.now_ns() - warm_up_start_ns) / 1e9:.1f} s; rover {config.rover_id} "
-<<<<<<< HEAD
         f"running at {config.control_rate_hz:.0f} Hz, {_loop_phrase(config)}; driving waits for "
-        "the start-up checks (safety/events: startup_checks)"
-=======
-        f"running at {config.control_rate_hz:.0f} Hz, paced by {config.pacing_sensor}; driving waits for "
         "the start-up checks (next line; safety/events: startup_checks)"
->>>>>>> wt-bringup
     )
     freeze_start_up_heap()
     with realtime_switch_interval():
