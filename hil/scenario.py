@@ -204,19 +204,13 @@ def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
             raise moving_table.error("id", f"duplicate obstacle id {moving_id!r}")
         seen_ids.add(moving_id)
         waypoints = _waypoints(moving_table, terrain)
-        start_s = moving_table.number("start_s", 0.0, lo=0.0)
-        if start_s >= duration_s:
-            # It would never move: a typo (a fault timed so is refused as well).
-            raise moving_table.error(
-                "start_s", f"must be before the scenario's duration_s {duration_s:g}, got {start_s:g}"
-            )
         moving.append(
             MovingObstacle(
                 moving_id,
                 moving_table.number("radius_m", lo=0.05, hi=50.0),
                 waypoints,
                 moving_table.number("speed_mps", lo=0.0, hi=20.0),
-                start_s,
+                moving_table.number("start_s", 0.0, lo=0.0),
             )
         )
         moving_table.finish()

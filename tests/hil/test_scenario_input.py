@@ -144,15 +144,3 @@ def test_a_file_that_is_not_npy_gets_one_sentence(tmp_path: Path) -> None:
         load_scenario(path)
     assert caught.value.key == "terrain.elevation"
     assert caught.value.problem.count("e.npy") == 1 and caught.value.problem.count(".npy array") == 1
-
-
-def test_a_moving_obstacle_starting_after_the_end_is_refused(tmp_path: Path) -> None:
-    mover = (
-        '\n[[moving_obstacles]]\nid = "cart"\nradius_m = 0.4\n'
-        "waypoints = [[3.0, 6.0], [9.0, 6.0]]\nspeed_mps = 0.5\n"
-    )
-    text = SCENARIO.read_text() + mover
-    assert load_scenario(_write(tmp_path, text + "start_s = 5.0\n")).moving_obstacles[0].start_s == 5.0
-    with pytest.raises(ConfigError) as caught:
-        load_scenario(_write(tmp_path, text + "start_s = 1000.0\n"))
-    assert caught.value.key == "moving_obstacles[0].start_s" and "duration_s" in caught.value.problem
