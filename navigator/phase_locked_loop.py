@@ -15,7 +15,8 @@ Samples are fused as they land (``ingest`` between ticks, and, when ``poll`` say
 spin before a tick as well), so a sample on time is in the estimator when its tick starts, ``offset_ns``
 later. Period jitter is the precise wait's plus the steering, which moves the grid by at most ``slew_ns``
 a tick; locking on is the exception: when the sensor's phase is first known (or known again after an
-outage or an overrun) the grid moves there in one step.
+outage or an overrun, or when it moved: three samples missed, or samples earlier than the grid by more
+than the late wait) the grid moves there in one step.
 
 A sample later than its due time is waited for, but only ``late_wait_ns``: the tick then starts as it
 lands (late by at most that much: bounded jitter, and the grid stays where it was). A sample later still
@@ -320,20 +321,26 @@ class PhaseLockedScheduler:
         ):
             self.locked = False
             return nominal
-        if not self.locked:
-            # Locking on: one step to the tick of the first sample whose tick is still ahead and that the
-            # tick just run has not answered (every sample observed so far was pending for it): a sample
-            # that landed less than the offset before that tick would otherwise get a second, empty tick
-            # an instant later, which waits the late wait and counts a miss.
-            expected = grid.expected_ns(max(now - self.offset_ns + 1, round(last + grid.interval_ns / 2)))
+        if self.locked:
+            expected = grid.expected_ns(round(nominal - self.offset_ns - grid.interval_ns / 2))
             if expected is None:
                 return nominal
-            self.locked = True
-            self.locks += 1
-            self._misses_in_a_row = 0
-            return expected + self.offset_ns
-        expected = grid.expected_ns(round(nominal - self.offset_ns - grid.interval_ns / 2))
+            error = expected + self.offset_ns - nominal  # within half a sample interval
+            if error >= -self._late_wait_ns:
+                return nominal + max(-self._slew_ns, min(self._slew_ns, error))
+            # The samples now land earlier than the grid by more than the late wait: the sensor's phase
+            # moved earlier (a sample is never early by chance: the grid follows the earliest ones). None
+            # is missed, so the relock on misses never comes; steering there at the slew took a tick per
+            # 0.05 ms, every sample meanwhile waiting that much longer for its command. Lock on afresh.
+            self.locked = False
+        # Locking on: one step to the tick of the first sample whose tick is still ahead and that the
+        # tick just run has not answered (every sample observed so far was pending for it): a sample
+        # that landed less than the offset before that tick would otherwise get a second, empty tick
+        # an instant later, which waits the late wait and counts a miss.
+        expected = grid.expected_ns(max(now - self.offset_ns + 1, round(last + grid.interval_ns / 2)))
         if expected is None:
             return nominal
-        error = expected + self.offset_ns - nominal  # within half a sample interval
-        return nominal + max(-self._slew_ns, min(self._slew_ns, error))
+        self.locked = True
+        self.locks += 1
+        self._misses_in_a_row = 0
+        return expected + self.offset_ns

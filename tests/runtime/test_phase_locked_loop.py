@@ -278,3 +278,19 @@ def test_every_rate_the_config_allows_builds_its_loop(loop_name: str, rate_hz: f
     stack = cast(OnboardStack, SimpleNamespace(step=lambda _: None, ingest=lambda: None))
     scheduler = control_scheduler(stack, SimClock(), config, MemorySink(), lambda _: None)
     assert scheduler.period_ns == round(NS_PER_S / rate_hz)
+
+
+def test_a_phase_step_earlier_locks_on_afresh_too() -> None:
+    # 3 ms earlier: every sample is in before its tick, so none is missed, but each waited up to 3 ms
+    # more for its tick while the grid was steered over at the slew (60 ticks); a step later locks on
+    # afresh after three misses, and one earlier should not cost more.
+    first = [5 * MS + k * PERIOD for k in range(50)]
+    second = [first[-1] + PERIOD - 3 * MS + k * PERIOD for k in range(100)]
+    loop = _loop(first + second)
+    scheduler = loop.run(second[-1] + 5 * MS)
+    assert scheduler.locks == 2 and scheduler.late_waits_missed == 0
+    locked = [s for s in loop.samples if s.start_ns > 3 * PERIOD and s.latency_ns is not None]
+    slow = [s for s in locked if s.latency_ns is not None and s.latency_ns > OFFSET + TICK_COST + SLEW]
+    assert len(slow) == 1  # the tick that saw the step (its sample waited 3 ms more); before: 60
+    tail = [(t, trigger) for t, trigger in loop.ticks if t > second[2]]
+    assert tail and all(trigger is not None and t - trigger == OFFSET for t, trigger in tail)
