@@ -25,7 +25,8 @@ Its latency is counted honestly: every pacing sample fused between two ticks is 
 of the tick after it (the stack measures the newest; an older one adds the gap between the two), so a
 sensor that keeps missing its tick shows in the latency figures. Without a pacing sensor (silent, or
 never heard), or with one too slow to set every tick's phase (samples more than 1.5 periods apart: a
-5-10 Hz GPS on a 50 Hz loop), the loop is a plain fixed-rate loop.
+5-10 Hz GPS on a 50 Hz loop) or at another rate than the loop's or a whole multiple of it, the loop is
+a plain fixed-rate loop.
 
 ``offset_ns`` and ``late_wait_ns`` are the trade: a sample's usual lateness plus its fusing (~0.3 ms)
 should fit in the offset, its rare lateness in the two together; the offset adds to every sample's
@@ -65,6 +66,9 @@ _LOST_AFTER_PERIODS = 3
 _RATE_GAPS = 9
 # Samples further apart than this many periods (median gap) cannot set every tick's phase: no lock.
 _TOO_SLOW_PERIODS = 1.5
+# A median gap further than this fraction of the period from the period or a whole fraction of it is a
+# sensor at another rate (40 Hz on a 50 Hz loop): its samples drift through the ticks' phase, no lock.
+_OFF_RATE_TOLERANCE = 1 / 8
 # A sample later than the sensor's grid moves the grid this fraction of the way (an earlier one all the way).
 _GRID_FOLLOW = 0.1
 
@@ -90,6 +94,7 @@ class SensorGrid:
         self.last_ns: int | None = None
         self.grid_ns: float | None = None  # where the last sample should have landed
         self.too_slow = False  # samples further apart than 1.5 periods: they cannot set every tick's phase
+        self.off_rate = False  # neither the period nor a whole fraction of it apart: no phase to lock to
 
     @property
     def rate_known(self) -> bool:
@@ -105,7 +110,10 @@ class SensorGrid:
             if 0 < gap <= 2 * self._period_ns:
                 self._gaps.append(gap)
                 median = statistics.median(self._gaps)
-                self.interval_ns = self._period_ns / max(1, round(self._period_ns / median))
+                per_period = max(1, round(self._period_ns / median))
+                self.interval_ns = self._period_ns / per_period
+                off_by = abs(median * per_period - self._period_ns)
+                self.off_rate = off_by > _OFF_RATE_TOLERANCE * self._period_ns
         self.last_ns = received_ns
         grid = self.grid_ns
         if grid is None or not 0 < received_ns - grid <= 2 * self._period_ns:
@@ -318,6 +326,7 @@ class PhaseLockedScheduler:
             or now - last > _LOST_AFTER_PERIODS * self.period_ns
             or not grid.rate_known
             or grid.too_slow
+            or grid.off_rate
         ):
             self.locked = False
             return nominal

@@ -294,3 +294,14 @@ def test_a_phase_step_earlier_locks_on_afresh_too() -> None:
     assert len(slow) == 1  # the tick that saw the step (its sample waited 3 ms more); before: 60
     tail = [(t, trigger) for t, trigger in loop.ticks if t > second[2]]
     assert tail and all(trigger is not None and t - trigger == OFFSET for t, trigger in tail)
+
+
+@pytest.mark.parametrize("sensor_hz", [40.0, 60.0])
+def test_a_sensor_at_another_rate_leaves_a_steady_fixed_rate_loop(sensor_hz: float) -> None:
+    # Not the loop's rate nor a whole multiple of it: its samples drift through the ticks' phase. Taken
+    # for a 50 Hz one, each lock was followed by misses, a drop and a relock (40 Hz, 5 s: 65 locks).
+    arrivals = [5 * MS + round(k * NS_PER_S / sensor_hz) for k in range(round(5 * sensor_hz))]
+    loop = _loop(arrivals)
+    scheduler = loop.run(arrivals[-1] + 5 * MS)
+    assert scheduler.locks == 0 and scheduler.late_waits_missed == 0
+    assert set(_periods(loop)) == {PERIOD}
