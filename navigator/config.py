@@ -121,9 +121,11 @@ def rover_config_from_table(root: Table) -> RoverConfig:
     pacing_sensor = root.text("pacing_sensor", "imu", choices=PACING_SENSORS)
     busy_poll_ms = root.number("busy_poll_ms", DEFAULT_BUSY_POLL_MS, lo=0.0, hi=10.0)
     control_loop = root.text("control_loop", DEFAULT_CONTROL_LOOP, choices=CONTROL_LOOPS)
-    # At most half a period: a sample is answered before the next one is due.
+    # At most half a period: a sample is answered before the next one is due. The default is held to that
+    # too (above 625 Hz it would not fit, and a config that never mentions the key must still load).
+    half_period_ms = 500.0 / control_rate_hz
     phase_offset_ms = root.number(
-        "phase_offset_ms", DEFAULT_PHASE_OFFSET_MS, lo=0.0, hi=500.0 / control_rate_hz
+        "phase_offset_ms", min(DEFAULT_PHASE_OFFSET_MS, half_period_ms), lo=0.0, hi=half_period_ms
     )
     vehicle = VehicleParams.from_table(root.table("vehicle", optional=True))
     vesc = VescProfile.from_table(root.table("vesc", optional=True), wheel_radius_m=vehicle.wheel_radius_m)

@@ -15,7 +15,8 @@ Samples are fused as they land (``ingest`` between ticks, and, when ``poll`` say
 spin before a tick as well), so a sample on time is in the estimator when its tick starts, ``offset_ns``
 later. Period jitter is the precise wait's plus the steering, which moves the grid by at most ``slew_ns``
 a tick; locking on is the exception: when the sensor's phase is first known (or known again after an
-outage or an overrun) the grid moves there in one step.
+outage or an overrun, or when it moved: three samples missed, or samples earlier than the grid by more
+than the late wait) the grid moves there in one step.
 
 A sample later than its due time is waited for, but only ``late_wait_ns``: the tick then starts as it
 lands (late by at most that much: bounded jitter, and the grid stays where it was). A sample later still
@@ -23,7 +24,9 @@ is not waited for: the tick runs on what the estimator has, and the sample is an
 Its latency is counted honestly: every pacing sample fused between two ticks is measured to the command
 of the tick after it (the stack measures the newest; an older one adds the gap between the two), so a
 sensor that keeps missing its tick shows in the latency figures. Without a pacing sensor (silent, or
-never heard) the loop is a plain fixed-rate loop.
+never heard), or with one too slow to set every tick's phase (samples more than 1.5 periods apart: a
+5-10 Hz GPS on a 50 Hz loop) or at another rate than the loop's or a whole multiple of it, the loop is
+a plain fixed-rate loop.
 
 ``offset_ns`` and ``late_wait_ns`` are the trade: a sample's usual lateness plus its fusing (~0.3 ms)
 should fit in the offset, its rare lateness in the two together; the offset adds to every sample's
@@ -61,6 +64,11 @@ DEFAULT_SLEW_NS = 50_000
 _LOST_AFTER_PERIODS = 3
 # The sensor's rate is read from the median of this many last gaps between its samples.
 _RATE_GAPS = 9
+# Samples further apart than this many periods (median gap) cannot set every tick's phase: no lock.
+_TOO_SLOW_PERIODS = 1.5
+# A median gap further than this fraction of the period from the period or a whole fraction of it is a
+# sensor at another rate (40 Hz on a 50 Hz loop): its samples drift through the ticks' phase, no lock.
+_OFF_RATE_TOLERANCE = 1 / 8
 # A sample later than the sensor's grid moves the grid this fraction of the way (an earlier one all the way).
 _GRID_FOLLOW = 0.1
 
@@ -79,19 +87,33 @@ class SensorGrid:
     def __init__(self, period_ns: int) -> None:
         self._period_ns = period_ns
         self._gaps: deque[int] = deque(maxlen=_RATE_GAPS)
+        # Every gap, long ones too: a 10 Hz GPS on a 50 Hz loop has only gaps of 5 periods, which
+        # ``_gaps`` leaves out as outages, so its rate is judged from these.
+        self._spacing: deque[int] = deque(maxlen=_RATE_GAPS)
         self.interval_ns = float(period_ns)
         self.last_ns: int | None = None
         self.grid_ns: float | None = None  # where the last sample should have landed
         self.too_slow = False  # samples further apart than 1.5 periods: they cannot set every tick's phase
+        self.off_rate = False  # neither the period nor a whole fraction of it apart: no phase to lock to
+
+    @property
+    def rate_known(self) -> bool:
+        """At least one gap seen: until then a lock could not tell a 50 Hz sensor from a 10 Hz one."""
+        return bool(self._spacing)
 
     def observe(self, received_ns: int) -> None:
         if self.last_ns is not None:
             gap = received_ns - self.last_ns
+            if gap > 0:
+                self._spacing.append(gap)
+                self.too_slow = statistics.median(self._spacing) > _TOO_SLOW_PERIODS * self._period_ns
             if 0 < gap <= 2 * self._period_ns:
                 self._gaps.append(gap)
                 median = statistics.median(self._gaps)
-                self.too_slow = median > 1.5 * self._period_ns
-                self.interval_ns = self._period_ns / max(1, round(self._period_ns / median))
+                per_period = max(1, round(self._period_ns / median))
+                self.interval_ns = self._period_ns / per_period
+                off_by = abs(median * per_period - self._period_ns)
+                self.off_rate = off_by > _OFF_RATE_TOLERANCE * self._period_ns
         self.last_ns = received_ns
         grid = self.grid_ns
         if grid is None or not 0 < received_ns - grid <= 2 * self._period_ns:
@@ -121,7 +143,9 @@ class PhaseLockedScheduler:
     ``latency`` (optional) returns the stack's sensor-to-command latency of the tick just run, measured
     from the ``trigger_ns`` it was given; ``on_tick`` (optional) gets every ``TickSample``.
     ``spin_ns``: the last stretch before each tick is spun on the clock (0: none; a spin needs a clock that
-    moves by itself).
+    moves by itself); ``poll`` is only used in spins, so with 0 it is ignored.
+    ``late_wait_ns`` defaults to ``DEFAULT_LATE_WAIT_NS``, or half a period when that is shorter (above
+    about 700 Hz).
     """
 
     def __init__(
@@ -137,13 +161,16 @@ class PhaseLockedScheduler:
         stop: threading.Event | None = None,
         poll: Callable[[], bool] | None = None,
         offset_ns: int = DEFAULT_OFFSET_NS,
-        late_wait_ns: int = DEFAULT_LATE_WAIT_NS,
+        late_wait_ns: int | None = None,
         slew_ns: int = DEFAULT_SLEW_NS,
         spin_ns: int = DEFAULT_SPIN_NS,
     ) -> None:
         if not rate_hz > 0:
             raise ValueError(f"rate_hz must be > 0, got {rate_hz}")
         self.period_ns = round(NS_PER_S / rate_hz)
+        if late_wait_ns is None:
+            # The default must fit every rate the config allows (up to 1000 Hz): at most half a period.
+            late_wait_ns = min(DEFAULT_LATE_WAIT_NS, self.period_ns // 2)
         if not 0 <= offset_ns < self.period_ns:
             raise ValueError(f"offset_ns must be in [0, {self.period_ns}), got {offset_ns}")
         if not 0 <= late_wait_ns <= self.period_ns // 2:
@@ -158,7 +185,9 @@ class PhaseLockedScheduler:
         self._wait = wait
         self._latency = latency
         self._on_tick = on_tick
-        self._poll = poll
+        # The poll is only ever spun on (before a tick, and in the late wait); without a spin (a simulated
+        # clock, which does not move by itself) the late wait idles in ``wait`` instead.
+        self._poll = poll if spin_ns > 0 else None
         self.offset_ns = offset_ns
         self._late_wait_ns = late_wait_ns
         self._slew_ns = slew_ns
@@ -291,20 +320,36 @@ class PhaseLockedScheduler:
     def _next_due(self, nominal: int, now: int) -> int:
         """``nominal`` steered toward ``offset_ns`` after the sample expected before it."""
         grid = self.grid
-        if grid.last_ns is None or now - grid.last_ns > _LOST_AFTER_PERIODS * self.period_ns or grid.too_slow:
+        last = grid.last_ns
+        if (
+            last is None
+            or now - last > _LOST_AFTER_PERIODS * self.period_ns
+            or not grid.rate_known
+            or grid.too_slow
+            or grid.off_rate
+        ):
             self.locked = False
             return nominal
-        if not self.locked:
-            # Locking on: one step to the tick of the first sample whose tick is still ahead.
-            expected = grid.expected_ns(now - self.offset_ns + 1)
+        if self.locked:
+            expected = grid.expected_ns(round(nominal - self.offset_ns - grid.interval_ns / 2))
             if expected is None:
                 return nominal
-            self.locked = True
-            self.locks += 1
-            self._misses_in_a_row = 0
-            return expected + self.offset_ns
-        expected = grid.expected_ns(round(nominal - self.offset_ns - grid.interval_ns / 2))
+            error = expected + self.offset_ns - nominal  # within half a sample interval
+            if error >= -self._late_wait_ns:
+                return nominal + max(-self._slew_ns, min(self._slew_ns, error))
+            # The samples now land earlier than the grid by more than the late wait: the sensor's phase
+            # moved earlier (a sample is never early by chance: the grid follows the earliest ones). None
+            # is missed, so the relock on misses never comes; steering there at the slew took a tick per
+            # 0.05 ms, every sample meanwhile waiting that much longer for its command. Lock on afresh.
+            self.locked = False
+        # Locking on: one step to the tick of the first sample whose tick is still ahead and that the
+        # tick just run has not answered (every sample observed so far was pending for it): a sample
+        # that landed less than the offset before that tick would otherwise get a second, empty tick
+        # an instant later, which waits the late wait and counts a miss.
+        expected = grid.expected_ns(max(now - self.offset_ns + 1, round(last + grid.interval_ns / 2)))
         if expected is None:
             return nominal
-        error = expected + self.offset_ns - nominal  # within half a sample interval
-        return nominal + max(-self._slew_ns, min(self._slew_ns, error))
+        self.locked = True
+        self.locks += 1
+        self._misses_in_a_row = 0
+        return expected + self.offset_ns

@@ -44,6 +44,7 @@ import numpy as np
 
 from logs.clock import MonotonicClock
 from navigator.precise_wait import DEFAULT_SPIN_NS
+from rover_cli.arg_types import bounded_float
 
 RATE_HZ = 50.0
 MODES = ("paced", "fixed", "locked")
@@ -71,12 +72,18 @@ def register(commands: Any) -> None:
         default=DEFAULT_SPIN_NS / 1e6,
         help="the simulated rover spins this long before each step (0: plain sleep)",
     )
+    # Both checked as the config checks them, when the command line is read: an offset the scheduler
+    # refuses was a ValueError traceback once the locked run began (after the other runs), and one past
+    # half a period (which the scheduler takes) measured a loop no config can ask for.
     bench.add_argument(
-        "--busy-poll-ms", type=float, default=None, help="override the config's busy_poll_ms (paced loop)"
+        "--busy-poll-ms",
+        type=bounded_float(0.0, 10.0, "as busy_poll_ms in the config"),
+        default=None,
+        help="override the config's busy_poll_ms (paced loop)",
     )
     bench.add_argument(
         "--phase-offset-ms",
-        type=float,
+        type=bounded_float(0.0, 500.0 / RATE_HZ, f"at most half the {RATE_HZ:g} Hz period, as the config"),
         default=None,
         help="override the config's phase_offset_ms (phase-locked loop)",
     )

@@ -7,6 +7,10 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
+from rover_cli.main import build_parser
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -56,3 +60,17 @@ def test_an_unknown_mode_is_refused() -> None:
         check=False,
     )
     assert done.returncode == 2 and "modes are paced, fixed, locked" in done.stderr
+
+
+@pytest.mark.parametrize(
+    ("flag", "value"), [("--phase-offset-ms", "15"), ("--phase-offset-ms", "-1"), ("--busy-poll-ms", "-1")]
+)
+def test_an_override_the_config_would_refuse_is_refused_on_the_command_line(
+    flag: str, value: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Read from the command line only: nothing runs. 15 ms is past half the 50 Hz period (the config's
+    # limit, which the scheduler does not check); -1 was a ValueError once the run reached that loop.
+    with pytest.raises(SystemExit) as exit_info:
+        build_parser("bench").parse_args(["bench", "runtime", flag, value])
+    assert exit_info.value.code == 2
+    assert flag in capsys.readouterr().err

@@ -7,12 +7,16 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import threading
+from types import SimpleNamespace
+from typing import cast
 
 import pytest
 
 from logs.clock import NS_PER_S, SimClock
 from logs.settings import ConfigError, parse_toml
+from logs.sink import MemorySink
 from navigator.config import rover_config_from_table
+from navigator.onboard import OnboardStack
 from navigator.paced_loop import SensorPacedScheduler
 from navigator.phase_locked_loop import PhaseLockedScheduler
 from navigator.rover_process import control_scheduler
@@ -216,3 +220,88 @@ def test_the_config_names_the_loop_and_the_rover_drives_on_the_phase_locked_one(
 def test_the_config_refuses_an_unknown_loop_and_an_offset_past_half_a_period(text: str, key: str) -> None:
     with pytest.raises(ConfigError, match=key):
         rover_config_from_table(parse_toml(text, "<test>"))
+
+
+def test_a_sensor_slower_than_the_loop_leaves_a_steady_fixed_rate_loop() -> None:
+    # `pacing_sensor = "gps"` at 10 Hz on the 50 Hz loop: its gaps (5 periods) are longer than the grid's
+    # outage limit, yet they are its rate; it cannot set every tick's phase, so the loop must not lock on
+    # (a lock to each fix was followed by three missed late waits and a short period, every fix).
+    arrivals = [3 * MS + k * 100 * MS for k in range(30)]
+    loop = _loop(arrivals)
+    scheduler = loop.run(arrivals[-1] + PERIOD + 5 * MS)
+    assert scheduler.locks == 0 and scheduler.late_waits_missed == 0
+    assert set(_periods(loop)) == {PERIOD}
+    # Each fix is still answered by the next tick, and counted once.
+    assert scheduler.stats.latency_ns.count == len(arrivals)
+
+
+def test_locking_on_does_not_add_a_tick_for_the_sample_just_answered() -> None:
+    # The samples land 0.3 ms before the free-running loop's ticks: the tick that locks on has just
+    # answered one, so the locked grid starts at the next sample, not 0.5 ms later at the same one.
+    arrivals = [round(19.7 * MS) + k * PERIOD for k in range(50)]
+    loop = _loop(arrivals)
+    scheduler = loop.run(arrivals[-1] + 5 * MS)
+    assert scheduler.locks == 1
+    assert scheduler.late_waits_missed == 0 and scheduler.stats.deadline_ticks == 0
+    assert min(_periods(loop)) >= PERIOD
+
+
+def test_the_late_wait_does_not_spin_a_simulated_clock() -> None:
+    # With spin_ns 0 (a simulated clock, which does not move by itself) a poll must not be spun on: the
+    # late wait of a sensor that fell silent spun on it for ever.
+    arrivals = [5 * MS + k * PERIOD for k in range(10)]
+    loop = _loop(arrivals)
+    polls = itertools.count()
+
+    def poll() -> bool:
+        assert next(polls) < 100_000, "spun on a clock that does not move"
+        unread = loop.sensor.arrivals[loop.sensor.read :]
+        return bool(unread) and unread[0] <= loop.clock.now_ns()
+
+    scheduler = PhaseLockedScheduler(
+        loop.clock, 1e9 / PERIOD, loop.tick, ingest=loop.sensor.ingest, wait=loop.wait, poll=poll,
+        offset_ns=OFFSET, late_wait_ns=LATE_WAIT, spin_ns=0,
+    )  # fmt: skip
+    scheduler.run(arrivals[-1] + 10 * PERIOD)
+    assert scheduler.locks == 1 and scheduler.late_waits_missed == 3
+
+
+@pytest.mark.parametrize("loop_name", ["sensor-paced", "phase-locked"])
+@pytest.mark.parametrize("rate_hz", [700.0, 1000.0])
+def test_every_rate_the_config_allows_builds_its_loop(loop_name: str, rate_hz: float) -> None:
+    # The config allows up to 1000 Hz: the default phase_offset_ms (0.8) was refused above 625 Hz even
+    # for the sensor-paced loop, which never reads it, and the phase-locked loop's default late wait
+    # (0.7 ms) was refused by the scheduler above 714 Hz, a ValueError as `rover run` started.
+    text = f'control_rate_hz = {rate_hz}\ncontrol_loop = "{loop_name}"'
+    config = rover_config_from_table(parse_toml(text, "<test>"))
+    assert config.phase_offset_ms <= 500.0 / rate_hz
+    stack = cast(OnboardStack, SimpleNamespace(step=lambda _: None, ingest=lambda: None))
+    scheduler = control_scheduler(stack, SimClock(), config, MemorySink(), lambda _: None)
+    assert scheduler.period_ns == round(NS_PER_S / rate_hz)
+
+
+def test_a_phase_step_earlier_locks_on_afresh_too() -> None:
+    # 3 ms earlier: every sample is in before its tick, so none is missed, but each waited up to 3 ms
+    # more for its tick while the grid was steered over at the slew (60 ticks); a step later locks on
+    # afresh after three misses, and one earlier should not cost more.
+    first = [5 * MS + k * PERIOD for k in range(50)]
+    second = [first[-1] + PERIOD - 3 * MS + k * PERIOD for k in range(100)]
+    loop = _loop(first + second)
+    scheduler = loop.run(second[-1] + 5 * MS)
+    assert scheduler.locks == 2 and scheduler.late_waits_missed == 0
+    locked = [s for s in loop.samples if s.start_ns > 3 * PERIOD and s.latency_ns is not None]
+    slow = [s for s in locked if s.latency_ns is not None and s.latency_ns > OFFSET + TICK_COST + SLEW]
+    assert len(slow) == 1  # the tick that saw the step (its sample waited 3 ms more); before: 60
+    tail = [(t, trigger) for t, trigger in loop.ticks if t > second[2]]
+    assert tail and all(trigger is not None and t - trigger == OFFSET for t, trigger in tail)
+
+
+@pytest.mark.parametrize("sensor_hz", [40.0, 60.0])
+def test_a_sensor_at_another_rate_leaves_a_steady_fixed_rate_loop(sensor_hz: float) -> None:
+    # Not the loop's rate nor a whole multiple of it: its samples drift through the ticks' phase. Taken
+    # for a 50 Hz one, each lock was followed by misses, a drop and a relock (40 Hz, 5 s: 65 locks).
+    arrivals = [5 * MS + round(k * NS_PER_S / sensor_hz) for k in range(round(5 * sensor_hz))]
+    loop = _loop(arrivals)
+    scheduler = loop.run(arrivals[-1] + 5 * MS)
+    assert scheduler.locks == 0 and scheduler.late_waits_missed == 0
+    assert set(_periods(loop)) == {PERIOD}
