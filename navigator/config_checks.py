@@ -24,6 +24,14 @@ def check_cross_fields(config: RoverConfig) -> None:
     def refuse(key: str, problem: str) -> ConfigError:
         return ConfigError(config.source, key, problem)
 
+    if config.control_loop == "phase-locked" and config.pacing_sensor == "wheels":
+        # Wheel status comes as six controllers' frames, each read as it lands: no one sample time a tick
+        # can be phase-locked to (the loop would lock on to reads a tenth of a millisecond apart).
+        raise refuse(
+            "control_loop",
+            '"phase-locked" needs a pacing sensor with one sample per period (pacing_sensor = "imu", '
+            'or "gps" / "none" for a free-running loop); with pacing_sensor = "wheels" use "sensor-paced"',
+        )
     if follower.max_speed_mps > vehicle.max_wheel_speed_mps:
         # Mixing would scale every command down to the wheel limit: the follower's speed and curvature
         # limits would no longer be what the rover drives.

@@ -305,3 +305,12 @@ def test_a_sensor_at_another_rate_leaves_a_steady_fixed_rate_loop(sensor_hz: flo
     scheduler = loop.run(arrivals[-1] + 5 * MS)
     assert scheduler.locks == 0 and scheduler.late_waits_missed == 0
     assert set(_periods(loop)) == {PERIOD}
+
+
+def test_the_config_refuses_the_phase_locked_loop_paced_by_the_wheels() -> None:
+    text = 'control_loop = "phase-locked"\npacing_sensor = "wheels"\n'
+    with pytest.raises(ConfigError, match="control_loop") as caught:
+        rover_config_from_table(parse_toml(text, "<test>"))
+    assert "sensor-paced" in caught.value.problem
+    paced_by_wheels = rover_config_from_table(parse_toml('pacing_sensor = "wheels"\n', "<test>"))
+    assert paced_by_wheels.pacing_sensor == "wheels"
