@@ -15,12 +15,14 @@ from estimator.config import EstimatorConfig
 from firmware_bridge.can_link import CanConfig
 from firmware_bridge.mavlink_link import MavlinkConfig
 from firmware_bridge.vesc import VescProfile
+from logs.clock import NS_PER_S
 from logs.settings import Table, load_toml
 from logs.telemetry import ZenohSettings
 from navigator.astar import HEURISTICS
 from navigator.config_checks import check_cross_fields
 from navigator.follower import FollowerConfig
 from navigator.map_config import terrain_from_table
+from navigator.phase_locked_loop import DEFAULT_LATE_WAIT_NS, DEFAULT_OFFSET_NS
 from navigator.planner import COST_MODES, FOOTPRINT_INFLATIONS
 from navigator.safety_config import SafetyConfig
 from navigator.terrain import TerrainMap
@@ -43,8 +45,10 @@ DEFAULT_BUSY_POLL_MS = 1.0
 # (navigator.paced_loop); "phase-locked" ticks on its own steady clock, steered to `phase_offset_ms` after
 # the pacing sample is expected (navigator.phase_locked_loop).
 CONTROL_LOOPS = ("sensor-paced", "phase-locked")
-DEFAULT_CONTROL_LOOP = "sensor-paced"
-DEFAULT_PHASE_OFFSET_MS = 0.8
+DEFAULT_CONTROL_LOOP = "phase-locked"
+DEFAULT_PHASE_OFFSET_MS = DEFAULT_OFFSET_NS / 1e6
+# The phase-locked loop waits this long past a tick's due time for a late sample (bounded jitter).
+DEFAULT_PHASE_LATE_WAIT_MS = DEFAULT_LATE_WAIT_NS / 1e6
 
 
 @dataclass(frozen=True)
@@ -102,6 +106,7 @@ class RoverConfig:
     busy_poll_ms: float = DEFAULT_BUSY_POLL_MS
     control_loop: str = DEFAULT_CONTROL_LOOP
     phase_offset_ms: float = DEFAULT_PHASE_OFFSET_MS
+    phase_late_wait_ms: float = DEFAULT_PHASE_LATE_WAIT_MS
     # [map]: the terrain `rover run` plans on (HIL trials use the scenario's instead); None if absent.
     terrain: TerrainMap | None = dataclasses.field(default=None, compare=False, repr=False)
 
@@ -120,12 +125,17 @@ def rover_config_from_table(root: Table) -> RoverConfig:
     control_rate_hz = root.number("control_rate_hz", 50.0, lo=1.0, hi=1000.0)
     pacing_sensor = root.text("pacing_sensor", "imu", choices=PACING_SENSORS)
     busy_poll_ms = root.number("busy_poll_ms", DEFAULT_BUSY_POLL_MS, lo=0.0, hi=10.0)
-    control_loop = root.text("control_loop", DEFAULT_CONTROL_LOOP, choices=CONTROL_LOOPS)
+    # Wheel status cannot lock a phase (navigator.config_checks): it paces the sensor-paced loop instead.
+    default_loop = "sensor-paced" if pacing_sensor == "wheels" else DEFAULT_CONTROL_LOOP
+    control_loop = root.text("control_loop", default_loop, choices=CONTROL_LOOPS)
     # At most half a period: a sample is answered before the next one is due. The default is held to that
     # too (above 625 Hz it would not fit, and a config that never mentions the key must still load).
-    half_period_ms = 500.0 / control_rate_hz
+    half_period_ms = (round(NS_PER_S / control_rate_hz) // 2) / 1e6  # as the scheduler counts it, in ns
     phase_offset_ms = root.number(
         "phase_offset_ms", min(DEFAULT_PHASE_OFFSET_MS, half_period_ms), lo=0.0, hi=half_period_ms
+    )
+    phase_late_wait_ms = root.number(
+        "phase_late_wait_ms", min(DEFAULT_PHASE_LATE_WAIT_MS, half_period_ms), lo=0.0, hi=half_period_ms
     )
     vehicle = VehicleParams.from_table(root.table("vehicle", optional=True))
     vesc = VescProfile.from_table(root.table("vesc", optional=True), wheel_radius_m=vehicle.wheel_radius_m)
@@ -154,6 +164,7 @@ def rover_config_from_table(root: Table) -> RoverConfig:
         busy_poll_ms=busy_poll_ms,
         control_loop=control_loop,
         phase_offset_ms=phase_offset_ms,
+        phase_late_wait_ms=phase_late_wait_ms,
         terrain=(
             terrain_from_table(root.table("map"), Path(root.source).parent)[0] if root.has("map") else None
         ),

@@ -49,12 +49,14 @@ from navigator.runtime import WAIT_SLICE_NS, TimingStats
 
 _log = logging.getLogger(__name__)
 
-# The tick is due this long after the expected sample: the sample's usual lateness (send, transport,
-# wake-up) and its fusing (~0.3 ms) must fit in it. See the module doc and docs/runtime.md.
-DEFAULT_OFFSET_NS = 800_000
-# A locked tick whose sample is not in by its due time waits at most this long for it: a sample a little
-# late is still answered at once (its tick starts late by that much, which is jitter, bounded by this).
-DEFAULT_LATE_WAIT_NS = 700_000
+# The tick is due this long after the expected sample, and a locked tick whose sample is not in by then
+# waits at most the late wait more for it (starting as it lands: jitter bounded by the late wait). Chosen
+# by `rover bench runtime` on the 2-core build VM (docs/runtime.md): the sample lands about 0.1-0.3 ms
+# after the grid of its earliest arrivals and takes ~0.2 ms to fuse, so with 0.3 + 0.8 ms most ticks start
+# as the sample is in (latency: the tick alone), the grid bounds the rest, and under 1 % miss. A 0.8 ms
+# offset (with 0.7 ms) added its whole length to every latency: p99 2.3-3.1 ms against 1.4-1.6 ms.
+DEFAULT_OFFSET_NS = 300_000
+DEFAULT_LATE_WAIT_NS = 800_000
 # This many locked ticks in a row whose sample did not come even in the late wait: the sensor's phase has
 # moved (or it went silent), and the loop locks on afresh from its next sample instead of steering there.
 _RELOCK_AFTER_MISSES = 3

@@ -328,6 +328,7 @@ def control_scheduler(
             stop=stop,
             poll=poll,
             offset_ns=round(config.phase_offset_ms * 1e6),
+            late_wait_ns=round(config.phase_late_wait_ms * 1e6),
             spin_ns=DEFAULT_SPIN_NS if poll is not None else 0,
         )
     return SensorPacedScheduler(

@@ -88,6 +88,12 @@ def register(commands: Any) -> None:
         help="override the config's phase_offset_ms (phase-locked loop)",
     )
     bench.add_argument(
+        "--phase-late-wait-ms",
+        type=bounded_float(0.0, 500.0 / RATE_HZ, f"at most half the {RATE_HZ:g} Hz period, as the config"),
+        default=None,
+        help="override the config's phase_late_wait_ms (phase-locked loop)",
+    )
+    bench.add_argument(
         "--nice",
         type=nice_value,
         default=DEPLOYED_NICE,
@@ -145,6 +151,7 @@ class StackRun:
     peer_spin_ns: int
     busy_poll_ms: float | None  # None: the config's
     phase_offset_ms: float | None  # None: the config's
+    phase_late_wait_ms: float | None  # None: the config's
     trace: bool
 
 
@@ -185,6 +192,8 @@ def _full_stack(run: StackRun) -> dict[str, Any]:
         config = dataclasses.replace(config, busy_poll_ms=run.busy_poll_ms)
     if run.phase_offset_ms is not None:
         config = dataclasses.replace(config, phase_offset_ms=run.phase_offset_ms)
+    if run.phase_late_wait_ms is not None:
+        config = dataclasses.replace(config, phase_late_wait_ms=run.phase_late_wait_ms)
     if _peer_as_process():
         # A group of its own per bench run, so a leftover peer can never talk to this rover.
         salt = os.getpid() + MODES.index(run.mode) * 97
@@ -290,6 +299,7 @@ def _full_stack(run: StackRun) -> dict[str, Any]:
     if run.mode == "paced":
         figures["busy_polls"] = scheduler.busy_polls
     figures["phase_offset_ms"] = config.phase_offset_ms if run.mode == "locked" else None
+    figures["phase_late_wait_ms"] = config.phase_late_wait_ms if run.mode == "locked" else None
     if run.mode == "locked":
         figures["locks"] = scheduler.locks
     if trace is not None:
@@ -348,6 +358,7 @@ def run_bench(args: argparse.Namespace) -> int:
                 peer_spin_ns=round(args.peer_spin_ms * 1e6),
                 busy_poll_ms=args.busy_poll_ms,
                 phase_offset_ms=args.phase_offset_ms,
+                phase_late_wait_ms=args.phase_late_wait_ms,
                 trace=args.trace,
             )
         )
@@ -370,13 +381,18 @@ def _print_tables(args: argparse.Namespace, peers: dict[str, dict[str, Any]], pr
     columns = ("peer", "ticks (sensor/deadline)", "overruns", "jitter p50/p99/max ms", "latency p50/p99/max")
     stacks = [f for name, f in peers.items() if name.startswith("stack")]
     busy = next((f["busy_poll_ms"] for f in stacks if f.get("busy_poll_ms") is not None), None)
-    offset = next((f["phase_offset_ms"] for f in stacks if f.get("phase_offset_ms") is not None), None)
+    locked = next((f for f in stacks if f.get("phase_offset_ms") is not None), None)
     table.caption = (
         f"simulated rover ran as a {stacks[0]['simulated_rover']}, stepping on a "
         + (f"{args.peer_spin_ms:g} ms spin" if args.peer_spin_ms > 0 else "plain sleep")
         + ("" if busy is None else f"; paced loop busy-polls {busy:g} ms")
-        + ("" if offset is None else f"; phase-locked loop ticks {offset:g} ms after the expected IMU sample")
-        + f"; both at {priority}"
+        + (
+            ""
+            if locked is None
+            else f"; phase-locked loop ticks {locked['phase_offset_ms']:g} ms after the expected IMU sample, "
+            f"waiting {locked['phase_late_wait_ms']:g} ms more for a late one"
+        )
+        + f"; all at {priority}"
     )
     for column in (*columns, "CPU %"):
         table.add_column(column)

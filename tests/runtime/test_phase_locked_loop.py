@@ -209,7 +209,8 @@ def test_the_config_names_the_loop_and_the_rover_drives_on_the_phase_locked_one(
         assert any(topic == "runtime/timing" for topic, _, _ in rig.sink.records)
     finally:
         rig.close()
-    paced = control_scheduler(rig.stack, rig.clock, rig_config(), rig.sink, lambda _: None)
+    paced_config = dataclasses.replace(rig_config(), control_loop="sensor-paced")
+    paced = control_scheduler(rig.stack, rig.clock, paced_config, rig.sink, lambda _: None)
     assert isinstance(paced, SensorPacedScheduler)
 
 
@@ -312,5 +313,7 @@ def test_the_config_refuses_the_phase_locked_loop_paced_by_the_wheels() -> None:
     with pytest.raises(ConfigError, match="control_loop") as caught:
         rover_config_from_table(parse_toml(text, "<test>"))
     assert "sensor-paced" in caught.value.problem
+    # Without control_loop, the wheels pace the sensor-paced loop (the phase-locked one is the default else).
     paced_by_wheels = rover_config_from_table(parse_toml('pacing_sensor = "wheels"\n', "<test>"))
-    assert paced_by_wheels.pacing_sensor == "wheels"
+    assert paced_by_wheels.control_loop == "sensor-paced"
+    assert rover_config_from_table(parse_toml("", "<test>")).control_loop == "phase-locked"
