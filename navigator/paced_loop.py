@@ -68,6 +68,15 @@ class TickSample:
     trigger: str  # "sensor" or "deadline"
     overruns: int  # deadlines skipped after this tick
     trigger_ns: int | None = None  # receive time of the pacing sample that started the tick
+    # Every pacing sample this tick's command answered, when that is more than ``latency_ns``'s one (the
+    # phase-locked loop: a late sample is answered by the next tick with the next sample); empty: just it.
+    more_latencies_ns: tuple[int, ...] = ()
+
+    def latencies_ns(self) -> tuple[int, ...]:
+        """Sensor-to-command latency of each pacing sample this tick answered."""
+        if self.more_latencies_ns:
+            return self.more_latencies_ns
+        return () if self.latency_ns is None else (self.latency_ns,)
 
 
 class SampleInterval:

@@ -279,6 +279,7 @@ class PhaseLockedScheduler:
         """Run one tick that started at ``start`` (due at ``due``); returns the next tick's due time."""
         pending, self._pending = self._pending, []
         trigger = pending[-1] if pending else None
+        answered: tuple[int, ...] = ()
         self._tick(trigger)
         end = self._clock.now_ns()
         stats = self.stats
@@ -298,8 +299,9 @@ class PhaseLockedScheduler:
             stats.sensor_ticks += 1
             if latency is not None:
                 # Each sample fused since the last tick is answered by this command.
-                for received in pending:
-                    stats.latency_ns.add(latency + trigger - received)
+                answered = tuple(latency + trigger - received for received in pending)
+                for each in answered:
+                    stats.latency_ns.add(each)
         following = due + self.period_ns
         missed = 0
         if end >= following:
@@ -314,9 +316,9 @@ class PhaseLockedScheduler:
         else:
             following = self._next_due(following, end)
         if self._on_tick is not None:
-            worst = latency if latency is None or trigger is None else latency + trigger - pending[0]
+            worst = max(answered) if answered else latency
             kind = "deadline" if trigger is None else "sensor"
-            self._on_tick(TickSample(start, period, end - start, worst, kind, int(missed), trigger))
+            self._on_tick(TickSample(start, period, end - start, worst, kind, int(missed), trigger, answered))
         return following
 
     def _next_due(self, nominal: int, now: int) -> int:

@@ -58,8 +58,8 @@ class TimingPublisher:
     def observe(self, sample: TickSample) -> None:
         if sample.period_ns is not None:
             self._jitter.append(abs(sample.period_ns - self._nominal_ns))
-        if sample.latency_ns is not None:
-            self._latency.append(sample.latency_ns)
+        # Every sample the tick answered, as the loop's own statistics count them.
+        self._latency.extend(sample.latencies_ns())
         self._tick.append(sample.tick_ns)
         self._counts[sample.trigger] = self._counts.get(sample.trigger, 0) + 1
         self._overruns += sample.overruns

@@ -317,3 +317,14 @@ def test_the_config_refuses_the_phase_locked_loop_paced_by_the_wheels() -> None:
     paced_by_wheels = rover_config_from_table(parse_toml('pacing_sensor = "wheels"\n', "<test>"))
     assert paced_by_wheels.control_loop == "sensor-paced"
     assert rover_config_from_table(parse_toml("", "<test>")).control_loop == "phase-locked"
+
+
+def test_each_tick_reports_every_sample_it_answered_as_the_statistics_count_them() -> None:
+    arrivals = [5 * MS + k * PERIOD for k in range(60)]
+    arrivals[40] += 3 * MS  # misses its tick: the next tick answers it and its own sample
+    loop = _loop(arrivals)
+    scheduler = loop.run(arrivals[-1] + 5 * MS)
+    # runtime/timing (TimingPublisher) takes latencies_ns(): the same samples the summary counts.
+    assert sum(len(s.latencies_ns()) for s in loop.samples) == scheduler.stats.latency_ns.count
+    (both,) = [s for s in loop.samples if len(s.latencies_ns()) == 2]
+    assert max(both.latencies_ns()) == both.latency_ns == PERIOD + OFFSET - 3 * MS + TICK_COST

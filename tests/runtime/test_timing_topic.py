@@ -64,3 +64,18 @@ def test_timing_stats_describe_themselves_in_one_line_even_without_samples() -> 
     line = stats.describe()
     assert line.startswith("3 ticks (2 sensor, 1 deadline), 0 overruns")
     assert "jitter 1.50 / 1.99 / 2.00 ms" in line and "latency none" in line and "nan" not in line
+
+
+def test_a_tick_that_answered_two_samples_counts_both() -> None:
+    clock = SimClock()
+    sink = MemorySink()
+    publisher = TimingPublisher(clock, sink, PERIOD)
+    for k in range(50):
+        clock.advance(PERIOD)
+        # Tick 10 answered its own sample (1 ms) and the one that missed the tick before (19 ms).
+        more = (19 * MS, MS) if k == 10 else ()
+        publisher.observe(
+            TickSample(clock.now_ns(), PERIOD, 300_000, 19 * MS if more else MS, "sensor", 0, None, more)
+        )
+    (message,) = sink.on(topics.RUNTIME_TIMING)
+    assert message["latency"]["samples"] == 51 and message["latency"]["max_ms"] == 19.0
