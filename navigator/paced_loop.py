@@ -94,22 +94,29 @@ class SampleInterval:
         self.interval_ns = float(period_ns)
         self._gaps: deque[int] = deque(maxlen=_INTERVAL_GAPS)
         self.last_ns: int | None = None
-        self.grid_ns: int | None = None  # where the last sample should have landed
+        self.grid_ns: float | None = None  # where the last sample should have landed
 
     def observe(self, received_ns: int) -> None:
         if self.last_ns is not None:
-            gap = received_ns - self.last_ns
-            if 0 < gap <= 2 * self._period_ns:
-                self._gaps.append(gap)
-                self.interval_ns = float(statistics.median(self._gaps))
+            self._note_gap(received_ns - self.last_ns)
         self.last_ns = received_ns
+        self._follow(received_ns)
+
+    def _note_gap(self, gap_ns: int) -> None:
+        """The interval from the gap just seen (a subclass may read the rate differently)."""
+        if 0 < gap_ns <= 2 * self._period_ns:
+            self._gaps.append(gap_ns)
+            self.interval_ns = float(statistics.median(self._gaps))
+
+    def _follow(self, received_ns: int) -> None:
+        """Move the grid: to an earlier sample at once, toward a later one a little."""
         grid = self.grid_ns
         if grid is None or not 0 < received_ns - grid <= 2 * self._period_ns:
-            self.grid_ns = received_ns
+            self.grid_ns = float(received_ns)
             return
-        predicted = grid + round(max(1, round((received_ns - grid) / self.interval_ns)) * self.interval_ns)
+        predicted = grid + max(1, round((received_ns - grid) / self.interval_ns)) * self.interval_ns
         late = received_ns - predicted
-        self.grid_ns = received_ns if late <= 0 else predicted + round(_GRID_FOLLOW * late)
+        self.grid_ns = float(received_ns) if late <= 0 else predicted + _GRID_FOLLOW * late
 
     def expected_ns(self, not_before_ns: int) -> int | None:
         """When the first sample at or after ``not_before_ns`` should land, on the grid; None before the
@@ -117,7 +124,7 @@ class SampleInterval:
         if self.grid_ns is None:
             return None
         steps = max(1, math.ceil((not_before_ns - self.grid_ns) / self.interval_ns))
-        return self.grid_ns + round(steps * self.interval_ns)
+        return round(self.grid_ns + steps * self.interval_ns)
 
     def min_gap_ns(self) -> int:
         return int(max(self._period_ns - self.interval_ns / 2, self._period_ns / 2))

@@ -43,7 +43,7 @@ from collections import deque
 from collections.abc import Callable
 
 from logs.clock import NS_PER_S, Clock
-from navigator.paced_loop import TickSample
+from navigator.paced_loop import SampleInterval, TickSample
 from navigator.precise_wait import DEFAULT_SPIN_NS, spin_until
 from navigator.runtime import WAIT_SLICE_NS, TimingStats
 
@@ -64,37 +64,29 @@ _RELOCK_AFTER_MISSES = 3
 DEFAULT_SLEW_NS = 50_000
 # A sensor not heard for this many periods has lost its phase: the grid runs free until it is back.
 _LOST_AFTER_PERIODS = 3
-# The sensor's rate is read from the median of this many last gaps between its samples.
-_RATE_GAPS = 9
 # Samples further apart than this many periods (median gap) cannot set every tick's phase: no lock.
 _TOO_SLOW_PERIODS = 1.5
 # A median gap further than this fraction of the period from the period or a whole fraction of it is a
 # sensor at another rate (40 Hz on a 50 Hz loop): its samples drift through the ticks' phase, no lock.
 _OFF_RATE_TOLERANCE = 1 / 8
-# A sample later than the sensor's grid moves the grid this fraction of the way (an earlier one all the way).
-_GRID_FOLLOW = 0.1
 
 
-class SensorGrid:
-    """Where the pacing sensor's samples should land: a grid through its earliest arrivals, spaced at its
-    interval, which is taken to be the control period or a whole fraction of it (a 50 or 100 Hz IMU for a
-    50 Hz loop; the median gap says which).
+class SensorGrid(SampleInterval):
+    """Where the pacing sensor's samples should land: ``SampleInterval``'s grid through the earliest
+    arrivals, spaced at the sensor's interval taken to be the control period or a whole fraction of it (a
+    50 or 100 Hz IMU for a 50 Hz loop; the median gap says which).
 
-    Not the measured median gap itself (``paced_loop.SampleInterval`` uses that): for a lock, the interval
-    must be unbiased over many periods, and the median of gaps is not when lateness is skewed (samples
-    are only ever late), which moved the ticks ahead of the samples by tenths of a millisecond. The
-    sender's clock rate differs from ours by parts per million, which the grid's following absorbs.
+    Not the measured median gap itself (``SampleInterval`` uses that): for a lock, the interval must be
+    unbiased over many periods, and the median of gaps is not when lateness is skewed (samples are only
+    ever late), which moved the ticks ahead of the samples by tenths of a millisecond. The sender's clock
+    rate differs from ours by parts per million, which the grid's following absorbs.
     """
 
     def __init__(self, period_ns: int) -> None:
-        self._period_ns = period_ns
-        self._gaps: deque[int] = deque(maxlen=_RATE_GAPS)
+        super().__init__(period_ns)
         # Every gap, long ones too: a 10 Hz GPS on a 50 Hz loop has only gaps of 5 periods, which
         # ``_gaps`` leaves out as outages, so its rate is judged from these.
-        self._spacing: deque[int] = deque(maxlen=_RATE_GAPS)
-        self.interval_ns = float(period_ns)
-        self.last_ns: int | None = None
-        self.grid_ns: float | None = None  # where the last sample should have landed
+        self._spacing: deque[int] = deque(maxlen=self._gaps.maxlen)
         self.too_slow = False  # samples further apart than 1.5 periods: they cannot set every tick's phase
         self.off_rate = False  # neither the period nor a whole fraction of it apart: no phase to lock to
 
@@ -103,34 +95,25 @@ class SensorGrid:
         """At least one gap seen: until then a lock could not tell a 50 Hz sensor from a 10 Hz one."""
         return bool(self._spacing)
 
-    def observe(self, received_ns: int) -> None:
-        if self.last_ns is not None:
-            gap = received_ns - self.last_ns
-            if gap > 0:
-                self._spacing.append(gap)
-                self.too_slow = statistics.median(self._spacing) > _TOO_SLOW_PERIODS * self._period_ns
-            if 0 < gap <= 2 * self._period_ns:
-                self._gaps.append(gap)
-                median = statistics.median(self._gaps)
-                per_period = max(1, round(self._period_ns / median))
-                self.interval_ns = self._period_ns / per_period
-                off_by = abs(median * per_period - self._period_ns)
-                self.off_rate = off_by > _OFF_RATE_TOLERANCE * self._period_ns
-        self.last_ns = received_ns
-        grid = self.grid_ns
-        if grid is None or not 0 < received_ns - grid <= 2 * self._period_ns:
-            self.grid_ns = float(received_ns)
-            return
-        predicted = grid + max(1, round((received_ns - grid) / self.interval_ns)) * self.interval_ns
-        late = received_ns - predicted
-        self.grid_ns = float(received_ns) if late <= 0 else predicted + _GRID_FOLLOW * late
+    def _note_gap(self, gap_ns: int) -> None:
+        if gap_ns > 0:
+            self._spacing.append(gap_ns)
+            self.too_slow = statistics.median(self._spacing) > _TOO_SLOW_PERIODS * self._period_ns
+        if 0 < gap_ns <= 2 * self._period_ns:
+            self._gaps.append(gap_ns)
+            median = statistics.median(self._gaps)
+            per_period = max(1, round(self._period_ns / median))
+            self.interval_ns = self._period_ns / per_period
+            off_by = abs(median * per_period - self._period_ns)
+            self.off_rate = off_by > _OFF_RATE_TOLERANCE * self._period_ns
 
     def restart(self) -> None:
         """Forget where the samples land (the next one says), keeping the interval."""
         self.grid_ns = None
 
     def expected_ns(self, not_before_ns: int) -> int | None:
-        """When the first sample at or after ``not_before_ns`` should land; None before the first."""
+        """When the first sample at or after ``not_before_ns`` should land (the last one's own time
+        included); None before the first."""
         if self.grid_ns is None:
             return None
         steps = math.ceil((not_before_ns - self.grid_ns) / self.interval_ns)
