@@ -1,12 +1,24 @@
-"""A recording damaged partway, for the tools that must keep what comes before the damage."""
+"""Recordings for the log tools' tests: a small synthetic trial, and one damaged partway (the tools must
+keep what comes before the damage)."""
 
 from __future__ import annotations
 
 from io import BytesIO
+from pathlib import Path
 
 from mcap.opcode import Opcode
 
 from logs.frames import FrameWalk
+from logs.recorder import McapRecorder
+from logs.synthetic import synthetic_metadata, write_synthetic_trial
+
+
+def write_small_trial(path: Path, seconds: float = 4.0) -> Path:
+    """A synthetic trial of ``seconds`` with its scenario metadata, recorded to ``path``."""
+    with McapRecorder(path) as recorder:
+        recorder.add_metadata("scenario", synthetic_metadata(seconds))
+        write_synthetic_trial(recorder, seconds)
+    return path
 
 
 def damage_a_middle_chunk(recording: bytes) -> tuple[bytes, int]:

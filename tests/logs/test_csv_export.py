@@ -13,19 +13,13 @@ from logs.csv_export import CsvExportError, export_csv, file_name_for, flatten
 from logs.errors import LogReadError, NotARecording
 from logs.read_stop import DAMAGED
 from logs.reader import RecordedMessage, read_messages
-from logs.recorder import McapRecorder
-from logs.synthetic import synthetic_metadata, write_synthetic_trial
 from rover_cli.main import main
-from tests.logs.damaged_recording import damage_a_middle_chunk
+from tests.logs.damaged_recording import damage_a_middle_chunk, write_small_trial
 
 
 @pytest.fixture(scope="module")
 def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    path = tmp_path_factory.mktemp("csv") / "trial.mcap"
-    with McapRecorder(path) as recorder:
-        recorder.add_metadata("scenario", synthetic_metadata(4.0))
-        write_synthetic_trial(recorder, 4.0)
-    return path
+    return write_small_trial(tmp_path_factory.mktemp("csv") / "trial.mcap")
 
 
 def _rows(path: Path) -> list[dict[str, str]]:

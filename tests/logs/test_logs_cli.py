@@ -10,19 +10,13 @@ import pytest
 from logs.doctor import diagnose
 from logs.errors import NotARecording
 from logs.reader import ReadStats, read_entries
-from logs.recorder import McapRecorder
-from logs.synthetic import synthetic_metadata, write_synthetic_trial
 from rover_cli.main import main
-from tests.logs.damaged_recording import damage_a_middle_chunk
+from tests.logs.damaged_recording import damage_a_middle_chunk, write_small_trial
 
 
 @pytest.fixture(scope="module")
 def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    path = tmp_path_factory.mktemp("cli") / "trial.mcap"
-    with McapRecorder(path) as recorder:
-        recorder.add_metadata("scenario", synthetic_metadata(4.0))
-        write_synthetic_trial(recorder, 4.0)
-    return path
+    return write_small_trial(tmp_path_factory.mktemp("cli") / "trial.mcap")
 
 
 def test_doctor_exit_codes(recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
