@@ -316,22 +316,20 @@ def control_scheduler(
     on_tick: Callable[[TickSample], None] = timing.observe
     if observe is not None:
         on_tick = _both(timing.observe, observe)
+    # What only one loop takes; everything else both take alike.
+    loop: type[PhaseLockedScheduler] | type[SensorPacedScheduler]
     if config.control_loop == "phase-locked":
-        return PhaseLockedScheduler(
-            clock,
-            config.control_rate_hz,
-            stack.step,
-            ingest=stack.ingest,
-            wait=wait,
-            latency=lambda: stack.last_sensor_to_command_ns,
-            on_tick=on_tick,
-            stop=stop,
-            poll=poll,
-            offset_ns=round(config.phase_offset_ms * 1e6),
-            late_wait_ns=round(config.phase_late_wait_ms * 1e6),
-            spin_ns=DEFAULT_SPIN_NS if poll is not None else 0,
+        loop, own = (
+            PhaseLockedScheduler,
+            {
+                "offset_ns": round(config.phase_offset_ms * 1e6),
+                "late_wait_ns": round(config.phase_late_wait_ms * 1e6),
+                "spin_ns": DEFAULT_SPIN_NS if poll is not None else 0,
+            },
         )
-    return SensorPacedScheduler(
+    else:
+        loop, own = SensorPacedScheduler, {"busy_poll_ns": round(config.busy_poll_ms * 1e6)}
+    return loop(
         clock,
         config.control_rate_hz,
         stack.step,
@@ -341,7 +339,7 @@ def control_scheduler(
         on_tick=on_tick,
         stop=stop,
         poll=poll,
-        busy_poll_ns=round(config.busy_poll_ms * 1e6),
+        **own,
     )
 
 
