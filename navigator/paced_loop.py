@@ -172,7 +172,6 @@ class SensorPacedScheduler:
         self.stop = stop or threading.Event()
         self.stats = TimingStats.empty()
         self.interval = SampleInterval(self.period_ns)
-        self._previous_start: int | None = None
         # Decimation counts from the last *sensor* tick: measured from a deadline tick, a sample landing
         # just after each one would be dropped for good and the loop would stay on its deadlines.
         self._previous_sensor_start: int | None = None
@@ -241,12 +240,7 @@ class SensorPacedScheduler:
         self._tick(trigger_ns)
         end = self._clock.now_ns()
         stats = self.stats
-        stats.ticks += 1
-        stats.tick_ns.add(end - start)
-        period = None if self._previous_start is None else start - self._previous_start
-        if period is not None:
-            stats.jitter_ns.add(abs(period - self.period_ns))
-        self._previous_start = start
+        period = stats.add_tick(start, end, self.period_ns)
         latency = self._latency() if self._latency is not None else None
         if trigger_ns is not None:
             self._previous_sensor_start = start

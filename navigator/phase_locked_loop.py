@@ -185,7 +185,6 @@ class PhaseLockedScheduler:
         self.late_waits_missed = 0  # locked ticks whose sample had not come by the end of the late wait
         self._misses_in_a_row = 0
         self._pending: list[int] = []  # receive times of pacing samples fused since the last tick
-        self._previous_start: int | None = None
 
     def run(self, duration_ns: int | None = None) -> TimingStats:
         """Run until ``stop`` is set (or ``duration_ns`` has passed); returns the timing statistics."""
@@ -266,12 +265,7 @@ class PhaseLockedScheduler:
         self._tick(trigger)
         end = self._clock.now_ns()
         stats = self.stats
-        stats.ticks += 1
-        stats.tick_ns.add(end - start)
-        period = None if self._previous_start is None else start - self._previous_start
-        if period is not None:
-            stats.jitter_ns.add(abs(period - self.period_ns))
-        self._previous_start = start
+        period = stats.add_tick(start, end, self.period_ns)
         latency = self._latency() if self._latency is not None else None
         if trigger is None:
             stats.deadline_ticks += 1

@@ -101,10 +101,22 @@ class TimingStats:
     ticks: int = 0
     sensor_ticks: int = 0  # started by the pacing measurement (navigator.paced_loop)
     deadline_ticks: int = 0  # started by the fixed-rate fallback deadline (the pacing sensor was late)
+    last_start_ns: int | None = None  # the last tick's start, for the next one's period
 
     @classmethod
     def empty(cls) -> TimingStats:
         return cls(RingStats(), RingStats(), RingStats())
+
+    def add_tick(self, start_ns: int, end_ns: int, nominal_period_ns: int) -> int | None:
+        """Count a tick that ran from ``start_ns`` to ``end_ns``: its time, and the jitter of its
+        start-to-start period, which it returns (None for the first tick)."""
+        self.ticks += 1
+        self.tick_ns.add(end_ns - start_ns)
+        period = None if self.last_start_ns is None else start_ns - self.last_start_ns
+        if period is not None:
+            self.jitter_ns.add(abs(period - nominal_period_ns))
+        self.last_start_ns = start_ns
+        return period
 
     def summary(self) -> dict[str, object]:
         return {
@@ -175,7 +187,6 @@ class FixedRateScheduler:
         start = self._clock.now_ns()
         end = None if duration_ns is None else start + duration_ns
         due = start
-        previous_start: int | None = None
         while not self.stop.is_set():
             now = self._clock.now_ns()
             if end is not None and now >= end:
@@ -193,12 +204,8 @@ class FixedRateScheduler:
             self.due_ns = due
             self._tick()
             tick_end = self._clock.now_ns()
-            self.stats.ticks += 1
+            self.stats.add_tick(tick_start, tick_end, self.period_ns)
             self.stats.deadline_ticks += 1
-            self.stats.tick_ns.add(tick_end - tick_start)
-            if previous_start is not None:
-                self.stats.jitter_ns.add(abs(tick_start - previous_start - self.period_ns))
-            previous_start = tick_start
             if self._latency is not None:
                 latency = self._latency()
                 if latency is not None:
