@@ -15,9 +15,12 @@ The simulated rover (``hil.bench_rover``) runs at 100 Hz: six VESCs on CAN and t
 on UDP 127.0.0.1 (a port from the OS), each step on a precise timer as a real IMU is (``--peer-spin-ms``,
 0: a plain sleep). Where it can, it is a separate process, as the real rover's autopilot and motor
 controllers are separate hardware: CAN is python-can ``udp_multicast``, which runs only inside the private
-loopback-only network namespace (``scripts/in-private-netns`` sets ``ROVER_IN_NETNS=1``). Elsewhere it is
-a thread in this process on a ``virtual`` bus, and then shares the GIL with the control loop: its IMU
-timing, which paces the loop, takes the stack's compute time as jitter. The table says which mode ran.
+loopback-only network namespace (``scripts/in-private-netns`` sets ``ROVER_IN_NETNS=1``). That process
+runs at ``SCHED_FIFO`` (``--peer-fifo``, ``hil.hardware_priority``) where the bench may set it, so the
+stack's own threads cannot make the sensor it is timed against late; the table says what was applied.
+Elsewhere it is a thread in this process on a ``virtual`` bus, and then shares the GIL with the control
+loop: its IMU timing, which paces the loop, takes the stack's compute time as jitter. The table says
+which mode ran.
 
 Peers measured in the same run: the fixed-rate scheduler with an empty tick, waiting with a plain sleep
 and with the precise wait (what the OS and Python give at best), and the full stack in each loop. CPU is
@@ -53,6 +56,9 @@ DEPLOYED_NICE = -10
 # The modes that run `rover run`'s own loop (`control_loop`); "fixed" is the free-running comparison.
 LOOPS = {"paced": "sensor-paced", "locked": "phase-locked"}
 EMPTY_TICK_S = 10.0  # each empty-tick peer runs this long at most
+# The simulated rover stands for hardware on its own timers (hil.hardware_priority); any real-time
+# priority puts it ahead of the stack's normal-policy threads, and a low one leaves room above it.
+PEER_FIFO_PRIORITY = 10
 
 
 def register(commands: Any) -> None:
@@ -71,6 +77,13 @@ def register(commands: Any) -> None:
         type=float,
         default=DEFAULT_SPIN_NS / 1e6,
         help="the simulated rover spins this long before each step (0: plain sleep)",
+    )
+    bench.add_argument(
+        "--peer-fifo",
+        type=fifo_priority,
+        default=PEER_FIFO_PRIORITY,
+        help=f"run the simulated rover's process at this SCHED_FIFO priority, as timer-driven hardware "
+        f"(default {PEER_FIFO_PRIORITY}; 0: normal scheduling, as the stack)",
     )
     # Both checked as the config checks them, when the command line is read: an offset the scheduler
     # refuses was a ValueError traceback once the locked run began (after the other runs), and one past
@@ -118,6 +131,16 @@ def nice_value(text: str) -> int | None:
     return value
 
 
+def fifo_priority(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(f"expected an integer from 0 to 99, got {text!r}") from err
+    if not 0 <= value <= 99:
+        raise argparse.ArgumentTypeError(f"expected an integer from 0 to 99, got {text!r}")
+    return value
+
+
 def _modes(text: str) -> tuple[str, ...]:
     modes = tuple(m.strip() for m in text.split(",") if m.strip())
     unknown = [m for m in modes if m not in MODES]
@@ -149,6 +172,7 @@ class StackRun:
     telemetry: bool
     mode: str  # one of MODES
     peer_spin_ns: int
+    peer_fifo: int  # SCHED_FIFO priority of the simulated rover's process; 0: normal scheduling
     busy_poll_ms: float | None  # None: the config's
     phase_offset_ms: float | None  # None: the config's
     phase_late_wait_ms: float | None  # None: the config's
@@ -162,6 +186,7 @@ def _full_stack(run: StackRun) -> dict[str, Any]:
     from firmware_bridge.vesc import VescCodec
     from firmware_bridge.vesc_dbc import load_vesc_database
     from hil.bench_rover import DATUM, run_sim_rover
+    from hil.hardware_priority import raise_to_fifo
     from hil.jitter_trace import RoverTrace, breakdown
     from logs.recorder import McapRecorder
     from logs.settings import parse_toml
@@ -251,6 +276,12 @@ def _full_stack(run: StackRun) -> dict[str, Any]:
             peer = threading.Thread(target=run_sim_rover, args=(peer_stop, *peer_args), daemon=True)
         peer.start()
         cleanup.callback(peer.join, 5.0)
+        if isinstance(peer, threading.Thread):
+            # It shares the GIL with the loop under test: a priority would not make its sends punctual.
+            peer_scheduling = "normal scheduling (a thread of this process)"
+        else:
+            assert peer.pid is not None  # started
+            peer_scheduling = raise_to_fifo(peer.pid, run.peer_fifo)
         cleanup.callback(peer_stop.set)
         _wait_for_first_sample(mavlink_transport, PEER_START_TIMEOUT_S)
         wait = input_waiter([mavlink_transport])
@@ -295,6 +326,7 @@ def _full_stack(run: StackRun) -> dict[str, Any]:
     figures["cpu_pct"] = cpu
     figures["final_mode"] = stack.safety_mode.value
     figures["simulated_rover"] = "process" if _peer_as_process() else "thread"
+    figures["simulated_rover_scheduling"] = peer_scheduling
     figures["busy_poll_ms"] = config.busy_poll_ms if run.mode == "paced" else None
     if run.mode == "paced":
         figures["busy_polls"] = scheduler.busy_polls
@@ -356,6 +388,7 @@ def run_bench(args: argparse.Namespace) -> int:
                 telemetry=not args.no_telemetry,
                 mode=mode,
                 peer_spin_ns=round(args.peer_spin_ms * 1e6),
+                peer_fifo=args.peer_fifo,
                 busy_poll_ms=args.busy_poll_ms,
                 phase_offset_ms=args.phase_offset_ms,
                 phase_late_wait_ms=args.phase_late_wait_ms,
@@ -383,7 +416,8 @@ def _print_tables(args: argparse.Namespace, peers: dict[str, dict[str, Any]], pr
     busy = next((f["busy_poll_ms"] for f in stacks if f.get("busy_poll_ms") is not None), None)
     locked = next((f for f in stacks if f.get("phase_offset_ms") is not None), None)
     table.caption = (
-        f"simulated rover ran as a {stacks[0]['simulated_rover']}, stepping on a "
+        f"simulated rover ran as a {stacks[0]['simulated_rover']} at "
+        f"{stacks[0]['simulated_rover_scheduling']}, stepping on a "
         + (f"{args.peer_spin_ms:g} ms spin" if args.peer_spin_ms > 0 else "plain sleep")
         + ("" if busy is None else f"; paced loop busy-polls {busy:g} ms")
         + (
@@ -392,7 +426,7 @@ def _print_tables(args: argparse.Namespace, peers: dict[str, dict[str, Any]], pr
             else f"; phase-locked loop ticks {locked['phase_offset_ms']:g} ms after the expected IMU sample, "
             f"waiting {locked['phase_late_wait_ms']:g} ms more for a late one"
         )
-        + f"; all at {priority}"
+        + f"; the stack at {priority}"
     )
     for column in (*columns, "CPU %"):
         table.add_column(column)

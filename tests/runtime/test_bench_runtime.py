@@ -43,6 +43,12 @@ def test_bench_runtime_reports_the_loops_side_by_side_with_the_trace() -> None:
         0.0 < fixed["latency"]["p50_ms"] <= 25.0 and fixed["latency"]["p50_ms"] <= fixed["latency"]["max_ms"]
     )
     assert paced["simulated_rover"] == fixed["simulated_rover"] in ("process", "thread")
+    # As a process it is raised to SCHED_FIFO (or says why not); as a thread it keeps normal scheduling.
+    scheduling = paced["simulated_rover_scheduling"]
+    if paced["simulated_rover"] == "process":
+        assert scheduling.startswith(("SCHED_FIFO 10", "normal scheduling (SCHED_FIFO 10 refused"))
+    else:
+        assert scheduling == "normal scheduling (a thread of this process)"
     # The phase-locked stack ticked on the clock, locked on to the IMU, and answered its samples.
     locked = peers["stack, phase-locked + recording"]
     assert locked["ticks"] >= 50 and locked["sensor_ticks"] > 0 and locked["locks"] >= 1
@@ -64,7 +70,14 @@ def test_an_unknown_mode_is_refused() -> None:
 
 
 @pytest.mark.parametrize(
-    ("flag", "value"), [("--phase-offset-ms", "15"), ("--phase-offset-ms", "-1"), ("--busy-poll-ms", "-1")]
+    ("flag", "value"),
+    [
+        ("--phase-offset-ms", "15"),
+        ("--phase-offset-ms", "-1"),
+        ("--busy-poll-ms", "-1"),
+        ("--peer-fifo", "100"),
+        ("--peer-fifo", "high"),
+    ],
 )
 def test_an_override_the_config_would_refuse_is_refused_on_the_command_line(
     flag: str, value: str, capsys: pytest.CaptureFixture[str]
