@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -11,6 +12,7 @@ from rich.console import Console
 from rich.table import Table as RichTable
 
 from hil.campaign_workers import MAX_WORKERS
+from hil.hardware_priority import MAX_FIFO_PRIORITY
 from logs.settings import ConfigError, parse_toml
 from logs.sink import MessageSink
 from navigator.config import RoverConfig, load_rover_config, rover_config_from_table
@@ -74,6 +76,13 @@ def _register_peer(commands: Any) -> None:
     peer.add_argument("--status-file", type=Path, default=None, help="keep the body's state here (JSON)")
     peer.add_argument("--duration", type=positive_seconds, default=None, help="stop after this many seconds")
     peer.add_argument("--out", type=Path, default=None, help="output directory (default: logs/trials/<run>)")
+    peer.add_argument(
+        "--fifo",
+        type=bounded_int(0, MAX_FIFO_PRIORITY, "a SCHED_FIFO priority; 0: normal scheduling"),
+        default=0,
+        help="run at this SCHED_FIFO priority (1-99), as the timer-driven hardware it stands for: the rover "
+        "under test cannot make its sensors late (needs root or CAP_SYS_NICE; default 0: normal scheduling)",
+    )
     peer.set_defaults(handler=run_peer_command)
 
 
@@ -283,6 +292,7 @@ def run_peer_command(args: argparse.Namespace) -> int:
     from types import FrameType
 
     from firmware_bridge.errors import BridgeError
+    from hil.hardware_priority import raise_to_fifo
     from hil.peer import open_peer_wires, run_peer
     from hil.scenario import load_scenario
     from hil.start_clearance import check_start_clear
@@ -315,6 +325,8 @@ def run_peer_command(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
     port = transport.local_address[1]
+    if args.fifo:
+        console.print(f"scheduling: {raise_to_fifo(os.getpid(), args.fifo)}")
 
     def on_ready(rover_config: Path) -> None:
         # stdout is for whoever started us: the port to dial, then the config that dials it.

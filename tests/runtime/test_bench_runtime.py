@@ -52,6 +52,7 @@ def test_bench_runtime_reports_the_loops_side_by_side_with_the_trace() -> None:
     # The phase-locked stack ticked on the clock, locked on to the IMU, and answered its samples.
     locked = peers["stack, phase-locked + recording"]
     assert locked["ticks"] >= 50 and locked["sensor_ticks"] > 0 and locked["locks"] >= 1
+    assert 0 <= locked["late_waits_missed"] < locked["ticks"]
     assert locked["phase_offset_ms"] == 0.3 and locked["phase_late_wait_ms"] == 0.8
     assert locked["busy_poll_ms"] is None
     assert 0.0 < locked["latency"]["p50_ms"] <= locked["latency"]["max_ms"]
