@@ -18,6 +18,9 @@ from __future__ import annotations
 import os
 
 MAX_FIFO_PRIORITY = 99
+# What the benchmark and the soak give their simulated rover: any real-time priority puts it ahead of the
+# stack's normal-policy threads, and a low one leaves room above it for the kernel's own.
+PEER_FIFO_PRIORITY = 10
 
 
 def raise_to_fifo(pid: int, priority: int) -> str:

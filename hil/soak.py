@@ -52,6 +52,10 @@ class SoakSettings:
     gap_s: tuple[float, float] = (12.0, 20.0)  # recovery time after each fault
     can_interface: str = "udp_multicast"
     can_channel: str | None = None  # default: a fresh multicast group
+    # SCHED_FIFO priority of the peer (`rover hil peer --fifo`), 0: normal scheduling. The peer stands for
+    # hardware on its own timers; at the normal policy the rover's threads could make it late, and a
+    # stall of the peer past the controllers' command timeout measures the machine, not the rover.
+    peer_fifo: int = 0
 
 
 def run_soak(settings: SoakSettings) -> SoakReport:
@@ -80,6 +84,7 @@ def run_soak(settings: SoakSettings) -> SoakReport:
                 "--can-channel", channel, "--port-file", str(peer_dir / "port"),
                 "--status-file", str(peer_dir / "status.json"), "--out", str(peer_dir),
                 "--duration", str(settings.seconds + 60.0),
+                *(("--fifo", str(settings.peer_fifo)) if settings.peer_fifo else ()),
             ),
             stdout=peer_log,
             stderr=subprocess.STDOUT,
@@ -127,8 +132,20 @@ def run_soak(settings: SoakSettings) -> SoakReport:
         peer_dir / "truth.mcap",
         settings.warmup_s,
     )
+    if settings.peer_fifo:
+        report.peer_scheduling = _said_scheduling(peer_dir / "peer.log")
     (out / "soak.json").write_text(report.to_json(), encoding="utf-8")
     return report
+
+
+def _said_scheduling(peer_log: Path) -> str:
+    """What the peer said of its ``--fifo`` priority (``scheduling: ...`` in its log)."""
+    try:
+        lines = peer_log.read_text(encoding="utf-8", errors="replace").splitlines()
+    except OSError as err:
+        return f"unknown (cannot read {peer_log}: {err.strerror or err})"
+    said = [line.split("scheduling:", 1)[1].strip() for line in lines if line.startswith("scheduling:")]
+    return said[0] if said else "unknown (the peer did not say)"
 
 
 @dataclass

@@ -95,6 +95,7 @@ class SoakReport:
     failsafe_events: dict[str, int] = field(default_factory=dict)
     peer: PeerTiming = field(default_factory=PeerTiming.unknown)
     unexplained_failsafes: list[str] = field(default_factory=list)  # each with its time and detail
+    peer_scheduling: str = "normal scheduling"  # what `rover hil peer --fifo` got (its `scheduling:` line)
 
     @property
     def problems(self) -> list[str]:

@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from hil.hardware_priority import MAX_FIFO_PRIORITY
+from hil.hardware_priority import MAX_FIFO_PRIORITY, PEER_FIFO_PRIORITY
 from logs.clock import MonotonicClock
 from navigator.precise_wait import DEFAULT_SPIN_NS
 from rover_cli.arg_types import bounded_float, bounded_int
@@ -57,9 +57,6 @@ DEPLOYED_NICE = -10
 # The modes that run `rover run`'s own loop (`control_loop`); "fixed" is the free-running comparison.
 LOOPS = {"paced": "sensor-paced", "locked": "phase-locked"}
 EMPTY_TICK_S = 10.0  # each empty-tick peer runs this long at most
-# The simulated rover stands for hardware on its own timers (hil.hardware_priority); any real-time
-# priority puts it ahead of the stack's normal-policy threads, and a low one leaves room above it.
-PEER_FIFO_PRIORITY = 10
 
 
 def register(commands: Any) -> None:

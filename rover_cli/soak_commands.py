@@ -12,7 +12,8 @@ from typing import Any
 from rich.console import Console
 from rich.table import Table
 
-from rover_cli.arg_types import seed
+from hil.hardware_priority import MAX_FIFO_PRIORITY, PEER_FIFO_PRIORITY
+from rover_cli.arg_types import bounded_int, seed
 from rover_cli.errors import print_error
 
 
@@ -27,6 +28,13 @@ def register(commands: Any) -> None:
     soak.add_argument("--warmup", type=float, default=20.0, help="seconds before the first fault")
     soak.add_argument("--can-interface", default="udp_multicast", help="udp_multicast (netns) or socketcan")
     soak.add_argument("--can-channel", default=None, help="e.g. vcan0 (default: a fresh multicast group)")
+    soak.add_argument(
+        "--peer-fifo",
+        type=bounded_int(0, MAX_FIFO_PRIORITY, "a SCHED_FIFO priority; 0: normal scheduling"),
+        default=PEER_FIFO_PRIORITY,
+        help="run the simulated rover at this SCHED_FIFO priority, as timer-driven hardware (`rover hil "
+        f"peer --fifo`; default {PEER_FIFO_PRIORITY}; 0: normal scheduling)",
+    )
     soak.set_defaults(handler=run_soak_command)
 
 
@@ -46,6 +54,7 @@ def run_soak_command(args: argparse.Namespace) -> int:
         warmup_s=args.warmup,
         can_interface=args.can_interface,
         can_channel=args.can_channel,
+        peer_fifo=args.peer_fifo,
     )
     try:
         with console.status(f"soaking for {args.minutes:g} min (seed {args.seed}) ..."):
@@ -81,7 +90,8 @@ def run_soak_command(args: argparse.Namespace) -> int:
     )
     peer = report.peer
     console.print(
-        f"peer: overruns {'unknown' if peer.overruns is None else peer.overruns}, stalls {peer.stalls} "
+        f"peer ({report.peer_scheduling}): overruns {'unknown' if peer.overruns is None else peer.overruns}, "
+        f"stalls {peer.stalls} "
         f"({peer.dropped_sim_ms:.0f} ms of simulated time dropped), longest gap between steps "
         f"{_mb(peer.longest_step_gap_ms, '{:.0f} ms') if peer.longest_step_gap_ms is not None else 'unknown'}"
     )

@@ -6,6 +6,7 @@ import itertools
 import math
 from pathlib import Path
 
+from hil.hardware_priority import PEER_FIFO_PRIORITY
 from hil.scenario import load_scenario
 from hil.soak import SoakSettings, run_soak
 from hil.soak_plan import CATALOG, fault_plan, scenario_text
@@ -37,7 +38,9 @@ def test_the_scenario_carries_the_peer_side_faults(tmp_path: Path) -> None:
 def test_a_short_soak_injects_sees_and_recovers_every_fault(tmp_path: Path) -> None:
     # Seed 3 in 30 s: a controller reboot, an e-stop over Zenoh, a silent IMU (the pacing sensor), a CAN
     # bus drop.
-    settings = SoakSettings(30.0, 3, tmp_path, rss_period_s=1.0, warmup_s=6.0, gap_s=(3.0, 4.0))
+    settings = SoakSettings(
+        30.0, 3, tmp_path, rss_period_s=1.0, warmup_s=6.0, gap_s=(3.0, 4.0), peer_fifo=PEER_FIFO_PRIORITY
+    )
     report = run_soak(settings)
     names = [f.name.split("[")[0] for f in report.faults]
     assert names == ["vesc", "estop/command", "imu/off", "can/off"], report.faults
@@ -53,3 +56,7 @@ def test_a_short_soak_injects_sees_and_recovers_every_fault(tmp_path: Path) -> N
     # The peer stopped cleanly and wrote its own timing; OK above means no stall beyond the bound.
     assert report.peer.overruns is not None and report.peer.longest_step_gap_ms is not None
     assert (tmp_path / "soak.json").exists()
+    # The peer ran as timer-driven hardware where this machine allows, and the report says which.
+    assert report.peer_scheduling.startswith(
+        ("SCHED_FIFO 10, as timer-driven hardware", "normal scheduling (SCHED_FIFO 10 refused")
+    )
