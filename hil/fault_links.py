@@ -2,7 +2,8 @@
 
 Both wrappers sit on the simulator's side, so a fault hits both directions, as a broken cable would:
 commands from the rover and status / sensor data to it. A bus-off is also the rover's own controller's
-state (its sends fail); where one process holds both ends, ``hil.bus_off`` wraps the rover's end for that.
+state: ``hil.bus_off`` gives the rover's end that (in lockstep its sends fail; in real time the peer sends
+it the error frames Linux would).
 Random choices come from a generator of their own, so injecting a fault does not shift the sensor noise of
 the rest of the trial.
 """

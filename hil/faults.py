@@ -16,7 +16,7 @@ gps       garbage        every fix: type 0 (no fix), 0 satellites, position nons
 imu       wrong          gyro / accel biased by ``gyro_bias_rps`` / ``accel_bias_mps2`` (3-vectors)
 imu       stuck          the same reading repeated (frozen sensor)
 imu       off            no SCALED_IMU
-can       off            bus-off: no frame passes either way (lockstep: rover's sends fail)
+can       off            bus-off: no frame passes either way; the rover's controller is off (hil.bus_off)
 can       intermittent   each frame dropped with ``probability``
 can       delayed        frames arrive ``delay_s`` late
 can       garbage        each frame's payload corrupted with ``probability``

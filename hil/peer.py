@@ -211,6 +211,7 @@ def run_peer(
         codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
         step_clock = StepClock(clock.now_ns())
         with SimWorld(scenario, config.vehicle, codec, step_clock, can_bus, mavlink, recorder, seed) as world:
+            world.announce_bus_off(can_bus)  # the rover's controller is in another process: tell it
             world.record_start(recorder)  # its obstacles and faults count from here, not from the boot
             world.body.warm_up()  # before the port file: whoever waits on it meets a peer that runs on time
             peer = RealtimePeer(world, step_clock, recorder, status_path)

@@ -50,9 +50,9 @@ class SoakFault:
 # (docs/safety.md: GPS 3 s, heartbeat 3 s, wheel status 0.25 s).
 CATALOG: tuple[tuple[str, str, float, str, str], ...] = (
     ("gps", "off", 5.0, FAILSAFE, "gps_lost"),
-    # Across processes a bus-off is silence alone (the rover's sends still succeed: docs/hil.md), so the
-    # rover sees its controllers go quiet, not can_bus_off (which lockstep's hil.bus_off raises).
-    ("can", "off", 1.0, FAILSAFE, "wheel_silent"),
+    # The peer tells the rover its controller is bus-off with a CAN_ERR_BUSOFF error frame on the shared
+    # bus (hil.bus_off.BusOffAnnouncer), as Linux tells its host, so the rover's link goes bus-off.
+    ("can", "off", 1.0, FAILSAFE, "can_bus_off"),
     ("vesc", "off", 1.5, FAILSAFE, "wheel_silent"),  # a controller reboots
     ("mavlink", "off", 4.5, FAILSAFE, "heartbeat_lost"),
     ("imu", "off", 3.0, DEADLINE_TICKS, ""),
@@ -63,10 +63,12 @@ CATALOG: tuple[tuple[str, str, float, str, str], ...] = (
 # The failsafes each fault of the catalog may raise on the rover, during it or within the report's slack
 # after it: its own evidence, and what the loss takes with it. GPS and IMU come over MAVLink, so a MAVLink
 # loss is also a GPS loss; without fixes (or without the IMU) the estimate's uncertainty grows until it
-# may be judged unhealthy. Any other failsafe during a soak is unexplained and makes it NOT OK.
+# may be judged unhealthy. A CAN bus-off also silences the controllers (no frame reaches the rover), so
+# their STATUS goes stale 0.25 s in, as on the vehicle. Any other failsafe during a soak is unexplained
+# and makes it NOT OK.
 RAISES: dict[str, tuple[str, ...]] = {
     "gps/off": ("gps_lost", "estimator_unhealthy"),
-    "can/off": ("wheel_silent",),
+    "can/off": ("can_bus_off", "wheel_silent"),
     "vesc/off": ("wheel_silent",),
     "mavlink/off": ("heartbeat_lost", "gps_lost", "estimator_unhealthy"),
     "imu/off": ("estimator_unhealthy",),

@@ -18,7 +18,7 @@ from firmware_bridge.mavlink_transport import Transport
 from firmware_bridge.vesc import WHEEL_COUNT, VescCodec
 from hil.autopilot_sim import AutopilotTruth, SimAutopilot
 from hil.battery import Battery
-from hil.bus_off import BusOffRoverEnd
+from hil.bus_off import BusOffAnnouncer, BusOffRoverEnd
 from hil.dynamics import DynamicsStep, RoverDynamics
 from hil.fault_links import FaultyCanBus, FaultyTransport
 from hil.faults import FaultSchedule
@@ -69,6 +69,7 @@ class SimWorld:
         # The world's own wrappers, shut in close(); the wires themselves belong to whoever opened them.
         self._faulty_can: FaultyCanBus | None = None
         self._rover_ends: list[BusOffRoverEnd] = []
+        self.bus_off_announcer: BusOffAnnouncer | None = None  # real time only: announce_bus_off
         if "can" in has:
             can_bus = self._faulty_can = FaultyCanBus(can_bus, self.faults, clock, fault_rng)
         if "mavlink" in has:
@@ -158,13 +159,21 @@ class SimWorld:
 
         Lockstep only, where one process holds both ends: during a ``can`` ``off`` fault the rover's own
         controller is bus-off too (``hil.bus_off``: its sends fail, it hears nothing but the error
-        frames). Without such a fault, ``bus`` itself. A wrapper is the world's, shut in ``close()``.
+        frames). Without such a fault, ``bus`` itself. A wrapper is the world's, shut in ``close()``. (Real
+        time, where the rover is another process: ``announce_bus_off``.)
         """
         if self.faults.scheduled("can", "off"):
             end = BusOffRoverEnd(bus, self.faults, self._clock)
             self._rover_ends.append(end)
             return end
         return bus
+
+    def announce_bus_off(self, bus: can.BusABC) -> None:
+        """Tell a rover in another process, on the shared ``bus`` (the raw one this world was given), when
+        its controller goes bus-off and restarts (``hil.bus_off.BusOffAnnouncer``): the real-time peer's
+        counterpart of ``rover_can_end``. Without a ``can`` ``off`` fault in the scenario, nothing."""
+        if self.faults.scheduled("can", "off"):
+            self.bus_off_announcer = BusOffAnnouncer(bus, self.faults)
 
     @property
     def rolled_over(self) -> bool:
@@ -216,6 +225,8 @@ class SimWorld:
 
     def _apply_faults(self, now: int) -> None:
         self.faults.announce(self._sink, now)
+        if self.bus_off_announcer is not None:
+            self.bus_off_announcer.poll(now)
         if self._vesc_faults:
             active = self.faults.active_all("vesc", now)
             for wheel in range(WHEEL_COUNT):

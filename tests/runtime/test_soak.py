@@ -37,7 +37,7 @@ def test_the_scenario_carries_the_peer_side_faults(tmp_path: Path) -> None:
 @needs_netns
 def test_a_short_soak_injects_sees_and_recovers_every_fault(tmp_path: Path) -> None:
     # Seed 3 in 30 s: a controller reboot, an e-stop over Zenoh, a silent IMU (the pacing sensor), a CAN
-    # bus drop.
+    # bus-off (the peer's error frames put the rover's link bus-off: hil.bus_off.BusOffAnnouncer).
     settings = SoakSettings(
         30.0, 3, tmp_path, rss_period_s=1.0, warmup_s=6.0, gap_s=(3.0, 4.0), peer_fifo=PEER_FIFO_PRIORITY
     )
@@ -45,6 +45,8 @@ def test_a_short_soak_injects_sees_and_recovers_every_fault(tmp_path: Path) -> N
     names = [f.name.split("[")[0] for f in report.faults]
     assert names == ["vesc", "estop/command", "imu/off", "can/off"], report.faults
     assert report.ok, report.to_json()
+    (can_off,) = [f for f in report.faults if f.name == "can/off"]
+    assert can_off.seen and "failsafe.can_bus_off" in can_off.evidence, can_off
     # Mostly sensor-paced: the silent IMU's 3 s (~150 ticks) run on the deadline, and so does every tick
     # whose sample comes later than the grace, which on a 2-core machine running the peer, the rover and
     # the test side by side is a few percent of them (0.80-0.87 sensor-paced seen; 0.8 once failed).

@@ -56,7 +56,7 @@ def test_another_failsafe_does_not_count() -> None:
 # --- failsafes no planned fault explains, and the peer's stalls --------------------------------------
 S = NS
 MAVLINK = SoakFault("mavlink", "off", 30.0, 4.5, FAILSAFE, "heartbeat_lost")
-CAN = SoakFault("can", "off", 50.0, 1.0, FAILSAFE, "wheel_silent")
+CAN = SoakFault("can", "off", 50.0, 1.0, FAILSAFE, "can_bus_off")
 ALL_SIX = (
     "motor controller of wheel 0 (left front, CAN id 1), ..., wheel 5 (right rear, CAN id 6) silent for "
     "more than 250 ms"
@@ -76,6 +76,8 @@ def test_a_failsafe_of_a_planned_fault_and_what_the_fault_takes_with_it_are_expl
         ),
         (int(33.0 * S), "failsafe.heartbeat_lost", "no autopilot heartbeat for 3010 ms"),
         (int(33.0 * S), "failsafe.gps_lost", "no 3D GPS fix for 3010 ms"),  # GPS comes over MAVLink
+        # A bus-off: the peer's error frame puts the link bus-off, and the controllers go quiet with it.
+        (int(50.02 * S), "failsafe.can_bus_off", "the CAN link reports bus-off"),
         (int(50.3 * S), "failsafe.wheel_silent", ALL_SIX),
     ]
     assert unexplained_failsafes(failsafes, _placed(), [], 0.0) == []
