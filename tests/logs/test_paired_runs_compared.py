@@ -16,6 +16,7 @@ from logs.compare import compare_runs
 from logs.reader import RecordedMessage, read_entries, read_outline
 from logs.topics import TRUTH_POSE
 from rover_cli.main import main
+from tests.logs.damaged_recording import write_small_trial
 from tests.logs.realtime_pair import BOOT_NS, write_pair
 
 LATER_NS = 600_000_000_000  # the second run starts ten minutes after the first
@@ -112,6 +113,22 @@ def test_a_truth_of_no_given_run_is_named_with_its_pair_and_the_other_run_kept(
     runs = json.loads((out / "report.json").read_text(encoding="utf-8"))["runs"]
     assert [run["truth_merged"] for run in runs] == [True, False]
     assert runs[1]["metrics"]["trajectory_topic"] == "estimator/pose"
+
+
+def test_a_lockstep_trial_among_the_pairs_is_its_own_file_alone(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (_, rover_a, truth_a), (_, _, truth_b) = _two_runs(tmp_path / "runs")
+    trial = write_small_trial(tmp_path / "trial.mcap", trial_mode="sim-lockstep")  # its own truth/*
+    out = tmp_path / "out"
+    assert main(_report(rover_a, trial, "--truth", truth_a, "--truth", truth_b, "--out", out)) == 1
+    printed = " ".join(capsys.readouterr().out.split())
+    assert f"truth not merged with {trial}: {truth_b}: not merged: {trial} is a lockstep trial" in printed
+    runs = json.loads((out / "report.json").read_text(encoding="utf-8"))["runs"]
+    assert [run["truth_merged"] for run in runs] == [True, False]
+    assert runs[1]["metrics"] == json.loads(json.dumps(analyse(trial).metrics.to_dict(), default=str)) | {
+        "problems": runs[1]["metrics"]["problems"]
+    }  # the trial on its own truth, as without --truth
 
 
 def test_the_outline_spans_the_recorded_log_times(tmp_path: Path) -> None:
