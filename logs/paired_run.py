@@ -24,6 +24,7 @@ from collections.abc import Collection, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from logs.errors import LogsError
 from logs.metrics import METRIC_TOPICS, TrialMetrics, metrics_from_entries
 from logs.reader import (
     Entry,
@@ -33,6 +34,7 @@ from logs.reader import (
     RecordedMetadata,
     RecordedRaw,
     read_entries,
+    read_outline,
 )
 from logs.scenario_record import SCENARIO_METADATA, WORLD_METADATA
 from logs.topics import NAVIGATOR_STATE, TRUTH_CONTACTS, TRUTH_POSE, TRUTH_STABILITY, TRUTH_WHEELS
@@ -198,6 +200,50 @@ def _no_overlap(truth: str | Path, span: tuple[int, int] | None, window: tuple[i
         f"rover {window[0] / 1e9:.3f}-{window[1] / 1e9:.3f} s of the monotonic clock): not the same run, or "
         "not recorded on the same machine; the run is the rover's alone"
     )
+
+
+def misplaced_truths(pairs: Sequence[tuple[Path, Path]]) -> list[str]:
+    """What is wrong with (rover, truth) pairs given in order (``--truth`` once per rover recording) when
+    a truth was recorded while another pair's rover ran and not while its own did: the truth files given
+    in another order than the rover files. Empty when nothing is.
+
+    Only what the recordings' log-time spans tell (``read_outline``: no message decoded, so cheap before
+    the report's pass): a pair with a file that cannot be read is left to the report, which says why, and
+    a lockstep trial's span (a simulated clock from 0, overlapping every other lockstep trial's) counts as
+    no span; ``read_paired`` still checks each pair against the rover's drive."""
+    spans = _real_time_spans({path for pair in pairs for path in pair})
+    problems = []
+    for number, (rover, truth) in enumerate(pairs, start=1):
+        if rover not in spans or truth not in spans or _overlap(spans[truth], spans[rover]):
+            continue
+        owners = [
+            f"rover recording {other_number} ({other})"
+            for other_number, (other, _) in enumerate(pairs, start=1)
+            if other_number != number and _overlap(spans[truth], spans.get(other))
+        ]
+        if owners:
+            problems.append(
+                f"--truth {truth} (truth {number}) pairs with rover recording {number} ({rover}) but was "
+                f"recorded while {' and '.join(owners)} ran, not while {rover} did"
+            )
+    return problems
+
+
+def _real_time_spans(paths: Iterable[Path]) -> dict[Path, tuple[int, int] | None]:
+    """Each readable file's log-time span; ``None`` for a lockstep trial or a file without messages."""
+    spans: dict[Path, tuple[int, int] | None] = {}
+    for path in paths:
+        try:
+            outline = read_outline(path)
+        except LogsError:
+            continue  # unreadable: the report says why, in its place
+        lockstep = outline.metadata.get(TRIAL_METADATA, {}).get("mode") == LOCKSTEP_MODE
+        spans[path] = None if lockstep else outline.span_ns
+    return spans
+
+
+def _overlap(a: tuple[int, int] | None, b: tuple[int, int] | None) -> bool:
+    return a is not None and b is not None and a[0] <= b[1] and b[0] <= a[1]
 
 
 def _combine_into(stats: ReadStats, a: ReadStats, b: ReadStats) -> None:

@@ -180,6 +180,33 @@ def read_attachments(source: Source) -> dict[str, bytes]:
     }
 
 
+@dataclass(frozen=True)
+class RecordingOutline:
+    """What a recording is, read without its messages: its metadata and the span of its log times."""
+
+    metadata: dict[str, dict[str, str]]
+    span_ns: tuple[int, int] | None  # first and last message log time; None: it holds no message
+
+
+def read_outline(source: Source) -> RecordingOutline:
+    """Metadata (a later record of a name replaces an earlier one) and the messages' log-time span, from
+    the chunk headers: no chunk is decompressed, so it costs little more than reading the bytes. A cut
+    file: what comes before the cut. ``LogReadError`` as for ``read_entries``."""
+    metadata: dict[str, dict[str, str]] = {}
+    spans: list[tuple[int, int]] = []
+    with ExitStack() as stack:
+        stream, name = _open(source, stack)
+        for record in _records(stream, name, ReadStats(), decode_chunks=False, chunk_headers=True):
+            if isinstance(record, Chunk):
+                spans.append((record.message_start_time, record.message_end_time))
+            elif isinstance(record, Message):  # a message outside any chunk (an unchunked recording)
+                spans.append((record.log_time, record.log_time))
+            elif isinstance(record, Metadata):
+                metadata[record.name] = dict(record.metadata)
+    span = (min(s[0] for s in spans), max(s[1] for s in spans)) if spans else None
+    return RecordingOutline(metadata, span)
+
+
 def topic_counts(
     source: Source,
     *,
@@ -305,12 +332,14 @@ def _records(
     stats: ReadStats,
     *,
     decode_chunks: bool,
+    chunk_headers: bool = False,
     skip_channels: Collection[int] = frozenset(),
     stop_at_damage: bool = False,
     refuse_empty: bool = False,
 ) -> Iterator[McapRecord]:
     """Records of the data section, chunks opened up; stops at DataEnd or, with a warning, at a cut (and
-    with ``stop_at_damage`` at damage).
+    with ``stop_at_damage`` at damage). Without ``decode_chunks`` a chunk is left out, or with
+    ``chunk_headers`` given as the ``Chunk`` record itself, not decompressed (its messages' time span).
 
     Messages inside chunks on ``skip_channels`` (which the caller may grow while reading) are left out."""
     magic = _read_up_to(stream, len(MCAP_MAGIC), name)
@@ -335,8 +364,8 @@ def _records(
                 stats.complete = True
                 return  # the summary section repeats what we have already read
             records: list[McapRecord] = []
-            if opcode != Opcode.CHUNK or decode_chunks:
-                records = _parse(opcode, body, name, offset, skip_channels)
+            if opcode != Opcode.CHUNK or decode_chunks or chunk_headers:
+                records = _parse(opcode, body, name, offset, skip_channels, open_chunks=decode_chunks)
         except RecordingDamaged as err:
             if not stop_at_damage:
                 raise
@@ -361,9 +390,16 @@ _PLAIN_RECORDS: dict[int, Any] = {
 
 
 def _parse(
-    opcode: int, body: bytes, name: str, offset: int, skip_channels: Collection[int] = frozenset()
+    opcode: int,
+    body: bytes,
+    name: str,
+    offset: int,
+    skip_channels: Collection[int] = frozenset(),
+    *,
+    open_chunks: bool = True,
 ) -> list[McapRecord]:
-    """The records one complete frame holds: none (skipped kinds), one, or a chunk's contents."""
+    """The records one complete frame holds: none (skipped kinds), one, or a chunk's contents (without
+    ``open_chunks``: the chunk record itself)."""
     if opcode not in (Opcode.MESSAGE, Opcode.CHUNK) and opcode not in _PLAIN_RECORDS:
         return []  # header, schema, indexes: nothing we need
     try:
@@ -371,7 +407,8 @@ def _parse(
         if opcode == Opcode.MESSAGE:
             return [Message.read(data, len(body))]
         if opcode == Opcode.CHUNK:
-            return _chunk_records(Chunk.read(data), name, offset, skip_channels)
+            chunk = Chunk.read(data)
+            return _chunk_records(chunk, name, offset, skip_channels) if open_chunks else [chunk]
         return [_PLAIN_RECORDS[opcode].read(data)]
     except LogReadError:
         raise

@@ -5,8 +5,9 @@ metrics, figures and plots; the first run is compared with each other run (align
 than two runs, or a directory, the per-terrain table of the paper's metrics is added. A recording that
 cannot be read at all is listed with the reason and the report goes on; one with missing topics gets a
 partial section that lists what is missing. A real-time HIL run (``rover run``'s recording and
-``rover hil peer``'s ground truth, two files) is one run: ``--truth``, or the two files given alone
-(``realtime_pairs``), merged by log time (``logs.paired_run``).
+``rover hil peer``'s ground truth, two files) is one run: ``--truth`` once per rover recording, paired in
+order (``given_pairs``), or the two files given alone (``realtime_pairs``), merged by log time
+(``logs.paired_run``); two such runs are compared as two lockstep trials are.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from typing import Any
 from logs.analysis import TrialAnalysis, analyse
 from logs.compare import RunComparison, compare_runs
 from logs.errors import LogReadError, LogsError
+from logs.paired_run import misplaced_truths
 from logs.reader import read_metadata
 from logs.topics import ESTIMATOR_POSE
 
@@ -126,28 +128,33 @@ def expand_inputs(inputs: Sequence[str | Path]) -> tuple[list[Path], bool]:
 
 
 def write_report(
-    inputs: Sequence[str | Path], out_dir: str | Path, *, plots: bool = True, truth: str | Path | None = None
+    inputs: Sequence[str | Path],
+    out_dir: str | Path,
+    *,
+    plots: bool = True,
+    truth: str | Path | Sequence[str | Path] | None = None,
 ) -> ReportResult:
-    """``truth``: the peer's ground truth of a real-time HIL run, ``inputs`` being the one rover recording
-    of that run; without it, a lone real-time pair among the files is found by ``realtime_pairs``."""
+    """``truth``: the peer's ground truth of each real-time HIL run (``--truth``), one per rover recording
+    in ``inputs`` and paired with them in order (``given_pairs``); one path is the one-run case. Without
+    it, a lone real-time pair among the files is found by ``realtime_pairs``."""
     files, campaign = expand_inputs(inputs)
     if not files:
         raise ReportError(f"no recordings found in {', '.join(map(str, inputs))}")
-    if truth is not None and len(files) != 1:
-        raise ReportError(
-            f"--truth {truth} pairs with one rover recording (rover run's rover.mcap); {len(files)} given"
-        )
-    truths = {files[0]: Path(truth)} if truth is not None else ({} if campaign else realtime_pairs(files))
-    files = [path for path in files if path not in truths.values()]
+    truths = [Path(truth)] if isinstance(truth, str | Path) else [Path(t) for t in truth or ()]
+    if truths:
+        reads: list[tuple[Path, Path | None]] = list(given_pairs(inputs, files, truths))
+    else:
+        found = {} if campaign else realtime_pairs(files)
+        reads = [(path, found.get(path)) for path in files if path not in found.values()]
     out = Path(out_dir)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise ReportError(f"cannot create the report folder {out}: {err}") from err
     result = ReportResult(out / "report.html", out / "report.md", out / "report.json")
-    for path in files:
+    for path, paired_truth in reads:
         try:
-            run = analyse(path, truth=truths.get(path))
+            run = analyse(path, truth=paired_truth)
         except LogReadError as err:
             result.failed[str(path)] = str(err)
             logger.warning("skipped %s: %s", path, err)
@@ -170,6 +177,37 @@ def write_report(
     result.markdown.write_text(_markdown(result), encoding="utf-8")
     result.html.write_text(_html(result, plots), encoding="utf-8")
     return result
+
+
+def given_pairs(
+    inputs: Sequence[str | Path], files: Sequence[Path], truths: Sequence[Path]
+) -> list[tuple[Path, Path]]:
+    """Each rover recording given with its ``--truth``, in the order given. ``ReportError`` (nothing is
+    reported) naming what does not pair: a directory among ``inputs``, a count that differs, a truth
+    recorded while another of the rover recordings ran (``misplaced_truths``). A truth of no rover's run
+    at all, or a lockstep trial given with one, is found by ``read_paired`` and said in that run's part of
+    the report, as for one pair."""
+    directories = [str(item) for item in inputs if Path(item).is_dir()]
+    if directories:
+        raise ReportError(
+            f"--truth pairs with rover recordings given as files, in order; {', '.join(directories)} is a "
+            "directory, whose files' order says nothing about which truth is whose: give each rover "
+            "recording as a file, with its --truth"
+        )
+    if len(truths) != len(files):
+        given = ", ".join(f"--truth {path}" for path in truths)
+        raise ReportError(
+            f"{given}: each --truth pairs with one rover recording (rover run's rover.mcap), in the order "
+            f"given; {len(truths)} --truth and {len(files)} recordings given ({', '.join(map(str, files))})"
+        )
+    pairs = list(zip(files, truths, strict=True))
+    misplaced = misplaced_truths(pairs) if len(pairs) > 1 else []
+    if misplaced:
+        raise ReportError(
+            "; ".join(misplaced) + ": the --truth files pair with the rover recordings in the order given; "
+            "give them in that order"
+        )
+    return pairs
 
 
 def realtime_pairs(files: Sequence[Path]) -> dict[Path, Path]:

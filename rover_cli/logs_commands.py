@@ -42,8 +42,9 @@ def register(families: Any) -> None:
     report.add_argument(
         "--truth",
         type=Path,
-        help="the ground truth (truth.mcap of `rover hil peer`) of the one rover recording given: reported "
-        "as one real-time HIL run, merged by log time",
+        action="append",
+        help="the ground truth (truth.mcap of `rover hil peer`) of a rover recording given: reported with it "
+        "as one real-time HIL run, merged by log time; once per rover recording, paired in order",
     )
     report.set_defaults(handler=report_command)
 
@@ -141,7 +142,9 @@ def report_command(args: argparse.Namespace) -> int:
             )
         elif run.truth_path:
             why = "; ".join(p for p in run.metrics.problems if str(run.truth_path) in p)
-            console.print(f"[yellow]truth not merged[/yellow] {escape(why)}", soft_wrap=True)
+            console.print(
+                f"[yellow]truth not merged[/yellow] with {escape(run.path)}: {escape(why)}", soft_wrap=True
+            )
         if run.missing:
             console.print(f"[yellow]partial[/yellow] {escape(run.path)}: missing {', '.join(run.missing)}")
     console.print(f"report: {result.html}\n        {result.markdown}\n        {result.json}")

@@ -13,10 +13,13 @@ from logs.recorder import McapRecorder
 from logs.synthetic import synthetic_metadata, write_synthetic_trial
 
 
-def write_small_trial(path: Path, seconds: float = 4.0) -> Path:
-    """A synthetic trial of ``seconds`` with its scenario metadata, recorded to ``path``."""
+def write_small_trial(path: Path, seconds: float = 4.0, *, trial_mode: str | None = None) -> Path:
+    """A synthetic trial of ``seconds`` with its scenario metadata, recorded to ``path``; with
+    ``trial_mode`` also a ``trial`` record of that mode (``sim-lockstep``: as ``hil.trial`` writes it)."""
     with McapRecorder(path) as recorder:
         recorder.add_metadata("scenario", synthetic_metadata(seconds))
+        if trial_mode is not None:
+            recorder.add_metadata("trial", {"mode": trial_mode})
         write_synthetic_trial(recorder, seconds)
     return path
 

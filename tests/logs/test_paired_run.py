@@ -1,15 +1,11 @@
 """A real-time HIL run is two recordings (the rover's, the peer's truth): ``rover logs report`` reports it
-as one run measured on the truth, with the same figures as the same trial recorded in one file.
-
-The pair is made by splitting one synthetic trial the way the two processes record it: the rover's file
-without ``truth/*`` and without the scenario, the peer's file with only ``truth/*`` and the scenario,
-both on a monotonic clock that is far from zero. The peer also records before the rover starts and after
-it stops (standing, then pushed aside), which the merge must leave out.
+as one run measured on the truth, with the same figures as the same trial recorded in one file. The pair
+is made as ``tests.logs.realtime_pair`` says: split from one synthetic trial, with the peer's extra
+truth before the rover started and after it stopped.
 """
 
 from __future__ import annotations
 
-import copy
 import json
 from pathlib import Path
 
@@ -17,62 +13,11 @@ import pytest
 
 from hil.realtime_metrics import realtime_metrics
 from logs.analysis import analyse
-from logs.paired_run import TRUTH_TOPICS
-from logs.recorder import McapRecorder
 from logs.report import ReportError, write_report
-from logs.sink import Message
-from logs.synthetic import synthetic_metadata, synthetic_trial
-from logs.topics import TRUTH_POSE, stamp
+from logs.topics import TRUTH_POSE
 from rover_cli.main import main
-
-DURATION_S = 12.0
-BOOT_NS = 5_072_000_000_000  # the monotonic clock's reading when the rover started: ~1.4 h after boot
-PEER_EARLY_NS = 3_000_000_000  # the peer starts this long before the rover's first control tick
-PUSHED_M = 1.0  # after the rover stopped, its simulated body is moved aside: not part of the drive
-
-
-def _moved(message: Message, t_ns: int, x: float, y: float) -> Message:
-    """A copy of a ``truth/pose`` message at another time and place, standing still."""
-    moved = copy.deepcopy(message)
-    moved["timestamp"] = stamp(t_ns)
-    moved["pose"]["position"].update(x=x, y=y)
-    moved["speed_mps"] = 0.0
-    return moved
-
-
-def _write_pair(folder: Path, *, clock_offset_ns: int = BOOT_NS) -> tuple[Path, Path, Path]:
-    """(one-file reference, rover.mcap, truth.mcap) of the same synthetic trial."""
-    folder.mkdir(parents=True, exist_ok=True)
-    records = list(synthetic_trial(DURATION_S))
-    scenario = synthetic_metadata(DURATION_S) | {"name": "synthetic-rocky", "seed": "3"}
-    reference, rover, truth = folder / "lockstep.mcap", folder / "rover.mcap", folder / "truth.mcap"
-    with McapRecorder(reference) as recorder:
-        recorder.add_metadata("scenario", scenario)
-        for topic, t, message in records:
-            recorder.publish(topic, BOOT_NS + t, message)
-    with McapRecorder(rover) as recorder:
-        recorder.add_metadata("trial", {"mode": "rover-run", "config": "peer/rover-hil.toml"})
-        for topic, t, message in records:
-            if topic not in TRUTH_TOPICS:
-                recorder.publish(topic, BOOT_NS + t, message)
-    poses = [(t, m) for topic, t, m in records if topic == TRUTH_POSE]
-    first, last = poses[0][1], poses[-1][1]
-    start, end = first["pose"]["position"], last["pose"]["position"]
-    with McapRecorder(truth) as recorder:
-        recorder.add_metadata("scenario", scenario)
-        recorder.add_metadata("trial", {"mode": "sim-realtime-peer", "config": "<built-in defaults>"})
-        recorder.add_metadata("peer", {"mode": "sim-realtime-peer"})
-        for k in range(30):  # the peer waits for the rover, standing at the start
-            t = clock_offset_ns - PEER_EARLY_NS + k * 100_000_000
-            recorder.publish(TRUTH_POSE, t, _moved(first, t, start["x"], start["y"]))
-        for topic, t, message in records:
-            if topic in TRUTH_TOPICS:
-                recorder.publish(topic, clock_offset_ns + t, message)
-        end_ns = clock_offset_ns + records[-1][1]
-        for k in range(1, 11):  # after the rover stopped: pushed aside, 1 m over a second
-            t = end_ns + k * 100_000_000
-            recorder.publish(TRUTH_POSE, t, _moved(last, t, end["x"], end["y"] + PUSHED_M * k / 10))
-    return reference, rover, truth
+from tests.logs.realtime_pair import PEER_EARLY_NS
+from tests.logs.realtime_pair import write_pair as _write_pair
 
 
 def test_the_pair_reports_as_one_run_with_the_one_file_figures(tmp_path: Path) -> None:
