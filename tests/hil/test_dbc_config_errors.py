@@ -1,8 +1,11 @@
-"""``[vesc] dbc`` across processes: the peer hands it on to ``rover run``; a bad one stops every command."""
+"""``[vesc] dbc`` across processes: the peer hands it on to ``rover run``, which speaks it and records it;
+a bad one stops every command."""
 
 from __future__ import annotations
 
 import logging
+import os
+import threading
 from pathlib import Path
 
 import pytest
@@ -10,9 +13,14 @@ import pytest
 from hil.campaign import campaign_config
 from hil.peer_files import write_peer_files
 from hil.scenario import load_scenario
+from logs import topics
+from logs.clock import MonotonicClock
+from logs.reader import read_messages, read_metadata
 from navigator.config import load_rover_config
+from navigator.rover_process import run_rover
 from rover_cli.main import main
 from tests.firmware_bridge.swapped_dbc import SWAPPED_IDS, swapped_dbc_text, without_message
+from tests.runtime.run_config import rover_run_config
 
 SCENARIO = Path(__file__).resolve().parents[1] / "data" / "small_rocky.toml"
 
@@ -74,3 +82,21 @@ def test_a_campaign_variant_reads_the_base_configs_dbc_from_the_base_configs_fol
     variant = campaign_config(base, {"planner": {"cost_mode": "classical"}}, "rocky/classical/seed1")
     assert variant.vesc.dbc_path == tmp_path / "site" / "profiles" / "team.dbc"
     assert variant.source.endswith("+ overrides of rocky/classical/seed1")
+
+
+def test_rover_run_speaks_the_dbc_and_its_recording_names_it(tmp_path):
+    config_path = _config(tmp_path, swapped_dbc_text())
+    vesc = config_path.read_text(encoding="utf-8")
+    config_path.write_text(rover_run_config("dbctest", f"dbctest-{os.getpid()}") + vesc, encoding="utf-8")
+    config = load_rover_config(config_path)
+    out = tmp_path / "run"
+
+    def broken_wait(timeout_s: float) -> None:  # ends the run at its first wait: the zeros still go out
+        raise OSError("stop here")
+
+    with pytest.raises(OSError, match="stop here"):
+        run_rover(config, MonotonicClock(), out, stop=threading.Event(), wait=broken_wait, telemetry=False)
+    recording = out / "rover.mcap"
+    assert read_metadata(recording)["trial"]["vesc_dbc"] == str(tmp_path / "profiles" / "team.dbc")
+    sent = {m.message["id"] for m in read_messages(recording, topics=[topics.CAN_FRAMES])}
+    assert sent == {(3 << 8) | cid for cid in SWAPPED_IDS}  # SET_RPM zeros to the profile's controllers
