@@ -18,7 +18,7 @@ import can
 from firmware_bridge.can_bus import CanConfig
 from firmware_bridge.can_link import CanLink
 from firmware_bridge.vesc import VescCodec, VescProfile
-from firmware_bridge.vesc_dbc import DEFAULT_CONTROLLER_IDS, MESSAGES_BY_KIND, frame_id, load_vesc_database
+from firmware_bridge.vesc_dbc import DEFAULT_CONTROLLER_IDS, MESSAGES_BY_KIND, frame_id
 from logs.clock import SimClock
 from logs.sink import NullSink
 
@@ -99,7 +99,7 @@ def _time_rounds(name: str, rounds: int, one_round: object) -> RoundFigures:
 
 def run_can_bench(rounds: int = 20_000) -> CanBenchResult:
     profile = VescProfile(DEFAULT_CONTROLLER_IDS, 7, 20.0, 0.11)
-    codec = VescCodec(load_vesc_database(), profile)
+    codec = VescCodec.for_profile(profile)
     tx, rx = _bus_pair()
     try:
         set_rpm_id = frame_id(MESSAGES_BY_KIND["SET_RPM"].command_id, 1)

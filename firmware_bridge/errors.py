@@ -11,6 +11,11 @@ class BridgeSetupError(BridgeError):
     """A link could not be opened or configured (bad DBC, unknown interface, refused address...)."""
 
 
+class DbcProfileError(BridgeSetupError):
+    """A DBC file given in place of the shipped one (``[vesc] dbc``) is unreadable, not a DBC, or lacks a
+    message, id format or signal the VESC codec needs; the message names the file and what is wrong."""
+
+
 class BridgeOperationError(BridgeError):
     """A link was open but an operation on it failed."""
 

@@ -5,18 +5,20 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 
 import can
 import cantools
 import cantools.database
 
-from firmware_bridge.errors import BridgeOperationError, BridgeSetupError, FrameError
+from firmware_bridge.errors import BridgeOperationError, BridgeSetupError, DbcProfileError, FrameError
 from firmware_bridge.frame_packer import FramePacker
 from firmware_bridge.vesc_dbc import (
     BROADCAST_NOTE,
     DEFAULT_CONTROLLER_IDS,
     MAX_CONTROLLER_ID,
     VESC_MESSAGES,
+    load_vesc_database,
     message_name,
 )
 from logs.settings import Table
@@ -33,12 +35,15 @@ class VescProfile:
 
     ERPM = motor mechanical RPM x pole pairs; motor RPM = wheel RPM x gear ratio;
     wheel RPM = surface speed / (2 pi r) x 60.
+    ``dbc_path``: the team's own DBC file the controllers' protocol is read from (``[vesc] dbc``); None:
+    the shipped one (generated for ids other than 1..6).
     """
 
     controller_ids: tuple[int, ...]
     pole_pairs: int
     gear_ratio: float
     wheel_radius_m: float
+    dbc_path: Path | None = None
 
     def __post_init__(self) -> None:
         ids = self.controller_ids
@@ -70,8 +75,13 @@ class VescProfile:
         return erpm / self.erpm_per_mps
 
     @classmethod
-    def from_table(cls, table: Table, wheel_radius_m: float) -> VescProfile:
-        """Keys: controller_ids (6 distinct ints 0..254, default 1..6), pole_pairs (7), gear_ratio (20.0)."""
+    def from_table(cls, table: Table, wheel_radius_m: float, base_dir: Path | None = None) -> VescProfile:
+        """Keys: controller_ids (6 distinct ints 0..254, default 1..6), pole_pairs (7), gear_ratio (20.0),
+        dbc (a DBC file, relative to ``base_dir``, the config file's folder, or to the current directory
+        without one; default "": the shipped DBC).
+
+        A ``dbc`` file is loaded and checked here, so a config that names an unusable one is refused with
+        the rest of the config, before anything runs."""
         ids = table.integers("controller_ids", list(DEFAULT_CONTROLLER_IDS), length=WHEEL_COUNT)
         if len(set(ids)) != WHEEL_COUNT:
             raise table.error("controller_ids", f"ids must be distinct, got {ids}")
@@ -81,8 +91,17 @@ class VescProfile:
             )
         pole_pairs = table.integer("pole_pairs", 7, lo=1)
         gear_ratio = table.number("gear_ratio", 20.0, lo=1e-6)
+        # Read even when absent, so a misspelt key is told about this one; "" is the default too.
+        written = table.text("dbc", "")
+        # Absolute: the codecs built later, and a recording's config record, must not depend on the cwd.
+        dbc_path = table.file_path("dbc", base_dir or Path(), "DBC file").absolute() if written else None
         table.finish()
-        return cls(tuple(ids), pole_pairs, gear_ratio, wheel_radius_m)
+        if dbc_path is not None:
+            try:
+                load_vesc_database(ids, dbc_path)
+            except DbcProfileError as err:
+                raise table.error("dbc", str(err)) from err
+        return cls(tuple(ids), pole_pairs, gear_ratio, wheel_radius_m, dbc_path)
 
 
 def erpm_command(erpm: float) -> int:
@@ -112,6 +131,12 @@ class VescCodec:
     no bit pattern cantools would refuse, so both decoders give the same numbers (a test compares them on
     random payloads).
     """
+
+    @classmethod
+    def for_profile(cls, profile: VescProfile) -> VescCodec:
+        """The codec over the profile's DBC (its ``dbc_path``, or the shipped one): how the rover, the
+        simulated controllers and the benches all build theirs, so each speaks the configured protocol."""
+        return cls(load_vesc_database(profile.controller_ids, profile.dbc_path), profile)
 
     def __init__(self, database: cantools.database.can.Database, profile: VescProfile) -> None:
         self.database = database

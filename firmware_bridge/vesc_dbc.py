@@ -3,6 +3,11 @@
 Facts from the VESC firmware documentation (see ../shared/reference/vesc_can.md): 29-bit extended ids
 ``(command_id << 8) | controller_id``, big-endian signed fields, value = raw / scale. The shipped
 ``vesc_6wheel.dbc`` is ``generate_dbc(DEFAULT_CONTROLLER_IDS)``; a test keeps the two identical.
+
+A team whose controllers run other firmware swaps in its own DBC (``[vesc] dbc``): ``load_vesc_database``
+loads it instead and ``check_vesc_database`` refuses it, before anything runs, unless it has what the codec
+looks up by name (``VescCodec``): every message of ``VESC_MESSAGES`` for every controller id, with a 29-bit
+id and exactly the signals named here. Layout, scaling, byte order, lengths and command ids are the file's.
 """
 
 from __future__ import annotations
@@ -11,11 +16,12 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from decimal import ROUND_DOWN, Context, Decimal
 from importlib import resources
+from pathlib import Path
 
 import cantools
 import cantools.database
 
-from firmware_bridge.errors import BridgeSetupError
+from firmware_bridge.errors import BridgeSetupError, DbcProfileError
 
 DEFAULT_CONTROLLER_IDS: tuple[int, ...] = (1, 2, 3, 4, 5, 6)
 SHIPPED_DBC_NAME = "vesc_6wheel.dbc"
@@ -183,15 +189,21 @@ def generate_dbc(controller_ids: Sequence[int]) -> str:
 
 
 def load_vesc_database(
-    controller_ids: Sequence[int] = DEFAULT_CONTROLLER_IDS,
+    controller_ids: Sequence[int] = DEFAULT_CONTROLLER_IDS, dbc_path: Path | None = None
 ) -> cantools.database.can.Database:
-    """The cantools database for these controllers: the shipped file for the default ids."""
+    """The cantools database for these controllers: the file at ``dbc_path`` when given (checked with
+    ``check_vesc_database``; ``DbcProfileError`` if it is unusable), else the shipped file for the default
+    ids and a generated one for others."""
     _check_ids(controller_ids)
+    if dbc_path is not None:
+        team_database = _load_dbc_file(dbc_path)
+        check_vesc_database(team_database, controller_ids, str(dbc_path))
+        return team_database
     try:
         if tuple(controller_ids) == DEFAULT_CONTROLLER_IDS:
             path = resources.files("firmware_bridge").joinpath(SHIPPED_DBC_NAME)
-            with resources.as_file(path) as dbc_path:
-                database = cantools.database.load_file(str(dbc_path), database_format="dbc")
+            with resources.as_file(path) as shipped_path:
+                database = cantools.database.load_file(str(shipped_path), database_format="dbc")
         else:
             database = cantools.database.load_string(generate_dbc(controller_ids), database_format="dbc")
     except (cantools.database.UnsupportedDatabaseFormatError, cantools.database.Error, OSError) as err:
@@ -202,3 +214,75 @@ def load_vesc_database(
     if not isinstance(database, cantools.database.can.Database):
         raise BridgeSetupError("the VESC DBC did not load as a CAN database")
     return database
+
+
+def _load_dbc_file(path: Path) -> cantools.database.can.Database:
+    """A team's DBC file, loaded strictly as DBC (no guessing the format from the suffix)."""
+    try:
+        database = cantools.database.load_file(str(path), database_format="dbc")
+    except OSError as err:
+        raise DbcProfileError(f"VESC DBC {path}: cannot read the file: {err.strerror or err}") from err
+    # What cantools raises on text that is not a DBC it accepts (its parser, its strict signal checks), and
+    # a decoder error on bytes that are not text at all.
+    except (cantools.database.Error, UnicodeDecodeError, ValueError, KeyError, IndexError) as err:
+        problem = " ".join(str(err).split())  # its parse errors quote the line: keep the report on one
+        raise DbcProfileError(f"VESC DBC {path}: not a DBC file cantools can load: {problem}") from err
+    if not isinstance(database, cantools.database.can.Database):
+        raise DbcProfileError(f"VESC DBC {path}: did not load as a CAN database")
+    return database
+
+
+def check_vesc_database(
+    database: cantools.database.can.Database, controller_ids: Sequence[int], source: str
+) -> None:
+    """Refuse (``DbcProfileError`` naming ``source``, the message and what is wrong) a database the codec
+    cannot run on: for every controller id, every ``VESC_MESSAGES`` kind as ``VESC_<KIND>_C<id>`` with a
+    29-bit id of its own, not multiplexed, holding exactly the signals named there."""
+    owner_by_id: dict[int, str] = {}
+    for cid in controller_ids:
+        for spec in VESC_MESSAGES:
+            name = message_name(spec.kind, cid)
+            try:
+                message = database.get_message_by_name(name)
+            except KeyError:
+                raise DbcProfileError(
+                    f"VESC DBC {source}: no message {name} (the {spec.kind} frame of controller {cid}); the "
+                    f"stack looks up VESC_<KIND>_C<id> for every id in [vesc] controller_ids "
+                    f"{list(controller_ids)}"
+                ) from None
+            if not message.is_extended_frame:
+                raise DbcProfileError(
+                    f"VESC DBC {source}: {name} has the standard 11-bit id 0x{message.frame_id:03x}; VESC "
+                    "frames use 29-bit extended ids (in a DBC file: the id with bit 31 set, 0x80000000)"
+                )
+            if message.is_multiplexed() or message.is_container:
+                raise DbcProfileError(
+                    f"VESC DBC {source}: {name} is multiplexed; the codec reads plain frames"
+                )
+            _check_signals(message, spec, source)
+            owner = owner_by_id.setdefault(message.frame_id, name)
+            if owner != name:
+                raise DbcProfileError(
+                    f"VESC DBC {source}: {name} and {owner} share the id 0x{message.frame_id:08x}; the codec "
+                    "tells received frames apart by id"
+                )
+
+
+def _check_signals(message: cantools.database.can.Message, spec: VescMessage, source: str) -> None:
+    """Exactly the signals ``spec`` names: the stack reads them by name, and encodes every signal of a
+    message (SET_RPM on the rover, the status frames in the simulated controllers), so one more is a
+    value nobody supplies."""
+    wanted = [signal.name for signal in spec.signals]
+    present = {signal.name for signal in message.signals}
+    missing = [name for name in wanted if name not in present]
+    if missing:
+        raise DbcProfileError(
+            f"VESC DBC {source}: {message.name} has no signal {missing[0]!r} (the stack needs "
+            f"{', '.join(wanted)})"
+        )
+    extra = sorted(present.difference(wanted))
+    if extra:
+        raise DbcProfileError(
+            f"VESC DBC {source}: {message.name} has a signal {extra[0]!r} the stack does not know; it "
+            f"encodes every signal of a message, so {spec.kind} may hold only {', '.join(wanted)}"
+        )

@@ -195,13 +195,12 @@ def time_trial(
 def time_world_only(scenario: Scenario, config: RoverConfig, simulated_s: float) -> PeerFigure:
     """The simulated world and peers alone for ``simulated_s``, with nobody on the rover's side."""
     from firmware_bridge.vesc import VescCodec
-    from firmware_bridge.vesc_dbc import load_vesc_database
     from hil.world import SimWorld
 
     clock = SimClock()
     dt_s = seconds(PHYSICS_DT_NS)
     with lockstep_wires(config.can, clock=clock) as wires:
-        codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
+        codec = VescCodec.for_profile(config.vesc)
         with SimWorld(
             scenario,
             config.vehicle,

@@ -21,7 +21,6 @@ import numpy as np
 from firmware_bridge.can_link import CanConfig, open_bus
 from firmware_bridge.mavlink_transport import Transport, UdpTransport
 from firmware_bridge.vesc import VescCodec
-from firmware_bridge.vesc_dbc import load_vesc_database
 from hil.autopilot_sim import AutopilotTruth, SimAutopilot
 from hil.dynamics import RoverDynamics
 from hil.jitter_trace import ImuSendLog
@@ -53,7 +52,7 @@ def run_sim_rover(
     clock = MonotonicClock()
     sample_clock = StepClock(clock.now_ns())
     bus = open_bus(bus_config)
-    codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
+    codec = VescCodec.for_profile(config.vesc)
     vescs = SimVescBank(bus, codec, clock)
     udp = UdpTransport("udpout", "127.0.0.1", mavlink_port)
     send_log = ImuSendLog(udp) if trace_path is not None else None

@@ -226,7 +226,9 @@ def campaign_config(config_path: Path | None, overrides: dict[str, Any], where: 
         source = str(config_path)
     merged = _merged(copy.deepcopy(data), overrides)
     label = source if not overrides else f"{source} + overrides of {where}"
-    return rover_config_from_table(Table(merged, label, ""))
+    # Files the config names are relative to its folder: the label is no path once overrides are in it.
+    base_dir = Path() if config_path is None else config_path.parent
+    return rover_config_from_table(Table(merged, label, ""), base_dir)
 
 
 def _merged(base: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:

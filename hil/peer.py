@@ -36,7 +36,6 @@ from firmware_bridge.can_bus import CanConfig, open_bus
 from firmware_bridge.errors import BridgeSetupError
 from firmware_bridge.mavlink_transport import Transport, UdpTransport, open_transport
 from firmware_bridge.vesc import VescCodec
-from firmware_bridge.vesc_dbc import load_vesc_database
 from hil.peer_files import write_peer_files
 from hil.peer_stalls import PeerStalls, stall_message
 from hil.scenario import Scenario
@@ -208,7 +207,7 @@ def run_peer(
     mcap_path = out_dir / "truth.mcap"
     with McapRecorder(mcap_path) as recorder:
         write_peer_header(recorder, scenario, config, seed)
-        codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
+        codec = VescCodec.for_profile(config.vesc)
         step_clock = StepClock(clock.now_ns())
         with SimWorld(scenario, config.vehicle, codec, step_clock, can_bus, mavlink, recorder, seed) as world:
             world.announce_bus_off(can_bus)  # the rover's controller is in another process: tell it

@@ -3,9 +3,11 @@
 The onboard stack must plan on what the rover *believes* (the scenario's terrain with its known obstacles,
 as in lockstep) and georeference GPS on the scenario's datum; ``rover run`` gets both only through its
 config. So the peer writes ``map/{elevation,classes,obstacles}.npy`` and ``rover-hil.toml``: the CAN bus
-the peer is on, ``udpout:127.0.0.1:PORT`` to its autopilot, the datum, the map, Zenoh off. Every other
-table is left at the built-in defaults (the ones the peer simulates when it has no ``--config``); with a
-custom vehicle, add its tables to the file.
+the peer is on, ``udpout:127.0.0.1:PORT`` to its autopilot, the datum, the map, Zenoh off, and the
+``[vesc]`` table its simulated controllers speak (ids, drivetrain, and a swapped-in DBC as an absolute
+path, so it reads the same from the peer's folder or wherever the file is copied). Every other table is
+left at the built-in defaults (the ones the peer simulates when it has no ``--config``); with a custom
+vehicle, add its tables to the file.
 """
 
 from __future__ import annotations
@@ -45,6 +47,7 @@ def write_peer_files(out_dir: Path, scenario: Scenario, config: RoverConfig, mav
         f"interface = {json.dumps(config.can.interface)}",
         f"channel = {json.dumps(config.can.channel)}",
         "",
+        *_vesc_lines(config),
         "[mavlink]",
         f'connection = "udpout:127.0.0.1:{mavlink_port}"',
         "",
@@ -68,3 +71,18 @@ def write_peer_files(out_dir: Path, scenario: Scenario, config: RoverConfig, mav
     path = out_dir / ROVER_CONFIG_NAME
     path.write_text("\n".join(lines), encoding="utf-8")
     return path
+
+
+def _vesc_lines(config: RoverConfig) -> list[str]:
+    """``[vesc]`` as the simulated controllers run it: the rover must address the same ids in the same
+    protocol, or it hears none of them."""
+    vesc = config.vesc
+    lines = [
+        "[vesc]",
+        f"controller_ids = [{', '.join(map(str, vesc.controller_ids))}]",
+        f"pole_pairs = {vesc.pole_pairs}",
+        f"gear_ratio = {vesc.gear_ratio!r}",
+    ]
+    if vesc.dbc_path is not None:
+        lines.append(f"dbc = {json.dumps(str(vesc.dbc_path.absolute()))}")
+    return [*lines, ""]

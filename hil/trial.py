@@ -29,7 +29,6 @@ from firmware_bridge.can_link import CanLink
 from firmware_bridge.mavlink_link import MavlinkLink
 from firmware_bridge.mavlink_transport import Transport
 from firmware_bridge.vesc import VescCodec
-from firmware_bridge.vesc_dbc import load_vesc_database
 from hil.campaign_place import CampaignPlace
 from hil.config_record import effective_config, flattened
 from hil.fault_coverage import park_until_ns, unexercised_faults
@@ -122,7 +121,7 @@ def run_trial(
             recording_logs(sink, clock),
             lockstep_wires(config.can, clock=clock, can_backend=can_backend) as wires,
         ):
-            codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
+            codec = VescCodec.for_profile(config.vesc)
             with SimWorld(
                 scenario, config.vehicle, codec, clock, wires.sim_bus, wires.sim_mavlink, sink, seed
             ) as world:
@@ -288,8 +287,8 @@ def write_header(
     mode: str = "sim-lockstep",
     campaign: CampaignPlace | None = None,
 ) -> None:
-    """Metadata (scenario, trial, config) and attachments (scenario, config) that make a recording
-    self-describing."""
+    """Metadata (scenario, trial, config) and attachments (scenario, map, config, a swapped-in VESC DBC)
+    that make a recording self-describing."""
     obstacles = [{"id": o.id, "x": o.x, "y": o.y, "radius": o.radius_m} for o in scenario.obstacles]
     moving = [
         {
@@ -347,6 +346,21 @@ def write_header(
     # not travel with them (config.effective.json has every other value, the key redacted).
     if config_path.is_file() and not config.mavlink.signing_key:
         recorder.add_attachment("config.toml", "application/toml", config_path.read_bytes(), 0)
+    _attach_dbc(recorder, config)
+
+
+def _attach_dbc(recorder: McapRecorder, config: RoverConfig) -> None:
+    """A swapped-in controller DBC (``[vesc] dbc``), as the file read: ``vesc.dbc_path`` in the config
+    record says where it was, this says what it said. The shipped DBC is not attached: it is the code's."""
+    dbc_path = config.vesc.dbc_path
+    if dbc_path is None:
+        return
+    try:
+        data = dbc_path.read_bytes()
+    except OSError as err:  # it loaded when the config did; gone since: the record still names it
+        _log.warning("cannot attach the VESC DBC %s to the recording: %s", dbc_path, err)
+        return
+    recorder.add_attachment("vesc.dbc", "text/plain", data, 0)
 
 
 def _map_archive(scenario: Scenario) -> bytes:

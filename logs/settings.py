@@ -169,6 +169,26 @@ class Table:
             raise self.error(key, "expected an array of tables ([[...]])")
         return [Table(v, self.source, f"{self.key_path(key)}[{i}]") for i, v in enumerate(value)]
 
+    def file_path(self, key: str, base_dir: Path, what: str) -> Path:
+        """The existing file ``key`` names, read relative to ``base_dir`` (the folder of the file the table
+        is in). A file that is not there is an error saying where it was looked for, and, when the path
+        exists from the current directory instead, that this is the mix-up: a person writes the path from
+        where they stand, not from the config's folder. ``what`` names the file in that error."""
+        written = self.text(key)
+        path = base_dir / written
+        if path.exists():
+            return path
+        problem = (
+            f"{what} {written!r} not found: a relative path is read from the folder of "
+            f"{self.source} ({base_dir.resolve()}), which gives {path}"
+        )
+        if not Path(written).is_absolute() and Path(written).exists():
+            problem += (
+                f"; {written!r} exists from the current directory ({Path(written).resolve()}): write that "
+                "absolute path, or one relative to the config's folder"
+            )
+        raise self.error(key, problem)
+
     def raw(self, key: str, default: Any = None) -> Any:
         """The value as TOML gave it, for callers that validate it themselves."""
         return self._raw(key, _REQUIRED if default is None else default)

@@ -116,7 +116,10 @@ def load_rover_config(path: str | Path) -> RoverConfig:
     return rover_config_from_table(load_toml(path))
 
 
-def rover_config_from_table(root: Table) -> RoverConfig:
+def rover_config_from_table(root: Table, base_dir: Path | None = None) -> RoverConfig:
+    """The config a root table describes; files it names (``[map]`` layers, ``[vesc] dbc``) are read
+    relative to ``base_dir``, by default the folder of ``root.source`` (the file the table came from)."""
+    base_dir = Path(root.source).parent if base_dir is None else base_dir
     rover_id = root.text("rover_id", "rover1")
     if not rover_id or not all(c.isalnum() or c in "-_" for c in rover_id):
         raise root.error(
@@ -138,7 +141,9 @@ def rover_config_from_table(root: Table) -> RoverConfig:
         "phase_late_wait_ms", min(DEFAULT_PHASE_LATE_WAIT_MS, half_period_ms), lo=0.0, hi=half_period_ms
     )
     vehicle = VehicleParams.from_table(root.table("vehicle", optional=True))
-    vesc = VescProfile.from_table(root.table("vesc", optional=True), wheel_radius_m=vehicle.wheel_radius_m)
+    vesc = VescProfile.from_table(
+        root.table("vesc", optional=True), wheel_radius_m=vehicle.wheel_radius_m, base_dir=base_dir
+    )
     estimator_table = root.table("estimator", optional=True)
     for key in _VEHICLE_KINEMATICS:
         # Read here, these would be silently replaced by the vehicle's values below: refuse them instead.
@@ -165,9 +170,7 @@ def rover_config_from_table(root: Table) -> RoverConfig:
         control_loop=control_loop,
         phase_offset_ms=phase_offset_ms,
         phase_late_wait_ms=phase_late_wait_ms,
-        terrain=(
-            terrain_from_table(root.table("map"), Path(root.source).parent)[0] if root.has("map") else None
-        ),
+        terrain=(terrain_from_table(root.table("map"), base_dir)[0] if root.has("map") else None),
         source=root.source,
     )
     root.finish()

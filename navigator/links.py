@@ -15,7 +15,6 @@ from firmware_bridge.mavlink_link import MavlinkLink, signing_key_bytes
 from firmware_bridge.mavlink_stream import TcpTransport
 from firmware_bridge.mavlink_transport import Transport, UdpTransport, open_transport
 from firmware_bridge.vesc import VescCodec
-from firmware_bridge.vesc_dbc import load_vesc_database
 from logs.clock import Clock
 from logs.sink import MessageSink
 from navigator.config import RoverConfig
@@ -41,7 +40,7 @@ class RoverLinks:
 
 def open_links(config: RoverConfig, clock: Clock, sink: MessageSink) -> RoverLinks:
     """Open CAN first, then MAVLink; if MAVLink fails the CAN bus is shut again."""
-    codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
+    codec = VescCodec.for_profile(config.vesc)
     bus = open_bus(config.can)
     can_link = CanLink(bus, codec, clock, sink)
     try:

@@ -103,26 +103,8 @@ def _png_terrain(table: Table, base_dir: Path) -> TerrainMap:
 
 
 def _layer_path(table: Table, key: str, base_dir: Path) -> Path | None:
-    """The layer file ``key`` names, read relative to ``base_dir`` (the folder of the file the table is in);
-    None if the key is absent. A file that is not there is a ``ConfigError`` saying where it was looked
-    for, and, when the path exists from the current directory instead, that this is the mix-up: a person
-    writes the path from where they stand, not from the config's folder."""
-    if not table.has(key):
-        return None
-    written = table.text(key)
-    path = base_dir / written
-    if path.exists():
-        return path
-    problem = (
-        f"{key} layer file {written!r} not found: a relative path is read from the folder of "
-        f"{table.source} ({base_dir.resolve()}), which gives {path}"
-    )
-    if not Path(written).is_absolute() and Path(written).exists():
-        problem += (
-            f"; {written!r} exists from the current directory ({Path(written).resolve()}): write that "
-            "absolute path, or one relative to the config's folder"
-        )
-    raise table.error(key, problem)
+    """The layer file ``key`` names, relative to ``base_dir`` (``Table.file_path``); None if absent."""
+    return table.file_path(key, base_dir, f"{key} layer file") if table.has(key) else None
 
 
 def _class_id(table: Table, key: str, default: str) -> int:

@@ -204,15 +204,15 @@ def _open_recording(
     except RecordingError as err:
         raise RoverSetupError(f"{err} (--out)") from err
     # can_bitrate: the report's bus load for frames counted from the recording (as hil.trial writes it)
-    recorder.add_metadata(
-        "trial",
-        {
-            "mode": "rover-run",
-            "rover_id": config.rover_id,
-            "config": config.source,
-            "can_bitrate": str(config.can.bitrate),
-        },
-    )
+    trial = {
+        "mode": "rover-run",
+        "rover_id": config.rover_id,
+        "config": config.source,
+        "can_bitrate": str(config.can.bitrate),
+    }
+    if config.vesc.dbc_path is not None:  # a swapped-in controller DBC: which protocol the frames are in
+        trial["vesc_dbc"] = str(config.vesc.dbc_path)
+    recorder.add_metadata("trial", trial)
     # The date of log time 0 is otherwise unknown (the clock is monotonic): .asc/.trc exports need it.
     recorder.add_metadata(WALL_CLOCK_METADATA, take_anchor(clock, wall_ns).as_metadata())
     return recorder

@@ -172,7 +172,6 @@ def _full_stack(run: StackRun) -> dict[str, Any]:
     from firmware_bridge.mavlink_link import MavlinkLink
     from firmware_bridge.mavlink_transport import UdpTransport
     from firmware_bridge.vesc import VescCodec
-    from firmware_bridge.vesc_dbc import load_vesc_database
     from hil.bench_rover import DATUM, run_sim_rover
     from hil.hardware_priority import raise_to_fifo
     from hil.jitter_trace import RoverTrace, breakdown
@@ -232,7 +231,7 @@ def _full_stack(run: StackRun) -> dict[str, Any]:
         sink: MessageSink = recorder if publisher is None else FanoutSink([recorder, publisher])
         deferred = deferred_sink(sink)
         mavlink_transport = UdpTransport("udpin", "127.0.0.1", 0)
-        codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
+        codec = VescCodec.for_profile(config.vesc)
         can_link = CanLink(open_bus(bus_config), codec, clock, deferred)
         mavlink = MavlinkLink(mavlink_transport, clock, deferred)
         planning = plan_worker()

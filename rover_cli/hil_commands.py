@@ -114,6 +114,7 @@ def _usable_out_dir(path: Path) -> str | None:
 
 def run_trial_command(args: argparse.Namespace) -> int:
     """Exit 0: the scenario's success criteria held; 1: they failed (each reason printed); 2: bad input."""
+    from firmware_bridge.errors import BridgeSetupError
     from hil.scenario import load_scenario
     from hil.start_clearance import check_start_clear
     from hil.trial import run_trial
@@ -149,6 +150,9 @@ def run_trial_command(args: argparse.Namespace) -> int:
             result = run_trial(scenario, config, out_dir, seed=seed, telemetry=live)
     except TelemetrySetupError as err:
         print_error(console, err, f"{config.source}: telemetry")
+        return 2
+    except BridgeSetupError as err:  # e.g. the [vesc] dbc file changed since the config was loaded
+        print_error(console, err, config.source)
         return 2
     finally:
         if telemetry is not None:
