@@ -15,7 +15,9 @@ so the plan is there within the same tick. Obstacles seen on the way come in thr
   little more than the detour (``navigator.replanning``) and costs the same as a fresh plan;
 * a *moving* obstacle is tracked (latest observation per id); if its constant-velocity prediction comes
   within clearance of the path ahead within ``moving_horizon_s``, the rover stops (mode ``BLOCKED``) until
-  the way has stayed clear for ``moving_clear_s``.
+  the way has stayed clear for ``moving_clear_s``. While stopped so, if an obstacle's predicted track
+  reaches the rover's own footprint (it stands in the obstacle's lane), it backs off, bounded (mode
+  ``YIELDING``, ``navigator.yielding``), then holds as ``BLOCKED``.
 
 Speed limits on top of the follower's (curvature, goal approach): the slope under the rover, the terrain
 class, and the predicted tip-over margin: on a side slope of roll ``r`` the lateral acceleration ``v^2 k``
@@ -35,6 +37,7 @@ import numpy as np
 from navigator.config import PlannerConfig
 from navigator.errors import ParameterError
 from navigator.follower import FollowCommand, FollowerConfig, PurePursuit
+from navigator.footprint import Footprint
 from navigator.perception import ObstacleObservation
 from navigator.plan_worker import InlineExecutor, PlanOutcome, PlanRequest, in_range, run_plan_request
 from navigator.planner import Path, Planner
@@ -42,6 +45,7 @@ from navigator.stanley import Stanley
 from navigator.terrain import TerrainMap
 from navigator.terrain_classes import TERRAIN_CLASSES, TerrainClass
 from navigator.vehicle import G, VehicleParams
+from navigator.yielding import YIELD_SPEED_MPS, BackOff, BackOffStep, predicted_track
 
 _log = logging.getLogger(__name__)
 
@@ -51,6 +55,7 @@ ARRIVED = "ARRIVED"
 NO_PATH = "NO_PATH"
 BLOCKED = "BLOCKED"
 PLANNING = "PLANNING"  # a goal, no path yet: the first plan is being made (wheels held)
+YIELDING = "YIELDING"  # backing off out of a moving obstacle's predicted track (navigator.yielding)
 
 REASON_SLOPE = "slope"
 REASON_TERRAIN = "terrain_class"
@@ -60,7 +65,6 @@ REASON_STOPPED = "stopped"
 
 # A rover further than this off its path replans from where it is (it was pushed, slid or mis-estimated).
 REPLAN_CROSS_TRACK_M = 2.0
-_PREDICTION_STEP_S = 0.25
 
 
 @dataclass(frozen=True)
@@ -134,6 +138,10 @@ class Guidance:
         # once clear for 0.34 s, the rover started, and it was BLOCKED again for 0.24 s.
         self._clear_since_ns: int | None = None
         self._clear_hold_ns = round(planner_config.moving_clear_s * 1e9)
+        # Stopped in a moving obstacle's way is not safe: the back-off of the current wait.
+        self._back_off = BackOff(
+            Footprint.of(params), planner_config.inflation_m, planner_config.moving_horizon_s
+        )
         self._last_xy: tuple[float, float] | None = None
         self.replans = 0
         self.repairs_kept = 0
@@ -152,7 +160,8 @@ class Guidance:
 
     @property
     def blocker(self) -> str | None:
-        """Id of the moving obstacle predicted on the path while the mode is ``BLOCKED``, else None."""
+        """Id of the moving obstacle predicted on the path while the mode is ``BLOCKED`` or ``YIELDING``,
+        else None."""
         return self._blocker
 
     def set_goal(self, x: float, y: float) -> None:
@@ -165,6 +174,7 @@ class Guidance:
         self._mode = DRIVING
         self._blocker = None
         self._clear_since_ns = None
+        self._back_off.reset()
         self._follower.reset()
 
     @property
@@ -230,17 +240,17 @@ class Guidance:
         if blocker is not None:
             if self._blocker is None:
                 self._blocked_at_speed = abs(speed)
+                self._back_off.reset()
             if blocker != self._blocker:
                 detail = _joined([detail, f"moving obstacle {blocker} predicted on the path"])
-            self._mode, self._blocker = BLOCKED, blocker
-            return GuidanceOutput(
-                0.0, 0.0, BLOCKED, command.cross_track_error_m, 0.0, REASON_MOVING_OBSTACLE, self._path,
-                path_changed, False, detail,
-            )  # fmt: skip
+            self._blocker = blocker
+            step = self._back_off.step(t_ns, (x, y, yaw), self._moving, self.planner.terrain)
+            return self._waiting(step, command.cross_track_error_m, path_changed, detail)
         if self._blocker is not None:
             detail = _joined([detail, f"way clear: moving obstacle {self._blocker} no longer on the path"])
             self._blocker = None
             self._clear_since_ns = None
+            self._back_off.reset()
         self._mode = DRIVING
         return self._limited(command, x, y, yaw, path_changed, detail)
 
@@ -315,15 +325,25 @@ class Guidance:
             if travelled > reach:
                 break
         corridor = np.array(ahead)
-        steps = np.arange(0.0, self._config.moving_horizon_s + 1e-9, _PREDICTION_STEP_S)
         for obstacle_id, obs in sorted(self._moving.items()):
-            age_s = max(0.0, (t_ns - obs.t_ns) * 1e-9)
-            xs = obs.x + obs.vx * (age_s + steps)
-            ys = obs.y + obs.vy * (age_s + steps)
+            track = predicted_track(obs, t_ns, self._config.moving_horizon_s)
+            xs, ys = track[:, 0], track[:, 1]
             gaps = np.hypot(corridor[:, 0][:, None] - xs[None, :], corridor[:, 1][:, None] - ys[None, :])
             if float(gaps.min()) < obs.radius_m + self._clearance_m:
                 return obstacle_id
         return None
+
+    def _waiting(
+        self, step: BackOffStep, cross_track_m: float, path_changed: bool, detail: str
+    ) -> GuidanceOutput:
+        """The command while a moving obstacle holds the rover: straight back (no yaw rate: the way it
+        came) or, failing that, straight on while the back-off says so, else standing still."""
+        self._mode = YIELDING if step.moving else BLOCKED
+        limit = YIELD_SPEED_MPS if step.moving else 0.0
+        return GuidanceOutput(
+            step.speed_mps, 0.0, self._mode, cross_track_m, limit, REASON_MOVING_OBSTACLE, self._path,
+            path_changed, False, _joined([detail, step.detail]),
+        )  # fmt: skip
 
     # --- speed limits ---------------------------------------------------------------------------------
     def _limited(

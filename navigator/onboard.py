@@ -68,6 +68,7 @@ class Mode(enum.StrEnum):
     ARRIVED = "ARRIVED"
     NO_PATH = "NO_PATH"  # the planner proved the goal unreachable
     BLOCKED = "BLOCKED"  # stopped: a moving obstacle is predicted on the path
+    YIELDING = "YIELDING"  # backing off slowly: a moving obstacle is predicted to reach the rover itself
 
 
 @dataclass(frozen=True)
@@ -135,6 +136,7 @@ class RouteGuidance:
             Mode.ARRIVED: "goal reached",
             Mode.NO_PATH: "no path to the goal",
             Mode.BLOCKED: f"moving obstacle {blocker} on the path",
+            Mode.YIELDING: f"backing off from moving obstacle {blocker}",
             Mode.DRIVING: "following the path",
         }[self.mode]
         return f"guidance {self.mode.value}: {reason}"
@@ -357,7 +359,9 @@ class OnboardStack:
             ready = self._ready(now, pose)
             self._report_start_up(ready)
             guidance = self.guidance.tick(now, pose, ready)
-            driving = self.guidance.mode is Mode.DRIVING
+            # Backing off out of a moving obstacle's way is driving too: the supervisor must let the
+            # wheels turn (and judges stuck and stalls on it as on any commanded motion).
+            driving = self.guidance.mode in (Mode.DRIVING, Mode.YIELDING)
             decision = self.safety.update(
                 self._safety_inputs(now, pose),
                 driving,

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import pytest
 
 from logs.settings import ConfigError, parse_toml
@@ -74,3 +76,23 @@ def test_bad_safety_config_names_the_key(text: str, key: str) -> None:
     table = parse_toml(f"[safety]\n{text}\n", "rover.toml").table("safety")
     with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
         SafetyConfig.from_table(table)
+
+
+@pytest.mark.parametrize(("measured_mps", "stuck"), [(-0.5, False), (0.0, True)])
+def test_reversing_as_commanded_is_not_stuck_but_a_reverse_command_without_motion_is(
+    measured_mps: float, stuck: bool
+) -> None:
+    # Guidance's YIELDING backs the rover off at -0.5 m/s: that is motion, judged by magnitude.
+    events: list[tuple[str, str, str]] = []
+    supervisor = SafetySupervisor(SafetyConfig(), VehicleParams(), 0, lambda *e: events.append(e))
+    for tick in range(1, 251):  # 5 s, past stuck_time_s (2 s)
+        now = tick * 20_000_000
+        reversing = dataclasses.replace(
+            inputs(now, (5.0, 5.0)),
+            sent_speed_mps=-0.5,
+            sent_at_ns=20_000_000,
+            measured_speed_mps=measured_mps,
+        )
+        supervisor.update(reversing, True)
+    assert ("stuck" in supervisor.faults) is stuck
+    assert any(e[0] == "failsafe.stuck" for e in events) is stuck

@@ -27,3 +27,11 @@ def small_trial(
     small_scenario: Scenario, default_config: RoverConfig, tmp_path_factory: pytest.TempPathFactory
 ) -> TrialResult:
     return run_trial(small_scenario, default_config, tmp_path_factory.mktemp("trial-a"))
+
+
+@pytest.fixture(scope="session")
+def cart_lane_trial(default_config: RoverConfig, tmp_path_factory: pytest.TempPathFactory) -> TrialResult:
+    """``cart_in_lane.toml``: a crossing cart catches the rover with its nose in its lane."""
+    return run_trial(
+        load_scenario(DATA / "cart_in_lane.toml"), default_config, tmp_path_factory.mktemp("lane")
+    )
