@@ -9,7 +9,7 @@ arbitration id, controller status details in data byte 1. python-can delivers th
 from __future__ import annotations
 
 import enum
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -200,7 +200,14 @@ class BusLoadMeter:
         self._bits_at_start = 0
 
     def message(
-        self, now_ns: int, *, tx_total: int, rx_total: int, bits_total: int, own_echoes_total: int
+        self,
+        now_ns: int,
+        *,
+        tx_total: int,
+        rx_total: int,
+        bits_total: int,
+        own_echoes_total: int,
+        link_counters: Mapping[str, int],
     ) -> dict[str, Any] | None:
         """The window's stats if it is over, else ``None``."""
         elapsed_ns = now_ns - self._start_ns
@@ -223,4 +230,5 @@ class BusLoadMeter:
             "tx_total": tx_total,
             "rx_total": rx_total,
             "own_echoes_total": own_echoes_total,
+            "link_counters": dict(link_counters),
         }

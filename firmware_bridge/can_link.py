@@ -45,6 +45,8 @@ _MAX_PENDING = 4096
 _STATUS_KINDS = frozenset({"STATUS", "STATUS_4", "STATUS_5"})
 # Which FrameError reasons land in which counter.
 _REJECTION_COUNTER = {"unknown_id": "unknown_id", "not_extended": "unknown_id", "wrong_dlc": "wrong_dlc"}
+_TRAFFIC_COUNTERS = ("tx", "rx", "own_echoes")
+_REJECTION_CAUSES = ("unknown_id", "wrong_dlc", "decode_errors")
 
 
 @dataclass
@@ -81,6 +83,16 @@ class CanCounters:
 
     def as_dict(self) -> dict[str, int]:
         return asdict(self)
+
+    def link_counters(self) -> dict[str, int]:
+        """Every count but the bus's own traffic (``tx``, ``rx``, ``own_echoes``): the rejections by cause
+        and what the link did in the rover's place, as ``can/stats`` records them."""
+        return {k: v for k, v in asdict(self).items() if k not in _TRAFFIC_COUNTERS}
+
+    @property
+    def rejected(self) -> int:
+        """Received frames refused: not ours, the wrong length, or not decodable."""
+        return self.unknown_id + self.wrong_dlc + self.decode_errors
 
 
 def _frame_json(t_ns: int, direction: str, msg: can.Message) -> bytes:
@@ -160,6 +172,8 @@ class CanLink(ClosesOnExit):
         self._load = BusLoadMeter(config.bitrate, clock.now_ns())
         # Bits of every frame sent or received (logs.can_load.frame_bits): the bus load's running count.
         self.bits_total = 0
+        self._rejected_reported = 0  # rejections already in a warning
+        self._last_rejection = ""  # the reason of the latest, for the next warning
         self._echoes = OwnEchoFilter() if echoes_own_sends(bus) else None
         self._zero_erpm = [0] * WHEEL_COUNT
         self._latest_erpm: list[int] = list(self._zero_erpm)
@@ -333,10 +347,33 @@ class CanLink(ClosesOnExit):
     def _publish_load(self, t_ns: int) -> None:
         c = self.counters
         stats = self._load.message(
-            t_ns, tx_total=c.tx, rx_total=c.rx, bits_total=self.bits_total, own_echoes_total=c.own_echoes
+            t_ns,
+            tx_total=c.tx,
+            rx_total=c.rx,
+            bits_total=self.bits_total,
+            own_echoes_total=c.own_echoes,
+            link_counters=c.link_counters(),
         )
         if stats is not None:
             self._sink.publish(CAN_STATS, t_ns, stats)
+            self._warn_of_rejections(stats["window_s"])
+
+    def _warn_of_rejections(self, window_s: float) -> None:
+        """One warning per ``can/stats`` window that refused frames, by cause, with the last one's reason:
+        each rejection alone is a debug line (a garbage flood would be thousands a second)."""
+        c = self.counters
+        new = c.rejected - self._rejected_reported
+        if new <= 0:
+            return
+        self._rejected_reported = c.rejected
+        causes = ", ".join(f"{name} {c.link_counters()[name]}" for name in _REJECTION_CAUSES)
+        logger.warning(
+            "CAN: %d received frame(s) rejected in the last %.1f s (totals: %s); the last: %s",
+            new,
+            window_s,
+            causes,
+            self._last_rejection,
+        )
 
     def _next_frame(self) -> can.Message | None:
         try:
@@ -371,6 +408,7 @@ class CanLink(ClosesOnExit):
         except FrameError as err:
             counter = _REJECTION_COUNTER.get(err.reason, "decode_errors")
             setattr(self.counters, counter, getattr(self.counters, counter) + 1)
+            self._last_rejection = str(err)
             logger.debug("rejected CAN frame: %s", err)
             if err.reason == "unknown_id":
                 foreign = self._foreign.note(msg.arbitration_id, msg.is_extended_id)

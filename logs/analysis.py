@@ -204,6 +204,7 @@ class _Collector:
     can_stats: list[tuple[float, int, int]] = field(default_factory=list)
     can_stats_first: tuple[int, int] | None = None
     can_stats_last: tuple[int, int] = (0, 0)
+    can_link_counters: dict[str, Any] | None = None  # the last can/stats' running totals of the link
     # mavlink/stats: each window's growth of these counters, summed over windows and links.
     mavlink: Counter[str] | None = None
     safety: Counter[str] = field(default_factory=Counter)
@@ -254,6 +255,9 @@ class _Collector:
 
     def _can_stats(self, message: dict[str, Any]) -> None:
         window = (float(message["window_s"]), int(message["bits"]), int(message["bitrate"]))
+        counters = message.get("link_counters")  # absent in recordings made before it was recorded
+        if isinstance(counters, dict):
+            self.can_link_counters = counters
         on_bus = int(message["tx_total"]) + int(message["rx_total"])
         self.can_stats.append(window)
         if self.can_stats_first is None:
@@ -529,9 +533,12 @@ def _bus_load(c: _Collector, bitrate: int) -> tuple[dict[str, float | int | None
     else the recorded frames, but only when they are known to be every frame (never a live-stream file,
     whose can/frames may be thinned)."""
     recorded_pct = _frames_recorded_pct(c)
+    counters = c.can_link_counters
     figures: dict[str, float | int | None] = {
         "can_frames": c.can_frames,
         "can_frames_recorded_pct": recorded_pct,
+        "can_frames_rejected": None if counters is None else _rejected(counters),
+        "can_rounds_withheld": None if counters is None else int(counters.get("withheld", 0)),
     }
     if c.can_stats:
         load = load_from_stats(c.can_stats)
@@ -546,6 +553,11 @@ def _bus_load(c: _Collector, bitrate: int) -> tuple[dict[str, float | int | None
         return _load_figures(figures, BusLoad(None, None, 0), bitrate), source
     load = load_from_frame_windows(c.can_bits, c.can_first_ns, c.can_last_ns, bitrate)
     return _load_figures(figures, load, bitrate), "can/frames (every frame recorded)"
+
+
+def _rejected(counters: dict[str, Any]) -> int:
+    """Received frames the link refused, all causes (``can_link.CanCounters.rejected``)."""
+    return sum(int(counters.get(cause, 0)) for cause in ("unknown_id", "wrong_dlc", "decode_errors"))
 
 
 def _frames_recorded_pct(c: _Collector) -> float | None:

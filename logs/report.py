@@ -56,6 +56,8 @@ FIGURE_LABELS = {
     "control_period_max_ms": "control period max (ms)",
     "can_frames": "CAN frames recorded",
     "can_frames_recorded_pct": "CAN frames recorded (% of the link's count)",
+    "can_frames_rejected": "CAN frames the link rejected (not ours, wrong length, undecodable)",
+    "can_rounds_withheld": "CAN command rounds withheld (bus off)",
     "can_bitrate": "CAN bitrate (bit/s)",
     "can_bus_load_mean_pct": "CAN bus load mean (%)",
     "can_bus_load_peak_pct": "CAN bus load peak (%)",

@@ -115,10 +115,19 @@ _SPECS = [
                 "tx_total": _INT,
                 "rx_total": _INT,
                 "own_echoes_total": _INT,
+                "link_counters": {
+                    "type": "object",
+                    "additionalProperties": _INT,
+                    "required": ["unknown_id", "wrong_dlc", "decode_errors", "bus_errors", "withheld"],
+                    "description": "running totals of the link: received frames rejected by cause "
+                    "(unknown_id, wrong_dlc, decode_errors), bus errors, and what it did in the rover's "
+                    "place (resent, stale_zeroed, withheld, bad_commands, dropped_records)",
+                },
             }
         ),
         "The link's own count of the bus over the last window (~1 s): frames and bits (both directions, "
-        "each frame on the wire once, before bit stuffing), load as % of the bitrate, running totals. "
+        "each frame on the wire once, before bit stuffing), load as % of the bitrate, running totals, "
+        "the link's rejections and interventions. "
         "Never thinned on the live stream: the ground station's bus load comes from it.",
     ),
     TopicSpec(

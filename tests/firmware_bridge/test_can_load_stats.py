@@ -23,13 +23,24 @@ def ext(can_id: int, data: bytes) -> can.Message:
 
 def test_meter_publishes_once_per_window_with_the_window_counts() -> None:
     meter = BusLoadMeter(bitrate=500_000, start_ns=0)
-    assert meter.message(999_999_999, tx_total=10, rx_total=10, bits_total=2_000, own_echoes_total=0) is None
-    first = meter.message(1_020_000_000, tx_total=60, rx_total=40, bits_total=13_100, own_echoes_total=3)
+    counters = {"unknown_id": 2, "withheld": 1}
+    assert (
+        meter.message(
+            999_999_999, tx_total=10, rx_total=10, bits_total=2_000, own_echoes_total=0, link_counters={}
+        )
+        is None
+    )
+    first = meter.message(
+        1_020_000_000, tx_total=60, rx_total=40, bits_total=13_100, own_echoes_total=3, link_counters=counters
+    )
     assert first is not None
     assert first["window_s"] == pytest.approx(1.02) and first["frames"] == 100 and first["bits"] == 13_100
     assert first["load_pct"] == pytest.approx(100 * 13_100 / 1.02 / 500_000)
     assert (first["tx_total"], first["rx_total"], first["own_echoes_total"]) == (60, 40, 3)
-    second = meter.message(2_020_000_000, tx_total=70, rx_total=50, bits_total=15_720, own_echoes_total=3)
+    assert first["link_counters"] == counters and first["link_counters"] is not counters  # a copy
+    second = meter.message(
+        2_020_000_000, tx_total=70, rx_total=50, bits_total=15_720, own_echoes_total=3, link_counters=counters
+    )
     assert second is not None and second["frames"] == 20 and second["bits"] == 2_620
     assert second["window_s"] == pytest.approx(1.0)
 
@@ -79,3 +90,28 @@ def test_echo_filter_forgets_echoes_that_never_came() -> None:
     assert echoes.forgotten == 2
     assert not echoes.is_echo(ext(0x301, bytes([0])))
     assert echoes.is_echo(ext(0x301, bytes([5]))) and echoes.is_echo(ext(0x301, bytes([2])))
+
+
+def test_rejected_frames_are_in_can_stats_and_one_warning_per_window(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    clock, sink = SimClock(1_000_000_000), MemorySink()
+    with virtual_bus_pair("rejections") as (ours, theirs), CanLink(ours, make_codec(), clock, sink) as link:
+        for tick in range(100):  # 2 s at 50 Hz; a bad frame every tick of the first second
+            if tick < 50:
+                theirs.send(ext(0x0901, bytes(3)))  # STATUS of controller 1, 3 bytes instead of 8
+                theirs.send(ext(0x1F07, bytes(8)))  # a controller we do not have (id 7)
+            clock.advance(to_ns(0.02))
+            with caplog.at_level("WARNING", logger="firmware_bridge.can_link"):
+                link.poll()
+    stats = sink.on(CAN_STATS)
+    assert len(stats) == 2
+    first, second = (s["link_counters"] for s in stats)
+    assert (first["wrong_dlc"], first["unknown_id"], first["decode_errors"]) == (50, 50, 0)
+    assert second == first  # nothing refused in the second window: the totals stand
+    assert link.counters.rejected == 100
+    warnings = [r.getMessage() for r in caplog.records if "rejected in the last" in r.getMessage()]
+    # One line for the window with rejections, naming the counts by cause and the last reason; none after.
+    assert len(warnings) == 1
+    assert warnings[0].startswith("CAN: 100 received frame(s) rejected in the last 1.0 s")
+    assert "unknown_id 50, wrong_dlc 50, decode_errors 0" in warnings[0]

@@ -161,3 +161,34 @@ def test_a_cut_file_lists_the_topics_it_read(tmp_path: Path) -> None:
     run = analyse(cut)
     assert run.counts_source.startswith("topics read") and MAVLINK_RAW not in run.counts
     assert run.counts[CAN_FRAMES] > 0
+
+
+def test_the_links_rejections_and_withheld_rounds_come_from_the_last_can_stats(tmp_path: Path) -> None:
+    path = tmp_path / "rover.mcap"
+    with McapRecorder(path) as recorder:
+        for second, (unknown, wrong, withheld) in enumerate([(3, 1, 0), (7, 2, 5)], start=1):
+            t = second * 1_000_000_000
+            counters = {"unknown_id": unknown, "wrong_dlc": wrong, "decode_errors": 1, "bus_errors": 4}
+            recorder.publish(
+                CAN_STATS,
+                t,
+                {
+                    "timestamp": {"sec": second, "nsec": 0},
+                    "window_s": 1.0,
+                    "bitrate": BITRATE,
+                    "frames": 0,
+                    "bits": 0,
+                    "load_pct": 0.0,
+                    "tx_total": 0,
+                    "rx_total": 0,
+                    "own_echoes_total": 0,
+                    "link_counters": {**counters, "withheld": withheld},
+                },
+            )
+    run = analyse(path)
+    # Running totals: the last message's, not a sum over the messages.
+    assert run.figures["can_frames_rejected"] == 7 + 2 + 1
+    assert run.figures["can_rounds_withheld"] == 5
+    # A recording made before the counters were recorded says it does not know.
+    older = analyse(_record(tmp_path / "old.mcap", stats=True, thinned_hz=None, live=False))
+    assert older.figures["can_frames_rejected"] is None and older.figures["can_rounds_withheld"] is None
