@@ -352,7 +352,7 @@ class CanLink(ClosesOnExit):
             rx_total=c.rx,
             bits_total=self.bits_total,
             own_echoes_total=c.own_echoes,
-            link_counters=c.link_counters(),
+            link_counters=c.link_counters,
         )
         if stats is not None:
             self._sink.publish(CAN_STATS, t_ns, stats)

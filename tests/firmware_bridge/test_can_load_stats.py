@@ -24,22 +24,29 @@ def ext(can_id: int, data: bytes) -> can.Message:
 def test_meter_publishes_once_per_window_with_the_window_counts() -> None:
     meter = BusLoadMeter(bitrate=500_000, start_ns=0)
     counters = {"unknown_id": 2, "withheld": 1}
+    calls = []
+
+    def asked() -> dict[str, int]:
+        calls.append(1)
+        return counters
+
     assert (
         meter.message(
-            999_999_999, tx_total=10, rx_total=10, bits_total=2_000, own_echoes_total=0, link_counters={}
+            999_999_999, tx_total=10, rx_total=10, bits_total=2_000, own_echoes_total=0, link_counters=asked
         )
         is None
     )
     first = meter.message(
-        1_020_000_000, tx_total=60, rx_total=40, bits_total=13_100, own_echoes_total=3, link_counters=counters
+        1_020_000_000, tx_total=60, rx_total=40, bits_total=13_100, own_echoes_total=3, link_counters=asked
     )
     assert first is not None
     assert first["window_s"] == pytest.approx(1.02) and first["frames"] == 100 and first["bits"] == 13_100
     assert first["load_pct"] == pytest.approx(100 * 13_100 / 1.02 / 500_000)
     assert (first["tx_total"], first["rx_total"], first["own_echoes_total"]) == (60, 40, 3)
     assert first["link_counters"] == counters and first["link_counters"] is not counters  # a copy
+    assert len(calls) == 1  # asked only when the window closed, not on the poll before it
     second = meter.message(
-        2_020_000_000, tx_total=70, rx_total=50, bits_total=15_720, own_echoes_total=3, link_counters=counters
+        2_020_000_000, tx_total=70, rx_total=50, bits_total=15_720, own_echoes_total=3, link_counters=asked
     )
     assert second is not None and second["frames"] == 20 and second["bits"] == 2_620
     assert second["window_s"] == pytest.approx(1.0)
