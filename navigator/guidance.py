@@ -122,6 +122,10 @@ class Guidance:
         self._mode = IDLE
         self._needs_plan = False
         self._known_static: set[str] = set()
+        # In the map, by id: the sighting each went in with (to rebuild the map when one moves on), and the
+        # ids that were in it and have since been seen moving, to take off at the next planning job.
+        self._in_map: dict[str, ObstacleObservation] = {}
+        self._moved_off: set[str] = set()
         # Static obstacles seen but not yet in the map, by id: the newest sighting of each (perception
         # reports an obstacle every cycle while it is in view, and the rover may take minutes to get near).
         self._pending: dict[str, ObstacleObservation] = {}
@@ -195,6 +199,11 @@ class Guidance:
                 continue
             if obs.moving:
                 self._moving[obs.obstacle_id] = obs
+                # Seen standing before (a cart waiting to start): not part of the map any more.
+                self._pending.pop(obs.obstacle_id, None)
+                if self._in_map.pop(obs.obstacle_id, None) is not None:
+                    self._moved_off.add(obs.obstacle_id)
+                self._known_static.discard(obs.obstacle_id)
             elif obs.obstacle_id not in self._known_static:
                 self._moving.pop(obs.obstacle_id, None)  # it stopped: from now on part of the map
                 self._pending[obs.obstacle_id] = obs
@@ -256,15 +265,18 @@ class Guidance:
 
     # --- planning -------------------------------------------------------------------------------------
     def _submit(self, x: float, y: float, *, why: str = "", must_plan: bool = False) -> None:
-        """Start a planning job if there is work: static obstacles now within range, or a plan needed."""
+        """Start a planning job if there is work: static obstacles now within range, obstacles in the map
+        that have moved on, or a plan needed."""
         near = [o for o in self._pending.values() if in_range(o, (x, y), self._config.sensing_range_m)]
         must_plan = must_plan or (self._needs_plan and self._goal is not None and self._mode != ARRIVED)
-        if not near and not must_plan:
+        if not near and not must_plan and not self._moved_off:
             return
         # Obstacles not yet within sensing range wait until the rover is near.
         for obstacle in near:
             del self._pending[obstacle.obstacle_id]
         self._known_static.update(o.obstacle_id for o in near)
+        self._in_map.update((o.obstacle_id, o) for o in near)
+        moved_off, self._moved_off = tuple(sorted(self._moved_off)), set()
         if must_plan:
             self._needs_plan = False
         request = PlanRequest(
@@ -277,6 +289,8 @@ class Guidance:
             must_plan=must_plan,
             retry_no_path=self._mode == NO_PATH,
             why=why,
+            moved_off=moved_off,
+            static_obstacles=tuple(self._in_map.values()) if moved_off else (),
         )
         self._job = self._executor.submit(run_plan_request, self.planner, request)
 

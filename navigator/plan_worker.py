@@ -65,6 +65,10 @@ class PlanRequest:
     must_plan: bool
     retry_no_path: bool
     why: str = ""
+    # Obstacles once seen standing, put in the map, and since seen moving: taken off the map, which is
+    # rebuilt as given plus ``static_obstacles`` (every obstacle guidance still holds static, new ones too).
+    moved_off: tuple[str, ...] = ()
+    static_obstacles: tuple[ObstacleObservation, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -81,6 +85,16 @@ def run_plan_request(planner: Planner, request: PlanRequest) -> PlanOutcome:
     details: list[str] = []
     must_plan = request.must_plan
     repair_kept = False
+    if request.moved_off:
+        terrain = planner.terrain
+        mask = np.zeros(terrain.shape, dtype=bool)
+        for obs in request.static_obstacles:
+            mask |= disc_mask(terrain, obs.x, obs.y, obs.radius_m)
+        planner.reset_obstacles(mask)
+        # Costs fell where they stood: the path around them may no longer be the best one, and a goal that
+        # had no path may have one now.
+        must_plan |= request.goal is not None
+        details.append(f"obstacles {', '.join(request.moved_off)} moved on: taken off the map")
     if request.new_obstacles:
         ids = ", ".join(o.obstacle_id for o in request.new_obstacles)
         terrain = planner.terrain

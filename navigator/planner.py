@@ -121,6 +121,7 @@ class Planner:
         self._direction_weights = direction_weights or DirectionWeights()
         self._cost_model = cost_model or CostModel(inflation_m=inflation_m)
         self._terrain = terrain
+        self._base_terrain = terrain  # the map as given: obstacles added later can be taken off again
         self._cost = self._grid(terrain)
         self._factors: np.ndarray | None = None
         if cost_mode == "terrain":
@@ -190,7 +191,16 @@ class Planner:
 
     def update_obstacles(self, mask: np.ndarray) -> np.ndarray:
         """Add obstacle cells (bool, map shape) and recompute the costs; returns where the cost changed."""
-        self._terrain = self._terrain.with_obstacles(mask)
+        return self._set_terrain(self._terrain.with_obstacles(mask))
+
+    def reset_obstacles(self, mask: np.ndarray) -> np.ndarray:
+        """The map as given plus exactly ``mask`` (bool, map shape): obstacles added before and not in it
+        are taken off (an obstacle seen standing that has since moved on). Returns where the cost changed;
+        costs that fell drop the repair's cost-to-go field (rebuilt before the next plan)."""
+        return self._set_terrain(self._base_terrain.with_obstacles(mask))
+
+    def _set_terrain(self, terrain: TerrainMap) -> np.ndarray:
+        self._terrain = terrain
         before = self._cost
         self._cost = self._grid(self._terrain)
         if self._repairing is not None:

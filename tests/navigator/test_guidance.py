@@ -265,3 +265,46 @@ def test_footprint_inflation_is_read_from_the_planner_table_and_guidance_plans_w
     assert outcomes == {"circumscribed": NO_PATH, "inscribed": DRIVING}
     with pytest.raises(ConfigError, match=r"planner\.footprint_inflation"):
         rover_config_from_table(parse_toml('[planner]\nfootprint_inflation = "square"\n', "<test>"))
+
+
+def test_an_obstacle_seen_standing_then_moving_is_taken_off_the_map_and_the_way_replanned() -> None:
+    # A cart waiting to start is reported at zero speed: a static obstacle, put in the map. Once it is seen
+    # moving it must leave the map (before, it stayed there for good: a phantom the plan kept avoiding),
+    # while an obstacle that never moved stays.
+    terrain = _flat()
+    guidance = _guidance(terrain)
+    guidance.set_goal(27.0, 10.0)
+    direct = guidance.update(0, 2.0, 10.0, 0.0, 0.0).path
+    assert direct is not None
+    guidance.observe(
+        [ObstacleObservation(1, "cart", 14.0, 10.0, 1.0), ObstacleObservation(1, "rock", 20.0, 16.0, 0.5)]
+    )
+    around = guidance.update(1, 2.0, 10.0, 0.0, 0.0)
+    assert around.path_changed and around.path is not None and around.path.cost > direct.cost
+    cart_cell = guidance.planner.terrain.cell_of(14.0, 10.0)
+    rock_cell = guidance.planner.terrain.cell_of(20.0, 16.0)
+    assert guidance.planner.terrain.obstacles[cart_cell] and guidance.planner.terrain.obstacles[rock_cell]
+    guidance.observe([ObstacleObservation(2, "cart", 14.0, 25.0, 1.0, vx=0.0, vy=1.0)])  # off, far north
+    moved = guidance.update(2, 2.0, 10.0, 0.0, 0.0)
+    assert "cart moved on: taken off the map" in moved.detail
+    assert not guidance.planner.terrain.obstacles[cart_cell]  # the cart's cells are free again
+    assert guidance.planner.terrain.obstacles[rock_cell]  # the rock never moved
+    assert moved.path_changed and moved.path is not None
+    # The new plan is the one a fresh planner makes on the map with the rock alone.
+    with_rock = terrain.with_obstacles(disc_mask(terrain, 20.0, 16.0, 0.5))
+    fresh = Planner(with_rock, PARAMS).plan((2.0, 10.0), (27.0, 10.0))
+    assert moved.path.cost == pytest.approx(fresh.cost, rel=1e-12)
+    # Nothing more to do on the next tick: the removal was done once.
+    assert not guidance.update(3, 2.0, 10.0, 0.0, 0.0).path_changed
+
+
+def test_an_obstacle_pending_static_that_starts_moving_never_enters_the_map() -> None:
+    guidance = _guidance(_flat(), sensing_range_m=5.0)
+    guidance.set_goal(27.0, 10.0)
+    guidance.update(0, 2.0, 10.0, 0.0, 0.0)
+    guidance.observe([ObstacleObservation(1, "cart", 14.0, 10.0, 1.0)])  # standing, out of range: pending
+    guidance.update(1, 2.0, 10.0, 0.0, 0.0)
+    guidance.observe([ObstacleObservation(2, "cart", 14.0, 25.0, 1.0, vx=0.0, vy=1.0)])  # it drove off
+    out = guidance.update(3, 11.0, 10.0, 0.0, 0.0)  # the rover is now within 5 m of where it stood
+    assert "cart" not in out.detail
+    assert not guidance.planner.terrain.obstacles[guidance.planner.terrain.cell_of(14.0, 10.0)]

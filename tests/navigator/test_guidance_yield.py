@@ -154,3 +154,24 @@ def test_back_off_with_an_obstacle_behind_and_no_way_forward_holds_at_once() -> 
         "map and further from the track; holding"
     )
     assert rover_x == 10.0
+
+
+def test_rover_straddling_the_lane_backs_out_of_it_rather_than_hold_in_its_middle() -> None:
+    # The cart's lane (x 9.5-10.5) crosses the rover's centre. Backing a little leaves the track across the
+    # footprint (gap -radius either way) and reached as soon: by gap and time alone that was "no further",
+    # the rover held in the middle of the lane and was hit (scenarios/carts.toml, seed 2, cart-c).
+    footprint = Footprint.of(PARAMS)
+    seen = {"cart": _cart(0, 10.0, 12.5, vy=-1.0)}
+    here = track_gap(seen, 0, (10.0, 10.0, 0.0), footprint, 3.0)
+    back = track_gap(seen, 0, (9.75, 10.0, 0.0), footprint, 3.0)  # the track still within the length
+    assert here.gap_m == back.gap_m == -0.5 and here.reach_s == back.reach_s
+    assert back.further_than(here) and not here.further_than(back)
+    guidance = _guidance(_flat())
+    outputs, _ = _run(guidance, 300, 10.0, 10.0, 13.6, vy=-0.8)
+    modes = [out.mode for out in outputs]
+    assert YIELDING in modes and not any("no back-off" in out.detail for out in outputs)
+    first_hold = modes.index(BLOCKED, modes.index(YIELDING))
+    assert outputs[first_hold].detail.startswith("out of the way")
+    # It left the lane by the margin: its nose (centre + 0.45 m) short of x 9.5 - inflation - margin.
+    held_x = 10.0 - YIELD_SPEED_MPS * TICK_S * sum(1 for m in modes[:first_hold] if m == YIELDING)
+    assert held_x + 0.45 < 9.5 - (PlannerConfig().inflation_m + YIELD_MARGIN_M) + 1e-9
