@@ -34,7 +34,7 @@ from logs.clock import Clock, to_ns
 from logs.closing import ClosesOnExit
 from logs.encoding import EncodedSink
 from logs.sink import MessageSink
-from logs.topics import CAN_FRAMES, CAN_STATS, SAFETY_EVENTS, WHEELS_STATUS, stamp
+from logs.topics import CAN_FRAMES, CAN_REJECTION_CAUSES, CAN_STATS, SAFETY_EVENTS, WHEELS_STATUS, stamp
 
 __all__ = ["CanConfig", "CanCounters", "CanLink", "CanLinkState", "WheelReading", "open_bus"]
 
@@ -46,7 +46,6 @@ _STATUS_KINDS = frozenset({"STATUS", "STATUS_4", "STATUS_5"})
 # Which FrameError reasons land in which counter.
 _REJECTION_COUNTER = {"unknown_id": "unknown_id", "not_extended": "unknown_id", "wrong_dlc": "wrong_dlc"}
 _TRAFFIC_COUNTERS = ("tx", "rx", "own_echoes")
-_REJECTION_CAUSES = ("unknown_id", "wrong_dlc", "decode_errors")
 
 
 @dataclass
@@ -92,7 +91,7 @@ class CanCounters:
     @property
     def rejected(self) -> int:
         """Received frames refused: not ours, the wrong length, or not decodable."""
-        return self.unknown_id + self.wrong_dlc + self.decode_errors
+        return sum(getattr(self, name) for name in CAN_REJECTION_CAUSES)
 
 
 def _frame_json(t_ns: int, direction: str, msg: can.Message) -> bytes:
@@ -366,7 +365,7 @@ class CanLink(ClosesOnExit):
         if new <= 0:
             return
         self._rejected_reported = c.rejected
-        causes = ", ".join(f"{name} {c.link_counters()[name]}" for name in _REJECTION_CAUSES)
+        causes = ", ".join(f"{name} {getattr(c, name)}" for name in CAN_REJECTION_CAUSES)
         logger.warning(
             "CAN: %d received frame(s) rejected in the last %.1f s (totals: %s); the last: %s",
             new,

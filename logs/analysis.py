@@ -43,6 +43,7 @@ from logs.reader import (
 from logs.scenario_record import SCENARIO_METADATA, StaticObstacle, moving_obstacles, point, static_obstacles
 from logs.topics import (
     CAN_FRAMES,
+    CAN_REJECTION_CAUSES,
     CAN_STATS,
     ESTIMATOR_INNOVATIONS,
     ESTIMATOR_POSE,
@@ -557,7 +558,7 @@ def _bus_load(c: _Collector, bitrate: int) -> tuple[dict[str, float | int | None
 
 def _rejected(counters: dict[str, Any]) -> int:
     """Received frames the link refused, all causes (``can_link.CanCounters.rejected``)."""
-    return sum(int(counters.get(cause, 0)) for cause in ("unknown_id", "wrong_dlc", "decode_errors"))
+    return sum(int(counters.get(cause, 0)) for cause in CAN_REJECTION_CAUSES)
 
 
 def _frames_recorded_pct(c: _Collector) -> float | None:

@@ -58,6 +58,10 @@ def _obj(properties: dict[str, JsonSchema], required: list[str] | None = None) -
     return {"type": "object", "properties": properties, "required": required or list(properties)}
 
 
+# The CAN link's counters of received frames it refused, by cause (``can/stats`` ``link_counters``): not
+# ours, the wrong length, undecodable.
+CAN_REJECTION_CAUSES = ("unknown_id", "wrong_dlc", "decode_errors")
+
 _NUM: JsonSchema = {"type": "number"}
 _INT: JsonSchema = {"type": "integer"}
 _STR: JsonSchema = {"type": "string"}
@@ -118,7 +122,7 @@ _SPECS = [
                 "link_counters": {
                     "type": "object",
                     "additionalProperties": _INT,
-                    "required": ["unknown_id", "wrong_dlc", "decode_errors", "bus_errors", "withheld"],
+                    "required": [*CAN_REJECTION_CAUSES, "bus_errors", "withheld"],
                     "description": "running totals of the link: received frames rejected by cause "
                     "(unknown_id, wrong_dlc, decode_errors), bus errors, and what it did in the rover's "
                     "place (resent, stale_zeroed, withheld, bad_commands, dropped_records)",

@@ -121,9 +121,9 @@ class Guidance:
         self._path: Path | None = None
         self._mode = IDLE
         self._needs_plan = False
-        self._known_static: set[str] = set()
-        # In the map, by id: the sighting each went in with (to rebuild the map when one moves on), and the
-        # ids that were in it and have since been seen moving, to take off at the next planning job.
+        # Static obstacles in the map, by id: the sighting each went in with (to rebuild the map when one
+        # moves on), and the ids that were in it and have since been seen moving, to take off at the next
+        # planning job.
         self._in_map: dict[str, ObstacleObservation] = {}
         self._moved_off: set[str] = set()
         # Static obstacles seen but not yet in the map, by id: the newest sighting of each (perception
@@ -203,8 +203,7 @@ class Guidance:
                 self._pending.pop(obs.obstacle_id, None)
                 if self._in_map.pop(obs.obstacle_id, None) is not None:
                     self._moved_off.add(obs.obstacle_id)
-                self._known_static.discard(obs.obstacle_id)
-            elif obs.obstacle_id not in self._known_static:
+            elif obs.obstacle_id not in self._in_map:
                 self._moving.pop(obs.obstacle_id, None)  # it stopped: from now on part of the map
                 self._pending[obs.obstacle_id] = obs
 
@@ -274,7 +273,6 @@ class Guidance:
         # Obstacles not yet within sensing range wait until the rover is near.
         for obstacle in near:
             del self._pending[obstacle.obstacle_id]
-        self._known_static.update(o.obstacle_id for o in near)
         self._in_map.update((o.obstacle_id, o) for o in near)
         moved_off, self._moved_off = tuple(sorted(self._moved_off)), set()
         if must_plan:

@@ -15,7 +15,7 @@ the terrain's elevation and classes, which planning never changes).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from concurrent.futures import Executor, Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any, TypeVar
@@ -25,7 +25,7 @@ import numpy as np
 from navigator.errors import NoPathError, PlanningError, TerrainError
 from navigator.perception import ObstacleObservation
 from navigator.planner import Path, Planner
-from navigator.terrain import disc_mask
+from navigator.terrain import TerrainMap, disc_mask
 
 T = TypeVar("T")
 
@@ -86,22 +86,14 @@ def run_plan_request(planner: Planner, request: PlanRequest) -> PlanOutcome:
     must_plan = request.must_plan
     repair_kept = False
     if request.moved_off:
-        terrain = planner.terrain
-        mask = np.zeros(terrain.shape, dtype=bool)
-        for obs in request.static_obstacles:
-            mask |= disc_mask(terrain, obs.x, obs.y, obs.radius_m)
-        planner.reset_obstacles(mask)
+        planner.reset_obstacles(_discs(planner.terrain, request.static_obstacles))
         # Costs fell where they stood: the path around them may no longer be the best one, and a goal that
         # had no path may have one now.
         must_plan |= request.goal is not None
         details.append(f"obstacles {', '.join(request.moved_off)} moved on: taken off the map")
     if request.new_obstacles:
         ids = ", ".join(o.obstacle_id for o in request.new_obstacles)
-        terrain = planner.terrain
-        mask = np.zeros(terrain.shape, dtype=bool)
-        for obs in request.new_obstacles:
-            mask |= disc_mask(terrain, obs.x, obs.y, obs.radius_m)
-        changed = planner.update_obstacles(mask)
+        changed = planner.update_obstacles(_discs(planner.terrain, request.new_obstacles))
         if request.path is None or request.goal is None:
             must_plan |= request.goal is not None and request.retry_no_path
             details.append(f"obstacles {ids} added to the map")
@@ -124,6 +116,14 @@ def run_plan_request(planner: Planner, request: PlanRequest) -> PlanOutcome:
     reason = f" ({request.why})" if request.why else ""
     details.append(f"planned {path.length_m:.1f} m, cost {path.cost:.1f}{reason}")
     return PlanOutcome(request.generation, tuple(details), True, path, repair_kept)
+
+
+def _discs(terrain: TerrainMap, observations: Iterable[ObstacleObservation]) -> np.ndarray:
+    """The cells the observed obstacles' discs cover (bool, map shape)."""
+    mask = np.zeros(terrain.shape, dtype=bool)
+    for obs in observations:
+        mask |= disc_mask(terrain, obs.x, obs.y, obs.radius_m)
+    return mask
 
 
 def path_touches(planner: Planner, path: Path, changed: np.ndarray, xy: tuple[float, float]) -> bool:

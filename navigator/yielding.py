@@ -89,18 +89,35 @@ def track_gap(
     limit_m: float = 0.0,
 ) -> TrackGap:
     """The moving obstacles' predicted tracks against the footprint rectangle at ``pose`` (x, y, yaw)."""
+    return _gap_to_tracks(_tracks(moving, t_ns, horizon_s), pose, footprint, limit_m)
+
+
+# (obstacle id, its predicted track (n, 2), its radius), in id order
+_Tracks = tuple[tuple[str, np.ndarray, float], ...]
+
+
+def _tracks(moving: Mapping[str, ObstacleObservation], t_ns: int, horizon_s: float) -> _Tracks:
+    return tuple(
+        (obstacle_id, predicted_track(obs, t_ns, horizon_s), obs.radius_m)
+        for obstacle_id, obs in sorted(moving.items())
+    )
+
+
+def _gap_to_tracks(
+    tracks: _Tracks, pose: tuple[float, float, float], footprint: Footprint, limit_m: float
+) -> TrackGap:
     gap_m, nearest, reach_s, centre_m = math.inf, None, math.inf, math.inf
-    for obstacle_id, obs in sorted(moving.items()):
-        track = predicted_track(obs, t_ns, horizon_s)
-        gaps = [disc_gap_m(pose, footprint, (float(px), float(py)), obs.radius_m) for px, py in track]
+    for obstacle_id, track, radius_m in tracks:
+        gaps = [disc_gap_m(pose, footprint, (float(px), float(py)), radius_m) for px, py in track]
         centre_m = min(
-            centre_m, float(np.min(np.hypot(track[:, 0] - pose[0], track[:, 1] - pose[1]))) - obs.radius_m
+            centre_m, float(np.min(np.hypot(track[:, 0] - pose[0], track[:, 1] - pose[1]))) - radius_m
         )
-        if min(gaps) < gap_m:
-            gap_m, nearest = min(gaps), obstacle_id
-        within = [k for k, gap in enumerate(gaps) if gap < limit_m]
-        if within:
-            reach_s = min(reach_s, within[0] * PREDICTION_STEP_S)
+        closest = min(gaps)
+        if closest < gap_m:
+            gap_m, nearest = closest, obstacle_id
+        within = next((k for k, gap in enumerate(gaps) if gap < limit_m), None)
+        if within is not None:
+            reach_s = min(reach_s, within * PREDICTION_STEP_S)
     return TrackGap(gap_m, nearest, reach_s, centre_m)
 
 
@@ -122,10 +139,10 @@ HOLD = BackOffStep(0.0, "")
 
 @dataclass(frozen=True)
 class _Scene:
-    """What one tick's judgement looks at: the guidance clock, the moving obstacles, the believed map."""
+    """What one tick's judgement looks at: the moving obstacles' tracks (predicted once a tick, then held
+    against each pose it weighs) and the believed map."""
 
-    t_ns: int
-    moving: Mapping[str, ObstacleObservation]
+    tracks: _Tracks
     terrain: TerrainMap
 
 
@@ -157,7 +174,7 @@ class BackOff:
         within the bounds; hold otherwise."""
         if self._spent:
             return HOLD
-        scene = _Scene(t_ns, moving, terrain)
+        scene = _Scene(_tracks(moving, t_ns, self._horizon_s), terrain)
         # Once moving, keep on until the track clears by the margin too (no stop-start at the edge).
         limit = self._inflation_m + (YIELD_MARGIN_M if self._direction else 0.0)
         gap = self._gap(scene, pose)
@@ -202,7 +219,7 @@ class BackOff:
         ahead = _moved(pose, self._direction * YIELD_LOOK_M)
         if footprint_collides(scene.terrain, ahead, self._footprint):
             return f"an obstacle or the map edge within {YIELD_LOOK_M:g} m"
-        if not self._opens(scene, ahead, gap):
+        if not self._gap(scene, ahead).further_than(gap):
             return f"{YIELD_LOOK_M:g} m further would be no further from the track"
         return ""
 
@@ -213,7 +230,7 @@ class BackOff:
         return self._gap(scene, pose).further_than(gap)
 
     def _gap(self, scene: _Scene, pose: tuple[float, float, float]) -> TrackGap:
-        return track_gap(scene.moving, scene.t_ns, pose, self._footprint, self._horizon_s, self._inflation_m)
+        return _gap_to_tracks(scene.tracks, pose, self._footprint, self._inflation_m)
 
 
 def _moved(pose: tuple[float, float, float], distance_m: float) -> tuple[float, float, float]:

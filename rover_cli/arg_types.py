@@ -7,6 +7,7 @@ import argparse
 import math
 from collections.abc import Callable
 
+from hil.hardware_priority import MAX_FIFO_PRIORITY
 from logs.settings import MAX_SEED
 
 
@@ -65,3 +66,7 @@ def positive_seconds(text: str) -> float:
 
 
 positive_seconds.__name__ = "seconds"
+
+
+# `--fifo` / `--peer-fifo`: the simulated rover's real-time priority (hil.hardware_priority).
+fifo_priority = bounded_int(0, MAX_FIFO_PRIORITY, "a SCHED_FIFO priority; 0: normal scheduling")

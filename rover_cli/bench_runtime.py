@@ -45,10 +45,10 @@ from typing import Any
 
 import numpy as np
 
-from hil.hardware_priority import MAX_FIFO_PRIORITY, PEER_FIFO_PRIORITY
+from hil.hardware_priority import PEER_FIFO_PRIORITY
 from logs.clock import MonotonicClock
 from navigator.precise_wait import DEFAULT_SPIN_NS
-from rover_cli.arg_types import bounded_float, bounded_int
+from rover_cli.arg_types import bounded_float, fifo_priority
 
 RATE_HZ = 50.0
 MODES = ("paced", "fixed", "locked")
@@ -78,7 +78,7 @@ def register(commands: Any) -> None:
     )
     bench.add_argument(
         "--peer-fifo",
-        type=bounded_int(0, MAX_FIFO_PRIORITY, "a SCHED_FIFO priority; 0: normal scheduling"),
+        type=fifo_priority,
         default=PEER_FIFO_PRIORITY,
         help=f"run the simulated rover's process at this SCHED_FIFO priority, as timer-driven hardware "
         f"(default {PEER_FIFO_PRIORITY}; 0: normal scheduling, as the stack)",

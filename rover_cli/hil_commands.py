@@ -12,12 +12,11 @@ from rich.console import Console
 from rich.table import Table as RichTable
 
 from hil.campaign_workers import MAX_WORKERS
-from hil.hardware_priority import MAX_FIFO_PRIORITY
 from logs.settings import ConfigError, parse_toml
 from logs.sink import MessageSink
 from navigator.config import RoverConfig, load_rover_config, rover_config_from_table
 from rover_cli import soak_commands
-from rover_cli.arg_types import bounded_int, positive_seconds, seed
+from rover_cli.arg_types import bounded_int, fifo_priority, positive_seconds, seed
 from rover_cli.errors import print_error
 
 if TYPE_CHECKING:
@@ -78,7 +77,7 @@ def _register_peer(commands: Any) -> None:
     peer.add_argument("--out", type=Path, default=None, help="output directory (default: logs/trials/<run>)")
     peer.add_argument(
         "--fifo",
-        type=bounded_int(0, MAX_FIFO_PRIORITY, "a SCHED_FIFO priority; 0: normal scheduling"),
+        type=fifo_priority,
         default=0,
         help="run at this SCHED_FIFO priority (1-99), as the timer-driven hardware it stands for: the rover "
         "under test cannot make its sensors late (needs root or CAP_SYS_NICE; default 0: normal scheduling)",

@@ -12,8 +12,8 @@ from typing import Any
 from rich.console import Console
 from rich.table import Table
 
-from hil.hardware_priority import MAX_FIFO_PRIORITY, PEER_FIFO_PRIORITY
-from rover_cli.arg_types import bounded_int, seed
+from hil.hardware_priority import PEER_FIFO_PRIORITY
+from rover_cli.arg_types import fifo_priority, seed
 from rover_cli.errors import print_error
 
 
@@ -30,7 +30,7 @@ def register(commands: Any) -> None:
     soak.add_argument("--can-channel", default=None, help="e.g. vcan0 (default: a fresh multicast group)")
     soak.add_argument(
         "--peer-fifo",
-        type=bounded_int(0, MAX_FIFO_PRIORITY, "a SCHED_FIFO priority; 0: normal scheduling"),
+        type=fifo_priority,
         default=PEER_FIFO_PRIORITY,
         help="run the simulated rover at this SCHED_FIFO priority, as timer-driven hardware (`rover hil "
         f"peer --fifo`; default {PEER_FIFO_PRIORITY}; 0: normal scheduling)",
