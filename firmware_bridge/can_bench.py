@@ -3,6 +3,9 @@
 A round is one SET_RPM frame: encode -> send on python-can's virtual bus -> receive on the other end ->
 decode. Peers measured in the same run: plain ``struct`` packing (python-can alone, no DBC), cantools
 with strict encoding, and our link's six-wheel command round. Timing uses ``time.perf_counter_ns``.
+
+The controllers' protocol is the profile's (``[vesc]``: the shipped DBC or a team's own ``dbc``), so a
+swapped-in profile is measured as the rover would run it; the bus load uses the config's ``[can]`` rates.
 """
 
 from __future__ import annotations
@@ -75,6 +78,7 @@ class CanBenchResult:
     latency_p50_us: float
     latency_p99_us: float
     bus_load: BusLoad
+    dbc: str  # the DBC file measured, or "shipped"
 
     def as_dict(self) -> dict[str, object]:
         return asdict(self)
@@ -97,16 +101,22 @@ def _time_rounds(name: str, rounds: int, one_round: object) -> RoundFigures:
     return RoundFigures(name, rounds / (elapsed / 1e9), elapsed / rounds / 1e3)
 
 
-def run_can_bench(rounds: int = 20_000) -> CanBenchResult:
-    profile = VescProfile(DEFAULT_CONTROLLER_IDS, 7, 20.0, 0.11)
+DEFAULT_PROFILE = VescProfile(DEFAULT_CONTROLLER_IDS, 7, 20.0, 0.11)
+
+
+def run_can_bench(
+    rounds: int = 20_000, profile: VescProfile = DEFAULT_PROFILE, can_config: CanConfig | None = None
+) -> CanBenchResult:
     codec = VescCodec.for_profile(profile)
+    controller = profile.controller_ids[0]
     tx, rx = _bus_pair()
     try:
-        set_rpm_id = frame_id(MESSAGES_BY_KIND["SET_RPM"].command_id, 1)
-        strict_message = codec.database.get_message_by_name("VESC_SET_RPM_C1")
+        set_rpm_id = frame_id(MESSAGES_BY_KIND["SET_RPM"].command_id, controller)
+        # By id, not by name: a team's DBC may name its messages otherwise (its signals are checked).
+        strict_message = codec.database.get_message_by_frame_id(set_rpm_id, force_extended_id=True)
 
         def ours(i: int) -> None:
-            tx.send(codec.encode_set_rpm(1, i))
+            tx.send(codec.encode_set_rpm(controller, i))
             msg = rx.recv(timeout=1.0)
             assert msg is not None
             codec.decode(msg)
@@ -132,7 +142,7 @@ def run_can_bench(rounds: int = 20_000) -> CanBenchResult:
         ]
         latencies: list[int] = []
         for i in range(rounds):
-            msg_out = codec.encode_set_rpm(1, i)
+            msg_out = codec.encode_set_rpm(controller, i)
             t0 = time.perf_counter_ns()
             tx.send(msg_out)
             msg_in = rx.recv(timeout=1.0)
@@ -152,7 +162,8 @@ def run_can_bench(rounds: int = 20_000) -> CanBenchResult:
         link_six_wheel_rounds_per_s=six_wheel,
         latency_p50_us=quantiles[49] / 1e3,
         latency_p99_us=quantiles[98] / 1e3,
-        bus_load=bus_load(CanConfig()),
+        bus_load=bus_load(can_config or CanConfig()),
+        dbc=str(profile.dbc_path) if profile.dbc_path is not None else "shipped",
     )
 
 

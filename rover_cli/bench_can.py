@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 from typing import Any
 
 from rich.console import Console
 from rich.table import Table as RichTable
 
+from logs.settings import ConfigError
 from rover_cli.arg_types import bounded_int
+from rover_cli.errors import print_error
 
 # Fewer frames than this measure the timer more than the codec; a smaller --rounds is refused, not rounded up.
 MIN_ROUNDS = 200
@@ -24,19 +27,33 @@ def register(commands: Any) -> None:
         default=20_000,
         help=f"frames per measurement (default 20000, at least {MIN_ROUNDS})",
     )
+    bench.add_argument(
+        "--config",
+        type=Path,
+        default=None,
+        help="rover config TOML: its [vesc] profile (a team's own dbc too), [can] rates (default: built-in)",
+    )
     bench.add_argument("--json", action="store_true", help="print the figures as one JSON object")
     bench.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from firmware_bridge.can_bench import run_can_bench  # imported when picked, like every benchmark
+    from rover_cli.hil_commands import load_config
 
-    result = run_can_bench(args.rounds)
+    console = Console()
+    try:
+        config = load_config(args.config)
+    except ConfigError as err:
+        print_error(console, err)
+        return 2
+    result = run_can_bench(args.rounds, config.vesc, config.can)
     if args.json:
         print(json.dumps(result.as_dict()))
         return 0
-    console = Console()
-    table = RichTable(title=f"CAN rounds (encode -> send -> receive -> decode), {result.rounds} frames")
+    table = RichTable(
+        title=f"CAN rounds (encode -> send -> receive -> decode), {result.rounds} frames, DBC: {result.dbc}"
+    )
     table.add_column("implementation")
     table.add_column("rounds/s", justify="right")
     table.add_column("µs/round", justify="right")
@@ -49,7 +66,8 @@ def run(args: argparse.Namespace) -> int:
     console.print(f"receive latency on the virtual bus: p50 {p50:.1f} µs, p99 {p99:.1f} µs")
     load = result.bus_load
     console.print(
-        f"default rates on 1 Mbit/s: {load.frames_per_s:,.0f} frames/s, {load.load_pct_nominal:.1f} % "
+        f"\\[can] rates on {config.can.bitrate / 1e6:g} Mbit/s: {load.frames_per_s:,.0f} frames/s, "
+        f"{load.load_pct_nominal:.1f} % "
         f"(no stuffing) to {load.load_pct_worst:.1f} % (worst-case stuffing)"
     )
     return 0

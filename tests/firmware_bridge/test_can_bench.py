@@ -1,8 +1,11 @@
+import json
+
 import pytest
 
 from firmware_bridge.can_bench import bus_load, frame_bits, run_can_bench
 from firmware_bridge.can_bus import CanConfig
 from rover_cli.main import main
+from tests.firmware_bridge.swapped_dbc import SWAPPED_IDS, swapped_dbc_text
 
 
 def test_frame_bits_match_the_classic_can_budget():
@@ -42,3 +45,26 @@ def test_bench_can_refuses_too_few_rounds_instead_of_running_others(rounds, caps
         main(["bench", "can", "--rounds", rounds])
     assert exit_info.value.code == 2
     assert f"--rounds: must be 200 to 10000000, got {int(rounds)}" in capsys.readouterr().err
+
+
+def test_bench_can_measures_the_configs_own_dbc_profile_and_can_rates(tmp_path, capsys):
+    # It used to measure the shipped DBC and default rates whatever the rover was configured with.
+    dbc = tmp_path / "team.dbc"
+    dbc.write_text(swapped_dbc_text(), encoding="ascii")
+    config = tmp_path / "rover.toml"
+    config.write_text(
+        f'[vesc]\ncontroller_ids = {list(SWAPPED_IDS)}\ndbc = "team.dbc"\n[can]\ncommand_rate_hz = 100.0\n',
+        encoding="ascii",
+    )
+    assert main(["bench", "can", "--rounds", "200", "--config", str(config), "--json"]) == 0
+    figures = json.loads(capsys.readouterr().out)
+    assert figures["dbc"] == str(dbc)
+    assert figures["ours"]["rounds_per_s"] > 0
+    assert figures["bus_load"]["frames_per_s"] == 6 * (100 + 50 + 10 + 10)
+
+
+def test_bench_can_refuses_a_broken_config_on_one_line(tmp_path, capsys):
+    config = tmp_path / "rover.toml"
+    config.write_text('[vesc]\ndbc = "missing.dbc"\n', encoding="ascii")
+    assert main(["bench", "can", "--rounds", "200", "--config", str(config)]) == 2
+    assert "vesc.dbc" in capsys.readouterr().out
