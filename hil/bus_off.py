@@ -158,6 +158,10 @@ class BusOffAnnouncer:
         if frame is not None:
             self._send(frame, now_ns)
 
+    def summary(self) -> dict[str, int]:
+        """What was announced: for the peer's status file, its recording and its closing line."""
+        return {"error_frames_sent": self.sent, "repeats": self.repeats, "send_errors": self.send_errors}
+
     def _send(self, frame: can.Message, now_ns: int) -> None:
         self._last_sent_ns = now_ns
         try:

@@ -65,6 +65,16 @@ class PeerResult:
     vesc_timeouts: int
     commands_applied: int
     stalls: PeerStalls
+    bus_off: dict[str, int] | None = None  # the bus-off announcer's counts; None without a can/off fault
+
+    def describe_bus_off(self) -> str:
+        if self.bus_off is None:
+            return "no bus-off fault"
+        counts = self.bus_off
+        return (
+            f"bus-off error frames sent {counts['error_frames_sent']} ({counts['repeats']} repeats), "
+            f"{counts['send_errors']} failed"
+        )
 
 
 class RealtimePeer:
@@ -145,6 +155,9 @@ class RealtimePeer:
             "rolled_over": self.world.rolled_over,
             **self.stalls.summary(),
         }
+        announcer = self.world.bus_off_announcer
+        if announcer is not None:
+            status["bus_off"] = announcer.summary()
         _write_atomically(self._status_path, json.dumps(status))
 
 
@@ -230,13 +243,15 @@ def run_peer(
             timing = scheduler.run(duration_ns)
             if status_path is not None:
                 peer.write_status()
-            recorder.add_metadata(
-                "runtime",
-                {
-                    "timing_json": json.dumps(timing.summary()),
-                    "stalls_json": json.dumps(peer.stalls.summary()),
-                },
-            )
+            announcer = world.bus_off_announcer
+            bus_off = None if announcer is None else announcer.summary()
+            runtime = {
+                "timing_json": json.dumps(timing.summary()),
+                "stalls_json": json.dumps(peer.stalls.summary()),
+            }
+            if bus_off is not None:
+                runtime["bus_off_json"] = json.dumps(bus_off)
+            recorder.add_metadata("runtime", runtime)
     return PeerResult(
         mcap_path,
         timing,
@@ -244,6 +259,7 @@ def run_peer(
         world.vescs.timeouts,
         world.vescs.commands_applied,
         peer.stalls,
+        bus_off,
     )
 
 

@@ -360,6 +360,6 @@ def run_peer_command(args: argparse.Namespace) -> int:
     print(
         f"simulated {result.simulated_s:.1f} s; VESC commands {result.commands_applied}, "
         f"command timeouts {result.vesc_timeouts}; steps: {result.timing.describe()}; "
-        f"{result.stalls.describe()}"
+        f"{result.stalls.describe()}; {result.describe_bus_off()}"
     )
     return 0

@@ -8,6 +8,7 @@ both buses the peer and the rover can share: the lockstep pair, and python-can `
 
 from __future__ import annotations
 
+import json
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import AbstractContextManager, contextmanager
@@ -28,6 +29,7 @@ from hil.faults import Fault, FaultSchedule
 from hil.lockstep_bus import lockstep_bus_pair
 from hil.peer import run_peer
 from logs.clock import NS_PER_S
+from logs.reader import RecordedMetadata, read_entries
 from logs.settings import parse_toml
 from logs.sink import MemorySink
 from navigator.config import RoverConfig, rover_config_from_table
@@ -182,6 +184,17 @@ def test_the_rovers_link_goes_bus_off_at_the_faults_start_and_recovers_at_its_en
     off = [t for t, state in rover.states if state is CanLinkState.BUS_OFF]
     assert (min(off) - T0_NS) / NS_PER_S == off_s and (max(off) - T0_NS) / NS_PER_S < back_s
     assert rover.states[-1][1] is CanLinkState.OK
+    # The peer keeps count of what it announced, in its recording beside its timing.
+    runtime = [
+        e.data
+        for e in read_entries(tmp_path / "peer" / "truth.mcap", messages=False)
+        if isinstance(e, RecordedMetadata) and e.name == "runtime"
+    ]
+    assert json.loads(runtime[-1]["bus_off_json"]) == {
+        "error_frames_sent": 1 + repeats + 1,
+        "repeats": repeats,
+        "send_errors": 0,
+    }
 
 
 @pytest.mark.parametrize("pair", BUS_PAIRS)
