@@ -15,7 +15,6 @@ from __future__ import annotations
 import dataclasses
 import io
 import json
-import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -26,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from firmware_bridge.can_link import CanLink
+from firmware_bridge.dbc_attachment import attach_vesc_dbc
 from firmware_bridge.mavlink_link import MavlinkLink
 from firmware_bridge.mavlink_transport import Transport
 from firmware_bridge.vesc import VescCodec
@@ -47,8 +47,6 @@ from navigator.config import RoverConfig
 from navigator.onboard import Mode, OnboardStack
 from navigator.terrain_classes import TERRAIN_CLASSES
 from navigator.warm_up import warm_up
-
-_log = logging.getLogger(__name__)
 
 PHYSICS_DT_NS = 10_000_000  # 100 Hz rover body
 CONTROL_DIVIDER = 2  # onboard control at 50 Hz
@@ -346,21 +344,7 @@ def write_header(
     # not travel with them (config.effective.json has every other value, the key redacted).
     if config_path.is_file() and not config.mavlink.signing_key:
         recorder.add_attachment("config.toml", "application/toml", config_path.read_bytes(), 0)
-    _attach_dbc(recorder, config)
-
-
-def _attach_dbc(recorder: McapRecorder, config: RoverConfig) -> None:
-    """A swapped-in controller DBC (``[vesc] dbc``), as the file read: ``vesc.dbc_path`` in the config
-    record says where it was, this says what it said. The shipped DBC is not attached: it is the code's."""
-    dbc_path = config.vesc.dbc_path
-    if dbc_path is None:
-        return
-    try:
-        data = dbc_path.read_bytes()
-    except OSError as err:  # it loaded when the config did; gone since: the record still names it
-        _log.warning("cannot attach the VESC DBC %s to the recording: %s", dbc_path, err)
-        return
-    recorder.add_attachment("vesc.dbc", "text/plain", data, 0)
+    attach_vesc_dbc(recorder, config.vesc)
 
 
 def _map_archive(scenario: Scenario) -> bytes:

@@ -28,6 +28,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from firmware_bridge.dbc_attachment import attach_vesc_dbc
 from logs import topics
 from logs.clock import Clock
 from logs.commands import ZenohCommandReceiver
@@ -213,6 +214,7 @@ def _open_recording(
     if config.vesc.dbc_path is not None:  # a swapped-in controller DBC: which protocol the frames are in
         trial["vesc_dbc"] = str(config.vesc.dbc_path)
     recorder.add_metadata("trial", trial)
+    attach_vesc_dbc(recorder, config.vesc)
     # The date of log time 0 is otherwise unknown (the clock is monotonic): .asc/.trc exports need it.
     recorder.add_metadata(WALL_CLOCK_METADATA, take_anchor(clock, wall_ns).as_metadata())
     return recorder

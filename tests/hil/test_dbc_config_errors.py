@@ -15,7 +15,7 @@ from hil.peer_files import write_peer_files
 from hil.scenario import load_scenario
 from logs import topics
 from logs.clock import MonotonicClock
-from logs.reader import read_messages, read_metadata
+from logs.reader import read_attachments, read_messages, read_metadata
 from navigator.config import load_rover_config
 from navigator.rover_process import run_rover
 from rover_cli.main import main
@@ -98,5 +98,7 @@ def test_rover_run_speaks_the_dbc_and_its_recording_names_it(tmp_path):
         run_rover(config, MonotonicClock(), out, stop=threading.Event(), wait=broken_wait, telemetry=False)
     recording = out / "rover.mcap"
     assert read_metadata(recording)["trial"]["vesc_dbc"] == str(tmp_path / "profiles" / "team.dbc")
+    # and carries the file as read, as a lockstep trial's does: the path alone may not travel with it
+    assert read_attachments(recording)["vesc.dbc"] == (tmp_path / "profiles" / "team.dbc").read_bytes()
     sent = {m.message["id"] for m in read_messages(recording, topics=[topics.CAN_FRAMES])}
     assert sent == {(3 << 8) | cid for cid in SWAPPED_IDS}  # SET_RPM zeros to the profile's controllers
