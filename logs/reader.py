@@ -32,6 +32,7 @@ from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.records import Attachment, Channel, Chunk, McapRecord, Message, Metadata
 
+from logs.chunk_kernel import LAYOUT_CUT_BODY, LAYOUT_CUT_HEAD, chunk_layout, skip_mask
 from logs.errors import LogReadError, RecordingDamaged
 from logs.frames import MAX_RECORD_BYTES, MCAP_MAGIC, magic_complete, oversized_record
 from logs.read_stop import CUT, DAMAGED, ReadStop
@@ -428,25 +429,19 @@ def _chunk_records(chunk: Chunk, name: str, offset: int, skip_channels: Collecti
         )
     if chunk.uncompressed_crc != 0 and zlib.crc32(data) != chunk.uncompressed_crc:
         raise RecordingDamaged(name, ReadStop(DAMAGED, offset, "the chunk fails its CRC check"))
+    rows, status, _ = chunk_layout(data, skip_mask(skip_channels))
+    if status == LAYOUT_CUT_HEAD:
+        raise RecordingDamaged(name, ReadStop(DAMAGED, offset, "the chunk ends inside a record header"))
+    if status == LAYOUT_CUT_BODY:
+        raise RecordingDamaged(name, ReadStop(DAMAGED, offset, "the chunk ends inside a record"))
     records: list[McapRecord] = []
-    position = 0
-    while position < len(data):
-        if position + _FRAME_HEAD.size > len(data):
-            raise RecordingDamaged(name, ReadStop(DAMAGED, offset, "the chunk ends inside a record header"))
-        opcode, length = _FRAME_HEAD.unpack_from(data, position)
-        start = position + _FRAME_HEAD.size
-        end = start + length
-        if end > len(data):
-            raise RecordingDamaged(name, ReadStop(DAMAGED, offset, "the chunk ends inside a record"))
-        if opcode == Opcode.MESSAGE and length >= _MESSAGE_HEAD.size:
+    # The kernel left out the messages on skip_channels; what is left is built here, in file order.
+    for start, end, opcode in rows.tolist():
+        if opcode == Opcode.MESSAGE and end - start >= _MESSAGE_HEAD.size:
             # The hot path of every analysis: unpack in place instead of a stream object per message.
             channel_id, sequence, log_time, publish_time = _MESSAGE_HEAD.unpack_from(data, start)
-            if channel_id in skip_channels:
-                position = end
-                continue
             payload = data[start + _MESSAGE_HEAD.size : end]
             records.append(Message(channel_id, log_time, payload, publish_time, sequence))  # field order
         elif opcode in (Opcode.MESSAGE, Opcode.CHANNEL):
             records.extend(_parse(opcode, data[start:end], name, offset))
-        position = end
     return records
