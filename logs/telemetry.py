@@ -29,7 +29,7 @@ from logs.encoding import encode_message
 from logs.errors import TelemetryError, TelemetrySetupError
 from logs.settings import Table
 from logs.sink import Message
-from logs.topics import CAN_STATS, TOPICS
+from logs.topics import CAN_FRAMES, CAN_STATS, ESTIMATOR_INNOVATIONS, TOPICS
 
 logger = logging.getLogger(__name__)
 
@@ -41,6 +41,12 @@ _FORBIDDEN_IN_ID = set("/*$?#")
 _MAX_WARNINGS = 10
 _ZENOH_MSG = re.compile(r'msg: "(.*?)"(?:, location|\s*\})')
 _RUST_LOCATION = re.compile(r" at \S+\.rs:\d+\.?")
+
+
+# The live stream's default thinning: the two topics that outnumber all others together. CAN frames come
+# at ~720/s (every command and status frame) and the estimator's innovations at ~115/s; a ground station
+# plots them, it does not need each one (the MCAP keeps them all). In (topic, messages/s) pairs, sorted.
+DEFAULT_RATES_HZ: tuple[tuple[str, float], ...] = ((CAN_FRAMES, 100.0), (ESTIMATOR_INNOVATIONS, 20.0))
 
 
 @dataclass(frozen=True)
@@ -56,8 +62,9 @@ class ZenohSettings:
     # e.g. {"transport/auth/usrpwd/user": "station"}. A tuple of pairs so the settings stay hashable.
     overrides: tuple[tuple[str, Any], ...] = ()
     # Topic -> maximum messages per second on the live stream (``[zenoh.rates]``); unlisted topics are
-    # sent at full rate. The MCAP recording always keeps everything.
-    rates_hz: tuple[tuple[str, float], ...] = ()
+    # sent at full rate. The MCAP recording always keeps everything. A ``[zenoh.rates]`` table replaces
+    # the default whole: an empty one streams every topic at full rate.
+    rates_hz: tuple[tuple[str, float], ...] = DEFAULT_RATES_HZ
 
     @classmethod
     def from_table(cls, table: Table, *, finish: bool = True) -> ZenohSettings:
@@ -96,7 +103,7 @@ NEVER_THINNED = frozenset({CAN_STATS})
 
 def _rates(table: Table) -> tuple[tuple[str, float], ...]:
     if not table.has("rates"):
-        return ()
+        return DEFAULT_RATES_HZ
     rates = table.table("rates")
     result = []
     for topic in sorted(rates.keys()):

@@ -465,7 +465,9 @@ def spec(topic: str) -> TopicSpec:
 
 def stamp(t_ns: int) -> dict[str, int]:
     """Foxglove time from integer nanoseconds."""
-    return {"sec": t_ns // 1_000_000_000, "nsec": t_ns % 1_000_000_000}
+    # One divmod, not // and %: half the time on the ~50k stamps of a trial (log times pass 2**30 ns).
+    sec, nsec = divmod(t_ns, 1_000_000_000)
+    return {"sec": sec, "nsec": nsec}
 
 
 # Foxglove Log levels (the ``log`` topic's ``level``).

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import errno
 import io
 import json
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -118,8 +120,9 @@ def test_file_is_standard_mcap_with_schemas_and_per_channel_sequences(recording:
     for _, channel, message in reader.iter_messages():
         sequences.setdefault(channel.topic, []).append(message.sequence)
         assert message.publish_time == message.log_time
-    assert sequences[SAFETY_EVENTS] == list(range(8))
-    assert sequences[LOG] == list(range(134))
+    # Per channel, from 1 (the Foxglove SDK's writer counts them).
+    assert sequences[SAFETY_EVENTS] == list(range(1, 9))
+    assert sequences[LOG] == list(range(1, 135))
 
 
 @pytest.mark.parametrize("fraction", [0.0, 0.001, 0.004, 0.1, 0.37, 0.5, 0.81, 0.99])
@@ -245,6 +248,35 @@ def test_recorder_rejects_unknown_topics_bad_values_and_use_after_close() -> Non
         recorder.publish(LOG, 0, _log(0))
     with pytest.raises(RecordingError, match="compression"):
         McapRecorder(io.BytesIO(), compression="lz77")
+
+
+class _DiskFills(io.BytesIO):
+    """A stream that takes the header, then refuses every write as a full disk does."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.full = False
+
+    def write(self, data: object) -> int:
+        if self.full:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return super().write(data)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("chunk_size", [200, 256 * 1024])
+def test_a_failed_write_is_a_recording_error_naming_the_reason(chunk_size: int) -> None:
+    stream = _DiskFills()
+    recorder = McapRecorder(stream, chunk_size=chunk_size, chunk_duration_ns=None)
+    recorder.publish(LOG, 0, _log(0))  # registers the channel while the disk has room
+    stream.full = True
+    with pytest.raises(RecordingError, match="No space left on device"):
+        # Small chunks: a message closes one and the publish that did it raises. Large ones: the flush.
+        for t in range(1, 50):
+            recorder.publish(LOG, t, _log(t))
+        recorder.flush()
+    with pytest.raises(RecordingError, match="No space left on device"):
+        recorder.close()
+    assert recorder.closed
 
 
 def test_same_inputs_give_identical_bytes() -> None:

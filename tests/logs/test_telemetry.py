@@ -21,7 +21,7 @@ from logs.telemetry import (
     subscribe,
     zenoh_config,
 )
-from logs.topics import LOG, NAVIGATOR_STATE, stamp
+from logs.topics import CAN_FRAMES, ESTIMATOR_INNOVATIONS, LOG, NAVIGATOR_STATE, stamp
 
 WAIT_S = 10.0
 
@@ -195,6 +195,31 @@ def test_rates_table_limits_the_live_stream_per_topic() -> None:
     assert len(memory.on("estimator/pose")) == 10
     assert len(memory.on(NAVIGATOR_STATE)) == 50
     assert rate_limited(memory, ()) is memory
+
+
+def test_live_stream_is_thinned_by_default_and_a_rates_table_replaces_the_default() -> None:
+    from logs.sink import MemorySink
+    from logs.telemetry_station import rate_limited
+
+    default = ZenohSettings.from_table(parse_toml("[zenoh]\n", "<test>").table("zenoh"))
+    assert (
+        default.rates_hz == ZenohSettings().rates_hz == ((CAN_FRAMES, 100.0), (ESTIMATOR_INNOVATIONS, 20.0))
+    )
+    memory = MemorySink()
+    sink = rate_limited(memory, default.rates_hz)
+    for tick in range(100):  # one second at 100 Hz, six frames a tick at the same log time
+        for _ in range(6):
+            sink.publish(CAN_FRAMES, tick * 10_000_000, {"tick": tick})
+        sink.publish(ESTIMATOR_INNOVATIONS, tick * 10_000_000, {"tick": tick})
+        sink.publish(NAVIGATOR_STATE, tick * 10_000_000, {"tick": tick})
+    assert len(memory.on(CAN_FRAMES)) == 100 and len(memory.on(ESTIMATOR_INNOVATIONS)) == 20
+    assert len(memory.on(NAVIGATOR_STATE)) == 100
+    # A table of its own replaces the default whole; an empty one streams everything.
+    only_pose = parse_toml('[zenoh.rates]\n"estimator/pose" = 5.0\n', "<test>").table("zenoh")
+    assert ZenohSettings.from_table(only_pose).rates_hz == (("estimator/pose", 5.0),)
+    everything = ZenohSettings.from_table(parse_toml("[zenoh.rates]\n", "<test>").table("zenoh"))
+    assert everything.rates_hz == ()
+    assert rate_limited(memory, everything.rates_hz) is memory
 
 
 def test_rates_for_unknown_topics_are_refused() -> None:
