@@ -100,7 +100,7 @@ class CanCounters:
 def _frame_json(t_ns: int, direction: str, msg: can.Message) -> bytes:
     """``encode_message(_frame_record(t_ns, direction, msg))``, formatted directly.
 
-    Hot path: every frame in both directions is recorded (~1300 per simulated second in a lockstep
+    Hot path: every frame in both directions is recorded (~720 per simulated second in a lockstep
     trial, half the trial's messages), and its fields are only integers, a bool and ASCII text, so
     one format call gives the same bytes as the JSON encoder at a fifth of its cost (a test compares
     them on random frames)."""
@@ -126,7 +126,7 @@ def _frame_record(t_ns: int, direction: str, msg: can.Message) -> dict[str, obje
 class _FrameRecords:
     """``_frame_record`` and ``_frame_json`` of one link's frames, from parts kept between frames.
 
-    Hot path (every frame in both directions, ~700 per simulated second each way): the frames of one poll
+    Hot path (every frame in both directions, ~720 per simulated second): the frames of one poll
     share a timestamp, and a link sees a few dozen (direction, id, format, length) combinations over and
     over, so their JSON text is formatted once and each frame adds only its data (a test compares the
     results with both functions on random frames). Combinations beyond ``_MAX_CACHED_FRAME_KINDS`` (a
@@ -457,7 +457,7 @@ class CanLink(ClosesOnExit):
         except FrameError as err:
             self._reject(msg, err)
             return False
-        # Hot path (~350 frames per simulated second): the health machines return a change only when
+        # Hot path (~420 frames per simulated second): the health machines return a change only when
         # there is one to report, so the common frame skips _apply altogether.
         change = self._bus_state.on_frame_received()
         if change is not None:

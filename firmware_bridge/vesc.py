@@ -124,9 +124,9 @@ class FrameEncoder:
     """One VESC message of one controller, encoded from values the caller has already clamped into their
     fields, without cantools' range check.
 
-    Hot path (six SET_RPM per control tick, eighteen status frames per 20 ms in the simulator): the
+    Hot path (six SET_RPM per control tick, 6-18 status frames per 20 ms in the simulator): the
     message's ``FramePacker`` gives the bytes cantools' ``encode(values, strict=False)`` gives (a test
-    compares them on random values) in about a fifth of the time; a message without one uses cantools.
+    compares them on random values) in under half the time; a message without one uses cantools.
     Senders keep one per message (``VescCodec.encoder``), so nothing is looked up per frame.
     """
 
