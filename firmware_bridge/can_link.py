@@ -3,6 +3,7 @@ bus load counted (``can/stats``)."""
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import threading
@@ -49,6 +50,9 @@ _TRAFFIC_COUNTERS = ("tx", "rx", "own_echoes")
 # (direction, id, format, length) combinations whose JSON text a link keeps (_FrameRecords): ours are 2 x 6
 # controllers x a few kinds; foreign traffic may add some, a flood of random ids must not grow it for ever.
 _MAX_CACHED_FRAME_KINDS = 512
+# frame_bits per (format, length), remembered: it is asked for every frame (~720 per simulated second) and
+# the C-level cache lookup costs about half the Python call. Bounded: a bus delivers a handful of lengths.
+_frame_bits = functools.lru_cache(maxsize=128)(frame_bits)
 
 
 @dataclass
@@ -325,7 +329,7 @@ class CanLink(ClosesOnExit):
             )
             return False
         self.counters.tx += 1
-        self.bits_total += frame_bits(msg.is_extended_id, msg.dlc)
+        self.bits_total += _frame_bits(msg.is_extended_id, msg.dlc)
         if self._echoes is not None:
             self._echoes.sent(msg)
         if background:
@@ -450,7 +454,7 @@ class CanLink(ClosesOnExit):
             self.counters.own_echoes += 1
             return False
         self.counters.rx += 1
-        self.bits_total += frame_bits(msg.is_extended_id, msg.dlc)
+        self.bits_total += _frame_bits(msg.is_extended_id, msg.dlc)
         self._publish_frame(t_ns, "rx", msg)
         try:
             frame = self._codec.decode(msg)
