@@ -3,6 +3,7 @@ bus load counted (``can/stats``)."""
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import threading
@@ -46,6 +47,12 @@ _STATUS_KINDS = frozenset({"STATUS", "STATUS_4", "STATUS_5"})
 # Which FrameError reasons land in which counter.
 _REJECTION_COUNTER = {"unknown_id": "unknown_id", "not_extended": "unknown_id", "wrong_dlc": "wrong_dlc"}
 _TRAFFIC_COUNTERS = ("tx", "rx", "own_echoes")
+# (direction, id, format, length) combinations whose JSON text a link keeps (_FrameRecords): ours are 2 x 6
+# controllers x a few kinds; foreign traffic may add some, a flood of random ids must not grow it for ever.
+_MAX_CACHED_FRAME_KINDS = 512
+# frame_bits per (format, length), remembered: it is asked for every frame (~720 per simulated second) and
+# the C-level cache lookup costs about half the Python call. Bounded: a bus delivers a handful of lengths.
+_frame_bits = functools.lru_cache(maxsize=128)(frame_bits)
 
 
 @dataclass
@@ -97,7 +104,7 @@ class CanCounters:
 def _frame_json(t_ns: int, direction: str, msg: can.Message) -> bytes:
     """``encode_message(_frame_record(t_ns, direction, msg))``, formatted directly.
 
-    Hot path: every frame in both directions is recorded (~1300 per simulated second in a lockstep
+    Hot path: every frame in both directions is recorded (~720 per simulated second in a lockstep
     trial, half the trial's messages), and its fields are only integers, a bool and ASCII text, so
     one format call gives the same bytes as the JSON encoder at a fifth of its cost (a test compares
     them on random frames)."""
@@ -118,6 +125,50 @@ def _frame_record(t_ns: int, direction: str, msg: can.Message) -> dict[str, obje
         "dlc": msg.dlc,
         "data": msg.data.hex(),
     }
+
+
+class _FrameRecords:
+    """``_frame_record`` and ``_frame_json`` of one link's frames, from parts kept between frames.
+
+    Hot path (every frame in both directions, ~720 per simulated second): the frames of one poll
+    share a timestamp, and a link sees a few dozen (direction, id, format, length) combinations over and
+    over, so their JSON text is formatted once and each frame adds only its data (a test compares the
+    results with both functions on random frames). Combinations beyond ``_MAX_CACHED_FRAME_KINDS`` (a
+    flood of foreign ids) are formatted in full, as before, so the cache cannot grow without bound.
+    """
+
+    def __init__(self) -> None:
+        self._t_ns: int | None = None
+        self._sec = 0
+        self._nsec = 0
+        self._json_head = ""  # '{"timestamp":{...},' of self._t_ns
+        self._json_middles: dict[tuple[str, int, bool, int], str] = {}  # '"direction":..."data":"'
+
+    def format(self, t_ns: int, direction: str, msg: can.Message) -> tuple[dict[str, object], bytes]:
+        """The frame's record and its JSON bytes (``encode_message`` of the record)."""
+        if t_ns != self._t_ns:
+            self._t_ns = t_ns
+            self._sec, self._nsec = divmod(t_ns, 1_000_000_000)
+            self._json_head = f'{{"timestamp":{{"sec":{self._sec},"nsec":{self._nsec}}},'
+        key = (direction, msg.arbitration_id, msg.is_extended_id, msg.dlc)
+        middle = self._json_middles.get(key)
+        if middle is None:
+            if len(self._json_middles) >= _MAX_CACHED_FRAME_KINDS:
+                return _frame_record(t_ns, direction, msg), _frame_json(t_ns, direction, msg)
+            middle = self._json_middles[key] = (
+                f'"direction":"{direction}","id":{int(msg.arbitration_id)},'
+                f'"extended":{"true" if msg.is_extended_id else "false"},"dlc":{int(msg.dlc)},"data":"'
+            )
+        data = msg.data.hex()
+        record: dict[str, object] = {
+            "timestamp": {"sec": self._sec, "nsec": self._nsec},
+            "direction": direction,
+            "id": msg.arbitration_id,
+            "extended": msg.is_extended_id,
+            "dlc": msg.dlc,
+            "data": data,
+        }
+        return record, f'{self._json_head}{middle}{data}"}}'.encode()
 
 
 class CanLink(ClosesOnExit):
@@ -156,9 +207,12 @@ class CanLink(ClosesOnExit):
         self._sink = sink
         # A sink that takes encoded bytes gets each frame record pre-formatted (_frame_json).
         self._encoded_sink = sink if isinstance(sink, EncodedSink) else None
+        self._frame_records = _FrameRecords()
         self.profile = codec.profile
+        self._erpm_per_mps = codec.profile.erpm_per_mps
         self.counters = CanCounters()
         self._ids = codec.profile.controller_ids
+        self._set_rpm = tuple(codec.encoder("SET_RPM", cid) for cid in self._ids)  # in wheel order
         self._readings = [WheelReading(cid) for cid in self._ids]
         self._wheel_of = {cid: index for index, cid in enumerate(self._ids)}
         self._foreign = ForeignControllers(self._ids)
@@ -220,7 +274,7 @@ class CanLink(ClosesOnExit):
             raise BridgeOperationError(
                 f"need {WHEEL_COUNT} wheel speeds in wheel order, got {len(speeds_mps)}"
             )
-        erpm_per_mps = self.profile.erpm_per_mps
+        erpm_per_mps = self._erpm_per_mps
         requested: list[int] = []
         for index, speed in enumerate(speeds_mps):
             if not math.isfinite(speed):
@@ -251,8 +305,9 @@ class CanLink(ClosesOnExit):
                 self.counters.withheld += 1
             erpm = self._zero_erpm
         failures = 0
-        for cid, value in zip(self._ids, erpm, strict=True):
-            if not self._send(t_ns, self._codec.encode_set_rpm(cid, value), background=background):
+        # ``erpm`` holds erpm_command's integers (or zeros), already in the field: encoded as they are.
+        for set_rpm, value in zip(self._set_rpm, erpm, strict=True):
+            if not self._send(t_ns, set_rpm.encode({"erpm": value}), background=background):
                 failures += 1
         self.last_sent_erpm = list(erpm)
         if failures == WHEEL_COUNT:
@@ -274,7 +329,7 @@ class CanLink(ClosesOnExit):
             )
             return False
         self.counters.tx += 1
-        self.bits_total += frame_bits(msg.is_extended_id, msg.dlc)
+        self.bits_total += _frame_bits(msg.is_extended_id, msg.dlc)
         if self._echoes is not None:
             self._echoes.sent(msg)
         if background:
@@ -284,11 +339,11 @@ class CanLink(ClosesOnExit):
         return True
 
     def _publish_frame(self, t_ns: int, direction: str, msg: can.Message) -> None:
-        record = _frame_record(t_ns, direction, msg)
         if self._encoded_sink is None:
-            self._sink.publish(CAN_FRAMES, t_ns, record)
+            self._sink.publish(CAN_FRAMES, t_ns, _frame_record(t_ns, direction, msg))
         else:
-            self._encoded_sink.publish_encoded(CAN_FRAMES, t_ns, record, _frame_json(t_ns, direction, msg))
+            record, data = self._frame_records.format(t_ns, direction, msg)
+            self._encoded_sink.publish_encoded(CAN_FRAMES, t_ns, record, data)
 
     def keep_alive(self) -> None:
         """Repeat the latest command if a command period passed without one; zero once it is too old."""
@@ -332,7 +387,16 @@ class CanLink(ClosesOnExit):
             t_ns = self._clock.now_ns()
             frames = 0
             status_seen = False
-            while (msg := self._next_frame()) is not None:
+            receive = self._bus.recv if self._reader is None else self._reader.get_message
+            while True:
+                try:
+                    msg = receive(timeout=0)
+                except (can.CanError, OSError, ValueError) as err:
+                    self.counters.bus_errors += 1
+                    logger.debug("CAN receive failed: %s", err)
+                    break
+                if msg is None:
+                    break
                 frames += 1
                 status_seen |= self._take(msg, t_ns)
             self._check_bus_state(t_ns)
@@ -374,16 +438,6 @@ class CanLink(ClosesOnExit):
             self._last_rejection,
         )
 
-    def _next_frame(self) -> can.Message | None:
-        try:
-            if self._reader is not None:
-                return self._reader.get_message(timeout=0)
-            return self._bus.recv(timeout=0)
-        except (can.CanError, OSError, ValueError) as err:
-            self.counters.bus_errors += 1
-            logger.debug("CAN receive failed: %s", err)
-            return None
-
     def _take(self, msg: can.Message, t_ns: int) -> bool:
         """Handle one received frame; True if it was a status frame."""
         if msg.is_error_frame:
@@ -400,27 +454,38 @@ class CanLink(ClosesOnExit):
             self.counters.own_echoes += 1
             return False
         self.counters.rx += 1
-        self.bits_total += frame_bits(msg.is_extended_id, msg.dlc)
+        self.bits_total += _frame_bits(msg.is_extended_id, msg.dlc)
         self._publish_frame(t_ns, "rx", msg)
         try:
             frame = self._codec.decode(msg)
         except FrameError as err:
-            counter = _REJECTION_COUNTER.get(err.reason, "decode_errors")
-            setattr(self.counters, counter, getattr(self.counters, counter) + 1)
-            self._last_rejection = str(err)
-            logger.debug("rejected CAN frame: %s", err)
-            if err.reason == "unknown_id":
-                foreign = self._foreign.note(msg.arbitration_id, msg.is_extended_id)
-                if foreign is not None:
-                    logger.warning("%s", foreign)
+            self._reject(msg, err)
             return False
-        self._apply(t_ns, self._bus_state.on_frame_received(), False)
+        # Hot path (~420 frames per simulated second): the health machines return a change only when
+        # there is one to report, so the common frame skips _apply altogether.
+        change = self._bus_state.on_frame_received()
+        if change is not None:
+            self._apply(t_ns, change, False)
         if frame.kind not in _STATUS_KINDS:
             return False
         self._apply_status(frame, t_ns)
-        self._apply(t_ns, self._liveness.heard(frame.controller_id, t_ns), False)
-        self._apply(t_ns, self._bus_state.on_status(frame.controller_id), False)
+        cid = frame.controller_id
+        if (change := self._liveness.heard(cid, t_ns)) is not None:
+            self._apply(t_ns, change, False)
+        if (change := self._bus_state.on_status(cid)) is not None:
+            self._apply(t_ns, change, False)
         return True
+
+    def _reject(self, msg: can.Message, err: FrameError) -> None:
+        """Count a received frame the codec refused, by cause; a foreign controller is named once."""
+        counter = _REJECTION_COUNTER.get(err.reason, "decode_errors")
+        setattr(self.counters, counter, getattr(self.counters, counter) + 1)
+        self._last_rejection = str(err)
+        logger.debug("rejected CAN frame: %s", err)
+        if err.reason == "unknown_id":
+            foreign = self._foreign.note(msg.arbitration_id, msg.is_extended_id)
+            if foreign is not None:
+                logger.warning("%s", foreign)
 
     def _check_bus_state(self, t_ns: int) -> None:
         try:
@@ -463,7 +528,8 @@ class CanLink(ClosesOnExit):
         values = frame.values
         if frame.kind == "STATUS":
             reading.erpm = values["erpm"]
-            reading.speed_mps = self.profile.speed_from_erpm(reading.erpm)
+            # VescProfile.speed_from_erpm, with erpm_per_mps (a property computed per access) kept.
+            reading.speed_mps = reading.erpm / self._erpm_per_mps
             reading.motor_current_a = values["current"]
             reading.duty = values["duty"]
         elif frame.kind == "STATUS_4":

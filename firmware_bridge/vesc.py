@@ -120,6 +120,35 @@ class VescFrame:
     values: dict[str, float]
 
 
+class FrameEncoder:
+    """One VESC message of one controller, encoded from values the caller has already clamped into their
+    fields, without cantools' range check.
+
+    Hot path (six SET_RPM per control tick, 6-18 status frames per 20 ms in the simulator): the
+    message's ``FramePacker`` gives the bytes cantools' ``encode(values, strict=False)`` gives (a test
+    compares them on random values) in under half the time; a message without one uses cantools.
+    Senders keep one per message (``VescCodec.encoder``), so nothing is looked up per frame.
+    """
+
+    def __init__(self, message: cantools.database.can.Message, packer: FramePacker | None) -> None:
+        self.message = message
+        self._packer = packer
+        self._frame_id = message.frame_id
+        self._length = message.length  # a property cantools computes per access
+
+    def encode(self, values: Mapping[str, float]) -> can.Message:
+        packer = self._packer
+        try:
+            data = (
+                packer.pack(values) if packer is not None else self.message.encode(dict(values), strict=False)
+            )
+        except (cantools.database.EncodeError, KeyError, ValueError, TypeError) as err:
+            raise BridgeOperationError(
+                f"cannot encode {self.message.name} from {dict(values)}: {err}"
+            ) from err
+        return can.Message(arbitration_id=self._frame_id, is_extended_id=True, data=data, dlc=self._length)
+
+
 class VescCodec:
     """Encodes and decodes VESC frames defined by the DBC, strictly: bad frames raise ``FrameError``.
 
@@ -142,11 +171,10 @@ class VescCodec:
         self.database = database
         self.profile = profile
         self._by_key: dict[tuple[str, int], cantools.database.can.Message] = {}
-        # frame id -> (kind, controller id, message, its length): cantools' Message.length is a property
-        # computed per access, and decode asks for it on every frame.
-        self._by_id: dict[int, tuple[str, int, cantools.database.can.Message, int]] = {}
-        self._packers: dict[tuple[str, int], FramePacker | None] = {}
-        self._unpackers: dict[int, FramePacker] = {}  # frame id -> packer, for messages that have one
+        # frame id -> (kind, controller id, message, its length, its packer or None): one lookup per
+        # received frame. cantools' Message.length is a property computed per access.
+        self._by_id: dict[int, tuple[str, int, cantools.database.can.Message, int, FramePacker | None]] = {}
+        self._encoders: dict[tuple[str, int], FrameEncoder] = {}
         for cid in profile.controller_ids:
             for spec in VESC_MESSAGES:
                 name = message_name(spec.kind, cid)
@@ -159,21 +187,22 @@ class VescCodec:
                     ) from err
                 if not message.is_extended_frame:
                     raise BridgeSetupError(f"{name} must use a 29-bit extended id in the DBC")
-                self._by_key[(spec.kind, cid)] = message
-                self._by_id[message.frame_id] = (spec.kind, cid, message, message.length)
                 packer = FramePacker.for_message(message)
-                self._packers[(spec.kind, cid)] = packer
-                if packer is not None:
-                    self._unpackers[message.frame_id] = packer
+                self._by_key[(spec.kind, cid)] = message
+                self._by_id[message.frame_id] = (spec.kind, cid, message, message.length, packer)
+                self._encoders[(spec.kind, cid)] = FrameEncoder(message, packer)
 
     def _message(self, kind: str, controller_id: int) -> cantools.database.can.Message:
         try:
             return self._by_key[(kind, controller_id)]
         except KeyError:
-            raise BridgeOperationError(
-                f"no VESC message {kind!r} for controller {controller_id}; known controllers "
-                f"{list(self.profile.controller_ids)}, kinds {[m.kind for m in VESC_MESSAGES]}"
-            ) from None
+            raise self._unknown_message(kind, controller_id) from None
+
+    def _unknown_message(self, kind: str, controller_id: int) -> BridgeOperationError:
+        return BridgeOperationError(
+            f"no VESC message {kind!r} for controller {controller_id}; known controllers "
+            f"{list(self.profile.controller_ids)}, kinds {[m.kind for m in VESC_MESSAGES]}"
+        )
 
     def encode(self, kind: str, controller_id: int, **values: float) -> can.Message:
         message = self._message(kind, controller_id)
@@ -187,25 +216,19 @@ class VescCodec:
 
     def encode_set_rpm(self, controller_id: int, erpm: float) -> can.Message:
         """SET_RPM with the ERPM rounded to an integer and clamped to int32."""
-        return self.encode_in_range("SET_RPM", controller_id, {"erpm": erpm_command(erpm)})
+        return self.encoder("SET_RPM", controller_id).encode({"erpm": erpm_command(erpm)})
 
     def encode_in_range(self, kind: str, controller_id: int, values: Mapping[str, float]) -> can.Message:
-        """Encode values the caller has already clamped into their fields, without cantools' range check.
+        """Encode values the caller has already clamped into their fields, without cantools' range check
+        (``FrameEncoder.encode``)."""
+        return self.encoder(kind, controller_id).encode(values)
 
-        Hot path (six SET_RPM per control tick, eighteen status frames per 20 ms in the simulator): the
-        precomputed packer gives the bytes cantools' ``encode(values, strict=False)`` gives (a test
-        compares them on random values) in about a fifth of the time; messages without one use cantools.
-        """
-        packer = self._packers.get((kind, controller_id))
-        # Without a packer: cantools, or the error naming an unknown kind or controller.
-        message = self._message(kind, controller_id) if packer is None else packer.message
+    def encoder(self, kind: str, controller_id: int) -> FrameEncoder:
+        """The encoder of one message, for senders that send it over and over: look it up once."""
         try:
-            data = message.encode(dict(values), strict=False) if packer is None else packer.pack(values)
-        except (cantools.database.EncodeError, KeyError, ValueError, TypeError) as err:
-            raise BridgeOperationError(f"cannot encode {message.name} from {dict(values)}: {err}") from err
-        return can.Message(
-            arbitration_id=message.frame_id, is_extended_id=True, data=data, dlc=message.length
-        )
+            return self._encoders[(kind, controller_id)]
+        except KeyError:
+            raise self._unknown_message(kind, controller_id) from None
 
     def decode(self, msg: can.Message) -> VescFrame:
         """Strictly decode a received frame; raises ``FrameError`` with a ``reason`` on anything odd."""
@@ -224,7 +247,7 @@ class VescCodec:
                 reason="unknown_id",
                 frame_id=arbitration_id,
             )
-        kind, cid, message, length = entry
+        kind, cid, message, length, packer = entry
         data = msg.data
         if msg.is_remote_frame or msg.dlc != length or len(data) != length:
             raise FrameError(
@@ -233,9 +256,8 @@ class VescCodec:
                 reason="wrong_dlc",
                 frame_id=arbitration_id,
             )
-        unpacker = self._unpackers.get(arbitration_id)
-        if unpacker is not None:
-            return VescFrame(kind, cid, unpacker.unpack(bytes(data)))
+        if packer is not None:
+            return VescFrame(kind, cid, packer.unpack(data))
         try:
             decoded = message.decode(bytes(data), decode_choices=False)
         except (cantools.database.DecodeError, ValueError) as err:

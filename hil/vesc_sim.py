@@ -14,13 +14,15 @@ from collections.abc import Sequence
 import can
 
 from firmware_bridge.errors import BridgeError, FrameError
-from firmware_bridge.vesc import WHEEL_COUNT, VescCodec, VescFrame
+from firmware_bridge.vesc import WHEEL_COUNT, FrameEncoder, VescCodec, VescFrame
 from firmware_bridge.wheel_names import wheel_label
 from logs.clock import Clock, to_ns
 
 logger = logging.getLogger(__name__)
 
 _IDLE_TEMPERATURE_C = 25.0
+# STATUS_4's fields this model holds constant: an idle temperature, no position control.
+_IDLE_STATUS_4 = {"temp_fet": _IDLE_TEMPERATURE_C, "temp_motor": _IDLE_TEMPERATURE_C, "pid_pos": 0.0}
 _STATUS_CURRENT_LIMIT_A = 3000.0  # the int16 / 10 field holds +-3276.7 A
 _INT32_MAX = (1 << 31) - 1
 _VOLTAGE_FIELD_MAX_V = 3000.0  # int16 / 10
@@ -82,6 +84,11 @@ class SimVescBank:
         self.reboots = 0
         self._rebooting = [False] * WHEEL_COUNT  # fault: controller silent while it restarts
         self._stuck = [False] * WHEEL_COUNT  # fault: the wheel is seized
+        # Per wheel: the encoders of its status frames, looked up once (eighteen frames per 20 ms).
+        self._status_encoders = [
+            (codec.encoder("STATUS", cid), codec.encoder("STATUS_4", cid), codec.encoder("STATUS_5", cid))
+            for cid in self._ids
+        ]
 
     # --- commands in ---------------------------------------------------------------------------
     def poll(self) -> int:
@@ -199,46 +206,40 @@ class SimVescBank:
 
     # --- status out ----------------------------------------------------------------------------
     def _send_due_status(self, now: int) -> None:
-        if now >= self._next_status_ns:
+        fast_due = now >= self._next_status_ns
+        slow_due = now >= self._next_slow_ns
+        if fast_due:
             self._next_status_ns = _next_due(self._next_status_ns, self._status_period_ns, now)
-            for i, cid in enumerate(self._ids):
-                if self._rebooting[i]:
-                    continue
-                self._send(
-                    "STATUS",
-                    cid,
-                    erpm=max(-_INT32_MAX, min(_INT32_MAX, round(self._erpm[i]))),
-                    current=self._motor_current_a[i],
-                    duty=self._duty_cycle[i],
-                )
-        if now >= self._next_slow_ns:
+        if slow_due:
             self._next_slow_ns = _next_due(self._next_slow_ns, self._slow_period_ns, now)
-            for i, cid in enumerate(self._ids):
+        if not (fast_due or slow_due):
+            return
+        # Every value is clamped into its field's range before it gets here (ERPM, currents, duty,
+        # tachometer, voltage), so the encoders skip cantools' strict range check. The frame order is the
+        # firmware's schedule as before: every controller's STATUS, then each one's STATUS_4 and STATUS_5.
+        if fast_due:
+            for i, (status, _, _) in enumerate(self._status_encoders):
+                if not self._rebooting[i]:
+                    erpm = max(-_INT32_MAX, min(_INT32_MAX, round(self._erpm[i])))
+                    current = self._motor_current_a[i]
+                    self._send(status, {"erpm": erpm, "current": current, "duty": self._duty_cycle[i]})
+        if slow_due:
+            voltage = self._input_voltage_v
+            for i, (_, status_4, status_5) in enumerate(self._status_encoders):
                 if self._rebooting[i]:
                     continue
-                current = self._motor_current_a[i]
-                self._send(
-                    "STATUS_4",
-                    cid,
-                    temp_fet=_IDLE_TEMPERATURE_C,
-                    temp_motor=_IDLE_TEMPERATURE_C,
-                    # What the motor takes from the pack: I x duty, signed as power flows. A braking
-                    # motor generates, and with no regeneration (hil.battery) the pack sees nothing.
-                    current_in=max(current * self._duty_cycle[i], 0.0),
-                    pid_pos=0.0,
-                )
-                self._send(
-                    "STATUS_5", cid, tacho=_wrap_tacho(self._tacho_erev[i]), voltage_in=self._input_voltage_v
-                )
+                # What the motor takes from the pack: I x duty, signed as power flows. A braking motor
+                # generates, and with no regeneration (hil.battery) the pack sees nothing.
+                current_in = max(self._motor_current_a[i] * self._duty_cycle[i], 0.0)
+                self._send(status_4, {**_IDLE_STATUS_4, "current_in": current_in})
+                self._send(status_5, {"tacho": _wrap_tacho(self._tacho_erev[i]), "voltage_in": voltage})
 
-    def _send(self, kind: str, controller_id: int, **values: float) -> None:
+    def _send(self, encoder: FrameEncoder, values: dict[str, float]) -> None:
         try:
-            # Hot path (18 status frames per 20 ms): every value is clamped into its field's range before
-            # it gets here (ERPM, currents, tachometer), so cantools' strict range check is redundant.
-            self._bus.send(self._codec.encode_in_range(kind, controller_id, values))
+            self._bus.send(encoder.encode(values))
         except (can.CanError, BridgeError, ValueError, KeyError) as err:
             self.send_errors += 1
-            logger.debug("simulated VESC %d: cannot send %s: %s", controller_id, kind, err)
+            logger.debug("simulated VESC: cannot send %s: %s", encoder.message.name, err)
 
     # --- accessors -----------------------------------------------------------------------------
     def wheel_speeds_mps(self) -> list[float]:

@@ -4,7 +4,15 @@ import random
 import can
 import pytest
 
-from firmware_bridge.can_link import CanConfig, CanLink, _frame_json, _frame_record, open_bus
+from firmware_bridge.can_link import (
+    _MAX_CACHED_FRAME_KINDS,
+    CanConfig,
+    CanLink,
+    _frame_json,
+    _frame_record,
+    _FrameRecords,
+    open_bus,
+)
 from firmware_bridge.errors import BridgeOperationError, BridgeSetupError
 from logs.clock import SimClock
 from logs.encoding import encode_message
@@ -167,6 +175,31 @@ def test_preformatted_frame_record_is_the_json_encoders_bytes(seed):
         t_ns = rng.choice([0, rng.randrange(10**15)])
         direction = rng.choice(["rx", "tx"])
         assert _frame_json(t_ns, direction, msg) == encode_message(_frame_record(t_ns, direction, msg))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_frame_records_from_kept_parts_equal_the_formatted_ones(seed):
+    """The link's cached formatting (shared timestamps, (direction, id, format, length) text kept) gives the
+    record and bytes of _frame_record / _frame_json, for repeated and new kinds, past the cache's bound."""
+    rng = random.Random(seed)
+    records = _FrameRecords()
+    t_ns = 0
+    ids = [rng.randrange(1 << 29) for _ in range(8)]
+    for _ in range(3 * _MAX_CACHED_FRAME_KINDS):
+        if rng.random() < 0.2:
+            t_ns = rng.choice([t_ns + 1, t_ns + rng.randrange(10**9), rng.randrange(10**15)])
+        extended = rng.random() < 0.8
+        dlc = rng.randrange(9)
+        arbitration_id = (
+            rng.choice(ids) if rng.random() < 0.5 else rng.randrange(1 << (29 if extended else 11))
+        )
+        msg = can.Message(
+            arbitration_id=arbitration_id, is_extended_id=extended, data=rng.randbytes(dlc), dlc=dlc
+        )
+        direction = rng.choice(["rx", "tx"])
+        record, data = records.format(t_ns, direction, msg)
+        assert record == _frame_record(t_ns, direction, msg)
+        assert data == _frame_json(t_ns, direction, msg) == encode_message(record)
 
 
 def test_an_encoding_sink_gets_the_same_frame_records(buses):

@@ -7,6 +7,7 @@ import random
 import can
 import cantools
 import pytest
+from cantools.database.conversion import LinearConversion
 
 from firmware_bridge.errors import FrameError
 from firmware_bridge.frame_packer import FramePacker
@@ -114,6 +115,25 @@ BO_ 2147483908 PLAIN: 8 A
 
 SIG_VALTYPE_ 2147483907 value : 1;
 """
+
+
+class _ShiftedConversion(LinearConversion):
+    """A conversion whose scaling is not raw * scale + offset: unpack's arithmetic would be wrong for it."""
+
+    def raw_to_scaled(self, raw_value: float, decode_choices: bool = True) -> float:
+        return raw_value * self.scale + self.offset + 1.0
+
+
+def test_conversions_other_than_cantools_plain_classes_are_declined() -> None:
+    database = cantools.database.load_string(DBC_WITH_ODD_LAYOUTS, database_format="dbc")
+    assert isinstance(database, cantools.database.can.Database)
+    plain = database.get_message_by_name("PLAIN")
+    assert FramePacker.for_message(plain) is not None
+    first = plain.get_signal_by_name("first")
+    first.conversion = _ShiftedConversion(
+        scale=first.conversion.scale, offset=first.conversion.offset, is_float=False
+    )
+    assert FramePacker.for_message(plain) is None
 
 
 def test_layouts_struct_cannot_express_are_declined() -> None:

@@ -66,6 +66,20 @@ def test_encode_rejects_bad_requests():
         codec.encode_set_rpm(1, math.nan)
 
 
+def test_encoders_refuse_what_encode_refuses():
+    """The hot-path encoders name an unknown kind or controller, and a frame missing a field, the same way."""
+    codec = make_codec()
+    with pytest.raises(BridgeOperationError, match="controller 9"):
+        codec.encoder("SET_RPM", 9)
+    with pytest.raises(BridgeOperationError, match=r"'NOPE'.*kinds"):
+        codec.encode_in_range("NOPE", 1, {"erpm": 1})
+    with pytest.raises(BridgeOperationError, match="VESC_STATUS_C1"):
+        codec.encoder("STATUS", 1).encode({"erpm": 1})  # missing signals
+    status = codec.encoder("STATUS", 2).encode({"erpm": -4000, "current": -3.2, "duty": 0.25})
+    assert status.arbitration_id == (9 << 8) | 2 and status.is_extended_id and status.dlc == 8
+    assert codec.decode(status).values == pytest.approx({"erpm": -4000, "current": -3.2, "duty": 0.25})
+
+
 @pytest.mark.parametrize(
     ("msg", "reason", "text"),
     [
