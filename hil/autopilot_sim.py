@@ -10,8 +10,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pymap3d
@@ -37,11 +36,11 @@ _SENSORS_PRESENT = (
 )
 
 
-@dataclass(frozen=True)
-class AutopilotTruth:
+class AutopilotTruth(NamedTuple):
     """The true state the autopilot's sensors measure (ENU metres, radians CCW from east, FLU body axes).
 
     ``accel_body_mps2`` is specific force as an IMU measures it: at rest on level ground (0, 0, +9.81).
+    A NamedTuple: the world builds one every physics tick, and a frozen dataclass cost twice as much.
     """
 
     x_m: float
@@ -56,14 +55,6 @@ class AutopilotTruth:
     battery_voltage_v: float = 0.0
     battery_current_a: float = 0.0
     battery_remaining_pct: int = -1  # -1: unknown, as in SYS_STATUS
-
-
-class _TransportFile:
-    def __init__(self, transport: Transport) -> None:
-        self._transport = transport
-
-    def write(self, data: bytes) -> None:
-        self._transport.write(bytes(data))
 
 
 def _int16(value: float) -> int:
@@ -125,7 +116,8 @@ class SimAutopilot:
         self._gyro_noise_rps = gyro_noise_rps
         self._accel_noise_mps2 = accel_noise_mps2
         self._heading_noise_rad = heading_noise_rad
-        self._mav = mavlink2.MAVLink(_TransportFile(transport), system_id, component_id)
+        # pymavlink writes each packed frame (bytes) to its "file": the transport takes them as they are.
+        self._mav = mavlink2.MAVLink(transport, system_id, component_id)
         self._mav.robust_parsing = True
         self._gps = gps or GpsModel(rng, FaultSchedule(), noise_m=gps_noise_m)
         self._imu = imu or ImuModel(
@@ -140,6 +132,7 @@ class SimAutopilot:
         }
         now = clock.now_ns()
         self._next_ns = dict.fromkeys(self._periods_ns, now)
+        self._next_any_ns = now  # the earliest of _next_ns: before it, a step has nothing to send
         self.sent: dict[str, int] = dict.fromkeys(self._periods_ns, 0)
         self.send_errors = 0
         self.heartbeats_received = 0
@@ -153,15 +146,20 @@ class SimAutopilot:
             GpsSample(self._clock.now_ns(), truth.x_m, truth.y_m, truth.z_m, truth.yaw_rad, truth.speed_mps)
         )
 
-    def step(self, truth: AutopilotTruth) -> None:
+    def step(self, truth: AutopilotTruth, *, record: bool = False) -> None:
         """Send what is due at the clock's now, in a fixed order: IMU, attitude, GPS, status, heartbeat.
+
+        ``record``: first remember ``truth`` for the GPS (``record_truth``), as the world does every
+        physics tick, in one call.
 
         The IMU goes first: it paces the rover's control loop, and a real IMU samples on its own timer;
         behind the GPS fix's geodesy and the other encodings it would leave 0.1-0.3 ms later on the steps
         where those are due, and the loop would take that as period jitter."""
         now = self._clock.now_ns()
-        if not self._gps.has_history():
+        if record or not self._gps.has_history():
             self.record_truth(truth)
+        if now < self._next_any_ns:
+            return  # nothing due (every other physics tick at the default rates: the IMU's is the fastest)
         if self._due("imu", now):
             imu = self._imu_message(truth, now)
             if imu is not None:
@@ -185,6 +183,7 @@ class SimAutopilot:
                     mavlink2.MAV_STATE_ACTIVE,
                 ),
             )
+        self._next_any_ns = min(self._next_ns.values())
 
     def _due(self, stream: str, now: int) -> bool:
         due = self._next_ns[stream]

@@ -47,7 +47,7 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -69,9 +69,11 @@ class DynamicsError(ValueError):
     """The simulated body was given something it cannot use (bad time step, wheel speeds, start pose)."""
 
 
-@dataclass(frozen=True)
-class DynamicsStep:
-    """What one step produced. Per-wheel tuples are in wheel order (LF LM LR RF RM RR)."""
+class DynamicsStep(NamedTuple):
+    """What one step produced. Per-wheel tuples are in wheel order (LF LM LR RF RM RR).
+
+    A NamedTuple, not a frozen dataclass: one is built every physics step, and a frozen dataclass's
+    ``__init__`` (one ``object.__setattr__`` per field, 27 of them) cost about three times as much."""
 
     x: float
     y: float
@@ -194,6 +196,9 @@ class RoverDynamics:
         self._under = terrain.ground_at(self._x, self._y, self._yaw)
         self._energy_j = 0.0
         self._rolled_over = False
+        # Per-wheel outputs the kernels write each step (read into tuples before the step returns), kept
+        # rather than allocated every step.
+        self._traction, self._slip, self._currents, self._duty = (np.empty(6) for _ in range(4))
         self._half_length = 0.5 * params.footprint_length_m
         self._half_width = 0.5 * params.footprint_width_m
         self._use_obstacles(terrain)
@@ -289,12 +294,7 @@ class RoverDynamics:
         or is not commanded."""
         if not (math.isfinite(dt_s) and dt_s > 0.0):
             raise DynamicsError(f"time step must be a finite number of seconds > 0, got {dt_s}")
-        if len(wheel_surface_speeds) != 6:
-            raise DynamicsError(
-                f"expected 6 wheel speeds (LF LM LR RF RM RR), got {len(wheel_surface_speeds)}"
-            )
-        if not all(math.isfinite(speed) for speed in wheel_surface_speeds):
-            raise DynamicsError(f"wheel speeds must be finite, got {list(wheel_surface_speeds)}")
+        check_wheel_speeds(wheel_surface_speeds)
         wheels = np.array(wheel_surface_speeds, dtype=np.float64)
         if not math.isfinite(battery_voltage_v):
             raise DynamicsError(f"battery voltage must be finite, got {battery_voltage_v}")
@@ -309,7 +309,7 @@ class RoverDynamics:
 
         normals = wheel_normal_forces(p, roll, pitch, self._accel, self._speed * self._yaw_rate)
         ground_params = self._ground_params[class_id]
-        traction = np.empty(6)
+        traction = self._traction
         accel, yaw_rate = drive_forces(
             wheels,
             normals,
@@ -362,7 +362,7 @@ class RoverDynamics:
             self._rolled_over = True
             self._speed = self._yaw_rate = self._accel = 0.0
 
-        slip, currents, duty = np.empty(6), np.empty(6), np.empty(6)
+        slip, currents, duty = self._slip, self._currents, self._duty
         power = wheel_outputs(
             wheels,
             normals,
@@ -376,7 +376,7 @@ class RoverDynamics:
             currents,
             duty,
         )
-        if stalled:
+        if stalled and any(stalled):  # six zeros: no wheel is seized (the usual case), nothing to add
             power += self._stall(stalled, battery_voltage_v, currents, duty)
         self._energy_j += power * dt_s
 
@@ -541,6 +541,16 @@ class RoverDynamics:
 
 
 _KIND_NAMES = {CLEAR: "", BOUNDARY: "boundary", OBSTACLE: "obstacle"}
+
+
+def check_wheel_speeds(speeds: Sequence[float]) -> None:
+    """DynamicsError unless ``speeds`` is six finite numbers (m/s, wheel order)."""
+    if len(speeds) != 6:
+        raise DynamicsError(f"expected 6 wheel speeds (LF LM LR RF RM RR), got {len(speeds)}")
+    # A sum is finite only if every term is (an inf or a NaN never sums away), so one test settles the
+    # usual case, every physics step; the per-wheel test runs only when the sum is not (or overflowed).
+    if not math.isfinite(sum(speeds)) and not all(math.isfinite(speed) for speed in speeds):
+        raise DynamicsError(f"wheel speeds must be finite, got {list(speeds)}")
 
 
 def _wrap(angle: float) -> float:

@@ -214,8 +214,7 @@ class SimWorld:
             battery_current_a=self.battery.current_a,
             battery_remaining_pct=round(100.0 * self.battery.state_of_charge),
         )
-        self.autopilot.record_truth(truth)
-        self.autopilot.step(truth)
+        self.autopilot.step(truth, record=True)  # the GPS keeps every tick's truth for its latency
         self.autopilot.poll()
         self.truth.on_step(now, body, step, self.battery, record_state=self._tick % TRUTH_DIVIDER == 0)
         if self.scenario.moving_obstacles:

@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from hil.dynamics import DynamicsError, RoverDynamics
+from hil.dynamics import DynamicsError, RoverDynamics, check_wheel_speeds
 from hil.traction import slip_for_ratio
 from navigator.follower import FollowerConfig, PurePursuit
 from navigator.footprint import Footprint, footprint_collides
@@ -237,3 +237,18 @@ def test_warm_up_steps_a_copy_and_leaves_the_body_where_it_was() -> None:
     assert (body.x, body.y, body.yaw, body.speed, body.yaw_rate, body.energy_wh) == before
     step = body.step(0.01, [1.0] * 6, 24.0)  # and the real body still steps from its own state
     assert step.energy_wh > 0.0
+
+
+@pytest.mark.parametrize(
+    "speeds",
+    [[0.0] * 5 + [math.inf], [math.inf, -math.inf] + [0.0] * 4, [0.0, math.nan] + [0.0] * 4],
+)
+def test_wheel_speeds_that_are_not_finite_are_refused(speeds):
+    with pytest.raises(DynamicsError, match="finite"):
+        check_wheel_speeds(speeds)
+
+
+def test_finite_wheel_speeds_whose_sum_overflows_are_accepted():
+    # The one-sum fast path must not take an overflowing sum of finite numbers for a non-finite speed.
+    check_wheel_speeds([1e308] * 6)
+    check_wheel_speeds([0.5, -0.5, 1.0, 1.0, 0.0, 2.0])
