@@ -58,7 +58,11 @@ class AutopilotTruth(NamedTuple):
 
 
 def _int16(value: float) -> int:
-    return max(-_INT16_MAX, min(_INT16_MAX, round(value)))
+    """``value`` rounded into a symmetric int16 field (six per IMU sample: a comparison, not min/max)."""
+    rounded = round(value)
+    if -_INT16_MAX <= rounded <= _INT16_MAX:
+        return rounded
+    return _INT16_MAX if rounded > 0 else -_INT16_MAX
 
 
 class SimAutopilot:

@@ -169,10 +169,8 @@ class ImuModel:
         # Six standard normal draws in one call, three for the gyro then three for the accelerometer, each
         # scaled as numpy's normal(0, sigma) scales its draw (0 + sigma z): the numbers two calls of
         # normal(0.0, sigma, 3) gave, for one call's overhead.
-        z = self._rng.standard_normal(6).tolist()
+        z0, z1, z2, z3, z4, z5 = self._rng.standard_normal(6).tolist()
         gyro_sigma, accel_sigma = self._gyro_noise, self._accel_noise
-        gn = [0.0 + gyro_sigma * z[0], 0.0 + gyro_sigma * z[1], 0.0 + gyro_sigma * z[2]]
-        an = [0.0 + accel_sigma * z[3], 0.0 + accel_sigma * z[4], 0.0 + accel_sigma * z[5]]
         kinds = {f.kind: f for f in self._faults.active_all("imu", now)} if self._has_faults else {}
         if "off" in kinds:
             return None
@@ -181,15 +179,29 @@ class ImuModel:
         # Three-element sums in plain floats (once per 20 ms; numpy's per-call overhead was most of the
         # model's time). The same IEEE additions in the same order as the arrays did: the same numbers.
         gb, ab = self._gyro_bias, self._accel_bias
-        gyro = [0.0 + gb[0] + gn[0], 0.0 + gb[1] + gn[1], float(yaw_rate_rps) + gb[2] + gn[2]]
-        accel = [float(specific_force_flu[i]) + ab[i] + an[i] for i in range(3)]
+        f0, f1, f2 = specific_force_flu
+        gyro = (
+            0.0 + gb[0] + (0.0 + gyro_sigma * z0),
+            0.0 + gb[1] + (0.0 + gyro_sigma * z1),
+            float(yaw_rate_rps) + gb[2] + (0.0 + gyro_sigma * z2),
+        )
+        accel = (
+            float(f0) + ab[0] + (0.0 + accel_sigma * z3),
+            float(f1) + ab[1] + (0.0 + accel_sigma * z4),
+            float(f2) + ab[2] + (0.0 + accel_sigma * z5),
+        )
         wrong = kinds.get("wrong")
         if wrong is not None:
-            gyro = [gyro[i] + float(wrong.gyro_bias_rps[i]) for i in range(3)]
-            accel = [accel[i] + float(wrong.accel_bias_mps2[i]) for i in range(3)]
-        reading = ImuReading((gyro[0], gyro[1], gyro[2]), (accel[0], accel[1], accel[2]))
+            gyro = _plus(gyro, wrong.gyro_bias_rps)
+            accel = _plus(accel, wrong.accel_bias_mps2)
+        reading = ImuReading(gyro, accel)
         self._last = reading
         return reading
+
+
+def _plus(a: tuple[float, float, float], b: tuple[float, float, float]) -> tuple[float, float, float]:
+    """``a + b`` for three-vectors, in plain floats."""
+    return (a[0] + float(b[0]), a[1] + float(b[1]), a[2] + float(b[2]))
 
 
 def course_bearing_deg(yaw_rad: float, speed_mps: float) -> float:
