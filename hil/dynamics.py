@@ -196,9 +196,9 @@ class RoverDynamics:
         self._under = terrain.ground_at(self._x, self._y, self._yaw)
         self._energy_j = 0.0
         self._rolled_over = False
-        # Per-wheel outputs the kernels write each step (read into tuples before the step returns), kept
-        # rather than allocated every step.
-        self._traction, self._slip, self._currents, self._duty = (np.empty(6) for _ in range(4))
+        # The wheel speeds and the per-wheel outputs the kernels write each step (read into tuples before
+        # the step returns), kept rather than allocated every step.
+        self._wheels, self._traction, self._slip, self._currents, self._duty = (np.empty(6) for _ in range(5))
         self._half_length = 0.5 * params.footprint_length_m
         self._half_width = 0.5 * params.footprint_width_m
         self._use_obstacles(terrain)
@@ -295,10 +295,13 @@ class RoverDynamics:
         if not (math.isfinite(dt_s) and dt_s > 0.0):
             raise DynamicsError(f"time step must be a finite number of seconds > 0, got {dt_s}")
         check_wheel_speeds(wheel_surface_speeds)
-        wheels = np.array(wheel_surface_speeds, dtype=np.float64)
+        wheels = self._wheels
+        wheels[:] = wheel_surface_speeds
         if not math.isfinite(battery_voltage_v):
             raise DynamicsError(f"battery voltage must be finite, got {battery_voltage_v}")
-        if stalled and (len(stalled) != 6 or any(d not in (-1.0, 0.0, 1.0) for d in stalled)):
+        # The usual case, every step: the VESCs' six zeros (no wheel seized), known by one comparison.
+        seized = bool(stalled) and stalled != _NONE_SEIZED
+        if seized and (len(stalled) != 6 or any(d not in (-1.0, 0.0, 1.0) for d in stalled)):
             raise DynamicsError(f"stalled must be six values of -1, 0 or +1, got {list(stalled)}")
 
         p = self._params
@@ -376,7 +379,7 @@ class RoverDynamics:
             currents,
             duty,
         )
-        if stalled and any(stalled):  # six zeros: no wheel is seized (the usual case), nothing to add
+        if seized and any(stalled):
             power += self._stall(stalled, battery_voltage_v, currents, duty)
         self._energy_j += power * dt_s
 
@@ -541,6 +544,7 @@ class RoverDynamics:
 
 
 _KIND_NAMES = {CLEAR: "", BOUNDARY: "boundary", OBSTACLE: "obstacle"}
+_NONE_SEIZED = (0.0,) * 6  # what SimVescBank.stalled() says while every wheel turns freely
 
 
 def check_wheel_speeds(speeds: Sequence[float]) -> None:

@@ -252,3 +252,21 @@ def test_finite_wheel_speeds_whose_sum_overflows_are_accepted():
     # The one-sum fast path must not take an overflowing sum of finite numbers for a non-finite speed.
     check_wheel_speeds([1e308] * 6)
     check_wheel_speeds([0.5, -0.5, 1.0, 1.0, 0.0, 2.0])
+
+
+@pytest.mark.parametrize("stalled", [[0.0] * 5, (0.5,) + (0.0,) * 5, [0.0] * 5 + [math.nan]])
+def test_stalled_that_is_not_six_signs_is_refused(stalled):
+    body = RoverDynamics(plane(), PARAMS, x=10.0, y=10.0, yaw=0.0)
+    with pytest.raises(DynamicsError, match="stalled"):
+        body.step(DT, [0.5] * 6, VOLTS, stalled)
+
+
+def test_six_zeros_stalled_steps_as_no_stall_given():
+    # The VESCs' six zeros take the fast path; a list of zeros the full check: both as no stall at all.
+    bodies = [RoverDynamics(plane(grade_x=0.1), PARAMS, x=10.0, y=10.0, yaw=0.3) for _ in range(3)]
+    for _ in range(50):
+        steps = [
+            body.step(DT, [0.8, 0.8, 0.8, 1.0, 1.0, 1.0], VOLTS, stalled)
+            for body, stalled in zip(bodies, [(), (0.0,) * 6, [0, 0, 0, 0, 0, 0]], strict=True)
+        ]
+        assert steps[0] == steps[1] == steps[2]
