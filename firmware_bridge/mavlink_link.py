@@ -10,6 +10,7 @@ import base64
 import logging
 import math
 import struct
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -242,6 +243,7 @@ class MavlinkLink(ClosesOnExit):
         self.autopilot_link_ok = True
         self._statustext_id = 0
         self._closed = False
+        self._converters = self._new_converters()
 
     def _new_mavlink(self) -> mavlink2.MAVLink:
         mav = mavlink2.MAVLink(_TransportFile(self._transport), self.system_id, self.component_id)
@@ -344,37 +346,42 @@ class MavlinkLink(ClosesOnExit):
         allowance = self._budget.allowance(t_ns)
         if self._datagrams is not None:
             kept, dropped = admit_datagrams(self._datagrams.read_datagrams(), allowance)
+            kept_bytes = sum(len(chunk) for chunk in kept)
         else:
             data, dropped = admit_stream(self._transport.read(), allowance)
             kept = [data] if data else []
+            kept_bytes = len(data)
             if dropped:
                 # The frame whose start the parser holds went on in the bytes just dropped.
                 self._drop_partial_frame()
         if dropped:
             self.counters.dropped_bytes += dropped
             logger.debug("MAVLink receive budget: dropped %d bytes unread", dropped)
-        self._budget.spend(sum(len(chunk) for chunk in kept))
+        self._budget.spend(kept_bytes)
         return kept
 
     def _take(self, msg: Any, t_ns: int, readings: list[Reading]) -> None:
         frame = bytes(msg.get_msgbuf())
+        kind = msg.get_type()
         if isinstance(msg, mavlink2.MAVLink_unknown):
             msgid, sysid, compid = _header_fields(frame)
             self.counters.unknown_frames += 1
         else:
             msgid, sysid, compid = msg.get_msgId(), msg.get_srcSystem(), msg.get_srcComponent()
         self.counters.rx_frames += 1
-        self._publish_raw(t_ns, "rx", frame, msgid, msg.get_type(), sysid, compid)
-        if msg.get_type() in COMMAND_MESSAGES:
+        self._publish_raw(t_ns, "rx", frame, msgid, kind, sysid, compid)
+        if kind in COMMAND_MESSAGES:
             request = self._answer_command(msg, t_ns)
             if request is not None:
                 readings.append(request)
             return
         if self._autopilot_system_id is not None and sysid != self._autopilot_system_id:
             return
-        reading = self._convert(msg, t_ns)
-        if reading is not None:
-            readings.append(reading)
+        convert = self._converters.get(kind)
+        if convert is not None:
+            reading = convert(msg, t_ns)
+            if reading is not None:
+                readings.append(reading)
 
     def _report_health(self, t_ns: int) -> None:
         report = self._health.report(t_ns, self.counters)
@@ -498,6 +505,10 @@ class MavlinkLink(ClosesOnExit):
             # A bogus header naming a msgid this dialect does not know cannot be CRC-checked: pymavlink
             # reports it as MAVLink_unknown, and we record it as such, like any real unknown message.
             messages.append(msg)
+            if not self._mav.buf_len():
+                # Nothing left to parse (the usual end of a read: whole frames). Asking again would only
+                # return None; a partial frame left over is asked for above and stays buffered.
+                break
         return messages
 
     def _new_mavlink_keeping_sequence(self) -> mavlink2.MAVLink:
@@ -525,42 +536,45 @@ class MavlinkLink(ClosesOnExit):
             setattr(counters, kind, getattr(counters, kind) + 1)
         logger.debug("skipped %d bad MAVLink bytes: %s", n_bytes, reason)
 
-    def _convert(self, msg: Any, t_ns: int) -> Reading | None:
-        kind = msg.get_type()
-        if kind == "GPS_RAW_INT":
-            fix = _gps_fix(msg, t_ns)
-            self._publish_gps(fix)
-            return fix
-        if kind == "HIGHRES_IMU":
-            # Already SI (m/s^2, rad/s), FRD.
-            sample = ImuSample(t_ns, (msg.xgyro, -msg.ygyro, -msg.zgyro), (msg.xacc, -msg.yacc, -msg.zacc))
-            self._publish_imu(sample)
-            return sample
-        if kind == "SYS_STATUS":
-            current = math.nan if msg.current_battery == -1 else msg.current_battery * 0.01
-            voltage = math.nan if msg.voltage_battery == _UINT16_UNKNOWN else msg.voltage_battery * 1e-3
-            return BatteryState(t_ns, voltage, current, int(msg.battery_remaining), kind)
-        if kind == "BATTERY_STATUS":
-            cells = [v for v in msg.voltages if v != _UINT16_UNKNOWN]
-            current = math.nan if msg.current_battery == -1 else msg.current_battery * 0.01
-            return BatteryState(
-                t_ns, sum(cells) * 1e-3 if cells else math.nan, current, int(msg.battery_remaining), kind
-            )
-        if kind in ("SCALED_IMU", "RAW_IMU"):
-            sample = ImuSample(
-                t_ns,
-                (msg.xgyro * _MRAD_TO_RAD, -msg.ygyro * _MRAD_TO_RAD, -msg.zgyro * _MRAD_TO_RAD),
-                (msg.xacc * _MG_TO_MPS2, -msg.yacc * _MG_TO_MPS2, -msg.zacc * _MG_TO_MPS2),
-            )
-            self._publish_imu(sample)
-            return sample
-        if kind == "ATTITUDE":
-            yaw = math.pi / 2.0 - msg.yaw
-            return AttitudeSample(t_ns, msg.roll, msg.pitch, math.atan2(math.sin(yaw), math.cos(yaw)))
-        if kind == "HEARTBEAT" and msg.autopilot != mavlink2.MAV_AUTOPILOT_INVALID:
+    def _new_converters(self) -> dict[str, Callable[[Any, int], Reading | None]]:
+        """What to make of each message we read, by its name (one look-up per frame, not a chain of
+        comparisons); a message not named here is recorded on mavlink/raw and nothing more."""
+        return {
+            "GPS_RAW_INT": self._convert_gps,
+            "HIGHRES_IMU": self._convert_highres_imu,
+            "SCALED_IMU": self._convert_scaled_imu,
+            "RAW_IMU": self._convert_scaled_imu,
+            "SYS_STATUS": _sys_status,
+            "BATTERY_STATUS": _battery_status,
+            "ATTITUDE": _attitude,
+            "HEARTBEAT": self._convert_heartbeat,
+        }
+
+    def _convert_gps(self, msg: Any, t_ns: int) -> GpsFix:
+        fix = _gps_fix(msg, t_ns)
+        self._publish_gps(fix)
+        return fix
+
+    def _convert_highres_imu(self, msg: Any, t_ns: int) -> ImuSample:
+        # Already SI (m/s^2, rad/s), FRD.
+        sample = ImuSample(t_ns, (msg.xgyro, -msg.ygyro, -msg.zgyro), (msg.xacc, -msg.yacc, -msg.zacc))
+        self._publish_imu(sample)
+        return sample
+
+    def _convert_scaled_imu(self, msg: Any, t_ns: int) -> ImuSample:
+        # SCALED_IMU and RAW_IMU: mrad/s and mG, FRD.
+        sample = ImuSample(
+            t_ns,
+            (msg.xgyro * _MRAD_TO_RAD, -msg.ygyro * _MRAD_TO_RAD, -msg.zgyro * _MRAD_TO_RAD),
+            (msg.xacc * _MG_TO_MPS2, -msg.yacc * _MG_TO_MPS2, -msg.zacc * _MG_TO_MPS2),
+        )
+        self._publish_imu(sample)
+        return sample
+
+    def _convert_heartbeat(self, msg: Any, t_ns: int) -> None:
+        if msg.autopilot != mavlink2.MAV_AUTOPILOT_INVALID:
             # Companions and ground stations announce MAV_AUTOPILOT_INVALID; anything else is an autopilot.
             self.last_heartbeat_ns = t_ns
-        return None
 
     def _publish_gps(self, fix: GpsFix) -> None:
         if math.isnan(fix.eph_m):
@@ -627,6 +641,25 @@ def _src(msg: Any) -> tuple[int, int]:
 
 def _unknown_if(value: int, scale: float) -> float:
     return math.nan if value == _UINT16_UNKNOWN else value * scale
+
+
+def _sys_status(msg: Any, t_ns: int) -> BatteryState:
+    current = math.nan if msg.current_battery == -1 else msg.current_battery * 0.01
+    voltage = math.nan if msg.voltage_battery == _UINT16_UNKNOWN else msg.voltage_battery * 1e-3
+    return BatteryState(t_ns, voltage, current, int(msg.battery_remaining), "SYS_STATUS")
+
+
+def _battery_status(msg: Any, t_ns: int) -> BatteryState:
+    cells = [v for v in msg.voltages if v != _UINT16_UNKNOWN]
+    current = math.nan if msg.current_battery == -1 else msg.current_battery * 0.01
+    return BatteryState(
+        t_ns, sum(cells) * 1e-3 if cells else math.nan, current, int(msg.battery_remaining), "BATTERY_STATUS"
+    )
+
+
+def _attitude(msg: Any, t_ns: int) -> AttitudeSample:
+    yaw = math.pi / 2.0 - msg.yaw
+    return AttitudeSample(t_ns, msg.roll, msg.pitch, math.atan2(math.sin(yaw), math.cos(yaw)))
 
 
 def _gps_fix(msg: Any, t_ns: int) -> GpsFix:

@@ -10,8 +10,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pymap3d
@@ -37,11 +36,11 @@ _SENSORS_PRESENT = (
 )
 
 
-@dataclass(frozen=True)
-class AutopilotTruth:
+class AutopilotTruth(NamedTuple):
     """The true state the autopilot's sensors measure (ENU metres, radians CCW from east, FLU body axes).
 
     ``accel_body_mps2`` is specific force as an IMU measures it: at rest on level ground (0, 0, +9.81).
+    A NamedTuple: the world builds one every physics tick, and a frozen dataclass cost twice as much.
     """
 
     x_m: float
@@ -58,16 +57,12 @@ class AutopilotTruth:
     battery_remaining_pct: int = -1  # -1: unknown, as in SYS_STATUS
 
 
-class _TransportFile:
-    def __init__(self, transport: Transport) -> None:
-        self._transport = transport
-
-    def write(self, data: bytes) -> None:
-        self._transport.write(bytes(data))
-
-
 def _int16(value: float) -> int:
-    return max(-_INT16_MAX, min(_INT16_MAX, round(value)))
+    """``value`` rounded into a symmetric int16 field (six per IMU sample: a comparison, not min/max)."""
+    rounded = round(value)
+    if -_INT16_MAX <= rounded <= _INT16_MAX:
+        return rounded
+    return _INT16_MAX if rounded > 0 else -_INT16_MAX
 
 
 class SimAutopilot:
@@ -125,8 +120,11 @@ class SimAutopilot:
         self._gyro_noise_rps = gyro_noise_rps
         self._accel_noise_mps2 = accel_noise_mps2
         self._heading_noise_rad = heading_noise_rad
-        self._mav = mavlink2.MAVLink(_TransportFile(transport), system_id, component_id)
+        # pymavlink writes each packed frame (bytes) to its "file": the transport takes them as they are.
+        self._mav = mavlink2.MAVLink(transport, system_id, component_id)
         self._mav.robust_parsing = True
+        # SCALED_IMU's magnetometer (and temperature) fields stay 0: the simulated IMU has none.
+        self._imu_msg = self._mav.scaled_imu_encode(0, 0, 0, 0, 0, 0, 0, 0, 0, 0)
         self._gps = gps or GpsModel(rng, FaultSchedule(), noise_m=gps_noise_m)
         self._imu = imu or ImuModel(
             rng, FaultSchedule(), gyro_noise_rps=gyro_noise_rps, accel_noise_mps2=accel_noise_mps2
@@ -140,6 +138,7 @@ class SimAutopilot:
         }
         now = clock.now_ns()
         self._next_ns = dict.fromkeys(self._periods_ns, now)
+        self._next_any_ns = now  # the earliest of _next_ns: before it, a step has nothing to send
         self.sent: dict[str, int] = dict.fromkeys(self._periods_ns, 0)
         self.send_errors = 0
         self.heartbeats_received = 0
@@ -153,15 +152,20 @@ class SimAutopilot:
             GpsSample(self._clock.now_ns(), truth.x_m, truth.y_m, truth.z_m, truth.yaw_rad, truth.speed_mps)
         )
 
-    def step(self, truth: AutopilotTruth) -> None:
+    def step(self, truth: AutopilotTruth, *, record: bool = False) -> None:
         """Send what is due at the clock's now, in a fixed order: IMU, attitude, GPS, status, heartbeat.
+
+        ``record``: first remember ``truth`` for the GPS (``record_truth``), as the world does every
+        physics tick, in one call.
 
         The IMU goes first: it paces the rover's control loop, and a real IMU samples on its own timer;
         behind the GPS fix's geodesy and the other encodings it would leave 0.1-0.3 ms later on the steps
         where those are due, and the loop would take that as period jitter."""
         now = self._clock.now_ns()
-        if not self._gps.has_history():
+        if record or not self._gps.has_history():
             self.record_truth(truth)
+        if now < self._next_any_ns:
+            return  # nothing due (every other physics tick at the default rates: the IMU's is the fastest)
         if self._due("imu", now):
             imu = self._imu_message(truth, now)
             if imu is not None:
@@ -185,6 +189,7 @@ class SimAutopilot:
                     mavlink2.MAV_STATE_ACTIVE,
                 ),
             )
+        self._next_any_ns = min(self._next_ns.values())
 
     def _due(self, stream: str, now: int) -> bool:
         due = self._next_ns[stream]
@@ -258,21 +263,19 @@ class SimAutopilot:
         reading = self._imu.read(now, truth.yaw_rate_rps, truth.accel_body_mps2)
         if reading is None:
             return None
-        gx, gy, gz = reading.gyro_flu_rps
-        ax, ay, az = reading.accel_flu_mps2
+        (gx, gy, gz), (ax, ay, az) = reading
+        # The one SCALED_IMU message, refilled: 50 a second, and building a pymavlink message object cost
+        # a third as much as packing it. Nothing keeps a sent message (the wire gets its packed bytes).
+        msg = self._imu_msg
+        msg.time_boot_ms = (now // 1_000_000) % (1 << 32)
         # FLU -> FRD: y and z change sign.
-        return self._mav.scaled_imu_encode(
-            (now // 1_000_000) % (1 << 32),
-            _int16(ax * _MPS2_TO_MG),
-            _int16(-ay * _MPS2_TO_MG),
-            _int16(-az * _MPS2_TO_MG),
-            _int16(gx * _RAD_TO_MRAD),
-            _int16(-gy * _RAD_TO_MRAD),
-            _int16(-gz * _RAD_TO_MRAD),
-            0,
-            0,
-            0,
-        )
+        msg.xacc = _int16(ax * _MPS2_TO_MG)
+        msg.yacc = _int16(-ay * _MPS2_TO_MG)
+        msg.zacc = _int16(-az * _MPS2_TO_MG)
+        msg.xgyro = _int16(gx * _RAD_TO_MRAD)
+        msg.ygyro = _int16(-gy * _RAD_TO_MRAD)
+        msg.zgyro = _int16(-gz * _RAD_TO_MRAD)
+        return msg
 
     # --- receiving -----------------------------------------------------------------------------
     def poll(self) -> int:

@@ -47,7 +47,7 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -69,9 +69,11 @@ class DynamicsError(ValueError):
     """The simulated body was given something it cannot use (bad time step, wheel speeds, start pose)."""
 
 
-@dataclass(frozen=True)
-class DynamicsStep:
-    """What one step produced. Per-wheel tuples are in wheel order (LF LM LR RF RM RR)."""
+class DynamicsStep(NamedTuple):
+    """What one step produced. Per-wheel tuples are in wheel order (LF LM LR RF RM RR).
+
+    A NamedTuple, not a frozen dataclass: one is built every physics step, and a frozen dataclass's
+    ``__init__`` (one ``object.__setattr__`` per field, 27 of them) cost about three times as much."""
 
     x: float
     y: float
@@ -194,6 +196,9 @@ class RoverDynamics:
         self._under = terrain.ground_at(self._x, self._y, self._yaw)
         self._energy_j = 0.0
         self._rolled_over = False
+        # The wheel speeds and the per-wheel outputs the kernels write each step (read into tuples before
+        # the step returns), kept rather than allocated every step.
+        self._wheels, self._traction, self._slip, self._currents, self._duty = (np.empty(6) for _ in range(5))
         self._half_length = 0.5 * params.footprint_length_m
         self._half_width = 0.5 * params.footprint_width_m
         self._use_obstacles(terrain)
@@ -289,16 +294,14 @@ class RoverDynamics:
         or is not commanded."""
         if not (math.isfinite(dt_s) and dt_s > 0.0):
             raise DynamicsError(f"time step must be a finite number of seconds > 0, got {dt_s}")
-        if len(wheel_surface_speeds) != 6:
-            raise DynamicsError(
-                f"expected 6 wheel speeds (LF LM LR RF RM RR), got {len(wheel_surface_speeds)}"
-            )
-        if not all(math.isfinite(speed) for speed in wheel_surface_speeds):
-            raise DynamicsError(f"wheel speeds must be finite, got {list(wheel_surface_speeds)}")
-        wheels = np.array(wheel_surface_speeds, dtype=np.float64)
+        check_wheel_speeds(wheel_surface_speeds)
+        wheels = self._wheels
+        wheels[:] = wheel_surface_speeds
         if not math.isfinite(battery_voltage_v):
             raise DynamicsError(f"battery voltage must be finite, got {battery_voltage_v}")
-        if stalled and (len(stalled) != 6 or any(d not in (-1.0, 0.0, 1.0) for d in stalled)):
+        # The usual case, every step: the VESCs' six zeros (no wheel seized), known by one comparison.
+        seized = bool(stalled) and stalled != _NONE_SEIZED
+        if seized and (len(stalled) != 6 or any(d not in (-1.0, 0.0, 1.0) for d in stalled)):
             raise DynamicsError(f"stalled must be six values of -1, 0 or +1, got {list(stalled)}")
 
         p = self._params
@@ -309,7 +312,7 @@ class RoverDynamics:
 
         normals = wheel_normal_forces(p, roll, pitch, self._accel, self._speed * self._yaw_rate)
         ground_params = self._ground_params[class_id]
-        traction = np.empty(6)
+        traction = self._traction
         accel, yaw_rate = drive_forces(
             wheels,
             normals,
@@ -362,7 +365,7 @@ class RoverDynamics:
             self._rolled_over = True
             self._speed = self._yaw_rate = self._accel = 0.0
 
-        slip, currents, duty = np.empty(6), np.empty(6), np.empty(6)
+        slip, currents, duty = self._slip, self._currents, self._duty
         power = wheel_outputs(
             wheels,
             normals,
@@ -376,7 +379,7 @@ class RoverDynamics:
             currents,
             duty,
         )
-        if stalled:
+        if seized and any(stalled):
             power += self._stall(stalled, battery_voltage_v, currents, duty)
         self._energy_j += power * dt_s
 
@@ -541,6 +544,17 @@ class RoverDynamics:
 
 
 _KIND_NAMES = {CLEAR: "", BOUNDARY: "boundary", OBSTACLE: "obstacle"}
+_NONE_SEIZED = (0.0,) * 6  # what SimVescBank.stalled() says while every wheel turns freely
+
+
+def check_wheel_speeds(speeds: Sequence[float]) -> None:
+    """DynamicsError unless ``speeds`` is six finite numbers (m/s, wheel order)."""
+    if len(speeds) != 6:
+        raise DynamicsError(f"expected 6 wheel speeds (LF LM LR RF RM RR), got {len(speeds)}")
+    # A sum is finite only if every term is (an inf or a NaN never sums away), so one test settles the
+    # usual case, every physics step; the per-wheel test runs only when the sum is not (or overflowed).
+    if not math.isfinite(sum(speeds)) and not all(math.isfinite(speed) for speed in speeds):
+        raise DynamicsError(f"wheel speeds must be finite, got {list(speeds)}")
 
 
 def _wrap(angle: float) -> float:

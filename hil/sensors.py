@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -22,11 +23,14 @@ from logs.clock import to_ns
 
 FIX_NONE = 0
 FIX_3D = 3
+# Per-axis scale of the GPS noise: east, north, and up twice as large (receivers are worse vertically).
+_GPS_NOISE_AXES = np.array([1.0, 1.0, 2.0])
+_GPS_NOISE_AXES.flags.writeable = False
 
 
-@dataclass(frozen=True)
-class GpsSample:
-    """The truth a GPS fix is computed from (ENU metres, yaw CCW from east)."""
+class GpsSample(NamedTuple):
+    """The truth a GPS fix is computed from (ENU metres, yaw CCW from east). A NamedTuple: one is kept
+    every physics tick, and a frozen dataclass cost several times as much to build."""
 
     t_ns: int
     x_m: float
@@ -86,7 +90,7 @@ class GpsModel:
 
     def fix(self, now: int) -> GpsFix | None:
         """The fix due at ``now``, or None when it is lost (dropout, loss fault, slow fault)."""
-        noise = self._rng.normal(0.0, 1.0, 3) * np.array([1.0, 1.0, 2.0]) * self._noise_m
+        noise = self._rng.normal(0.0, 1.0, 3) * _GPS_NOISE_AXES * self._noise_m
         drop_draw = float(self._rng.random())
         self._fixes_due += 1
         faults = self._faults.active_all("gps", now)
@@ -126,8 +130,7 @@ class GpsModel:
         return chosen
 
 
-@dataclass(frozen=True)
-class ImuReading:
+class ImuReading(NamedTuple):
     gyro_flu_rps: tuple[float, float, float]
     accel_flu_mps2: tuple[float, float, float]
 
@@ -145,6 +148,10 @@ class ImuModel:
         gyro_bias_rps: tuple[float, float, float] = (0.0, 0.0, 0.0),
         accel_bias_mps2: tuple[float, float, float] = (0.0, 0.0, 0.0),
     ) -> None:
+        for name, sigma in (("gyro_noise_rps", gyro_noise_rps), ("accel_noise_mps2", accel_noise_mps2)):
+            # Checked here: the draws (standard normals, scaled in read) would not refuse a negative one.
+            if not (math.isfinite(sigma) and sigma >= 0.0):
+                raise ValueError(f"ImuModel {name} must be a finite number >= 0, got {sigma}")
         self._rng = rng
         self._faults = faults
         self._gyro_noise = gyro_noise_rps
@@ -152,32 +159,49 @@ class ImuModel:
         self._gyro_bias = tuple(float(b) for b in gyro_bias_rps)
         self._accel_bias = tuple(float(b) for b in accel_bias_mps2)
         self._last: ImuReading | None = None
+        # Whether any IMU fault is scheduled at all: without one, a reading asks the schedule nothing.
+        self._has_faults = any(f.target == "imu" for f in faults.faults)
 
     def read(
         self, now: int, yaw_rate_rps: float, specific_force_flu: tuple[float, float, float]
     ) -> ImuReading | None:
         """The reading at ``now``; None while an ``imu/off`` fault is active."""
-        gyro_noise = self._rng.normal(0.0, self._gyro_noise, 3)
-        accel_noise = self._rng.normal(0.0, self._accel_noise, 3)
-        kinds = {f.kind: f for f in self._faults.active_all("imu", now)}
+        # Six standard normal draws in one call, three for the gyro then three for the accelerometer, each
+        # scaled as numpy's normal(0, sigma) scales its draw (0 + sigma z): the numbers two calls of
+        # normal(0.0, sigma, 3) gave, for one call's overhead.
+        z0, z1, z2, z3, z4, z5 = self._rng.standard_normal(6).tolist()
+        gyro_sigma, accel_sigma = self._gyro_noise, self._accel_noise
+        kinds = {f.kind: f for f in self._faults.active_all("imu", now)} if self._has_faults else {}
         if "off" in kinds:
             return None
         if "stuck" in kinds and self._last is not None:
             return self._last
         # Three-element sums in plain floats (once per 20 ms; numpy's per-call overhead was most of the
         # model's time). The same IEEE additions in the same order as the arrays did: the same numbers.
-        gn = gyro_noise.tolist()
-        an = accel_noise.tolist()
         gb, ab = self._gyro_bias, self._accel_bias
-        gyro = [0.0 + gb[0] + gn[0], 0.0 + gb[1] + gn[1], float(yaw_rate_rps) + gb[2] + gn[2]]
-        accel = [float(specific_force_flu[i]) + ab[i] + an[i] for i in range(3)]
+        f0, f1, f2 = specific_force_flu
+        gyro = (
+            0.0 + gb[0] + (0.0 + gyro_sigma * z0),
+            0.0 + gb[1] + (0.0 + gyro_sigma * z1),
+            float(yaw_rate_rps) + gb[2] + (0.0 + gyro_sigma * z2),
+        )
+        accel = (
+            float(f0) + ab[0] + (0.0 + accel_sigma * z3),
+            float(f1) + ab[1] + (0.0 + accel_sigma * z4),
+            float(f2) + ab[2] + (0.0 + accel_sigma * z5),
+        )
         wrong = kinds.get("wrong")
         if wrong is not None:
-            gyro = [gyro[i] + float(wrong.gyro_bias_rps[i]) for i in range(3)]
-            accel = [accel[i] + float(wrong.accel_bias_mps2[i]) for i in range(3)]
-        reading = ImuReading((gyro[0], gyro[1], gyro[2]), (accel[0], accel[1], accel[2]))
+            gyro = _plus(gyro, wrong.gyro_bias_rps)
+            accel = _plus(accel, wrong.accel_bias_mps2)
+        reading = ImuReading(gyro, accel)
         self._last = reading
         return reading
+
+
+def _plus(a: tuple[float, float, float], b: tuple[float, float, float]) -> tuple[float, float, float]:
+    """``a + b`` for three-vectors, in plain floats."""
+    return (a[0] + float(b[0]), a[1] + float(b[1]), a[2] + float(b[2]))
 
 
 def course_bearing_deg(yaw_rad: float, speed_mps: float) -> float:

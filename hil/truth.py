@@ -24,7 +24,8 @@ class TruthRecorder:
     def on_step(
         self, now: int, body: RoverDynamics, step: DynamicsStep, battery: Battery, *, record_state: bool
     ) -> None:
-        self._contacts(now, body, step)
+        if step.collided or step.rollover or self._in_collision:  # else no contact begins or ends
+            self._contacts(now, body, step)
         if not record_state:
             return
         stamp = topics.stamp(now)
@@ -48,14 +49,16 @@ class TruthRecorder:
             now,
             {
                 "timestamp": stamp,
+                # The step's per-wheel tuples hold plain floats already (DynamicsStep).
                 "wheels": [
-                    {
-                        "surface_speed_mps": float(step.wheel_speeds_mps[i]),
-                        "slip": float(step.slip[i]),
-                        "normal_force_n": float(step.normal_forces_n[i]),
-                        "current_a": float(step.motor_currents_a[i]),
-                    }
-                    for i in range(6)
+                    {"surface_speed_mps": speed, "slip": slip, "normal_force_n": normal, "current_a": current}
+                    for speed, slip, normal, current in zip(
+                        step.wheel_speeds_mps,
+                        step.slip,
+                        step.normal_forces_n,
+                        step.motor_currents_a,
+                        strict=True,
+                    )
                 ],
                 "battery_voltage_v": battery.voltage_v,
                 "energy_wh": battery.energy_wh,

@@ -130,6 +130,8 @@ class SimWorld:
             epoch_ns=self.epoch_ns,
         )
         self._tick = 0
+        self._has_faults = bool(scenario.faults)
+        self._has_moving_obstacles = bool(scenario.moving_obstacles)
         self.last_step: DynamicsStep | None = None
 
     def close(self) -> None:
@@ -183,23 +185,21 @@ class SimWorld:
         """One physics tick ending at the clock's now: commands in, body moves, status and sensors out."""
         now = self._clock.now_ns()
         self._tick += 1
-        if self.scenario.faults:
+        if self._has_faults:
             self._apply_faults(now)
-        self.vescs.poll()
-        step = self.body.step(
-            dt_s, self.vescs.wheel_speeds_mps(), self.battery.voltage_v, self.vescs.stalled()
-        )
+        vescs, body, battery = self.vescs, self.body, self.battery
+        vescs.poll()
+        step = body.step(dt_s, vescs.wheel_speeds_mps(), battery.voltage_v, vescs.stalled())
         # Each motor draws I x duty from the pack; a braking motor (current against its duty) generates, and
         # with no regeneration (hil.battery, the dynamics' motor power) it gives nothing back, nor draws.
         # Plain floats (numpy on six numbers cost more than the sum): the same left-to-right sum np.sum
         # does below eight elements, so the same bits.
         input_current = sum(
-            max(current * duty, 0.0) for current, duty in zip(step.motor_currents_a, step.duty, strict=True)
+            [max(current * duty, 0.0) for current, duty in zip(step.motor_currents_a, step.duty, strict=True)]
         )
-        voltage = self.battery.draw(input_current + ELECTRONICS_CURRENT_A, dt_s)
-        self.vescs.set_electrical(step.motor_currents_a, voltage, step.duty)
-        self.vescs.step(dt_s)
-        body = self.body
+        voltage = battery.draw(input_current + ELECTRONICS_CURRENT_A, dt_s)
+        vescs.set_electrical(step.motor_currents_a, voltage, step.duty)
+        vescs.step(dt_s)
         truth = AutopilotTruth(
             x_m=body.x,
             y_m=body.y,
@@ -211,14 +211,14 @@ class SimWorld:
             roll_rad=step.roll_rad,
             pitch_rad=step.pitch_rad,
             battery_voltage_v=voltage,
-            battery_current_a=self.battery.current_a,
-            battery_remaining_pct=round(100.0 * self.battery.state_of_charge),
+            battery_current_a=battery.current_a,
+            battery_remaining_pct=round(100.0 * battery.state_of_charge),
         )
-        self.autopilot.record_truth(truth)
-        self.autopilot.step(truth)
-        self.autopilot.poll()
-        self.truth.on_step(now, body, step, self.battery, record_state=self._tick % TRUTH_DIVIDER == 0)
-        if self.scenario.moving_obstacles:
+        autopilot = self.autopilot
+        autopilot.step(truth, record=True)  # the GPS keeps every tick's truth for its latency
+        autopilot.poll()
+        self.truth.on_step(now, body, step, battery, record_state=self._tick % TRUTH_DIVIDER == 0)
+        if self._has_moving_obstacles:
             self._moving_contacts(now)
         self.last_step = step
         return step

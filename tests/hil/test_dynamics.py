@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from hil.dynamics import DynamicsError, RoverDynamics
+from hil.dynamics import DynamicsError, RoverDynamics, check_wheel_speeds
 from hil.traction import slip_for_ratio
 from navigator.follower import FollowerConfig, PurePursuit
 from navigator.footprint import Footprint, footprint_collides
@@ -237,3 +237,36 @@ def test_warm_up_steps_a_copy_and_leaves_the_body_where_it_was() -> None:
     assert (body.x, body.y, body.yaw, body.speed, body.yaw_rate, body.energy_wh) == before
     step = body.step(0.01, [1.0] * 6, 24.0)  # and the real body still steps from its own state
     assert step.energy_wh > 0.0
+
+
+@pytest.mark.parametrize(
+    "speeds",
+    [[0.0] * 5 + [math.inf], [math.inf, -math.inf] + [0.0] * 4, [0.0, math.nan] + [0.0] * 4],
+)
+def test_wheel_speeds_that_are_not_finite_are_refused(speeds):
+    with pytest.raises(DynamicsError, match="finite"):
+        check_wheel_speeds(speeds)
+
+
+def test_finite_wheel_speeds_whose_sum_overflows_are_accepted():
+    # The one-sum fast path must not take an overflowing sum of finite numbers for a non-finite speed.
+    check_wheel_speeds([1e308] * 6)
+    check_wheel_speeds([0.5, -0.5, 1.0, 1.0, 0.0, 2.0])
+
+
+@pytest.mark.parametrize("stalled", [[0.0] * 5, (0.5,) + (0.0,) * 5, [0.0] * 5 + [math.nan]])
+def test_stalled_that_is_not_six_signs_is_refused(stalled):
+    body = RoverDynamics(plane(), PARAMS, x=10.0, y=10.0, yaw=0.0)
+    with pytest.raises(DynamicsError, match="stalled"):
+        body.step(DT, [0.5] * 6, VOLTS, stalled)
+
+
+def test_six_zeros_stalled_steps_as_no_stall_given():
+    # The VESCs' six zeros take the fast path; a list of zeros the full check: both as no stall at all.
+    bodies = [RoverDynamics(plane(grade_x=0.1), PARAMS, x=10.0, y=10.0, yaw=0.3) for _ in range(3)]
+    for _ in range(50):
+        steps = [
+            body.step(DT, [0.8, 0.8, 0.8, 1.0, 1.0, 1.0], VOLTS, stalled)
+            for body, stalled in zip(bodies, [(), (0.0,) * 6, [0, 0, 0, 0, 0, 0]], strict=True)
+        ]
+        assert steps[0] == steps[1] == steps[2]
