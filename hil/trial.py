@@ -13,10 +13,12 @@ failed criterion, named in ``TrialResult.failures`` and on the ``log`` topic.
 from __future__ import annotations
 
 import dataclasses
+import gc
 import io
 import json
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from importlib import metadata as package_metadata
 from pathlib import Path
@@ -168,7 +170,8 @@ def run_trial(
                 world.body.warm_up()
                 warm_up(stack.guidance.planner, config, MonotonicClock())
                 loop_started = time.perf_counter()
-                end_reason, arrived_ns = _run_loop(scenario, clock, stack, world, sink, on_progress)
+                with start_up_heap_frozen():
+                    end_reason, arrived_ns = _run_loop(scenario, clock, stack, world, sink, on_progress)
                 loop_wall_s = time.perf_counter() - loop_started
                 fault_failures = unexercised_faults(
                     scenario.faults, clock.now_ns(), to_ns(scenario.duration_s), end_reason, arrived_ns
@@ -209,6 +212,25 @@ def _georeferenced(config: RoverConfig, scenario: Scenario) -> RoverConfig:
     lat, lon, alt = scenario.datum
     estimator = dataclasses.replace(config.estimator, datum_lat_deg=lat, datum_lon_deg=lon, datum_alt_m=alt)
     return dataclasses.replace(config, estimator=estimator)
+
+
+@contextmanager
+def start_up_heap_frozen() -> Iterator[None]:
+    """Keep the collector off everything alive before the loop (modules, the maps, the compiled kernels,
+    the links) while the loop runs, then hand it back.
+
+    A full collection scans every tracked object: ~80 ms with the default trial's heap, and one came due
+    in most trials, at 50x real time worth ~4 simulated seconds. Frozen objects (``gc.freeze``) are not
+    scanned, so the collections left look only at what the loop allocates. ``gc.unfreeze`` afterwards
+    returns them to the collector, so nothing unreachable from one trial outlives it in a campaign
+    worker that runs many. Unlike ``rover run``'s ``freeze_start_up_heap`` there is no collection first:
+    it would cost the same ~80 ms in every trial, and the garbage is collected after the unfreeze.
+    """
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
 
 
 def _run_loop(

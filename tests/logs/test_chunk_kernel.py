@@ -16,7 +16,7 @@ MESSAGE_HEAD = struct.Struct("<HIQQ")
 
 def python_walk(data: bytes, skip: set[int]) -> tuple[list[tuple[int, int, int]], int, int]:
     """The reference: what the reader did record by record before the kernel."""
-    rows = []
+    rows: list[tuple[int, int, int]] = []
     position = 0
     while position < len(data):
         if position + FRAME_HEAD.size > len(data):
