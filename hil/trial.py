@@ -219,12 +219,13 @@ def start_up_heap_frozen() -> Iterator[None]:
     """Keep the collector off everything alive before the loop (modules, the maps, the compiled kernels,
     the links) while the loop runs, then hand it back.
 
-    A full collection scans every tracked object: ~80 ms with the default trial's heap, and one came due
-    in most trials, at 50x real time worth ~4 simulated seconds. Frozen objects (``gc.freeze``) are not
+    A full collection scans every tracked object: 56-87 ms each with the default trial's heap (six trials
+    in one process, as ``rover bench hil`` and a campaign worker run them: three came due, in the first
+    and the sixth trial; none once frozen). Frozen objects (``gc.freeze``) are not
     scanned, so the collections left look only at what the loop allocates. ``gc.unfreeze`` afterwards
     returns them to the collector, so nothing unreachable from one trial outlives it in a campaign
     worker that runs many. Unlike ``rover run``'s ``freeze_start_up_heap`` there is no collection first:
-    it would cost the same ~80 ms in every trial, and the garbage is collected after the unfreeze.
+    it would cost a full collection in every trial, and the garbage is collected after the unfreeze.
     """
     gc.freeze()
     try:
