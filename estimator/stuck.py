@@ -59,18 +59,21 @@ class StuckDetector:
             self._odometry.popleft()
         if len(self._fixes) < 4:
             return self.spinning
-        rolled = sum(step[1] for step in self._odometry)
+        # Sums over lists, not generators: the same additions in the same order, without a frame per item
+        # (the window holds a few hundred odometry steps, summed on every fix).
+        rolled = sum([step[1] for step in self._odometry])
         if rolled < self._min_distance_m:
             self.spinning = False
             return False
-        half = len(self._fixes) // 2
-        early, late = list(self._fixes)[:half], list(self._fixes)[half:]
+        fixes = list(self._fixes)
+        half = len(fixes) // 2
+        early, late = fixes[:half], fixes[half:]
         moved = math.dist(_mean_xy(late), _mean_xy(early))
         # The same measure on the odometry's track, sampled at the fixes' times.
-        track = self._track_at([f[0] for f in self._fixes])
+        track = self._track_at([f[0] for f in fixes])
         expected = math.dist(_mean_xy(track[half:]), _mean_xy(track[:half]))
-        span_s = (_mean_t(late) - _mean_t(early)) / max(self._fixes[-1][0] - self._fixes[0][0], 1)
-        std = max(f[3] for f in self._fixes)
+        span_s = (_mean_t(late) - _mean_t(early)) / max(fixes[-1][0] - fixes[0][0], 1)
+        std = max([f[3] for f in fixes])
         noise = _NOISE_SIGMAS * std * math.sqrt(1.0 / len(early) + 1.0 / len(late))
         # Scaled back to the whole window: how far the odometry ran ahead of the ground.
         self.shortfall_m = max(expected - moved, 0.0) / max(span_s, 1e-9)
@@ -96,8 +99,8 @@ class StuckDetector:
 
 
 def _mean_xy(fixes: list[tuple[int, float, float, float]]) -> tuple[float, float]:
-    return sum(f[1] for f in fixes) / len(fixes), sum(f[2] for f in fixes) / len(fixes)
+    return sum([f[1] for f in fixes]) / len(fixes), sum([f[2] for f in fixes]) / len(fixes)
 
 
 def _mean_t(fixes: list[tuple[int, float, float, float]]) -> float:
-    return sum(f[0] for f in fixes) / len(fixes)
+    return sum([f[0] for f in fixes]) / len(fixes)

@@ -27,7 +27,7 @@ class BodyMotion:
 
 def side_speeds(left_mps: float, right_mps: float, track_m: float, skid_factor: float) -> BodyMotion:
     """Skid-steer kinematics: v = (l + r) / 2, yaw rate = (r - l) / (track * skid factor)."""
-    return BodyMotion(0.5 * (left_mps + right_mps), (right_mps - left_mps) / (track_m * skid_factor), 0.0)
+    return BodyMotion(*_body(left_mps, right_mps, track_m, skid_factor), 0.0)
 
 
 def six_wheels(speeds_mps: Sequence[float], track_m: float, skid_factor: float) -> BodyMotion:
@@ -36,6 +36,11 @@ def six_wheels(speeds_mps: Sequence[float], track_m: float, skid_factor: float) 
         raise ValueError(f"need {WHEEL_COUNT} wheel speeds, got {len(speeds_mps)}")
     left = [speeds_mps[i] for i in LEFT]
     right = [speeds_mps[i] for i in RIGHT]
-    motion = side_speeds(sum(left) / 3.0, sum(right) / 3.0, track_m, skid_factor)
+    speed, yaw_rate = _body(sum(left) / 3.0, sum(right) / 3.0, track_m, skid_factor)
     spread = max(max(left) - min(left), max(right) - min(right))
-    return BodyMotion(motion.speed_mps, motion.yaw_rate_rps, spread)
+    return BodyMotion(speed, yaw_rate, spread)
+
+
+def _body(left_mps: float, right_mps: float, track_m: float, skid_factor: float) -> tuple[float, float]:
+    """(speed m/s, yaw rate rad/s) of the sides' speeds; one BodyMotion per sample is built from it."""
+    return 0.5 * (left_mps + right_mps), (right_mps - left_mps) / (track_m * skid_factor)
