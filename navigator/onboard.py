@@ -71,6 +71,12 @@ class Mode(enum.StrEnum):
     YIELDING = "YIELDING"  # backing off slowly: a moving obstacle is predicted to reach the rover itself
 
 
+# Guidance's mode names -> Mode, looked up every tick (a dict, not the enum's slower call).
+_MODE_OF = {mode.value: mode for mode in Mode}
+# The last start-up check, worded once.
+_NOT_SETTLED = f"estimate healthy for < {SETTLE_NS / NS_PER_S:g} s"
+
+
 @dataclass(frozen=True)
 class Goal:
     x: float
@@ -149,7 +155,7 @@ class RouteGuidance:
                 return STOPPED
             self.core.set_goal(self.goal.x, self.goal.y)
         out = self.core.update(now, pose.x, pose.y, pose.yaw, pose.speed)
-        self.mode = Mode(out.mode)
+        self.mode = _MODE_OF.get(out.mode) or Mode(out.mode)  # Mode(): the enum's own error if unknown
         if out.path_changed and out.path is not None:
             self._publish_path(now, out.path)
         if out.detail:
@@ -238,6 +244,7 @@ class OnboardStack:
         self._obstacles = obstacles
         self._ground_station = ground_station
         self._wheels = can_link.readings()
+        self._wheels_heard = all(r.last_status_ns is not None for r in self._wheels)  # of this snapshot
         self._terrain = terrain
         self._map_published = False
         self._event = _EventFn(clock, sink)
@@ -263,6 +270,7 @@ class OnboardStack:
         self._sent_wheels_mps: tuple[float, ...] = (0.0,) * len(self._wheels)  # as the bus carried them
         self._send_failing_since_ns: int | None = None
         self._sent_at_ns = clock.now_ns()
+        self._erpm_per_mps = can_link.profile.erpm_per_mps  # the link's fixed profile, read every tick
         self._deferred = deferred
         self._pacing = config.pacing_sensor
         self._pacing_rx_ns: int | None = None  # receive time of the newest pacing sample in this read
@@ -380,8 +388,8 @@ class OnboardStack:
             elif self._send_failing_since_ns is None:
                 self._send_failing_since_ns = now
             self._sent_speed_mps, self._sent_at_ns = speed, now
-            erpm_per_mps = self._can.profile.erpm_per_mps
-            self._sent_wheels_mps = tuple(e / erpm_per_mps for e in erpm)
+            erpm_per_mps = self._erpm_per_mps
+            self._sent_wheels_mps = tuple([e / erpm_per_mps for e in erpm])
             self.last_sensor_to_command_ns = None if trigger is None else self._clock.now_ns() - trigger
         finally:
             if self._deferred is not None:
@@ -465,17 +473,17 @@ class OnboardStack:
         elif self._healthy_since_ns is None:
             self._healthy_since_ns = now
         settled = self._healthy_since_ns is not None and now - self._healthy_since_ns >= SETTLE_NS
-        missing = [
-            what
-            for what, failing in (
-                ("no autopilot heartbeat", self._mavlink.last_heartbeat_ns is None),
-                ("wheel controllers not all heard", any(r.last_status_ns is None for r in self._wheels)),
-                ("no estimate yet", pose is None),
-                ("estimate unhealthy", pose is not None and not healthy),
-                (f"estimate healthy for < {SETTLE_NS / NS_PER_S:g} s", healthy and not settled),
-            )
-            if failing
-        ]
+        missing = []  # in this order
+        if self._mavlink.last_heartbeat_ns is None:
+            missing.append("no autopilot heartbeat")
+        if not self._wheels_heard:
+            missing.append("wheel controllers not all heard")
+        if pose is None:
+            missing.append("no estimate yet")
+        elif not healthy:
+            missing.append("estimate unhealthy")
+        elif not settled:
+            missing.append(_NOT_SETTLED)
         self._not_ready = ", ".join(missing)
         return not missing
 
@@ -506,13 +514,14 @@ class OnboardStack:
             self._start_up_report(line)
 
     def _safety_inputs(self, now: int, pose: PoseEstimate | None) -> SafetyInputs:
+        # Per-wheel tuples from list comprehensions: the same values as generator expressions, cheaper.
         readings = self._wheels
         voltages = [r.input_voltage_v for r in readings if r.input_voltage_v > 0.0]
         attitude = self._attitude
         return SafetyInputs(
             now_ns=now,
             tick_gap_ns=None if self._last_tick_ns is None else now - self._last_tick_ns,
-            wheel_last_status_ns=tuple(r.last_status_ns for r in readings),
+            wheel_last_status_ns=tuple([r.last_status_ns for r in readings]),
             can_bus_off=self._can.state is CanLinkState.BUS_OFF,
             can_send_failing_since_ns=self._send_failing_since_ns,
             estimator_healthy=pose is not None and pose.healthy,
@@ -528,16 +537,18 @@ class OnboardStack:
             battery_v=min(voltages) if voltages else None,
             wheel_commands_mps=self._sent_wheels_mps,
             # A controller never heard has no speed to judge (wheel_silent covers it): not stalled.
-            wheel_speeds_mps=tuple(r.speed_mps if r.last_status_ns is not None else 0.0 for r in readings),
+            wheel_speeds_mps=tuple([r.speed_mps if r.last_status_ns is not None else 0.0 for r in readings]),
             wheel_currents_a=tuple(
-                r.motor_current_a if r.last_status_ns is not None else 0.0 for r in readings
+                [r.motor_current_a if r.last_status_ns is not None else 0.0 for r in readings]
             ),
         )
 
     def _ground_contact_ns(self) -> int | None:
         """The newest sign of the ground station: its last command, or its command source's last contact."""
         source_contact = None if self._commands is None else self._commands.last_contact_ns
-        return max((t for t in (self._last_ground_ns, source_contact) if t is not None), default=None)
+        if source_contact is None or self._last_ground_ns is None:
+            return self._last_ground_ns if source_contact is None else source_contact
+        return max(self._last_ground_ns, source_contact)
 
     def _read_commands(self) -> None:
         if self._commands is None:
@@ -640,7 +651,8 @@ class OnboardStack:
             # One snapshot per poll: the readings change only when frames arrive, and the start-up checks
             # and the safety inputs of this tick read the same snapshot.
             self._wheels = readings = self._can.readings()
-            if all(r.last_status_ns is not None for r in readings):
+            self._wheels_heard = all([r.last_status_ns is not None for r in readings])
+            if self._wheels_heard:
                 if self._pacing == "wheels":
                     self._pacing_rx_ns = can_read_ns
                 # All six: disagreement between the wheels of one side is a slip signal to the estimator.
