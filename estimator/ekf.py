@@ -390,7 +390,8 @@ class RoverEkf:
 
 def position_std_m(covariance: Array) -> float:
     """Sqrt of the largest eigenvalue of the 2x2 position block of a state covariance, metres."""
-    a, b, c = covariance[X, X], covariance[X, Y], covariance[Y, Y]
+    # item(): Python floats, not numpy scalars; the same IEEE arithmetic (** is libm's pow for both).
+    a, b, c = covariance.item(X, X), covariance.item(X, Y), covariance.item(Y, Y)
     # Closed-form eigenvalue of a symmetric 2x2: cheaper than eigvalsh in a hot loop.
     largest = 0.5 * (a + c) + math.sqrt(max(0.25 * (a - c) ** 2 + b * b, 0.0))
     return math.sqrt(max(float(largest), 0.0))

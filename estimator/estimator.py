@@ -582,7 +582,7 @@ class Estimator:
 
 def _heading_std_deg(p: NDArray[np.float64]) -> float:
     """Heading std (degrees) of a state covariance."""
-    return math.degrees(math.sqrt(max(p[YAW, YAW], 0.0)))
+    return math.degrees(math.sqrt(max(p.item(YAW, YAW), 0.0)))
 
 
 def _cm(values: Sequence[float]) -> str:

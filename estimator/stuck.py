@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from operator import itemgetter
 
 # Declared spinning below this share of the odometry distance; trusted again above the second share
 # (hysteresis, so a rover creeping out of a hole does not flicker between the two).
@@ -59,9 +60,9 @@ class StuckDetector:
             self._odometry.popleft()
         if len(self._fixes) < 4:
             return self.spinning
-        # Sums over lists, not generators: the same additions in the same order, without a frame per item
-        # (the window holds a few hundred odometry steps, summed on every fix).
-        rolled = sum([step[1] for step in self._odometry])
+        # Sums without a generator: the same additions in the same order, without a frame per item (the
+        # window holds a few hundred odometry steps, summed on every fix).
+        rolled = sum(map(itemgetter(1), self._odometry))
         if rolled < self._min_distance_m:
             self.spinning = False
             return False
@@ -87,14 +88,21 @@ class StuckDetector:
         """The dead-reckoned position (from the window's first odometry step) at each of ``times``,
         shaped like fixes for ``_mean_xy``."""
         positions = []
-        steps = iter(self._odometry)
-        step = next(steps, None)
+        pending = iter(times)
+        t = next(pending, None)
         east = north = 0.0
-        for t in times:
-            while step is not None and step[0] <= t:
-                east, north = east + step[2], north + step[3]
-                step = next(steps, None)
+        # One pass over the steps (a few hundred per fix): each time is recorded before the first step
+        # after it is added, so it holds every step up to it, as a walk per time would.
+        for step_t, _, step_east, step_north in self._odometry:
+            while t is not None and step_t > t:
+                positions.append((t, east, north, 0.0))
+                t = next(pending, None)
+            if t is None:
+                break
+            east, north = east + step_east, north + step_north
+        while t is not None:
             positions.append((t, east, north, 0.0))
+            t = next(pending, None)
         return positions
 
 

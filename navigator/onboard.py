@@ -38,7 +38,7 @@ from logs.sink import MessageSink
 from navigator.config import RoverConfig
 from navigator.deferred_sink import DeferredSink
 from navigator.fence_shape import inside_polygon
-from navigator.guidance import Guidance
+from navigator.guidance import Guidance, GuidanceOutput
 from navigator.map_message import grid_message
 from navigator.mixing import mix_skid_steer
 from navigator.perception import ObstacleObservation, ObstacleSource
@@ -147,7 +147,9 @@ class RouteGuidance:
         }[self.mode]
         return f"guidance {self.mode.value}: {reason}"
 
-    def tick(self, now: int, pose: PoseEstimate | None, ready: bool) -> GuidanceCommand:
+    def tick(self, now: int, pose: PoseEstimate | None, ready: bool) -> GuidanceCommand | GuidanceOutput:
+        """The command for this tick: ``STOPPED`` until a goal and the start-up checks allow driving, then
+        guidance's own output (it carries the same command fields; not copied into another object)."""
         if self.mode is Mode.IDLE or pose is None:
             return STOPPED
         if self.mode is Mode.WAITING_ESTIMATE:
@@ -161,13 +163,7 @@ class RouteGuidance:
         if out.detail:
             severity = "error" if self.mode is Mode.NO_PATH else "info"
             self._event(f"guidance.{self.mode.value.lower()}", severity, out.detail)
-        return GuidanceCommand(
-            out.speed_mps,
-            out.yaw_rate_rps,
-            out.cross_track_error_m,
-            out.speed_limit_mps,
-            out.speed_limit_reason,
-        )
+        return out
 
     def _publish_path(self, now: int, path: Path) -> None:
         self._sink.publish(
@@ -659,7 +655,7 @@ class OnboardStack:
                 self.estimator.on_wheel_speeds(now, [r.speed_mps for r in readings])
 
 
-def _limit_reason(guidance: GuidanceCommand, mode: SafetyMode, scale: float) -> str:
+def _limit_reason(guidance: GuidanceCommand | GuidanceOutput, mode: SafetyMode, scale: float) -> str:
     if mode is not SafetyMode.DRIVING and mode is not SafetyMode.IDLE:
         return f"safety {mode.value.lower()}"
     if 0.0 < scale < 1.0:

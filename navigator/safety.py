@@ -263,13 +263,13 @@ class SafetySupervisor:
                     f"tip-over margin {math.degrees(margin):.1f} deg < {c.tip_margin_deg} deg "
                     f"(roll {math.degrees(roll):.1f}, pitch {math.degrees(pitch):.1f} deg)",
                 )
-            elif margin > self._tip_clear_rad:
+            elif margin > self._tip_clear_rad and TIP_OVER in self._active:  # (the why formatted only then)
                 self._clear(TIP_OVER, f"margin back to {math.degrees(margin):.1f} deg")
         if c.fence and i.position_xy is not None:
             x, y = i.position_xy
             if not inside_polygon(x, y, c.fence):
                 self._trip(GEOFENCE, "error", f"position ({x:.2f}, {y:.2f}) is outside the geofence")
-            else:
+            elif GEOFENCE in self._active:
                 self._clear(GEOFENCE, f"back inside the geofence at ({x:.2f}, {y:.2f})")
 
     def _check_wheels_turn(self, i: SafetyInputs) -> None:
@@ -335,7 +335,7 @@ class SafetySupervisor:
                 continue
             if low_for > self._battery_ns:
                 self._trip(name, severity, f"battery {v:.2f} V below {threshold} V for {_ms(low_for)}")
-            elif v > threshold + c.battery_clear_v:
+            elif v > threshold + c.battery_clear_v and name in self._active:
                 self._clear(name, f"battery back to {v:.2f} V")
 
     def _decide(self, wants_to_drive: bool, idle_cause: str) -> SafetyDecision:
