@@ -310,17 +310,10 @@ class Estimator:
             and self._heading_known
             and _heading_std_deg(p) < config.healthy_heading_std_deg
         )
+        # Positional, in the field order (x, y, yaw, speed, yaw rate, covariance, healthy, t, heading
+        # known, position std): keywords cost a dict per call.
         return PoseEstimate(
-            x=x[X],
-            y=x[Y],
-            yaw=x[YAW],
-            speed=x[SPEED],
-            yaw_rate=x[YAW_RATE],
-            covariance=p,
-            healthy=healthy,
-            t_ns=t_ns,
-            heading_known=self._heading_known,
-            position_std_m=position_std,
+            x[X], x[Y], x[YAW], x[SPEED], x[YAW_RATE], p, healthy, t_ns, self._heading_known, position_std
         )
 
     def health(self) -> EstimatorHealth:

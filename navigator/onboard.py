@@ -613,7 +613,14 @@ class OnboardStack:
     def _read_mavlink(self, now: int) -> None:
         del now  # each reading carries its own receive time
         for reading in self._mavlink.poll():
-            if isinstance(reading, GpsFix):
+            # Most frequent first: an IMU sample every tick, attitude and GPS a few times a second.
+            if isinstance(reading, ImuSample):
+                if self._pacing == "imu":
+                    self._pacing_rx_ns = reading.t_ns
+                gz = reading.gyro_xyz_rps[2]
+                ax, ay, _ = reading.accel_xyz_mps2
+                self.estimator.on_imu(reading.t_ns, gz, ax, ay)
+            elif isinstance(reading, GpsFix):
                 if self._pacing == "gps":
                     self._pacing_rx_ns = reading.t_ns
                 if reading.fix_type >= MIN_GPS_FIX_TYPE:
@@ -627,12 +634,6 @@ class OnboardStack:
                     reading.eph_m,
                     reading.satellites,
                 )
-            elif isinstance(reading, ImuSample):
-                if self._pacing == "imu":
-                    self._pacing_rx_ns = reading.t_ns
-                gz = reading.gyro_xyz_rps[2]
-                ax, ay, _ = reading.accel_xyz_mps2
-                self.estimator.on_imu(reading.t_ns, gz, ax, ay)
             elif isinstance(reading, GoalRequest):
                 self._goal_from_ground_station(reading)
             elif isinstance(reading, StopRequest):

@@ -45,7 +45,6 @@ def test_partial_slip_is_left_to_the_odometry_scale() -> None:
     assert not _run(1.0, 0.0, ground_share=0.8)
 
 
-
 def test_the_track_at_the_fixes_times_is_the_walk_per_time():
     """``_track_at`` walks the odometry once for all the fixes' times (in time order); each position must
     be the sum of every step up to its time, added in order: the same floats as walking the steps afresh
