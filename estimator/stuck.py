@@ -13,8 +13,10 @@ odometry) is believed.
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections import deque
+from itertools import accumulate
 from operator import itemgetter
 
 # Declared spinning below this share of the odometry distance; trusted again above the second share
@@ -46,7 +48,8 @@ class StuckDetector:
 
     def add_odometry(self, t_ns: int, distance_m: float, heading_rad: float = 0.0) -> None:
         """Distance (m, signed: negative reversing) the wheels rolled up to ``t_ns`` while heading
-        ``heading_rad`` (ENU). A heading off by a constant does not matter: only the track's shape does."""
+        ``heading_rad`` (ENU). A heading off by a constant does not matter: only the track's shape does.
+        Steps come in time order (the estimator adds one per wheel sample newer than the last)."""
         east, north = distance_m * math.cos(heading_rad), distance_m * math.sin(heading_rad)
         self._odometry.append((t_ns, abs(distance_m), east, north))
 
@@ -86,23 +89,20 @@ class StuckDetector:
 
     def _track_at(self, times: list[int]) -> list[tuple[int, float, float, float]]:
         """The dead-reckoned position (from the window's first odometry step) at each of ``times``,
-        shaped like fixes for ``_mean_xy``."""
+        shaped like fixes for ``_mean_xy``.
+
+        The running sums come from ``itertools.accumulate`` (0.0, then each step added in order: the
+        additions a walk along the steps makes, in C rather than a Python loop over a few hundred steps
+        per fix), and each time takes the sums of the steps up to it (steps arrive in time order).
+        """
+        steps = self._odometry
+        step_times = [step[0] for step in steps]
+        easts = list(accumulate(map(itemgetter(2), steps), initial=0.0))
+        norths = list(accumulate(map(itemgetter(3), steps), initial=0.0))
         positions = []
-        pending = iter(times)
-        t = next(pending, None)
-        east = north = 0.0
-        # One pass over the steps (a few hundred per fix): each time is recorded before the first step
-        # after it is added, so it holds every step up to it, as a walk per time would.
-        for step_t, _, step_east, step_north in self._odometry:
-            while t is not None and step_t > t:
-                positions.append((t, east, north, 0.0))
-                t = next(pending, None)
-            if t is None:
-                break
-            east, north = east + step_east, north + step_north
-        while t is not None:
-            positions.append((t, east, north, 0.0))
-            t = next(pending, None)
+        for t in times:
+            taken = bisect.bisect_right(step_times, t)
+            positions.append((t, easts[taken], norths[taken], 0.0))
         return positions
 
 
