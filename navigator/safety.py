@@ -341,7 +341,8 @@ class SafetySupervisor:
                 self._clear(name, f"battery back to {v:.2f} V")
 
     def _decide(self, wants_to_drive: bool, idle_cause: str) -> SafetyDecision:
-        holds = sorted(name for name in self._active if name not in (ESTOP, BATTERY_LOW))
+        active = self._active  # empty on almost every tick: no sorting then
+        holds = sorted(name for name in active if name not in (ESTOP, BATTERY_LOW)) if active else []
         if ESTOP in self._active:
             mode, cause = SafetyMode.ESTOP, self._active[ESTOP]
         elif holds:
@@ -357,7 +358,7 @@ class SafetySupervisor:
         scale = 0.0
         if mode is SafetyMode.DRIVING:
             scale = self._config.battery_low_speed_scale if BATTERY_LOW in self._active else 1.0
-        return SafetyDecision(mode, scale, self.faults)
+        return SafetyDecision(mode, scale, self.faults if active else ())
 
     # --- helpers --------------------------------------------------------------------------------
     def _age(self, now_ns: int, t_ns: int | None) -> int:
@@ -381,7 +382,7 @@ class SafetySupervisor:
     def _timeout(self, name: str, what: str, now_ns: int, last_ns: int | None, limit_ns: int) -> None:
         if limit_ns <= 0:
             return
-        age = self._age(now_ns, last_ns)
+        age = now_ns - (self._start_ns if last_ns is None else last_ns)  # _age, inline: four a tick
         self._set(name, _over(f"{what} for {_ms(age)}", limit_ns) if age > limit_ns else None)
 
     def _set(self, name: str, detail: str | None, severity: str = "error") -> None:
