@@ -16,7 +16,6 @@ from __future__ import annotations
 import enum
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from typing import NamedTuple
 
 from firmware_bridge.wheel_names import wheel_label, wheel_labels
@@ -57,9 +56,11 @@ class SafetyMode(enum.StrEnum):
     ESTOP = "ESTOP"  # emergency stop: wheels at zero until an explicit resume
 
 
-@dataclass(frozen=True)
-class SafetyInputs:
-    """What the supervisor judges, all measured at ``now_ns`` (clock ns). ``None`` means never seen."""
+# A NamedTuple, immutable like a frozen dataclass but cheaper to build (once per control tick, nineteen
+# fields: the dataclass's __init__, an object.__setattr__ per field, was about half of building them).
+class SafetyInputs(NamedTuple):
+    """What the supervisor judges, all measured at ``now_ns`` (clock ns). ``None`` means never seen.
+    ``inputs._replace(field=value)`` gives a copy with fields changed."""
 
     now_ns: int
     tick_gap_ns: int | None  # since the previous control tick
