@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -81,8 +82,9 @@ _H_ODOMETRY_YAW_RATE = _rows(YAW_RATE)
 _H_GYRO = np.array([[0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0]])  # the gyro sees yaw rate + bias
 
 
-@dataclass(frozen=True)
-class Innovation:
+# A NamedTuple, immutable like a frozen dataclass but cheaper to build (two or three per control tick:
+# the dataclass's __init__, an object.__setattr__ per field, was a measurable share of the tick).
+class Innovation(NamedTuple):
     """One measurement update.
 
     Attributes
@@ -127,6 +129,8 @@ class RoverEkf:
         self._x[SCALE] = 1.0
         self._p: Array = np.eye(DIM_X)
         self._t_ns: int | None = None
+        # Counts changes of x, P or the time (``revision``): a reader can tell the estimate is unchanged.
+        self._revision = 0
         # Process noise intensities (per second) of the random walks, in _WALK_STATES' order.
         self._q_rate: Array = np.array(
             [
@@ -141,6 +145,12 @@ class RoverEkf:
         self._r_gyro: Array = np.array([[config.gyro_noise_rps**2]])
         self._scale_learning = True
         self._h_odometry: Array = _rows(SPEED, YAW_RATE)  # reused; its speed row depends on the state
+        # Residual and noise buffers, filled in place per update: building small arrays anew cost more
+        # than the update's arithmetic. The kernel reads them only during the call (``_update``).
+        self._y1: Array = np.zeros(1)
+        self._y2: Array = np.zeros(2)
+        self._r1: Array = np.zeros((1, 1))
+        self._r2: Array = np.zeros((2, 2))  # only the diagonal is ever set
 
     # --- state access --------------------------------------------------------------------------
     @property
@@ -150,7 +160,14 @@ class RoverEkf:
     @property
     def t_ns(self) -> int:
         """Time of the current estimate, ns."""
-        return self._require_time()
+        # The check inline (read several times per sample): _require_time only to raise.
+        return self._t_ns if self._t_ns is not None else self._require_time()
+
+    @property
+    def revision(self) -> int:
+        """A number that changes whenever the state, covariance or time may have changed: two equal
+        revisions mean the same estimate (``Estimator.pose`` reuses its last answer on it)."""
+        return self._revision
 
     @property
     def x(self) -> Array:
@@ -165,6 +182,10 @@ class RoverEkf:
     def state(self, index: int) -> float:
         """One state value without copying the vector."""
         return float(self._x[index])
+
+    def state_values(self) -> list[float]:
+        """The state as Python floats, in ``STATE_NAMES`` order (one C call, not one per value)."""
+        return self._x.tolist()
 
     def variance(self, index: int) -> float:
         """One diagonal entry of the covariance without copying it."""
@@ -182,6 +203,7 @@ class RoverEkf:
         self._x = snapshot.x.copy()
         self._p = snapshot.p.copy()
         self._t_ns = snapshot.t_ns
+        self._revision += 1
 
     # --- set-up --------------------------------------------------------------------------------
     def initialise(
@@ -203,6 +225,7 @@ class RoverEkf:
             ]
         )
         self._t_ns = t_ns
+        self._revision += 1
 
     def reset_heading(self, yaw_rad: float, yaw_std_rad: float) -> None:
         """Replace the heading by an independent estimate, dropping its correlations with the rest."""
@@ -213,6 +236,7 @@ class RoverEkf:
         self._p[YAW, :] = 0.0
         self._p[:, YAW] = 0.0
         self._p[YAW, YAW] = yaw_std_rad**2
+        self._revision += 1
 
     def reset_position(self, x_m: float, y_m: float, position_std_m: float) -> None:
         """Re-anchor the position (e.g. after GPS was gated out too long), dropping its correlations."""
@@ -223,6 +247,7 @@ class RoverEkf:
         self._p[(X, Y), :] = 0.0
         self._p[:, (X, Y)] = 0.0
         self._p[X, X] = self._p[Y, Y] = position_std_m**2
+        self._revision += 1
 
     @property
     def scale_learning(self) -> bool:
@@ -244,15 +269,17 @@ class RoverEkf:
         self._require_time()
         _check_std("inflate", std=std)
         self._p[index, index] += std**2
+        self._revision += 1
 
     # --- prediction ----------------------------------------------------------------------------
     def predict(self, t_ns: int) -> None:
         """Advance the estimate to ``t_ns``; a time at or before the current one changes nothing."""
-        dt_ns = t_ns - self._require_time()
+        dt_ns = t_ns - (self._t_ns if self._t_ns is not None else self._require_time())
         if dt_ns <= 0:
             return
         predict_kernel(self._x, self._p, dt_ns * 1e-9, self._q_rate, _WALK_STATES)
         self._t_ns = t_ns
+        self._revision += 1
 
     def predicted(self, t_ns: int) -> tuple[Array, Array]:
         """State and covariance extrapolated to ``t_ns`` without changing the filter (copies)."""
@@ -261,6 +288,8 @@ class RoverEkf:
             self.predict(t_ns)
             return self._x.copy(), self._p.copy()
         finally:
+            # The revision stays advanced: a reader recomputes from the restored state, so a restore
+            # that missed something would show rather than hide behind an unchanged revision.
             self._x, self._p, self._t_ns = saved_x, saved_p, saved_t
 
     # --- measurement updates -------------------------------------------------------------------
@@ -270,19 +299,26 @@ class RoverEkf:
         ``gated=False`` skips the gate: for when the covariance is known not to be trustworthy (heading
         still unknown), so the gate would refuse good fixes.
         """
-        _check_finite("update_position", x_m=x_m, y_m=y_m)
-        _check_std("update_position", std_m=std_m)
+        # The checks' common case in one expression; the check functions name what was wrong.
+        if not (math.isfinite(x_m) and math.isfinite(y_m)):
+            _check_finite("update_position", x_m=x_m, y_m=y_m)
+        if not 0.0 < std_m < math.inf:
+            _check_std("update_position", std_m=std_m)
         x = self._x.tolist()  # Python floats: cheaper arithmetic than numpy scalars
-        y = np.array([x_m - x[X], y_m - x[Y]])
+        y = self._y2
+        y[0], y[1] = x_m - x[X], y_m - x[Y]
         variance = std_m * std_m
-        r = np.array([[variance, 0.0], [0.0, variance]])
+        r = self._r2
+        r[0, 0] = r[1, 1] = variance
         return self._update("gps", y, _H_POSITION, r, gated=gated)
 
     def update_gyro(self, z_rps: float) -> Innovation:
         """Body z gyro, rad/s: measures yaw rate + bias."""
-        _check_finite("update_gyro", z_rps=z_rps)
+        if not math.isfinite(z_rps):
+            _check_finite("update_gyro", z_rps=z_rps)
         x = self._x.tolist()
-        y = np.array([z_rps - x[YAW_RATE] - x[BIAS]])
+        y = self._y1
+        y[0] = z_rps - x[YAW_RATE] - x[BIAS]
         return self._update("gyro", y, _H_GYRO, self._r_gyro)
 
     def update_odometry(
@@ -300,17 +336,24 @@ class RoverEkf:
         wheels are spinning in place: their speed says nothing about the ground); the residual then has
         one entry.
         """
-        _check_finite("update_odometry", speed_mps=speed_mps, yaw_rate_rps=yaw_rate_rps)
-        _check_std("update_odometry", speed_std_mps=speed_std_mps, yaw_rate_std_rps=yaw_rate_std_rps)
+        if not (math.isfinite(speed_mps) and math.isfinite(yaw_rate_rps)):
+            _check_finite("update_odometry", speed_mps=speed_mps, yaw_rate_rps=yaw_rate_rps)
+        if not (0.0 < speed_std_mps < math.inf and 0.0 < yaw_rate_std_rps < math.inf):
+            _check_std("update_odometry", speed_std_mps=speed_std_mps, yaw_rate_std_rps=yaw_rate_std_rps)
         x = self._x.tolist()
         if not use_speed:
-            y = np.array([yaw_rate_rps - x[YAW_RATE]])
-            return self._update("odometry", y, _H_ODOMETRY_YAW_RATE, np.array([[yaw_rate_std_rps**2]]))
-        y = np.array([speed_mps - x[SCALE] * x[SPEED], yaw_rate_rps - x[YAW_RATE]])
+            y = self._y1
+            y[0] = yaw_rate_rps - x[YAW_RATE]
+            r = self._r1
+            r[0, 0] = yaw_rate_std_rps**2
+            return self._update("odometry", y, _H_ODOMETRY_YAW_RATE, r)
+        y = self._y2
+        y[0], y[1] = speed_mps - x[SCALE] * x[SPEED], yaw_rate_rps - x[YAW_RATE]
         h = self._h_odometry
         h[0, SPEED] = x[SCALE]
         h[0, SCALE] = x[SPEED]
-        r = np.array([[speed_std_mps**2, 0.0], [0.0, yaw_rate_std_rps**2]])
+        r = self._r2
+        r[0, 0], r[1, 1] = speed_std_mps**2, yaw_rate_std_rps**2
         innovation = self._update("odometry", y, h, r)
         # Keep the scale physical: a linearised update at near-zero speed can push it anywhere.
         scale = float(self._x[SCALE])
@@ -320,17 +363,24 @@ class RoverEkf:
 
     def update_heading(self, yaw_rad: float, std_rad: float) -> Innovation:
         """An absolute heading (compass, dual-antenna GPS), radians CCW from east."""
-        _check_finite("update_heading", yaw_rad=yaw_rad)
-        _check_std("update_heading", std_rad=std_rad)
-        y = np.array([wrap_angle(yaw_rad - self._x[YAW])])
-        return self._update("heading", y, _H_HEADING, np.array([[std_rad**2]]))
+        if not math.isfinite(yaw_rad):
+            _check_finite("update_heading", yaw_rad=yaw_rad)
+        if not 0.0 < std_rad < math.inf:
+            _check_std("update_heading", std_rad=std_rad)
+        y = self._y1
+        y[0] = wrap_angle(yaw_rad - self._x[YAW])
+        r = self._r1
+        r[0, 0] = std_rad**2
+        return self._update("heading", y, _H_HEADING, r)
 
     def _update(self, sensor: str, y: Array, h: Array, r: Array, *, gated: bool = True) -> Innovation:
         """Gate, then the EKF update (compiled: ``ekf_kernels.update_kernel``); ``y`` is z - h(x)."""
-        self._require_time()
+        if self._t_ns is None:
+            self._require_time()
         schmidt = -1 if self._scale_learning else SCALE
         nis, accepted = update_kernel(self._x, self._p, y, h, r, self._gate[len(y)], gated, schmidt)
-        return Innovation(sensor, tuple(y.tolist()), float(nis), accepted=bool(accepted))
+        self._revision += 1
+        return Innovation(sensor, tuple(y.tolist()), float(nis), bool(accepted))
 
     def _require_time(self) -> int:
         if self._t_ns is None:
@@ -342,7 +392,8 @@ class RoverEkf:
 
 def position_std_m(covariance: Array) -> float:
     """Sqrt of the largest eigenvalue of the 2x2 position block of a state covariance, metres."""
-    a, b, c = covariance[X, X], covariance[X, Y], covariance[Y, Y]
+    # item(): Python floats, not numpy scalars; the same IEEE arithmetic (** is libm's pow for both).
+    a, b, c = covariance.item(X, X), covariance.item(X, Y), covariance.item(Y, Y)
     # Closed-form eigenvalue of a symmetric 2x2: cheaper than eigvalsh in a hot loop.
     largest = 0.5 * (a + c) + math.sqrt(max(0.25 * (a - c) ** 2 + b * b, 0.0))
     return math.sqrt(max(float(largest), 0.0))

@@ -66,6 +66,8 @@ _MAX_SAMPLE_LAG_NS = 100_000_000
 _STILL_SIGMAS = 3.0
 # How far back the fusion history reaches beyond the configured GPS latency (jitter of the link).
 _HISTORY_MARGIN_NS = 300_000_000
+# The counter of each sensor's accepted updates, named once rather than formatted per update.
+_ACCEPTED_KEYS = {sensor: f"{sensor}_accepted" for sensor in ("gyro", "odometry", "heading")}
 
 
 class Estimator:
@@ -103,6 +105,9 @@ class Estimator:
         self._latency_ns = round(config.gps_latency_s * 1e9)
         # Kept only when fixes can be late: every IMU / wheel update then costs a state copy.
         self._history = FusionHistory(self._latency_ns + _HISTORY_MARGIN_NS) if self._latency_ns else None
+        # The last pose() at the filter's own time, with the (EKF revision, heading known) it was made
+        # from: the control tick asks for it, then publishes it, with nothing fused in between.
+        self._pose_cache: tuple[tuple[int, bool], PoseEstimate] | None = None
 
     # --- read-only views -----------------------------------------------------------------------
     @property
@@ -236,11 +241,11 @@ class Estimator:
             self._reject("imu_stale", f"sample at {t_ns} ns, filter already at {self._ekf.t_ns} ns")
             return
         self._last_gyro = (t_ns, gyro_z_rps)
-        sample = GyroSample(t_ns, gyro_z_rps)
         before = self._ekf.snapshot() if self._history is not None else None
         self._advance(t_ns)
         innovation = self._ekf.update_gyro(gyro_z_rps)
-        self._remember(before, sample)
+        if before is not None:
+            self._remember(before, GyroSample(t_ns, gyro_z_rps))
         self._publish_innovation(t_ns, innovation)
         self._count(innovation, "gyro")
 
@@ -264,35 +269,51 @@ class Estimator:
         if len(speeds_mps) != 6:
             self._reject("wheels_malformed", f"{len(speeds_mps)} wheel speeds instead of 6")
             return
-        if not all(math.isfinite(v) for v in speeds_mps):
+        # map() over the six: the same tests as a generator expression, without its per-item frame.
+        if not all(map(math.isfinite, speeds_mps)):
             self._reject("wheels_not_finite", f"speeds={list(speeds_mps)}")
             return
-        if max(abs(v) for v in speeds_mps) > _MAX_WHEEL_SPEED_MPS:
+        if max(map(abs, speeds_mps)) > _MAX_WHEEL_SPEED_MPS:
             self._reject("wheels_out_of_range", f"speeds={_cm(speeds_mps)} m/s")
             return
         self._fuse_wheels(t_ns, six_wheels(speeds_mps, self._config.track_m, self._config.skid_factor))
 
     # --- output --------------------------------------------------------------------------------
     def pose(self, t_ns: int | None = None) -> PoseEstimate | None:
-        """The estimate, extrapolated to ``t_ns`` if later than the last sample; None before the first fix."""
-        if not self._ekf.initialised:
+        """The estimate, extrapolated to ``t_ns`` if later than the last sample; None before the first fix.
+
+        Asked again with nothing fused since (same EKF revision), it is the same object: the control tick
+        reads the pose, then publishes it. Its covariance is read-only.
+        """
+        ekf = self._ekf
+        if not ekf.initialised:
             return None
-        if t_ns is not None and t_ns > self._ekf.t_ns:
-            x, p = self._ekf.predicted(t_ns)
-        else:
-            x, p, t_ns = self._ekf.x, self._ekf.covariance, self._ekf.t_ns
-        health = self._health(p)
+        if t_ns is not None and t_ns > ekf.t_ns:
+            x, p = ekf.predicted(t_ns)
+            return self._pose_of(x.tolist(), p, t_ns)
+        made_from = (ekf.revision, self._heading_known)
+        cached = self._pose_cache
+        if cached is not None and cached[0] == made_from:
+            return cached[1]
+        pose = self._pose_of(ekf.state_values(), ekf.covariance, ekf.t_ns)
+        self._pose_cache = (made_from, pose)
+        return pose
+
+    def _pose_of(self, x: list[float], p: NDArray[np.float64], t_ns: int) -> PoseEstimate:
+        """The estimate of state ``x`` and covariance ``p`` at ``t_ns``, judged as ``health`` judges it
+        (only the flags ``healthy`` needs: no ``EstimatorHealth`` built every tick)."""
+        config = self._config
+        p.flags.writeable = False  # the pose's own copy, handed to every reader until the filter changes
+        position_std = position_std_m(p)
+        healthy = (
+            position_std < config.healthy_position_std_m
+            and self._heading_known
+            and _heading_std_deg(p) < config.healthy_heading_std_deg
+        )
+        # Positional, in the field order (x, y, yaw, speed, yaw rate, covariance, healthy, t, heading
+        # known, position std): keywords cost a dict per call.
         return PoseEstimate(
-            x=float(x[0]),
-            y=float(x[1]),
-            yaw=float(x[2]),
-            speed=float(x[SPEED]),
-            yaw_rate=float(x[YAW_RATE]),
-            covariance=p,
-            healthy=health.healthy,
-            t_ns=t_ns,
-            heading_known=self._heading_known,
-            position_std_m=health.position_std_m,
+            x[X], x[Y], x[YAW], x[SPEED], x[YAW_RATE], p, healthy, t_ns, self._heading_known, position_std
         )
 
     def health(self) -> EstimatorHealth:
@@ -408,16 +429,17 @@ class Estimator:
         use_speed = not self._stuck.spinning
         if not use_speed:
             self._counters["odometry_speed_left_out"] += 1
-        sample = OdometrySample(
-            t_ns, motion.speed_mps, motion.yaw_rate_rps, speed_std, yaw_rate_std, use_speed
-        )
         before = self._ekf.snapshot() if self._history is not None else None
         self._advance(t_ns)
         self._ekf.learn_scale(self._scale_observable(t_ns))
         innovation = self._ekf.update_odometry(
             motion.speed_mps, motion.yaw_rate_rps, speed_std, yaw_rate_std, use_speed=use_speed
         )
-        self._remember(before, sample)
+        if before is not None:
+            sample = OdometrySample(
+                t_ns, motion.speed_mps, motion.yaw_rate_rps, speed_std, yaw_rate_std, use_speed
+            )
+            self._remember(before, sample)
         self._odometry_seen = True
         self._publish_innovation(t_ns, innovation)
         self._count(innovation, "odometry")
@@ -445,8 +467,8 @@ class Estimator:
         steady = not self._transient.unsettled(t_ns)
         return gps_recent and self._heading_known and steady and not self._stuck.spinning
 
-    def _remember(self, before: Snapshot | None, sample: Sample) -> None:
-        if self._history is not None and before is not None:
+    def _remember(self, before: Snapshot, sample: Sample) -> None:
+        if self._history is not None:
             self._history.record(before, sample)
 
     def _gps_accepted(self, t_fix: int) -> None:
@@ -465,7 +487,7 @@ class Estimator:
             heading_known=self._heading_known,
             position_std_m=position_std_m(p) if p is not None else math.inf,
             position_std_limit_m=config.healthy_position_std_m,
-            heading_std_deg=math.degrees(math.sqrt(max(p[YAW, YAW], 0.0))) if p is not None else math.inf,
+            heading_std_deg=_heading_std_deg(p) if p is not None else math.inf,
             heading_std_limit_deg=config.healthy_heading_std_deg,
             gps_age_s=gps_age_s,
             gps_timeout_s=config.gps_timeout_s,
@@ -540,7 +562,7 @@ class Estimator:
 
     def _count(self, innovation: Innovation, sensor: str) -> None:
         if innovation.accepted:
-            self._counters[f"{sensor}_accepted"] += 1
+            self._counters[_ACCEPTED_KEYS.get(sensor) or f"{sensor}_accepted"] += 1
         else:
             self._reject(f"{sensor}_gated", f"NIS {innovation.nis:.1f}, residual {_cm(innovation.residual)}")
 
@@ -549,6 +571,11 @@ class Estimator:
         count = self._counters[reason]
         if count == 1 or count % _LOG_EVERY == 0:
             logger.warning("estimator rejected a sample (%s, %d so far): %s", reason, count, detail)
+
+
+def _heading_std_deg(p: NDArray[np.float64]) -> float:
+    """Heading std (degrees) of a state covariance."""
+    return math.degrees(math.sqrt(max(p.item(YAW, YAW), 0.0)))
 
 
 def _cm(values: Sequence[float]) -> str:

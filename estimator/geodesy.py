@@ -5,6 +5,7 @@ The datum is the ENU origin: x east, y north, z up, in metres. All angles here a
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -58,11 +59,23 @@ def check_longitude(field: str, lon_deg: float) -> None:
 
 
 def to_enu(datum: Datum, lat_deg: float, lon_deg: float, alt_m: float) -> tuple[float, float, float]:
-    """Geodetic point to (east, north, up) metres relative to ``datum``."""
-    e, n, u = pymap3d.geodetic2enu(
-        lat_deg, lon_deg, alt_m, datum.lat_deg, datum.lon_deg, datum.alt_m, ell=_WGS84, deg=True
-    )
+    """Geodetic point to (east, north, up) metres relative to ``datum``.
+
+    ``pymap3d.geodetic2enu`` in its own steps (both points to ECEF, then the difference into the datum's
+    ENU), with the datum's ECEF position computed once per datum rather than on every GPS fix: the same
+    pymap3d calls on the same numbers, so the same floats (tests/estimator/test_geodesy.py).
+    """
+    x, y, z = pymap3d.geodetic2ecef(lat_deg, lon_deg, alt_m, _WGS84, deg=True)
+    x0, y0, z0 = _ecef_of(datum)
+    e, n, u = pymap3d.uvw2enu(x - x0, y - y0, z - z0, datum.lat_deg, datum.lon_deg, deg=True)
     return float(e), float(n), float(u)
+
+
+@functools.lru_cache(maxsize=16)
+def _ecef_of(datum: Datum) -> tuple[float, float, float]:
+    """The datum's ECEF position, metres (a rover has one datum; a test suite a few)."""
+    x, y, z = pymap3d.geodetic2ecef(datum.lat_deg, datum.lon_deg, datum.alt_m, _WGS84, deg=True)
+    return x, y, z
 
 
 def to_geodetic(datum: Datum, east_m: float, north_m: float, up_m: float) -> tuple[float, float, float]:

@@ -27,7 +27,7 @@ class PoseEstimate:
     yaw_rate : float
         Yaw rate, rad/s.
     covariance : ndarray, shape (7, 7)
-        Full state covariance, order as ``ekf.STATE_NAMES``.
+        Full state covariance, order as ``ekf.STATE_NAMES``; read-only when the estimator made it.
     healthy : bool
         Initialised and the worst-direction position std below ``healthy_position_std_m``.
     t_ns : int

@@ -13,8 +13,11 @@ odometry) is believed.
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections import deque
+from itertools import accumulate
+from operator import itemgetter
 
 # Declared spinning below this share of the odometry distance; trusted again above the second share
 # (hysteresis, so a rover creeping out of a hole does not flicker between the two).
@@ -45,7 +48,8 @@ class StuckDetector:
 
     def add_odometry(self, t_ns: int, distance_m: float, heading_rad: float = 0.0) -> None:
         """Distance (m, signed: negative reversing) the wheels rolled up to ``t_ns`` while heading
-        ``heading_rad`` (ENU). A heading off by a constant does not matter: only the track's shape does."""
+        ``heading_rad`` (ENU). A heading off by a constant does not matter: only the track's shape does.
+        Steps come in time order (the estimator adds one per wheel sample newer than the last)."""
         east, north = distance_m * math.cos(heading_rad), distance_m * math.sin(heading_rad)
         self._odometry.append((t_ns, abs(distance_m), east, north))
 
@@ -59,18 +63,21 @@ class StuckDetector:
             self._odometry.popleft()
         if len(self._fixes) < 4:
             return self.spinning
-        rolled = sum(step[1] for step in self._odometry)
+        # Sums without a generator: the same additions in the same order, without a frame per item (the
+        # window holds a few hundred odometry steps, summed on every fix).
+        rolled = sum(map(itemgetter(1), self._odometry))
         if rolled < self._min_distance_m:
             self.spinning = False
             return False
-        half = len(self._fixes) // 2
-        early, late = list(self._fixes)[:half], list(self._fixes)[half:]
+        fixes = list(self._fixes)
+        half = len(fixes) // 2
+        early, late = fixes[:half], fixes[half:]
         moved = math.dist(_mean_xy(late), _mean_xy(early))
         # The same measure on the odometry's track, sampled at the fixes' times.
-        track = self._track_at([f[0] for f in self._fixes])
+        track = self._track_at([f[0] for f in fixes])
         expected = math.dist(_mean_xy(track[half:]), _mean_xy(track[:half]))
-        span_s = (_mean_t(late) - _mean_t(early)) / max(self._fixes[-1][0] - self._fixes[0][0], 1)
-        std = max(f[3] for f in self._fixes)
+        span_s = (_mean_t(late) - _mean_t(early)) / max(fixes[-1][0] - fixes[0][0], 1)
+        std = max([f[3] for f in fixes])
         noise = _NOISE_SIGMAS * std * math.sqrt(1.0 / len(early) + 1.0 / len(late))
         # Scaled back to the whole window: how far the odometry ran ahead of the ground.
         self.shortfall_m = max(expected - moved, 0.0) / max(span_s, 1e-9)
@@ -82,22 +89,26 @@ class StuckDetector:
 
     def _track_at(self, times: list[int]) -> list[tuple[int, float, float, float]]:
         """The dead-reckoned position (from the window's first odometry step) at each of ``times``,
-        shaped like fixes for ``_mean_xy``."""
+        shaped like fixes for ``_mean_xy``.
+
+        The running sums come from ``itertools.accumulate`` (0.0, then each step added in order: the
+        additions a walk along the steps makes, in C rather than a Python loop over a few hundred steps
+        per fix), and each time takes the sums of the steps up to it (steps arrive in time order).
+        """
+        steps = self._odometry
+        step_times = [step[0] for step in steps]
+        easts = list(accumulate(map(itemgetter(2), steps), initial=0.0))
+        norths = list(accumulate(map(itemgetter(3), steps), initial=0.0))
         positions = []
-        steps = iter(self._odometry)
-        step = next(steps, None)
-        east = north = 0.0
         for t in times:
-            while step is not None and step[0] <= t:
-                east, north = east + step[2], north + step[3]
-                step = next(steps, None)
-            positions.append((t, east, north, 0.0))
+            taken = bisect.bisect_right(step_times, t)
+            positions.append((t, easts[taken], norths[taken], 0.0))
         return positions
 
 
 def _mean_xy(fixes: list[tuple[int, float, float, float]]) -> tuple[float, float]:
-    return sum(f[1] for f in fixes) / len(fixes), sum(f[2] for f in fixes) / len(fixes)
+    return sum([f[1] for f in fixes]) / len(fixes), sum([f[2] for f in fixes]) / len(fixes)
 
 
 def _mean_t(fixes: list[tuple[int, float, float, float]]) -> float:
-    return sum(f[0] for f in fixes) / len(fixes)
+    return sum([f[0] for f in fixes]) / len(fixes)

@@ -14,6 +14,7 @@ launch a little and cost the estimator-level dropout test, whose body follows it
 from __future__ import annotations
 
 from collections import deque
+from operator import itemgetter
 
 
 class WheelTransient:
@@ -47,8 +48,8 @@ class WheelTransient:
         recent.append((t_ns, speed_mps))
         while t_ns - recent[0][0] > self._window_ns:
             recent.popleft()
-        speeds = [speed for _, speed in recent]
-        if max(speeds) - min(speeds) <= self._limit_mps:
+        speed_of = itemgetter(1)  # max and min over the window without a list of its speeds
+        if max(map(speed_of, recent)) - min(map(speed_of, recent)) <= self._limit_mps:
             return
         self._unsettled_until_ns = t_ns + self._settle_ns
 

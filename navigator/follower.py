@@ -7,8 +7,10 @@ heading has curvature ``kappa = 2 sin(alpha) / L``.
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass, fields
+from typing import NamedTuple
 
 import numpy as np
 
@@ -90,8 +92,9 @@ class FollowerConfig:
         return cls(controller=controller, **values)
 
 
-@dataclass(frozen=True)
-class FollowCommand:
+# A NamedTuple, immutable like a frozen dataclass but cheaper to build (once per control tick: the
+# dataclass's __init__, an object.__setattr__ per field, was a measurable share of the tick).
+class FollowCommand(NamedTuple):
     speed_mps: float
     yaw_rate_rps: float
     cross_track_error_m: float  # signed distance to the path, positive when the rover is left of it
@@ -127,7 +130,14 @@ class PurePursuit:
     def __init__(self, config: FollowerConfig) -> None:
         self._config = config
         self._path: np.ndarray | None = None
-        self._arc: np.ndarray = np.zeros(1)  # cumulative length at each vertex
+        # The caller's array the current path was adopted from, when it is read-only and owns its data
+        # (a planner's ``Path.points``): handed in again it cannot have changed, so it is not checked and
+        # compared again on every tick (None: every path handed in is checked).
+        self._source: np.ndarray | None = None
+        # The path's vertices and cumulative length at each vertex as Python floats: the per-tick look-ups
+        # below are scalar, and numpy's per-call overhead on single elements was most of their cost.
+        self._xy: list[list[float]] = []
+        self._arc: list[float] = [0.0]
         self._segment = 0
         self._progress_m = 0.0
         self._closest_to_goal_m = math.inf
@@ -138,6 +148,7 @@ class PurePursuit:
 
     def reset(self) -> None:
         self._path = None
+        self._source = None
         self._segment = 0
         self._progress_m = 0.0
         self._closest_to_goal_m = math.inf
@@ -148,15 +159,15 @@ class PurePursuit:
         ``path``: ``(n, 2)`` ENU metres, n >= 1. ParameterError for a malformed path or non-finite pose.
         """
         cfg = self._config
-        if not all(math.isfinite(v) for v in (x, y, yaw, speed)):
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(yaw) and math.isfinite(speed)):
             raise ParameterError(f"rover pose must be finite, got x={x}, y={y}, yaw={yaw}, speed={speed}")
         points = self._adopt(path)
         lookahead = cfg.lookahead_m + cfg.lookahead_gain_s * abs(speed)
 
         projection, cross_track = self._project(points, x, y, lookahead)
-        total = float(self._arc[-1])
-        goal = points[-1]
-        distance_to_goal = math.hypot(goal[0] - x, goal[1] - y)
+        total = self._arc[-1]
+        goal_x, goal_y = self._xy[-1]
+        distance_to_goal = math.hypot(goal_x - x, goal_y - y)
         remaining = max(total - projection, 0.0)
         near_end = remaining <= max(lookahead, cfg.goal_tolerance_m)
         within = distance_to_goal <= cfg.goal_tolerance_m and near_end
@@ -188,7 +199,7 @@ class PurePursuit:
             )
         )
         # The first (in listed order) of the smallest limits names the reason.
-        limit, reason = min(limits, key=lambda item: item[0])
+        limit, reason = first_smallest(limits)
         return FollowCommand(limit, limit * curvature, cross_track, limit, reason, False, curvature)
 
     def _arrived(self, cross_track: float) -> FollowCommand:
@@ -206,13 +217,15 @@ class PurePursuit:
         lookahead: float,
     ) -> tuple[float, float]:
         """(heading error rad, curvature 1/m): the arc through the lookahead point (pure pursuit)."""
-        target = self._point_at(points, projection + lookahead)
+        target = self._point_at(projection + lookahead)
         bearing_error = wrap_angle(math.atan2(target[1] - y, target[0] - x) - yaw)
         chord = max(math.hypot(target[0] - x, target[1] - y), 1e-6)
         return bearing_error, 2.0 * math.sin(bearing_error) / chord
 
     # --- path bookkeeping -------------------------------------------------------------------------
     def _adopt(self, path: np.ndarray) -> np.ndarray:
+        if path is self._source and self._path is not None:
+            return self._path
         points = np.asarray(path, dtype=np.float64)
         if points.ndim != 2 or points.shape[1] != 2 or points.shape[0] < 1:
             raise ParameterError(
@@ -223,10 +236,13 @@ class PurePursuit:
         if self._path is None or self._path.shape != points.shape or not np.array_equal(self._path, points):
             self._path = points.copy()
             lengths = np.hypot(*np.diff(points, axis=0).T) if len(points) > 1 else np.zeros(0)
-            self._arc = np.concatenate([[0.0], np.cumsum(lengths)])
+            self._arc = np.concatenate([[0.0], np.cumsum(lengths)]).tolist()
+            self._xy = points.tolist()
             self._segment = 0
             self._progress_m = 0.0
             self._closest_to_goal_m = math.inf
+        unchangeable = isinstance(path, np.ndarray) and not path.flags.writeable and path.base is None
+        self._source = path if unchangeable else None
         return self._path
 
     def _project(self, points: np.ndarray, x: float, y: float, lookahead: float) -> tuple[float, float]:
@@ -238,23 +254,37 @@ class PurePursuit:
         if len(points) == 1:
             return 0.0, 0.0
         window_end = self._progress_m + 2.0 * lookahead + 1.0
-        last = int(np.searchsorted(self._arc, window_end, side="right"))
+        # bisect_right on the (non-decreasing) arc list: the index np.searchsorted(side="right") gives.
+        last = bisect.bisect_right(self._arc, window_end)
         first = self._segment
         last = min(max(last, first + 1), len(points) - 1)
         segment, t, nearest_x, nearest_y, dx, dy, length_sq = nearest_segment(points, first, last, x, y)
         self._segment = segment
         length = math.sqrt(length_sq)
-        projection = float(self._arc[segment]) + t * length
+        projection = self._arc[segment] + t * length
         self._progress_m = max(self._progress_m, projection)
         cross_track = (dx / length) * (y - nearest_y) - (dy / length) * (x - nearest_x)
         return projection, cross_track
 
-    def _point_at(self, points: np.ndarray, arc_m: float) -> np.ndarray:
-        """The path point ``arc_m`` along the path (clamped to its ends)."""
-        if len(points) == 1 or arc_m >= self._arc[-1]:
-            return points[-1]
-        index = int(np.searchsorted(self._arc, arc_m, side="right")) - 1
-        index = min(max(index, 0), len(points) - 2)
-        span = float(self._arc[index + 1] - self._arc[index])
-        fraction = 0.0 if span <= 0.0 else (arc_m - float(self._arc[index])) / span
-        return points[index] + fraction * (points[index + 1] - points[index])
+    def _point_at(self, arc_m: float) -> tuple[float, float]:
+        """The (x, y) of the path point ``arc_m`` along the path (clamped to its ends)."""
+        arc, xy = self._arc, self._xy
+        if len(xy) == 1 or arc_m >= arc[-1]:
+            return xy[-1][0], xy[-1][1]
+        index = bisect.bisect_right(arc, arc_m) - 1
+        index = min(max(index, 0), len(xy) - 2)
+        span = arc[index + 1] - arc[index]
+        fraction = 0.0 if span <= 0.0 else (arc_m - arc[index]) / span
+        # Per coordinate the arithmetic numpy did on the two rows: the same floats.
+        (x0, y0), (x1, y1) = xy[index], xy[index + 1]
+        return x0 + fraction * (x1 - x0), y0 + fraction * (y1 - y0)
+
+
+def first_smallest(limits: list[tuple[float, str]]) -> tuple[float, str]:
+    """The smallest (limit, reason) by limit; the first in listed order on ties (as ``min`` with a key,
+    without a key function's call per item)."""
+    limit, reason = limits[0]
+    for candidate, why in limits[1:]:
+        if candidate < limit:
+            limit, reason = candidate, why
+    return limit, reason

@@ -30,13 +30,13 @@ import logging
 import math
 from collections.abc import Iterable
 from concurrent.futures import Executor, Future
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from navigator.config import PlannerConfig
 from navigator.errors import ParameterError
-from navigator.follower import FollowCommand, FollowerConfig, PurePursuit
+from navigator.follower import FollowCommand, FollowerConfig, PurePursuit, first_smallest
 from navigator.footprint import Footprint
 from navigator.perception import ObstacleObservation
 from navigator.plan_worker import InlineExecutor, PlanOutcome, PlanRequest, in_range, run_plan_request
@@ -67,8 +67,9 @@ REASON_STOPPED = "stopped"
 REPLAN_CROSS_TRACK_M = 2.0
 
 
-@dataclass(frozen=True)
-class GuidanceOutput:
+# A NamedTuple, immutable like a frozen dataclass but cheaper to build (once per control tick: the
+# dataclass's __init__, an object.__setattr__ per field, was a measurable share of the tick).
+class GuidanceOutput(NamedTuple):
     speed_mps: float
     yaw_rate_rps: float
     mode: str
@@ -117,6 +118,8 @@ class Guidance:
             else PurePursuit(follower_config)
         )
         self._clearance_m = params.footprint_radius_m + planner_config.inflation_m
+        # For the slope speed limit of every tick.
+        self._tan_tip_roll = math.tan(params.tip_roll_rad)
         self._goal: tuple[float, float] | None = None
         self._path: Path | None = None
         self._mode = IDLE
@@ -209,7 +212,7 @@ class Guidance:
 
     def update(self, t_ns: int, x: float, y: float, yaw: float, speed: float) -> GuidanceOutput:
         """One tick: repair or make the plan as needed, then the command for the pose (ENU m, rad, m/s)."""
-        if not all(math.isfinite(v) for v in (x, y, yaw, speed)):
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(yaw) and math.isfinite(speed)):
             raise ParameterError(f"pose must be finite, got x={x}, y={y}, yaw={yaw}, speed={speed}")
         self._last_xy = (x, y)
         details: list[str] = []
@@ -363,12 +366,12 @@ class Guidance:
     ) -> GuidanceOutput:
         cfg = self._follower_config
         limits = [(command.speed_limit_mps, command.speed_limit_reason)]
-        terrain = self.planner.terrain
-        if terrain.contains(x, y) and command.speed_mps > 0.0:
-            ground = terrain.ground_at(x, y, yaw)  # class and tilt in one look-up
+        # Class and tilt in one look-up; None off the map.
+        ground = self.planner.terrain.ground_on_map(x, y, yaw) if command.speed_mps > 0.0 else None
+        if ground is not None:
             roll, pitch = ground.roll_rad, ground.pitch_rad
             tilt = max(abs(roll), abs(pitch))
-            slope_scale = max(0.3, 1.0 - math.tan(tilt) / math.tan(self._params.tip_roll_rad))
+            slope_scale = max(0.3, 1.0 - math.tan(tilt) / self._tan_tip_roll)
             limits.append((cfg.max_speed_mps * slope_scale, REASON_SLOPE))
             factor = self._classes[ground.terrain_class].cost_factor
             limits.append((cfg.max_speed_mps / math.sqrt(max(factor, 1.0)), REASON_TERRAIN))
@@ -381,7 +384,7 @@ class Guidance:
                         REASON_TIP_MARGIN,
                     )
                 )
-        limit, reason = min(limits, key=lambda item: item[0])
+        limit, reason = first_smallest(limits)
         speed, yaw_rate = command.speed_mps, command.yaw_rate_rps
         if speed > limit > 0.0:
             # Scale speed and yaw rate together: the curvature the follower asked for is kept.
@@ -409,4 +412,4 @@ class Guidance:
 
 
 def _joined(details: list[str]) -> str:
-    return "; ".join(d for d in details if d)
+    return "; ".join([d for d in details if d]) if details else ""

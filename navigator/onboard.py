@@ -38,7 +38,7 @@ from logs.sink import MessageSink
 from navigator.config import RoverConfig
 from navigator.deferred_sink import DeferredSink
 from navigator.fence_shape import inside_polygon
-from navigator.guidance import Guidance
+from navigator.guidance import Guidance, GuidanceOutput
 from navigator.map_message import grid_message
 from navigator.mixing import mix_skid_steer
 from navigator.perception import ObstacleObservation, ObstacleSource
@@ -69,6 +69,12 @@ class Mode(enum.StrEnum):
     NO_PATH = "NO_PATH"  # the planner proved the goal unreachable
     BLOCKED = "BLOCKED"  # stopped: a moving obstacle is predicted on the path
     YIELDING = "YIELDING"  # backing off slowly: a moving obstacle is predicted to reach the rover itself
+
+
+# Guidance's mode names -> Mode, looked up every tick (a dict, not the enum's slower call).
+_MODE_OF = {mode.value: mode for mode in Mode}
+# The last start-up check, worded once.
+_NOT_SETTLED = f"estimate healthy for < {SETTLE_NS / NS_PER_S:g} s"
 
 
 @dataclass(frozen=True)
@@ -141,7 +147,9 @@ class RouteGuidance:
         }[self.mode]
         return f"guidance {self.mode.value}: {reason}"
 
-    def tick(self, now: int, pose: PoseEstimate | None, ready: bool) -> GuidanceCommand:
+    def tick(self, now: int, pose: PoseEstimate | None, ready: bool) -> GuidanceCommand | GuidanceOutput:
+        """The command for this tick: ``STOPPED`` until a goal and the start-up checks allow driving, then
+        guidance's own output (it carries the same command fields; not copied into another object)."""
         if self.mode is Mode.IDLE or pose is None:
             return STOPPED
         if self.mode is Mode.WAITING_ESTIMATE:
@@ -149,19 +157,13 @@ class RouteGuidance:
                 return STOPPED
             self.core.set_goal(self.goal.x, self.goal.y)
         out = self.core.update(now, pose.x, pose.y, pose.yaw, pose.speed)
-        self.mode = Mode(out.mode)
+        self.mode = _MODE_OF.get(out.mode) or Mode(out.mode)  # Mode(): the enum's own error if unknown
         if out.path_changed and out.path is not None:
             self._publish_path(now, out.path)
         if out.detail:
             severity = "error" if self.mode is Mode.NO_PATH else "info"
             self._event(f"guidance.{self.mode.value.lower()}", severity, out.detail)
-        return GuidanceCommand(
-            out.speed_mps,
-            out.yaw_rate_rps,
-            out.cross_track_error_m,
-            out.speed_limit_mps,
-            out.speed_limit_reason,
-        )
+        return out
 
     def _publish_path(self, now: int, path: Path) -> None:
         self._sink.publish(
@@ -238,6 +240,7 @@ class OnboardStack:
         self._obstacles = obstacles
         self._ground_station = ground_station
         self._wheels = can_link.readings()
+        self._wheels_heard = all(r.last_status_ns is not None for r in self._wheels)  # of this snapshot
         self._terrain = terrain
         self._map_published = False
         self._event = _EventFn(clock, sink)
@@ -263,6 +266,7 @@ class OnboardStack:
         self._sent_wheels_mps: tuple[float, ...] = (0.0,) * len(self._wheels)  # as the bus carried them
         self._send_failing_since_ns: int | None = None
         self._sent_at_ns = clock.now_ns()
+        self._erpm_per_mps = can_link.profile.erpm_per_mps  # the link's fixed profile, read every tick
         self._deferred = deferred
         self._pacing = config.pacing_sensor
         self._pacing_rx_ns: int | None = None  # receive time of the newest pacing sample in this read
@@ -380,8 +384,8 @@ class OnboardStack:
             elif self._send_failing_since_ns is None:
                 self._send_failing_since_ns = now
             self._sent_speed_mps, self._sent_at_ns = speed, now
-            erpm_per_mps = self._can.profile.erpm_per_mps
-            self._sent_wheels_mps = tuple(e / erpm_per_mps for e in erpm)
+            erpm_per_mps = self._erpm_per_mps
+            self._sent_wheels_mps = tuple([e / erpm_per_mps for e in erpm])
             self.last_sensor_to_command_ns = None if trigger is None else self._clock.now_ns() - trigger
         finally:
             if self._deferred is not None:
@@ -465,17 +469,17 @@ class OnboardStack:
         elif self._healthy_since_ns is None:
             self._healthy_since_ns = now
         settled = self._healthy_since_ns is not None and now - self._healthy_since_ns >= SETTLE_NS
-        missing = [
-            what
-            for what, failing in (
-                ("no autopilot heartbeat", self._mavlink.last_heartbeat_ns is None),
-                ("wheel controllers not all heard", any(r.last_status_ns is None for r in self._wheels)),
-                ("no estimate yet", pose is None),
-                ("estimate unhealthy", pose is not None and not healthy),
-                (f"estimate healthy for < {SETTLE_NS / NS_PER_S:g} s", healthy and not settled),
-            )
-            if failing
-        ]
+        missing = []  # in this order
+        if self._mavlink.last_heartbeat_ns is None:
+            missing.append("no autopilot heartbeat")
+        if not self._wheels_heard:
+            missing.append("wheel controllers not all heard")
+        if pose is None:
+            missing.append("no estimate yet")
+        elif not healthy:
+            missing.append("estimate unhealthy")
+        elif not settled:
+            missing.append(_NOT_SETTLED)
         self._not_ready = ", ".join(missing)
         return not missing
 
@@ -506,13 +510,14 @@ class OnboardStack:
             self._start_up_report(line)
 
     def _safety_inputs(self, now: int, pose: PoseEstimate | None) -> SafetyInputs:
+        # Per-wheel tuples from list comprehensions: the same values as generator expressions, cheaper.
         readings = self._wheels
         voltages = [r.input_voltage_v for r in readings if r.input_voltage_v > 0.0]
         attitude = self._attitude
         return SafetyInputs(
             now_ns=now,
             tick_gap_ns=None if self._last_tick_ns is None else now - self._last_tick_ns,
-            wheel_last_status_ns=tuple(r.last_status_ns for r in readings),
+            wheel_last_status_ns=tuple([r.last_status_ns for r in readings]),
             can_bus_off=self._can.state is CanLinkState.BUS_OFF,
             can_send_failing_since_ns=self._send_failing_since_ns,
             estimator_healthy=pose is not None and pose.healthy,
@@ -528,16 +533,18 @@ class OnboardStack:
             battery_v=min(voltages) if voltages else None,
             wheel_commands_mps=self._sent_wheels_mps,
             # A controller never heard has no speed to judge (wheel_silent covers it): not stalled.
-            wheel_speeds_mps=tuple(r.speed_mps if r.last_status_ns is not None else 0.0 for r in readings),
+            wheel_speeds_mps=tuple([r.speed_mps if r.last_status_ns is not None else 0.0 for r in readings]),
             wheel_currents_a=tuple(
-                r.motor_current_a if r.last_status_ns is not None else 0.0 for r in readings
+                [r.motor_current_a if r.last_status_ns is not None else 0.0 for r in readings]
             ),
         )
 
     def _ground_contact_ns(self) -> int | None:
         """The newest sign of the ground station: its last command, or its command source's last contact."""
         source_contact = None if self._commands is None else self._commands.last_contact_ns
-        return max((t for t in (self._last_ground_ns, source_contact) if t is not None), default=None)
+        if source_contact is None or self._last_ground_ns is None:
+            return self._last_ground_ns if source_contact is None else source_contact
+        return max(self._last_ground_ns, source_contact)
 
     def _read_commands(self) -> None:
         if self._commands is None:
@@ -606,7 +613,14 @@ class OnboardStack:
     def _read_mavlink(self, now: int) -> None:
         del now  # each reading carries its own receive time
         for reading in self._mavlink.poll():
-            if isinstance(reading, GpsFix):
+            # Most frequent first: an IMU sample every tick, attitude and GPS a few times a second.
+            if isinstance(reading, ImuSample):
+                if self._pacing == "imu":
+                    self._pacing_rx_ns = reading.t_ns
+                gz = reading.gyro_xyz_rps[2]
+                ax, ay, _ = reading.accel_xyz_mps2
+                self.estimator.on_imu(reading.t_ns, gz, ax, ay)
+            elif isinstance(reading, GpsFix):
                 if self._pacing == "gps":
                     self._pacing_rx_ns = reading.t_ns
                 if reading.fix_type >= MIN_GPS_FIX_TYPE:
@@ -620,12 +634,6 @@ class OnboardStack:
                     reading.eph_m,
                     reading.satellites,
                 )
-            elif isinstance(reading, ImuSample):
-                if self._pacing == "imu":
-                    self._pacing_rx_ns = reading.t_ns
-                gz = reading.gyro_xyz_rps[2]
-                ax, ay, _ = reading.accel_xyz_mps2
-                self.estimator.on_imu(reading.t_ns, gz, ax, ay)
             elif isinstance(reading, GoalRequest):
                 self._goal_from_ground_station(reading)
             elif isinstance(reading, StopRequest):
@@ -640,14 +648,15 @@ class OnboardStack:
             # One snapshot per poll: the readings change only when frames arrive, and the start-up checks
             # and the safety inputs of this tick read the same snapshot.
             self._wheels = readings = self._can.readings()
-            if all(r.last_status_ns is not None for r in readings):
+            self._wheels_heard = all([r.last_status_ns is not None for r in readings])
+            if self._wheels_heard:
                 if self._pacing == "wheels":
                     self._pacing_rx_ns = can_read_ns
                 # All six: disagreement between the wheels of one side is a slip signal to the estimator.
                 self.estimator.on_wheel_speeds(now, [r.speed_mps for r in readings])
 
 
-def _limit_reason(guidance: GuidanceCommand, mode: SafetyMode, scale: float) -> str:
+def _limit_reason(guidance: GuidanceCommand | GuidanceOutput, mode: SafetyMode, scale: float) -> str:
     if mode is not SafetyMode.DRIVING and mode is not SafetyMode.IDLE:
         return f"safety {mode.value.lower()}"
     if 0.0 < scale < 1.0:

@@ -57,7 +57,8 @@ MOVE_INDEX = {(int(d_row), int(d_col)): index for index, (d_row, d_col) in enume
 class Path:
     """A planned path in local ENU.
 
-    ``points``: ``(n, 2)`` metres, first the start position, last the goal position, cell centres between.
+    ``points``: ``(n, 2)`` metres, first the start position, last the goal position, cell centres between;
+    read-only when the planner made it.
     ``cost``: the A* cost times the map resolution (cost-weighted metres). ``length_m``: polyline length.
     ``checked_from_m``: the oriented footprint is clear of obstacles from this distance along the path on;
     before it the rover gets from where it is to the search's first cell centre (its start is a fact).
@@ -272,6 +273,9 @@ class Planner:
         # The ends are the exact positions asked for, not their cell centres.
         inner = centres[1:-1]
         points = np.array([tuple(map(float, start_xy)), *inner, tuple(map(float, goal_xy))], dtype=np.float64)
+        # A plan does not change once made; read-only, the follower knows it again by identity each tick
+        # instead of comparing every point (``PurePursuit._adopt``).
+        points.flags.writeable = False
         length = float(np.sum(np.hypot(*np.diff(points, axis=0).T)))
         cells = tuple((int(row), int(col)) for row, col in result.cells)
         path = Path(points, result.cost * self._terrain.resolution_m, length, result.expanded, cells=cells)

@@ -16,7 +16,7 @@ from __future__ import annotations
 import enum
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from typing import NamedTuple
 
 from firmware_bridge.wheel_names import wheel_label, wheel_labels
 from logs.clock import NS_PER_S, to_ns
@@ -56,9 +56,11 @@ class SafetyMode(enum.StrEnum):
     ESTOP = "ESTOP"  # emergency stop: wheels at zero until an explicit resume
 
 
-@dataclass(frozen=True)
-class SafetyInputs:
-    """What the supervisor judges, all measured at ``now_ns`` (clock ns). ``None`` means never seen."""
+# A NamedTuple, immutable like a frozen dataclass but cheaper to build (once per control tick, nineteen
+# fields: the dataclass's __init__, an object.__setattr__ per field, was about half of building them).
+class SafetyInputs(NamedTuple):
+    """What the supervisor judges, all measured at ``now_ns`` (clock ns). ``None`` means never seen.
+    ``inputs._replace(field=value)`` gives a copy with fields changed."""
 
     now_ns: int
     tick_gap_ns: int | None  # since the previous control tick
@@ -83,8 +85,9 @@ class SafetyInputs:
     wheel_currents_a: tuple[float, ...] = ()
 
 
-@dataclass(frozen=True)
-class SafetyDecision:
+# A NamedTuple, immutable like a frozen dataclass but cheaper to build (once per control tick: the
+# dataclass's __init__, an object.__setattr__ per field, was a measurable share of the tick).
+class SafetyDecision(NamedTuple):
     mode: SafetyMode
     speed_scale: float  # multiply guidance's speed and yaw rate by this; 0 stops the wheels
     faults: tuple[str, ...]  # active failsafes, sorted
@@ -126,6 +129,7 @@ class SafetySupervisor:
         self._stall_held_since: int | None = None
         self._stall_trips: list[int] = []  # when wheel_stalled tripped, within the latch window
         self._stall_latched = False
+        self._stall_key_names: list[str] = []  # grown by _stall_keys
         self._battery_ns = to_ns(c.battery_debounce_s)
         self._tip_rad = math.radians(c.tip_margin_deg)
         self._tip_clear_rad = math.radians(c.tip_margin_deg + c.tip_clear_deg)
@@ -180,14 +184,22 @@ class SafetySupervisor:
         gap = i.tick_gap_ns
         # Judged per tick: the tick after a stall runs with zero commands, the next on-time tick clears it.
         stalled = gap is not None and gap > self._stall_ns
+        # Details are written only when a failsafe holds: formatting them on every tick was a share of it.
         self._set(
             LOOP_STALL,
-            _detail(stalled, f"control tick {_ms(gap or 0)} after the previous one", self._stall_ns),
+            _over(f"control tick {_ms(gap or 0)} after the previous one", self._stall_ns)
+            if stalled
+            else None,
         )
 
     def _check_links(self, i: SafetyInputs) -> None:
-        ages = (self._age(i.now_ns, t) for t in i.wheel_last_status_ns)
-        silent = [index for index, age in enumerate(ages) if age > self._silent_ns]
+        now, start, limit = i.now_ns, self._start_ns, self._silent_ns
+        # Each wheel's age as ``_age`` measures it, inline: six calls a tick.
+        silent = [
+            index
+            for index, t in enumerate(i.wheel_last_status_ns)
+            if now - (start if t is None else t) > limit
+        ]
         self._set(
             WHEEL_SILENT,
             f"motor controller of {wheel_labels(silent, self._controller_ids)} silent for more than "
@@ -201,9 +213,9 @@ class SafetySupervisor:
         else:
             self._set(
                 CAN_BUS_OFF,
-                _detail(
-                    failing > self._can_fail_ns, f"CAN sends failing for {_ms(failing)}", self._can_fail_ns
-                ),
+                _over(f"CAN sends failing for {_ms(failing)}", self._can_fail_ns)
+                if failing > self._can_fail_ns
+                else None,
             )
         self._timeout(
             HEARTBEAT_LOST, "no autopilot heartbeat", i.now_ns, i.last_heartbeat_ns, self._heartbeat_ns
@@ -254,13 +266,13 @@ class SafetySupervisor:
                     f"tip-over margin {math.degrees(margin):.1f} deg < {c.tip_margin_deg} deg "
                     f"(roll {math.degrees(roll):.1f}, pitch {math.degrees(pitch):.1f} deg)",
                 )
-            elif margin > self._tip_clear_rad:
+            elif margin > self._tip_clear_rad and TIP_OVER in self._active:  # (the why formatted only then)
                 self._clear(TIP_OVER, f"margin back to {math.degrees(margin):.1f} deg")
         if c.fence and i.position_xy is not None:
             x, y = i.position_xy
             if not inside_polygon(x, y, c.fence):
                 self._trip(GEOFENCE, "error", f"position ({x:.2f}, {y:.2f}) is outside the geofence")
-            else:
+            elif GEOFENCE in self._active:
                 self._clear(GEOFENCE, f"back inside the geofence at ({x:.2f}, {y:.2f})")
 
     def _check_wheels_turn(self, i: SafetyInputs) -> None:
@@ -280,16 +292,17 @@ class SafetySupervisor:
             if held > self._wheel_stall_hold_ns and not self._stall_latched:
                 self._clear(WHEEL_STALLED, f"held {_ms(held)}: trying the wheels again")
             return
+        min_command, max_speed = c.wheel_stall_min_command_mps, c.wheel_stall_max_speed_mps
+        min_current = c.wheel_stall_min_current_a
+        keys = self._stall_keys(len(i.wheel_commands_mps))
         judged = zip(i.wheel_commands_mps, i.wheel_speeds_mps, i.wheel_currents_a, strict=False)
         for index, (command, speed, current) in enumerate(judged):
-            stalled = (
-                abs(command) >= c.wheel_stall_min_command_mps
-                and abs(speed) < c.wheel_stall_max_speed_mps
-                and abs(current) >= c.wheel_stall_min_current_a
-            )
+            key = keys[index]
+            if not (abs(command) >= min_command and abs(speed) < max_speed and abs(current) >= min_current):
+                self._since.pop(key, None)  # as _sustained does for a condition gone (the common case)
+                continue
             # Counted from when the command went out, as for ``stuck``.
-            key = f"{WHEEL_STALLED}#{index}"
-            held = self._sustained(key, stalled, i.now_ns, start_ns=i.sent_at_ns)
+            held = self._sustained(key, True, i.now_ns, start_ns=i.sent_at_ns)
             if held > self._wheel_stall_ns:
                 window_start = i.now_ns - WHEEL_STALL_LATCH_WINDOW_NS
                 self._stall_trips = [t for t in self._stall_trips if t > window_start] + [i.now_ns]
@@ -309,8 +322,8 @@ class SafetySupervisor:
                     + latched,
                 )
                 self._stall_held_since = i.now_ns
-                for other in range(len(i.wheel_commands_mps)):
-                    self._since.pop(f"{WHEEL_STALLED}#{other}", None)
+                for other in keys:
+                    self._since.pop(other, None)
                 return
 
     def _check_battery(self, i: SafetyInputs) -> None:
@@ -325,11 +338,12 @@ class SafetySupervisor:
                 continue
             if low_for > self._battery_ns:
                 self._trip(name, severity, f"battery {v:.2f} V below {threshold} V for {_ms(low_for)}")
-            elif v > threshold + c.battery_clear_v:
+            elif v > threshold + c.battery_clear_v and name in self._active:
                 self._clear(name, f"battery back to {v:.2f} V")
 
     def _decide(self, wants_to_drive: bool, idle_cause: str) -> SafetyDecision:
-        holds = sorted(name for name in self._active if name not in (ESTOP, BATTERY_LOW))
+        active = self._active  # empty on almost every tick: no sorting then
+        holds = sorted(name for name in active if name not in (ESTOP, BATTERY_LOW)) if active else []
         if ESTOP in self._active:
             mode, cause = SafetyMode.ESTOP, self._active[ESTOP]
         elif holds:
@@ -345,12 +359,19 @@ class SafetySupervisor:
         scale = 0.0
         if mode is SafetyMode.DRIVING:
             scale = self._config.battery_low_speed_scale if BATTERY_LOW in self._active else 1.0
-        return SafetyDecision(mode, scale, self.faults)
+        return SafetyDecision(mode, scale, self.faults if active else ())
 
     # --- helpers --------------------------------------------------------------------------------
     def _age(self, now_ns: int, t_ns: int | None) -> int:
         """Time since ``t_ns``; never seen counts from the supervisor's start (``start``)."""
         return now_ns - (self._start_ns if t_ns is None else t_ns)
+
+    def _stall_keys(self, wheels: int) -> list[str]:
+        """The keys of ``wheel_stalled``'s per-wheel sustained conditions, named once per wheel."""
+        keys = self._stall_key_names
+        while len(keys) < wheels:
+            keys.append(f"{WHEEL_STALLED}#{len(keys)}")
+        return keys[:wheels] if len(keys) > wheels else keys
 
     def _sustained(self, key: str, condition: bool, now_ns: int, start_ns: int | None = None) -> int:
         """How long ``condition`` has held (0 when it does not): from the first tick it was seen."""
@@ -362,14 +383,14 @@ class SafetySupervisor:
     def _timeout(self, name: str, what: str, now_ns: int, last_ns: int | None, limit_ns: int) -> None:
         if limit_ns <= 0:
             return
-        age = self._age(now_ns, last_ns)
-        self._set(name, _detail(age > limit_ns, f"{what} for {_ms(age)}", limit_ns))
+        age = now_ns - (self._start_ns if last_ns is None else last_ns)  # _age, inline: four a tick
+        self._set(name, _over(f"{what} for {_ms(age)}", limit_ns) if age > limit_ns else None)
 
     def _set(self, name: str, detail: str | None, severity: str = "error") -> None:
         """A self-clearing failsafe: active exactly while ``detail`` is not None."""
         if detail is not None:
             self._trip(name, severity, detail)
-        else:
+        elif name in self._active:  # most checks pass most ticks: nothing to clear
             self._clear(name, "condition gone")
 
     def _trip(self, name: str, severity: str, detail: str) -> None:
@@ -382,8 +403,9 @@ class SafetySupervisor:
             self._emit(f"cleared.{name}", "info", why)
 
 
-def _detail(condition: bool, what: str, limit_ns: int) -> str | None:
-    return f"{what} (limit {_ms(limit_ns)})" if condition else None
+def _over(what: str, limit_ns: int) -> str:
+    """A timed failsafe's detail: what was measured, and its limit."""
+    return f"{what} (limit {_ms(limit_ns)})"
 
 
 def _ms(t_ns: int) -> str:

@@ -34,8 +34,8 @@ class Stanley(PurePursuit):
         if len(points) < 2:
             return wrap_angle(math.atan2(points[-1][1] - y, points[-1][0] - x) - yaw), 0.0
         # The path heading at a short preview ahead of the projection (the front axle in Stanley's car).
-        ahead = self._point_at(points, projection + 0.25 * lookahead + 1e-3)
-        behind = self._point_at(points, max(projection - 1e-3, 0.0))
+        ahead = self._point_at(projection + 0.25 * lookahead + 1e-3)
+        behind = self._point_at(max(projection - 1e-3, 0.0))
         path_heading = math.atan2(ahead[1] - behind[1], ahead[0] - behind[0])
         heading_error = wrap_angle(path_heading - yaw)
         # cross_track > 0: the rover is left of the path, so steer right (negative).

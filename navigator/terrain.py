@@ -167,13 +167,25 @@ class TerrainMap:
     def ground_at(self, x: float, y: float, yaw: float) -> GroundUnder:
         """Class, elevation (m) and (roll, pitch) in rad (as ``tilt_at``) at (x, y) for a heading ``yaw``,
         in one compiled call (``navigator.ground_kernel``); TerrainError when the point is off the map."""
-        class_id, elevation, roll, pitch = ground_at_kernel(
-            self.terrain_class, self.elevation_m, self._grad_x, self._grad_y,
-            self.origin_xy[0], self.origin_xy[1], self.resolution_m, x, y, yaw,
-        )  # fmt: skip
-        if class_id < 0:
+        ground = self._ground(x, y, yaw)
+        if ground.terrain_class < 0:
             self.cell_of(x, y)  # raises the map's own error, naming the point and the map's extent
-        return GroundUnder(class_id, elevation, roll, pitch)
+        return ground
+
+    def ground_on_map(self, x: float, y: float, yaw: float) -> GroundUnder | None:
+        """As ``ground_at``, but None when the point is off the map: the kernel's own ``contains`` test,
+        so a caller asking every tick (guidance's speed limits) looks the point up once."""
+        ground = self._ground(x, y, yaw)
+        return None if ground.terrain_class < 0 else ground
+
+    def _ground(self, x: float, y: float, yaw: float) -> GroundUnder:
+        """The kernel's answer as it is: class id -1 off the map."""
+        return GroundUnder._make(
+            ground_at_kernel(
+                self.terrain_class, self.elevation_m, self._grad_x, self._grad_y,
+                self.origin_xy[0], self.origin_xy[1], self.resolution_m, x, y, yaw,
+            )
+        )  # fmt: skip
 
     def slope_gradient(self) -> tuple[np.ndarray, np.ndarray]:
         """(dz/dx, dz/dy) per cell, dimensionless, central differences with spacing ``resolution_m``."""

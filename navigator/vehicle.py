@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
+from functools import cached_property
 
 import numpy as np
 
@@ -106,21 +107,24 @@ class VehicleParams:
         table.finish()
         return cls(**values)
 
-    @property
+    # Derived once per (frozen) parameter set: the control tick and the physics step read them every time.
+    # cached_property stores in the instance's __dict__, which the frozen dataclass's __setattr__ guard
+    # does not cover; fields, equality and replace() are untouched.
+    @cached_property
     def effective_track_m(self) -> float:
         return self.track_m * self.skid_factor
 
-    @property
+    @cached_property
     def footprint_radius_m(self) -> float:
         """Radius of the circle around the footprint rectangle (half its diagonal)."""
         return 0.5 * math.hypot(self.footprint_length_m, self.footprint_width_m)
 
-    @property
+    @cached_property
     def tip_roll_rad(self) -> float:
         """Static side tilt at which the centre of gravity is above the downhill wheels."""
         return math.atan((self.track_m / 2.0) / self.cg_height_m)
 
-    @property
+    @cached_property
     def tip_pitch_rad(self) -> float:
         """Static fore/aft tilt at which the centre of gravity is above the downhill (end) axle."""
         return math.atan((self.wheelbase_m / 2.0) / self.cg_height_m)

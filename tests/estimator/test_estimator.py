@@ -9,7 +9,7 @@ from estimator.geodesy import Datum, to_enu, to_geodetic
 from logs.clock import SimClock
 from logs.sink import MemorySink
 from logs.topics import ESTIMATOR_INNOVATIONS, ESTIMATOR_POSE, spec
-from tests.estimator.rover_sim import Sample
+from tests.estimator.rover_sim import Sample, feed, simulate
 from tests.estimator.sim_run import SIM_DATUM, Run, S
 
 CONVERGED_S = 20.0
@@ -150,6 +150,31 @@ def test_pose_extrapolation_does_not_change_the_filter():
     assert math.hypot(ahead.x - now.x, ahead.y - now.y) == pytest.approx(abs(now.speed), rel=0.05)
     assert (again.x, again.y, again.yaw, again.t_ns) == (now.x, now.y, now.yaw, now.t_ns)
     assert np.array_equal(again.covariance, now.covariance)
+
+
+def test_a_pose_asked_again_is_reused_only_while_nothing_was_fused():
+    """``pose()`` hands out its last answer again while the filter is unchanged: after every sample
+    (accepted, gated or refused) the pose must still be what the filter holds now."""
+    run = Run()
+    run.estimator.on_attitude(0, 0.3, 0.1)  # before the first fix: a refused-then-used heading as well
+    reused = 0
+    for truth, samples in simulate(np.random.default_rng(4), SIM_DATUM, 12.0):
+        run.clock.advance(truth.t_ns - run.clock.now_ns())
+        for sample in samples:
+            before = run.estimator.pose()
+            feed(run.estimator, [sample])
+            pose = run.estimator.pose()
+            if pose is None:
+                continue
+            ekf = run.estimator._ekf  # the reference: the filter itself, read directly
+            assert (pose.x, pose.y, pose.yaw, pose.speed, pose.yaw_rate) == tuple(ekf.x[:5].tolist())
+            assert np.array_equal(pose.covariance, ekf.covariance) and pose.t_ns == ekf.t_ns
+            health = run.estimator.health()
+            assert (pose.healthy, pose.position_std_m) == (health.healthy, health.position_std_m)
+            assert pose.heading_known == run.estimator.heading_known
+            assert run.estimator.pose() is pose and not pose.covariance.flags.writeable
+            reused += pose is before
+    assert reused == 0  # every sample of this drive changed the filter: no stale pose was handed out
 
 
 def test_same_inputs_same_messages():

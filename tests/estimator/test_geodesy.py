@@ -1,10 +1,13 @@
 import math
 
 import numpy as np
+import pymap3d
 import pytest
 
 from estimator.errors import EstimatorSetupError
 from estimator.geodesy import Datum, to_enu, to_geodetic
+
+WGS84 = pymap3d.Ellipsoid.from_name("wgs84")
 
 
 def test_round_trip_is_below_a_millimetre():
@@ -14,6 +17,23 @@ def test_round_trip_is_below_a_millimetre():
         lat, lon, alt = to_geodetic(datum, e, n, u)
         back = to_enu(datum, lat, lon, alt)
         assert math.dist(back, (e, n, u)) < 1e-3
+
+
+def test_to_enu_gives_pymap3ds_own_floats():
+    """``to_enu`` keeps the datum's ECEF position between calls: the result must still be, to the bit,
+    what pymap3d.geodetic2enu computes from scratch."""
+    rng = np.random.default_rng(3)
+    for datum in (Datum(47.3769, 8.5417, 408.0), Datum(-33.0, 151.0, 0.0), Datum(47.3769, 8.5417, 1.0)):
+        for lat, lon, alt in zip(
+            datum.lat_deg + rng.uniform(-0.02, 0.02, 200),
+            datum.lon_deg + rng.uniform(-0.02, 0.02, 200),
+            datum.alt_m + rng.uniform(-50.0, 50.0, 200),
+            strict=True,
+        ):
+            expected = pymap3d.geodetic2enu(
+                lat, lon, alt, datum.lat_deg, datum.lon_deg, datum.alt_m, ell=WGS84, deg=True
+            )
+            assert to_enu(datum, lat, lon, alt) == tuple(float(v) for v in expected)
 
 
 def test_north_and_east_point_the_right_way():

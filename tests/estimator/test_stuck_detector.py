@@ -43,3 +43,25 @@ def test_wheels_turning_while_the_rover_stands_still_are_spinning() -> None:
 
 def test_partial_slip_is_left_to_the_odometry_scale() -> None:
     assert not _run(1.0, 0.0, ground_share=0.8)
+
+
+def test_the_track_at_the_fixes_times_is_the_walk_per_time():
+    """``_track_at`` walks the odometry once for all the fixes' times (in time order); each position must
+    be the sum of every step up to its time, added in order: the same floats as walking the steps afresh
+    for each time. Times before the first step, on a step, repeated and after the last one included."""
+    rng = np.random.default_rng(9)
+    detector = StuckDetector(window_s=4.0, min_distance_m=1.0)
+    for t in sorted(rng.choice(10_000, size=300, replace=False).tolist()):
+        detector.add_odometry(t, float(rng.normal(0.02, 0.01)), float(rng.uniform(-math.pi, math.pi)))
+    steps = list(detector._odometry)
+    times = sorted([-5, 0, steps[7][0], steps[7][0], 12_000, *rng.integers(0, 10_000, size=40).tolist()])
+
+    def walked(t: int) -> tuple[int, float, float, float]:
+        east = north = 0.0
+        for step_t, _, step_east, step_north in steps:
+            if step_t > t:
+                break
+            east, north = east + step_east, north + step_north
+        return (t, east, north, 0.0)
+
+    assert detector._track_at(times) == [walked(t) for t in times]

@@ -28,8 +28,6 @@ def test_the_link_names_a_silent_controller_by_its_wheel() -> None:
 
 
 def test_the_supervisor_names_silent_wheels_with_the_configured_ids() -> None:
-    import dataclasses
-
     from tests.runtime.test_supervisor import inputs
 
     events: list[tuple[str, str, str]] = []
@@ -42,7 +40,7 @@ def test_the_supervisor_names_silent_wheels_with_the_configured_ids() -> None:
     )
     now = 2_000_000_000
     heard = (now, now, 0, now, 0, now)  # wheels 2 and 4 last heard at 0
-    supervisor.update(dataclasses.replace(inputs(now, (1.0, 1.0)), wheel_last_status_ns=heard), True)
+    supervisor.update(inputs(now, (1.0, 1.0))._replace(wheel_last_status_ns=heard), True)
     (detail,) = [d for kind, _, d in events if kind == "failsafe.wheel_silent"]
     assert detail == (
         "motor controller of wheel 2 (left rear, CAN id 13), wheel 4 (right middle, CAN id 15) silent for "

@@ -5,7 +5,7 @@ import pytest
 
 from logs.settings import ConfigError, parse_toml
 from navigator.errors import ParameterError
-from navigator.follower import FollowerConfig, PurePursuit
+from navigator.follower import FollowerConfig, PurePursuit, first_smallest
 from navigator.stanley import Stanley
 
 
@@ -141,3 +141,46 @@ def test_a_rover_that_stops_moving_inside_the_tolerance_has_arrived(follower_cla
     moving = follower.command(9.7, 0.0, 0.0, 0.12, path)
     assert not moving.arrived and moving.speed_mps > 0.0  # still creeping on while it moves
     assert follower.command(9.7, 0.0, 0.0, 0.0, path).arrived
+
+
+def _read_only(points: np.ndarray) -> np.ndarray:
+    frozen = np.array(points, dtype=np.float64)
+    frozen.flags.writeable = False
+    return frozen
+
+
+@pytest.mark.parametrize("follower_class", [PurePursuit, Stanley])
+def test_a_read_only_path_known_by_identity_commands_as_a_path_compared_every_tick(follower_class):
+    """The fast path (a read-only path handed in again is not checked again) gives the same commands,
+    to the bit, as a writable path that is compared point by point on every tick."""
+    points = np.array([[0.0, 0.0], [4.0, 0.5], [8.0, 3.0], [9.0, 7.0], [6.0, 10.0], [2.0, 11.0]])
+    frozen = _read_only(points)
+    fast, slow = follower_class(FollowerConfig()), follower_class(FollowerConfig())
+    fast_run = drive(fast, frozen, 0.3, -0.4, 0.2, seconds=60.0)
+    slow_run = drive(slow, points, 0.3, -0.4, 0.2, seconds=60.0)
+    assert fast_run == slow_run
+    assert fast_run[-1][3].arrived
+
+
+def test_a_writable_path_changed_in_place_is_adopted_anew():
+    path = np.array([[0.0, 0.0], [10.0, 0.0]])
+    follower = PurePursuit(FollowerConfig())
+    follower.command(2.0, 0.0, 0.0, 0.5, path)
+    path[:, 1] = 5.0  # the same array object, other points: it must not be taken for the old path
+    assert follower.command(2.0, 4.0, 0.0, 0.5, path).cross_track_error_m == pytest.approx(-1.0)
+
+
+def test_a_new_read_only_path_and_a_reset_start_over():
+    first, second = _read_only([[0.0, 0.0], [10.0, 0.0]]), _read_only([[0.0, 5.0], [10.0, 5.0]])
+    follower = PurePursuit(FollowerConfig())
+    for x in range(8):
+        follower.command(float(x), 0.0, 0.0, 1.0, first)
+    assert follower.command(0.0, 4.0, 0.0, 0.0, second).cross_track_error_m == pytest.approx(-1.0)
+    follower.reset()
+    assert follower.command(0.0, 1.0, 0.0, 0.0, first).cross_track_error_m == pytest.approx(1.0)
+
+
+def test_the_first_of_the_smallest_limits_names_the_reason():
+    limits = [(1.0, "max_speed"), (0.5, "curvature"), (0.5, "goal_approach"), (0.7, "slope")]
+    assert first_smallest(limits) == min(limits, key=lambda item: item[0]) == (0.5, "curvature")
+    assert first_smallest([(0.2, "only")]) == (0.2, "only")

@@ -21,6 +21,8 @@ def test_paper_maze_scaled_to_metres():
     assert 8.0 < path.length_m < 9.2  # west 3 m then north 6 m, a little shorter round the corner
     for x, y in path.points:
         assert not terrain.obstacles[terrain.cell_of(x, y)]
+    # A plan does not change once made: the follower relies on it to know the path again by identity.
+    assert not path.points.flags.writeable and path.points.base is None
     with pytest.raises(NoPathError):
         planner.plan((7.5, 4.5), (10.5, 10.5))  # the other open region
     with pytest.raises(PlanningError, match="not on the map"):

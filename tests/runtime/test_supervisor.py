@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
-
 import pytest
 
 from logs.settings import ConfigError, parse_toml
@@ -87,8 +85,7 @@ def test_reversing_as_commanded_is_not_stuck_but_a_reverse_command_without_motio
     supervisor = SafetySupervisor(SafetyConfig(), VehicleParams(), 0, lambda *e: events.append(e))
     for tick in range(1, 251):  # 5 s, past stuck_time_s (2 s)
         now = tick * 20_000_000
-        reversing = dataclasses.replace(
-            inputs(now, (5.0, 5.0)),
+        reversing = inputs(now, (5.0, 5.0))._replace(
             sent_speed_mps=-0.5,
             sent_at_ns=20_000_000,
             measured_speed_mps=measured_mps,
