@@ -33,7 +33,7 @@ from firmware_bridge.wheel_names import wheel_label
 from logs.can_load import frame_bits
 from logs.clock import Clock, to_ns
 from logs.closing import ClosesOnExit
-from logs.encoding import EncodedSink
+from logs.encoding import EncodedSink, bytes_only_sink
 from logs.sink import MessageSink
 from logs.topics import CAN_FRAMES, CAN_REJECTION_CAUSES, CAN_STATS, SAFETY_EVENTS, WHEELS_STATUS, stamp
 
@@ -144,21 +144,28 @@ class _FrameRecords:
         self._json_head = ""  # '{"timestamp":{...},' of self._t_ns
         self._json_middles: dict[tuple[str, int, bool, int], str] = {}  # '"direction":..."data":"'
 
-    def format(self, t_ns: int, direction: str, msg: can.Message) -> tuple[dict[str, object], bytes]:
-        """The frame's record and its JSON bytes (``encode_message`` of the record)."""
+    def json(self, t_ns: int, direction: str, msg: can.Message) -> bytes:
+        """The frame's JSON bytes (``_frame_json``), for a sink that takes bytes alone (``BytesSink``)."""
         if t_ns != self._t_ns:
-            self._t_ns = t_ns
-            self._sec, self._nsec = divmod(t_ns, 1_000_000_000)
-            self._json_head = f'{{"timestamp":{{"sec":{self._sec},"nsec":{self._nsec}}},'
+            self._start(t_ns)
         key = (direction, msg.arbitration_id, msg.is_extended_id, msg.dlc)
         middle = self._json_middles.get(key)
         if middle is None:
-            if len(self._json_middles) >= _MAX_CACHED_FRAME_KINDS:
+            middle = self._middle(key, direction, msg)
+            if middle is None:
+                return _frame_json(t_ns, direction, msg)
+        return f'{self._json_head}{middle}{msg.data.hex()}"}}'.encode()
+
+    def format(self, t_ns: int, direction: str, msg: can.Message) -> tuple[dict[str, object], bytes]:
+        """The frame's record and its JSON bytes (``encode_message`` of the record)."""
+        if t_ns != self._t_ns:
+            self._start(t_ns)
+        key = (direction, msg.arbitration_id, msg.is_extended_id, msg.dlc)
+        middle = self._json_middles.get(key)
+        if middle is None:
+            middle = self._middle(key, direction, msg)
+            if middle is None:
                 return _frame_record(t_ns, direction, msg), _frame_json(t_ns, direction, msg)
-            middle = self._json_middles[key] = (
-                f'"direction":"{direction}","id":{int(msg.arbitration_id)},'
-                f'"extended":{"true" if msg.is_extended_id else "false"},"dlc":{int(msg.dlc)},"data":"'
-            )
         data = msg.data.hex()
         record: dict[str, object] = {
             "timestamp": {"sec": self._sec, "nsec": self._nsec},
@@ -169,6 +176,22 @@ class _FrameRecords:
             "data": data,
         }
         return record, f'{self._json_head}{middle}{data}"}}'.encode()
+
+    def _start(self, t_ns: int) -> None:
+        """Keep the timestamp's parts and JSON text for the frames that follow at ``t_ns``."""
+        self._t_ns = t_ns
+        self._sec, self._nsec = divmod(t_ns, 1_000_000_000)
+        self._json_head = f'{{"timestamp":{{"sec":{self._sec},"nsec":{self._nsec}}},'
+
+    def _middle(self, key: tuple[str, int, bool, int], direction: str, msg: can.Message) -> str | None:
+        """The JSON text between the timestamp and the data of a new kind, kept; None past the bound."""
+        if len(self._json_middles) >= _MAX_CACHED_FRAME_KINDS:
+            return None
+        middle = self._json_middles[key] = (
+            f'"direction":"{direction}","id":{int(msg.arbitration_id)},'
+            f'"extended":{"true" if msg.is_extended_id else "false"},"dlc":{int(msg.dlc)},"data":"'
+        )
+        return middle
 
 
 class CanLink(ClosesOnExit):
@@ -205,8 +228,10 @@ class CanLink(ClosesOnExit):
         self._codec = codec
         self._clock = clock
         self._sink = sink
-        # A sink that takes encoded bytes gets each frame record pre-formatted (_frame_json).
+        # A sink that takes encoded bytes gets each frame record pre-formatted (_frame_json); one that takes
+        # the bytes alone (the recorder, Zenoh, a fan-out of those) gets no dict built for it either.
         self._encoded_sink = sink if isinstance(sink, EncodedSink) else None
+        self._bytes_sink = bytes_only_sink(sink)
         self._frame_records = _FrameRecords()
         self.profile = codec.profile
         self._erpm_per_mps = codec.profile.erpm_per_mps
@@ -339,7 +364,9 @@ class CanLink(ClosesOnExit):
         return True
 
     def _publish_frame(self, t_ns: int, direction: str, msg: can.Message) -> None:
-        if self._encoded_sink is None:
+        if self._bytes_sink is not None:
+            self._bytes_sink.publish_bytes(CAN_FRAMES, t_ns, self._frame_records.json(t_ns, direction, msg))
+        elif self._encoded_sink is None:
             self._sink.publish(CAN_FRAMES, t_ns, _frame_record(t_ns, direction, msg))
         else:
             record, data = self._frame_records.format(t_ns, direction, msg)
@@ -462,9 +489,11 @@ class CanLink(ClosesOnExit):
             self._reject(msg, err)
             return False
         # Hot path (~420 frames per simulated second): the health machines return a change only when
-        # there is one to report, so the common frame skips _apply altogether.
-        change = self._bus_state.on_frame_received()
-        if change is not None:
+        # there is one to report, so the common frame skips _apply altogether; and a good frame or a
+        # status tells the bus state machine something only while the bus is not OK (bus-off: frames are
+        # back; recovering: one more controller reported), so on an OK bus neither is asked.
+        bus_state = self._bus_state
+        if bus_state.state is not CanLinkState.OK and (change := bus_state.on_frame_received()) is not None:
             self._apply(t_ns, change, False)
         if frame.kind not in _STATUS_KINDS:
             return False
@@ -472,7 +501,7 @@ class CanLink(ClosesOnExit):
         cid = frame.controller_id
         if (change := self._liveness.heard(cid, t_ns)) is not None:
             self._apply(t_ns, change, False)
-        if (change := self._bus_state.on_status(cid)) is not None:
+        if bus_state.state is not CanLinkState.OK and (change := bus_state.on_status(cid)) is not None:
             self._apply(t_ns, change, False)
         return True
 

@@ -20,6 +20,7 @@ from logs.clock import Clock, to_ns
 
 logger = logging.getLogger(__name__)
 
+_NONE_STALLED = (0.0,) * WHEEL_COUNT  # SimVescBank.stalled with no wheel seized
 _IDLE_TEMPERATURE_C = 25.0
 # STATUS_4's fields this model holds constant: an idle temperature, no position control.
 _IDLE_STATUS_4 = {"temp_fet": _IDLE_TEMPERATURE_C, "temp_motor": _IDLE_TEMPERATURE_C, "pid_pos": 0.0}
@@ -61,6 +62,8 @@ class SimVescBank:
         self.profile = codec.profile
         self._ids = codec.profile.controller_ids
         self._wheel_of = {cid: i for i, cid in enumerate(self._ids)}
+        # VescProfile.erpm_per_mps is a property computed per access; wheel_speeds_mps asks every step.
+        self._erpm_per_mps = codec.profile.erpm_per_mps
         self._status_period_ns = to_ns(1.0 / status_rate_hz)
         self._slow_period_ns = to_ns(1.0 / slow_status_rate_hz)
         self._timeout_ns = to_ns(command_timeout_s)
@@ -160,6 +163,8 @@ class SimVescBank:
     def stalled(self) -> tuple[float, ...]:
         """Per wheel: the sign of the command a seized wheel's motor is stalled against (0: turning freely,
         or nothing commanded). The physics (``RoverDynamics.step``) turns it into the stall current."""
+        if not any(self._stuck):
+            return _NONE_STALLED  # every physics step asks; a seized wheel is a rare fault
         return tuple(
             math.copysign(1.0, target) if stuck and target != 0.0 else 0.0
             for stuck, target in zip(self._stuck, self._targets, strict=True)
@@ -243,7 +248,9 @@ class SimVescBank:
 
     # --- accessors -----------------------------------------------------------------------------
     def wheel_speeds_mps(self) -> list[float]:
-        return [self.profile.speed_from_erpm(e) for e in self._erpm]
+        # VescProfile.speed_from_erpm's arithmetic, with its erpm_per_mps kept (a property per access).
+        erpm_per_mps = self._erpm_per_mps
+        return [e / erpm_per_mps for e in self._erpm]
 
     def targets_erpm(self) -> list[float]:
         return list(self._targets)

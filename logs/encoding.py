@@ -86,3 +86,26 @@ class EncodedSink(Protocol):
     def publish(self, topic: str, log_time_ns: int, message: Message) -> None: ...
 
     def publish_encoded(self, topic: str, log_time_ns: int, message: Message, data: bytes) -> None: ...
+
+
+@runtime_checkable
+class BytesSink(Protocol):
+    """A sink whose record of a message is its bytes alone: it never looks inside the message.
+
+    The MCAP recorder and the Zenoh publisher are such sinks, and so is a ``FanoutSink`` or a
+    ``RateLimitedSink`` with only such sinks behind it (``records_bytes_only`` says whether this one is:
+    a sink behind it may need the message itself). A producer whose JSON is cheaper to format than its
+    dict (the CAN link's frame records, ~720 per simulated second of a lockstep trial, half the trial's
+    messages) asks ``bytes_only_sink`` once and then hands over bytes without building the dict at all.
+    """
+
+    records_bytes_only: bool
+
+    def publish_bytes(self, topic: str, log_time_ns: int, data: bytes) -> None: ...
+
+
+def bytes_only_sink(sink: object) -> BytesSink | None:
+    """``sink`` when it records messages from their bytes alone (``BytesSink``), else None."""
+    if isinstance(sink, BytesSink) and sink.records_bytes_only:
+        return sink
+    return None

@@ -15,8 +15,9 @@ sequence numbers start at 1, not 0.
 ``publish`` sits on the simulator's hot path (thousands of calls per simulated second), so it does one
 dict lookup, one ``encode_message`` and one call into the writer; the slow path (NaN repair,
 registration) runs only when needed. ``publish_encoded`` takes bytes already encoded (a ``FanoutSink``
-encodes each message once for the recorder and the live stream). ``encode_message`` lives in
-``logs.encoding``.
+encodes each message once for the recorder and the live stream), and ``publish_bytes`` the bytes alone
+(``logs.encoding.BytesSink``: the CAN link's frame records come formatted, with no dict built for them).
+``encode_message`` lives in ``logs.encoding``.
 """
 
 from __future__ import annotations
@@ -164,10 +165,18 @@ class McapRecorder(ClosesOnExit):
             data = encode_message(message)
         except (TypeError, ValueError) as err:
             raise RecordingError(f"{topic} at {log_time_ns} ns: message cannot be encoded: {err}") from err
-        self.publish_encoded(topic, log_time_ns, message, data)
+        self.publish_bytes(topic, log_time_ns, data)
 
     def publish_encoded(self, topic: str, log_time_ns: int, message: Message, data: bytes) -> None:
         """Record ``data``, which is ``encode_message(message)`` (a ``FanoutSink`` encodes once for all)."""
+        self.publish_bytes(topic, log_time_ns, data)
+
+    # --- BytesSink: the record is the bytes; the message itself is never looked at ------------------
+    records_bytes_only = True
+
+    def publish_bytes(self, topic: str, log_time_ns: int, data: bytes) -> None:
+        """Record ``data``: a message's JSON bytes (``encode_message`` of it, or the same text formatted
+        directly, as the CAN link formats its frame records)."""
         log = self._channels.get(topic)
         if log is None:
             log = self._register(topic)

@@ -10,7 +10,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Protocol
 
-from logs.encoding import EncodedSink, Message, encode_message
+from logs.encoding import EncodedSink, Message, bytes_only_sink, encode_message
+from logs.errors import LogsError
 
 __all__ = ["FanoutSink", "MemorySink", "Message", "MessageSink", "NullSink"]
 
@@ -44,7 +45,9 @@ class FanoutSink:
 
     The recorder and the live stream carry the same bytes, so the message is encoded once and those bytes
     go to every sink that takes them (``EncodedSink``); other sinks get the message itself. A message
-    that cannot be encoded goes to every sink as is, so each reports it in its own words.
+    that cannot be encoded goes to every sink as is, so each reports it in its own words. When every sink
+    records bytes alone (``BytesSink``), so does the fan-out: ``publish_bytes`` takes bytes without a
+    message, and ``publish`` hands each sink the bytes through it.
     """
 
     def __init__(self, sinks: Iterable[MessageSink]) -> None:
@@ -55,6 +58,11 @@ class FanoutSink:
             (sink, sink if isinstance(sink, EncodedSink) else None) for sink in sinks
         )
         self._any_encoded = any(encoded is not None for _, encoded in self._sinks)
+        # BytesSink (logs.encoding): when every sink records bytes alone, so does the fan-out, and the
+        # producers that can format their bytes directly (the CAN link's frames) need build no dict.
+        bytes_sinks = tuple(bytes_only_sink(sink) for sink, _ in self._sinks)
+        self._bytes_sinks = tuple(sink for sink in bytes_sinks if sink is not None)
+        self.records_bytes_only = len(self._bytes_sinks) == len(self._sinks)
 
     def publish(self, topic: str, log_time_ns: int, message: Message) -> None:
         data: bytes | None = None
@@ -66,8 +74,12 @@ class FanoutSink:
         if data is None:
             for sink, _ in self._sinks:
                 sink.publish(topic, log_time_ns, message)
-            return
-        self.publish_encoded(topic, log_time_ns, message, data)
+        elif self.records_bytes_only:
+            # The usual wiring (recorder and Zenoh): the bytes straight to each, a layer fewer per message.
+            for bytes_sink in self._bytes_sinks:
+                bytes_sink.publish_bytes(topic, log_time_ns, data)
+        else:
+            self.publish_encoded(topic, log_time_ns, message, data)
 
     def publish_encoded(self, topic: str, log_time_ns: int, message: Message, data: bytes) -> None:
         for sink, encoded in self._sinks:
@@ -75,3 +87,13 @@ class FanoutSink:
                 encoded.publish_encoded(topic, log_time_ns, message, data)
             else:
                 sink.publish(topic, log_time_ns, message)
+
+    def publish_bytes(self, topic: str, log_time_ns: int, data: bytes) -> None:
+        """A message's bytes alone to every sink (only when ``records_bytes_only``)."""
+        if not self.records_bytes_only:
+            raise LogsError(
+                f"a sink of this fan-out needs each message itself, not only its bytes; "
+                f"cannot pass on {topic!r} as bytes"
+            )
+        for sink in self._bytes_sinks:
+            sink.publish_bytes(topic, log_time_ns, data)

@@ -210,10 +210,17 @@ class ZenohTelemetry:
             payload = encode_message(message)
         except (TypeError, ValueError) as err:
             raise TelemetryError(f"{topic} at {log_time_ns} ns: message cannot be encoded: {err}") from err
-        self.publish_encoded(topic, log_time_ns, message, payload)
+        self.publish_bytes(topic, log_time_ns, payload)
 
     def publish_encoded(self, topic: str, log_time_ns: int, message: Message, data: bytes) -> None:
         """Put ``data`` (``encode_message(message)``, shared with the recorder by a ``FanoutSink``)."""
+        self.publish_bytes(topic, log_time_ns, data)
+
+    # BytesSink (logs.encoding): the payload is the bytes; the message itself is never looked at.
+    records_bytes_only = True
+
+    def publish_bytes(self, topic: str, log_time_ns: int, data: bytes) -> None:
+        """Put ``data``, a message's JSON bytes."""
         if self._closed:
             raise TelemetryError(f"telemetry {self._prefix} is closed; cannot publish {topic!r}")
         publisher = self._publishers.get(topic)

@@ -26,8 +26,8 @@ import zenoh
 
 from logs.can_load import WINDOW_NS, frame_bits
 from logs.clock import Clock, to_ns
-from logs.encoding import EncodedSink
-from logs.errors import LogsError, TelemetrySetupError
+from logs.encoding import EncodedSink, bytes_only_sink
+from logs.errors import LogsError, TelemetryError, TelemetrySetupError
 from logs.recorder import McapRecorder
 from logs.sink import Message, MessageSink
 from logs.telemetry import NEVER_THINNED, TelemetrySample, TelemetrySubscription, subscribe
@@ -71,6 +71,9 @@ class RateLimitedSink:
                 raise TelemetrySetupError(f"telemetry rate for {topic} must be > 0 Hz, got {rate!r}")
         self._sink = sink
         self._sink_encoded = sink if isinstance(sink, EncodedSink) else None
+        self._sink_bytes = bytes_only_sink(sink)
+        # BytesSink (logs.encoding): bytes alone will do when the sink behind takes bytes alone.
+        self.records_bytes_only = self._sink_bytes is not None
         self._period_ns = {topic: int(1e9 / rate) for topic, rate in rates_hz.items()}
         # Thinned topic -> log time from which its next message passes. Every thinned topic is a key from
         # the start (the first message always passes), so one lookup tells a topic that is not thinned
@@ -90,6 +93,17 @@ class RateLimitedSink:
             self._sink_encoded.publish_encoded(topic, log_time_ns, message, data)
         else:
             self._sink.publish(topic, log_time_ns, message)
+
+    def publish_bytes(self, topic: str, log_time_ns: int, data: bytes) -> None:
+        """As ``publish``, for a message's bytes alone (only when ``records_bytes_only``)."""
+        sink = self._sink_bytes
+        if sink is None:
+            raise TelemetryError(
+                "this rate limiter's sink needs each message itself, not only its bytes (records_bytes_only "
+                f"is False); cannot pass on {topic!r} as bytes"
+            )
+        if self._due(topic, log_time_ns):
+            sink.publish_bytes(topic, log_time_ns, data)
 
     def _due(self, topic: str, log_time_ns: int) -> bool:
         due = self._next_ns.get(topic)

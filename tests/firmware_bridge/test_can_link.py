@@ -200,6 +200,7 @@ def test_frame_records_from_kept_parts_equal_the_formatted_ones(seed):
         record, data = records.format(t_ns, direction, msg)
         assert record == _frame_record(t_ns, direction, msg)
         assert data == _frame_json(t_ns, direction, msg) == encode_message(record)
+        assert records.json(t_ns, direction, msg) == data
 
 
 def test_an_encoding_sink_gets_the_same_frame_records(buses):
@@ -218,3 +219,37 @@ def test_an_encoding_sink_gets_the_same_frame_records(buses):
     frames = [(t, m) for t, _, m in sink.records if t == CAN_FRAMES]
     assert len(frames) == 6
     assert [d for t, d in sink.data if t == CAN_FRAMES] == [encode_message(m) for _, m in frames]
+
+
+def test_a_bytes_only_sink_gets_the_frames_bytes_and_no_dicts(buses):
+    """A sink recording bytes alone (the recorder, Zenoh) gets the same frame bytes, both directions, that
+    the JSON encoder gives for the records a plain sink gets; everything else still comes as messages."""
+
+    class BytesOnly(MemorySink):
+        records_bytes_only = True
+
+        def __init__(self):
+            super().__init__()
+            self.data = []
+
+        def publish_bytes(self, topic, log_time_ns, data):
+            self.data.append((topic, log_time_ns, data))
+
+    ours, theirs = buses
+    bytes_only, plain = BytesOnly(), MemorySink()
+    codec = make_codec()
+    for sink in (bytes_only, plain):
+        clock = SimClock(2_000_000_000)
+        link = CanLink(ours, codec, clock, sink)
+        link.send_wheel_speeds([0.5, 0.5, 0.5, -0.25, -0.25, 0.0])
+        clock.advance(1_000_000)
+        theirs.send(codec.encode("STATUS", 2, erpm=1200.0, current=3.5, duty=0.25))
+        theirs.send(ext((9 << 8) | 42, bytes(8)))  # unknown controller: rejected, still recorded as rx
+        link.poll()
+        while theirs.recv(timeout=0) is not None:
+            pass
+    expected = [(CAN_FRAMES, t, encode_message(m)) for topic, t, m in plain.records if topic == CAN_FRAMES]
+    assert len(expected) == 8 and {t for _, t, _ in expected} == {2_000_000_000, 2_001_000_000}
+    assert bytes_only.data == expected
+    assert not bytes_only.on(CAN_FRAMES)
+    assert bytes_only.on(WHEELS_STATUS)[0]["wheels"][1]["erpm"] == 1200.0

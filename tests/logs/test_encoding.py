@@ -11,8 +11,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from logs.encoding import encode_message
-from logs.errors import RecordingError
+from logs.encoding import bytes_only_sink, encode_message
+from logs.errors import LogsError, RecordingError, TelemetryError
 from logs.recorder import McapRecorder
 from logs.sink import FanoutSink, MemorySink, Message
 from logs.telemetry_station import RateLimitedSink
@@ -122,3 +122,77 @@ def test_fanout_lets_each_sink_report_a_message_it_cannot_encode() -> None:
         fanout.publish(LOG, 0, {"bad": object()})
     assert len(memory.records) == 1
     recorder.close()
+
+
+class _BytesOnlySink:
+    """A sink that records bytes alone (``BytesSink``), keeping them in order."""
+
+    records_bytes_only = True
+
+    def __init__(self) -> None:
+        self.data: list[tuple[str, int, bytes]] = []
+
+    def publish(self, topic: str, log_time_ns: int, message: Message) -> None:
+        self.publish_bytes(topic, log_time_ns, encode_message(message))
+
+    def publish_bytes(self, topic: str, log_time_ns: int, data: bytes) -> None:
+        self.data.append((topic, log_time_ns, data))
+
+
+def test_a_fanout_of_bytes_only_sinks_passes_bytes_alone_and_thins_as_for_messages() -> None:
+    first, second = _BytesOnlySink(), _BytesOnlySink()
+    limited = RateLimitedSink(second, {CAN_FRAMES: 10.0})
+    fanout = FanoutSink([first, limited])
+    assert bytes_only_sink(fanout) is fanout and bytes_only_sink(limited) is limited
+    for tick in range(10):  # 100 Hz for 0.1 s, half as messages, half as bytes: the limit passes the first
+        message = {"i": tick, "x": 0.5}
+        if tick % 2:
+            fanout.publish_bytes(CAN_FRAMES, tick * 10_000_000, encode_message(message))
+        else:
+            fanout.publish(CAN_FRAMES, tick * 10_000_000, message)
+    expected = [(CAN_FRAMES, tick * 10_000_000, encode_message({"i": tick, "x": 0.5})) for tick in range(10)]
+    assert first.data == expected
+    assert second.data == expected[:1] and limited.dropped == 9
+
+
+def test_bytes_alone_are_refused_where_a_sink_needs_the_message() -> None:
+    memory = MemorySink()
+    fanout = FanoutSink([_BytesOnlySink(), memory])
+    limited = RateLimitedSink(memory, {CAN_FRAMES: 10.0})
+    assert bytes_only_sink(fanout) is None and bytes_only_sink(limited) is None
+    assert bytes_only_sink(memory) is None
+    with pytest.raises(LogsError, match="needs each message itself"):
+        fanout.publish_bytes(CAN_FRAMES, 0, b"{}")
+    with pytest.raises(TelemetryError, match="needs each message itself"):
+        limited.publish_bytes(CAN_FRAMES, 0, b"{}")
+    assert memory.records == []
+
+
+def test_the_recorder_records_bytes_alone_as_it_records_messages() -> None:
+    from mcap.reader import make_reader
+
+    message = {
+        "timestamp": {"sec": 1, "nsec": 2},
+        "level": 2,
+        "message": "hi",
+        "name": "t",
+        "file": "",
+        "line": 0,
+    }
+    streams = []
+    for as_bytes in (False, True):
+        stream = io.BytesIO()
+        recorder = McapRecorder(stream)
+        assert bytes_only_sink(recorder) is recorder
+        if as_bytes:
+            recorder.publish_bytes(LOG, 5, encode_message(message))
+        else:
+            recorder.publish(LOG, 5, message)
+        with pytest.raises(RecordingError, match="non-negative"):
+            recorder.publish_bytes(LOG, -1, b"{}")
+        recorder.close()
+        with pytest.raises(RecordingError, match="closed"):
+            recorder.publish_bytes(LOG, 6, b"{}")
+        stream.seek(0)
+        streams.append([(c.topic, m.log_time, m.data) for _, c, m in make_reader(stream).iter_messages()])
+    assert streams[0] == streams[1] == [(LOG, 5, encode_message(message))]
