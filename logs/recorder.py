@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import BinaryIO, NoReturn
@@ -51,6 +52,8 @@ DEFAULT_CHUNK_SIZE = 256 * 1024
 # The SDK's writer raises on flush and close only, and then without the operating system's reason
 # ("a write method failed"); writes that fail while a message closes a chunk it logs, not raises.
 _SDK_FAILURES = (OSError, RuntimeError)
+# McapRecorder._chunk_due_ns while no chunk is open: below every log time, so the next message opens one.
+_NO_OPEN_CHUNK = -1
 
 
 class _Output:
@@ -116,7 +119,10 @@ class McapRecorder(ClosesOnExit):
             )
         self.message_count = 0
         self._chunk_duration_ns = chunk_duration_ns
-        self._chunk_started_ns: int | None = None  # log time of the first message in the open chunk
+        # Log time from which a message goes to _chunk_by_time: the open chunk's first message's log time
+        # plus chunk_duration_ns; _NO_OPEN_CHUNK (every message) before a chunk opens; infinite without a
+        # time limit.
+        self._chunk_due_ns: float = self._no_open_chunk_due()
         self._closed = False
         self._owned_file: BinaryIO | None = None
         if isinstance(output, str | Path):
@@ -188,12 +194,22 @@ class McapRecorder(ClosesOnExit):
         if self._output.failure is not None:  # this message closed a chunk that could not be written
             self._write_failed()
         self.message_count += 1
-        if self._chunk_duration_ns is not None:
-            started = self._chunk_started_ns
-            if started is None:
-                self._chunk_started_ns = log_time_ns
-            elif log_time_ns - started >= self._chunk_duration_ns:
-                self.flush()  # also pushes Python's file buffer to the OS, where SIGKILL cannot lose it
+        # One comparison per message (hot path): only a message that opens a chunk or is due to close one
+        # by its age goes further.
+        if log_time_ns >= self._chunk_due_ns:
+            self._chunk_by_time(log_time_ns)
+
+    def _chunk_by_time(self, log_time_ns: int) -> None:
+        """``log_time_ns`` opens a chunk (its age counts from here) or is ``chunk_duration_ns`` past the
+        open chunk's first message (the chunk is closed)."""
+        if self._chunk_due_ns == _NO_OPEN_CHUNK:
+            assert self._chunk_duration_ns is not None  # without one, _chunk_due_ns is infinite
+            self._chunk_due_ns = log_time_ns + self._chunk_duration_ns
+        else:
+            self.flush()  # also pushes Python's file buffer to the OS, where SIGKILL cannot lose it
+
+    def _no_open_chunk_due(self) -> float:
+        return _NO_OPEN_CHUNK if self._chunk_duration_ns is not None else math.inf
 
     def _register(self, topic: str) -> Callable[[bytes, int], None]:
         self._check_open(f"record {topic!r}")
@@ -244,7 +260,7 @@ class McapRecorder(ClosesOnExit):
     def flush(self) -> None:
         """Close the chunk in progress and push it to the output, so a crash loses less."""
         self._check_open("flush")
-        self._chunk_started_ns = None
+        self._chunk_due_ns = self._no_open_chunk_due()
         try:
             self._writer.flush()  # writes the chunk and flushes our stream
         except _SDK_FAILURES as err:

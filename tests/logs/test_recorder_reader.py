@@ -295,3 +295,28 @@ def test_cut_in_the_first_bytes_reads_nothing_and_warns(
     assert list(read_messages(io.BytesIO(data[:cut]), stats=stats)) == []
     assert stats.truncated
     assert "cut short" in caplog.text
+
+
+@pytest.mark.parametrize("duration_ns", [1_000_000_000, None])
+def test_a_chunk_closes_once_it_spans_the_chunk_duration(duration_ns: int | None) -> None:
+    """The message whose log time is ``chunk_duration_ns`` past the open chunk's first closes that chunk
+    (it is the chunk's last); the next message opens a new one. Without a duration only the size counts."""
+
+    stream = io.BytesIO()
+    with McapRecorder(stream, chunk_duration_ns=duration_ns) as recorder:
+        for tick in range(36):  # every 0.1 s from 0 to 3.5 s
+            recorder.publish(LOG, tick * 100_000_000, {"tick": tick})
+    stream.seek(0)
+    summary = make_reader(stream).get_summary()
+    assert summary is not None
+    spans = sorted((c.message_start_time, c.message_end_time) for c in summary.chunk_indexes)
+    if duration_ns is None:
+        assert spans == [(0, 3_500_000_000)]
+    else:
+        tenth = 100_000_000
+        assert spans == [
+            (0, 10 * tenth),
+            (11 * tenth, 21 * tenth),
+            (22 * tenth, 32 * tenth),
+            (33 * tenth, 35 * tenth),
+        ]
