@@ -484,7 +484,11 @@ class CanLink(ClosesOnExit):
             return False
         self.counters.rx += 1
         self.bits_total += _frame_bits(msg.is_extended_id, msg.dlc)
-        self._publish_frame(t_ns, "rx", msg)
+        bytes_sink = self._bytes_sink
+        if bytes_sink is not None:  # _publish_frame's usual case, inline: every frame comes this way
+            bytes_sink.publish_bytes(CAN_FRAMES, t_ns, self._frame_records.json(t_ns, "rx", msg))
+        else:
+            self._publish_frame(t_ns, "rx", msg)
         try:
             frame = self._codec.decode(msg)
         except FrameError as err:

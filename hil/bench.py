@@ -59,8 +59,9 @@ TIMED_METHODS: dict[str, tuple[str, ...]] = {
     "can_link": ("poll", "send_wheel_speeds"),
     "mavlink_link": ("poll", "send_heartbeat"),
     "encoding": ("publish",),
-    "recorder": ("publish", "publish_encoded"),
-    "telemetry": ("publish", "publish_encoded"),
+    # publish_bytes: the CAN link's frame records, and the fan-out's bytes (logs.encoding.BytesSink).
+    "recorder": ("publish", "publish_encoded", "publish_bytes"),
+    "telemetry": ("publish", "publish_encoded", "publish_bytes"),
     "world": ("tick",),
     "vescs": ("poll", "step"),
     "autopilot": ("step", "poll", "record_truth"),

@@ -177,19 +177,22 @@ class SimVescBank:
             raise ValueError(f"SimVescBank.step needs a finite dt_s >= 0, got {dt_s}")
         now = self._clock.now_ns()
         blend = 1.0 - math.exp(-dt_s / self._tau_s)
+        # Every physics step, six wheels: the per-wheel lists held in locals (they are mutated in place).
+        erpm, targets, stuck, tacho = self._erpm, self._targets, self._stuck, self._tacho_erev
+        last_command_ns = self._last_command_ns
         for i in range(WHEEL_COUNT):
-            last = self._last_command_ns[i]
+            last = last_command_ns[i]
             if last is not None and now - last > self._timeout_ns:
                 # Firmware behaviour: no command within the timeout => release the motor (brake current 0).
-                self._targets[i] = 0.0
-                self._last_command_ns[i] = None
+                targets[i] = 0.0
+                last_command_ns[i] = None
                 self.timeouts += 1
                 logger.debug("simulated VESC of %s: command timeout, stopping", wheel_label(i, self._ids))
-            before = self._erpm[i]
-            after = 0.0 if self._stuck[i] else before + (self._targets[i] - before) * blend
-            self._erpm[i] = after
+            before = erpm[i]
+            after = 0.0 if stuck[i] else before + (targets[i] - before) * blend
+            erpm[i] = after
             # Trapezoid over the step; erev = ERPM x minutes.
-            self._tacho_erev[i] += 0.5 * (before + after) * dt_s / 60.0
+            tacho[i] += 0.5 * (before + after) * dt_s / 60.0
         self._send_due_status(now)
 
     def set_electrical(
@@ -204,7 +207,11 @@ class SimVescBank:
             raise ValueError(f"need {WHEEL_COUNT} motor currents in wheel order, got {len(motor_currents_a)}")
         if len(duties) != WHEEL_COUNT:
             raise ValueError(f"need {WHEEL_COUNT} duty cycles in wheel order, got {len(duties)}")
-        self._motor_current_a = [_clamp_current(c) for c in motor_currents_a]
+        # Runs every physics step: the clamps inline, not a call per wheel (a non-finite current reads 0).
+        limit = _STATUS_CURRENT_LIMIT_A
+        self._motor_current_a = [
+            max(-limit, min(limit, c)) if math.isfinite(c) else 0.0 for c in motor_currents_a
+        ]
         self._duty_cycle = [max(-1.0, min(1.0, d)) for d in duties]
         voltage = input_voltage_v if math.isfinite(input_voltage_v) else 0.0
         self._input_voltage_v = max(0.0, min(_VOLTAGE_FIELD_MAX_V, voltage))
@@ -222,12 +229,13 @@ class SimVescBank:
         # Every value is clamped into its field's range before it gets here (ERPM, currents, duty,
         # tachometer, voltage), so the encoders skip cantools' strict range check. The frame order is the
         # firmware's schedule as before: every controller's STATUS, then each one's STATUS_4 and STATUS_5.
+        frames: list[tuple[FrameEncoder, dict[str, float]]] = []
         if fast_due:
             for i, (status, _, _) in enumerate(self._status_encoders):
                 if not self._rebooting[i]:
                     erpm = max(-_INT32_MAX, min(_INT32_MAX, round(self._erpm[i])))
                     current = self._motor_current_a[i]
-                    self._send(status, {"erpm": erpm, "current": current, "duty": self._duty_cycle[i]})
+                    frames.append((status, {"erpm": erpm, "current": current, "duty": self._duty_cycle[i]}))
         if slow_due:
             voltage = self._input_voltage_v
             for i, (_, status_4, status_5) in enumerate(self._status_encoders):
@@ -236,15 +244,19 @@ class SimVescBank:
                 # What the motor takes from the pack: I x duty, signed as power flows. A braking motor
                 # generates, and with no regeneration (hil.battery) the pack sees nothing.
                 current_in = max(self._motor_current_a[i] * self._duty_cycle[i], 0.0)
-                self._send(status_4, {**_IDLE_STATUS_4, "current_in": current_in})
-                self._send(status_5, {"tacho": _wrap_tacho(self._tacho_erev[i]), "voltage_in": voltage})
+                frames.append((status_4, {**_IDLE_STATUS_4, "current_in": current_in}))
+                frames.append((status_5, {"tacho": _wrap_tacho(self._tacho_erev[i]), "voltage_in": voltage}))
+        self._send_all(frames)
 
-    def _send(self, encoder: FrameEncoder, values: dict[str, float]) -> None:
-        try:
-            self._bus.send(encoder.encode(values))
-        except (can.CanError, BridgeError, ValueError, KeyError) as err:
-            self.send_errors += 1
-            logger.debug("simulated VESC: cannot send %s: %s", encoder.message.name, err)
+    def _send_all(self, frames: list[tuple[FrameEncoder, dict[str, float]]]) -> None:
+        """Encode and send each frame in order; one that fails is counted and the rest still go."""
+        send = self._bus.send  # 6-18 frames per status period: one lookup, one call per frame
+        for encoder, values in frames:
+            try:
+                send(encoder.encode(values))
+            except (can.CanError, BridgeError, ValueError, KeyError) as err:
+                self.send_errors += 1
+                logger.debug("simulated VESC: cannot send %s: %s", encoder.message.name, err)
 
     # --- accessors -----------------------------------------------------------------------------
     def wheel_speeds_mps(self) -> list[float]:
@@ -263,12 +275,6 @@ def _next_due(previous_due: int, period: int, now: int) -> int:
     """Keep a fixed cadence, but after a long pause resume from now instead of sending a burst."""
     due = previous_due + period
     return due if due > now else now + period
-
-
-def _clamp_current(current_a: float) -> float:
-    if not math.isfinite(current_a):
-        return 0.0
-    return max(-_STATUS_CURRENT_LIMIT_A, min(_STATUS_CURRENT_LIMIT_A, current_a))
 
 
 def _wrap_tacho(erev: float) -> float:
