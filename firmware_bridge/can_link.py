@@ -146,29 +146,6 @@ class _FrameRecords:
 
     def json(self, t_ns: int, direction: str, msg: can.Message) -> bytes:
         """The frame's JSON bytes (``_frame_json``), for a sink that takes bytes alone (``BytesSink``)."""
-        prefix = self._prefix(t_ns, direction, msg)
-        if prefix is None:
-            return _frame_json(t_ns, direction, msg)
-        return f'{prefix}{msg.data.hex()}"}}'.encode()
-
-    def format(self, t_ns: int, direction: str, msg: can.Message) -> tuple[dict[str, object], bytes]:
-        """The frame's record and its JSON bytes (``encode_message`` of the record)."""
-        prefix = self._prefix(t_ns, direction, msg)
-        if prefix is None:
-            return _frame_record(t_ns, direction, msg), _frame_json(t_ns, direction, msg)
-        data = msg.data.hex()
-        record: dict[str, object] = {
-            "timestamp": {"sec": self._sec, "nsec": self._nsec},
-            "direction": direction,
-            "id": msg.arbitration_id,
-            "extended": msg.is_extended_id,
-            "dlc": msg.dlc,
-            "data": data,
-        }
-        return record, f'{prefix}{data}"}}'.encode()
-
-    def _prefix(self, t_ns: int, direction: str, msg: can.Message) -> str | None:
-        """The frame's JSON text before its data, from the parts kept; None for a new kind past the bound."""
         if t_ns != self._t_ns:
             self._start(t_ns)
         key = (direction, msg.arbitration_id, msg.is_extended_id, msg.dlc)
@@ -176,8 +153,21 @@ class _FrameRecords:
         if middle is None:
             middle = self._middle(key, direction, msg)
             if middle is None:
-                return None
-        return self._json_head + middle
+                return _frame_json(t_ns, direction, msg)
+        return f'{self._json_head}{middle}{msg.data.hex()}"}}'.encode()
+
+    def format(self, t_ns: int, direction: str, msg: can.Message) -> tuple[dict[str, object], bytes]:
+        """The frame's record and its JSON bytes (``encode_message`` of the record)."""
+        data = self.json(t_ns, direction, msg)  # also keeps t_ns's seconds and nanoseconds
+        record: dict[str, object] = {
+            "timestamp": {"sec": self._sec, "nsec": self._nsec},
+            "direction": direction,
+            "id": msg.arbitration_id,
+            "extended": msg.is_extended_id,
+            "dlc": msg.dlc,
+            "data": msg.data.hex(),
+        }
+        return record, data
 
     def _start(self, t_ns: int) -> None:
         """Keep the timestamp's parts and JSON text for the frames that follow at ``t_ns``."""

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -132,16 +132,19 @@ class FrameEncoder:
 
     def __init__(self, message: cantools.database.can.Message, packer: FramePacker | None) -> None:
         self.message = message
-        self._packer = packer
         self._frame_id = message.frame_id
         self._length = message.length  # a property cantools computes per access
+        # The packer's pack, or cantools' encode: chosen once, not per frame.
+        self._pack: Callable[[Mapping[str, float]], bytes] = (
+            packer.pack if packer is not None else self._encode_with_cantools
+        )
+
+    def _encode_with_cantools(self, values: Mapping[str, float]) -> bytes:
+        return bytes(self.message.encode(dict(values), strict=False))
 
     def encode(self, values: Mapping[str, float]) -> can.Message:
-        packer = self._packer
         try:
-            data = (
-                packer.pack(values) if packer is not None else self.message.encode(dict(values), strict=False)
-            )
+            data = self._pack(values)
         except (cantools.database.EncodeError, KeyError, ValueError, TypeError) as err:
             raise BridgeOperationError(
                 f"cannot encode {self.message.name} from {dict(values)}: {err}"
