@@ -207,12 +207,16 @@ class SimVescBank:
             raise ValueError(f"need {WHEEL_COUNT} motor currents in wheel order, got {len(motor_currents_a)}")
         if len(duties) != WHEEL_COUNT:
             raise ValueError(f"need {WHEEL_COUNT} duty cycles in wheel order, got {len(duties)}")
-        # Runs every physics step: the clamps inline, not a call per wheel (a non-finite current reads 0).
+        # Runs every physics step, so the clamps are comparisons (a third of max(min()) calls' cost), each
+        # with max(min())'s results: a value in range is kept as it is; a current beyond the field's limit
+        # is the limit, and a non-finite one reads 0; a duty beyond +-1 is +-1, and NaN reads 1.0 (as
+        # max(-1.0, min(1.0, nan)) gave).
         limit = _STATUS_CURRENT_LIMIT_A
         self._motor_current_a = [
-            max(-limit, min(limit, c)) if math.isfinite(c) else 0.0 for c in motor_currents_a
+            c if -limit <= c <= limit else (0.0 if not math.isfinite(c) else limit if c > limit else -limit)
+            for c in motor_currents_a
         ]
-        self._duty_cycle = [max(-1.0, min(1.0, d)) for d in duties]
+        self._duty_cycle = [d if -1.0 <= d <= 1.0 else (-1.0 if d < -1.0 else 1.0) for d in duties]
         voltage = input_voltage_v if math.isfinite(input_voltage_v) else 0.0
         self._input_voltage_v = max(0.0, min(_VOLTAGE_FIELD_MAX_V, voltage))
 

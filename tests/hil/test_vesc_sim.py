@@ -118,3 +118,29 @@ def test_lockstep_run_is_deterministic(request):
     first, second = one_run(request.node.name + "a"), one_run(request.node.name + "b")
     assert first == second
     assert len(first) > 100
+
+
+def test_loads_from_the_physics_are_clamped_into_the_status_fields_as_max_min_clamps_them(buses):
+    """set_electrical's comparisons give what max(-limit, min(limit, x)) gives, edges included: a current
+    beyond +-3000 A is the limit and a non-finite one 0; a duty beyond +-1 is +-1, NaN 1.0 (as before)."""
+    import math
+
+    import numpy as np
+
+    _, sim = make_pair(buses, SimClock(), MemorySink())
+    nan, inf = float("nan"), float("inf")
+    currents = [nan, inf, -inf, 5000.0, -5000.0, -0.0]
+    duties = [nan, inf, -inf, 2.0, -2.0, -0.0]
+    for convert in (list, np.array):
+        sim.set_electrical(convert(currents), 24.0, convert(duties))
+        want_currents = [max(-3000.0, min(3000.0, c)) if math.isfinite(c) else 0.0 for c in convert(currents)]
+        want_duties = [max(-1.0, min(1.0, d)) for d in convert(duties)]
+        assert [(float(c), math.copysign(1.0, c)) for c in sim._motor_current_a] == [
+            (float(c), math.copysign(1.0, c)) for c in want_currents
+        ]
+        assert [(float(d), math.copysign(1.0, d)) for d in sim._duty_cycle] == [
+            (float(d), math.copysign(1.0, d)) for d in want_duties
+        ]
+    sim.set_electrical([1.5, -2.5, 3000.0, -3000.0, 0.25, 0.0], 24.0, [0.5, -0.5, 1.0, -1.0, 0.0, 0.999])
+    assert sim._motor_current_a == [1.5, -2.5, 3000.0, -3000.0, 0.25, 0.0]
+    assert sim._duty_cycle == [0.5, -0.5, 1.0, -1.0, 0.0, 0.999]
