@@ -108,7 +108,11 @@ def erpm_command(erpm: float) -> int:
     """The integer a SET_RPM frame carries for ``erpm``: rounded, clamped to int32."""
     if not math.isfinite(erpm):
         raise BridgeOperationError(f"cannot command a motor to {erpm} ERPM; give a finite number")
-    return min(max(round(erpm), _INT32_MIN), _INT32_MAX)
+    command = round(erpm)
+    # Six per control tick: comparisons, not min(max()) calls; the same clamp.
+    if _INT32_MIN <= command <= _INT32_MAX:
+        return command
+    return _INT32_MAX if command > _INT32_MAX else _INT32_MIN
 
 
 @dataclass(slots=True)  # one per received frame (~720 per simulated second in a lockstep trial)

@@ -127,7 +127,9 @@ class SimVescBank:
             return  # a controller restarting hears nothing
         values = frame.values
         if frame.kind == "SET_RPM":
-            target = max(-self._max_erpm, min(self._max_erpm, values["erpm"]))
+            # Six per control tick: max(min())'s clamp by comparisons (a decoded ERPM is finite).
+            erpm, top = values["erpm"], self._max_erpm
+            target = erpm if -top <= erpm <= top else (top if erpm > top else -top)
         elif frame.kind == "SET_DUTY":
             target = max(-1.0, min(1.0, values["duty"])) * self._max_erpm
         elif frame.kind == "SET_CURRENT_BRAKE" or (frame.kind == "SET_CURRENT" and values["current"] == 0.0):
@@ -237,7 +239,9 @@ class SimVescBank:
         if fast_due:
             for i, (status, _, _) in enumerate(self._status_encoders):
                 if not self._rebooting[i]:
-                    erpm = max(-_INT32_MAX, min(_INT32_MAX, round(self._erpm[i])))
+                    erpm = round(self._erpm[i])  # clamped to the int32 field by comparisons (hot path)
+                    if not -_INT32_MAX <= erpm <= _INT32_MAX:
+                        erpm = _INT32_MAX if erpm > 0 else -_INT32_MAX
                     current = self._motor_current_a[i]
                     frames.append((status, {"erpm": erpm, "current": current, "duty": self._duty_cycle[i]}))
         if slow_due:

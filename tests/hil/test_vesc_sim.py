@@ -144,3 +144,12 @@ def test_loads_from_the_physics_are_clamped_into_the_status_fields_as_max_min_cl
     sim.set_electrical([1.5, -2.5, 3000.0, -3000.0, 0.25, 0.0], 24.0, [0.5, -0.5, 1.0, -1.0, 0.0, 0.999])
     assert sim._motor_current_a == [1.5, -2.5, 3000.0, -3000.0, 0.25, 0.0]
     assert sim._duty_cycle == [0.5, -0.5, 1.0, -1.0, 0.0, 0.999]
+
+
+def test_set_rpm_beyond_the_motors_limit_is_clamped_to_it(buses):
+    clock = SimClock()
+    link, sim = make_pair(buses, clock, MemorySink(), max_erpm=1000.0)
+    erpm_per_mps = TEST_PROFILE.erpm_per_mps
+    link.send_wheel_speeds([e / erpm_per_mps for e in (5000.0, -5000.0, 1000.0, -1000.0, 999.0, 0.0)])
+    sim.poll()
+    assert sim.targets_erpm() == [1000.0, -1000.0, 1000.0, -1000.0, 999.0, 0.0]
