@@ -152,9 +152,10 @@ class SimAutopilot:
     # --- sending -------------------------------------------------------------------------------
     def record_truth(self, truth: AutopilotTruth) -> None:
         """Let the GPS remember where the rover was now (for its latency and delay faults)."""
-        self._gps.record(
-            GpsSample(self._clock.now_ns(), truth.x_m, truth.y_m, truth.z_m, truth.yaw_rad, truth.speed_mps)
-        )
+        self._record(self._clock.now_ns(), truth)
+
+    def _record(self, now: int, truth: AutopilotTruth) -> None:
+        self._gps.record(GpsSample(now, truth.x_m, truth.y_m, truth.z_m, truth.yaw_rad, truth.speed_mps))
 
     def step(self, truth: AutopilotTruth, *, record: bool = False) -> None:
         """Send what is due at the clock's now, in a fixed order: IMU, attitude, GPS, status, heartbeat.
@@ -167,7 +168,7 @@ class SimAutopilot:
         where those are due, and the loop would take that as period jitter."""
         now = self._clock.now_ns()
         if record or not self._gps.has_history():
-            self.record_truth(truth)
+            self._record(now, truth)
         if now < self._next_any_ns:
             return  # nothing due (every other physics tick at the default rates: the IMU's is the fastest)
         if self._due("imu", now):
