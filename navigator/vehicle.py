@@ -28,6 +28,7 @@ G = 9.81  # m/s^2
 
 # Axle positions along the body x axis in units of half the wheelbase: front, middle, rear.
 _AXLE_X_UNITS = (1.0, 0.0, -1.0)
+_ALL_AXLES = (0, 1, 2)
 # The body's lengths (metres). None of them reaches this on a rover this stack drives; a config that
 # gives one in millimetres (wheel_radius_m = 110) does, and would otherwise load and drive wrong.
 _LENGTH_KEYS = (
@@ -176,10 +177,24 @@ def _axle_loads(moment_rear: float, total: float, half_wheelbase: float) -> list
     Plain floats, not numpy: the simulator calls this every physics step, and on three numbers numpy's
     per-call overhead was most of its cost.
     """
-    loads = [0.0, 0.0, 0.0]
     if total <= 0.0:
-        return loads
-    in_contact: tuple[int, ...] = (0, 1, 2)
+        return [0.0, 0.0, 0.0]
+    # The usual case, every physics step: all three axles on the ground. The loop below's first pass,
+    # without its lists (the same expressions, so the same floats); anything else (an axle lifting, or a
+    # NaN) goes through the loop from the start, exactly as before.
+    x, n, sx, sxx, det = _axle_geometry(_ALL_AXLES, half_wheelbase)
+    a = (total * sxx + moment_rear * sx) / det
+    b = (-moment_rear * n - sx * total) / det
+    front, middle, rear = a + b * x[0], a + b * x[1], a + b * x[2]
+    if front >= 0.0 and middle >= 0.0 and rear >= 0.0:
+        return [front, middle, rear]
+    return _axle_loads_lifting(moment_rear, total, half_wheelbase)
+
+
+def _axle_loads_lifting(moment_rear: float, total: float, half_wheelbase: float) -> list[float]:
+    """``_axle_loads`` when an axle may lift: balance on those in contact, lift the most negative, repeat."""
+    loads = [0.0, 0.0, 0.0]
+    in_contact: tuple[int, ...] = _ALL_AXLES
     while True:
         x, n, sx, sxx, det = _axle_geometry(in_contact, half_wheelbase)
         if n == 1:
