@@ -212,7 +212,8 @@ class TerrainMap:
         extra = np.asarray(extra_mask)
         if extra.shape != self.obstacles.shape:
             raise TerrainError(f"obstacle mask has shape {extra.shape}, the map has {self.obstacles.shape}")
-        copy = object.__new__(TerrainMap)
+        # The fields as __post_init__ left them (the map keeps no other state), without running it again.
+        copy = object.__new__(type(self))
         copy.__dict__.update(self.__dict__)
         obstacles = self.obstacles | extra.astype(bool)  # a new array, this map's own
         obstacles.setflags(write=False)
