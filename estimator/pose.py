@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -12,9 +11,11 @@ from estimator.ekf import STATE_NAMES
 from logs.topics import ENU_FRAME, planar_pose, stamp
 
 
-@dataclass(frozen=True, eq=False)  # eq would compare the covariance array elementwise and fail
-class PoseEstimate:
-    """The fused estimate at ``t_ns``.
+# A NamedTuple, immutable like the frozen dataclass it was but cheaper to build (a new one on every tick
+# the filter changed: the dataclass's __init__, an object.__setattr__ per field, was ~1.1 us of ~0.3).
+class PoseEstimate(NamedTuple):
+    """The fused estimate at ``t_ns``. Equal only to itself (a tuple's ``==`` would compare the covariance
+    array elementwise and fail).
 
     Attributes
     ----------
@@ -48,6 +49,16 @@ class PoseEstimate:
     t_ns: int
     heading_known: bool
     position_std_m: float
+
+    # Identity, as the frozen dataclass with eq=False had: never tuple equality over the covariance.
+    def __eq__(self, other: object) -> bool:
+        return self is other
+
+    def __ne__(self, other: object) -> bool:
+        return self is not other
+
+    def __hash__(self) -> int:
+        return object.__hash__(self)
 
 
 def pose_message(pose: PoseEstimate) -> dict[str, Any]:

@@ -17,7 +17,6 @@ import bisect
 import math
 from collections import deque
 from itertools import accumulate
-from operator import itemgetter
 
 # Declared spinning below this share of the odometry distance; trusted again above the second share
 # (hysteresis, so a rover creeping out of a hole does not flicker between the two).
@@ -41,8 +40,13 @@ class StuckDetector:
         self._window_ns = round(window_s * 1e9)
         self._min_distance_m = min_distance_m
         self._fixes: deque[tuple[int, float, float, float]] = deque()  # t_ns, x, y, std
-        # t_ns, |distance| rolled since the previous sample, and that step along the heading (east, north)
-        self._odometry: deque[tuple[int, float, float, float]] = deque()
+        # Odometry steps, oldest first, as parallel deques: time (ns), |distance| rolled since the previous
+        # sample (m), and that step along the heading (east, north m). One deque per field so that the sums
+        # over the window (~200 steps, taken on every fix) run over the values in C, with no per-step call.
+        self._step_t: deque[int] = deque()
+        self._step_rolled: deque[float] = deque()
+        self._step_east: deque[float] = deque()
+        self._step_north: deque[float] = deque()
         self.spinning = False
         self.shortfall_m = 0.0  # odometry travel GPS did not confirm, at the last judgement (m)
 
@@ -50,8 +54,10 @@ class StuckDetector:
         """Distance (m, signed: negative reversing) the wheels rolled up to ``t_ns`` while heading
         ``heading_rad`` (ENU). A heading off by a constant does not matter: only the track's shape does.
         Steps come in time order (the estimator adds one per wheel sample newer than the last)."""
-        east, north = distance_m * math.cos(heading_rad), distance_m * math.sin(heading_rad)
-        self._odometry.append((t_ns, abs(distance_m), east, north))
+        self._step_t.append(t_ns)
+        self._step_rolled.append(abs(distance_m))
+        self._step_east.append(distance_m * math.cos(heading_rad))
+        self._step_north.append(distance_m * math.sin(heading_rad))
 
     def on_fix(self, t_ns: int, x_m: float, y_m: float, std_m: float) -> bool:
         """Offer a raw GPS fix (ENU m); returns whether the wheels are judged to be spinning now."""
@@ -59,13 +65,15 @@ class StuckDetector:
         start = t_ns - self._window_ns
         while self._fixes and self._fixes[0][0] < start:
             self._fixes.popleft()
-        while self._odometry and self._odometry[0][0] <= self._fixes[0][0]:
-            self._odometry.popleft()
+        step_t, first_fix_ns = self._step_t, self._fixes[0][0]
+        while step_t and step_t[0] <= first_fix_ns:
+            step_t.popleft()
+            self._step_rolled.popleft()
+            self._step_east.popleft()
+            self._step_north.popleft()
         if len(self._fixes) < 4:
             return self.spinning
-        # Sums without a generator: the same additions in the same order, without a frame per item (the
-        # window holds a few hundred odometry steps, summed on every fix).
-        rolled = sum(map(itemgetter(1), self._odometry))
+        rolled = sum(self._step_rolled)  # from 0, in step order: the additions a walk along them makes
         if rolled < self._min_distance_m:
             self.spinning = False
             return False
@@ -95,10 +103,9 @@ class StuckDetector:
         additions a walk along the steps makes, in C rather than a Python loop over a few hundred steps
         per fix), and each time takes the sums of the steps up to it (steps arrive in time order).
         """
-        steps = self._odometry
-        step_times = [step[0] for step in steps]
-        easts = list(accumulate(map(itemgetter(2), steps), initial=0.0))
-        norths = list(accumulate(map(itemgetter(3), steps), initial=0.0))
+        step_times = list(self._step_t)
+        easts = list(accumulate(self._step_east, initial=0.0))
+        norths = list(accumulate(self._step_north, initial=0.0))
         positions = []
         for t in times:
             taken = bisect.bisect_right(step_times, t)

@@ -117,6 +117,10 @@ class HealthReport:
     warning: str | None
 
 
+# What almost every poll gets (no window closes): one shared instance, it is frozen.
+_NOTHING_DUE = HealthReport(None, None)
+
+
 class MavlinkHealth:
     """Closes a stats window every ``stats_window_ns`` and a warning window every ``warning_window_ns`` of
     the link's clock, at the first poll at or after each one's end (``window_s`` is the real length).
@@ -137,8 +141,17 @@ class MavlinkHealth:
         self._warning_window_ns = warning_window_ns
         self._stats = _Window(start_ns, counters)
         self._warning = _Window(start_ns, counters)
+        self._next_close_ns = self._earliest_close_ns()
+
+    def _earliest_close_ns(self) -> int:
+        return min(
+            self._stats.start_ns + self._stats_window_ns, self._warning.start_ns + self._warning_window_ns
+        )
 
     def report(self, now_ns: int, counters: MavlinkCounters) -> HealthReport:
+        if now_ns < self._next_close_ns:
+            # The link asks at every poll (100 a second); a window closes at most once a second.
+            return _NOTHING_DUE
         stats = None
         if now_ns - self._stats.start_ns >= self._stats_window_ns:
             window_s = (now_ns - self._stats.start_ns) / NS_PER_S
@@ -149,4 +162,5 @@ class MavlinkHealth:
         if now_ns - self._warning.start_ns >= self._warning_window_ns:
             window_s = (now_ns - self._warning.start_ns) / NS_PER_S
             warning = describe_garbage(self._warning.close(now_ns, counters), window_s, self._link)
+        self._next_close_ns = self._earliest_close_ns()
         return HealthReport(stats, warning)

@@ -12,6 +12,7 @@ id and exactly the signals named here. Layout, scaling, byte order, lengths and 
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
 from decimal import ROUND_DOWN, Context, Decimal
@@ -193,14 +194,38 @@ def load_vesc_database(
 ) -> cantools.database.can.Database:
     """The cantools database for these controllers: the file at ``dbc_path`` when given (checked with
     ``check_vesc_database``; ``DbcProfileError`` if it is unusable), else the shipped file for the default
-    ids and a generated one for others."""
+    ids and a generated one for others.
+
+    Parsed once per process and shared (read it, never change it): a DBC takes ~9 ms to parse, which a
+    lockstep trial paid for every codec, and a campaign worker for every trial; loading a rover config
+    with a team's file checks it and then builds the codec from it. A team's file is parsed again when
+    its modification time or size has changed since.
+    """
     _check_ids(controller_ids)
-    if dbc_path is not None:
-        team_database = _load_dbc_file(dbc_path)
-        check_vesc_database(team_database, controller_ids, str(dbc_path))
-        return team_database
+    ids = tuple(controller_ids)
+    if dbc_path is None:
+        return _packaged_database(ids)
     try:
-        if tuple(controller_ids) == DEFAULT_CONTROLLER_IDS:
+        status = dbc_path.stat()
+    except OSError:
+        return _checked_team_database(ids, dbc_path, None)  # not cached: _load_dbc_file names the error
+    return _checked_team_database(ids, dbc_path, (status.st_mtime_ns, status.st_size))
+
+
+@functools.lru_cache(maxsize=16)
+def _checked_team_database(
+    controller_ids: tuple[int, ...], dbc_path: Path, file_stamp: tuple[int, int] | None
+) -> cantools.database.can.Database:
+    """``file_stamp`` (modification time, size) is only part of the cache key: an edited file is new."""
+    team_database = _load_dbc_file(dbc_path)
+    check_vesc_database(team_database, controller_ids, str(dbc_path))
+    return team_database
+
+
+@functools.lru_cache(maxsize=16)
+def _packaged_database(controller_ids: tuple[int, ...]) -> cantools.database.can.Database:
+    try:
+        if controller_ids == DEFAULT_CONTROLLER_IDS:
             path = resources.files("firmware_bridge").joinpath(SHIPPED_DBC_NAME)
             with resources.as_file(path) as shipped_path:
                 database = cantools.database.load_file(str(shipped_path), database_format="dbc")

@@ -28,6 +28,9 @@ _MPS2_TO_MG = 1000.0 / 9.80665
 _RAD_TO_MRAD = 1000.0
 _INT16_MAX = 32767
 _UINT16_KNOWN_MAX = 65534  # 65535 means "unknown" in GPS_RAW_INT
+# Named explicitly (pymap3d's default when given none, as the GPS fixes used before): the datum's ECEF
+# position is computed with it once and the fixes go back to geodetic with it.
+_WGS84 = pymap3d.Ellipsoid.from_name("wgs84")
 _SENSORS_PRESENT = (
     mavlink2.MAV_SYS_STATUS_SENSOR_3D_GYRO
     | mavlink2.MAV_SYS_STATUS_SENSOR_3D_ACCEL
@@ -116,6 +119,7 @@ class SimAutopilot:
         self._clock = clock
         self._rng = rng
         self._datum = (datum_lat_deg, datum_lon_deg, datum_alt_m)
+        self._datum_ecef = pymap3d.geodetic2ecef(datum_lat_deg, datum_lon_deg, datum_alt_m, _WGS84, deg=True)
         self._gps_noise_m = gps_noise_m
         self._gyro_noise_rps = gyro_noise_rps
         self._accel_noise_mps2 = accel_noise_mps2
@@ -148,9 +152,10 @@ class SimAutopilot:
     # --- sending -------------------------------------------------------------------------------
     def record_truth(self, truth: AutopilotTruth) -> None:
         """Let the GPS remember where the rover was now (for its latency and delay faults)."""
-        self._gps.record(
-            GpsSample(self._clock.now_ns(), truth.x_m, truth.y_m, truth.z_m, truth.yaw_rad, truth.speed_mps)
-        )
+        self._record(self._clock.now_ns(), truth)
+
+    def _record(self, now: int, truth: AutopilotTruth) -> None:
+        self._gps.record(GpsSample(now, truth.x_m, truth.y_m, truth.z_m, truth.yaw_rad, truth.speed_mps))
 
     def step(self, truth: AutopilotTruth, *, record: bool = False) -> None:
         """Send what is due at the clock's now, in a fixed order: IMU, attitude, GPS, status, heartbeat.
@@ -163,7 +168,7 @@ class SimAutopilot:
         where those are due, and the loop would take that as period jitter."""
         now = self._clock.now_ns()
         if record or not self._gps.has_history():
-            self.record_truth(truth)
+            self._record(now, truth)
         if now < self._next_any_ns:
             return  # nothing due (every other physics tick at the default rates: the IMU's is the fastest)
         if self._due("imu", now):
@@ -213,7 +218,7 @@ class SimAutopilot:
         fix = self._gps.fix(now)
         if fix is None:
             return None
-        lat, lon, alt = pymap3d.enu2geodetic(fix.x_m, fix.y_m, fix.z_m, *self._datum)
+        lat, lon, alt = self._enu_to_geodetic(fix.x_m, fix.y_m, fix.z_m)
         eph_cm = min(_UINT16_KNOWN_MAX, round(fix.eph_m * 100.0))
         return self._mav.gps_raw_int_encode(
             now // 1_000,
@@ -227,6 +232,15 @@ class SimAutopilot:
             round(course_bearing_deg(fix.yaw_rad, fix.speed_mps) * 100.0) % 36000,
             fix.satellites,
         )
+
+    def _enu_to_geodetic(self, east_m: float, north_m: float, up_m: float) -> tuple[Any, Any, Any]:
+        """``pymap3d.enu2geodetic`` around the datum in its own steps (ENU -> ECEF offset, plus the datum's
+        ECEF position, then ``ecef2geodetic``), with the datum's ECEF position computed once rather than on
+        every fix: the same pymap3d calls on the same numbers, so the same floats (and GPS bytes)."""
+        lat0, lon0, _ = self._datum
+        du, dv, dw = pymap3d.enu2uvw(east_m, north_m, up_m, lat0, lon0, deg=True)
+        x0, y0, z0 = self._datum_ecef
+        return pymap3d.ecef2geodetic(x0 + du, y0 + dv, z0 + dw, _WGS84, deg=True)
 
     def _sys_status_message(self, truth: AutopilotTruth) -> Any:
         return self._mav.sys_status_encode(

@@ -44,7 +44,8 @@ class PerceptionSim:
             raise ValueError(f"perception rate_hz must be > 0, got {rate_hz}")
         self._clock = clock
         self._rover_xy = rover_xy
-        self._static = tuple(static)
+        # As poll's candidates: (id, x, y, radius, vx, vy), built once (static obstacles do not change).
+        self._static_candidates = [(o.id, o.x, o.y, o.radius_m, 0.0, 0.0) for o in static]
         self._moving = tuple(moving)
         self._rng = rng
         self._range_m = range_m
@@ -64,17 +65,15 @@ class PerceptionSim:
             return []
         self._next_ns = max(self._next_ns + self._period_ns, now + 1)
         rx, ry = self._rover_xy()
+        candidates = self._static_candidates + [
+            (m.id, x, y, m.radius_m, vx, vy) for m, (x, y, vx, vy) in self.moving_states(now)
+        ]
+        # One draw pair per candidate, seen or not: the noise stream does not depend on the path. All pairs
+        # in one call: the generator fills them in order, so the same numbers as a call per pair.
+        noise = (self._rng.normal(0.0, 1.0, (len(candidates), 2)) * self._noise_m).tolist()
         seen: list[ObstacleObservation] = []
-        candidates = [(o.id, o.x, o.y, o.radius_m, 0.0, 0.0) for o in self._static]
-        candidates += [(m.id, x, y, m.radius_m, vx, vy) for m, (x, y, vx, vy) in self.moving_states(now)]
-        for obstacle_id, x, y, radius, vx, vy in candidates:
-            # One draw pair per candidate, seen or not: the noise stream does not depend on the path.
-            noise = self._rng.normal(0.0, 1.0, 2) * self._noise_m
+        for (obstacle_id, x, y, radius, vx, vy), (noise_x, noise_y) in zip(candidates, noise, strict=True):
             if math.hypot(x - rx, y - ry) - radius > self._range_m:
                 continue
-            seen.append(
-                ObstacleObservation(
-                    now, obstacle_id, x + float(noise[0]), y + float(noise[1]), radius, vx=vx, vy=vy
-                )
-            )
+            seen.append(ObstacleObservation(now, obstacle_id, x + noise_x, y + noise_y, radius, vx=vx, vy=vy))
         return seen

@@ -189,7 +189,10 @@ class SimWorld:
             self._apply_faults(now)
         vescs, body, battery = self.vescs, self.body, self.battery
         vescs.poll()
-        step = body.step(dt_s, vescs.wheel_speeds_mps(), battery.voltage_v, vescs.stalled())
+        # Only a scheduled vesc fault seizes a wheel (_apply_faults): without one, no wheel is stalled, and
+        # the dynamics take "nothing given" as six freely turning wheels without asking the bank every tick.
+        stalled = vescs.stalled() if self._vesc_faults else ()
+        step = body.step(dt_s, vescs.wheel_speeds_mps(), battery.voltage_v, stalled)
         # Each motor draws I x duty from the pack; a braking motor (current against its duty) generates, and
         # with no regeneration (hil.battery, the dynamics' motor power) it gives nothing back, nor draws.
         # Plain floats (numpy on six numbers cost more than the sum): the same left-to-right sum np.sum

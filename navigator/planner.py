@@ -32,7 +32,7 @@ import numpy as np
 
 from navigator.astar import HEURISTICS, PlanResult, astar
 from navigator.astar_kernel import MOVES
-from navigator.costs import CostModel
+from navigator.costs import CostModel, GroundCost
 from navigator.direction_costs import DirectionWeights, direction_factors
 from navigator.errors import NoPathError, PlanningError, TerrainError
 from navigator.footprint import Collision, Footprint, first_collision
@@ -121,6 +121,9 @@ class Planner:
         self._cost_mode = cost_mode
         self._direction_weights = direction_weights or DirectionWeights()
         self._cost_model = cost_model or CostModel(inflation_m=inflation_m)
+        # The grid's obstacle-free part, kept while the elevation and class layers stay (adding obstacles
+        # keeps them): a grid recomputed for each obstacle seen skips refiltering the whole map.
+        self._ground: GroundCost | None = None
         self._terrain = terrain
         self._base_terrain = terrain  # the map as given: obstacles added later can be taken off again
         self._cost = self._grid(terrain)
@@ -188,7 +191,9 @@ class Planner:
                 terrain.resolution_m, terrain.origin_xy,
             )  # fmt: skip
             return self._cost_model.grid(flat, self._inflation_params, self._classes)
-        return self._cost_model.grid(terrain, self._inflation_params, self._classes)
+        if self._ground is None or not self._ground.made_for(terrain):
+            self._ground = self._cost_model.ground_cost(terrain, self._inflation_params, self._classes)
+        return self._cost_model.grid(terrain, self._inflation_params, self._classes, ground=self._ground)
 
     def update_obstacles(self, mask: np.ndarray) -> np.ndarray:
         """Add obstacle cells (bool, map shape) and recompute the costs; returns where the cost changed."""

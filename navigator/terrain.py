@@ -203,14 +203,22 @@ class TerrainMap:
         return ground.roll_rad, ground.pitch_rad
 
     def with_obstacles(self, extra_mask: np.ndarray) -> TerrainMap:
-        """A copy with ``extra_mask`` (bool, map shape) added to the obstacle layer."""
+        """A copy with ``extra_mask`` (bool, map shape) added to the obstacle layer.
+
+        The copy shares this map's read-only elevation, class and gradient layers (checked when this map
+        was made) rather than validating and copying them again: a planner adds obstacles as they are
+        seen, and its cost model recognises the shared layers (``navigator.costs.GroundCost``).
+        """
         extra = np.asarray(extra_mask)
         if extra.shape != self.obstacles.shape:
             raise TerrainError(f"obstacle mask has shape {extra.shape}, the map has {self.obstacles.shape}")
-        return TerrainMap(
-            self.elevation_m, self.terrain_class, self.obstacles | extra.astype(bool), self.resolution_m,
-            self.origin_xy,
-        )  # fmt: skip
+        # The fields as __post_init__ left them (the map keeps no other state), without running it again.
+        copy = object.__new__(type(self))
+        copy.__dict__.update(self.__dict__)
+        obstacles = self.obstacles | extra.astype(bool)  # a new array, this map's own
+        obstacles.setflags(write=False)
+        object.__setattr__(copy, "obstacles", obstacles)
+        return copy
 
 
 def _gradient(elevation: np.ndarray, resolution_m: float) -> tuple[np.ndarray, np.ndarray]:

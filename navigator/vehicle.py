@@ -14,6 +14,7 @@ Conventions (body axes x forward, y left, z up):
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, fields
 from functools import cached_property
@@ -27,6 +28,7 @@ G = 9.81  # m/s^2
 
 # Axle positions along the body x axis in units of half the wheelbase: front, middle, rear.
 _AXLE_X_UNITS = (1.0, 0.0, -1.0)
+_ALL_AXLES = (0, 1, 2)
 # The body's lengths (metres). None of them reaches this on a rover this stack drives; a config that
 # gives one in millimetres (wheel_radius_m = 110) does, and would otherwise load and drive wrong.
 _LENGTH_KEYS = (
@@ -148,6 +150,22 @@ def max_climbable_slope_rad(mu: float, rolling_resistance: float, margin_rad: fl
     return max(0.0, math.atan(max(0.0, mu - rolling_resistance)) - margin_rad)
 
 
+@functools.lru_cache(maxsize=64)
+def _axle_geometry(
+    in_contact: tuple[int, ...], half_wheelbase: float
+) -> tuple[tuple[float, ...], int, float, float, float]:
+    """The axles in contact's positions along the body (m) and the sums the load balance needs: (x, n,
+    sum x, sum x², n sum x² − (sum x)²).
+
+    They depend on the geometry alone, not on the loads: kept per (axles, half wheelbase) rather than
+    summed again every physics step. Computed by the same expressions as before, so the same floats.
+    """
+    x = tuple(_AXLE_X_UNITS[i] * half_wheelbase for i in in_contact)
+    n = len(x)
+    sx, sxx = sum(x), sum(xi * xi for xi in x)
+    return x, n, sx, sxx, n * sxx - sx * sx
+
+
 def _axle_loads(moment_rear: float, total: float, half_wheelbase: float) -> list[float]:
     """Normal load on the front, middle and rear axles (N), summing to ``total``.
 
@@ -159,28 +177,41 @@ def _axle_loads(moment_rear: float, total: float, half_wheelbase: float) -> list
     Plain floats, not numpy: the simulator calls this every physics step, and on three numbers numpy's
     per-call overhead was most of its cost.
     """
-    loads = [0.0, 0.0, 0.0]
     if total <= 0.0:
-        return loads
-    in_contact = [0, 1, 2]
+        return [0.0, 0.0, 0.0]
+    # The usual case, every physics step: all three axles on the ground. The loop below's first pass,
+    # without its lists (the same expressions, so the same floats); anything else (an axle lifting, or a
+    # NaN) goes through the loop from the start, exactly as before.
+    x, n, sx, sxx, det = _axle_geometry(_ALL_AXLES, half_wheelbase)
+    a = (total * sxx + moment_rear * sx) / det
+    b = (-moment_rear * n - sx * total) / det
+    front, middle, rear = a + b * x[0], a + b * x[1], a + b * x[2]
+    if front >= 0.0 and middle >= 0.0 and rear >= 0.0:
+        return [front, middle, rear]
+    return _axle_loads_lifting(moment_rear, total, half_wheelbase)
+
+
+def _axle_loads_lifting(moment_rear: float, total: float, half_wheelbase: float) -> list[float]:
+    """``_axle_loads`` when an axle may lift: balance on those in contact, lift the most negative, repeat."""
+    loads = [0.0, 0.0, 0.0]
+    in_contact: tuple[int, ...] = _ALL_AXLES
     while True:
-        x = [_AXLE_X_UNITS[i] * half_wheelbase for i in in_contact]
-        n = len(x)
+        x, n, sx, sxx, det = _axle_geometry(in_contact, half_wheelbase)
         if n == 1:
             loads[in_contact[0]] = total
             return loads
         # N_i = a + b x_i with sum N_i = total and sum N_i x_i = -moment_rear.
-        sx, sxx = sum(x), sum(xi * xi for xi in x)
-        det = n * sxx - sx * sx
         a = (total * sxx + moment_rear * sx) / det
         b = (-moment_rear * n - sx * total) / det
         contact_loads = [a + b * xi for xi in x]
-        if min(contact_loads) >= 0.0:
+        lowest = min(contact_loads)
+        if lowest >= 0.0:
             for axle, load in zip(in_contact, contact_loads, strict=True):
                 loads[axle] = load
             return loads
         # Lift the axle with the most negative load and re-balance on the others.
-        del in_contact[contact_loads.index(min(contact_loads))]
+        lifted = contact_loads.index(lowest)
+        in_contact = in_contact[:lifted] + in_contact[lifted + 1 :]
 
 
 def wheel_normal_forces(
@@ -195,16 +226,28 @@ def wheel_normal_forces(
     ``_axle_loads``. The sum is always the total load (until the whole rover is airborne: never here).
     """
     m, h = params.mass_kg, params.cg_height_m
-    total = m * G * math.cos(roll_rad) * math.cos(pitch_rad)
+    cos_pitch = math.cos(pitch_rad)
+    total = m * G * math.cos(roll_rad) * cos_pitch
     if total <= 0.0:
         return np.zeros(6)
     moment_rear = m * h * (G * math.sin(pitch_rad) + ax_mps2)
-    moment_right = m * h * (G * math.cos(pitch_rad) * math.sin(roll_rad) + ay_mps2)
+    moment_right = m * h * (G * cos_pitch * math.sin(roll_rad) + ay_mps2)
     right_share = min(1.0, max(0.0, 0.5 + moment_right / (params.track_m * total)))
-    axle_shares = [load / total for load in _axle_loads(moment_rear, total, params.wheelbase_m / 2.0)]
-    left = [(1.0 - right_share) * share * total for share in axle_shares]
-    right = [right_share * share * total for share in axle_shares]
-    return np.array(left + right)
+    left_share = 1.0 - right_share
+    front, middle, rear = _axle_loads(moment_rear, total, params.wheelbase_m / 2.0)
+    # Each wheel's load as (side share x axle share) x total, in that order (the simulator's physics step
+    # is pinned to these bits); written out for the six wheels rather than built in lists (every step).
+    front, middle, rear = front / total, middle / total, rear / total
+    return np.array(
+        (
+            left_share * front * total,
+            left_share * middle * total,
+            left_share * rear * total,
+            right_share * front * total,
+            right_share * middle * total,
+            right_share * rear * total,
+        )
+    )
 
 
 def stability_margins(

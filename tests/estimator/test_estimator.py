@@ -6,6 +6,7 @@ import pytest
 from estimator.config import EstimatorConfig
 from estimator.estimator import Estimator
 from estimator.geodesy import Datum, to_enu, to_geodetic
+from estimator.pose import PoseEstimate
 from logs.clock import SimClock
 from logs.sink import MemorySink
 from logs.topics import ESTIMATOR_INNOVATIONS, ESTIMATOR_POSE, spec
@@ -183,3 +184,15 @@ def test_same_inputs_same_messages():
     second.drive(21, 15.0)
     assert first.sink.records == second.sink.records
     assert first.estimator.counters == second.estimator.counters
+
+
+def test_pose_estimate_is_equal_only_to_itself_and_immutable():
+    """A NamedTuple for speed, compared as the frozen dataclass with eq=False was: by identity, never by
+    tuple equality (elementwise over the covariance array, which would raise)."""
+    covariance = np.eye(7)
+    first = PoseEstimate(1.0, 2.0, 0.5, 0.3, 0.0, covariance, True, 10, True, 0.1)
+    same_values = PoseEstimate(1.0, 2.0, 0.5, 0.3, 0.0, covariance, True, 10, True, 0.1)
+    assert first == first and first != same_values
+    assert len({first, same_values}) == 2
+    with pytest.raises(AttributeError):
+        first.x = 3.0

@@ -53,7 +53,9 @@ def test_the_track_at_the_fixes_times_is_the_walk_per_time():
     detector = StuckDetector(window_s=4.0, min_distance_m=1.0)
     for t in sorted(rng.choice(10_000, size=300, replace=False).tolist()):
         detector.add_odometry(t, float(rng.normal(0.02, 0.01)), float(rng.uniform(-math.pi, math.pi)))
-    steps = list(detector._odometry)
+    steps = list(
+        zip(detector._step_t, detector._step_rolled, detector._step_east, detector._step_north, strict=True)
+    )
     times = sorted([-5, 0, steps[7][0], steps[7][0], 12_000, *rng.integers(0, 10_000, size=40).tolist()])
 
     def walked(t: int) -> tuple[int, float, float, float]:

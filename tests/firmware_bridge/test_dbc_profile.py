@@ -175,3 +175,18 @@ def test_an_unusable_dbc_is_a_config_error_naming_the_key_and_the_file(tmp_path)
 def test_a_misspelt_dbc_key_gets_the_typo_suggestion(tmp_path):
     with pytest.raises(ConfigError, match=r"vesc\.dcb: unknown key \(did you mean 'dbc'\?"):
         load_rover_config(config_with(tmp_path, 'dcb = "team.dbc"'))
+
+
+def test_a_dbc_is_parsed_once_per_process_until_the_file_changes(tmp_path):
+    # Each lockstep trial used to parse the DBC again (~9 ms), and a team's file twice at start-up.
+    assert load_vesc_database() is load_vesc_database()
+    dbc = write(tmp_path / "team.dbc", swapped_dbc_text())
+    first = load_vesc_database(SWAPPED_IDS, dbc)
+    assert load_vesc_database(SWAPPED_IDS, dbc) is first
+    # An edited file (here: STATUS_5 gone) is read again, and refused as any bad file is.
+    write(dbc, without_message(swapped_dbc_text(), "VESC_STATUS_5_C15"))
+    with pytest.raises(DbcProfileError, match="no message VESC_STATUS_5_C15"):
+        load_vesc_database(SWAPPED_IDS, dbc)
+    dbc.unlink()
+    with pytest.raises(DbcProfileError, match="cannot read the file"):
+        load_vesc_database(SWAPPED_IDS, dbc)

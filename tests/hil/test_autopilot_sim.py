@@ -129,3 +129,22 @@ def test_the_imu_leaves_first_on_a_step_where_every_stream_is_due():
     names = [r["name"] for r in sink.on(MAVLINK_RAW)]
     assert set(names) == {"HEARTBEAT", "SYS_STATUS", "GPS_RAW_INT", "SCALED_IMU", "ATTITUDE"}
     assert names[0] == "SCALED_IMU"
+
+
+@pytest.mark.parametrize("datum", [DATUM, (-33.9, 151.2, 12.5), (89.5, -179.0, -30.0)])
+def test_gps_geodesy_in_steps_gives_pymap3d_enu2geodetic_bits(datum):
+    """The GPS fix's ENU -> geodetic, done with the datum's ECEF position computed once, is exactly
+    ``pymap3d.enu2geodetic`` (the fixes' bytes must not move)."""
+    sim = SimAutopilot(
+        memory_pipe_pair()[1],
+        SimClock(),
+        np.random.default_rng(0),
+        datum_lat_deg=datum[0],
+        datum_lon_deg=datum[1],
+        datum_alt_m=datum[2],
+    )
+    points = np.random.default_rng(3).uniform(-2000.0, 2000.0, size=(200, 3)).tolist()
+    for east, north, up in [*points, [0.0, 0.0, 0.0]]:
+        ours = [float(v) for v in sim._enu_to_geodetic(east, north, up)]
+        theirs = [float(v) for v in pymap3d.enu2geodetic(east, north, up, *datum)]
+        assert ours == theirs

@@ -59,6 +59,31 @@ def test_perception_reports_only_obstacles_in_range_at_its_rate():
     assert {o.obstacle_id for o in perception.poll()} == {"far"}
 
 
+def test_perception_noise_is_one_normal_pair_per_candidate_in_order_seen_or_not():
+    """A poll's noise is drawn in one call: the same numbers as a pair per candidate in candidate order
+    (static, then moving), the pairs of obstacles out of range drawn and dropped."""
+    clock = SimClock()
+    static = [
+        Obstacle("near", 3.0, 0.0, 0.5),
+        Obstacle("far", 20.0, 0.0, 0.5),
+        Obstacle("close", 0.0, 2.0, 0.3),
+    ]
+    moving = [MovingObstacle("walker", 0.4, ((5.0, -5.0), (5.0, 5.0)), speed_mps=1.0)]
+    perception = PerceptionSim(
+        clock, lambda: (0.0, 0.0), static, moving, np.random.default_rng(7), range_m=6.0, noise_m=0.25
+    )
+    expected_rng = np.random.default_rng(7)
+    clock.advance(to_ns(2.0))
+    for _ in range(3):
+        seen = {o.obstacle_id: (o.x, o.y) for o in perception.poll()}
+        pairs = [expected_rng.normal(0.0, 1.0, 2) * 0.25 for _ in range(len(static) + len(moving))]
+        assert set(seen) == {"near", "close", "walker"}
+        for obstacle, noise in zip(static, pairs, strict=False):
+            if obstacle.id != "far":
+                assert seen[obstacle.id] == (obstacle.x + float(noise[0]), obstacle.y + float(noise[1]))
+        clock.advance(to_ns(0.1))
+
+
 def test_moving_obstacle_hitting_the_rover_is_a_recorded_collision():
     extra = """
 [[moving_obstacles]]

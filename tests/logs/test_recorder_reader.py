@@ -320,3 +320,22 @@ def test_a_chunk_closes_once_it_spans_the_chunk_duration(duration_ns: int | None
             (22 * tenth, 32 * tenth),
             (33 * tenth, 35 * tenth),
         ]
+
+
+def _sockets_open() -> set[str]:
+    fds = Path("/proc/self/fd")
+    targets = set()
+    for fd in fds.iterdir():
+        try:
+            targets.add(os.readlink(fd))
+        except OSError:
+            continue  # closed since listed (the listing's own fd)
+    return {target for target in targets if target.startswith("socket:")}
+
+
+@pytest.mark.skipif(not Path("/proc/self/fd").is_dir(), reason="needs Linux /proc")
+def test_recording_opens_no_socket(tmp_path: Path) -> None:
+    # The writer is the Foxglove SDK's, which can also serve and upload; recording must do neither.
+    before = _sockets_open()
+    _record(tmp_path / "r.mcap", _expected(200))
+    assert _sockets_open() - before == set()

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from navigator.costs import CostModel, inflate_obstacles, traversability_cost
+from navigator.errors import ParameterError
 from navigator.terrain import TerrainMap
 from navigator.terrain_classes import TERRAIN_CLASSES
 from navigator.vehicle import VehicleParams
@@ -105,7 +106,24 @@ def test_roughness_adds_cost_but_an_even_slope_is_not_rough():
 
 
 def test_bad_weights_are_rejected():
-    from navigator.errors import ParameterError
 
     with pytest.raises(ParameterError, match="slope_weight"):
         CostModel(slope_weight=-1.0)
+
+
+def test_grid_from_a_kept_ground_cost_is_the_grid_made_anew_and_refused_for_other_layers():
+    rng = np.random.default_rng(5)
+    terrain = terrain_with(rng.normal(0.0, 0.05, (30, 30)), rng.integers(0, 3, (30, 30)).astype(np.uint8))
+    model = CostModel(inflation_m=0.2)
+    ground = model.ground_cost(terrain, PARAMS)
+    for rock in ((5, 5), (12, 20), (25, 8)):
+        mask = np.zeros((30, 30), bool)
+        mask[rock] = True
+        terrain = terrain.with_obstacles(mask)
+        kept = model.grid(terrain, PARAMS, ground=ground)
+        np.testing.assert_array_equal(kept, model.grid(terrain, PARAMS))  # bit for bit, inf where lethal
+        assert np.isinf(kept[rock])
+    assert not ground.cost.flags.writeable and not ground.lethal.flags.writeable
+    other = terrain_with(np.zeros((30, 30)))
+    with pytest.raises(ParameterError, match="made for another terrain"):
+        model.grid(other, PARAMS, ground=ground)

@@ -137,3 +137,21 @@ def test_load_npy_layers(tmp_path):
 def test_an_elevation_layer_of_text_or_booleans_is_not_quietly_converted(elevation: np.ndarray) -> None:
     with pytest.raises(TerrainError, match="real numbers"):
         TerrainMap(elevation, np.zeros((2, 2), dtype=int), np.zeros((2, 2), dtype=bool), 1.0)
+
+
+def test_with_obstacles_is_the_map_made_anew_with_the_added_cells_sharing_its_layers():
+    rng = np.random.default_rng(3)
+    terrain = TerrainMap(rng.normal(0.0, 0.2, (8, 9)), rng.integers(0, 3, (8, 9)).astype(np.uint8),
+                         np.zeros((8, 9), bool), 0.5, (1.0, -2.0))  # fmt: skip
+    mask = disc_mask(terrain, 3.0, 0.0, 0.6)
+    added = terrain.with_obstacles(mask)
+    anew = TerrainMap(terrain.elevation_m, terrain.terrain_class, mask, 0.5, (1.0, -2.0))
+    for layer in ("elevation_m", "terrain_class", "obstacles", "_grad_x", "_grad_y"):
+        np.testing.assert_array_equal(getattr(added, layer), getattr(anew, layer))
+        assert not getattr(added, layer).flags.writeable
+    assert (
+        added.elevation_m is terrain.elevation_m and added.slope_gradient()[0] is terrain.slope_gradient()[0]
+    )
+    assert (added.resolution_m, added.origin_xy) == (0.5, (1.0, -2.0)) and not terrain.obstacles.any()
+    with pytest.raises(TerrainError, match="obstacle mask has shape"):
+        terrain.with_obstacles(np.zeros((3, 3), bool))

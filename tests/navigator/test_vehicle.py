@@ -8,6 +8,8 @@ from navigator.errors import ParameterError
 from navigator.vehicle import (
     G,
     VehicleParams,
+    _axle_loads,
+    _axle_loads_lifting,
     max_climbable_slope_rad,
     slope_acceleration,
     stability_margins,
@@ -88,3 +90,21 @@ def test_params_validation_and_strict_table():
         VehicleParams.from_table(parse_toml("masss_kg = 50.0\n", "rover.toml"))
     with pytest.raises(ConfigError, match="cg_height_m"):
         VehicleParams.from_table(parse_toml("cg_height_m = 0\n", "rover.toml"))
+
+
+def test_all_axles_fast_path_gives_the_balancing_loops_loads():
+    """``_axle_loads`` settles the all-axles-down case without the loop; the loop
+    (``_axle_loads_lifting``) must give the very same floats, and both must lift axles alike."""
+    rng = np.random.default_rng(7)
+    lifted = 0
+    for moment_rear, total, half_wheelbase in zip(
+        rng.uniform(-800.0, 800.0, 2000).tolist(),
+        rng.uniform(1.0, 600.0, 2000).tolist(),
+        rng.uniform(0.1, 0.6, 2000).tolist(),
+        strict=True,
+    ):
+        loads = _axle_loads(moment_rear, total, half_wheelbase)
+        assert loads == _axle_loads_lifting(moment_rear, total, half_wheelbase)
+        assert sum(loads) == pytest.approx(total)
+        lifted += min(loads) == 0.0
+    assert 0 < lifted < 2000  # both paths were taken
