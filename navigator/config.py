@@ -27,6 +27,7 @@ from navigator.planner import COST_MODES, FOOTPRINT_INFLATIONS
 from navigator.safety_config import SafetyConfig
 from navigator.terrain import TerrainMap
 from navigator.vehicle import VehicleParams
+from navigator.yielding import YIELD_MARGIN_M, YIELD_MAX_M, YIELD_MAX_S, YIELD_SPEED_MPS
 
 # [planner] heuristic_weight: 1 is plain A* (optimal); w > 1 finds a path costing at most w times the optimum
 # with fewer expansions; below 1 it only slows the search towards Dijkstra, past 10 it is a greedy search
@@ -68,6 +69,13 @@ class PlannerConfig:
     # A BLOCKED rover drives on only once the way has stayed clear this long (s of the guidance clock): a
     # prediction that clears for a few ticks (a turning cart, a jumpy estimate) does not start it.
     moving_clear_s: float = 0.5
+    # Stopped in a moving obstacle's predicted track, the rover backs off (navigator.yielding): at this
+    # speed (0: never, it holds), until the track clears the footprint by inflation_m + yield_margin_m,
+    # at most yield_max_m from where it began and for yield_max_s.
+    yield_speed_mps: float = YIELD_SPEED_MPS
+    yield_margin_m: float = YIELD_MARGIN_M
+    yield_max_m: float = YIELD_MAX_M
+    yield_max_s: float = YIELD_MAX_S
 
     @classmethod
     def from_table(cls, table: Table) -> PlannerConfig:
@@ -83,6 +91,10 @@ class PlannerConfig:
             sensing_range_m=table.number("sensing_range_m", cls.sensing_range_m, lo=0.0, hi=1000.0),
             moving_horizon_s=table.number("moving_horizon_s", cls.moving_horizon_s, lo=0.0, hi=60.0),
             moving_clear_s=table.number("moving_clear_s", cls.moving_clear_s, lo=0.0, hi=60.0),
+            yield_speed_mps=table.number("yield_speed_mps", cls.yield_speed_mps, lo=0.0, hi=5.0),
+            yield_margin_m=table.number("yield_margin_m", cls.yield_margin_m, lo=0.0, hi=5.0),
+            yield_max_m=table.number("yield_max_m", cls.yield_max_m, lo=0.0, hi=50.0),
+            yield_max_s=table.number("yield_max_s", cls.yield_max_s, lo=0.0, hi=120.0),
         )
         table.finish()
         return config

@@ -40,6 +40,14 @@ def check_cross_fields(config: RoverConfig) -> None:
             f"{follower.max_speed_mps:g} m/s is faster than vehicle.max_wheel_speed_mps "
             f"{vehicle.max_wheel_speed_mps:g} m/s, the fastest the wheels can drive",
         )
+    if config.planner.yield_speed_mps > follower.max_speed_mps:
+        # Backing off faster than the rover is allowed to drive forward: the follower's own limit is what
+        # its stopping distances and the safety checks were set for.
+        raise refuse(
+            "planner.yield_speed_mps",
+            f"{config.planner.yield_speed_mps:g} m/s is faster than follower.max_speed_mps "
+            f"{follower.max_speed_mps:g} m/s",
+        )
     if config.terrain is not None and follower.lookahead_m < config.terrain.resolution_m:
         # The plan runs from cell centre to cell centre; a target closer than one cell chases each step of
         # that staircase instead of the path's direction.

@@ -45,7 +45,7 @@ from navigator.stanley import Stanley
 from navigator.terrain import TerrainMap
 from navigator.terrain_classes import TERRAIN_CLASSES, TerrainClass
 from navigator.vehicle import G, VehicleParams
-from navigator.yielding import YIELD_SPEED_MPS, BackOff, BackOffStep, predicted_track
+from navigator.yielding import BackOff, BackOffStep, YieldLimits, predicted_track
 
 _log = logging.getLogger(__name__)
 
@@ -147,7 +147,15 @@ class Guidance:
         self._clear_hold_ns = round(planner_config.moving_clear_s * 1e9)
         # Stopped in a moving obstacle's way is not safe: the back-off of the current wait.
         self._back_off = BackOff(
-            Footprint.of(params), planner_config.inflation_m, planner_config.moving_horizon_s
+            Footprint.of(params),
+            planner_config.inflation_m,
+            planner_config.moving_horizon_s,
+            YieldLimits(
+                planner_config.yield_speed_mps,
+                planner_config.yield_margin_m,
+                planner_config.yield_max_m,
+                planner_config.yield_max_s,
+            ),
         )
         self._last_xy: tuple[float, float] | None = None
         self.replans = 0
@@ -354,7 +362,7 @@ class Guidance:
         """The command while a moving obstacle holds the rover: straight back (no yaw rate: the way it
         came) or, failing that, straight on while the back-off says so, else standing still."""
         self._mode = YIELDING if step.moving else BLOCKED
-        limit = YIELD_SPEED_MPS if step.moving else 0.0
+        limit = self._config.yield_speed_mps if step.moving else 0.0
         return GuidanceOutput(
             step.speed_mps, 0.0, self._mode, cross_track_m, limit, REASON_MOVING_OBSTACLE, self._path,
             path_changed, False, _joined([detail, step.detail]),

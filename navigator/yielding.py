@@ -35,6 +35,7 @@ from navigator.footprint import Footprint, disc_gap_m, footprint_collides
 from navigator.perception import ObstacleObservation
 from navigator.terrain import TerrainMap
 
+# Defaults of the back-off's [planner] settings (``YieldLimits``; ``PlannerConfig.yield_*``).
 YIELD_SPEED_MPS = 0.5  # reverse speed: half the default max speed, yet out of a 0.8 m/s cart's lane in time
 YIELD_MARGIN_M = 0.3  # the track must clear the footprint by inflation + this before the rover holds again
 YIELD_MAX_M = 3.0  # at most this far back from where the back-off began ...
@@ -52,6 +53,18 @@ def predicted_track(obs: ObstacleObservation, t_ns: int, horizon_s: float) -> np
     steps = np.arange(0.0, horizon_s + 1e-9, PREDICTION_STEP_S)
     age_s = max(0.0, (t_ns - obs.t_ns) * 1e-9)
     return np.column_stack([obs.x + obs.vx * (age_s + steps), obs.y + obs.vy * (age_s + steps)])
+
+
+@dataclass(frozen=True)
+class YieldLimits:
+    """How a back-off moves and where it stops (``[planner] yield_speed_mps``, ``yield_margin_m``,
+    ``yield_max_m``, ``yield_max_s``): a heavier or faster rover, or a yard with faster carts, sets its own.
+    A speed of 0 never backs off (the rover holds, as before the back-off existed)."""
+
+    speed_mps: float = YIELD_SPEED_MPS
+    margin_m: float = YIELD_MARGIN_M
+    max_m: float = YIELD_MAX_M
+    max_s: float = YIELD_MAX_S
 
 
 @dataclass(frozen=True)
@@ -149,8 +162,11 @@ class _Scene:
 class BackOff:
     """The back-off of one ``BLOCKED`` wait: started by a threat to the rover, bounded, then spent."""
 
-    def __init__(self, footprint: Footprint, inflation_m: float, horizon_s: float) -> None:
+    def __init__(
+        self, footprint: Footprint, inflation_m: float, horizon_s: float, limits: YieldLimits = YieldLimits()
+    ) -> None:
         self._footprint = footprint
+        self._limits = limits
         self._inflation_m = inflation_m
         self._horizon_s = horizon_s
         self._start: tuple[int, float, float] | None = None  # (t_ns, x, y) where this wait's back-off began
@@ -172,11 +188,11 @@ class BackOff:
     ) -> BackOffStep:
         """Move out of a moving obstacle's predicted track while it reaches the footprint at ``pose``,
         within the bounds; hold otherwise."""
-        if self._spent:
+        if self._spent or self._limits.speed_mps <= 0.0:
             return HOLD
         scene = _Scene(_tracks(moving, t_ns, self._horizon_s), terrain)
         # Once moving, keep on until the track clears by the margin too (no stop-start at the edge).
-        limit = self._inflation_m + (YIELD_MARGIN_M if self._direction else 0.0)
+        limit = self._inflation_m + (self._limits.margin_m if self._direction else 0.0)
         gap = self._gap(scene, pose)
         threat = gap.obstacle_id
         if threat is None or gap.gap_m >= limit:
@@ -190,7 +206,7 @@ class BackOff:
         started = not self._direction
         if started:
             self._direction = self._way_out(scene, pose, gap)
-        bound = _bound_reached(self._start, t_ns, pose) or self._blocked(scene, pose, gap)
+        bound = _bound_reached(self._start, t_ns, pose, self._limits) or self._blocked(scene, pose, gap)
         if not self._direction or bound:
             self._spent, self._direction = True, 0.0
             why = bound or (
@@ -202,7 +218,7 @@ class BackOff:
         if started:
             way = "backing off" if self._direction < 0.0 else "creeping forward out of its way"
             detail = f"moving obstacle {threat} predicted to reach the rover: {way}"
-        return BackOffStep(self._direction * YIELD_SPEED_MPS, detail)
+        return BackOffStep(self._direction * self._limits.speed_mps, detail)
 
     def _way_out(self, scene: _Scene, pose: tuple[float, float, float], gap: TrackGap) -> float:
         """Back (the way it came) if that gets further from the tracks, else forward if that does, else 0:
@@ -239,14 +255,16 @@ def _moved(pose: tuple[float, float, float], distance_m: float) -> tuple[float, 
     return (x + distance_m * math.cos(yaw), y + distance_m * math.sin(yaw), yaw)
 
 
-def _bound_reached(start: tuple[int, float, float], t_ns: int, pose: tuple[float, float, float]) -> str:
+def _bound_reached(
+    start: tuple[int, float, float], t_ns: int, pose: tuple[float, float, float], limits: YieldLimits
+) -> str:
     """Why a back-off that began at ``start`` (t_ns, x, y) may go no further ("" while it may)."""
     start_ns, x0, y0 = start
     x, y, _yaw = pose
     moved_m = math.hypot(x - x0, y - y0)
-    if moved_m >= YIELD_MAX_M:
-        return f"{moved_m:.1f} m moved, the limit is {YIELD_MAX_M:g} m"
+    if moved_m >= limits.max_m:
+        return f"{moved_m:.1f} m moved, the limit is {limits.max_m:g} m"
     elapsed_s = (t_ns - start_ns) * 1e-9
-    if elapsed_s >= YIELD_MAX_S:
-        return f"{elapsed_s:.1f} s moving, the limit is {YIELD_MAX_S:g} s"
+    if elapsed_s >= limits.max_s:
+        return f"{elapsed_s:.1f} s moving, the limit is {limits.max_s:g} s"
     return ""

@@ -38,6 +38,11 @@ def load(text: str) -> RoverConfig:
             ("0.8 m/s", "follower.max_speed_mps 0.5 m/s", "stuck_time_s = 0"),
         ),
         (
+            "[follower]\nmax_speed_mps = 0.4\n",  # the default back-off speed, 0.5 m/s, is faster
+            "planner.yield_speed_mps",
+            ("0.5 m/s", "follower.max_speed_mps 0.4 m/s"),
+        ),
+        (
             "[vehicle]\ntrack_m = 0.8\nfootprint_width_m = 0.7\n",
             "vehicle.footprint_width_m",
             ("0.7 m", "track_m 0.8 m"),
@@ -68,6 +73,8 @@ def test_contradicting_values_name_both_keys(text: str, key: str, named: tuple[s
         # The stuck check turned off: its speeds are not used, so they cannot contradict anything.
         "[follower]\nmax_speed_mps = 0.5\n[safety]\nstuck_time_s = 0.0\nstuck_min_command_mps = 0.8\n",
         "[safety]\nstuck_time_s = 0.0\nstuck_min_command_mps = 0.2\nstuck_max_speed_mps = 0.3\n",
+        # a slow rover backs off slower
+        "[follower]\nmax_speed_mps = 0.4\n[planner]\nyield_speed_mps = 0.3\n",
     ],
 )
 def test_consistent_values_load(text: str) -> None:
@@ -159,3 +166,14 @@ def test_a_fence_that_cannot_be_meant_is_refused(fence: str, key: str, named: tu
 )
 def test_fences_a_person_means_load(fence: str) -> None:
     assert load(SMALL_MAP + f"[safety]\nfence = {fence}\n").safety.fence
+
+
+def test_the_back_off_settings_are_read_and_checked_in_range() -> None:
+    planner = load(
+        "[planner]\nyield_speed_mps = 0.3\nyield_margin_m = 0.5\nyield_max_m = 2.0\nyield_max_s = 6.0\n"
+    )
+    assert (planner.planner.yield_speed_mps, planner.planner.yield_margin_m) == (0.3, 0.5)
+    assert (planner.planner.yield_max_m, planner.planner.yield_max_s) == (2.0, 6.0)
+    with pytest.raises(ConfigError) as caught:
+        load("[planner]\nyield_max_m = -1.0\n")
+    assert caught.value.key == "planner.yield_max_m"

@@ -175,3 +175,28 @@ def test_rover_straddling_the_lane_backs_out_of_it_rather_than_hold_in_its_middl
     # It left the lane by the margin: its nose (centre + 0.45 m) short of x 9.5 - inflation - margin.
     held_x = 10.0 - YIELD_SPEED_MPS * TICK_S * sum(1 for m in modes[:first_hold] if m == YIELDING)
     assert held_x + 0.45 < 9.5 - (PlannerConfig().inflation_m + YIELD_MARGIN_M) + 1e-9
+
+
+def _guidance_with(planner: PlannerConfig) -> Guidance:
+    guidance = Guidance(_flat(), PARAMS, planner, FollowerConfig())
+    guidance.set_goal(27.0, 10.0)
+    assert guidance.update(0, 2.0, 10.0, 0.0, 0.0).mode == DRIVING
+    return guidance
+
+
+def test_the_back_off_speed_and_distance_bound_are_the_configs() -> None:
+    # The distance-bound case above with [planner] yield_speed_mps = 0.3, yield_max_m = 1.2.
+    guidance = _guidance_with(PlannerConfig(yield_speed_mps=0.3, yield_max_m=1.2))
+    outputs, rover_x = _run(guidance, 500, 14.0, 15.0, 10.0, vx=-0.3, vy=0.0)
+    modes = [out.mode for out in outputs]
+    assert outputs[0].mode == YIELDING and outputs[0].speed_mps == pytest.approx(-0.3)
+    assert outputs[0].speed_limit_mps == pytest.approx(0.3)
+    first_hold = modes.index(BLOCKED)
+    assert "the limit is 1.2 m; holding" in outputs[first_hold].detail
+    assert 14.0 - rover_x == pytest.approx(1.2, abs=0.3 * TICK_S + 1e-9)
+
+
+def test_a_back_off_speed_of_zero_holds_in_the_carts_way() -> None:
+    guidance = _guidance_with(PlannerConfig(yield_speed_mps=0.0))
+    outputs, rover_x = _run(guidance, 100, 10.0, 10.3, 12.5)
+    assert {out.mode for out in outputs} == {BLOCKED} and rover_x == 10.0
