@@ -25,6 +25,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import secrets
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -219,7 +220,10 @@ def run_peer(
     out_dir.mkdir(parents=True, exist_ok=True)
     mcap_path = out_dir / "truth.mcap"
     with McapRecorder(mcap_path) as recorder:
-        write_peer_header(recorder, scenario, config, seed)
+        # Names this run in truth.mcap and in the rover config it writes, so the rover's recording names it
+        # too: a report pairs each rover recording with its own truth even when runs overlap in time.
+        peer_run = secrets.token_hex(8)
+        write_peer_header(recorder, scenario, config, seed, peer_run)
         codec = VescCodec.for_profile(config.vesc)
         step_clock = StepClock(clock.now_ns())
         with SimWorld(scenario, config.vehicle, codec, step_clock, can_bus, mavlink, recorder, seed) as world:
@@ -229,7 +233,7 @@ def run_peer(
             peer = RealtimePeer(world, step_clock, recorder, status_path)
             if status_path is not None:
                 peer.write_status()
-            rover_config = write_peer_files(out_dir, scenario, config, mavlink_port)
+            rover_config = write_peer_files(out_dir, scenario, config, mavlink_port, peer_run)
             if port_file is not None:
                 _write_atomically(port_file, f"{mavlink_port}\n")
             if on_ready is not None:
@@ -263,14 +267,18 @@ def run_peer(
     )
 
 
-def write_peer_header(recorder: McapRecorder, scenario: Scenario, config: RoverConfig, seed: int) -> None:
+def write_peer_header(
+    recorder: McapRecorder, scenario: Scenario, config: RoverConfig, seed: int, peer_run: str
+) -> None:
     """The lockstep trial's scenario metadata (the metrics need it), and this run's mode."""
     # hil.trial writes the same scenario record; it keeps its writer private, so reuse it through the
     # module and then say which kind of run this is (the later "trial" record wins for readers).
     from hil import trial
 
     trial.write_header(recorder, scenario, config, seed, mode="sim-realtime-peer")
-    recorder.add_metadata("peer", {"mode": "sim-realtime-peer", "physics_dt_ns": str(PHYSICS_DT_NS)})
+    recorder.add_metadata(
+        "peer", {"mode": "sim-realtime-peer", "physics_dt_ns": str(PHYSICS_DT_NS), "run": peer_run}
+    )
 
 
 def _write_atomically(path: Path, text: str) -> None:

@@ -24,8 +24,11 @@ ROVER_CONFIG_NAME = "rover-hil.toml"
 MAP_DIR = "map"
 
 
-def write_peer_files(out_dir: Path, scenario: Scenario, config: RoverConfig, mavlink_port: int) -> Path:
-    """Write the map layers and ``rover-hil.toml`` into ``out_dir``; returns the config's path."""
+def write_peer_files(
+    out_dir: Path, scenario: Scenario, config: RoverConfig, mavlink_port: int, peer_run: str | None = None
+) -> Path:
+    """Write the map layers and ``rover-hil.toml`` into ``out_dir``; returns the config's path.
+    ``peer_run``: this peer run's id, which ``rover run`` records beside the peer's own (``hil_peer_run``)."""
     terrain = scenario.believed_terrain
     map_dir = out_dir / MAP_DIR
     map_dir.mkdir(parents=True, exist_ok=True)
@@ -42,6 +45,7 @@ def write_peer_files(out_dir: Path, scenario: Scenario, config: RoverConfig, mav
         f"#   rover run --config {ROVER_CONFIG_NAME} --goal X,Y",
         f"rover_id = {json.dumps(config.rover_id)}",
         f"control_rate_hz = {config.control_rate_hz!r}",
+        *([f"hil_peer_run = {json.dumps(peer_run)}"] if peer_run is not None else []),
         "",
         "[can]",
         f"interface = {json.dumps(config.can.interface)}",

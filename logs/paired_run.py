@@ -33,6 +33,7 @@ from logs.reader import (
     RecordedMessage,
     RecordedMetadata,
     RecordedRaw,
+    RecordingOutline,
     read_entries,
     read_outline,
 )
@@ -204,16 +205,25 @@ def _no_overlap(truth: str | Path, span: tuple[int, int] | None, window: tuple[i
 
 def misplaced_truths(pairs: Sequence[tuple[Path, Path]]) -> list[str]:
     """What is wrong with (rover, truth) pairs given in order (``--truth`` once per rover recording) when
-    a truth was recorded while another pair's rover ran and not while its own did: the truth files given
-    in another order than the rover files. Empty when nothing is.
+    a truth belongs to another run than its rover's: the truth files given in another order than the
+    rover files. Empty when nothing is.
 
-    Only what the recordings' log-time spans tell (``read_outline``: no message decoded, so cheap before
-    the report's pass): a pair with a file that cannot be read is left to the report, which says why, and
-    a lockstep trial's span (a simulated clock from 0, overlapping every other lockstep trial's) counts as
-    no span; ``read_paired`` still checks each pair against the rover's drive."""
-    spans = _real_time_spans({path for pair in pairs for path in pair})
+    Only what the recordings' outlines tell (``read_outline``: no message decoded, so cheap before the
+    report's pass). First the HIL peer run both name (the truth's ``peer`` ``run``, the rover's ``trial``
+    ``hil_peer_run`` from the rover-hil.toml that peer wrote): two different runs never pair, even runs
+    recorded at the same time. Recordings made before the run ids, by the log-time spans: a truth recorded
+    while another pair's rover ran and not while its own did. A pair with a file that cannot be read is left
+    to the report, which says why, and a lockstep trial's span (a simulated clock from 0, overlapping every
+    other lockstep trial's) counts as no span; ``read_paired`` still checks each pair against the rover's
+    drive."""
+    outlines = _outlines({path for pair in pairs for path in pair})
+    spans = {path: _real_time_span(outline) for path, outline in outlines.items()}
+    runs = {path: _peer_run(outline) for path, outline in outlines.items()}
     problems = []
     for number, (rover, truth) in enumerate(pairs, start=1):
+        if runs.get(rover) and runs.get(truth) and runs[rover] != runs[truth]:
+            problems.append(_other_peer_run(number, rover, truth, runs, pairs))
+            continue
         if rover not in spans or truth not in spans or _overlap(spans[truth], spans[rover]):
             continue
         owners = [
@@ -229,17 +239,46 @@ def misplaced_truths(pairs: Sequence[tuple[Path, Path]]) -> list[str]:
     return problems
 
 
-def _real_time_spans(paths: Iterable[Path]) -> dict[Path, tuple[int, int] | None]:
-    """Each readable file's log-time span; ``None`` for a lockstep trial or a file without messages."""
-    spans: dict[Path, tuple[int, int] | None] = {}
+def _outlines(paths: Iterable[Path]) -> dict[Path, RecordingOutline]:
+    """Each readable file's outline; an unreadable one is left to the report, which says why in its place."""
+    outlines = {}
     for path in paths:
         try:
-            outline = read_outline(path)
+            outlines[path] = read_outline(path)
         except LogsError:
-            continue  # unreadable: the report says why, in its place
-        lockstep = outline.metadata.get(TRIAL_METADATA, {}).get("mode") == LOCKSTEP_MODE
-        spans[path] = None if lockstep else outline.span_ns
-    return spans
+            continue
+    return outlines
+
+
+def _real_time_span(outline: RecordingOutline) -> tuple[int, int] | None:
+    """The file's log-time span; ``None`` for a lockstep trial or a file without messages."""
+    lockstep = outline.metadata.get(TRIAL_METADATA, {}).get("mode") == LOCKSTEP_MODE
+    return None if lockstep else outline.span_ns
+
+
+def _peer_run(outline: RecordingOutline) -> str:
+    """The HIL peer run a recording belongs to: a truth's own (``peer`` ``run``), a rover recording's
+    (``trial`` ``hil_peer_run``, from the rover-hil.toml the peer wrote); "" for older recordings."""
+    return outline.metadata.get("peer", {}).get("run") or outline.metadata.get(TRIAL_METADATA, {}).get(
+        "hil_peer_run", ""
+    )
+
+
+def _other_peer_run(
+    number: int, rover: Path, truth: Path, runs: dict[Path, str], pairs: Sequence[tuple[Path, Path]]
+) -> str:
+    """A truth of another peer run than its rover's, and whose run it is when that rover is among the pairs:
+    decided by the run ids, so it holds for runs recorded at the same time too."""
+    owners = [
+        f"rover recording {other_number} ({other})"
+        for other_number, (other, _) in enumerate(pairs, start=1)
+        if other_number != number and runs.get(other) == runs[truth]
+    ]
+    whose = f"; it is the truth of {' and '.join(owners)}" if owners else ""
+    return (
+        f"--truth {truth} (truth {number}) pairs with rover recording {number} ({rover}) but was recorded by "
+        f"HIL peer run {runs[truth]}, and {rover} ran against peer run {runs[rover]}{whose}"
+    )
 
 
 def _overlap(a: tuple[int, int] | None, b: tuple[int, int] | None) -> bool:

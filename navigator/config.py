@@ -119,6 +119,9 @@ class RoverConfig:
     control_loop: str = DEFAULT_CONTROL_LOOP
     phase_offset_ms: float = DEFAULT_PHASE_OFFSET_MS
     phase_late_wait_ms: float = DEFAULT_PHASE_LATE_WAIT_MS
+    # The real-time HIL peer run this config was written for (``rover hil peer`` writes it into its
+    # rover-hil.toml; ``rover run`` records it), so a report pairs each rover recording with its own truth.
+    hil_peer_run: str | None = None
     # [map]: the terrain `rover run` plans on (HIL trials use the scenario's instead); None if absent.
     terrain: TerrainMap | None = dataclasses.field(default=None, compare=False, repr=False)
 
@@ -138,6 +141,9 @@ def rover_config_from_table(root: Table, base_dir: Path | None = None) -> RoverC
             "rover_id", f"use letters, digits, '-' and '_' only (it becomes a Zenoh key), got {rover_id!r}"
         )
     control_rate_hz = root.number("control_rate_hz", 50.0, lo=1.0, hi=1000.0)
+    hil_peer_run = root.text("hil_peer_run", "") or None
+    if hil_peer_run is not None and not all(c.isalnum() or c in "-_" for c in hil_peer_run):
+        raise root.error("hil_peer_run", f"use letters, digits, '-' and '_' only, got {hil_peer_run!r}")
     pacing_sensor = root.text("pacing_sensor", "imu", choices=PACING_SENSORS)
     busy_poll_ms = root.number("busy_poll_ms", DEFAULT_BUSY_POLL_MS, lo=0.0, hi=10.0)
     # Wheel status cannot lock a phase (navigator.config_checks): it paces the sensor-paced loop instead.
@@ -183,6 +189,7 @@ def rover_config_from_table(root: Table, base_dir: Path | None = None) -> RoverC
         phase_offset_ms=phase_offset_ms,
         phase_late_wait_ms=phase_late_wait_ms,
         terrain=(terrain_from_table(root.table("map"), base_dir)[0] if root.has("map") else None),
+        hil_peer_run=hil_peer_run,
         source=root.source,
     )
     root.finish()

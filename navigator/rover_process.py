@@ -213,6 +213,8 @@ def _open_recording(
     }
     if config.vesc.dbc_path is not None:  # a swapped-in controller DBC: which protocol the frames are in
         trial["vesc_dbc"] = str(config.vesc.dbc_path)
+    if config.hil_peer_run is not None:  # the HIL peer run this rover ran against: its truth names it too
+        trial["hil_peer_run"] = config.hil_peer_run
     recorder.add_metadata("trial", trial)
     attach_vesc_dbc(recorder, config.vesc)
     # The date of log time 0 is otherwise unknown (the clock is monotonic): .asc/.trc exports need it.

@@ -38,12 +38,14 @@ def write_pair(
     boot_ns: int = BOOT_NS,
     wobble_m: float = 0.3,
     seed: int = 1,
+    peer_run: str | None = None,
 ) -> tuple[Path, Path, Path]:
     """(one-file reference, rover.mcap, truth.mcap) of the same synthetic trial in ``folder``.
 
     ``boot_ns``: the clock's reading at the rover's start; ``clock_offset_ns`` the same for the truth
     file (default ``boot_ns``: the same run; another value: a truth recorded at another time);
-    ``wobble_m`` and ``seed`` as for ``synthetic_trial`` (two runs that drive differently)."""
+    ``wobble_m`` and ``seed`` as for ``synthetic_trial`` (two runs that drive differently); ``peer_run``
+    the HIL peer run id both files name, as ``rover hil peer`` and ``rover run`` record it (None: none)."""
     folder.mkdir(parents=True, exist_ok=True)
     truth_ns = boot_ns if clock_offset_ns is None else clock_offset_ns
     records = list(synthetic_trial(DURATION_S, wobble_m=wobble_m, seed=seed))
@@ -54,7 +56,8 @@ def write_pair(
         for topic, t, message in records:
             recorder.publish(topic, boot_ns + t, message)
     with McapRecorder(rover) as recorder:
-        recorder.add_metadata("trial", {"mode": "rover-run", "config": "peer/rover-hil.toml"})
+        run = {} if peer_run is None else {"hil_peer_run": peer_run}
+        recorder.add_metadata("trial", {"mode": "rover-run", "config": "peer/rover-hil.toml", **run})
         for topic, t, message in records:
             if topic not in TRUTH_TOPICS:
                 recorder.publish(topic, boot_ns + t, message)
@@ -64,7 +67,9 @@ def write_pair(
     with McapRecorder(truth) as recorder:
         recorder.add_metadata("scenario", scenario)
         recorder.add_metadata("trial", {"mode": "sim-realtime-peer", "config": "<built-in defaults>"})
-        recorder.add_metadata("peer", {"mode": "sim-realtime-peer"})
+        recorder.add_metadata(
+            "peer", {"mode": "sim-realtime-peer", **({} if peer_run is None else {"run": peer_run})}
+        )
         for k in range(30):  # the peer waits for the rover, standing at the start
             t = truth_ns - PEER_EARLY_NS + k * 100_000_000
             recorder.publish(TRUTH_POSE, t, _moved(first, t, start["x"], start["y"]))

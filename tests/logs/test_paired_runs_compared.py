@@ -90,6 +90,25 @@ def test_swapped_truths_are_refused_naming_whose_each_is(
     assert not out.exists()
 
 
+def test_runs_recorded_at_the_same_time_are_paired_by_their_peer_run(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Two rovers against two peers on one machine, at the same time: the spans overlap and cannot tell
+    # the truths apart (swapped, they used to be reported as each other's). The peer run ids can.
+    rover_a, truth_a = write_pair(tmp_path / "a", wobble_m=0.3, seed=1, peer_run="aaaa1111")[1:]
+    rover_b, truth_b = write_pair(tmp_path / "b", wobble_m=1.2, seed=2, peer_run="bbbb2222")[1:]
+    out = tmp_path / "out"
+    assert main(_report(rover_a, rover_b, "--truth", truth_b, "--truth", truth_a, "--out", out)) == 2
+    printed = " ".join(capsys.readouterr().out.split())
+    assert (
+        f"--truth {truth_b} (truth 1) pairs with rover recording 1 ({rover_a}) but was recorded by HIL peer "
+        f"run bbbb2222, and {rover_a} ran against peer run aaaa1111; it is the truth of rover recording 2"
+        in printed
+    )
+    assert not out.exists()
+    assert main(_report(rover_a, rover_b, "--truth", truth_a, "--truth", truth_b, "--out", out)) == 0
+
+
 def test_a_directory_with_truth_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     (_, rover_a, truth_a), _ = _two_runs(tmp_path / "runs")
     folder = rover_a.parent

@@ -110,6 +110,9 @@ def _compare_with_lockstep(tmp_path: Path, small_trial: TrialResult, control_loo
     assert not realtime.missing, realtime.missing
     # The peer's world started on the monotonic clock (not at 0): the metrics time moving obstacles from it.
     assert int(read_metadata(tmp_path / "peer" / "truth.mcap")["world"]["epoch_ns"]) > 0
+    # Both recordings name the peer run: the rover's from the rover-hil.toml the peer wrote for it.
+    peer_run = read_metadata(truth_mcap)["peer"]["run"]
+    assert len(peer_run) == 16 and read_metadata(rover_mcap)["trial"]["hil_peer_run"] == peer_run
 
     # `rover logs report ROVER --truth TRUTH`: the same run on the truth, with the estimator's error.
     (run,) = write_report([rover_mcap], tmp_path / "report", plots=False, truth=truth_mcap).runs
