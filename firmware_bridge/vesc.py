@@ -177,10 +177,10 @@ class VescCodec:
     def __init__(self, database: cantools.database.can.Database, profile: VescProfile) -> None:
         self.database = database
         self.profile = profile
-        self._by_key: dict[tuple[str, int], cantools.database.can.Message] = {}
         # frame id -> (kind, controller id, message, its length, its packer or None): one lookup per
         # received frame. cantools' Message.length is a property computed per access.
         self._by_id: dict[int, tuple[str, int, cantools.database.can.Message, int, FramePacker | None]] = {}
+        # (kind, controller id) -> its encoder, which also holds the message (``encode`` looks it up there).
         self._encoders: dict[tuple[str, int], FrameEncoder] = {}
         for cid in profile.controller_ids:
             for spec in VESC_MESSAGES:
@@ -195,24 +195,11 @@ class VescCodec:
                 if not message.is_extended_frame:
                     raise BridgeSetupError(f"{name} must use a 29-bit extended id in the DBC")
                 packer = FramePacker.for_message(message)
-                self._by_key[(spec.kind, cid)] = message
                 self._by_id[message.frame_id] = (spec.kind, cid, message, message.length, packer)
                 self._encoders[(spec.kind, cid)] = FrameEncoder(message, packer)
 
-    def _message(self, kind: str, controller_id: int) -> cantools.database.can.Message:
-        try:
-            return self._by_key[(kind, controller_id)]
-        except KeyError:
-            raise self._unknown_message(kind, controller_id) from None
-
-    def _unknown_message(self, kind: str, controller_id: int) -> BridgeOperationError:
-        return BridgeOperationError(
-            f"no VESC message {kind!r} for controller {controller_id}; known controllers "
-            f"{list(self.profile.controller_ids)}, kinds {[m.kind for m in VESC_MESSAGES]}"
-        )
-
     def encode(self, kind: str, controller_id: int, **values: float) -> can.Message:
-        message = self._message(kind, controller_id)
+        message = self.encoder(kind, controller_id).message
         try:
             data = message.encode(values)
         except (cantools.database.EncodeError, KeyError, ValueError, TypeError) as err:
@@ -235,7 +222,10 @@ class VescCodec:
         try:
             return self._encoders[(kind, controller_id)]
         except KeyError:
-            raise self._unknown_message(kind, controller_id) from None
+            raise BridgeOperationError(
+                f"no VESC message {kind!r} for controller {controller_id}; known controllers "
+                f"{list(self.profile.controller_ids)}, kinds {[m.kind for m in VESC_MESSAGES]}"
+            ) from None
 
     def decode(self, msg: can.Message) -> VescFrame:
         """Strictly decode a received frame; raises ``FrameError`` with a ``reason`` on anything odd."""
