@@ -42,7 +42,6 @@ class FramePacker:
 
     def __init__(self, message: cantools.database.can.Message, layout: str, signals: tuple[Any, ...]) -> None:
         self.message = message
-        self.names = tuple(signal.name for signal in signals)
         self._struct = struct.Struct(layout)
         # (name, physical -> raw) per field in struct order: one tuple walked per pack.
         self._fields = tuple((signal.name, _to_raw(signal.conversion)) for signal in signals)
