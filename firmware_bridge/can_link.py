@@ -226,7 +226,6 @@ class CanLink(ClosesOnExit):
         self._bytes_sink = bytes_only_sink(sink)
         self._frame_records = _FrameRecords()
         self.profile = codec.profile
-        self._erpm_per_mps = codec.profile.erpm_per_mps
         self.counters = CanCounters()
         self._ids = codec.profile.controller_ids
         self._set_rpm = tuple(codec.encoder("SET_RPM", cid) for cid in self._ids)  # in wheel order
@@ -291,7 +290,7 @@ class CanLink(ClosesOnExit):
             raise BridgeOperationError(
                 f"need {WHEEL_COUNT} wheel speeds in wheel order, got {len(speeds_mps)}"
             )
-        erpm_per_mps = self._erpm_per_mps
+        erpm_per_mps = self.profile.erpm_per_mps
         requested: list[int] = []
         for index, speed in enumerate(speeds_mps):
             if not math.isfinite(speed):
@@ -553,8 +552,7 @@ class CanLink(ClosesOnExit):
         values = frame.values
         if frame.kind == "STATUS":
             reading.erpm = values["erpm"]
-            # VescProfile.speed_from_erpm, with erpm_per_mps (a property computed per access) kept.
-            reading.speed_mps = reading.erpm / self._erpm_per_mps
+            reading.speed_mps = reading.erpm / self.profile.erpm_per_mps  # speed_from_erpm, inline (hot path)
             reading.motor_current_a = values["current"]
             reading.duty = values["duty"]
         elif frame.kind == "STATUS_4":

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -64,8 +65,10 @@ class VescProfile:
         if not (math.isfinite(self.wheel_radius_m) and self.wheel_radius_m > 0):
             raise BridgeSetupError(f"wheel_radius_m must be a positive number, got {self.wheel_radius_m}")
 
-    @property
+    @functools.cached_property
     def erpm_per_mps(self) -> float:
+        # Computed once per profile: the link and the simulated controllers convert with it every frame and
+        # step, and the profile is frozen. (cached_property writes the instance's dict, which frozen allows.)
         return _SECONDS_PER_MINUTE / (2.0 * math.pi * self.wheel_radius_m) * self.gear_ratio * self.pole_pairs
 
     def erpm_from_speed(self, speed_mps: float) -> float:

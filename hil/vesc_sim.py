@@ -62,8 +62,6 @@ class SimVescBank:
         self.profile = codec.profile
         self._ids = codec.profile.controller_ids
         self._wheel_of = {cid: i for i, cid in enumerate(self._ids)}
-        # VescProfile.erpm_per_mps is a property computed per access; wheel_speeds_mps asks every step.
-        self._erpm_per_mps = codec.profile.erpm_per_mps
         self._status_period_ns = to_ns(1.0 / status_rate_hz)
         self._slow_period_ns = to_ns(1.0 / slow_status_rate_hz)
         self._timeout_ns = to_ns(command_timeout_s)
@@ -268,8 +266,8 @@ class SimVescBank:
 
     # --- accessors -----------------------------------------------------------------------------
     def wheel_speeds_mps(self) -> list[float]:
-        # VescProfile.speed_from_erpm's arithmetic, with its erpm_per_mps kept (a property per access).
-        erpm_per_mps = self._erpm_per_mps
+        # VescProfile.speed_from_erpm's arithmetic, inline: every physics step asks, six wheels.
+        erpm_per_mps = self.profile.erpm_per_mps
         return [e / erpm_per_mps for e in self._erpm]
 
     def targets_erpm(self) -> list[float]:
