@@ -562,7 +562,7 @@ class Estimator:
 
     def _count(self, innovation: Innovation, sensor: str) -> None:
         if innovation.accepted:
-            self._counters[_ACCEPTED_KEYS.get(sensor) or f"{sensor}_accepted"] += 1
+            self._counters[_ACCEPTED_KEYS[sensor]] += 1
         else:
             self._reject(f"{sensor}_gated", f"NIS {innovation.nis:.1f}, residual {_cm(innovation.residual)}")
 

@@ -194,7 +194,7 @@ class SafetySupervisor:
 
     def _check_links(self, i: SafetyInputs) -> None:
         now, start, limit = i.now_ns, self._start_ns, self._silent_ns
-        # Each wheel's age as ``_age`` measures it, inline: six calls a tick.
+        # Each wheel's age; a controller never heard counts from the supervisor's start (``start``).
         silent = [
             index
             for index, t in enumerate(i.wheel_last_status_ns)
@@ -362,10 +362,6 @@ class SafetySupervisor:
         return SafetyDecision(mode, scale, self.faults if active else ())
 
     # --- helpers --------------------------------------------------------------------------------
-    def _age(self, now_ns: int, t_ns: int | None) -> int:
-        """Time since ``t_ns``; never seen counts from the supervisor's start (``start``)."""
-        return now_ns - (self._start_ns if t_ns is None else t_ns)
-
     def _stall_keys(self, wheels: int) -> list[str]:
         """The keys of ``wheel_stalled``'s per-wheel sustained conditions, named once per wheel."""
         keys = self._stall_key_names
@@ -383,7 +379,7 @@ class SafetySupervisor:
     def _timeout(self, name: str, what: str, now_ns: int, last_ns: int | None, limit_ns: int) -> None:
         if limit_ns <= 0:
             return
-        age = now_ns - (self._start_ns if last_ns is None else last_ns)  # _age, inline: four a tick
+        age = now_ns - (self._start_ns if last_ns is None else last_ns)  # never seen: from the start
         self._set(name, _over(f"{what} for {_ms(age)}", limit_ns) if age > limit_ns else None)
 
     def _set(self, name: str, detail: str | None, severity: str = "error") -> None:
