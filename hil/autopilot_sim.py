@@ -72,7 +72,8 @@ class SimAutopilot:
     """Sends HEARTBEAT, SYS_STATUS, GPS_RAW_INT, SCALED_IMU and ATTITUDE at their rates, on the clock.
 
     ``gps`` and ``imu`` are the sensor models (``hil.sensors``); by default fault-free ones built from the
-    noise figures. Call ``record_truth`` every physics tick when the GPS has latency or delay faults.
+    noise figures. Call ``step(truth, record=True)`` every physics tick when the GPS has latency or delay
+    faults.
     """
 
     def __init__(
@@ -150,18 +151,15 @@ class SimAutopilot:
         self.bad_frames_received = 0
 
     # --- sending -------------------------------------------------------------------------------
-    def record_truth(self, truth: AutopilotTruth) -> None:
-        """Let the GPS remember where the rover was now (for its latency and delay faults)."""
-        self._record(self._clock.now_ns(), truth)
-
     def _record(self, now: int, truth: AutopilotTruth) -> None:
+        """Let the GPS remember where the rover was at ``now`` (for its latency and delay faults)."""
         self._gps.record(GpsSample(now, truth.x_m, truth.y_m, truth.z_m, truth.yaw_rad, truth.speed_mps))
 
     def step(self, truth: AutopilotTruth, *, record: bool = False) -> None:
         """Send what is due at the clock's now, in a fixed order: IMU, attitude, GPS, status, heartbeat.
 
-        ``record``: first remember ``truth`` for the GPS (``record_truth``), as the world does every
-        physics tick, in one call.
+        ``record``: first let the GPS remember ``truth`` (for its latency and delay faults), as the world
+        does every physics tick.
 
         The IMU goes first: it paces the rover's control loop, and a real IMU samples on its own timer;
         behind the GPS fix's geodesy and the other encodings it would leave 0.1-0.3 ms later on the steps

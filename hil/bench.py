@@ -64,7 +64,7 @@ TIMED_METHODS: dict[str, tuple[str, ...]] = {
     "telemetry": ("publish", "publish_encoded", "publish_bytes"),
     "world": ("tick",),
     "vescs": ("poll", "step"),
-    "autopilot": ("step", "poll", "record_truth"),
+    "autopilot": ("step", "poll"),
     "dynamics": ("step",),
     "truth": ("on_step",),
 }

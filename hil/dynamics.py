@@ -299,7 +299,8 @@ class RoverDynamics:
         wheels[:] = wheel_surface_speeds
         if not math.isfinite(battery_voltage_v):
             raise DynamicsError(f"battery voltage must be finite, got {battery_voltage_v}")
-        # The usual case, every step: the VESCs' six zeros (no wheel seized), known by one comparison.
+        # Nothing seized: () (the world's, without a vesc fault) or six zeros (the VESCs' own, while a
+        # scheduled vesc fault has seized no wheel yet), the latter known by one comparison.
         seized = bool(stalled) and stalled != _NONE_SEIZED
         if seized and (len(stalled) != 6 or any(d not in (-1.0, 0.0, 1.0) for d in stalled)):
             raise DynamicsError(f"stalled must be six values of -1, 0 or +1, got {list(stalled)}")

@@ -109,9 +109,9 @@ class FaultSchedule:
                 return fault
         return None
 
-    def scheduled(self, target: str, kind: str) -> bool:
-        """Whether any fault on ``target`` of ``kind`` is scheduled at all."""
-        return any(f.target == target and f.kind == kind for f in self.faults)
+    def scheduled(self, target: str, kind: str | None = None) -> bool:
+        """Whether any fault on ``target`` (of ``kind``, if given) is scheduled at all."""
+        return any(f.target == target and (kind is None or f.kind == kind) for f in self.faults)
 
     def active_all(self, target: str, t_ns: int) -> list[Fault]:
         t_ns -= self.epoch_ns

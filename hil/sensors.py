@@ -160,7 +160,7 @@ class ImuModel:
         self._accel_bias = tuple(float(b) for b in accel_bias_mps2)
         self._last: ImuReading | None = None
         # Whether any IMU fault is scheduled at all: without one, a reading asks the schedule nothing.
-        self._has_faults = any(f.target == "imu" for f in faults.faults)
+        self._has_faults = faults.scheduled("imu")
 
     def read(
         self, now: int, yaw_rate_rps: float, specific_force_flu: tuple[float, float, float]

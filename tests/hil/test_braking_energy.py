@@ -12,7 +12,6 @@ import pytest
 
 from firmware_bridge.can_link import CanLink
 from firmware_bridge.vesc import VescCodec
-from firmware_bridge.vesc_dbc import load_vesc_database
 from hil.lockstep import lockstep_wires
 from hil.world import ELECTRONICS_CURRENT_A, SimWorld
 from logs.clock import SimClock
@@ -40,7 +39,7 @@ def test_braking_downhill_draws_only_the_electronics_current():
     clock, sink = SimClock(), MemorySink()
     currents, integral_wh = [], 0.0
     with lockstep_wires(config.can, clock=clock) as wires:
-        codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
+        codec = VescCodec.for_profile(config.vesc)
         link = CanLink(wires.onboard_bus, codec, clock, sink)
         with SimWorld(
             scenario, config.vehicle, codec, clock, wires.sim_bus, wires.sim_mavlink, sink, 1

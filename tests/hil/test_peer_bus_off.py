@@ -23,7 +23,6 @@ from firmware_bridge.can_health import CAN_ERR_BUSOFF, CAN_ERR_RESTARTED
 from firmware_bridge.can_link import CanLink, CanLinkState
 from firmware_bridge.mavlink_transport import memory_pipe_pair
 from firmware_bridge.vesc import VescCodec
-from firmware_bridge.vesc_dbc import load_vesc_database
 from hil.bus_off import BUS_OFF_REPEAT_NS, BusOffAnnouncer
 from hil.faults import Fault, FaultSchedule
 from hil.lockstep_bus import lockstep_bus_pair
@@ -138,7 +137,7 @@ def run_rover_against_peer(
     pair: BusPair, tmp_path: Path, faults: str, listen_from_s: float = 0.0, seconds: float = 3.0
 ) -> Rover:
     config: RoverConfig = rover_config_from_table(parse_toml("", "<defaults>"))
-    codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
+    codec = VescCodec.for_profile(config.vesc)
     clock = RoverTurnsClock()
     sim_mavlink, _rover_mavlink = memory_pipe_pair()
     with pair() as (peer_end, rover_end):

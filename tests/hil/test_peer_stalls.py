@@ -6,7 +6,6 @@ import json
 from pathlib import Path
 
 from firmware_bridge.vesc import VescCodec
-from firmware_bridge.vesc_dbc import load_vesc_database
 from hil.lockstep import lockstep_wires
 from hil.peer import MAX_SUBSTEPS, PHYSICS_DT_NS, RealtimePeer
 from hil.peer_stalls import PeerStalls, parse_stall_message, stall_message
@@ -46,7 +45,7 @@ def test_a_late_step_drops_simulated_time_and_the_peer_records_and_reports_it(tm
         lockstep_wires(config.can, clock=clock) as wires,
         McapRecorder(tmp_path / "truth.mcap") as recorder,
     ):
-        codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
+        codec = VescCodec.for_profile(config.vesc)
         world = SimWorld(
             scenario, config.vehicle, codec, clock, wires.sim_bus, wires.sim_mavlink, recorder, scenario.seed
         )

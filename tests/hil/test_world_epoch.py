@@ -14,7 +14,6 @@ import numpy as np
 import pytest
 
 from firmware_bridge.vesc import VescCodec
-from firmware_bridge.vesc_dbc import load_vesc_database
 from hil.lockstep import lockstep_wires
 from hil.world import SimWorld
 from logs.clock import SimClock, to_ns
@@ -49,7 +48,7 @@ def world_from(start_ns: int, sink: MemorySink) -> Iterator[tuple[SimWorld, SimC
     config = rover_config_from_table(parse_toml("", "<defaults>"))
     clock = SimClock(start_ns)
     with lockstep_wires(config.can, clock=clock) as wires:
-        codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
+        codec = VescCodec.for_profile(config.vesc)
         with SimWorld(
             scenario, config.vehicle, codec, clock, wires.sim_bus, wires.sim_mavlink, sink, scenario.seed
         ) as world:

@@ -14,7 +14,6 @@ import pymap3d
 from firmware_bridge.can_link import CanLink
 from firmware_bridge.mavlink_link import MavlinkLink
 from firmware_bridge.vesc import VescCodec
-from firmware_bridge.vesc_dbc import load_vesc_database
 from hil.lockstep import lockstep_wires
 from hil.scenario import Scenario, scenario_from_table
 from hil.world import SimWorld
@@ -63,7 +62,7 @@ def run_world(extra: str = "", seconds: float = 4.0, speed_mps: float = 0.6) -> 
     config = rover_config_from_table(parse_toml("", "<defaults>"))
     clock, sink = SimClock(), MemorySink()
     with lockstep_wires(config.can, clock=clock) as wires:
-        codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
+        codec = VescCodec.for_profile(config.vesc)
         with SimWorld(
             scenario, config.vehicle, codec, clock, wires.sim_bus, wires.sim_mavlink, sink, scenario.seed
         ) as world:

@@ -20,7 +20,6 @@ from firmware_bridge.can_link import CanLink, open_bus
 from firmware_bridge.mavlink_link import MavlinkLink
 from firmware_bridge.mavlink_transport import PipeEnd, memory_pipe_pair
 from firmware_bridge.vesc import VescCodec
-from firmware_bridge.vesc_dbc import load_vesc_database
 from hil.autopilot_sim import AutopilotTruth, SimAutopilot
 from hil.battery import Battery
 from hil.dynamics import RoverDynamics
@@ -144,7 +143,7 @@ class Rig:
         self._sim_bus = open_bus(bus_config)
         onboard_pipe, sim_pipe = memory_pipe_pair()
         self.wire = FaultyAutopilotWire(sim_pipe)
-        codec = VescCodec(load_vesc_database(config.vesc.controller_ids), config.vesc)
+        codec = VescCodec.for_profile(config.vesc)
         can_link = CanLink(self.bus, codec, self.clock, onboard_sink)
         mavlink = MavlinkLink(onboard_pipe, self.clock, onboard_sink)
         self.stack = OnboardStack(
