@@ -266,7 +266,6 @@ class OnboardStack:
         self._sent_wheels_mps: tuple[float, ...] = (0.0,) * len(self._wheels)  # as the bus carried them
         self._send_failing_since_ns: int | None = None
         self._sent_at_ns = clock.now_ns()
-        self._erpm_per_mps = can_link.profile.erpm_per_mps  # the link's fixed profile, read every tick
         self._deferred = deferred
         self._pacing = config.pacing_sensor
         self._pacing_rx_ns: int | None = None  # receive time of the newest pacing sample in this read
@@ -384,7 +383,7 @@ class OnboardStack:
             elif self._send_failing_since_ns is None:
                 self._send_failing_since_ns = now
             self._sent_speed_mps, self._sent_at_ns = speed, now
-            erpm_per_mps = self._erpm_per_mps
+            erpm_per_mps = self._can.profile.erpm_per_mps  # computed once per profile
             self._sent_wheels_mps = tuple([e / erpm_per_mps for e in erpm])
             self.last_sensor_to_command_ns = None if trigger is None else self._clock.now_ns() - trigger
         finally:
