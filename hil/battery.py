@@ -45,10 +45,18 @@ class Battery:
 
         Energy is the integral of terminal voltage times current (rectangle rule over each draw).
         """
-        current = max(0.0, current_a)  # regeneration into the pack is not modelled
-        resistance = self.params.internal_resistance_ohm + self.extra_resistance_ohm
-        self.voltage_v = max(0.0, self.open_circuit_voltage() - self.sag_v - current * resistance)
+        # Every physics tick: the clamps are comparisons with max()'s results (max(0.0, v) is v only when
+        # v > 0.0, so a NaN reads 0.0 as before) and open_circuit_voltage's arithmetic is inline.
+        current = current_a if current_a > 0.0 else 0.0  # regeneration into the pack is not modelled
+        p = self.params
+        resistance = p.internal_resistance_ohm + self.extra_resistance_ohm
+        charge = 1.0 - self.charge_used_ah / p.capacity_ah
+        open_circuit = p.empty_voltage_v + (p.full_voltage_v - p.empty_voltage_v) * (
+            charge if charge > 0.0 else 0.0
+        )
+        terminal = open_circuit - self.sag_v - current * resistance
+        self.voltage_v = voltage = terminal if terminal > 0.0 else 0.0
         self.current_a = current
         self.charge_used_ah += current * dt_s / 3600.0
-        self.energy_wh += self.voltage_v * current * dt_s / 3600.0
-        return self.voltage_v
+        self.energy_wh += voltage * current * dt_s / 3600.0
+        return voltage

@@ -51,18 +51,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from hil.traction import drive_forces, wheel_outputs
-from navigator.footprint import BOUNDARY, CLEAR, OBSTACLE, rectangle_contact
+from hil import dynamics_kernel as k
+from navigator.footprint import BOUNDARY, CLEAR, OBSTACLE
 from navigator.ground_kernel import GroundUnder
 from navigator.terrain import TerrainMap
 from navigator.terrain_classes import REFERENCE_WHEEL_LOAD_N, TERRAIN_CLASSES, TerrainClass
-from navigator.vehicle import G, VehicleParams, stability_margins, wheel_normal_forces
-
-# Within this distance of an obstacle the footprint counts as touching it.
-_CONTACT_TOLERANCE_M = 1e-3
-_CONTACT_BISECTIONS = 16
-# Resolution of how deep an overlapping footprint is: 2^-12 of its half width, ~0.1 mm.
-_DEPTH_BISECTIONS = 12
+from navigator.vehicle import VehicleParams, stability_margins
 
 
 class DynamicsError(ValueError):
@@ -104,10 +98,16 @@ class DynamicsStep(NamedTuple):
     collision_with: str  # "obstacle", "boundary" or "" (no contact)
     energy_wh: float  # electrical energy used by the six motors so far
     battery_current_a: float  # motor power / battery voltage this step
+    # What the six motors draw from the pack: the sum of each one's current x duty that is positive (a
+    # braking motor generates, and with no regeneration gives nothing back, nor draws).
+    motor_input_current_a: float = 0.0
 
 
 class RoverDynamics:
-    """The rover body on the true terrain, stepped with the wheel speeds the simulated motors achieve."""
+    """The rover body on the true terrain, stepped with the wheel speeds the simulated motors achieve.
+
+    A step runs as one compiled call (``hil.dynamics_kernel.step_kernel``) on a float vector holding the
+    state; the properties read its copy as plain floats, taken after every step."""
 
     def __init__(
         self,
@@ -141,68 +141,30 @@ class RoverDynamics:
         missing = sorted(set(np.unique(terrain.terrain_class).tolist()) - set(classes))
         if missing:
             raise DynamicsError(f"terrain classes {missing} on the map have no entry in the class table")
-        self._terrain = terrain
         self._params = params
         self._classes = classes
+        self._class_names = {class_id: c.name for class_id, c in classes.items()}
         self._current_limit_a = motor_current_limit_a
-        # Yaw inertia of a uniform box the size of the footprint.
-        inertia_z = params.mass_kg * (params.footprint_length_m**2 + params.footprint_width_m**2) / 12.0
-        # The current limit caps each wheel's pull at limit x k_t x gear / wheel radius.
-        force_cap = (
-            motor_current_limit_a * motor_torque_constant_nm_per_a * gear_ratio / params.wheel_radius_m
+        self._body = _body_vector(
+            params,
+            motor_torque_constant_nm_per_a=motor_torque_constant_nm_per_a,
+            gear_ratio=gear_ratio,
+            winding_resistance_ohm=winding_resistance_ohm,
+            motor_current_limit_a=motor_current_limit_a,
+            drive_time_constant_s=drive_time_constant_s,
+            yaw_time_constant_s=yaw_time_constant_s,
         )
-        # Plain float vectors for the compiled kernels (hil.traction), built once.
-        self._vehicle_vector = np.array(
-            [
-                params.mass_kg,
-                inertia_z,
-                params.track_m,
-                params.effective_track_m,
-                params.wheelbase_m / 2.0,
-                REFERENCE_WHEEL_LOAD_N,
-                force_cap,
-                drive_time_constant_s,
-                yaw_time_constant_s,
-            ]
-        )
-        self._motor_vector = np.array(
-            [
-                params.wheel_radius_m,
-                gear_ratio,
-                motor_torque_constant_nm_per_a,
-                winding_resistance_ohm,
-                params.effective_track_m,
-            ]
-        )
-        self._ground_params = {
-            class_id: np.array(
-                [
-                    c.friction_mu,
-                    c.slip_constant,
-                    c.rolling_resistance,
-                    c.sinkage_resistance,
-                    c.sinkage_exponent,
-                    c.lateral_resistance,
-                ]
-            )
-            for class_id, c in classes.items()
-        }
+        self._ground_table = _ground_table(classes)
+        # Per wheel -1 / 0 / +1 for the kernel: the seized wheels given to this step, or none.
+        self._stalled = np.zeros(6)
+        self._none_stalled = np.zeros(6)
 
-        self._x, self._y, self._yaw = float(x), float(y), _wrap(float(yaw))
-        self._speed = 0.0
-        self._yaw_rate = 0.0
-        self._accel = 0.0
-        # The terrain where the rover stands (class, elevation, tilt), kept from the end of the last step.
-        self._under = terrain.ground_at(self._x, self._y, self._yaw)
-        self._energy_j = 0.0
+        self._values = values = np.zeros(k.VALUES_SIZE)
+        values[k.X], values[k.Y], values[k.YAW] = float(x), float(y), k.wrap_angle(float(yaw))
         self._rolled_over = False
-        # The wheel speeds and the per-wheel outputs the kernels write each step (read into tuples before
-        # the step returns), kept rather than allocated every step.
-        self._wheels, self._traction, self._slip, self._currents, self._duty = (np.empty(6) for _ in range(5))
-        self._half_length = 0.5 * params.footprint_length_m
-        self._half_width = 0.5 * params.footprint_width_m
-        self._use_obstacles(terrain)
-        self._in_contact = self._overlap_here
+        self._use_terrain(terrain)
+        values[k.IN_CONTACT] = values[k.OVERLAP_HERE]
+        self._read_state()
 
     # --- state ------------------------------------------------------------------------------------
     @property
@@ -228,21 +190,21 @@ class RoverDynamics:
 
     @property
     def roll(self) -> float:
-        return self._under.roll_rad
+        return self._roll
 
     @property
     def pitch(self) -> float:
-        return self._under.pitch_rad
+        return self._pitch
 
     @property
     def elevation_m(self) -> float:
         """The true terrain's elevation under the rover (m)."""
-        return self._under.elevation_m
+        return self._elevation
 
     @property
     def ground(self) -> GroundUnder:
         """The true terrain under the rover: class, elevation, roll and pitch at its heading."""
-        return self._under
+        return GroundUnder(self._class_id, self._elevation, self._roll, self._pitch)
 
     @property
     def energy_j(self) -> float:
@@ -268,9 +230,8 @@ class RoverDynamics:
         """Swap in a new true terrain (e.g. moved obstacles); it must cover the rover's position."""
         if not terrain.contains(self._x, self._y):
             raise DynamicsError(f"new terrain does not cover the rover at ({self._x:.2f}, {self._y:.2f})")
-        self._terrain = terrain
-        self._under = self._terrain.ground_at(self._x, self._y, self._yaw)
-        self._use_obstacles(terrain)
+        self._use_terrain(terrain)
+        self._read_state()
 
     def warm_up(self) -> None:
         """Step a throwaway copy once, so the compiled kernels every step runs (traction, ground look-up,
@@ -295,8 +256,8 @@ class RoverDynamics:
         if not (math.isfinite(dt_s) and dt_s > 0.0):
             raise DynamicsError(f"time step must be a finite number of seconds > 0, got {dt_s}")
         check_wheel_speeds(wheel_surface_speeds)
-        wheels = self._wheels
-        wheels[:] = wheel_surface_speeds
+        values = self._values
+        values[k.WHEELS : k.WHEELS + 6] = wheel_surface_speeds
         if not math.isfinite(battery_voltage_v):
             raise DynamicsError(f"battery voltage must be finite, got {battery_voltage_v}")
         # Nothing seized: () (the world's, without a vesc fault) or six zeros (the VESCs' own, while a
@@ -305,152 +266,84 @@ class RoverDynamics:
         if seized and (len(stalled) != 6 or any(d not in (-1.0, 0.0, 1.0) for d in stalled)):
             raise DynamicsError(f"stalled must be six values of -1, 0 or +1, got {list(stalled)}")
 
-        p = self._params
-        class_id, _, roll, pitch = self._under  # where the rover stands: from the end of the last step
-        ground = self._classes[class_id]
+        class_id = self._class_id  # where the rover stands: from the end of the last step
         if self._rolled_over:
-            return self._rolled_over_step(dt_s, wheels, class_id, ground, roll, pitch)
-
-        normals = wheel_normal_forces(p, roll, pitch, self._accel, self._speed * self._yaw_rate)
-        ground_params = self._ground_params[class_id]
-        traction = self._traction
-        accel, yaw_rate = drive_forces(
-            wheels,
-            normals,
-            ground_params,
-            self._vehicle_vector,
-            self._speed,
-            self._yaw_rate,
-            pitch,
-            dt_s,
-            traction,
-        )
-
-        speed = self._speed + accel * dt_s
-        mean_speed = 0.5 * (self._speed + speed)
-        turn = 0.5 * (self._yaw_rate + yaw_rate) * dt_s
-        heading = self._yaw + 0.5 * turn
-        new_x = self._x + mean_speed * math.cos(pitch) * math.cos(heading) * dt_s
-        new_y = self._y + mean_speed * math.cos(pitch) * math.sin(heading) * dt_s
-        new_yaw = _wrap(self._yaw + turn)
-
-        # Contact: refuse a move that pushes the footprint further into an obstacle or over the edge. Most
-        # steps touch nothing: one test of the rectangle grown by the tolerance settles them.
-        kind = self._contact(new_x, new_y, new_yaw, _CONTACT_TOLERANCE_M)
-        touching = kind != CLEAR
-        overlapping = False
-        if touching and self._refused(new_x, new_y, new_yaw):
-            if not self._refused(self._x, self._y, new_yaw):
-                # The turn alone is free: keep it, and stop the move at the contact.
-                new_x, new_y = self._advance_to_contact(new_x, new_y, new_yaw, 0.0)[:2]
-            else:
-                # The turn is what hits (a corner swinging in): it stops at the contact too.
-                new_x, new_y, new_yaw = self._advance_to_contact(new_x, new_y, self._yaw, turn)
-                yaw_rate = 0.0
-            accel = (0.0 - self._speed) / dt_s
-            speed = 0.0
-            kind = self._contact(new_x, new_y, new_yaw, _CONTACT_TOLERANCE_M) or kind
-        if touching:
-            overlapping = self._contact(new_x, new_y, new_yaw, 0.0) != CLEAR
-        self._overlap_here = overlapping
-        contact_began = touching and not self._in_contact
-        self._in_contact = touching
-
-        self._x, self._y, self._yaw = new_x, new_y, new_yaw
-        self._speed, self._yaw_rate, self._accel = speed, yaw_rate, accel
-        self._under = under = self._terrain.ground_at(new_x, new_y, new_yaw)
-        lateral = speed * yaw_rate
-        roll_margin, pitch_margin = stability_margins(p, under.roll_rad, under.pitch_rad, lateral)
-        rollover_started = min(roll_margin, pitch_margin) < 0.0
+            return self._rolled_over_step(class_id)
+        if seized:
+            self._stalled[:] = stalled
+        terrain = self._terrain
+        status = k.step_kernel(
+            values, self._body, self._ground_table, self._stalled if seized else self._none_stalled,
+            self._obstacles, terrain.terrain_class, terrain.elevation_m, self._grad_x, self._grad_y,
+            self._origin_x, self._origin_y, self._resolution_m, dt_s, battery_voltage_v,
+        )  # fmt: skip
+        v = self._read_state()
+        if status == k.OFF_MAP:
+            terrain.ground_at(self._x, self._y, self._yaw)  # raises the map's own error, naming the point
+        rollover_started = v[k.ROLLOVER_STARTED] != 0.0
         if rollover_started:
             self._rolled_over = True
-            self._speed = self._yaw_rate = self._accel = 0.0
-
-        slip, currents, duty = self._slip, self._currents, self._duty
-        power = wheel_outputs(
-            wheels,
-            normals,
-            traction,
-            speed,
-            yaw_rate,
-            ground_params,
-            self._motor_vector,
-            battery_voltage_v,
-            slip,
-            currents,
-            duty,
-        )
-        if seized and any(stalled):
-            power += self._stall(stalled, battery_voltage_v, currents, duty)
-        self._energy_j += power * dt_s
-
+        touching = v[k.TOUCHING] != 0.0
+        power = v[k.POWER_W]
         return DynamicsStep(
             x=self._x,
             y=self._y,
             yaw=self._yaw,
             speed_mps=self._speed,
             yaw_rate_rps=self._yaw_rate,
-            roll_rad=self._under.roll_rad,
-            pitch_rad=self._under.pitch_rad,
+            roll_rad=self._roll,
+            pitch_rad=self._pitch,
             terrain_class=class_id,
-            terrain_name=ground.name,
-            wheel_speeds_mps=tuple(wheels.tolist()),
-            slip=tuple(slip.tolist()),
-            normal_forces_n=tuple(normals.tolist()),
-            traction_forces_n=tuple(traction.tolist()),
-            motor_currents_a=tuple(currents.tolist()),
-            duty=tuple(duty.tolist()),
-            longitudinal_accel_mps2=accel,
-            lateral_accel_mps2=lateral,
-            specific_force_body_mps2=self._specific_force(accel, lateral),
-            roll_margin_rad=roll_margin,
-            pitch_margin_rad=pitch_margin,
+            terrain_name=self._class_names[class_id],
+            wheel_speeds_mps=tuple(v[k.WHEELS : k.WHEELS + 6]),
+            slip=tuple(v[k.SLIP : k.SLIP + 6]),
+            normal_forces_n=tuple(v[k.NORMALS : k.NORMALS + 6]),
+            traction_forces_n=tuple(v[k.TRACTION : k.TRACTION + 6]),
+            motor_currents_a=tuple(v[k.CURRENTS : k.CURRENTS + 6]),
+            duty=tuple(v[k.DUTY : k.DUTY + 6]),
+            longitudinal_accel_mps2=v[k.STEP_ACCEL],
+            lateral_accel_mps2=v[k.LATERAL],
+            specific_force_body_mps2=(v[k.FORCE_X], v[k.FORCE_Y], v[k.FORCE_Z]),
+            roll_margin_rad=v[k.ROLL_MARGIN],
+            pitch_margin_rad=v[k.PITCH_MARGIN],
             rollover=self._rolled_over,
             rollover_started=rollover_started,
             collided=touching,
-            collided_obstacle=contact_began,
-            collision_with=_KIND_NAMES[kind] if touching else "",
-            energy_wh=self.energy_wh,
+            collided_obstacle=v[k.CONTACT_BEGAN] != 0.0,
+            collision_with=_KIND_NAMES[int(v[k.CONTACT_KIND])] if touching else "",
+            energy_wh=self._energy_j / 3600.0,
             battery_current_a=power / battery_voltage_v if battery_voltage_v > 0.0 else 0.0,
+            motor_input_current_a=v[k.INPUT_CURRENT_A],
         )
 
     # --- pieces -----------------------------------------------------------------------------------
-    def _stall(
-        self, stalled: Sequence[float], battery_voltage_v: float, currents: np.ndarray, duty: np.ndarray
-    ) -> float:
-        """Seized motors under command: current limit, duty ``I R / V``; returns their power (W)."""
-        resistance = float(self._motor_vector[3])
-        power = 0.0
-        for i, direction in enumerate(stalled):
-            if direction == 0.0:
-                continue
-            current = direction * self._current_limit_a
-            currents[i] = current
-            duty[i] = (
-                max(-1.0, min(1.0, current * resistance / battery_voltage_v))
-                if battery_voltage_v > 0
-                else 0.0
-            )
-            power += current * current * resistance
-        return power
+    def _read_state(self) -> list[float]:
+        """Copy the kernel's vector into plain floats (one ``tolist``), keep the state's, return them all."""
+        v = self._values.tolist()
+        self._x, self._y, self._yaw, self._speed, self._yaw_rate, _, self._energy_j = v[k.X : k.ENERGY_J + 1]
+        self._class_id = int(v[k.CLASS])
+        self._elevation, self._roll, self._pitch = v[k.ELEVATION : k.PITCH + 1]
+        return v
 
-    def _rolled_over_step(
-        self, dt_s: float, wheels: np.ndarray, class_id: int, ground: TerrainClass, roll: float, pitch: float
-    ) -> DynamicsStep:
+    def _rolled_over_step(self, class_id: int) -> DynamicsStep:
         """On its side the rover goes nowhere; wheels spin in the air with no load, no current."""
         zeros = (0.0,) * 6
-        roll_margin, pitch_margin = stability_margins(self._params, roll, pitch)
+        values = self._values
+        roll_margin, pitch_margin = stability_margins(self._params, self._roll, self._pitch)
+        values[k.STEP_ACCEL] = 0.0
+        k.specific_force(values, 0.0)
+        v = values.tolist()
         return DynamicsStep(
             x=self._x,
             y=self._y,
             yaw=self._yaw,
             speed_mps=0.0,
             yaw_rate_rps=0.0,
-            roll_rad=self._under.roll_rad,
-            pitch_rad=self._under.pitch_rad,
+            roll_rad=self._roll,
+            pitch_rad=self._pitch,
             terrain_class=class_id,
-            terrain_name=ground.name,
-            wheel_speeds_mps=tuple(wheels.tolist()),
+            terrain_name=self._class_names[class_id],
+            wheel_speeds_mps=tuple(v[k.WHEELS : k.WHEELS + 6]),
             slip=zeros,
             normal_forces_n=zeros,
             traction_forces_n=zeros,
@@ -458,90 +351,103 @@ class RoverDynamics:
             duty=zeros,
             longitudinal_accel_mps2=0.0,
             lateral_accel_mps2=0.0,
-            specific_force_body_mps2=self._specific_force(0.0, 0.0),
+            specific_force_body_mps2=(v[k.FORCE_X], v[k.FORCE_Y], v[k.FORCE_Z]),
             roll_margin_rad=roll_margin,
             pitch_margin_rad=pitch_margin,
             rollover=True,
             rollover_started=False,
-            collided=self._in_contact,
+            collided=v[k.IN_CONTACT] != 0.0,
             collided_obstacle=False,
             collision_with="",
             energy_wh=self.energy_wh,
             battery_current_a=0.0,
         )
 
-    def _specific_force(self, accel: float, lateral: float) -> tuple[float, float, float]:
-        """Acceleration minus gravity in body axes (x fwd, y left, z up): (0, 0, +g) at rest on the level."""
-        roll, pitch = self._under.roll_rad, self._under.pitch_rad
-        cos_pitch = math.cos(pitch)
-        return (
-            accel + G * math.sin(pitch),
-            lateral + G * cos_pitch * math.sin(roll),
-            G * cos_pitch * math.cos(roll),
-        )
-
-    def _use_obstacles(self, terrain: TerrainMap) -> None:
-        """Keep the map's obstacle layer and frame for the per-step contact test, and whether the footprint
-        overlaps it where the rover stands."""
+    def _use_terrain(self, terrain: TerrainMap) -> None:
+        """Keep the map's layers and frame for the kernel, the terrain under the rover, and whether the
+        footprint overlaps an obstacle where it stands."""
+        values = self._values
+        x, y, yaw = values[k.X], values[k.Y], values[k.YAW]
+        self._terrain = terrain
         self._obstacles = np.ascontiguousarray(terrain.obstacles)
+        self._grad_x, self._grad_y = terrain.slope_gradient()
         self._origin_x, self._origin_y = terrain.origin_xy
         self._resolution_m = terrain.resolution_m
-        self._overlap_here = self._contact(self._x, self._y, self._yaw, 0.0) != CLEAR
-
-    def _contact(self, x: float, y: float, yaw: float, grow_m: float) -> int:
-        """What the footprint at (x, y, yaw), grown by ``grow_m`` on every side, overlaps (CLEAR, OBSTACLE,
-        BOUNDARY of ``navigator.footprint``)."""
-        return int(
-            rectangle_contact(
-                self._obstacles, self._resolution_m, self._origin_x, self._origin_y, x, y, yaw,
-                self._half_length + grow_m, self._half_width + grow_m,
+        under = terrain.ground_at(x, y, yaw)
+        values[k.CLASS], values[k.ELEVATION], values[k.ROLL], values[k.PITCH] = under
+        overlapping = (
+            k.contact_kind(
+                self._obstacles,
+                self._resolution_m,
+                self._origin_x,
+                self._origin_y,
+                self._body,
+                x,
+                y,
+                yaw,
+                0.0,
             )
-        )  # fmt: skip
+            != CLEAR
+        )
+        values[k.OVERLAP_HERE] = 1.0 if overlapping else 0.0
 
-    def _depth(self, x: float, y: float, yaw: float) -> float:
-        """How far the footprint reaches into obstacles or past the edge: the least shrink of every side (m)
-        that clears it (bisection); 0 when clear, half its width when even its centre line overlaps."""
-        if self._contact(x, y, yaw, 0.0) == CLEAR:
-            return 0.0
-        lo, hi = 0.0, min(self._half_length, self._half_width)
-        if self._contact(x, y, yaw, -hi) != CLEAR:
-            return hi
-        for _ in range(_DEPTH_BISECTIONS):
-            mid = 0.5 * (lo + hi)
-            if self._contact(x, y, yaw, -mid) != CLEAR:
-                lo = mid
-            else:
-                hi = mid
-        return hi
 
-    def _refused(self, x: float, y: float, yaw: float) -> bool:
-        """Whether moving to (x, y, yaw) pushes the footprint further in: into an overlap from clear, or
-        deeper into one it already overlaps (e.g. an obstacle appeared on it: it may still back out)."""
-        if self._contact(x, y, yaw, 0.0) == CLEAR:
-            return False
-        return not self._overlap_here or self._depth(x, y, yaw) > self._depth(self._x, self._y, self._yaw)
+def _body_vector(
+    params: VehicleParams,
+    *,
+    motor_torque_constant_nm_per_a: float,
+    gear_ratio: float,
+    winding_resistance_ohm: float,
+    motor_current_limit_a: float,
+    drive_time_constant_s: float,
+    yaw_time_constant_s: float,
+) -> np.ndarray:
+    """The vehicle's and motors' constants as the kernel reads them (``hil.dynamics_kernel``'s ``body``)."""
+    body = np.empty(k.BODY_SIZE)
+    # Yaw inertia of a uniform box the size of the footprint.
+    inertia_z = params.mass_kg * (params.footprint_length_m**2 + params.footprint_width_m**2) / 12.0
+    # The current limit caps each wheel's pull at limit x k_t x gear / wheel radius.
+    force_cap = motor_current_limit_a * motor_torque_constant_nm_per_a * gear_ratio / params.wheel_radius_m
+    body[k.VEHICLE : k.MOTOR] = (
+        params.mass_kg,
+        inertia_z,
+        params.track_m,
+        params.effective_track_m,
+        params.wheelbase_m / 2.0,
+        REFERENCE_WHEEL_LOAD_N,
+        force_cap,
+        drive_time_constant_s,
+        yaw_time_constant_s,
+    )
+    body[k.MOTOR : k.MOTOR_END] = (
+        params.wheel_radius_m,
+        gear_ratio,
+        motor_torque_constant_nm_per_a,
+        winding_resistance_ohm,
+        params.effective_track_m,
+    )
+    body[k.CG_HEIGHT] = params.cg_height_m
+    body[k.TIP_ROLL], body[k.TIP_PITCH] = params.tip_roll_rad, params.tip_pitch_rad
+    body[k.CURRENT_LIMIT] = motor_current_limit_a
+    body[k.HALF_LENGTH] = 0.5 * params.footprint_length_m
+    body[k.HALF_WIDTH] = 0.5 * params.footprint_width_m
+    return body
 
-    def _advance_to_contact(
-        self, new_x: float, new_y: float, yaw_from: float, turn: float
-    ) -> tuple[float, float, float]:
-        """The furthest pose along this step's move (position, and the heading ``yaw_from`` + part of
-        ``turn``) that keeps the footprint clear (bisection).
 
-        Stopping at the contact rather than where the step began means a rover pushing on an obstacle stays
-        in touch with it instead of creeping up to it again and again.
-        """
-        if self._overlap_here:
-            return self._x, self._y, _wrap(yaw_from)  # already overlapping: no move in, stay put
-        lo, hi = 0.0, 1.0
-        for _ in range(_CONTACT_BISECTIONS):
-            mid = 0.5 * (lo + hi)
-            x = self._x + mid * (new_x - self._x)
-            y = self._y + mid * (new_y - self._y)
-            if self._contact(x, y, yaw_from + mid * turn, 0.0) == CLEAR:
-                lo = mid
-            else:
-                hi = mid
-        return self._x + lo * (new_x - self._x), self._y + lo * (new_y - self._y), _wrap(yaw_from + lo * turn)
+def _ground_table(classes: dict[int, TerrainClass]) -> np.ndarray:
+    """Row ``c``: class ``c``'s traction parameters in ``hil.traction.drive_forces``'s order (NaN for ids
+    not in the table: the constructor checked that the map has none)."""
+    table = np.full((max(classes) + 1, 6), math.nan)
+    for class_id, c in classes.items():
+        table[class_id] = (
+            c.friction_mu,
+            c.slip_constant,
+            c.rolling_resistance,
+            c.sinkage_resistance,
+            c.sinkage_exponent,
+            c.lateral_resistance,
+        )
+    return table
 
 
 _KIND_NAMES = {CLEAR: "", BOUNDARY: "boundary", OBSTACLE: "obstacle"}
@@ -556,7 +462,3 @@ def check_wheel_speeds(speeds: Sequence[float]) -> None:
     # usual case, every physics step; the per-wheel test runs only when the sum is not (or overflowed).
     if not math.isfinite(sum(speeds)) and not all(math.isfinite(speed) for speed in speeds):
         raise DynamicsError(f"wheel speeds must be finite, got {list(speeds)}")
-
-
-def _wrap(angle: float) -> float:
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi

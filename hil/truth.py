@@ -21,9 +21,18 @@ class TruthRecorder:
         self._rollover_reported = False
         self._touching_movers: set[str] = set()
 
+    @property
+    def in_collision(self) -> bool:
+        """Whether the last step it saw touched an obstacle (a collision was reported and has not ended)."""
+        return self._in_collision
+
     def on_step(
         self, now: int, body: RoverDynamics, step: DynamicsStep, battery: Battery, *, record_state: bool
     ) -> None:
+        """A physics step: contacts that begin or end, and with ``record_state`` the truth/* state topics.
+
+        Without ``record_state`` it does something only when ``step`` touches or rolled over, or
+        ``in_collision``: the world skips the call otherwise."""
         if step.collided or step.rollover or self._in_collision:  # else no contact begins or ends
             self._contacts(now, body, step)
         if not record_state:

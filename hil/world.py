@@ -193,23 +193,18 @@ class SimWorld:
         # the dynamics take "nothing given" as six freely turning wheels without asking the bank every tick.
         stalled = vescs.stalled() if self._vesc_faults else ()
         step = body.step(dt_s, vescs.wheel_speeds_mps(), battery.voltage_v, stalled)
-        # Each motor draws I x duty from the pack; a braking motor (current against its duty) generates, and
-        # with no regeneration (hil.battery, the dynamics' motor power) it gives nothing back, nor draws.
-        # Plain floats (numpy on six numbers cost more than the sum): the same left-to-right sum np.sum
-        # does below eight elements, so the same bits.
-        input_current = sum(
-            [max(current * duty, 0.0) for current, duty in zip(step.motor_currents_a, step.duty, strict=True)]
-        )
-        voltage = battery.draw(input_current + ELECTRONICS_CURRENT_A, dt_s)
+        # The motors' draw (each I x duty, nothing back from a braking one) is summed in the physics kernel.
+        voltage = battery.draw(step.motor_input_current_a + ELECTRONICS_CURRENT_A, dt_s)
         vescs.set_electrical(step.motor_currents_a, voltage, step.duty)
         vescs.step(dt_s)
+        # The pose from the step (the body's state after it, as plain tuple fields: no property calls).
         truth = AutopilotTruth(
-            x_m=body.x,
-            y_m=body.y,
+            x_m=step.x,
+            y_m=step.y,
             z_m=body.elevation_m,
-            yaw_rad=body.yaw,
-            speed_mps=body.speed,
-            yaw_rate_rps=body.yaw_rate,
+            yaw_rad=step.yaw,
+            speed_mps=step.speed_mps,
+            yaw_rate_rps=step.yaw_rate_rps,
             accel_body_mps2=step.specific_force_body_mps2,
             roll_rad=step.roll_rad,
             pitch_rad=step.pitch_rad,
@@ -220,7 +215,12 @@ class SimWorld:
         autopilot = self.autopilot
         autopilot.step(truth, record=True)  # the GPS keeps every tick's truth for its latency
         autopilot.poll()
-        self.truth.on_step(now, body, step, battery, record_state=self._tick % TRUTH_DIVIDER == 0)
+        # Ground truth is recorded every TRUTH_DIVIDER-th tick; between those, the recorder has something
+        # to do only while a contact may begin or end (TruthRecorder.on_step), so it is not called at all.
+        truth_recorder = self.truth
+        record = self._tick % TRUTH_DIVIDER == 0
+        if record or step.collided or step.rollover or truth_recorder.in_collision:
+            truth_recorder.on_step(now, body, step, battery, record_state=record)
         if self._has_moving_obstacles:
             self._moving_contacts(now)
         self.last_step = step

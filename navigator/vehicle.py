@@ -14,12 +14,13 @@ Conventions (body axes x forward, y left, z up):
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass, fields
 from functools import cached_property
 
+import numba
 import numpy as np
+from numpy.typing import NDArray
 
 from logs.settings import Table
 from navigator.errors import ParameterError
@@ -28,7 +29,6 @@ G = 9.81  # m/s^2
 
 # Axle positions along the body x axis in units of half the wheelbase: front, middle, rear.
 _AXLE_X_UNITS = (1.0, 0.0, -1.0)
-_ALL_AXLES = (0, 1, 2)
 # The body's lengths (metres). None of them reaches this on a rover this stack drives; a config that
 # gives one in millimetres (wheel_radius_m = 110) does, and would otherwise load and drive wrong.
 _LENGTH_KEYS = (
@@ -150,23 +150,13 @@ def max_climbable_slope_rad(mu: float, rolling_resistance: float, margin_rad: fl
     return max(0.0, math.atan(max(0.0, mu - rolling_resistance)) - margin_rad)
 
 
-@functools.lru_cache(maxsize=64)
-def _axle_geometry(
-    in_contact: tuple[int, ...], half_wheelbase: float
-) -> tuple[tuple[float, ...], int, float, float, float]:
-    """The axles in contact's positions along the body (m) and the sums the load balance needs: (x, n,
-    sum x, sum x², n sum x² − (sum x)²).
-
-    They depend on the geometry alone, not on the loads: kept per (axles, half wheelbase) rather than
-    summed again every physics step. Computed by the same expressions as before, so the same floats.
-    """
-    x = tuple(_AXLE_X_UNITS[i] * half_wheelbase for i in in_contact)
-    n = len(x)
-    sx, sxx = sum(x), sum(xi * xi for xi in x)
-    return x, n, sx, sxx, n * sxx - sx * sx
+# Axle positions along the body in units of half the wheelbase (front, middle, rear), as an array for the
+# compiled load balance.
+_AXLE_UNITS = np.array(_AXLE_X_UNITS)
 
 
-def _axle_loads(moment_rear: float, total: float, half_wheelbase: float) -> list[float]:
+@numba.njit(cache=True)
+def _axle_loads(moment_rear: float, total: float, half_wheelbase: float) -> tuple[float, float, float]:
     """Normal load on the front, middle and rear axles (N), summing to ``total``.
 
     The load varies linearly along the body (a rigid chassis on equally stiff wheels) and balances the
@@ -174,44 +164,101 @@ def _axle_loads(moment_rear: float, total: float, half_wheelbase: float) -> list
     lifts: it is dropped and the rest re-balance, so the last axle standing carries everything (that is the
     tip-over point ``tan θ = (wheelbase/2) / h``).
 
-    Plain floats, not numpy: the simulator calls this every physics step, and on three numbers numpy's
-    per-call overhead was most of its cost.
+    Compiled: the simulator's physics step (``hil.dynamics_kernel``) runs it inside its own kernel.
     """
     if total <= 0.0:
-        return [0.0, 0.0, 0.0]
-    # The usual case, every physics step: all three axles on the ground. The loop below's first pass,
-    # without its lists (the same expressions, so the same floats); anything else (an axle lifting, or a
-    # NaN) goes through the loop from the start, exactly as before.
-    x, n, sx, sxx, det = _axle_geometry(_ALL_AXLES, half_wheelbase)
+        return 0.0, 0.0, 0.0
+    # The usual case, every physics step: all three axles on the ground. The loop's first pass written out
+    # (the same expressions, so the same floats); anything else (an axle lifting, or a NaN) goes through
+    # the loop from the start.
+    x0, x1, x2 = half_wheelbase, 0.0 * half_wheelbase, -1.0 * half_wheelbase
+    sx = 0.0 + x0 + x1 + x2
+    sxx = 0.0 + x0 * x0 + x1 * x1 + x2 * x2
+    det = 3.0 * sxx - sx * sx
     a = (total * sxx + moment_rear * sx) / det
-    b = (-moment_rear * n - sx * total) / det
-    front, middle, rear = a + b * x[0], a + b * x[1], a + b * x[2]
+    b = (-moment_rear * 3.0 - sx * total) / det
+    front, middle, rear = a + b * x0, a + b * x1, a + b * x2
     if front >= 0.0 and middle >= 0.0 and rear >= 0.0:
-        return [front, middle, rear]
+        return front, middle, rear
     return _axle_loads_lifting(moment_rear, total, half_wheelbase)
 
 
-def _axle_loads_lifting(moment_rear: float, total: float, half_wheelbase: float) -> list[float]:
+@numba.njit(cache=True)
+def _axle_loads_lifting(
+    moment_rear: float, total: float, half_wheelbase: float
+) -> tuple[float, float, float]:
     """``_axle_loads`` when an axle may lift: balance on those in contact, lift the most negative, repeat."""
-    loads = [0.0, 0.0, 0.0]
-    in_contact: tuple[int, ...] = _ALL_AXLES
+    loads = np.zeros(3)
+    in_contact = np.ones(3, dtype=np.bool_)
+    contact_loads = np.empty(3)
     while True:
-        x, n, sx, sxx, det = _axle_geometry(in_contact, half_wheelbase)
+        # The axles in contact's positions (m) and the sums the balance needs, in axle order.
+        n = 0
+        sx = sxx = 0.0
+        for axle in range(3):
+            if in_contact[axle]:
+                xi = _AXLE_UNITS[axle] * half_wheelbase
+                n += 1
+                sx += xi
+                sxx += xi * xi
         if n == 1:
-            loads[in_contact[0]] = total
-            return loads
+            for axle in range(3):
+                if in_contact[axle]:
+                    loads[axle] = total
+            return loads[0], loads[1], loads[2]
+        det = n * sxx - sx * sx
         # N_i = a + b x_i with sum N_i = total and sum N_i x_i = -moment_rear.
         a = (total * sxx + moment_rear * sx) / det
         b = (-moment_rear * n - sx * total) / det
-        contact_loads = [a + b * xi for xi in x]
-        lowest = min(contact_loads)
+        lowest = math.nan
+        lifted = -1
+        for axle in range(3):
+            if in_contact[axle]:
+                contact_loads[axle] = a + b * (_AXLE_UNITS[axle] * half_wheelbase)
+                # The first axle with the lowest load (as min() and list.index() pick it).
+                if lifted < 0 or contact_loads[axle] < lowest:
+                    lowest, lifted = contact_loads[axle], axle
         if lowest >= 0.0:
-            for axle, load in zip(in_contact, contact_loads, strict=True):
-                loads[axle] = load
-            return loads
+            for axle in range(3):
+                if in_contact[axle]:
+                    loads[axle] = contact_loads[axle]
+            return loads[0], loads[1], loads[2]
         # Lift the axle with the most negative load and re-balance on the others.
-        lifted = contact_loads.index(lowest)
-        in_contact = in_contact[:lifted] + in_contact[lifted + 1 :]
+        in_contact[lifted] = False
+
+
+@numba.njit(cache=True)
+def normal_forces_into(
+    mass_kg: float,
+    cg_height_m: float,
+    track_m: float,
+    half_wheelbase_m: float,
+    roll_rad: float,
+    pitch_rad: float,
+    ax_mps2: float,
+    ay_mps2: float,
+    out: NDArray[np.float64],
+) -> None:
+    """``wheel_normal_forces`` written into ``out`` (six, wheel order), from the parameters it reads."""
+    cos_pitch = math.cos(pitch_rad)
+    total = mass_kg * G * math.cos(roll_rad) * cos_pitch
+    if total <= 0.0:
+        out[:] = 0.0
+        return
+    moment_rear = mass_kg * cg_height_m * (G * math.sin(pitch_rad) + ax_mps2)
+    moment_right = mass_kg * cg_height_m * (G * cos_pitch * math.sin(roll_rad) + ay_mps2)
+    right_share = min(1.0, max(0.0, 0.5 + moment_right / (track_m * total)))
+    left_share = 1.0 - right_share
+    front, middle, rear = _axle_loads(moment_rear, total, half_wheelbase_m)
+    # Each wheel's load as (side share x axle share) x total, in that order (the simulator's physics step
+    # is pinned to these bits).
+    front, middle, rear = front / total, middle / total, rear / total
+    out[0] = left_share * front * total
+    out[1] = left_share * middle * total
+    out[2] = left_share * rear * total
+    out[3] = right_share * front * total
+    out[4] = right_share * middle * total
+    out[5] = right_share * rear * total
 
 
 def wheel_normal_forces(
@@ -225,29 +272,12 @@ def wheel_normal_forces(
     right side). Sides split the load linearly and clamp at zero when a side lifts; axles per
     ``_axle_loads``. The sum is always the total load (until the whole rover is airborne: never here).
     """
-    m, h = params.mass_kg, params.cg_height_m
-    cos_pitch = math.cos(pitch_rad)
-    total = m * G * math.cos(roll_rad) * cos_pitch
-    if total <= 0.0:
-        return np.zeros(6)
-    moment_rear = m * h * (G * math.sin(pitch_rad) + ax_mps2)
-    moment_right = m * h * (G * cos_pitch * math.sin(roll_rad) + ay_mps2)
-    right_share = min(1.0, max(0.0, 0.5 + moment_right / (params.track_m * total)))
-    left_share = 1.0 - right_share
-    front, middle, rear = _axle_loads(moment_rear, total, params.wheelbase_m / 2.0)
-    # Each wheel's load as (side share x axle share) x total, in that order (the simulator's physics step
-    # is pinned to these bits); written out for the six wheels rather than built in lists (every step).
-    front, middle, rear = front / total, middle / total, rear / total
-    return np.array(
-        (
-            left_share * front * total,
-            left_share * middle * total,
-            left_share * rear * total,
-            right_share * front * total,
-            right_share * middle * total,
-            right_share * rear * total,
-        )
-    )
+    forces = np.empty(6)
+    normal_forces_into(
+        params.mass_kg, params.cg_height_m, params.track_m, params.wheelbase_m / 2.0,
+        roll_rad, pitch_rad, ax_mps2, ay_mps2, forces,
+    )  # fmt: skip
+    return forces
 
 
 def stability_margins(
@@ -259,5 +289,18 @@ def stability_margins(
     (a left turn, ``a_lat > 0``, tips the rover over its right wheels, like a positive roll). Roll and
     pitch are checked separately (the rover's support polygon is treated as a rectangle's two axes).
     """
+    return tilt_margins(params.tip_roll_rad, params.tip_pitch_rad, roll_rad, pitch_rad, lateral_accel_mps2)
+
+
+def tilt_margins(
+    tip_roll_rad: float, tip_pitch_rad: float, roll_rad: float, pitch_rad: float, lateral_accel_mps2: float
+) -> tuple[float, float]:
+    """``stability_margins`` from the tip angles themselves (``VehicleParams.tip_roll_rad`` and
+    ``tip_pitch_rad``)."""
     effective_roll = roll_rad + math.atan(lateral_accel_mps2 / G)
-    return params.tip_roll_rad - abs(effective_roll), params.tip_pitch_rad - abs(pitch_rad)
+    return tip_roll_rad - abs(effective_roll), tip_pitch_rad - abs(pitch_rad)
+
+
+# The same function compiled, for the simulator's physics kernel (hil.dynamics_kernel); the planner's
+# safety checks call the plain one (a compiled call from Python costs more than these few operations).
+tilt_margins_kernel = numba.njit(cache=True)(tilt_margins)

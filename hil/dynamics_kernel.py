@@ -1,0 +1,321 @@
+"""One physics step of ``hil.dynamics.RoverDynamics`` as one compiled call.
+
+The step's model is described in ``hil.dynamics``; this module holds its arithmetic. Every physics tick
+used to make about a dozen Python-level calls (normal forces, the traction kernels, the footprint contact
+test, the terrain look-up, the stability margins, the motor outputs), each with its own dispatch and
+boxing; here they run in one numba kernel on preallocated arrays, and the Python side only reads back
+what its callers use.
+
+The floats are the ones the Python form gave, bit for bit (the recorded trials' digests pin them): numba
+without ``fastmath`` uses the same IEEE operations and the same libm calls, and every expression keeps the
+Python form's operation order.
+
+The kernel reads and writes one float vector, ``values``, laid out by the index constants below: the
+body's state (kept from step to step), the wheel speeds given, and what the step produced.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from hil.traction import drive_forces, wheel_outputs
+from navigator.footprint import CLEAR, rectangle_contact
+from navigator.ground_kernel import ground_at_kernel
+from navigator.vehicle import G, normal_forces_into, tilt_margins_kernel
+
+Array = NDArray[np.float64]
+
+# Within this distance of an obstacle the footprint counts as touching it.
+CONTACT_TOLERANCE_M = 1e-3
+_CONTACT_BISECTIONS = 16
+# Resolution of how deep an overlapping footprint is: 2^-12 of its half width, ~0.1 mm.
+_DEPTH_BISECTIONS = 12
+
+# --- ``values``: the state, kept between steps ---
+X, Y, YAW, SPEED, YAW_RATE, ACCEL, ENERGY_J = 0, 1, 2, 3, 4, 5, 6
+# The terrain under the rover (class id, elevation m, roll and pitch rad at its heading).
+CLASS, ELEVATION, ROLL, PITCH = 7, 8, 9, 10
+OVERLAP_HERE, IN_CONTACT = 11, 12  # 1.0 / 0.0: the footprint overlaps where it stands; it touches
+# --- what one step produced ---
+STEP_ACCEL, LATERAL, ROLL_MARGIN, PITCH_MARGIN = 13, 14, 15, 16  # accel before a rollover zeroes the state
+ROLLOVER_STARTED, TOUCHING, CONTACT_BEGAN, CONTACT_KIND = 17, 18, 19, 20
+POWER_W, INPUT_CURRENT_A = 21, 22
+FORCE_X, FORCE_Y, FORCE_Z = 23, 24, 25  # specific force in body axes
+# --- per wheel, six each in wheel order: the speeds given (an input), then the step's outputs ---
+WHEELS, SLIP, NORMALS, TRACTION, CURRENTS, DUTY = 26, 32, 38, 44, 50, 56
+VALUES_SIZE = 62
+
+# --- ``body``: the vehicle and motor constants, built once ---
+# drive_forces' ``vehicle`` vector (its docstring has the layout), then wheel_outputs' ``motor`` vector.
+VEHICLE, MOTOR, MOTOR_END = 0, 9, 14
+MASS, TRACK, HALF_WHEELBASE = 0, 2, 4
+RESISTANCE = 12  # the motor vector's winding resistance
+CG_HEIGHT, TIP_ROLL, TIP_PITCH, CURRENT_LIMIT, HALF_LENGTH, HALF_WIDTH = 14, 15, 16, 17, 18, 19
+BODY_SIZE = 20
+
+# What ``step_kernel`` returns.
+STEPPED, OFF_MAP = 0, 1
+
+
+@numba.njit(cache=True)
+def wrap_angle(angle: float) -> float:
+    """Into [-pi, pi) (Python's float modulo, which numba's ``%`` follows)."""
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@numba.njit(cache=True)
+def contact_kind(
+    obstacles: NDArray[np.bool_],
+    res: float,
+    ox: float,
+    oy: float,
+    body: Array,
+    x: float,
+    y: float,
+    yaw: float,
+    grow_m: float,
+) -> int:
+    """What the footprint at (x, y, yaw), grown by ``grow_m`` on every side, overlaps (CLEAR, OBSTACLE,
+    BOUNDARY of ``navigator.footprint``)."""
+    return rectangle_contact(
+        obstacles, res, ox, oy, x, y, yaw, body[HALF_LENGTH] + grow_m, body[HALF_WIDTH] + grow_m
+    )
+
+
+@numba.njit(cache=True)
+def _depth(
+    obstacles: NDArray[np.bool_],
+    res: float,
+    ox: float,
+    oy: float,
+    body: Array,
+    x: float,
+    y: float,
+    yaw: float,
+) -> float:
+    """How far the footprint reaches into obstacles or past the edge: the least shrink of every side (m)
+    that clears it (bisection); 0 when clear, half its width when even its centre line overlaps."""
+    if contact_kind(obstacles, res, ox, oy, body, x, y, yaw, 0.0) == CLEAR:
+        return 0.0
+    lo, hi = 0.0, min(body[HALF_LENGTH], body[HALF_WIDTH])
+    if contact_kind(obstacles, res, ox, oy, body, x, y, yaw, -hi) != CLEAR:
+        return hi
+    for _ in range(_DEPTH_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        if contact_kind(obstacles, res, ox, oy, body, x, y, yaw, -mid) != CLEAR:
+            lo = mid
+        else:
+            hi = mid
+    return hi
+
+
+@numba.njit(cache=True)
+def _refused(
+    obstacles: NDArray[np.bool_],
+    res: float,
+    ox: float,
+    oy: float,
+    body: Array,
+    values: Array,
+    x: float,
+    y: float,
+    yaw: float,
+) -> bool:
+    """Whether moving to (x, y, yaw) pushes the footprint further in: into an overlap from clear, or
+    deeper into one it already overlaps (e.g. an obstacle appeared on it: it may still back out)."""
+    if contact_kind(obstacles, res, ox, oy, body, x, y, yaw, 0.0) == CLEAR:
+        return False
+    if values[OVERLAP_HERE] == 0.0:
+        return True
+    here = _depth(obstacles, res, ox, oy, body, values[X], values[Y], values[YAW])
+    return _depth(obstacles, res, ox, oy, body, x, y, yaw) > here
+
+
+@numba.njit(cache=True)
+def _advance_to_contact(
+    obstacles: NDArray[np.bool_],
+    res: float,
+    ox: float,
+    oy: float,
+    body: Array,
+    values: Array,
+    new_x: float,
+    new_y: float,
+    yaw_from: float,
+    turn: float,
+) -> tuple[float, float, float]:
+    """The furthest pose along this step's move (position, and the heading ``yaw_from`` + part of
+    ``turn``) that keeps the footprint clear (bisection).
+
+    Stopping at the contact rather than where the step began means a rover pushing on an obstacle stays
+    in touch with it instead of creeping up to it again and again.
+    """
+    x0, y0 = values[X], values[Y]
+    if values[OVERLAP_HERE] != 0.0:
+        return x0, y0, wrap_angle(yaw_from)  # already overlapping: no move in, stay put
+    lo, hi = 0.0, 1.0
+    for _ in range(_CONTACT_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        x = x0 + mid * (new_x - x0)
+        y = y0 + mid * (new_y - y0)
+        if contact_kind(obstacles, res, ox, oy, body, x, y, yaw_from + mid * turn, 0.0) == CLEAR:
+            lo = mid
+        else:
+            hi = mid
+    return x0 + lo * (new_x - x0), y0 + lo * (new_y - y0), wrap_angle(yaw_from + lo * turn)
+
+
+@numba.njit(cache=True)
+def _stall(stalled: Array, body: Array, battery_voltage: float, currents: Array, duty: Array) -> float:
+    """Seized motors under command: current limit, duty ``I R / V``; returns their power (W)."""
+    resistance = body[RESISTANCE]
+    power = 0.0
+    for i in range(6):
+        direction = stalled[i]
+        if direction == 0.0:
+            continue
+        current = direction * body[CURRENT_LIMIT]
+        currents[i] = current
+        duty[i] = max(-1.0, min(1.0, current * resistance / battery_voltage)) if battery_voltage > 0 else 0.0
+        power += current * current * resistance
+    return power
+
+
+@numba.njit(cache=True)
+def step_kernel(
+    values: Array,
+    body: Array,
+    ground_table: Array,
+    stalled: Array,
+    obstacles: NDArray[np.bool_],
+    classes: NDArray[np.uint8],
+    elevation: Array,
+    grad_x: Array,
+    grad_y: Array,
+    ox: float,
+    oy: float,
+    res: float,
+    dt: float,
+    battery_voltage: float,
+) -> int:
+    """One step of ``dt`` s of the rover (not rolled over) on ``values``'s state with its wheel speeds.
+
+    ``ground_table`` row ``c``: class ``c``'s traction parameters (``hil.traction.drive_forces``'s
+    ``ground``). ``stalled``: per wheel -1 / 0 / +1 (``RoverDynamics.step``). The terrain's layers and
+    frame as ``TerrainMap``'s. Returns STEPPED, or OFF_MAP when the new position is off the map (the state
+    then holds the new pose, and the terrain under it is the old one).
+    """
+    x, y, yaw = values[X], values[Y], values[YAW]
+    speed0, yaw_rate0 = values[SPEED], values[YAW_RATE]
+    roll, pitch = values[ROLL], values[PITCH]  # where the rover stands: from the end of the last step
+    wheels = values[WHEELS : WHEELS + 6]
+    normals, traction = values[NORMALS : NORMALS + 6], values[TRACTION : TRACTION + 6]
+    slip, currents, duty = values[SLIP : SLIP + 6], values[CURRENTS : CURRENTS + 6], values[DUTY : DUTY + 6]
+    ground = ground_table[int(values[CLASS])]
+
+    normal_forces_into(
+        body[MASS], body[CG_HEIGHT], body[TRACK], body[HALF_WHEELBASE], roll, pitch, values[ACCEL],
+        speed0 * yaw_rate0, normals,
+    )  # fmt: skip
+    accel, yaw_rate = drive_forces(
+        wheels, normals, ground, body[VEHICLE:MOTOR], speed0, yaw_rate0, pitch, dt, traction
+    )
+
+    speed = speed0 + accel * dt
+    mean_speed = 0.5 * (speed0 + speed)
+    turn = 0.5 * (yaw_rate0 + yaw_rate) * dt
+    heading = yaw + 0.5 * turn
+    new_x = x + mean_speed * math.cos(pitch) * math.cos(heading) * dt
+    new_y = y + mean_speed * math.cos(pitch) * math.sin(heading) * dt
+    new_yaw = wrap_angle(yaw + turn)
+
+    # Contact: refuse a move that pushes the footprint further into an obstacle or over the edge. Most
+    # steps touch nothing: one test of the rectangle grown by the tolerance settles them.
+    kind = contact_kind(obstacles, res, ox, oy, body, new_x, new_y, new_yaw, CONTACT_TOLERANCE_M)
+    touching = kind != CLEAR
+    overlapping = False
+    if touching and _refused(obstacles, res, ox, oy, body, values, new_x, new_y, new_yaw):
+        if not _refused(obstacles, res, ox, oy, body, values, x, y, new_yaw):
+            # The turn alone is free: keep it, and stop the move at the contact.
+            new_x, new_y, _ = _advance_to_contact(
+                obstacles, res, ox, oy, body, values, new_x, new_y, new_yaw, 0.0
+            )
+        else:
+            # The turn is what hits (a corner swinging in): it stops at the contact too.
+            new_x, new_y, new_yaw = _advance_to_contact(
+                obstacles, res, ox, oy, body, values, new_x, new_y, yaw, turn
+            )
+            yaw_rate = 0.0
+        accel = (0.0 - speed0) / dt
+        speed = 0.0
+        again = contact_kind(obstacles, res, ox, oy, body, new_x, new_y, new_yaw, CONTACT_TOLERANCE_M)
+        kind = again if again != CLEAR else kind
+    if touching:
+        overlapping = contact_kind(obstacles, res, ox, oy, body, new_x, new_y, new_yaw, 0.0) != CLEAR
+    values[OVERLAP_HERE] = 1.0 if overlapping else 0.0
+    values[CONTACT_BEGAN] = 1.0 if touching and values[IN_CONTACT] == 0.0 else 0.0
+    values[IN_CONTACT] = values[TOUCHING] = 1.0 if touching else 0.0
+    values[CONTACT_KIND] = kind
+
+    values[X], values[Y], values[YAW] = new_x, new_y, new_yaw
+    values[SPEED], values[YAW_RATE], values[ACCEL] = speed, yaw_rate, accel
+    values[STEP_ACCEL] = accel
+    class_id, height, new_roll, new_pitch = ground_at_kernel(
+        classes, elevation, grad_x, grad_y, ox, oy, res, new_x, new_y, new_yaw
+    )
+    if class_id < 0:
+        return OFF_MAP
+    values[CLASS], values[ELEVATION], values[ROLL], values[PITCH] = class_id, height, new_roll, new_pitch
+    lateral = speed * yaw_rate
+    roll_margin, pitch_margin = tilt_margins_kernel(
+        body[TIP_ROLL], body[TIP_PITCH], new_roll, new_pitch, lateral
+    )
+    values[LATERAL], values[ROLL_MARGIN], values[PITCH_MARGIN] = lateral, roll_margin, pitch_margin
+    rollover_started = min(roll_margin, pitch_margin) < 0.0
+    values[ROLLOVER_STARTED] = 1.0 if rollover_started else 0.0
+    if rollover_started:
+        values[SPEED] = values[YAW_RATE] = values[ACCEL] = 0.0
+
+    power = wheel_outputs(
+        wheels,
+        normals,
+        traction,
+        speed,
+        yaw_rate,
+        ground,
+        body[MOTOR:MOTOR_END],
+        battery_voltage,
+        slip,
+        currents,
+        duty,
+    )
+    for i in range(6):
+        if stalled[i] != 0.0:
+            power += _stall(stalled, body, battery_voltage, currents, duty)
+            break
+    values[ENERGY_J] += power * dt
+    values[POWER_W] = power
+    # What the motors draw from the pack: each I x duty; a braking motor (current against its duty)
+    # generates, and with no regeneration (hil.battery, the motor power above) it gives nothing back, nor
+    # draws. Summed left to right from 0, as Python's sum() of floats.
+    input_current = 0.0
+    for i in range(6):
+        input_current += max(currents[i] * duty[i], 0.0)
+    values[INPUT_CURRENT_A] = input_current
+    specific_force(values, lateral)
+    return STEPPED
+
+
+@numba.njit(cache=True)
+def specific_force(values: Array, lateral: float) -> None:
+    """Acceleration minus gravity in body axes (x fwd, y left, z up): (0, 0, +g) at rest on the level,
+    from ``values``'s terrain tilt and step acceleration."""
+    roll, pitch = values[ROLL], values[PITCH]
+    cos_pitch = math.cos(pitch)
+    values[FORCE_X] = values[STEP_ACCEL] + G * math.sin(pitch)
+    values[FORCE_Y] = lateral + G * cos_pitch * math.sin(roll)
+    values[FORCE_Z] = G * cos_pitch * math.cos(roll)
