@@ -52,7 +52,33 @@ from typing import NamedTuple
 import numpy as np
 
 from hil import dynamics_kernel as k
-from navigator.footprint import BOUNDARY, CLEAR, OBSTACLE
+from hil.dynamics_kernel import (  # the step's vector layout, read every step
+    CLASS,
+    CONTACT_BEGAN,
+    CONTACT_KIND,
+    CURRENTS,
+    DUTY,
+    ELEVATION,
+    ENERGY_J,
+    FORCE_X,
+    FORCE_Y,
+    FORCE_Z,
+    INPUT_CURRENT_A,
+    LATERAL,
+    NORMALS,
+    PITCH,
+    PITCH_MARGIN,
+    POWER_W,
+    ROLL_MARGIN,
+    ROLLOVER_STARTED,
+    SLIP,
+    STEP_ACCEL,
+    TOUCHING,
+    TRACTION,
+    WHEELS,
+    X,
+)
+from navigator.footprint import BOUNDARY, CLEAR, OBSTACLE, rectangle_contact
 from navigator.ground_kernel import GroundUnder
 from navigator.terrain import TerrainMap
 from navigator.terrain_classes import REFERENCE_WHEEL_LOAD_N, TERRAIN_CLASSES, TerrainClass
@@ -257,7 +283,7 @@ class RoverDynamics:
             raise DynamicsError(f"time step must be a finite number of seconds > 0, got {dt_s}")
         check_wheel_speeds(wheel_surface_speeds)
         values = self._values
-        values[k.WHEELS : k.WHEELS + 6] = wheel_surface_speeds
+        values[WHEELS : WHEELS + 6] = wheel_surface_speeds
         if not math.isfinite(battery_voltage_v):
             raise DynamicsError(f"battery voltage must be finite, got {battery_voltage_v}")
         # Nothing seized: () (the world's, without a vesc fault) or six zeros (the VESCs' own, while a
@@ -271,58 +297,60 @@ class RoverDynamics:
             return self._rolled_over_step(class_id)
         if seized:
             self._stalled[:] = stalled
-        terrain = self._terrain
         status = k.step_kernel(
             values, self._body, self._ground_table, self._stalled if seized else self._none_stalled,
-            self._obstacles, terrain.terrain_class, terrain.elevation_m, self._grad_x, self._grad_y,
+            self._obstacles, self._class_layer, self._elevation_layer, self._grad_x, self._grad_y,
             self._origin_x, self._origin_y, self._resolution_m, dt_s, battery_voltage_v,
         )  # fmt: skip
         v = self._read_state()
         if status == k.OFF_MAP:
-            terrain.ground_at(self._x, self._y, self._yaw)  # raises the map's own error, naming the point
-        rollover_started = v[k.ROLLOVER_STARTED] != 0.0
+            self._terrain.ground_at(
+                self._x, self._y, self._yaw
+            )  # raises the map's own error, naming the point
+        rollover_started = v[ROLLOVER_STARTED] != 0.0
         if rollover_started:
             self._rolled_over = True
-        touching = v[k.TOUCHING] != 0.0
-        power = v[k.POWER_W]
+        touching = v[TOUCHING] != 0.0
+        power = v[POWER_W]
+        # Positional, in the fields' order: with 28 fields, keywords cost twice as much, every step.
         return DynamicsStep(
-            x=self._x,
-            y=self._y,
-            yaw=self._yaw,
-            speed_mps=self._speed,
-            yaw_rate_rps=self._yaw_rate,
-            roll_rad=self._roll,
-            pitch_rad=self._pitch,
-            terrain_class=class_id,
-            terrain_name=self._class_names[class_id],
-            wheel_speeds_mps=tuple(v[k.WHEELS : k.WHEELS + 6]),
-            slip=tuple(v[k.SLIP : k.SLIP + 6]),
-            normal_forces_n=tuple(v[k.NORMALS : k.NORMALS + 6]),
-            traction_forces_n=tuple(v[k.TRACTION : k.TRACTION + 6]),
-            motor_currents_a=tuple(v[k.CURRENTS : k.CURRENTS + 6]),
-            duty=tuple(v[k.DUTY : k.DUTY + 6]),
-            longitudinal_accel_mps2=v[k.STEP_ACCEL],
-            lateral_accel_mps2=v[k.LATERAL],
-            specific_force_body_mps2=(v[k.FORCE_X], v[k.FORCE_Y], v[k.FORCE_Z]),
-            roll_margin_rad=v[k.ROLL_MARGIN],
-            pitch_margin_rad=v[k.PITCH_MARGIN],
-            rollover=self._rolled_over,
-            rollover_started=rollover_started,
-            collided=touching,
-            collided_obstacle=v[k.CONTACT_BEGAN] != 0.0,
-            collision_with=_KIND_NAMES[int(v[k.CONTACT_KIND])] if touching else "",
-            energy_wh=self._energy_j / 3600.0,
-            battery_current_a=power / battery_voltage_v if battery_voltage_v > 0.0 else 0.0,
-            motor_input_current_a=v[k.INPUT_CURRENT_A],
+            self._x,
+            self._y,
+            self._yaw,
+            self._speed,
+            self._yaw_rate,
+            self._roll,
+            self._pitch,
+            class_id,
+            self._class_names[class_id],
+            tuple(v[WHEELS : WHEELS + 6]),  # wheel_speeds_mps
+            tuple(v[SLIP : SLIP + 6]),
+            tuple(v[NORMALS : NORMALS + 6]),
+            tuple(v[TRACTION : TRACTION + 6]),
+            tuple(v[CURRENTS : CURRENTS + 6]),
+            tuple(v[DUTY : DUTY + 6]),
+            v[STEP_ACCEL],  # longitudinal_accel_mps2
+            v[LATERAL],
+            (v[FORCE_X], v[FORCE_Y], v[FORCE_Z]),  # specific_force_body_mps2
+            v[ROLL_MARGIN],
+            v[PITCH_MARGIN],
+            self._rolled_over,  # rollover
+            rollover_started,
+            touching,  # collided
+            v[CONTACT_BEGAN] != 0.0,  # collided_obstacle
+            _KIND_NAMES[int(v[CONTACT_KIND])] if touching else "",  # collision_with
+            self._energy_j / 3600.0,  # energy_wh
+            power / battery_voltage_v if battery_voltage_v > 0.0 else 0.0,  # battery_current_a
+            v[INPUT_CURRENT_A],  # motor_input_current_a
         )
 
     # --- pieces -----------------------------------------------------------------------------------
     def _read_state(self) -> list[float]:
         """Copy the kernel's vector into plain floats (one ``tolist``), keep the state's, return them all."""
         v = self._values.tolist()
-        self._x, self._y, self._yaw, self._speed, self._yaw_rate, _, self._energy_j = v[k.X : k.ENERGY_J + 1]
-        self._class_id = int(v[k.CLASS])
-        self._elevation, self._roll, self._pitch = v[k.ELEVATION : k.PITCH + 1]
+        self._x, self._y, self._yaw, self._speed, self._yaw_rate, _, self._energy_j = v[X : ENERGY_J + 1]
+        self._class_id = int(v[CLASS])
+        self._elevation, self._roll, self._pitch = v[ELEVATION : PITCH + 1]
         return v
 
     def _rolled_over_step(self, class_id: int) -> DynamicsStep:
@@ -370,25 +398,25 @@ class RoverDynamics:
         x, y, yaw = values[k.X], values[k.Y], values[k.YAW]
         self._terrain = terrain
         self._obstacles = np.ascontiguousarray(terrain.obstacles)
+        self._class_layer, self._elevation_layer = terrain.terrain_class, terrain.elevation_m
         self._grad_x, self._grad_y = terrain.slope_gradient()
         self._origin_x, self._origin_y = terrain.origin_xy
         self._resolution_m = terrain.resolution_m
         under = terrain.ground_at(x, y, yaw)
         values[k.CLASS], values[k.ELEVATION], values[k.ROLL], values[k.PITCH] = under
-        overlapping = (
-            k.contact_kind(
-                self._obstacles,
-                self._resolution_m,
-                self._origin_x,
-                self._origin_y,
-                self._body,
-                x,
-                y,
-                yaw,
-                0.0,
-            )
-            != CLEAR
+        half_length, half_width = self._body[k.HALF_LENGTH], self._body[k.HALF_WIDTH]
+        kind = rectangle_contact(
+            self._obstacles,
+            self._resolution_m,
+            self._origin_x,
+            self._origin_y,
+            x,
+            y,
+            yaw,
+            half_length,
+            half_width,
         )
+        overlapping = kind != CLEAR
         values[k.OVERLAP_HERE] = 1.0 if overlapping else 0.0
 
 

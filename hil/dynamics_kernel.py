@@ -16,13 +16,19 @@ body's state (kept from step to step), the wheel speeds given, and what the step
 
 from __future__ import annotations
 
+import hashlib
 import math
+from collections.abc import Callable
+from pathlib import Path
+from types import ModuleType
 
 import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from hil import traction
 from hil.traction import drive_forces, wheel_outputs
+from navigator import footprint, ground_kernel, vehicle
 from navigator.footprint import CLEAR, rectangle_contact
 from navigator.ground_kernel import ground_at_kernel
 from navigator.vehicle import G, normal_forces_into, tilt_margins_kernel
@@ -68,7 +74,7 @@ def wrap_angle(angle: float) -> float:
 
 
 @numba.njit(cache=True)
-def contact_kind(
+def _contact_kind(
     obstacles: NDArray[np.bool_],
     res: float,
     ox: float,
@@ -99,14 +105,14 @@ def _depth(
 ) -> float:
     """How far the footprint reaches into obstacles or past the edge: the least shrink of every side (m)
     that clears it (bisection); 0 when clear, half its width when even its centre line overlaps."""
-    if contact_kind(obstacles, res, ox, oy, body, x, y, yaw, 0.0) == CLEAR:
+    if _contact_kind(obstacles, res, ox, oy, body, x, y, yaw, 0.0) == CLEAR:
         return 0.0
     lo, hi = 0.0, min(body[HALF_LENGTH], body[HALF_WIDTH])
-    if contact_kind(obstacles, res, ox, oy, body, x, y, yaw, -hi) != CLEAR:
+    if _contact_kind(obstacles, res, ox, oy, body, x, y, yaw, -hi) != CLEAR:
         return hi
     for _ in range(_DEPTH_BISECTIONS):
         mid = 0.5 * (lo + hi)
-        if contact_kind(obstacles, res, ox, oy, body, x, y, yaw, -mid) != CLEAR:
+        if _contact_kind(obstacles, res, ox, oy, body, x, y, yaw, -mid) != CLEAR:
             lo = mid
         else:
             hi = mid
@@ -127,7 +133,7 @@ def _refused(
 ) -> bool:
     """Whether moving to (x, y, yaw) pushes the footprint further in: into an overlap from clear, or
     deeper into one it already overlaps (e.g. an obstacle appeared on it: it may still back out)."""
-    if contact_kind(obstacles, res, ox, oy, body, x, y, yaw, 0.0) == CLEAR:
+    if _contact_kind(obstacles, res, ox, oy, body, x, y, yaw, 0.0) == CLEAR:
         return False
     if values[OVERLAP_HERE] == 0.0:
         return True
@@ -162,7 +168,7 @@ def _advance_to_contact(
         mid = 0.5 * (lo + hi)
         x = x0 + mid * (new_x - x0)
         y = y0 + mid * (new_y - y0)
-        if contact_kind(obstacles, res, ox, oy, body, x, y, yaw_from + mid * turn, 0.0) == CLEAR:
+        if _contact_kind(obstacles, res, ox, oy, body, x, y, yaw_from + mid * turn, 0.0) == CLEAR:
             lo = mid
         else:
             hi = mid
@@ -185,129 +191,157 @@ def _stall(stalled: Array, body: Array, battery_voltage: float, currents: Array,
     return power
 
 
-@numba.njit(cache=True)
-def step_kernel(
-    values: Array,
-    body: Array,
-    ground_table: Array,
-    stalled: Array,
-    obstacles: NDArray[np.bool_],
-    classes: NDArray[np.uint8],
-    elevation: Array,
-    grad_x: Array,
-    grad_y: Array,
-    ox: float,
-    oy: float,
-    res: float,
-    dt: float,
-    battery_voltage: float,
-) -> int:
-    """One step of ``dt`` s of the rover (not rolled over) on ``values``'s state with its wheel speeds.
+def _sources_fingerprint(*modules: ModuleType) -> str:
+    """sha256 of the modules' source files."""
+    digest = hashlib.sha256()
+    for module in modules:
+        digest.update(Path(str(module.__file__)).read_bytes())
+    return digest.hexdigest()
 
-    ``ground_table`` row ``c``: class ``c``'s traction parameters (``hil.traction.drive_forces``'s
-    ``ground``). ``stalled``: per wheel -1 / 0 / +1 (``RoverDynamics.step``). The terrain's layers and
-    frame as ``TerrainMap``'s. Returns STEPPED, or OFF_MAP when the new position is off the map (the state
-    then holds the new pose, and the terrain under it is the old one).
+
+def _compile_step_kernel(sources_fingerprint: str) -> Callable[..., int]:
+    """``step_kernel``, cached by numba with ``sources_fingerprint`` in its cache key.
+
+    numba's on-disk cache is checked against the caller's own source file only, but the cached machine
+    code holds the compiled functions it calls from other modules too (the traction laws, the footprint
+    contact test, the terrain look-up, the load balance): an edit there would leave this kernel running
+    the old code. A closure variable's value is part of numba's cache key, so the fingerprint of those
+    modules' sources makes an edit to any of them compile the kernel afresh.
     """
-    x, y, yaw = values[X], values[Y], values[YAW]
-    speed0, yaw_rate0 = values[SPEED], values[YAW_RATE]
-    roll, pitch = values[ROLL], values[PITCH]  # where the rover stands: from the end of the last step
-    wheels = values[WHEELS : WHEELS + 6]
-    normals, traction = values[NORMALS : NORMALS + 6], values[TRACTION : TRACTION + 6]
-    slip, currents, duty = values[SLIP : SLIP + 6], values[CURRENTS : CURRENTS + 6], values[DUTY : DUTY + 6]
-    ground = ground_table[int(values[CLASS])]
 
-    normal_forces_into(
-        body[MASS], body[CG_HEIGHT], body[TRACK], body[HALF_WHEELBASE], roll, pitch, values[ACCEL],
-        speed0 * yaw_rate0, normals,
-    )  # fmt: skip
-    accel, yaw_rate = drive_forces(
-        wheels, normals, ground, body[VEHICLE:MOTOR], speed0, yaw_rate0, pitch, dt, traction
-    )
+    @numba.njit(cache=True)
+    def step_kernel(
+        values: Array,
+        body: Array,
+        ground_table: Array,
+        stalled: Array,
+        obstacles: NDArray[np.bool_],
+        classes: NDArray[np.uint8],
+        elevation: Array,
+        grad_x: Array,
+        grad_y: Array,
+        ox: float,
+        oy: float,
+        res: float,
+        dt: float,
+        battery_voltage: float,
+    ) -> int:
+        """One step of ``dt`` s of the rover (not rolled over) on ``values``'s state with its wheel speeds.
 
-    speed = speed0 + accel * dt
-    mean_speed = 0.5 * (speed0 + speed)
-    turn = 0.5 * (yaw_rate0 + yaw_rate) * dt
-    heading = yaw + 0.5 * turn
-    new_x = x + mean_speed * math.cos(pitch) * math.cos(heading) * dt
-    new_y = y + mean_speed * math.cos(pitch) * math.sin(heading) * dt
-    new_yaw = wrap_angle(yaw + turn)
+        ``ground_table`` row ``c``: class ``c``'s traction parameters (``hil.traction.drive_forces``'s
+        ``ground``). ``stalled``: per wheel -1 / 0 / +1 (``RoverDynamics.step``). The terrain's layers and
+        frame as ``TerrainMap``'s. Returns STEPPED, or OFF_MAP when the new position is off the map (the state
+        then holds the new pose, and the terrain under it is the old one).
+        """
+        _ = sources_fingerprint  # in the closure, so in numba's cache key (see _compile_step_kernel)
+        x, y, yaw = values[X], values[Y], values[YAW]
+        speed0, yaw_rate0 = values[SPEED], values[YAW_RATE]
+        roll, pitch = values[ROLL], values[PITCH]  # where the rover stands: from the end of the last step
+        wheels = values[WHEELS : WHEELS + 6]
+        normals, traction = values[NORMALS : NORMALS + 6], values[TRACTION : TRACTION + 6]
+        slip, currents, duty = (
+            values[SLIP : SLIP + 6],
+            values[CURRENTS : CURRENTS + 6],
+            values[DUTY : DUTY + 6],
+        )
+        ground = ground_table[int(values[CLASS])]
 
-    # Contact: refuse a move that pushes the footprint further into an obstacle or over the edge. Most
-    # steps touch nothing: one test of the rectangle grown by the tolerance settles them.
-    kind = contact_kind(obstacles, res, ox, oy, body, new_x, new_y, new_yaw, CONTACT_TOLERANCE_M)
-    touching = kind != CLEAR
-    overlapping = False
-    if touching and _refused(obstacles, res, ox, oy, body, values, new_x, new_y, new_yaw):
-        if not _refused(obstacles, res, ox, oy, body, values, x, y, new_yaw):
-            # The turn alone is free: keep it, and stop the move at the contact.
-            new_x, new_y, _ = _advance_to_contact(
-                obstacles, res, ox, oy, body, values, new_x, new_y, new_yaw, 0.0
-            )
-        else:
-            # The turn is what hits (a corner swinging in): it stops at the contact too.
-            new_x, new_y, new_yaw = _advance_to_contact(
-                obstacles, res, ox, oy, body, values, new_x, new_y, yaw, turn
-            )
-            yaw_rate = 0.0
-        accel = (0.0 - speed0) / dt
-        speed = 0.0
-        again = contact_kind(obstacles, res, ox, oy, body, new_x, new_y, new_yaw, CONTACT_TOLERANCE_M)
-        kind = again if again != CLEAR else kind
-    if touching:
-        overlapping = contact_kind(obstacles, res, ox, oy, body, new_x, new_y, new_yaw, 0.0) != CLEAR
-    values[OVERLAP_HERE] = 1.0 if overlapping else 0.0
-    values[CONTACT_BEGAN] = 1.0 if touching and values[IN_CONTACT] == 0.0 else 0.0
-    values[IN_CONTACT] = values[TOUCHING] = 1.0 if touching else 0.0
-    values[CONTACT_KIND] = kind
+        normal_forces_into(
+            body[MASS], body[CG_HEIGHT], body[TRACK], body[HALF_WHEELBASE], roll, pitch, values[ACCEL],
+            speed0 * yaw_rate0, normals,
+        )  # fmt: skip
+        accel, yaw_rate = drive_forces(
+            wheels, normals, ground, body[VEHICLE:MOTOR], speed0, yaw_rate0, pitch, dt, traction
+        )
 
-    values[X], values[Y], values[YAW] = new_x, new_y, new_yaw
-    values[SPEED], values[YAW_RATE], values[ACCEL] = speed, yaw_rate, accel
-    values[STEP_ACCEL] = accel
-    class_id, height, new_roll, new_pitch = ground_at_kernel(
-        classes, elevation, grad_x, grad_y, ox, oy, res, new_x, new_y, new_yaw
-    )
-    if class_id < 0:
-        return OFF_MAP
-    values[CLASS], values[ELEVATION], values[ROLL], values[PITCH] = class_id, height, new_roll, new_pitch
-    lateral = speed * yaw_rate
-    roll_margin, pitch_margin = tilt_margins_kernel(
-        body[TIP_ROLL], body[TIP_PITCH], new_roll, new_pitch, lateral
-    )
-    values[LATERAL], values[ROLL_MARGIN], values[PITCH_MARGIN] = lateral, roll_margin, pitch_margin
-    rollover_started = min(roll_margin, pitch_margin) < 0.0
-    values[ROLLOVER_STARTED] = 1.0 if rollover_started else 0.0
-    if rollover_started:
-        values[SPEED] = values[YAW_RATE] = values[ACCEL] = 0.0
+        speed = speed0 + accel * dt
+        mean_speed = 0.5 * (speed0 + speed)
+        turn = 0.5 * (yaw_rate0 + yaw_rate) * dt
+        heading = yaw + 0.5 * turn
+        new_x = x + mean_speed * math.cos(pitch) * math.cos(heading) * dt
+        new_y = y + mean_speed * math.cos(pitch) * math.sin(heading) * dt
+        new_yaw = wrap_angle(yaw + turn)
 
-    power = wheel_outputs(
-        wheels,
-        normals,
-        traction,
-        speed,
-        yaw_rate,
-        ground,
-        body[MOTOR:MOTOR_END],
-        battery_voltage,
-        slip,
-        currents,
-        duty,
-    )
-    for i in range(6):
-        if stalled[i] != 0.0:
-            power += _stall(stalled, body, battery_voltage, currents, duty)
-            break
-    values[ENERGY_J] += power * dt
-    values[POWER_W] = power
-    # What the motors draw from the pack: each I x duty; a braking motor (current against its duty)
-    # generates, and with no regeneration (hil.battery, the motor power above) it gives nothing back, nor
-    # draws. Summed left to right from 0, as Python's sum() of floats.
-    input_current = 0.0
-    for i in range(6):
-        input_current += max(currents[i] * duty[i], 0.0)
-    values[INPUT_CURRENT_A] = input_current
-    specific_force(values, lateral)
-    return STEPPED
+        # Contact: refuse a move that pushes the footprint further into an obstacle or over the edge. Most
+        # steps touch nothing: one test of the rectangle grown by the tolerance settles them.
+        kind = _contact_kind(obstacles, res, ox, oy, body, new_x, new_y, new_yaw, CONTACT_TOLERANCE_M)
+        touching = kind != CLEAR
+        overlapping = False
+        if touching and _refused(obstacles, res, ox, oy, body, values, new_x, new_y, new_yaw):
+            if not _refused(obstacles, res, ox, oy, body, values, x, y, new_yaw):
+                # The turn alone is free: keep it, and stop the move at the contact.
+                new_x, new_y, _ = _advance_to_contact(
+                    obstacles, res, ox, oy, body, values, new_x, new_y, new_yaw, 0.0
+                )
+            else:
+                # The turn is what hits (a corner swinging in): it stops at the contact too.
+                new_x, new_y, new_yaw = _advance_to_contact(
+                    obstacles, res, ox, oy, body, values, new_x, new_y, yaw, turn
+                )
+                yaw_rate = 0.0
+            accel = (0.0 - speed0) / dt
+            speed = 0.0
+            again = _contact_kind(obstacles, res, ox, oy, body, new_x, new_y, new_yaw, CONTACT_TOLERANCE_M)
+            kind = again if again != CLEAR else kind
+        if touching:
+            overlapping = _contact_kind(obstacles, res, ox, oy, body, new_x, new_y, new_yaw, 0.0) != CLEAR
+        values[OVERLAP_HERE] = 1.0 if overlapping else 0.0
+        values[CONTACT_BEGAN] = 1.0 if touching and values[IN_CONTACT] == 0.0 else 0.0
+        values[IN_CONTACT] = values[TOUCHING] = 1.0 if touching else 0.0
+        values[CONTACT_KIND] = kind
+
+        values[X], values[Y], values[YAW] = new_x, new_y, new_yaw
+        values[SPEED], values[YAW_RATE], values[ACCEL] = speed, yaw_rate, accel
+        values[STEP_ACCEL] = accel
+        class_id, height, new_roll, new_pitch = ground_at_kernel(
+            classes, elevation, grad_x, grad_y, ox, oy, res, new_x, new_y, new_yaw
+        )
+        if class_id < 0:
+            return OFF_MAP
+        values[CLASS], values[ELEVATION], values[ROLL], values[PITCH] = class_id, height, new_roll, new_pitch
+        lateral = speed * yaw_rate
+        roll_margin, pitch_margin = tilt_margins_kernel(
+            body[TIP_ROLL], body[TIP_PITCH], new_roll, new_pitch, lateral
+        )
+        values[LATERAL], values[ROLL_MARGIN], values[PITCH_MARGIN] = lateral, roll_margin, pitch_margin
+        rollover_started = min(roll_margin, pitch_margin) < 0.0
+        values[ROLLOVER_STARTED] = 1.0 if rollover_started else 0.0
+        if rollover_started:
+            values[SPEED] = values[YAW_RATE] = values[ACCEL] = 0.0
+
+        power = wheel_outputs(
+            wheels,
+            normals,
+            traction,
+            speed,
+            yaw_rate,
+            ground,
+            body[MOTOR:MOTOR_END],
+            battery_voltage,
+            slip,
+            currents,
+            duty,
+        )
+        for i in range(6):
+            if stalled[i] != 0.0:
+                power += _stall(stalled, body, battery_voltage, currents, duty)
+                break
+        values[ENERGY_J] += power * dt
+        values[POWER_W] = power
+        # What the motors draw from the pack: each I x duty; a braking motor (current against its duty)
+        # generates, and with no regeneration (hil.battery, the motor power above) it gives nothing back, nor
+        # draws. Summed left to right from 0, as Python's sum() of floats.
+        input_current = 0.0
+        for i in range(6):
+            input_current += max(currents[i] * duty[i], 0.0)
+        values[INPUT_CURRENT_A] = input_current
+        specific_force(values, lateral)
+        return STEPPED
+
+    return step_kernel
+
+
+step_kernel = _compile_step_kernel(_sources_fingerprint(traction, footprint, ground_kernel, vehicle))
 
 
 @numba.njit(cache=True)

@@ -112,13 +112,13 @@ def _share_side(
     magnitude = abs(force)
     sign = 1.0 if force >= 0.0 else -1.0
     caps = forward_caps if force >= 0.0 else backward_caps
-    capped = np.zeros(3, dtype=np.bool_)
+    capped = 0  # bit k: wheel first + k is at its cap (bits, not a bool array: no allocation per call)
     ratio = 0.0
     for _ in range(4):
         free_load = 0.0
         taken = 0.0
         for k in range(3):
-            if capped[k]:
+            if capped & (1 << k):
                 taken += caps[first + k]
             else:
                 free_load += loads[first + k]
@@ -130,14 +130,14 @@ def _share_side(
         worst = -1
         for k in range(3):
             load, cap = loads[first + k], caps[first + k]
-            over = not capped[k] and min(ratio, mu) * load > cap
+            over = not capped & (1 << k) and min(ratio, mu) * load > cap
             if over and (worst < 0 or cap * loads[first + worst] < caps[first + worst] * load):
                 worst = k
         if worst < 0:
             break
-        capped[worst] = True
+        capped |= 1 << worst
     for k in range(3):
-        if capped[k]:
+        if capped & (1 << k):
             out[first + k] = sign * caps[first + k]
         else:
             out[first + k] = sign * min(ratio, mu) * loads[first + k]
@@ -168,13 +168,12 @@ def _wheel_caps(
 
 @numba.njit(cache=True)
 def _side_ground_speed(
-    surface: float, force: float, loads: Array, first: int, mu: float, k: float, cap: float
+    surface: float, force: float, loads: Array, first: int, mu: float, k: float, caps: Array, scratch: Array
 ) -> float:
     """Ground speed a side's wheels at ``surface`` m/s settle at while transmitting ``force`` (N).
 
-    In the steady state the slip has the force's sign by construction, so only the motor cap bounds it."""
-    scratch = np.empty(6)
-    caps = np.full(6, cap)
+    In the steady state the slip has the force's sign by construction, so only the motor cap bounds it:
+    ``caps`` holds it for every wheel; ``scratch`` (six) takes the split, which is not kept."""
     ratio = _share_side(force, loads, first, mu, caps, caps, scratch)
     if ratio >= mu:
         return surface  # cannot hold it: the wheels spin; the force limit, not slip, sets the motion
@@ -255,18 +254,21 @@ def drive_forces(
     # Steady state: the sides' forces that hold this speed and turn, and the ground speeds their slip gives.
     hold_force = -gravity_along - resist_total
     hold_moment = turn_sign * scrub - resist_moment
+    # One scratch allocation per step for every per-wheel vector below (slices are views).
+    work = np.empty(24)
+    motor_caps, scratch, forward_caps, backward_caps = work[0:6], work[6:12], work[12:18], work[18:24]
+    motor_caps[:] = cap
     left_ground = _side_ground_speed(
-        left, 0.5 * hold_force - hold_moment / track, normals, 0, mu, slip_k, cap
+        left, 0.5 * hold_force - hold_moment / track, normals, 0, mu, slip_k, motor_caps, scratch
     )
     right_ground = _side_ground_speed(
-        right, 0.5 * hold_force + hold_moment / track, normals, 3, mu, slip_k, cap
+        right, 0.5 * hold_force + hold_moment / track, normals, 3, mu, slip_k, motor_caps, scratch
     )
     v_target = 0.5 * (left_ground + right_ground)
     yaw_target = (right_ground - left_ground) / effective_track
 
     # Longitudinal: toward the target within tau, as far as the sides' traction and current limits and the
     # sign of each wheel's slip allow (a wheel slower than the ground brakes, one faster pulls).
-    forward_caps, backward_caps = np.empty(6), np.empty(6)
     _wheel_caps(wheels, speed, yaw_rate, effective_track, cap, forward_caps, backward_caps)
     left_forward = left_backward = right_forward = right_backward = 0.0
     for i in range(6):
