@@ -191,7 +191,7 @@ def _stall(stalled: Array, body: Array, battery_voltage: float, currents: Array,
     return power
 
 
-def _sources_fingerprint(*modules: ModuleType) -> str:
+def sources_fingerprint(*modules: ModuleType) -> str:
     """sha256 of the modules' source files."""
     digest = hashlib.sha256()
     for module in modules:
@@ -199,8 +199,8 @@ def _sources_fingerprint(*modules: ModuleType) -> str:
     return digest.hexdigest()
 
 
-def _compile_step_kernel(sources_fingerprint: str) -> Callable[..., int]:
-    """``step_kernel``, cached by numba with ``sources_fingerprint`` in its cache key.
+def _compile_step_kernel(fingerprint: str) -> Callable[..., int]:
+    """``step_kernel``, cached by numba with ``fingerprint`` (of the modules it calls) in its cache key.
 
     numba's on-disk cache is checked against the caller's own source file only, but the cached machine
     code holds the compiled functions it calls from other modules too (the traction laws, the footprint
@@ -230,10 +230,10 @@ def _compile_step_kernel(sources_fingerprint: str) -> Callable[..., int]:
 
         ``ground_table`` row ``c``: class ``c``'s traction parameters (``hil.traction.drive_forces``'s
         ``ground``). ``stalled``: per wheel -1 / 0 / +1 (``RoverDynamics.step``). The terrain's layers and
-        frame as ``TerrainMap``'s. Returns STEPPED, or OFF_MAP when the new position is off the map (the state
-        then holds the new pose, and the terrain under it is the old one).
+        frame as ``TerrainMap``'s. Returns STEPPED, or OFF_MAP when the new position is off the map (the
+        state then holds the new pose, and the terrain under it is the old one).
         """
-        _ = sources_fingerprint  # in the closure, so in numba's cache key (see _compile_step_kernel)
+        _ = fingerprint  # in the closure, so in numba's cache key (see _compile_step_kernel)
         x, y, yaw = values[X], values[Y], values[YAW]
         speed0, yaw_rate0 = values[SPEED], values[YAW_RATE]
         roll, pitch = values[ROLL], values[PITCH]  # where the rover stands: from the end of the last step
@@ -341,7 +341,9 @@ def _compile_step_kernel(sources_fingerprint: str) -> Callable[..., int]:
     return step_kernel
 
 
-step_kernel = _compile_step_kernel(_sources_fingerprint(traction, footprint, ground_kernel, vehicle))
+# The modules whose compiled functions step_kernel calls (each calls only its own module's in turn).
+KERNEL_SOURCES = (traction, footprint, ground_kernel, vehicle)
+step_kernel = _compile_step_kernel(sources_fingerprint(*KERNEL_SOURCES))
 
 
 @numba.njit(cache=True)

@@ -1,0 +1,73 @@
+"""The compiled physics step (hil.dynamics_kernel): what moved into it from Python, and its cache key."""
+
+import math
+
+import numba
+import numpy as np
+import pytest
+
+from hil import dynamics_kernel
+from hil.dynamics import RoverDynamics
+from navigator.terrain import TerrainMap
+from navigator.vehicle import VehicleParams, stability_margins, tilt_margins_kernel
+
+PARAMS = VehicleParams()
+
+
+def slope(grade_x: float) -> TerrainMap:
+    size = (60, 60)
+    xs = (np.arange(size[1]) + 0.5) * 0.25
+    elevation = np.broadcast_to(grade_x * xs[np.newaxis, :], size).copy()
+    return TerrainMap(elevation, np.zeros(size, np.uint8), np.zeros(size, bool), 0.25)
+
+
+def test_motor_input_current_is_the_sum_of_the_drawing_motors_current_times_duty():
+    """The world charges the pack with it: each motor's I x duty, a braking (generating) motor adding 0."""
+    body = RoverDynamics(slope(-0.15), PARAMS, x=7.5, y=7.5, yaw=0.0)  # facing downhill
+    braking = drawing = 0
+    stalled = (0.0, 1.0, 0.0, 0.0, 0.0, -1.0)
+    for i in range(300):
+        wheels = [0.3] * 6 if i < 200 else [0.8, 0.8, 0.8, -0.2, -0.2, -0.2]
+        step = body.step(0.01, wheels, 24.0, stalled if i >= 250 else ())
+        terms = [current * duty for current, duty in zip(step.motor_currents_a, step.duty, strict=True)]
+        assert step.motor_input_current_a == sum([max(term, 0.0) for term in terms])
+        braking += any(term < 0.0 for term in terms)
+        drawing += any(term > 0.0 for term in terms)
+    assert braking > 0 and drawing > 0  # both kinds of motor were summed
+
+
+def test_the_compiled_tilt_margins_are_the_planners_bit_for_bit():
+    rng = np.random.default_rng(3)
+    for roll, pitch, lateral in rng.uniform(-1.5, 1.5, (500, 3)).tolist():
+        expected = stability_margins(PARAMS, roll, pitch, lateral)
+        got = tilt_margins_kernel(PARAMS.tip_roll_rad, PARAMS.tip_pitch_rad, roll, pitch, lateral)
+        assert got == expected
+
+
+def test_the_step_kernels_cache_key_holds_every_module_it_compiles_in():
+    """numba checks a cached kernel against its own file only; step_kernel's closure carries a fingerprint
+    of the other modules' sources (dynamics_kernel._compile_step_kernel). Every compiled function it
+    imports must come from a fingerprinted module, and the fingerprint must be the current sources'."""
+    fingerprinted = {module.__name__ for module in dynamics_kernel.KERNEL_SOURCES}
+    imported = {
+        value.py_func.__module__
+        for value in vars(dynamics_kernel).values()
+        if isinstance(value, numba.core.registry.CPUDispatcher)
+        and value.py_func.__module__ != dynamics_kernel.__name__
+    }
+    assert imported and imported <= fingerprinted
+    closure = dynamics_kernel.step_kernel.py_func.__closure__
+    cells = [cell.cell_contents for cell in closure or ()]
+    assert dynamics_kernel.sources_fingerprint(*dynamics_kernel.KERNEL_SOURCES) in cells
+
+
+@pytest.mark.parametrize("degrees", [5.0, 70.0])
+def test_specific_force_at_rest_is_gravity_in_body_axes_rolled_over_or_not(degrees):
+    grade = math.tan(math.radians(degrees))
+    body = RoverDynamics(slope(grade), PARAMS, x=7.5, y=7.5, yaw=math.pi / 2.0)  # across the slope: rolls
+    for _ in range(3):
+        step = body.step(0.01, [0.0] * 6, 24.0)
+    roll = step.roll_rad
+    assert step.rollover == (degrees > 45.0)
+    expected = (0.0, 9.81 * math.sin(roll), 9.81 * math.cos(roll))
+    assert step.specific_force_body_mps2 == pytest.approx(expected, abs=0.05)
