@@ -34,6 +34,8 @@ from navigator.ground_kernel import ground_at_kernel
 from navigator.vehicle import G, normal_forces_into, tilt_margins_kernel
 
 Array = NDArray[np.float64]
+# A map's obstacle layer and frame (resolution m, origin x and y m), as rectangle_contact takes them.
+Grid = tuple[NDArray[np.bool_], float, float, float]
 
 # Within this distance of an obstacle the footprint counts as touching it.
 CONTACT_TOLERANCE_M = 1e-3
@@ -74,45 +76,27 @@ def wrap_angle(angle: float) -> float:
 
 
 @numba.njit(cache=True)
-def _contact_kind(
-    obstacles: NDArray[np.bool_],
-    res: float,
-    ox: float,
-    oy: float,
-    body: Array,
-    x: float,
-    y: float,
-    yaw: float,
-    grow_m: float,
-) -> int:
+def _contact_kind(grid: Grid, body: Array, x: float, y: float, yaw: float, grow_m: float) -> int:
     """What the footprint at (x, y, yaw), grown by ``grow_m`` on every side, overlaps (CLEAR, OBSTACLE,
     BOUNDARY of ``navigator.footprint``)."""
+    obstacles, res, ox, oy = grid
     return rectangle_contact(
         obstacles, res, ox, oy, x, y, yaw, body[HALF_LENGTH] + grow_m, body[HALF_WIDTH] + grow_m
     )
 
 
 @numba.njit(cache=True)
-def _depth(
-    obstacles: NDArray[np.bool_],
-    res: float,
-    ox: float,
-    oy: float,
-    body: Array,
-    x: float,
-    y: float,
-    yaw: float,
-) -> float:
+def _depth(grid: Grid, body: Array, x: float, y: float, yaw: float) -> float:
     """How far the footprint reaches into obstacles or past the edge: the least shrink of every side (m)
     that clears it (bisection); 0 when clear, half its width when even its centre line overlaps."""
-    if _contact_kind(obstacles, res, ox, oy, body, x, y, yaw, 0.0) == CLEAR:
+    if _contact_kind(grid, body, x, y, yaw, 0.0) == CLEAR:
         return 0.0
     lo, hi = 0.0, min(body[HALF_LENGTH], body[HALF_WIDTH])
-    if _contact_kind(obstacles, res, ox, oy, body, x, y, yaw, -hi) != CLEAR:
+    if _contact_kind(grid, body, x, y, yaw, -hi) != CLEAR:
         return hi
     for _ in range(_DEPTH_BISECTIONS):
         mid = 0.5 * (lo + hi)
-        if _contact_kind(obstacles, res, ox, oy, body, x, y, yaw, -mid) != CLEAR:
+        if _contact_kind(grid, body, x, y, yaw, -mid) != CLEAR:
             lo = mid
         else:
             hi = mid
@@ -120,39 +104,20 @@ def _depth(
 
 
 @numba.njit(cache=True)
-def _refused(
-    obstacles: NDArray[np.bool_],
-    res: float,
-    ox: float,
-    oy: float,
-    body: Array,
-    values: Array,
-    x: float,
-    y: float,
-    yaw: float,
-) -> bool:
+def _refused(grid: Grid, body: Array, values: Array, x: float, y: float, yaw: float) -> bool:
     """Whether moving to (x, y, yaw) pushes the footprint further in: into an overlap from clear, or
     deeper into one it already overlaps (e.g. an obstacle appeared on it: it may still back out)."""
-    if _contact_kind(obstacles, res, ox, oy, body, x, y, yaw, 0.0) == CLEAR:
+    if _contact_kind(grid, body, x, y, yaw, 0.0) == CLEAR:
         return False
     if values[OVERLAP_HERE] == 0.0:
         return True
-    here = _depth(obstacles, res, ox, oy, body, values[X], values[Y], values[YAW])
-    return _depth(obstacles, res, ox, oy, body, x, y, yaw) > here
+    here = _depth(grid, body, values[X], values[Y], values[YAW])
+    return _depth(grid, body, x, y, yaw) > here
 
 
 @numba.njit(cache=True)
 def _advance_to_contact(
-    obstacles: NDArray[np.bool_],
-    res: float,
-    ox: float,
-    oy: float,
-    body: Array,
-    values: Array,
-    new_x: float,
-    new_y: float,
-    yaw_from: float,
-    turn: float,
+    grid: Grid, body: Array, values: Array, new_x: float, new_y: float, yaw_from: float, turn: float
 ) -> tuple[float, float, float]:
     """The furthest pose along this step's move (position, and the heading ``yaw_from`` + part of
     ``turn``) that keeps the footprint clear (bisection).
@@ -168,7 +133,7 @@ def _advance_to_contact(
         mid = 0.5 * (lo + hi)
         x = x0 + mid * (new_x - x0)
         y = y0 + mid * (new_y - y0)
-        if _contact_kind(obstacles, res, ox, oy, body, x, y, yaw_from + mid * turn, 0.0) == CLEAR:
+        if _contact_kind(grid, body, x, y, yaw_from + mid * turn, 0.0) == CLEAR:
             lo = mid
         else:
             hi = mid
@@ -234,6 +199,7 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., int]:
         state then holds the new pose, and the terrain under it is the old one).
         """
         _ = fingerprint  # in the closure, so in numba's cache key (see _compile_step_kernel)
+        grid = (obstacles, res, ox, oy)
         x, y, yaw = values[X], values[Y], values[YAW]
         speed0, yaw_rate0 = values[SPEED], values[YAW_RATE]
         roll, pitch = values[ROLL], values[PITCH]  # where the rover stands: from the end of the last step
@@ -264,27 +230,23 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., int]:
 
         # Contact: refuse a move that pushes the footprint further into an obstacle or over the edge. Most
         # steps touch nothing: one test of the rectangle grown by the tolerance settles them.
-        kind = _contact_kind(obstacles, res, ox, oy, body, new_x, new_y, new_yaw, CONTACT_TOLERANCE_M)
+        kind = _contact_kind(grid, body, new_x, new_y, new_yaw, CONTACT_TOLERANCE_M)
         touching = kind != CLEAR
         overlapping = False
-        if touching and _refused(obstacles, res, ox, oy, body, values, new_x, new_y, new_yaw):
-            if not _refused(obstacles, res, ox, oy, body, values, x, y, new_yaw):
+        if touching and _refused(grid, body, values, new_x, new_y, new_yaw):
+            if not _refused(grid, body, values, x, y, new_yaw):
                 # The turn alone is free: keep it, and stop the move at the contact.
-                new_x, new_y, _ = _advance_to_contact(
-                    obstacles, res, ox, oy, body, values, new_x, new_y, new_yaw, 0.0
-                )
+                new_x, new_y, _ = _advance_to_contact(grid, body, values, new_x, new_y, new_yaw, 0.0)
             else:
                 # The turn is what hits (a corner swinging in): it stops at the contact too.
-                new_x, new_y, new_yaw = _advance_to_contact(
-                    obstacles, res, ox, oy, body, values, new_x, new_y, yaw, turn
-                )
+                new_x, new_y, new_yaw = _advance_to_contact(grid, body, values, new_x, new_y, yaw, turn)
                 yaw_rate = 0.0
             accel = (0.0 - speed0) / dt
             speed = 0.0
-            again = _contact_kind(obstacles, res, ox, oy, body, new_x, new_y, new_yaw, CONTACT_TOLERANCE_M)
+            again = _contact_kind(grid, body, new_x, new_y, new_yaw, CONTACT_TOLERANCE_M)
             kind = again if again != CLEAR else kind
         if touching:
-            overlapping = _contact_kind(obstacles, res, ox, oy, body, new_x, new_y, new_yaw, 0.0) != CLEAR
+            overlapping = _contact_kind(grid, body, new_x, new_y, new_yaw, 0.0) != CLEAR
         values[OVERLAP_HERE] = 1.0 if overlapping else 0.0
         values[CONTACT_BEGAN] = 1.0 if touching and values[IN_CONTACT] == 0.0 else 0.0
         values[IN_CONTACT] = values[TOUCHING] = 1.0 if touching else 0.0
