@@ -164,9 +164,7 @@ class RoverDynamics:
             raise DynamicsError(f"winding_resistance_ohm must be >= 0, got {winding_resistance_ohm}")
         if not all(math.isfinite(v) for v in (x, y, yaw)) or not terrain.contains(x, y):
             raise DynamicsError(f"start pose ({x}, {y}, yaw {yaw}) must be finite and on the map")
-        missing = sorted(set(np.unique(terrain.terrain_class).tolist()) - set(classes))
-        if missing:
-            raise DynamicsError(f"terrain classes {missing} on the map have no entry in the class table")
+        _check_classes(terrain, classes)
         self._params = params
         self._classes = classes
         self._class_names = {class_id: c.name for class_id, c in classes.items()}
@@ -256,6 +254,7 @@ class RoverDynamics:
         """Swap in a new true terrain (e.g. moved obstacles); it must cover the rover's position."""
         if not terrain.contains(self._x, self._y):
             raise DynamicsError(f"new terrain does not cover the rover at ({self._x:.2f}, {self._y:.2f})")
+        _check_classes(terrain, self._classes)
         self._use_terrain(terrain)
         self._read_state()
 
@@ -293,8 +292,9 @@ class RoverDynamics:
             raise DynamicsError(f"stalled must be six values of -1, 0 or +1, got {list(stalled)}")
 
         class_id = self._class_id  # where the rover stands: from the end of the last step
+        terrain_name = self._class_names[class_id]  # every class on the map has one (_check_classes)
         if self._rolled_over:
-            return self._rolled_over_step(class_id)
+            return self._rolled_over_step(class_id, terrain_name)
         if seized:
             self._stalled[:] = stalled
         status = k.step_kernel(
@@ -322,7 +322,7 @@ class RoverDynamics:
             self._roll,
             self._pitch,
             class_id,
-            self._class_names[class_id],
+            terrain_name,
             tuple(v[WHEELS : WHEELS + 6]),  # wheel_speeds_mps
             tuple(v[SLIP : SLIP + 6]),
             tuple(v[NORMALS : NORMALS + 6]),
@@ -353,7 +353,7 @@ class RoverDynamics:
         self._elevation, self._roll, self._pitch = v[ELEVATION : PITCH + 1]
         return v
 
-    def _rolled_over_step(self, class_id: int) -> DynamicsStep:
+    def _rolled_over_step(self, class_id: int, terrain_name: str) -> DynamicsStep:
         """On its side the rover goes nowhere; wheels spin in the air with no load, no current."""
         zeros = (0.0,) * 6
         values = self._values
@@ -370,7 +370,7 @@ class RoverDynamics:
             roll_rad=self._roll,
             pitch_rad=self._pitch,
             terrain_class=class_id,
-            terrain_name=self._class_names[class_id],
+            terrain_name=terrain_name,
             wheel_speeds_mps=tuple(v[k.WHEELS : k.WHEELS + 6]),
             slip=zeros,
             normal_forces_n=zeros,
@@ -418,6 +418,14 @@ class RoverDynamics:
         )
         overlapping = kind != CLEAR
         values[k.OVERLAP_HERE] = 1.0 if overlapping else 0.0
+
+
+def _check_classes(terrain: TerrainMap, classes: dict[int, TerrainClass]) -> None:
+    """DynamicsError unless every class on the map has an entry in ``classes`` (the kernel's class table is
+    indexed by the class id under the rover, unchecked)."""
+    missing = sorted(set(np.unique(terrain.terrain_class).tolist()) - set(classes))
+    if missing:
+        raise DynamicsError(f"terrain classes {missing} on the map have no entry in the class table")
 
 
 def _body_vector(

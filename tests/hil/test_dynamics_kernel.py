@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from hil import dynamics_kernel
-from hil.dynamics import RoverDynamics
+from hil.dynamics import DynamicsError, RoverDynamics
 from navigator.terrain import TerrainMap
+from navigator.terrain_classes import TerrainClass
 from navigator.vehicle import VehicleParams, stability_margins, tilt_margins_kernel
 
 PARAMS = VehicleParams()
@@ -71,3 +72,16 @@ def test_specific_force_at_rest_is_gravity_in_body_axes_rolled_over_or_not(degre
     assert step.rollover == (degrees > 45.0)
     expected = (0.0, 9.81 * math.sin(roll), 9.81 * math.cos(roll))
     assert step.specific_force_body_mps2 == pytest.approx(expected, abs=0.05)
+
+
+def test_a_swapped_in_terrain_with_a_class_the_table_lacks_is_a_typed_error():
+    """The kernel indexes its class table with the class under the rover unchecked: the table must cover
+    every class on a new map as on the first."""
+    ice = {0: TerrainClass(0, "ice", 0.1, 0.02, 1.0, "test")}
+    body = RoverDynamics(slope(0.0), PARAMS, ice, x=7.5, y=7.5, yaw=0.0)
+    other = slope(0.0)
+    classes = np.array(other.terrain_class)
+    classes[:, 40:] = 1
+    with pytest.raises(DynamicsError, match=r"terrain classes \[1\]"):
+        body.set_terrain(TerrainMap(other.elevation_m, classes, np.zeros(classes.shape, bool), 0.25))
+    body.step(0.01, [0.2] * 6, 24.0)  # still on its old map
