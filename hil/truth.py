@@ -38,22 +38,25 @@ class TruthRecorder:
         if not record_state:
             return
         stamp = topics.stamp(now)
-        self._sink.publish(
+        publish = self._sink.publish
+        # The pose from the step's fields (the body's state after the step: the same floats as its
+        # properties, read as tuple fields rather than property calls).
+        publish(
             topics.TRUTH_POSE,
             now,
             {
                 "timestamp": stamp,
                 "frame_id": topics.ENU_FRAME,
-                "pose": topics.planar_pose(body.x, body.y, body.yaw, body.elevation_m),
-                "yaw_rad": body.yaw,
+                "pose": topics.planar_pose(step.x, step.y, step.yaw, body.elevation_m),
+                "yaw_rad": step.yaw,
                 "roll_rad": step.roll_rad,
                 "pitch_rad": step.pitch_rad,
-                "speed_mps": body.speed,
-                "yaw_rate_rps": body.yaw_rate,
+                "speed_mps": step.speed_mps,
+                "yaw_rate_rps": step.yaw_rate_rps,
                 "terrain": step.terrain_name,
             },
         )
-        self._sink.publish(
+        publish(
             topics.TRUTH_WHEELS,
             now,
             {
@@ -73,7 +76,7 @@ class TruthRecorder:
                 "energy_wh": battery.energy_wh,
             },
         )
-        self._sink.publish(
+        publish(
             topics.TRUTH_STABILITY,
             now,
             {
