@@ -36,6 +36,7 @@ controllers, the battery); each activation and end is recorded on the ``log`` to
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -116,6 +117,13 @@ class FaultSchedule:
     def active_all(self, target: str, t_ns: int) -> list[Fault]:
         t_ns -= self.epoch_ns
         return [f for f in self.faults if f.target == target and f.active_at(t_ns)]
+
+    def next_change_ns(self, t_ns: int) -> float:
+        """The first moment after ``t_ns`` (clock time) at which a fault starts or ends, when which faults
+        are active and what ``announce`` records next can change; ``math.inf`` when none is left."""
+        t_ns -= self.epoch_ns
+        moments = [m for f in self.faults for m in (f.start_ns, f.end_ns) if m > t_ns]
+        return self.epoch_ns + min(moments) if moments else math.inf
 
     def announce(self, sink: MessageSink, t_ns: int) -> None:
         """Record each fault's start and end on the ``log`` topic once (call every tick)."""

@@ -131,6 +131,7 @@ class SimWorld:
         )
         self._tick = 0
         self._has_faults = bool(scenario.faults)
+        self._next_fault_change_ns: float = self.epoch_ns  # the first tick applies the faults (_apply_faults)
         self._has_moving_obstacles = bool(scenario.moving_obstacles)
         self.last_step: DynamicsStep | None = None
 
@@ -228,9 +229,18 @@ class SimWorld:
         return step
 
     def _apply_faults(self, now: int) -> None:
-        self.faults.announce(self._sink, now)
+        """The faults' effects on the world's parts at ``now``. Which faults are active changes only at a
+        fault's start or end, and the announcements and the parts' settings with it (setting a controller
+        or the battery again to what it already is changes nothing): they are redone only on the first
+        tick at or past the next such moment. The bus-off announcer keeps its own period, every tick."""
+        changed = now >= self._next_fault_change_ns
+        if changed:
+            self.faults.announce(self._sink, now)
         if self.bus_off_announcer is not None:
             self.bus_off_announcer.poll(now)
+        if not changed:
+            return
+        self._next_fault_change_ns = self.faults.next_change_ns(now)
         if self._vesc_faults:
             active = self.faults.active_all("vesc", now)
             for wheel in range(WHEEL_COUNT):

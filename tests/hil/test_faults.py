@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 
+from hil.faults import Fault, FaultSchedule
 from hil.trial import run_trial
 from logs.reader import read_messages
 from logs.settings import ConfigError, parse_toml
@@ -238,3 +239,17 @@ def test_can_bus_off_fires_the_rovers_can_bus_off_failsafe_in_a_lockstep_trial(t
     ]
     assert sent == []
     assert result.end_reason == "arrived", result.failures
+
+
+def test_the_next_change_is_the_first_start_or_end_after_now_on_the_schedules_clock():
+    """The world redoes the faults' effects only from the tick at or past this moment (hil.world)."""
+    second = 1_000_000_000
+    schedule = FaultSchedule(
+        (Fault("vesc", "off", 2 * second, 5 * second), Fault("battery", "wrong", 3 * second, 4 * second)),
+        epoch_ns=7 * second,
+    )
+    assert schedule.next_change_ns(7 * second) == 9 * second  # world time 0: the first start, at 2 s
+    assert schedule.next_change_ns(9 * second) == 10 * second  # at a start: the next one, not itself
+    assert schedule.next_change_ns(10 * second + 1) == 11 * second
+    assert schedule.next_change_ns(11 * second) == 12 * second
+    assert schedule.next_change_ns(12 * second) == math.inf
