@@ -242,8 +242,8 @@ class Estimator:
             return
         self._last_gyro = (t_ns, gyro_z_rps)
         before = self._ekf.snapshot() if self._history is not None else None
-        self._advance(t_ns)
-        innovation = self._ekf.update_gyro(gyro_z_rps)
+        self._feed_bootstrap(t_ns)
+        innovation = self._ekf.update_gyro(gyro_z_rps, t_ns=t_ns)  # the predict to t_ns in the same call
         if before is not None:
             self._remember(before, GyroSample(t_ns, gyro_z_rps))
         self._publish_innovation(t_ns, innovation)
@@ -430,10 +430,11 @@ class Estimator:
         if not use_speed:
             self._counters["odometry_speed_left_out"] += 1
         before = self._ekf.snapshot() if self._history is not None else None
-        self._advance(t_ns)
+        self._feed_bootstrap(t_ns)
         self._ekf.learn_scale(self._scale_observable(t_ns))
+        # The predict to t_ns in the same compiled call as the update.
         innovation = self._ekf.update_odometry(
-            motion.speed_mps, motion.yaw_rate_rps, speed_std, yaw_rate_std, use_speed=use_speed
+            motion.speed_mps, motion.yaw_rate_rps, speed_std, yaw_rate_std, use_speed=use_speed, t_ns=t_ns
         )
         if before is not None:
             sample = OdometrySample(
@@ -496,13 +497,20 @@ class Estimator:
 
     def _advance(self, t_ns: int) -> None:
         """Predict to ``t_ns``, feeding the heading bootstrap the motion the filter believes in meanwhile."""
+        self._feed_bootstrap(t_ns)
+        self._ekf.predict(t_ns)
+
+    def _feed_bootstrap(self, t_ns: int) -> None:
+        """While the heading is unknown: the motion the filter believes in up to ``t_ns`` (it is about to
+        predict there) goes to the heading bootstrap."""
+        if self._heading_known:
+            return
         dt_ns = t_ns - self._ekf.t_ns
-        if dt_ns > 0 and not self._heading_known:
+        if dt_ns > 0:
             dt = dt_ns * 1e-9
             self._bootstrap.add_motion(
                 self._ekf.state(YAW_RATE) * dt, self._ekf.state(SPEED) * dt if self._odometry_seen else 0.0
             )
-        self._ekf.predict(t_ns)
 
     def _learn_heading(self, east: float, north: float, std: float) -> None:
         guess = self._bootstrap.on_fix(east, north, std, path_known=self._odometry_seen)
