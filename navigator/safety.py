@@ -130,6 +130,7 @@ class SafetySupervisor:
         self._stall_trips: list[int] = []  # when wheel_stalled tripped, within the latch window
         self._stall_latched = False
         self._stall_key_names: list[str] = []  # grown by _stall_keys
+        self._stall_timing = False  # whether a wheel's stall timer may be in _since
         self._battery_ns = to_ns(c.battery_debounce_s)
         self._tip_rad = math.radians(c.tip_margin_deg)
         self._tip_clear_rad = math.radians(c.tip_margin_deg + c.tip_clear_deg)
@@ -294,13 +295,29 @@ class SafetySupervisor:
             return
         min_command, max_speed = c.wheel_stall_min_command_mps, c.wheel_stall_max_speed_mps
         min_current = c.wheel_stall_min_current_a
-        keys = self._stall_keys(len(i.wheel_commands_mps))
         judged = zip(i.wheel_commands_mps, i.wheel_speeds_mps, i.wheel_currents_a, strict=False)
-        for index, (command, speed, current) in enumerate(judged):
+        stalling = [
+            abs(command) >= min_command and abs(speed) < max_speed and abs(current) >= min_current
+            for command, speed, current in judged
+        ]
+        if not any(stalling):
+            # The common tick: no wheel stalling. Its timers are dropped (as _sustained drops a condition
+            # gone) only when one may be running, not with a dict pop per wheel on every tick.
+            if self._stall_timing:
+                for key in self._stall_key_names:
+                    self._since.pop(key, None)
+                self._stall_timing = False
+            return
+        self._stall_timing = True
+        keys = self._stall_keys(len(i.wheel_commands_mps))
+        for index, stalled in enumerate(stalling):
             key = keys[index]
-            if not (abs(command) >= min_command and abs(speed) < max_speed and abs(current) >= min_current):
-                self._since.pop(key, None)  # as _sustained does for a condition gone (the common case)
+            if not stalled:
+                self._since.pop(key, None)  # as _sustained does for a condition gone
                 continue
+            command, speed, current = (
+                i.wheel_commands_mps[index], i.wheel_speeds_mps[index], i.wheel_currents_a[index]
+            )  # fmt: skip
             # Counted from when the command went out, as for ``stuck``.
             held = self._sustained(key, True, i.now_ns, start_ns=i.sent_at_ns)
             if held > self._wheel_stall_ns:
@@ -380,7 +397,11 @@ class SafetySupervisor:
         if limit_ns <= 0:
             return
         age = now_ns - (self._start_ns if last_ns is None else last_ns)  # never seen: from the start
-        self._set(name, _over(f"{what} for {_ms(age)}", limit_ns) if age > limit_ns else None)
+        # _set's two cases written out: three of these run on every tick, nearly always with nothing to do.
+        if age > limit_ns:
+            self._trip(name, "error", _over(f"{what} for {_ms(age)}", limit_ns))
+        elif name in self._active:
+            self._clear(name, "condition gone")
 
     def _set(self, name: str, detail: str | None, severity: str = "error") -> None:
         """A self-clearing failsafe: active exactly while ``detail`` is not None."""
