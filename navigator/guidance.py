@@ -224,10 +224,13 @@ class Guidance:
             raise ParameterError(f"pose must be finite, got x={x}, y={y}, yaw={yaw}, speed={speed}")
         self._last_xy = (x, y)
         details: list[str] = []
-        path_changed = self._collect(details)
-        if self._job is None:
+        path_changed = self._collect(details) if self._job is not None else False
+        # Planning work only if something asks for it (_submit checks each in detail): on nearly every
+        # tick nothing is pending, and the calls were a share of the tick.
+        if self._job is None and (self._pending or self._moved_off or self._needs_plan):
             self._submit(x, y)
-            path_changed |= self._collect(details)  # an inline executor has finished already
+            if self._job is not None:
+                path_changed |= self._collect(details)  # an inline executor has finished already
         if self._goal is None:
             return self._stopped(IDLE, "", path_changed)
         if self._mode == ARRIVED:

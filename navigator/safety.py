@@ -45,6 +45,8 @@ BATTERY_CRITICAL = "battery_critical"
 # Failsafes with other actions.
 BATTERY_LOW = "battery_low"  # speed limited
 ESTOP = "estop"  # latched ESTOP mode
+# Why a self-clearing failsafe cleared.
+_GONE = "condition gone"
 # A pack reading below this is "no reading yet" (STATUS_5 not received), not a flat battery.
 _NO_VOLTAGE_V = 1.0
 
@@ -186,12 +188,17 @@ class SafetySupervisor:
         # Judged per tick: the tick after a stall runs with zero commands, the next on-time tick clears it.
         stalled = gap is not None and gap > self._stall_ns
         # Details are written only when a failsafe holds: formatting them on every tick was a share of it.
-        self._set(
-            LOOP_STALL,
-            _over(f"control tick {_ms(gap or 0)} after the previous one", self._stall_ns)
-            if stalled
-            else None,
-        )
+        # A self-clearing failsafe is active exactly while its condition holds: tripped with its detail
+        # when it does, cleared (if active) when it does not. Written out at each check, not through a
+        # shared helper: they run on every tick, nearly always with nothing to do, and the call was a share.
+        if stalled:
+            self._trip(
+                LOOP_STALL,
+                "error",
+                _over(f"control tick {_ms(gap or 0)} after the previous one", self._stall_ns),
+            )
+        elif LOOP_STALL in self._active:
+            self._clear(LOOP_STALL, _GONE)
 
     def _check_links(self, i: SafetyInputs) -> None:
         now, start, limit = i.now_ns, self._start_ns, self._silent_ns
@@ -201,23 +208,24 @@ class SafetySupervisor:
             for index, t in enumerate(i.wheel_last_status_ns)
             if now - (start if t is None else t) > limit
         ]
-        self._set(
-            WHEEL_SILENT,
-            f"motor controller of {wheel_labels(silent, self._controller_ids)} silent for more than "
-            f"{_ms(self._silent_ns)}"
-            if silent
-            else None,
-        )
+        if silent:
+            self._trip(
+                WHEEL_SILENT,
+                "error",
+                f"motor controller of {wheel_labels(silent, self._controller_ids)} silent for more than "
+                f"{_ms(self._silent_ns)}",
+            )
+        elif WHEEL_SILENT in self._active:
+            self._clear(WHEEL_SILENT, _GONE)
         failing = 0 if i.can_send_failing_since_ns is None else i.now_ns - i.can_send_failing_since_ns
         if i.can_bus_off:
-            self._set(CAN_BUS_OFF, "the CAN link reports bus-off")
-        else:
-            self._set(
-                CAN_BUS_OFF,
-                _over(f"CAN sends failing for {_ms(failing)}", self._can_fail_ns)
-                if failing > self._can_fail_ns
-                else None,
+            self._trip(CAN_BUS_OFF, "error", "the CAN link reports bus-off")
+        elif failing > self._can_fail_ns:
+            self._trip(
+                CAN_BUS_OFF, "error", _over(f"CAN sends failing for {_ms(failing)}", self._can_fail_ns)
             )
+        elif CAN_BUS_OFF in self._active:
+            self._clear(CAN_BUS_OFF, _GONE)
         self._timeout(
             HEARTBEAT_LOST, "no autopilot heartbeat", i.now_ns, i.last_heartbeat_ns, self._heartbeat_ns
         )
@@ -231,15 +239,19 @@ class SafetySupervisor:
 
     def _check_estimate(self, i: SafetyInputs, wants_to_drive: bool) -> None:
         self._timeout(GPS_LOST, "no 3D GPS fix", i.now_ns, i.last_gps_ns, self._gps_ns)
+        if i.estimator_healthy:  # (_sustained's case for a condition gone, written out)
+            self._since.pop(ESTIMATOR_UNHEALTHY, None)
+            if ESTIMATOR_UNHEALTHY in self._active:
+                self._clear(ESTIMATOR_UNHEALTHY, _GONE)
+            return
+        unhealthy = self._sustained(ESTIMATOR_UNHEALTHY, True, i.now_ns)
         # Before driving, an unhealthy estimate is the start-up wait, not a fault.
-        unhealthy = self._sustained(ESTIMATOR_UNHEALTHY, not i.estimator_healthy, i.now_ns)
-        if self._active.get(ESTIMATOR_UNHEALTHY) is None and not wants_to_drive:
+        if ESTIMATOR_UNHEALTHY not in self._active and not wants_to_drive:
             unhealthy = 0
-        if i.estimator_healthy:
-            self._set(ESTIMATOR_UNHEALTHY, None)
-        elif unhealthy > self._unhealthy_ns:
-            self._set(
+        if unhealthy > self._unhealthy_ns:
+            self._trip(
                 ESTIMATOR_UNHEALTHY,
+                "error",
                 f"estimate unhealthy for {_ms(unhealthy)} (limit {_ms(self._unhealthy_ns)})",
             )
 
@@ -397,18 +409,11 @@ class SafetySupervisor:
         if limit_ns <= 0:
             return
         age = now_ns - (self._start_ns if last_ns is None else last_ns)  # never seen: from the start
-        # _set's two cases written out: three of these run on every tick, nearly always with nothing to do.
+        # Self-clearing (see _check_loop).
         if age > limit_ns:
             self._trip(name, "error", _over(f"{what} for {_ms(age)}", limit_ns))
         elif name in self._active:
-            self._clear(name, "condition gone")
-
-    def _set(self, name: str, detail: str | None, severity: str = "error") -> None:
-        """A self-clearing failsafe: active exactly while ``detail`` is not None."""
-        if detail is not None:
-            self._trip(name, severity, detail)
-        elif name in self._active:  # most checks pass most ticks: nothing to clear
-            self._clear(name, "condition gone")
+            self._clear(name, _GONE)
 
     def _trip(self, name: str, severity: str, detail: str) -> None:
         if name not in self._active:
