@@ -20,15 +20,16 @@ from __future__ import annotations
 import enum
 import logging
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass
+from typing import NamedTuple
 
 from estimator.estimator import Estimator
 from estimator.geodesy import to_enu
 from estimator.pose import PoseEstimate
 from firmware_bridge.can_health import CanLinkState
-from firmware_bridge.can_link import CanLink
+from firmware_bridge.can_link import CanLink, WheelReading
 from firmware_bridge.mavlink_commands import GoalRequest, StopRequest
 from firmware_bridge.mavlink_link import AttitudeSample, GpsFix, ImuSample, MavlinkLink
 from logs import topics
@@ -77,6 +78,39 @@ _MODE_OF = {mode.value: mode for mode in Mode}
 _DRIVING_MODES = (Mode.DRIVING, Mode.YIELDING)
 # The last start-up check, worded once.
 _NOT_SETTLED = f"estimate healthy for < {SETTLE_NS / NS_PER_S:g} s"
+
+
+class _WheelSnapshot(NamedTuple):
+    """What the tick reads of one snapshot of the wheel controllers' readings, built once per snapshot
+    (the start-up checks, the estimator and the safety inputs all read it)."""
+
+    status_ns: tuple[int | None, ...]  # each controller's last STATUS time, None: never heard
+    heard: bool  # every controller heard
+    speeds_mps: list[float]  # as reported
+    # For the stall check: a controller never heard has no speed or current to judge (wheel_silent covers
+    # it): 0.0, not stalled.
+    judged_speeds_mps: tuple[float, ...]
+    judged_currents_a: tuple[float, ...]
+    battery_v: float | None  # the lowest pack voltage reported (None: no controller reported one yet)
+
+    @classmethod
+    def of(cls, readings: Sequence[WheelReading]) -> _WheelSnapshot:
+        # List comprehensions: the same values as generator expressions, cheaper.
+        status_ns = tuple([r.last_status_ns for r in readings])
+        heard = None not in status_ns
+        speeds = [r.speed_mps for r in readings]
+        voltages = [r.input_voltage_v for r in readings if r.input_voltage_v > 0.0]
+        return cls(
+            status_ns,
+            heard,
+            speeds,
+            # All heard (the usual case): the speeds as they are.
+            tuple(speeds)
+            if heard
+            else tuple([r.speed_mps if r.last_status_ns is not None else 0.0 for r in readings]),
+            tuple([r.motor_current_a if r.last_status_ns is not None else 0.0 for r in readings]),
+            min(voltages) if voltages else None,
+        )
 
 
 @dataclass(frozen=True)
@@ -241,8 +275,7 @@ class OnboardStack:
         self._commands = commands
         self._obstacles = obstacles
         self._ground_station = ground_station
-        self._wheels = can_link.readings()
-        self._wheels_heard = all(r.last_status_ns is not None for r in self._wheels)  # of this snapshot
+        self._wheels = _WheelSnapshot.of(can_link.readings())
         self._terrain = terrain
         self._map_published = False
         self._event = _EventFn(clock, sink)
@@ -265,7 +298,9 @@ class OnboardStack:
         self._last_ground_ns: int | None = None
         self._attitude: AttitudeSample | None = None
         self._sent_speed_mps = 0.0
-        self._sent_wheels_mps: tuple[float, ...] = (0.0,) * len(self._wheels)  # as the bus carried them
+        self._sent_wheels_mps: tuple[float, ...] = (0.0,) * len(
+            self._wheels.status_ns
+        )  # as the bus carried them
         self._send_failing_since_ns: int | None = None
         self._sent_at_ns = clock.now_ns()
         self._deferred = deferred
@@ -488,7 +523,7 @@ class OnboardStack:
         missing = []  # in this order
         if self._mavlink.last_heartbeat_ns is None:
             missing.append("no autopilot heartbeat")
-        if not self._wheels_heard:
+        if not self._wheels.heard:
             missing.append("wheel controllers not all heard")
         if pose is None:
             missing.append("no estimate yet")
@@ -526,9 +561,7 @@ class OnboardStack:
             self._start_up_report(line)
 
     def _safety_inputs(self, now: int, pose: PoseEstimate | None) -> SafetyInputs:
-        # Per-wheel tuples from list comprehensions: the same values as generator expressions, cheaper.
-        readings = self._wheels
-        voltages = [r.input_voltage_v for r in readings if r.input_voltage_v > 0.0]
+        wheels = self._wheels
         attitude = self._attitude
         last_tick = self._last_tick_ns
         # Positional, in SafetyInputs' field order (keywords cost a dict per tick): now, tick gap, wheel
@@ -538,7 +571,7 @@ class OnboardStack:
         return SafetyInputs(
             now,
             None if last_tick is None else now - last_tick,
-            tuple([r.last_status_ns for r in readings]),
+            wheels.status_ns,
             self._can.state is CanLinkState.BUS_OFF,
             self._send_failing_since_ns,
             pose is not None and pose.healthy,
@@ -551,11 +584,10 @@ class OnboardStack:
             None if attitude is None else (attitude.roll_rad, attitude.pitch_rad),
             0.0 if pose is None else pose.speed * pose.yaw_rate,
             None if pose is None else (pose.x, pose.y),
-            min(voltages) if voltages else None,
+            wheels.battery_v,
             self._sent_wheels_mps,
-            # A controller never heard has no speed to judge (wheel_silent covers it): not stalled.
-            tuple([r.speed_mps if r.last_status_ns is not None else 0.0 for r in readings]),
-            tuple([r.motor_current_a if r.last_status_ns is not None else 0.0 for r in readings]),
+            wheels.judged_speeds_mps,
+            wheels.judged_currents_a,
         )
 
     def _ground_contact_ns(self) -> int | None:
@@ -663,13 +695,12 @@ class OnboardStack:
         if self._can.poll():
             # One snapshot per poll: the readings change only when frames arrive, and the start-up checks
             # and the safety inputs of this tick read the same snapshot.
-            self._wheels = readings = self._can.readings()
-            self._wheels_heard = all([r.last_status_ns is not None for r in readings])
-            if self._wheels_heard:
+            self._wheels = wheels = _WheelSnapshot.of(self._can.readings())
+            if wheels.heard:
                 if self._pacing == "wheels":
                     self._pacing_rx_ns = can_read_ns
                 # All six: disagreement between the wheels of one side is a slip signal to the estimator.
-                self.estimator.on_wheel_speeds(now, [r.speed_mps for r in readings])
+                self.estimator.on_wheel_speeds(now, wheels.speeds_mps)
 
 
 def _limit_reason(guidance: GuidanceCommand | GuidanceOutput, mode: SafetyMode, scale: float) -> str:
