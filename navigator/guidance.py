@@ -249,12 +249,12 @@ class Guidance:
             if changed:
                 path_changed = True
                 command = self._follower.command(x, y, yaw, speed, self._path.points)
-        detail = _joined(details)
+        detail = _joined(details) if details else ""
         if command.arrived:
             self._mode = ARRIVED
             return self._stopped(ARRIVED, detail or "goal reached", path_changed, arrived=True)
         judged_speed = max(abs(speed), self._blocked_at_speed) if self._blocker is not None else abs(speed)
-        blocker = self._blocking_obstacle(t_ns, x, y, judged_speed)
+        blocker = self._blocking_obstacle(t_ns, x, y, judged_speed) if self._moving else None
         if blocker is not None:
             self._clear_since_ns = None
         elif self._blocker is not None and not self._clear_long_enough(t_ns):
