@@ -298,9 +298,8 @@ class OnboardStack:
         self._last_ground_ns: int | None = None
         self._attitude: AttitudeSample | None = None
         self._sent_speed_mps = 0.0
-        self._sent_wheels_mps: tuple[float, ...] = (0.0,) * len(
-            self._wheels.status_ns
-        )  # as the bus carried them
+        # As the bus carried them.
+        self._sent_wheels_mps: tuple[float, ...] = (0.0,) * len(self._wheels.status_ns)
         self._send_failing_since_ns: int | None = None
         self._sent_at_ns = clock.now_ns()
         self._deferred = deferred
@@ -423,9 +422,9 @@ class OnboardStack:
 
             wheel_speeds = mix_skid_steer(speed, yaw_rate, self._config.vehicle)
             can = self._can
-            counters = can.counters
-            errors_before, tx_before = counters.bus_errors, counters.tx
+            errors_before, tx_before = can.counters.bus_errors, can.counters.tx
             erpm = can.send_wheel_speeds(wheel_speeds)
+            counters = can.counters
             failed = counters.tx == tx_before and counters.bus_errors > errors_before
             if not failed:
                 self._send_failing_since_ns = None
