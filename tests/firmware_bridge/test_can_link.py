@@ -231,9 +231,14 @@ def test_a_bytes_only_sink_gets_the_frames_bytes_and_no_dicts(buses):
         def __init__(self):
             super().__init__()
             self.data = []
+            self.batches = []
 
         def publish_bytes(self, topic, log_time_ns, data):
             self.data.append((topic, log_time_ns, data))
+
+        def publish_bytes_many(self, topic, log_time_ns, datas):
+            self.batches.append((topic, log_time_ns, len(datas)))
+            self.data.extend((topic, log_time_ns, data) for data in datas)
 
     ours, theirs = buses
     bytes_only, plain = BytesOnly(), MemorySink()
@@ -251,5 +256,8 @@ def test_a_bytes_only_sink_gets_the_frames_bytes_and_no_dicts(buses):
     expected = [(CAN_FRAMES, t, encode_message(m)) for topic, t, m in plain.records if topic == CAN_FRAMES]
     assert len(expected) == 8 and {t for _, t, _ in expected} == {2_000_000_000, 2_001_000_000}
     assert bytes_only.data == expected
+    # One call per command round and per poll: six SET_RPM, then the poll's two frames (the rejected one's
+    # record included: a rejection sends the frames so far on, ahead of its warning on the log topic).
+    assert bytes_only.batches == [(CAN_FRAMES, 2_000_000_000, 6), (CAN_FRAMES, 2_001_000_000, 2)]
     assert not bytes_only.on(CAN_FRAMES)
     assert bytes_only.on(WHEELS_STATUS)[0]["wheels"][1]["erpm"] == 1200.0
