@@ -28,7 +28,7 @@ from firmware_bridge.can_health import (
 )
 from firmware_bridge.errors import BridgeOperationError, FrameError
 from firmware_bridge.foreign_controllers import ForeignControllers
-from firmware_bridge.vesc import WHEEL_COUNT, VescCodec, VescFrame, erpm_command
+from firmware_bridge.vesc import WHEEL_COUNT, FieldDecoder, VescCodec, erpm_command
 from firmware_bridge.wheel_names import wheel_label
 from logs.can_load import frame_bits
 from logs.clock import Clock, to_ns
@@ -43,7 +43,12 @@ logger = logging.getLogger(__name__)
 
 # Records the background repeater may hold for the loop: ~10 s of repeats at 50 Hz.
 _MAX_PENDING = 4096
-_STATUS_KINDS = frozenset({"STATUS", "STATUS_4", "STATUS_5"})
+# The fields of each status frame the readings keep, in the order _store_status takes them.
+_STATUS_FIELDS: dict[str, tuple[str, ...]] = {
+    "STATUS": ("erpm", "current", "duty"),
+    "STATUS_4": ("current_in",),
+    "STATUS_5": ("tacho", "voltage_in"),
+}
 # Which FrameError reasons land in which counter.
 _REJECTION_COUNTER = {"unknown_id": "unknown_id", "not_extended": "unknown_id", "wrong_dlc": "wrong_dlc"}
 _TRAFFIC_COUNTERS = ("tx", "rx", "own_echoes")
@@ -235,6 +240,13 @@ class CanLink(ClosesOnExit):
         self._set_rpm = tuple(codec.encoder("SET_RPM", cid) for cid in self._ids)  # in wheel order
         self._readings = [WheelReading(cid) for cid in self._ids]
         self._wheel_of = {cid: index for index, cid in enumerate(self._ids)}
+        # Frame id -> the reader of the fields the readings keep (_STATUS_FIELDS), for each controller's
+        # status frames: _take's usual case, without decode's dict and VescFrame per frame.
+        self._status_decoders: dict[int, FieldDecoder] = {
+            frame_id: decoder
+            for kind, names in _STATUS_FIELDS.items()
+            for frame_id, decoder in codec.field_decoders(kind, names).items()
+        }
         self._foreign = ForeignControllers(self._ids)
         self._closed = False
         self._period_ns = to_ns(1.0 / config.command_rate_hz)
@@ -508,11 +520,19 @@ class CanLink(ClosesOnExit):
             self._frames.append(self._frame_records.json(t_ns, "rx", msg))
         else:
             self._publish_frame(t_ns, "rx", msg)
-        try:
-            frame = self._codec.decode(msg)
-        except FrameError as err:
-            self._reject(msg, err)
-            return False
+        values: list[float] | None
+        decoder = self._status_decoders.get(msg.arbitration_id)
+        if decoder is not None and (values := decoder.values(msg)) is not None:
+            kind, cid = decoder.kind, decoder.controller_id
+        else:  # anything else, and what the decoder refuses: the codec decodes it or says why not
+            try:
+                frame = self._codec.decode(msg)
+            except FrameError as err:
+                self._reject(msg, err)
+                return False
+            kind, cid = frame.kind, frame.controller_id
+            fields = _STATUS_FIELDS.get(kind)
+            values = None if fields is None else [frame.values[name] for name in fields]
         # Hot path (~420 frames per simulated second): the health machines return a change only when
         # there is one to report, so the common frame skips _apply altogether; and a good frame or a
         # status tells the bus state machine something only while the bus is not OK (bus-off: frames are
@@ -520,10 +540,9 @@ class CanLink(ClosesOnExit):
         bus_state = self._bus_state
         if bus_state.state is not CanLinkState.OK and (change := bus_state.on_frame_received()) is not None:
             self._apply(t_ns, change, False)
-        if frame.kind not in _STATUS_KINDS:
-            return False
-        self._apply_status(frame, t_ns)
-        cid = frame.controller_id
+        if values is None:
+            return False  # not a status frame
+        self._store_status(kind, cid, values, t_ns)
         if (change := self._liveness.heard(cid, t_ns)) is not None:
             self._apply(t_ns, change, False)
         if bus_state.state is not CanLinkState.OK and (change := bus_state.on_status(cid)) is not None:
@@ -579,19 +598,16 @@ class CanLink(ClosesOnExit):
             topic, t_ns, message = self._background_records.popleft()
             self._sink.publish(topic, t_ns, message)
 
-    def _apply_status(self, frame: VescFrame, t_ns: int) -> None:
-        reading = self._readings[self._wheel_of[frame.controller_id]]
-        values = frame.values
-        if frame.kind == "STATUS":
-            reading.erpm = values["erpm"]
+    def _store_status(self, kind: str, controller_id: int, values: list[float], t_ns: int) -> None:
+        """Keep a status frame's ``values`` (its ``_STATUS_FIELDS``, in that order) in its wheel's reading."""
+        reading = self._readings[self._wheel_of[controller_id]]
+        if kind == "STATUS":
+            reading.erpm, reading.motor_current_a, reading.duty = values
             reading.speed_mps = reading.erpm / self.profile.erpm_per_mps  # speed_from_erpm, inline (hot path)
-            reading.motor_current_a = values["current"]
-            reading.duty = values["duty"]
-        elif frame.kind == "STATUS_4":
-            reading.input_current_a = values["current_in"]
+        elif kind == "STATUS_4":
+            (reading.input_current_a,) = values
         else:  # STATUS_5
-            reading.tachometer = values["tacho"]
-            reading.input_voltage_v = values["voltage_in"]
+            reading.tachometer, reading.input_voltage_v = values
         reading.last_status_ns = t_ns
 
     def _publish_status(self, t_ns: int) -> None:

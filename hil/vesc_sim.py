@@ -86,6 +86,9 @@ class SimVescBank:
         self._rebooting = [False] * WHEEL_COUNT  # fault: controller silent while it restarts
         self._stuck = [False] * WHEEL_COUNT  # fault: the wheel is seized
         # Per wheel: the encoders of its status frames, looked up once (eighteen frames per 20 ms).
+        # Frame id -> the reader of each controller's SET_RPM (the commands of every control tick): poll's
+        # usual case, without decode's dict and VescFrame per frame.
+        self._set_rpm_decoders = codec.field_decoders("SET_RPM", ("erpm",))
         self._status_encoders = [
             (codec.encoder("STATUS", cid), codec.encoder("STATUS_4", cid), codec.encoder("STATUS_5", cid))
             for cid in self._ids
@@ -96,6 +99,7 @@ class SimVescBank:
         """Drain the bus and apply the commands addressed to our controllers; returns frames read."""
         now = self._clock.now_ns()
         count = 0
+        set_rpm_decoders = self._set_rpm_decoders
         while True:
             try:
                 msg = self._bus.recv(timeout=0)
@@ -106,6 +110,10 @@ class SimVescBank:
                 break
             count += 1
             if msg.is_error_frame:
+                continue
+            decoder = set_rpm_decoders.get(msg.arbitration_id)
+            if decoder is not None and (values := decoder.values(msg)) is not None:
+                self._command_erpm(self._wheel_of[decoder.controller_id], values[0], now)
                 continue
             try:
                 frame = self._codec.decode(msg)
@@ -119,16 +127,25 @@ class SimVescBank:
             self._apply(frame, now)
         return count
 
-    def _apply(self, frame: VescFrame, now_ns: int) -> None:
-        wheel = self._wheel_of[frame.controller_id]
+    def _command_erpm(self, wheel: int, erpm: float, now_ns: int) -> None:
+        """A SET_RPM of ``erpm`` for ``wheel``: poll's usual frame, read without the codec's VescFrame."""
         if self._rebooting[wheel]:
             return  # a controller restarting hears nothing
+        # Six per control tick: max(min())'s clamp by comparisons (a decoded ERPM is finite).
+        top = self._max_erpm
+        self._targets[wheel] = erpm if -top <= erpm <= top else (top if erpm > top else -top)
+        self._last_command_ns[wheel] = now_ns
+        self.commands_applied += 1
+
+    def _apply(self, frame: VescFrame, now_ns: int) -> None:
+        wheel = self._wheel_of[frame.controller_id]
         values = frame.values
         if frame.kind == "SET_RPM":
-            # Six per control tick: max(min())'s clamp by comparisons (a decoded ERPM is finite).
-            erpm, top = values["erpm"], self._max_erpm
-            target = erpm if -top <= erpm <= top else (top if erpm > top else -top)
-        elif frame.kind == "SET_DUTY":
+            self._command_erpm(wheel, values["erpm"], now_ns)
+            return
+        if self._rebooting[wheel]:
+            return  # a controller restarting hears nothing
+        if frame.kind == "SET_DUTY":
             target = max(-1.0, min(1.0, values["duty"])) * self._max_erpm
         elif frame.kind == "SET_CURRENT_BRAKE" or (frame.kind == "SET_CURRENT" and values["current"] == 0.0):
             target = 0.0

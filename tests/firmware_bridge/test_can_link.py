@@ -261,3 +261,31 @@ def test_a_bytes_only_sink_gets_the_frames_bytes_and_no_dicts(buses):
     assert bytes_only.batches == [(CAN_FRAMES, 2_000_000_000, 6), (CAN_FRAMES, 2_001_000_000, 2)]
     assert not bytes_only.on(CAN_FRAMES)
     assert bytes_only.on(WHEELS_STATUS)[0]["wheels"][1]["erpm"] == 1200.0
+
+
+def test_status_read_by_field_decoders_gives_the_readings_decode_gives(buses, monkeypatch):
+    """The link reads its status frames with field decoders; a codec without packers (cantools for
+    everything) has none, so its link takes every frame through decode: both keep the same readings."""
+    fast_codec = make_codec()
+    monkeypatch.setattr("firmware_bridge.vesc.FramePacker.for_message", lambda message: None)
+    slow_codec = make_codec()
+    assert fast_codec.field_decoders("STATUS", ("erpm",)) and not slow_codec.field_decoders(
+        "STATUS", ("erpm",)
+    )
+    ours, theirs = buses
+    readings = []
+    for codec in (fast_codec, slow_codec):
+        rng = random.Random(11)  # the same frames for both
+        clock = SimClock()
+        link = CanLink(ours, codec, clock, MemorySink())
+        for _ in range(40):
+            clock.advance(20_000_000)
+            for cid in range(1, 7):
+                for kind, length in (("STATUS", 8), ("STATUS_4", 8), ("STATUS_5", 8)):
+                    frame_id = fast_codec.encoder(kind, cid).message.frame_id
+                    theirs.send(ext(frame_id, bytes(rng.randrange(256) for _ in range(length))))
+            link.poll()
+        readings.append([dataclasses.asdict(r) for r in link.readings()])
+        assert link.counters.rx == 40 * 18 and link.counters.rejected == 0
+    assert readings[0] == readings[1]
+    assert any(r["erpm"] != 0.0 and r["input_voltage_v"] != 0.0 for r in readings[0])

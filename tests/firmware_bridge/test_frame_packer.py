@@ -9,7 +9,7 @@ import cantools
 import pytest
 from cantools.database.conversion import LinearConversion
 
-from firmware_bridge.errors import FrameError
+from firmware_bridge.errors import BridgeSetupError, FrameError
 from firmware_bridge.frame_packer import FramePacker
 from firmware_bridge.vesc_dbc import VESC_MESSAGES, message_name
 from tests.firmware_bridge.virtual_can import make_codec
@@ -153,3 +153,42 @@ def test_layouts_struct_cannot_express_are_declined() -> None:
         assert isinstance(decoded, dict)
         assert all(isinstance(value, int | float) for value in decoded.values())
         assert packer.unpack(data) == {key: float(value) for key, value in decoded.items()}  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_field_decoders_give_decode_numbers_and_leave_what_decode_refuses_to_it(seed: int) -> None:
+    rng = random.Random(seed)
+    codec = make_codec()
+    for spec in VESC_MESSAGES:
+        names = [signal.name for signal in spec.signals]
+        rng.shuffle(names)
+        names = names[: rng.randint(1, len(names))]  # some fields, in any order
+        decoders = codec.field_decoders(spec.kind, names)
+        assert len(decoders) == 6
+        for frame_id, decoder in decoders.items():
+            assert decoder.kind == spec.kind
+            for _ in range(50):
+                data = bytes(rng.randrange(256) for _ in range(spec.length))
+                msg = can.Message(arbitration_id=frame_id, is_extended_id=True, data=data)
+                frame = codec.decode(msg)
+                assert decoder.values(msg) == [frame.values[name] for name in names]
+                assert decoder.controller_id == frame.controller_id
+            full = bytes(spec.length)
+            refused = [
+                can.Message(arbitration_id=frame_id, is_extended_id=False, data=full),
+                can.Message(
+                    arbitration_id=frame_id, is_extended_id=True, is_remote_frame=True, dlc=spec.length
+                ),
+                can.Message(arbitration_id=frame_id, is_extended_id=True, data=full[:-1]),
+                can.Message(arbitration_id=frame_id, is_extended_id=True, data=full + b"\x00"),
+                can.Message(arbitration_id=frame_id, is_extended_id=True, data=full, dlc=spec.length - 1),
+            ]
+            for msg in refused:
+                assert decoder.values(msg) is None
+                with pytest.raises(FrameError):
+                    codec.decode(msg)
+
+
+def test_a_field_decoder_of_a_signal_the_message_lacks_is_refused_at_setup() -> None:
+    with pytest.raises(BridgeSetupError, match="no signal volts"):
+        make_codec().field_decoders("STATUS", ("erpm", "volts"))
