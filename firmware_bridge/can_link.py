@@ -237,7 +237,9 @@ class CanLink(ClosesOnExit):
         self.profile = codec.profile
         self.counters = CanCounters()
         self._ids = codec.profile.controller_ids
-        self._set_rpm = tuple(codec.encoder("SET_RPM", cid) for cid in self._ids)  # in wheel order
+        self._set_rpm = tuple(
+            codec.encoder("SET_RPM", cid).fields(("erpm",)) for cid in self._ids
+        )  # wheel order
         self._readings = [WheelReading(cid) for cid in self._ids]
         self._wheel_of = {cid: index for index, cid in enumerate(self._ids)}
         # Frame id -> the reader of the fields the readings keep (_STATUS_FIELDS), for each controller's
@@ -341,7 +343,7 @@ class CanLink(ClosesOnExit):
         try:
             # ``erpm`` holds erpm_command's integers (or zeros), already in the field: encoded as they are.
             for set_rpm, value in zip(self._set_rpm, erpm, strict=True):
-                if not self._send(t_ns, set_rpm.encode({"erpm": value}), background=background):
+                if not self._send(t_ns, set_rpm.encode((value,)), background=background):
                     failures += 1
         finally:
             self._flush_frames()

@@ -99,6 +99,43 @@ class FramePacker:
             for (name, scale, offset), raw in zip(self._scaling, raws, strict=True)
         }
 
+    def packing(self, names: Sequence[str], fixed: Mapping[str, float]) -> Callable[[Sequence[float]], bytes]:
+        """A function from the physical values of ``names``, in that order, to the frame's data bytes, the
+        message's other signals held at ``fixed``: ``pack``'s bytes for the same values (the same
+        conversions; the fixed ones made once, here), without a dict per frame.
+
+        For a sender of the same message over and over with values it holds as numbers (the simulated
+        controllers' status frames, the link's SET_RPM). A raw value outside its field goes to cantools, as
+        in ``pack``."""
+        signals = [name for name, _ in self._fields]
+        if sorted(signals) != sorted([*names, *fixed]):
+            raise ValueError(
+                f"{self.message.name}: give each of its signals {signals} once, as a value or held fixed; "
+                f"got values {list(names)} and fixed {sorted(fixed)}"
+            )
+        # The raw values in struct order, the fixed ones filled in; per frame, (position in the struct,
+        # position in the caller's values, conversion) of each of the others.
+        template = [to_raw(fixed[name]) if name in fixed else 0 for name, to_raw in self._fields]
+        variable = tuple(
+            (position, names.index(name), to_raw)
+            for position, (name, to_raw) in enumerate(self._fields)
+            if name not in fixed
+        )
+        pack = self._struct.pack
+
+        def pack_values(values: Sequence[float]) -> bytes:
+            raws = template.copy()
+            for position, index, to_raw in variable:
+                raws[position] = to_raw(values[index])
+            try:
+                return pack(*raws)
+            except struct.error:
+                return bytes(
+                    self.message.encode({**fixed, **dict(zip(names, values, strict=True))}, strict=False)
+                )
+
+        return pack_values
+
     def reader(self, names: Sequence[str]) -> Callable[[bytes | bytearray], list[float]]:
         """A function from data of exactly the message's length to the physical values of ``names``, in that
         order: ``unpack``'s numbers (the same expression), without its dict.

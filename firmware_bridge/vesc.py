@@ -165,6 +165,7 @@ class FrameEncoder:
 
     def __init__(self, message: cantools.database.can.Message, packer: FramePacker | None) -> None:
         self.message = message
+        self._packer = packer
         self._frame_id = message.frame_id
         self._length = message.length  # a property cantools computes per access
         # The packer's pack, or cantools' encode: chosen once, not per frame.
@@ -183,6 +184,61 @@ class FrameEncoder:
                 f"cannot encode {self.message.name} from {dict(values)}: {err}"
             ) from err
         return can.Message(arbitration_id=self._frame_id, is_extended_id=True, data=data, dlc=self._length)
+
+    def fields(self, names: Sequence[str], fixed: Mapping[str, float] | None = None) -> FieldEncoder:
+        """An encoder of this message from the values of ``names`` in the caller's order, the other signals
+        held at ``fixed`` (``FieldEncoder``)."""
+        return FieldEncoder(self.message, self._packer, tuple(names), dict(fixed or {}))
+
+
+class FieldEncoder:
+    """One controller's message from the values of chosen signals, in the sender's order, the others held
+    fixed (``FrameEncoder.fields``); values already clamped into their fields, as ``FrameEncoder``'s.
+
+    Hot path (the simulated controllers' 6-18 status frames per 20 ms, the link's six SET_RPM per control
+    tick): the sender keeps its values as numbers, not a dict per frame, and the held signals are converted
+    once (``FramePacker.packing``); the same bytes as ``FrameEncoder.encode`` of the same values (a test
+    compares them), cantools' for a message without a packer.
+    """
+
+    def __init__(
+        self,
+        message: cantools.database.can.Message,
+        packer: FramePacker | None,
+        names: tuple[str, ...],
+        fixed: dict[str, float],
+    ) -> None:
+        self.message = message
+        self._names = names
+        self._fixed = fixed
+        self._frame_id = message.frame_id
+        self._length = message.length
+        signals = sorted(signal.name for signal in message.signals)
+        if signals != sorted([*names, *fixed]):
+            raise BridgeSetupError(
+                f"{message.name}: give each of its signals {signals} once, as a value or held fixed; "
+                f"got values {list(names)} and fixed {sorted(fixed)}"
+            )
+        self._pack: Callable[[Sequence[float]], bytes] = (
+            packer.packing(names, fixed) if packer is not None else self._encode_with_cantools
+        )
+
+    def _encode_with_cantools(self, values: Sequence[float]) -> bytes:
+        return bytes(
+            self.message.encode({**self._fixed, **dict(zip(self._names, values, strict=True))}, strict=False)
+        )
+
+    def encode(self, values: Sequence[float]) -> can.Message:
+        try:
+            data = self._pack(values)
+        except (cantools.database.EncodeError, KeyError, ValueError, TypeError, IndexError) as err:
+            raise BridgeOperationError(
+                f"cannot encode {self.message.name} from {dict(zip(self._names, values, strict=False))} "
+                f"(held: {self._fixed}): {err}"
+            ) from err
+        # Positional, in can.Message's order (timestamp, arbitration_id, is_extended_id, is_remote_frame,
+        # is_error_frame, channel, dlc, data): binding these by keyword is ~35 % of the constructor's cost.
+        return can.Message(0.0, self._frame_id, True, False, False, None, self._length, data)
 
 
 class VescCodec:

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 import can
 
 from firmware_bridge.errors import BridgeError, FrameError
-from firmware_bridge.vesc import WHEEL_COUNT, FrameEncoder, VescCodec, VescFrame
+from firmware_bridge.vesc import WHEEL_COUNT, FieldEncoder, VescCodec, VescFrame
 from firmware_bridge.wheel_names import wheel_label
 from logs.clock import Clock, to_ns
 
@@ -22,7 +22,8 @@ logger = logging.getLogger(__name__)
 
 _NONE_STALLED = (0.0,) * WHEEL_COUNT  # SimVescBank.stalled with no wheel seized
 _IDLE_TEMPERATURE_C = 25.0
-# STATUS_4's fields this model holds constant: an idle temperature, no position control.
+# STATUS_4's fields this model holds constant (FieldEncoder: converted once): an idle temperature, no
+# position control.
 _IDLE_STATUS_4 = {"temp_fet": _IDLE_TEMPERATURE_C, "temp_motor": _IDLE_TEMPERATURE_C, "pid_pos": 0.0}
 _STATUS_CURRENT_LIMIT_A = 3000.0  # the int16 / 10 field holds +-3276.7 A
 _INT32_MAX = (1 << 31) - 1
@@ -90,7 +91,11 @@ class SimVescBank:
         # usual case, without decode's dict and VescFrame per frame.
         self._set_rpm_decoders = codec.field_decoders("SET_RPM", ("erpm",))
         self._status_encoders = [
-            (codec.encoder("STATUS", cid), codec.encoder("STATUS_4", cid), codec.encoder("STATUS_5", cid))
+            (
+                codec.encoder("STATUS", cid).fields(("erpm", "current", "duty")),
+                codec.encoder("STATUS_4", cid).fields(("current_in",), _IDLE_STATUS_4),
+                codec.encoder("STATUS_5", cid).fields(("tacho", "voltage_in")),
+            )
             for cid in self._ids
         ]
 
@@ -250,7 +255,8 @@ class SimVescBank:
         # Every value is clamped into its field's range before it gets here (ERPM, currents, duty,
         # tachometer, voltage), so the encoders skip cantools' strict range check. The frame order is the
         # firmware's schedule as before: every controller's STATUS, then each one's STATUS_4 and STATUS_5.
-        frames: list[tuple[FrameEncoder, dict[str, float]]] = []
+        # Each frame's values in its encoder's order (FieldEncoder): numbers, no dict per frame.
+        frames: list[tuple[FieldEncoder, tuple[float, ...]]] = []
         if fast_due:
             for i, (status, _, _) in enumerate(self._status_encoders):
                 if not self._rebooting[i]:
@@ -258,7 +264,7 @@ class SimVescBank:
                     if not -_INT32_MAX <= erpm <= _INT32_MAX:
                         erpm = _INT32_MAX if erpm > 0 else -_INT32_MAX
                     current = self._motor_current_a[i]
-                    frames.append((status, {"erpm": erpm, "current": current, "duty": self._duty_cycle[i]}))
+                    frames.append((status, (erpm, current, self._duty_cycle[i])))
         if slow_due:
             voltage = self._input_voltage_v
             for i, (_, status_4, status_5) in enumerate(self._status_encoders):
@@ -267,11 +273,11 @@ class SimVescBank:
                 # What the motor takes from the pack: I x duty, signed as power flows. A braking motor
                 # generates, and with no regeneration (hil.battery) the pack sees nothing.
                 current_in = max(self._motor_current_a[i] * self._duty_cycle[i], 0.0)
-                frames.append((status_4, {**_IDLE_STATUS_4, "current_in": current_in}))
-                frames.append((status_5, {"tacho": _wrap_tacho(self._tacho_erev[i]), "voltage_in": voltage}))
+                frames.append((status_4, (current_in,)))
+                frames.append((status_5, (_wrap_tacho(self._tacho_erev[i]), voltage)))
         self._send_all(frames)
 
-    def _send_all(self, frames: list[tuple[FrameEncoder, dict[str, float]]]) -> None:
+    def _send_all(self, frames: list[tuple[FieldEncoder, tuple[float, ...]]]) -> None:
         """Encode and send each frame in order; one that fails is counted and the rest still go."""
         send = self._bus.send  # 6-18 frames per status period: one lookup, one call per frame
         for encoder, values in frames:
