@@ -161,6 +161,20 @@ class _FrameRecords:
                 return _frame_json(t_ns, direction, msg)
         return f'{self._json_head}{middle}{msg.data.hex()}"}}'.encode()
 
+    def json_many(self, t_ns: int, direction: str, msgs: Sequence[can.Message]) -> list[bytes]:
+        """``json`` of each frame in turn: a poll's or a command round's frames, formatted in one call."""
+        if t_ns != self._t_ns:
+            self._start(t_ns)
+        head, middles = self._json_head, self._json_middles
+        datas = []
+        for msg in msgs:
+            middle = middles.get((direction, msg.arbitration_id, msg.is_extended_id, msg.dlc))
+            if middle is None:  # a new kind, or one past the bound
+                datas.append(self.json(t_ns, direction, msg))
+            else:
+                datas.append(f'{head}{middle}{msg.data.hex()}"}}'.encode())
+        return datas
+
     def format(self, t_ns: int, direction: str, msg: can.Message) -> tuple[dict[str, object], bytes]:
         """The frame's record and its JSON bytes (``encode_message`` of the record)."""
         data = self.json(t_ns, direction, msg)  # also keeps t_ns's seconds and nanoseconds
@@ -230,10 +244,12 @@ class CanLink(ClosesOnExit):
         self._encoded_sink = sink if isinstance(sink, EncodedSink) else None
         self._bytes_sink = bytes_only_sink(sink)
         self._frame_records = _FrameRecords()
-        # For a bytes-only sink, the frame records of one poll or command round (all at _frames_ns), sent
-        # in one publish_bytes_many call (_flush_frames) before anything else is published or logged.
-        self._frames: list[bytes] = []
+        # For a bytes-only sink, the frames of one poll or command round (all at _frames_ns, all rx or all
+        # tx), recorded in one publish_bytes_many call (_flush_frames) before anything else is published
+        # or logged.
+        self._frames: list[can.Message] = []
         self._frames_ns = 0
+        self._frames_direction = "rx"
         self.profile = codec.profile
         self.counters = CanCounters()
         self._ids = codec.profile.controller_ids
@@ -339,7 +355,7 @@ class CanLink(ClosesOnExit):
                 self.counters.withheld += 1
             erpm = self._zero_erpm
         failures = 0
-        self._begin_frames(t_ns)
+        self._begin_frames(t_ns, "tx")
         try:
             # ``erpm`` holds erpm_command's integers (or zeros), already in the field: encoded as they are.
             for set_rpm, value in zip(self._set_rpm, erpm, strict=True):
@@ -378,31 +394,35 @@ class CanLink(ClosesOnExit):
         return True
 
     def _publish_frame(self, t_ns: int, direction: str, msg: can.Message) -> None:
-        if self._bytes_sink is not None:  # t_ns is _frames_ns: the caller began the batch (_begin_frames)
-            self._frames.append(self._frame_records.json(t_ns, direction, msg))
+        if self._bytes_sink is not None:  # the caller began the batch at t_ns, direction (_begin_frames)
+            self._frames.append(msg)
         elif self._encoded_sink is None:
             self._sink.publish(CAN_FRAMES, t_ns, _frame_record(t_ns, direction, msg))
         else:
             record, data = self._frame_records.format(t_ns, direction, msg)
             self._encoded_sink.publish_encoded(CAN_FRAMES, t_ns, record, data)
 
-    def _begin_frames(self, t_ns: int) -> None:
-        """Start collecting the frame records of one poll or command round, all at ``t_ns``."""
+    def _begin_frames(self, t_ns: int, direction: str) -> None:
+        """Start collecting the frames of one poll (``"rx"``) or command round (``"tx"``), all at ``t_ns``."""
         if self._frames:
             self._flush_frames()
         self._frames_ns = t_ns
+        self._frames_direction = direction
 
     def _flush_frames(self) -> None:
-        """Publish the frame records collected so far (``_frames``), in one call, in the order they came.
+        """Record the frames collected so far (``_frames``), in one call, in the order they came.
 
-        Hot path: one call down the sink chain for a poll's or a command round's 6-18 frames instead of one
-        each (with the recorder and a rate-limited Zenoh behind a fan-out, three calls a frame). Called
-        before the link publishes or logs anything else, so the recorded order is the frames' own."""
+        Hot path: their records are formatted in one call (``_FrameRecords.json_many``) and go down the
+        sink chain in one call for a poll's or a command round's 6-18 frames instead of one each (with the
+        recorder and a rate-limited Zenoh behind a fan-out, three calls a frame). Called before the link
+        publishes or logs anything else, so the recorded order is the frames' own."""
         frames = self._frames
         if frames:
             self._frames = []
-            assert self._bytes_sink is not None  # only a bytes-only sink's records are collected
-            self._bytes_sink.publish_bytes_many(CAN_FRAMES, self._frames_ns, frames)
+            assert self._bytes_sink is not None  # only a bytes-only sink's frames are collected
+            t_ns = self._frames_ns
+            datas = self._frame_records.json_many(t_ns, self._frames_direction, frames)
+            self._bytes_sink.publish_bytes_many(CAN_FRAMES, t_ns, datas)
 
     def keep_alive(self) -> None:
         """Repeat the latest command if a command period passed without one; zero once it is too old."""
@@ -447,7 +467,7 @@ class CanLink(ClosesOnExit):
             frames = 0
             status_seen = False
             receive = self._bus.recv if self._reader is None else self._reader.get_message
-            self._begin_frames(t_ns)
+            self._begin_frames(t_ns, "rx")
             try:
                 while True:
                     try:
@@ -519,7 +539,7 @@ class CanLink(ClosesOnExit):
         self.counters.rx += 1
         self.bits_total += _frame_bits(msg.is_extended_id, msg.dlc)
         if self._bytes_sink is not None:  # _publish_frame's usual case, inline: every frame comes this way
-            self._frames.append(self._frame_records.json(t_ns, "rx", msg))
+            self._frames.append(msg)
         else:
             self._publish_frame(t_ns, "rx", msg)
         values: list[float] | None
@@ -663,7 +683,7 @@ class CanLink(ClosesOnExit):
             self._flush_background_records()
             try:
                 t_ns = self._clock.now_ns()
-                self._begin_frames(t_ns)
+                self._begin_frames(t_ns, "tx")
                 try:
                     for cid in self._ids:
                         self._send(t_ns, self._codec.encode_set_rpm(cid, 0))

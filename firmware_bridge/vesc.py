@@ -133,24 +133,16 @@ class FieldDecoder:
     (``VescCodec.field_decoders``).
 
     Hot path (the link's ~420 status frames and the simulated controllers' ~300 SET_RPM per simulated
-    second): one call a frame gives the values the receiver wants, in its order, where ``decode`` builds a
-    dict and a ``VescFrame``. It accepts exactly the frames ``decode`` accepts as this message (its frame id
-    is the receiver's lookup key; a 29-bit id, not remote, dlc and data of the message's length) and gives
-    ``decode``'s numbers (``FramePacker.reader``); for any other frame it gives None and the receiver asks
-    ``decode``, which refuses it with the reason (``FrameError``) as before.
+    second): one call a frame, ``values(msg)``, gives the values the receiver wants, in its order, where
+    ``decode`` builds a dict and a ``VescFrame``. It takes exactly the frames ``decode`` takes as this
+    message (its frame id is the receiver's lookup key; a 29-bit id, not remote, dlc and data of the
+    message's length) and gives ``decode``'s numbers (``FramePacker.frame_reader``); for any other frame
+    it gives None and the receiver asks ``decode``, which refuses it with the reason (``FrameError``).
     """
 
     kind: str
     controller_id: int
-    length: int
-    read: Callable[[bytes | bytearray], list[float]]
-
-    def values(self, msg: can.Message) -> list[float] | None:
-        """The fields' physical values, or None: not a frame ``decode`` would take as this message."""
-        data = msg.data
-        if msg.is_extended_id and not msg.is_remote_frame and msg.dlc == self.length == len(data):
-            return self.read(data)
-        return None
+    values: Callable[[can.Message], list[float] | None]
 
 
 class FrameEncoder:
@@ -317,11 +309,11 @@ class VescCodec:
         ``FramePacker`` decodes. A message without one (a swapped DBC's layout that ``struct`` cannot
         express) is left out: its frames go to ``decode``, as before."""
         decoders: dict[int, FieldDecoder] = {}
-        for frame_id, (message_kind, cid, message, length, packer) in self._by_id.items():
+        for frame_id, (message_kind, cid, message, _, packer) in self._by_id.items():
             if message_kind != kind or packer is None:
                 continue
             try:
-                decoders[frame_id] = FieldDecoder(kind, cid, length, packer.reader(names))
+                decoders[frame_id] = FieldDecoder(kind, cid, packer.frame_reader(names))
             except ValueError as err:
                 raise BridgeSetupError(f"cannot read {list(names)} from {message.name}: {err}") from err
         return decoders

@@ -148,6 +148,9 @@ def test_layouts_struct_cannot_express_are_declined() -> None:
     for _ in range(200):
         values = {signal.name: _random_in_range(rng, signal) for signal in plain.signals}
         assert packer.pack(values) == plain.encode(values, strict=False)
+        # An offset and a fractional scale: the inlined conversion of ``packing`` rounds as cantools does.
+        names = ["second", "first"]
+        assert packer.packing(names, {})([values[n] for n in names]) == plain.encode(values, strict=False)
         data = bytes(rng.randrange(256) for _ in range(8))
         decoded = plain.decode(data, decode_choices=False)
         assert isinstance(decoded, dict)
