@@ -389,6 +389,8 @@ class CanLink(ClosesOnExit):
             self._echoes.sent(msg)
         if background:
             self._record(CAN_FRAMES, t_ns, _frame_record(t_ns, "tx", msg), background)
+        elif self._bytes_sink is not None:  # _publish_frame's usual case, inline: six frames per tick
+            self._frames.append(msg)
         else:
             self._publish_frame(t_ns, "tx", msg)
         return True
