@@ -18,7 +18,7 @@ from logs.clock import SimClock
 from logs.encoding import encode_message
 from logs.settings import ConfigError, parse_toml
 from logs.sink import MemorySink
-from logs.topics import CAN_FRAMES, WHEELS_STATUS
+from logs.topics import CAN_FRAMES, SAFETY_EVENTS, WHEELS_STATUS
 from tests.firmware_bridge.virtual_can import TEST_PROFILE, make_codec, virtual_bus_pair
 
 
@@ -289,3 +289,34 @@ def test_status_read_by_field_decoders_gives_the_readings_decode_gives(buses, mo
         assert link.counters.rx == 40 * 18 and link.counters.rejected == 0
     assert readings[0] == readings[1]
     assert any(r["erpm"] != 0.0 and r["input_voltage_v"] != 0.0 for r in readings[0])
+
+
+def test_a_safety_event_in_a_poll_is_recorded_after_the_frames_before_it(buses):
+    """Frames go to a bytes-only sink a poll at a time, but anything else the link publishes during the
+    poll (here: a silent controller reporting again) comes after the frames received before it and
+    before those after it, as when each frame was published on its own."""
+
+    class Ordered(MemorySink):
+        records_bytes_only = True
+
+        def publish_bytes(self, topic, log_time_ns, data):
+            self.records.append((topic, log_time_ns, data))
+
+        def publish_bytes_many(self, topic, log_time_ns, datas):
+            self.records.extend((topic, log_time_ns, data) for data in datas)
+
+    ours, theirs = buses
+    clock, sink = SimClock(), Ordered()
+    codec = make_codec()
+    link = CanLink(ours, codec, clock, sink)
+    clock.advance(1_000_000_000)
+    link.poll()  # a second without status: every controller silent
+    assert not any(link.controllers_alive().values())
+    del sink.records[:]
+    for cid in (1, 2):
+        theirs.send(codec.encode("STATUS", cid, erpm=100.0 * cid, current=0.0, duty=0.0))
+    link.poll()
+    topics = [topic for topic, _, _ in sink.records]
+    assert topics[:4] == [CAN_FRAMES, SAFETY_EVENTS, CAN_FRAMES, SAFETY_EVENTS]
+    assert [m["kind"] for m in sink.on(SAFETY_EVENTS)] == ["can_controller_alive"] * 2
+    assert b'"id":2305' in sink.records[0][2] and b'"id":2306' in sink.records[2][2]  # 0x901, 0x902
