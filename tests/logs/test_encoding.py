@@ -232,3 +232,20 @@ def test_a_batch_is_recorded_and_thinned_as_its_messages_one_by_one(rate_hz: flo
     assert outputs[0] == outputs[1]
     assert outputs[0][1] == sum(len(datas) for _, _, datas in batches)
     assert (outputs[0][3] > 0) == (rate_hz == 10.0)
+
+
+def test_a_batch_is_refused_as_its_messages_would_be() -> None:
+    recorder = McapRecorder(io.BytesIO())
+    with pytest.raises(RecordingError, match="non-negative"):
+        recorder.publish_bytes_many(CAN_FRAMES, -1, [b"{}"])
+    with pytest.raises(RecordingError, match="unknown topic"):
+        recorder.publish_bytes_many("no/such/topic", 0, [b"{}"])
+    recorder.publish_bytes_many(CAN_FRAMES, 0, [b"{}", b"{}"])
+    recorder.close()
+    assert recorder.message_count == 2
+    with pytest.raises(RecordingError, match="closed"):
+        recorder.publish_bytes_many(CAN_FRAMES, 1, [b"{}"])
+    with pytest.raises(LogsError, match="needs each message itself"):
+        FanoutSink([_BytesOnlySink(), MemorySink()]).publish_bytes_many(CAN_FRAMES, 0, [b"{}"])
+    with pytest.raises(TelemetryError, match="needs each message itself"):
+        RateLimitedSink(MemorySink(), {CAN_FRAMES: 10.0}).publish_bytes_many(CAN_FRAMES, 0, [b"{}"])
