@@ -49,6 +49,7 @@ _GPS_FRAME_ID = "gps"
 _IMU_FRAME_ID = "base_link"
 _COVARIANCE_UNKNOWN = 0
 _COVARIANCE_DIAGONAL_KNOWN = 2
+_V2_FRAME_OVERHEAD = 12  # MAVLink 2: a 10-byte header and a 2-byte CRC around the payload
 
 
 @dataclass(frozen=True)
@@ -474,6 +475,13 @@ class MavlinkLink(ClosesOnExit):
 
     def _parse(self, data: bytes) -> list[Any]:
         messages: list[Any] = []
+        if self._signing is None and not self._mav.buf_len():
+            # The usual read: whole frames and nothing held from the last one. Those are decoded without
+            # pymavlink's byte-stream parser; from the first byte that is anything else on, it parses.
+            taken = self._decode_whole_frames(data, messages)
+            if taken == len(data):
+                return messages
+            data = data[taken:]
         pending = data
         while True:
             try:
@@ -510,6 +518,36 @@ class MavlinkLink(ClosesOnExit):
                 # return None; a partial frame left over is asked for above and stays buffered.
                 break
         return messages
+
+    def _decode_whole_frames(self, data: bytes, messages: list[Any]) -> int:
+        """Decode the whole unsigned MAVLink 2 frames at the start of ``data`` into ``messages``; return
+        how many bytes they took.
+
+        pymavlink's ``parse_char`` finds a frame's end from its header (start marker, payload length, the
+        signed flag) and hands it to ``MAVLink.decode``, which checks the length, the CRC and the fields;
+        here the same header bytes find each end and ``decode`` is asked directly, a Python call per frame
+        instead of three (about a fifth of a frame's parse). It stops, leaving the rest to ``parse_char``,
+        at the first byte that is not the start of such a frame (noise, MAVLink 1, a signed or unknown
+        incompat flag), at a frame cut short, and at one ``decode`` refuses: ``parse_char`` then meets
+        exactly what it would have met after the frames before, from the same empty buffer, and reports
+        it as always (a frame is decoded twice only when it is refused). Only for a link without signing:
+        ``decode`` checks a signature against the replay guard, which must see each frame once.
+        """
+        buf = bytearray(data)  # decode wants a bytearray (it appends the CRC extra to a slice)
+        size = len(buf)
+        start = 0
+        decode = self._mav.decode
+        while start + 3 <= size and buf[start] == mavlink2.PROTOCOL_MARKER_V2 and buf[start + 2] == 0:
+            end = start + _V2_FRAME_OVERHEAD + buf[start + 1]
+            if end > size:
+                break
+            try:
+                msg = decode(buf[start:end])
+            except (mavlink2.MAVError, struct.error, ValueError, IndexError):
+                break
+            messages.append(msg)
+            start = end
+        return start
 
     def _new_mavlink_keeping_sequence(self) -> mavlink2.MAVLink:
         seq = self._mav.seq
