@@ -1,18 +1,25 @@
-"""The link decodes whole frames at the start of a read without pymavlink's byte-stream parser
-(``MavlinkLink._decode_whole_frames``); whatever arrives, it must read exactly what the parser alone reads:
-the same records, readings and counters."""
+"""The link's hot paths read and record exactly what the plain ones do.
 
+It decodes whole frames at the start of a read without pymavlink's byte-stream parser
+(``MavlinkLink._decode_whole_frames``): whatever arrives, it must read what the parser alone reads (the
+same records, readings and counters). And it formats each mavlink/raw record straight to JSON for a sink
+that records bytes alone (``_raw_json``): the bytes must be the encoder's."""
+
+import base64
 import dataclasses
 import itertools
+import re
 
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from pymavlink.dialects.v20 import common as mavlink2
 
-from firmware_bridge.mavlink_link import MavlinkLink
+from firmware_bridge.mavlink_link import _DIALECT_NAMES, MavlinkLink, _raw_json
 from firmware_bridge.mavlink_transport import memory_pipe_pair
 from logs.clock import SimClock
+from logs.encoding import encode_message
 from logs.sink import MemorySink
+from logs.topics import MAVLINK_RAW, stamp
 
 PROPERTY = settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -89,3 +96,64 @@ def test_a_read_of_whole_frames_is_decoded_without_the_byte_parser(monkeypatch):
     assert [type(r).__name__ for r in readings] == ["GpsFix", "ImuSample", "AttitudeSample"]  # + HEARTBEAT
     assert calls == []
     assert link.counters.rx_frames == 4
+
+
+def test_every_dialect_name_needs_no_json_escape():
+    assert all(re.fullmatch(r"[A-Z0-9_]+", name) for name in _DIALECT_NAMES)
+    assert {"SCALED_IMU", "GPS_RAW_INT", "HEARTBEAT"} <= _DIALECT_NAMES
+
+
+@PROPERTY
+@given(
+    t_ns=st.integers(0, 2**63 - 1),
+    direction=st.sampled_from(["rx", "tx"]),
+    msgid=st.integers(0, 2**24 - 1),
+    name=st.sampled_from(sorted(_DIALECT_NAMES)),
+    sysid=st.integers(0, 255),
+    compid=st.integers(0, 255),
+    frame=st.binary(max_size=280),
+)
+def test_raw_record_json_is_the_encoders_bytes(t_ns, direction, msgid, name, sysid, compid, frame):
+    data = base64.b64encode(frame).decode("ascii")
+    record = {
+        "timestamp": stamp(t_ns),
+        "direction": direction,
+        "msgid": msgid,
+        "name": name,
+        "sysid": sysid,
+        "compid": compid,
+        "data": data,
+    }
+    assert _raw_json(t_ns, direction, msgid, name, sysid, compid, data) == encode_message(record)
+
+
+class _BytesRecorder:
+    """A sink that records bytes alone, as the MCAP recorder does."""
+
+    records_bytes_only = True
+
+    def __init__(self) -> None:
+        self.records: list[tuple[str, int, bytes]] = []
+
+    def publish(self, topic, log_time_ns, message):
+        self.records.append((topic, log_time_ns, encode_message(message)))
+
+    def publish_bytes(self, topic, log_time_ns, data):
+        self.records.append((topic, log_time_ns, data))
+
+
+def test_a_bytes_sink_records_what_a_message_sink_records():
+    stream = b"".join([*VALID, *ODD, b"\x00garbage"])
+
+    def recorded(sink):
+        companion, autopilot = memory_pipe_pair()
+        link = MavlinkLink(companion, SimClock(), sink)
+        autopilot.write(stream)
+        link.poll()
+        link.send_heartbeat()
+        return sink
+
+    as_bytes = recorded(_BytesRecorder()).records
+    as_messages = [(topic, t, encode_message(m)) for topic, t, m in recorded(MemorySink()).records]
+    assert as_bytes == as_messages
+    assert sum(topic == MAVLINK_RAW for topic, _, _ in as_bytes) == len(VALID) + len(ODD) + 1
