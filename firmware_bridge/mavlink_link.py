@@ -316,19 +316,7 @@ class MavlinkLink(ClosesOnExit):
                 MAVLINK_RAW, t_ns, _raw_json(t_ns, direction, msgid, name, sysid, compid, data)
             )
             return
-        self._sink.publish(
-            MAVLINK_RAW,
-            t_ns,
-            {
-                "timestamp": stamp(t_ns),
-                "direction": direction,
-                "msgid": msgid,
-                "name": name,
-                "sysid": sysid,
-                "compid": compid,
-                "data": data,
-            },
-        )
+        self._sink.publish(MAVLINK_RAW, t_ns, _raw_record(t_ns, direction, msgid, name, sysid, compid, data))
 
     # --- receiving -----------------------------------------------------------------------------
     def poll(self) -> list[Reading]:
@@ -675,8 +663,23 @@ class MavlinkLink(ClosesOnExit):
 _DIALECT_NAMES = frozenset(message.msgname for message in mavlink2.mavlink_map.values())
 
 
+def _raw_record(
+    t_ns: int, direction: str, msgid: int, name: str, sysid: int, compid: int, data: str
+) -> dict[str, object]:
+    """A frame's mavlink/raw record (``data``: the frame in base64)."""
+    return {
+        "timestamp": stamp(t_ns),
+        "direction": direction,
+        "msgid": msgid,
+        "name": name,
+        "sysid": sysid,
+        "compid": compid,
+        "data": data,
+    }
+
+
 def _raw_json(t_ns: int, direction: str, msgid: int, name: str, sysid: int, compid: int, data: str) -> bytes:
-    """``encode_message`` of the mavlink/raw record, formatted directly.
+    """``encode_message(_raw_record(...))``, formatted directly.
 
     Hot path: every frame in both directions is recorded (~70 per simulated second), and its fields are
     integers and text that JSON needs no escapes for (a dialect name, "rx"/"tx", base64), so one format

@@ -14,12 +14,12 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from pymavlink.dialects.v20 import common as mavlink2
 
-from firmware_bridge.mavlink_link import _DIALECT_NAMES, MavlinkLink, _raw_json
+from firmware_bridge.mavlink_link import _DIALECT_NAMES, MavlinkLink, _raw_json, _raw_record
 from firmware_bridge.mavlink_transport import memory_pipe_pair
 from logs.clock import SimClock
 from logs.encoding import encode_message
 from logs.sink import MemorySink
-from logs.topics import MAVLINK_RAW, stamp
+from logs.topics import MAVLINK_RAW
 
 PROPERTY = settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -115,15 +115,7 @@ def test_every_dialect_name_needs_no_json_escape():
 )
 def test_raw_record_json_is_the_encoders_bytes(t_ns, direction, msgid, name, sysid, compid, frame):
     data = base64.b64encode(frame).decode("ascii")
-    record = {
-        "timestamp": stamp(t_ns),
-        "direction": direction,
-        "msgid": msgid,
-        "name": name,
-        "sysid": sysid,
-        "compid": compid,
-        "data": data,
-    }
+    record = _raw_record(t_ns, direction, msgid, name, sysid, compid, data)
     assert _raw_json(t_ns, direction, msgid, name, sysid, compid, data) == encode_message(record)
 
 
