@@ -72,8 +72,8 @@ class SimAutopilot:
     """Sends HEARTBEAT, SYS_STATUS, GPS_RAW_INT, SCALED_IMU and ATTITUDE at their rates, on the clock.
 
     ``gps`` and ``imu`` are the sensor models (``hil.sensors``); by default fault-free ones built from the
-    noise figures. Call ``step(truth, record=True)`` every physics tick when the GPS has latency or delay
-    faults.
+    noise figures. Call ``step(truth)`` every physics tick: the GPS's latency and delay faults look back
+    at the truth of earlier ticks.
     """
 
     def __init__(
@@ -155,19 +155,19 @@ class SimAutopilot:
         """Let the GPS remember where the rover was at ``now`` (for its latency and delay faults)."""
         self._gps.record(GpsSample(now, truth.x_m, truth.y_m, truth.z_m, truth.yaw_rad, truth.speed_mps))
 
-    def step(self, truth: AutopilotTruth, *, record: bool = False) -> None:
+    def step(self, truth: AutopilotTruth) -> None:
         """Send what is due at the clock's now, in a fixed order: IMU, attitude, GPS, status, heartbeat.
 
-        ``record``: let the GPS remember ``truth`` (for its latency and delay faults), as the world does
-        every physics tick. A GPS that never looks back (no latency, no delay fault) reads only the truth
-        of a fix's own tick, so only that one is kept: the same fixes for a call fewer on most ticks.
+        The GPS remembers ``truth`` for its latency and delay faults. A GPS that never looks back (no
+        latency, no delay fault) reads only the truth of a fix's own tick, so only that one is kept: the
+        same fixes for a call fewer on most ticks.
 
         The IMU goes first: it paces the rover's control loop, and a real IMU samples on its own timer;
         behind the GPS fix's geodesy and the other encodings it would leave 0.1-0.3 ms later on the steps
         where those are due, and the loop would take that as period jitter."""
         now = self._clock.now_ns()
         gps = self._gps
-        if (record and gps.looks_back) or not gps.has_history():
+        if gps.looks_back or not gps.has_history():
             self._record(now, truth)
         if now < self._next_any_ns:
             return  # nothing due (every other physics tick at the default rates: the IMU's is the fastest)
@@ -183,7 +183,7 @@ class SimAutopilot:
             self._send("attitude", self._attitude_message(truth, now))
         if now >= due["gps"]:
             self._take_turn("gps", now)
-            if record and not gps.looks_back:
+            if not gps.looks_back:
                 self._record(now, truth)
             fix = self._gps_message(now)
             if fix is not None:

@@ -218,7 +218,7 @@ class SimWorld:
             battery_remaining_pct=round(100.0 * battery.state_of_charge),
         )
         autopilot = self.autopilot
-        autopilot.step(truth, record=True)  # the GPS keeps every tick's truth for its latency
+        autopilot.step(truth)
         autopilot.poll()
         self.truth.on_step(now, body, step, battery, record_state=self._tick % TRUTH_DIVIDER == 0)
         if self._has_moving_obstacles:

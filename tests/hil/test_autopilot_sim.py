@@ -165,7 +165,7 @@ def test_each_gps_fix_reports_the_truth_of_its_moment(latency_s):
     fixes = []
     for tick in range(300):
         t_s = tick * DT_S
-        sim.step(TRUTH._replace(x_m=10.0 * t_s, y_m=-3.0 * t_s), record=True)
+        sim.step(TRUTH._replace(x_m=10.0 * t_s, y_m=-3.0 * t_s))
         fixes += [(clock.now_ns(), r) for r in link.poll() if isinstance(r, GpsFix)]
         clock.advance(to_ns(DT_S))
     assert len(fixes) == 15
