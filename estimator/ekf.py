@@ -39,7 +39,7 @@ from numpy.typing import NDArray
 from estimator.angles import wrap_angle
 from estimator.chi_square import chi_square_quantile
 from estimator.config import EstimatorConfig
-from estimator.ekf_kernels import predict_kernel, update_kernel
+from estimator.ekf_kernels import gyro_kernel, odometry_kernel, predict_kernel, update_kernel
 from estimator.errors import EstimatorOperationError
 
 STATE_NAMES: tuple[str, ...] = (
@@ -292,6 +292,16 @@ class RoverEkf:
             # that missed something would show rather than hide behind an unchanged revision.
             self._x, self._p, self._t_ns = saved_x, saved_p, saved_t
 
+    def _seconds_to(self, t_ns: int | None) -> float:
+        """Before an update at ``t_ns`` (None: at the filter's time): the seconds to predict over (0.0 for
+        none, as ``predict`` for a time not after the current one), with the time and revision advanced."""
+        now_ns = self._t_ns if self._t_ns is not None else self._require_time()
+        if t_ns is None or t_ns <= now_ns:
+            return 0.0
+        self._t_ns = t_ns
+        self._revision += 1
+        return (t_ns - now_ns) * 1e-9
+
     # --- measurement updates -------------------------------------------------------------------
     def update_position(self, x_m: float, y_m: float, std_m: float, *, gated: bool = True) -> Innovation:
         """GPS position in ENU metres with a per-axis std (m).
@@ -312,14 +322,22 @@ class RoverEkf:
         r[0, 0] = r[1, 1] = variance
         return self._update("gps", y, _H_POSITION, r, gated=gated)
 
-    def update_gyro(self, z_rps: float) -> Innovation:
-        """Body z gyro, rad/s: measures yaw rate + bias."""
+    def update_gyro(self, z_rps: float, *, t_ns: int | None = None) -> Innovation:
+        """Body z gyro, rad/s: measures yaw rate + bias.
+
+        With ``t_ns``, first predicts to it (as ``predict``) in the same compiled call: a sample's predict
+        and update, the same arithmetic as the two calls.
+        """
         if not math.isfinite(z_rps):
             _check_finite("update_gyro", z_rps=z_rps)
-        x = self._x.tolist()
+        dt = self._seconds_to(t_ns)
         y = self._y1
-        y[0] = z_rps - x[YAW_RATE] - x[BIAS]
-        return self._update("gyro", y, _H_GYRO, self._r_gyro)
+        nis, accepted = gyro_kernel(
+            self._x, self._p, dt, self._q_rate, _WALK_STATES, z_rps, y, _H_GYRO, self._r_gyro,
+            self._gate[1], -1 if self._scale_learning else SCALE,
+        )  # fmt: skip
+        self._revision += 1
+        return Innovation("gyro", (y.item(0),), nis, accepted)
 
     def update_odometry(
         self,
@@ -329,37 +347,31 @@ class RoverEkf:
         yaw_rate_std_rps: float,
         *,
         use_speed: bool = True,
+        t_ns: int | None = None,
     ) -> Innovation:
         """Wheel odometry: mean wheel surface speed (m/s) and yaw rate (rad/s) with their std.
 
         The speed row measures ``odom_scale * speed``. ``use_speed=False`` fuses the yaw rate alone (the
         wheels are spinning in place: their speed says nothing about the ground); the residual then has
-        one entry.
+        one entry. With ``t_ns``, first predicts to it (as ``predict``) in the same compiled call.
         """
         if not (math.isfinite(speed_mps) and math.isfinite(yaw_rate_rps)):
             _check_finite("update_odometry", speed_mps=speed_mps, yaw_rate_rps=yaw_rate_rps)
         if not (0.0 < speed_std_mps < math.inf and 0.0 < yaw_rate_std_rps < math.inf):
             _check_std("update_odometry", speed_std_mps=speed_std_mps, yaw_rate_std_rps=yaw_rate_std_rps)
-        x = self._x.tolist()
-        if not use_speed:
-            y = self._y1
-            y[0] = yaw_rate_rps - x[YAW_RATE]
-            r = self._r1
-            r[0, 0] = yaw_rate_std_rps**2
-            return self._update("odometry", y, _H_ODOMETRY_YAW_RATE, r)
-        y = self._y2
-        y[0], y[1] = speed_mps - x[SCALE] * x[SPEED], yaw_rate_rps - x[YAW_RATE]
-        h = self._h_odometry
-        h[0, SPEED] = x[SCALE]
-        h[0, SCALE] = x[SPEED]
-        r = self._r2
-        r[0, 0], r[1, 1] = speed_std_mps**2, yaw_rate_std_rps**2
-        innovation = self._update("odometry", y, h, r)
-        # Keep the scale physical: a linearised update at near-zero speed can push it anywhere.
-        scale = float(self._x[SCALE])
-        if not _SCALE_MIN <= scale <= _SCALE_MAX:
-            self._x[SCALE] = min(max(scale, _SCALE_MIN), _SCALE_MAX)
-        return innovation
+        dt = self._seconds_to(t_ns)
+        # The kernel fills the residual, the state-dependent speed row of H and the noise in place.
+        if use_speed:
+            y, h, r = self._y2, self._h_odometry, self._r2
+        else:
+            y, h, r = self._y1, _H_ODOMETRY_YAW_RATE, self._r1
+        nis, accepted = odometry_kernel(
+            self._x, self._p, dt, self._q_rate, _WALK_STATES, speed_mps, yaw_rate_rps, speed_std_mps**2,
+            yaw_rate_std_rps**2, y, h, r, self._gate[len(y)], -1 if self._scale_learning else SCALE,
+            _SCALE_MIN, _SCALE_MAX,
+        )  # fmt: skip
+        self._revision += 1
+        return Innovation("odometry", tuple(y.tolist()), nis, accepted)
 
     def update_heading(self, yaw_rad: float, std_rad: float) -> Innovation:
         """An absolute heading (compass, dual-antenna GPS), radians CCW from east."""
@@ -412,10 +424,12 @@ def _check_std(where: str, **values: float) -> None:
 
 
 def load_kernels(config: EstimatorConfig) -> None:
-    """Run a throwaway filter through a predict and an update, so the compiled kernels are loaded from
-    numba's cache (or compiled, on a machine's first run) now: a real-time process calls this before its
-    loop, where a first-use compile would stall the control tick for seconds."""
+    """Run a throwaway filter through a predict and each kind of update, so the compiled kernels are
+    loaded from numba's cache (or compiled, on a machine's first run) now: a real-time process calls this
+    before its loop, where a first-use compile would stall the control tick for seconds."""
     ekf = RoverEkf(config)
     ekf.initialise(0.0, 0.0, 0.0, 0, 1.0, 1.0)
     ekf.predict(10_000_000)
     ekf.update_position(0.1, 0.1, 1.0, gated=False)
+    ekf.update_gyro(0.0, t_ns=20_000_000)
+    ekf.update_odometry(0.0, 0.0, 0.1, 0.1, t_ns=30_000_000)

@@ -1,7 +1,10 @@
 """The EKF arithmetic compiled with numba: predict and the gated update over plain arrays, in place.
 
 A 7-state EKF step is a few hundred flops; in numpy each of its dozen small-matrix operations costs a
-microsecond of call overhead, which is most of the time. Compiled, a whole predict or update is one call.
+microsecond of call overhead, which is most of the time. Compiled, a whole predict or update is one call,
+and a gyro or odometry sample (predict to its time, then its update: two of every control tick's three
+samples) is one call too (``gyro_kernel``, ``odometry_kernel``): the same arithmetic in the same order as
+``predict_kernel`` then ``update_kernel`` called one after the other.
 Kernels are cached on disk (``cache=True``), so only the first run on a machine pays the compilation.
 The arithmetic is the textbook EKF (see ``estimator.ekf`` for the model and the units).
 """
@@ -17,7 +20,7 @@ from numpy.typing import NDArray
 Array = NDArray[np.float64]
 
 # State indices, repeated here so the kernels see compile-time constants (they match estimator.ekf).
-_X, _Y, _YAW, _SPEED, _YAW_RATE, _SCALE = 0, 1, 2, 3, 4, 6
+_X, _Y, _YAW, _SPEED, _YAW_RATE, _BIAS, _SCALE = 0, 1, 2, 3, 4, 5, 6
 _TWO_PI = 2.0 * math.pi
 
 
@@ -134,3 +137,74 @@ def update_kernel(
             p[i, j] = value
             p[j, i] = value
     return nis, True
+
+
+@numba.njit(cache=True)
+def gyro_kernel(
+    x: Array,
+    p: Array,
+    dt: float,
+    q_rate: Array,
+    walk_states: NDArray[np.int64],
+    z_rps: float,
+    y: Array,
+    h: Array,
+    r: Array,
+    gate: float,
+    schmidt_state: int,
+) -> tuple[float, bool]:
+    """Predict over ``dt`` (s; none when ``dt`` <= 0), then the gated gyro update ``z = yaw_rate + bias``.
+
+    ``y`` (shape (1,)) receives the residual; ``h`` and ``r`` are the gyro's constant model and noise.
+    """
+    if dt > 0.0:
+        predict_kernel(x, p, dt, q_rate, walk_states)
+    y[0] = z_rps - x[_YAW_RATE] - x[_BIAS]
+    return update_kernel(x, p, y, h, r, gate, True, schmidt_state)
+
+
+@numba.njit(cache=True)
+def odometry_kernel(
+    x: Array,
+    p: Array,
+    dt: float,
+    q_rate: Array,
+    walk_states: NDArray[np.int64],
+    speed_mps: float,
+    yaw_rate_rps: float,
+    speed_variance: float,
+    yaw_rate_variance: float,
+    y: Array,
+    h: Array,
+    r: Array,
+    gate: float,
+    schmidt_state: int,
+    scale_min: float,
+    scale_max: float,
+) -> tuple[float, bool]:
+    """Predict over ``dt`` (s; none when ``dt`` <= 0), then the gated odometry update.
+
+    With ``y`` of shape (2,): ``z = (scale * speed, yaw_rate)``, ``h`` (2, 7) gets its state-dependent
+    speed row, ``r`` (2, 2) the two variances on its diagonal, and the scale is clamped to
+    [``scale_min``, ``scale_max``] afterwards. With ``y`` of shape (1,): the yaw-rate row alone (``h`` its
+    constant row, ``r`` (1, 1) gets ``yaw_rate_variance``; ``speed_*`` unused).
+    """
+    if dt > 0.0:
+        predict_kernel(x, p, dt, q_rate, walk_states)
+    if y.shape[0] == 1:
+        y[0] = yaw_rate_rps - x[_YAW_RATE]
+        r[0, 0] = yaw_rate_variance
+        return update_kernel(x, p, y, h, r, gate, True, schmidt_state)
+    y[0] = speed_mps - x[_SCALE] * x[_SPEED]
+    y[1] = yaw_rate_rps - x[_YAW_RATE]
+    h[0, _SPEED] = x[_SCALE]
+    h[0, _SCALE] = x[_SPEED]
+    r[0, 0] = speed_variance
+    r[1, 1] = yaw_rate_variance
+    nis, accepted = update_kernel(x, p, y, h, r, gate, True, schmidt_state)
+    # Keep the scale physical: a linearised update at near-zero speed can push it anywhere (a NaN stays).
+    if x[_SCALE] < scale_min:
+        x[_SCALE] = scale_min
+    elif x[_SCALE] > scale_max:
+        x[_SCALE] = scale_max
+    return nis, accepted

@@ -160,8 +160,7 @@ class Estimator:
             return
         self._advance(t_ns)
         innovation = self._ekf.update_heading(yaw_rad, std_rad)
-        self._publish_innovation(t_ns, innovation)
-        self._count(innovation, "heading")
+        self._report(t_ns, innovation, "heading")
 
     # --- sensors -------------------------------------------------------------------------------
     def on_gps(
@@ -233,21 +232,22 @@ class Estimator:
         if abs(gyro_z_rps) > _MAX_GYRO_RPS or math.hypot(accel_x, accel_y) > _MAX_ACCEL_MPS2:
             self._reject("imu_out_of_range", f"gyro_z_rps={gyro_z_rps}, accel=({accel_x}, {accel_y})")
             return
-        if not self._ekf.initialised:
+        ekf = self._ekf
+        if not ekf.initialised:
             self._last_gyro = (t_ns, gyro_z_rps)
             self._counters["imu_before_init"] += 1
             return
-        if t_ns < self._ekf.t_ns - _MAX_SAMPLE_LAG_NS:
-            self._reject("imu_stale", f"sample at {t_ns} ns, filter already at {self._ekf.t_ns} ns")
+        if t_ns < ekf.t_ns - _MAX_SAMPLE_LAG_NS:
+            self._reject("imu_stale", f"sample at {t_ns} ns, filter already at {ekf.t_ns} ns")
             return
         self._last_gyro = (t_ns, gyro_z_rps)
-        before = self._ekf.snapshot() if self._history is not None else None
-        self._advance(t_ns)
-        innovation = self._ekf.update_gyro(gyro_z_rps)
+        before = ekf.snapshot() if self._history is not None else None
+        if not self._heading_known:
+            self._feed_bootstrap(t_ns)
+        innovation = ekf.update_gyro(gyro_z_rps, t_ns=t_ns)  # the predict to t_ns in the same call
         if before is not None:
             self._remember(before, GyroSample(t_ns, gyro_z_rps))
-        self._publish_innovation(t_ns, innovation)
-        self._count(innovation, "gyro")
+        self._report(t_ns, innovation, "gyro")
 
     def on_wheels(self, t_ns: int, left_speed_mps: float, right_speed_mps: float) -> None:
         """Mean left and right wheel surface speeds (m/s) -> skid-steer body speed and yaw rate."""
@@ -286,15 +286,17 @@ class Estimator:
         reads the pose, then publishes it. Its covariance is read-only.
         """
         ekf = self._ekf
+        made_from = (ekf.revision, self._heading_known)
+        cached = self._pose_cache
+        # The common case first (twice per control tick): nothing fused since the last answer. The same
+        # revision means the same filter time too, so only a later ``t_ns`` needs more.
+        if cached is not None and cached[0] == made_from and (t_ns is None or t_ns <= cached[1].t_ns):
+            return cached[1]
         if not ekf.initialised:
             return None
         if t_ns is not None and t_ns > ekf.t_ns:
             x, p = ekf.predicted(t_ns)
             return self._pose_of(x.tolist(), p, t_ns)
-        made_from = (ekf.revision, self._heading_known)
-        cached = self._pose_cache
-        if cached is not None and cached[0] == made_from:
-            return cached[1]
         pose = self._pose_of(ekf.state_values(), ekf.covariance, ekf.t_ns)
         self._pose_cache = (made_from, pose)
         return pose
@@ -349,7 +351,7 @@ class Estimator:
         # Until the heading is known the covariance rests on a linearisation that may be far off, so the
         # gate would throw away exactly the fixes that teach us the heading.
         innovation = self._ekf.update_position(east, north, std, gated=self._heading_known)
-        self._publish_innovation(t_fix, innovation)
+        self._report(t_fix, innovation, None)  # counted below, with the GPS's own reasons
         if not self._heading_known:
             self._learn_heading(east, north, std)
         if innovation.accepted:
@@ -430,10 +432,12 @@ class Estimator:
         if not use_speed:
             self._counters["odometry_speed_left_out"] += 1
         before = self._ekf.snapshot() if self._history is not None else None
-        self._advance(t_ns)
+        if not self._heading_known:
+            self._feed_bootstrap(t_ns)
         self._ekf.learn_scale(self._scale_observable(t_ns))
+        # The predict to t_ns in the same compiled call as the update.
         innovation = self._ekf.update_odometry(
-            motion.speed_mps, motion.yaw_rate_rps, speed_std, yaw_rate_std, use_speed=use_speed
+            motion.speed_mps, motion.yaw_rate_rps, speed_std, yaw_rate_std, use_speed=use_speed, t_ns=t_ns
         )
         if before is not None:
             sample = OdometrySample(
@@ -441,8 +445,7 @@ class Estimator:
             )
             self._remember(before, sample)
         self._odometry_seen = True
-        self._publish_innovation(t_ns, innovation)
-        self._count(innovation, "odometry")
+        self._report(t_ns, innovation, "odometry")
 
     def _on_spinning_changed(self) -> None:
         spinning = self._stuck.spinning
@@ -496,13 +499,20 @@ class Estimator:
 
     def _advance(self, t_ns: int) -> None:
         """Predict to ``t_ns``, feeding the heading bootstrap the motion the filter believes in meanwhile."""
+        self._feed_bootstrap(t_ns)
+        self._ekf.predict(t_ns)
+
+    def _feed_bootstrap(self, t_ns: int) -> None:
+        """While the heading is unknown: the motion the filter believes in up to ``t_ns`` (it is about to
+        predict there) goes to the heading bootstrap."""
+        if self._heading_known:
+            return
         dt_ns = t_ns - self._ekf.t_ns
-        if dt_ns > 0 and not self._heading_known:
+        if dt_ns > 0:
             dt = dt_ns * 1e-9
             self._bootstrap.add_motion(
                 self._ekf.state(YAW_RATE) * dt, self._ekf.state(SPEED) * dt if self._odometry_seen else 0.0
             )
-        self._ekf.predict(t_ns)
 
     def _learn_heading(self, east: float, north: float, std: float) -> None:
         guess = self._bootstrap.on_fix(east, north, std, path_known=self._odometry_seen)
@@ -550,17 +560,22 @@ class Estimator:
         factor = mismatch / self._config.slip_threshold_rps
         return speed_std * factor, max(yaw_rate_std * factor, mismatch)
 
-    def _publish_innovation(self, t_ns: int, innovation: Innovation) -> None:
-        message = {
-            "timestamp": stamp(t_ns),
-            "sensor": innovation.sensor,
-            "innovation": list(innovation.residual),
-            "nis": innovation.nis,
-            "accepted": innovation.accepted,
-        }
-        self._sink.publish(ESTIMATOR_INNOVATIONS, self._clock.now_ns(), message)
-
-    def _count(self, innovation: Innovation, sensor: str) -> None:
+    def _report(self, t_ns: int, innovation: Innovation, sensor: str | None) -> None:
+        """Publish an update's innovation and count it under ``sensor`` ("gyro", "odometry", "heading"),
+        accepted or gated; ``sensor`` None: publish only (one call for the two: two per control tick)."""
+        self._sink.publish(
+            ESTIMATOR_INNOVATIONS,
+            self._clock.now_ns(),
+            {
+                "timestamp": stamp(t_ns),
+                "sensor": innovation.sensor,
+                "innovation": list(innovation.residual),
+                "nis": innovation.nis,
+                "accepted": innovation.accepted,
+            },
+        )
+        if sensor is None:
+            return
         if innovation.accepted:
             self._counters[_ACCEPTED_KEYS[sensor]] += 1
         else:

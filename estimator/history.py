@@ -38,9 +38,8 @@ Sample = GyroSample | OdometrySample
 
 def apply(ekf: RoverEkf, sample: Sample) -> None:
     """Predict to the sample's time and fuse it (the filter arithmetic only)."""
-    ekf.predict(sample.t_ns)
     if isinstance(sample, GyroSample):
-        ekf.update_gyro(sample.gyro_z_rps)
+        ekf.update_gyro(sample.gyro_z_rps, t_ns=sample.t_ns)
     else:
         ekf.update_odometry(
             sample.speed_mps,
@@ -48,6 +47,7 @@ def apply(ekf: RoverEkf, sample: Sample) -> None:
             sample.speed_std_mps,
             sample.yaw_rate_std_rps,
             use_speed=sample.use_speed,
+            t_ns=sample.t_ns,
         )
 
 

@@ -10,7 +10,8 @@ The packer is derived from the cantools message itself, never from our own proto
 profile is followed or, when its layout is not plain (little-endian, not byte-aligned, odd widths, floats,
 multiplexed, choices), ``FramePacker.for_message`` returns ``None`` and callers stay with cantools.
 Values go through the signal's own cantools conversion (``numeric_scaled_to_raw``), so rounding and
-scaling are cantools' to the last bit; a test compares both on random values. Decoding computes
+scaling are cantools' to the last bit; a test compares both on random values (``packing``, the senders'
+hot path, writes out ``LinearConversion``'s one expression instead of calling it). Decoding computes
 ``raw * scale + offset`` with the conversion's own scale and offset: that expression is the whole of
 ``raw_to_scaled`` in each of the three conversion classes a packer accepts (Identity's scale and offset
 are 1 and 0), and inlined it costs half of calling it per field (a test compares the numbers on random
@@ -25,9 +26,10 @@ cantools, which then behaves as it always does). ``unpack`` takes data of exactl
 from __future__ import annotations
 
 import struct
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
+import can
 import cantools.database
 from cantools.database.conversion import IdentityConversion, LinearConversion, LinearIntegerConversion
 
@@ -45,6 +47,7 @@ class FramePacker:
         self._struct = struct.Struct(layout)
         # (name, physical -> raw) per field in struct order: one tuple walked per pack.
         self._fields = tuple((signal.name, _to_raw(signal.conversion)) for signal in signals)
+        self._conversions = tuple(signal.conversion for signal in signals)
         # (name, scale, offset) per field in struct order: raw_to_scaled's arithmetic, without its call.
         self._scaling = tuple(
             (signal.name, signal.conversion.scale, signal.conversion.offset) for signal in signals
@@ -99,6 +102,74 @@ class FramePacker:
             for (name, scale, offset), raw in zip(self._scaling, raws, strict=True)
         }
 
+    def packing(self, names: Sequence[str], fixed: Mapping[str, float]) -> Callable[[Sequence[float]], bytes]:
+        """A function from the physical values of ``names``, in that order, to the frame's data bytes, the
+        message's other signals held at ``fixed``: ``pack``'s bytes for the same values (the same
+        conversions; the fixed ones made once, here), without a dict per frame.
+
+        For a sender of the same message over and over with values it holds as numbers (the simulated
+        controllers' status frames, the link's SET_RPM). A raw value outside its field goes to cantools, as
+        in ``pack``."""
+        signals = [name for name, _ in self._fields]
+        if sorted(signals) != sorted([*names, *fixed]):
+            raise ValueError(
+                f"{self.message.name}: give each of its signals {signals} once, as a value or held fixed; "
+                f"got values {list(names)} and fixed {sorted(fixed)}"
+            )
+        # The raw values in struct order, the fixed ones filled in; per frame, (position in the struct,
+        # position in the caller's values, conversion) of each of the others, the conversion given as
+        # (scale, offset) alone for an integer signal of cantools' LinearConversion: its
+        # numeric_scaled_to_raw is ``round((value - offset) / scale)``, inlined below as unpack inlines
+        # raw_to_scaled (half the cost of the method call; the tests compare the bytes with cantools').
+        template = [to_raw(fixed[name]) if name in fixed else 0 for name, to_raw in self._fields]
+        variable = tuple(
+            (position, names.index(name), *_inline_or_call(to_raw, conversion))
+            for position, ((name, to_raw), conversion) in enumerate(
+                zip(self._fields, self._conversions, strict=True)
+            )
+            if name not in fixed
+        )
+        pack = self._struct.pack
+
+        def pack_values(values: Sequence[float]) -> bytes:
+            raws = template.copy()
+            for position, index, to_raw, scale, offset in variable:
+                value = values[index]
+                raws[position] = round((value - offset) / scale) if to_raw is None else to_raw(value)
+            try:
+                return pack(*raws)
+            except struct.error:
+                return bytes(
+                    self.message.encode({**fixed, **dict(zip(names, values, strict=True))}, strict=False)
+                )
+
+        return pack_values
+
+    def frame_reader(self, names: Sequence[str]) -> Callable[[can.Message], list[float] | None]:
+        """A function from a received frame to the physical values of ``names``, in that order, or None when
+        the frame is not in this message's format (its id's width, not remote, dlc and data of the
+        message's length): ``unpack``'s numbers (the same expression) without its dict.
+
+        For a receiver that reads a few fields of every frame on a hot path (the CAN link's status frames,
+        the simulated controllers' SET_RPM): one call and one list per frame, the format checked in it."""
+        index = {name: i for i, (name, _, _) in enumerate(self._scaling)}
+        missing = [name for name in names if name not in index]
+        if missing:
+            raise ValueError(f"{self.message.name} has no signal {', '.join(missing)}")
+        picks = tuple((index[name], *self._scaling[index[name]][1:]) for name in names)
+        unpack = self._struct.unpack
+        extended = self.message.is_extended_frame
+        length = self.message.length
+
+        def read(msg: can.Message) -> list[float] | None:
+            data = msg.data
+            if msg.is_extended_id != extended or msg.is_remote_frame or not msg.dlc == length == len(data):
+                return None
+            raws = unpack(data)
+            return [float(raws[i] * scale + offset) for i, scale, offset in picks]
+
+        return read
+
 
 def _to_raw(conversion: Any) -> Callable[[float], float]:
     """The signal's physical -> raw conversion: cantools' own, but for an integer identity conversion,
@@ -106,3 +177,13 @@ def _to_raw(conversion: Any) -> Callable[[float], float]:
     if isinstance(conversion, IdentityConversion) and not conversion.is_float:
         return round
     return conversion.numeric_scaled_to_raw
+
+
+def _inline_or_call(
+    to_raw: Callable[[float], float], conversion: Any
+) -> tuple[Callable[[float], float] | None, float, float]:
+    """(None, scale, offset) for an integer signal of exactly cantools' ``LinearConversion``, whose
+    physical -> raw is ``round((value - offset) / scale)``; else (``to_raw``, 1, 0): call it."""
+    if type(conversion) is LinearConversion and not conversion.is_float:
+        return None, conversion.scale, conversion.offset
+    return to_raw, 1.0, 0.0

@@ -72,8 +72,8 @@ class SimAutopilot:
     """Sends HEARTBEAT, SYS_STATUS, GPS_RAW_INT, SCALED_IMU and ATTITUDE at their rates, on the clock.
 
     ``gps`` and ``imu`` are the sensor models (``hil.sensors``); by default fault-free ones built from the
-    noise figures. Call ``step(truth, record=True)`` every physics tick when the GPS has latency or delay
-    faults.
+    noise figures. Call ``step(truth)`` every physics tick: the GPS's latency and delay faults look back
+    at the truth of earlier ticks.
     """
 
     def __init__(
@@ -155,33 +155,44 @@ class SimAutopilot:
         """Let the GPS remember where the rover was at ``now`` (for its latency and delay faults)."""
         self._gps.record(GpsSample(now, truth.x_m, truth.y_m, truth.z_m, truth.yaw_rad, truth.speed_mps))
 
-    def step(self, truth: AutopilotTruth, *, record: bool = False) -> None:
+    def step(self, truth: AutopilotTruth) -> None:
         """Send what is due at the clock's now, in a fixed order: IMU, attitude, GPS, status, heartbeat.
 
-        ``record``: first let the GPS remember ``truth`` (for its latency and delay faults), as the world
-        does every physics tick.
+        The GPS remembers ``truth`` for its latency and delay faults. A GPS that never looks back (no
+        latency, no delay fault) reads only the truth of a fix's own tick, so only that one is kept: the
+        same fixes for a call fewer on most ticks.
 
         The IMU goes first: it paces the rover's control loop, and a real IMU samples on its own timer;
         behind the GPS fix's geodesy and the other encodings it would leave 0.1-0.3 ms later on the steps
         where those are due, and the loop would take that as period jitter."""
         now = self._clock.now_ns()
-        if record or not self._gps.has_history():
+        gps = self._gps
+        if gps.looks_back or not gps.has_history():
             self._record(now, truth)
         if now < self._next_any_ns:
             return  # nothing due (every other physics tick at the default rates: the IMU's is the fastest)
-        if self._due("imu", now):
+        # One comparison per stream; only a stream that is due is rescheduled (_take_turn).
+        due = self._next_ns
+        if now >= due["imu"]:
+            self._take_turn("imu", now)
             imu = self._imu_message(truth, now)
             if imu is not None:
                 self._send("imu", imu)
-        if self._due("attitude", now):
+        if now >= due["attitude"]:
+            self._take_turn("attitude", now)
             self._send("attitude", self._attitude_message(truth, now))
-        if self._due("gps", now):
-            gps = self._gps_message(now)
-            if gps is not None:
-                self._send("gps", gps)
-        if self._due("sys_status", now):
+        if now >= due["gps"]:
+            self._take_turn("gps", now)
+            if not gps.looks_back:
+                self._record(now, truth)
+            fix = self._gps_message(now)
+            if fix is not None:
+                self._send("gps", fix)
+        if now >= due["sys_status"]:
+            self._take_turn("sys_status", now)
             self._send("sys_status", self._sys_status_message(truth))
-        if self._due("heartbeat", now):
+        if now >= due["heartbeat"]:
+            self._take_turn("heartbeat", now)
             self._send(
                 "heartbeat",
                 self._mav.heartbeat_encode(
@@ -192,16 +203,13 @@ class SimAutopilot:
                     mavlink2.MAV_STATE_ACTIVE,
                 ),
             )
-        self._next_any_ns = min(self._next_ns.values())
+        self._next_any_ns = min(due.values())
 
-    def _due(self, stream: str, now: int) -> bool:
-        due = self._next_ns[stream]
-        if now < due:
-            return False
-        following = due + self._periods_ns[stream]
+    def _take_turn(self, stream: str, now: int) -> None:
+        """Schedule ``stream``'s next send after the one due now."""
+        following = self._next_ns[stream] + self._periods_ns[stream]
         # Keep the cadence; after a long pause resume from now rather than sending a burst.
         self._next_ns[stream] = following if following > now else now + self._periods_ns[stream]
-        return True
 
     def _send(self, stream: str, msg: Any) -> None:
         try:

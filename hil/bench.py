@@ -59,9 +59,10 @@ TIMED_METHODS: dict[str, tuple[str, ...]] = {
     "can_link": ("poll", "send_wheel_speeds"),
     "mavlink_link": ("poll", "send_heartbeat"),
     "encoding": ("publish",),
-    # publish_bytes: the CAN link's frame records, and the fan-out's bytes (logs.encoding.BytesSink).
-    "recorder": ("publish", "publish_encoded", "publish_bytes"),
-    "telemetry": ("publish", "publish_encoded", "publish_bytes"),
+    # publish_bytes: the fan-out's bytes (logs.encoding.BytesSink); publish_bytes_many: the CAN link's frame
+    # records, one call per poll or command round.
+    "recorder": ("publish", "publish_encoded", "publish_bytes", "publish_bytes_many"),
+    "telemetry": ("publish", "publish_encoded", "publish_bytes", "publish_bytes_many"),
     "world": ("tick",),
     "vescs": ("poll", "step"),
     "autopilot": ("step", "poll"),

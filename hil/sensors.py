@@ -24,8 +24,7 @@ from logs.clock import to_ns
 FIX_NONE = 0
 FIX_3D = 3
 # Per-axis scale of the GPS noise: east, north, and up twice as large (receivers are worse vertically).
-_GPS_NOISE_AXES = np.array([1.0, 1.0, 2.0])
-_GPS_NOISE_AXES.flags.writeable = False
+_GPS_NOISE_AXES = (1.0, 1.0, 2.0)
 
 
 class GpsSample(NamedTuple):
@@ -75,6 +74,11 @@ class GpsModel:
         # Keep just enough truth for the longest look-back the latency and delay faults can ask for.
         longest_delay_s = max((f.delay_s for f in faults.faults if f.target == "gps"), default=0.0)
         self._horizon_ns = self._latency_ns + to_ns(longest_delay_s) + to_ns(0.1)
+        # Without a latency or a delay fault a fix reports the truth of its own instant: nothing older is
+        # ever looked up, and the autopilot need record only the truth of the ticks a fix is due.
+        self.looks_back = self._latency_ns > 0 or longest_delay_s > 0
+        # Whether any GPS fault is scheduled at all: without one, a fix asks the schedule nothing.
+        self._has_faults = faults.scheduled("gps")
         self._fixes_due = 0
         self.dropped = 0
 
@@ -90,11 +94,12 @@ class GpsModel:
 
     def fix(self, now: int) -> GpsFix | None:
         """The fix due at ``now``, or None when it is lost (dropout, loss fault, slow fault)."""
-        noise = self._rng.normal(0.0, 1.0, 3) * _GPS_NOISE_AXES * self._noise_m
+        # Three standard normals, scaled per axis and by the noise in plain floats: the same IEEE products
+        # in the same order as on the arrays they were once (normal(0, 1) * axes * noise_m), the same numbers.
+        n0, n1, n2 = self._rng.normal(0.0, 1.0, 3).tolist()
         drop_draw = float(self._rng.random())
         self._fixes_due += 1
-        faults = self._faults.active_all("gps", now)
-        kinds = {f.kind: f for f in faults}
+        kinds = {f.kind: f for f in self._faults.active_all("gps", now)} if self._has_faults else {}
         if "off" in kinds:
             self.dropped += 1
             return None
@@ -111,7 +116,11 @@ class GpsModel:
         if delayed is not None:
             delay_ns += to_ns(delayed.delay_s)
         truth = self._at(now - delay_ns)
-        x, y, z = truth.x_m + float(noise[0]), truth.y_m + float(noise[1]), truth.z_m + float(noise[2])
+        noise_m = self._noise_m
+        east, north, up = _GPS_NOISE_AXES
+        x = truth.x_m + n0 * east * noise_m
+        y = truth.y_m + n1 * north * noise_m
+        z = truth.z_m + n2 * up * noise_m
         wrong = kinds.get("wrong")
         if wrong is not None:
             x += wrong.offset_m[0]

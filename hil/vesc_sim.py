@@ -14,7 +14,7 @@ from collections.abc import Sequence
 import can
 
 from firmware_bridge.errors import BridgeError, FrameError
-from firmware_bridge.vesc import WHEEL_COUNT, FrameEncoder, VescCodec, VescFrame
+from firmware_bridge.vesc import WHEEL_COUNT, FieldEncoder, VescCodec, VescFrame
 from firmware_bridge.wheel_names import wheel_label
 from logs.clock import Clock, to_ns
 
@@ -22,7 +22,8 @@ logger = logging.getLogger(__name__)
 
 _NONE_STALLED = (0.0,) * WHEEL_COUNT  # SimVescBank.stalled with no wheel seized
 _IDLE_TEMPERATURE_C = 25.0
-# STATUS_4's fields this model holds constant: an idle temperature, no position control.
+# STATUS_4's fields this model holds constant (FieldEncoder: converted once): an idle temperature, no
+# position control.
 _IDLE_STATUS_4 = {"temp_fet": _IDLE_TEMPERATURE_C, "temp_motor": _IDLE_TEMPERATURE_C, "pid_pos": 0.0}
 _STATUS_CURRENT_LIMIT_A = 3000.0  # the int16 / 10 field holds +-3276.7 A
 _INT32_MAX = (1 << 31) - 1
@@ -86,8 +87,15 @@ class SimVescBank:
         self._rebooting = [False] * WHEEL_COUNT  # fault: controller silent while it restarts
         self._stuck = [False] * WHEEL_COUNT  # fault: the wheel is seized
         # Per wheel: the encoders of its status frames, looked up once (eighteen frames per 20 ms).
+        # Frame id -> the reader of each controller's SET_RPM (the commands of every control tick): poll's
+        # usual case, without decode's dict and VescFrame per frame.
+        self._set_rpm_decoders = codec.field_decoders("SET_RPM", ("erpm",))
         self._status_encoders = [
-            (codec.encoder("STATUS", cid), codec.encoder("STATUS_4", cid), codec.encoder("STATUS_5", cid))
+            (
+                codec.encoder("STATUS", cid).fields(("erpm", "current", "duty")),
+                codec.encoder("STATUS_4", cid).fields(("current_in",), _IDLE_STATUS_4),
+                codec.encoder("STATUS_5", cid).fields(("tacho", "voltage_in")),
+            )
             for cid in self._ids
         ]
 
@@ -96,6 +104,7 @@ class SimVescBank:
         """Drain the bus and apply the commands addressed to our controllers; returns frames read."""
         now = self._clock.now_ns()
         count = 0
+        set_rpm_decoders = self._set_rpm_decoders
         while True:
             try:
                 msg = self._bus.recv(timeout=0)
@@ -106,6 +115,10 @@ class SimVescBank:
                 break
             count += 1
             if msg.is_error_frame:
+                continue
+            decoder = set_rpm_decoders.get(msg.arbitration_id)
+            if decoder is not None and (values := decoder.values(msg)) is not None:
+                self._command_erpm(self._wheel_of[decoder.controller_id], values[0], now)
                 continue
             try:
                 frame = self._codec.decode(msg)
@@ -119,16 +132,25 @@ class SimVescBank:
             self._apply(frame, now)
         return count
 
-    def _apply(self, frame: VescFrame, now_ns: int) -> None:
-        wheel = self._wheel_of[frame.controller_id]
+    def _command_erpm(self, wheel: int, erpm: float, now_ns: int) -> None:
+        """A SET_RPM of ``erpm`` for ``wheel``: poll's usual frame, read without the codec's VescFrame."""
         if self._rebooting[wheel]:
             return  # a controller restarting hears nothing
+        # Six per control tick: max(min())'s clamp by comparisons (a decoded ERPM is finite).
+        top = self._max_erpm
+        self._targets[wheel] = erpm if -top <= erpm <= top else (top if erpm > top else -top)
+        self._last_command_ns[wheel] = now_ns
+        self.commands_applied += 1
+
+    def _apply(self, frame: VescFrame, now_ns: int) -> None:
+        wheel = self._wheel_of[frame.controller_id]
         values = frame.values
         if frame.kind == "SET_RPM":
-            # Six per control tick: max(min())'s clamp by comparisons (a decoded ERPM is finite).
-            erpm, top = values["erpm"], self._max_erpm
-            target = erpm if -top <= erpm <= top else (top if erpm > top else -top)
-        elif frame.kind == "SET_DUTY":
+            self._command_erpm(wheel, values["erpm"], now_ns)
+            return
+        if self._rebooting[wheel]:
+            return  # a controller restarting hears nothing
+        if frame.kind == "SET_DUTY":
             target = max(-1.0, min(1.0, values["duty"])) * self._max_erpm
         elif frame.kind == "SET_CURRENT_BRAKE" or (frame.kind == "SET_CURRENT" and values["current"] == 0.0):
             target = 0.0
@@ -233,7 +255,8 @@ class SimVescBank:
         # Every value is clamped into its field's range before it gets here (ERPM, currents, duty,
         # tachometer, voltage), so the encoders skip cantools' strict range check. The frame order is the
         # firmware's schedule as before: every controller's STATUS, then each one's STATUS_4 and STATUS_5.
-        frames: list[tuple[FrameEncoder, dict[str, float]]] = []
+        # Each frame's values in its encoder's order (FieldEncoder): numbers, no dict per frame.
+        frames: list[tuple[FieldEncoder, tuple[float, ...]]] = []
         if fast_due:
             for i, (status, _, _) in enumerate(self._status_encoders):
                 if not self._rebooting[i]:
@@ -241,7 +264,7 @@ class SimVescBank:
                     if not -_INT32_MAX <= erpm <= _INT32_MAX:
                         erpm = _INT32_MAX if erpm > 0 else -_INT32_MAX
                     current = self._motor_current_a[i]
-                    frames.append((status, {"erpm": erpm, "current": current, "duty": self._duty_cycle[i]}))
+                    frames.append((status, (erpm, current, self._duty_cycle[i])))
         if slow_due:
             voltage = self._input_voltage_v
             for i, (_, status_4, status_5) in enumerate(self._status_encoders):
@@ -250,11 +273,11 @@ class SimVescBank:
                 # What the motor takes from the pack: I x duty, signed as power flows. A braking motor
                 # generates, and with no regeneration (hil.battery) the pack sees nothing.
                 current_in = max(self._motor_current_a[i] * self._duty_cycle[i], 0.0)
-                frames.append((status_4, {**_IDLE_STATUS_4, "current_in": current_in}))
-                frames.append((status_5, {"tacho": _wrap_tacho(self._tacho_erev[i]), "voltage_in": voltage}))
+                frames.append((status_4, (current_in,)))
+                frames.append((status_5, (_wrap_tacho(self._tacho_erev[i]), voltage)))
         self._send_all(frames)
 
-    def _send_all(self, frames: list[tuple[FrameEncoder, dict[str, float]]]) -> None:
+    def _send_all(self, frames: list[tuple[FieldEncoder, tuple[float, ...]]]) -> None:
         """Encode and send each frame in order; one that fails is counted and the rest still go."""
         send = self._bus.send  # 6-18 frames per status period: one lookup, one call per frame
         for encoder, values in frames:

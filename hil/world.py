@@ -215,7 +215,7 @@ class SimWorld:
             round(100.0 * battery.state_of_charge),  # battery_remaining_pct
         )
         autopilot = self.autopilot
-        autopilot.step(truth, record=True)  # the GPS keeps every tick's truth for its latency
+        autopilot.step(truth)
         autopilot.poll()
         # Ground truth is recorded every TRUTH_DIVIDER-th tick; between those, the recorder has something
         # to do only while a contact may begin or end (TruthRecorder.on_step), so it is not called at all.

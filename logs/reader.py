@@ -282,6 +282,16 @@ def _decode(
     return RecordedMessage(channel.topic, record.log_time, message)
 
 
+def decode_json_object(data: bytes) -> dict[str, Any] | None:
+    """A ``RecordedRaw`` payload decoded as ``read_entries`` decodes messages; None when it is not a JSON
+    object (which ``read_entries`` would have skipped and counted as malformed)."""
+    try:
+        message = _loads(data)
+    except (ValueError, UnicodeDecodeError):
+        return None
+    return message if isinstance(message, dict) else None
+
+
 def _loads(data: bytes) -> Any:
     """JSON text to Python: orjson (several times the standard library's speed, the hot path of every
     analysis), and the standard library for what only it reads (``NaN`` / ``Infinity`` literals from

@@ -6,9 +6,9 @@ are plain JSON-able dicts laid out as the topic's schema in ``logs.topics`` says
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import NoReturn, Protocol
 
 from logs.encoding import EncodedSink, Message, bytes_only_sink, encode_message
 from logs.errors import LogsError
@@ -47,7 +47,8 @@ class FanoutSink:
     go to every sink that takes them (``EncodedSink``); other sinks get the message itself. A message
     that cannot be encoded goes to every sink as is, so each reports it in its own words. When every sink
     records bytes alone (``BytesSink``), so does the fan-out: ``publish_bytes`` takes bytes without a
-    message, and ``publish`` hands each sink the bytes through it.
+    message (``publish_bytes_many`` several of one topic and log time), and ``publish`` hands each sink
+    the bytes through it.
     """
 
     def __init__(self, sinks: Iterable[MessageSink]) -> None:
@@ -91,9 +92,21 @@ class FanoutSink:
     def publish_bytes(self, topic: str, log_time_ns: int, data: bytes) -> None:
         """A message's bytes alone to every sink (only when ``records_bytes_only``)."""
         if not self.records_bytes_only:
-            raise LogsError(
-                f"a sink of this fan-out needs each message itself, not only its bytes; "
-                f"cannot pass on {topic!r} as bytes"
-            )
+            self._refuse_bytes(topic)
         for sink in self._bytes_sinks:
             sink.publish_bytes(topic, log_time_ns, data)
+
+    def publish_bytes_many(self, topic: str, log_time_ns: int, datas: Sequence[bytes]) -> None:
+        """Several messages' bytes of one topic and log time to every sink, in one call per sink (only when
+        ``records_bytes_only``). Each sink gets them all in order before the next sink gets any: the
+        recorder's order is the same as one by one, and each sink's own order too."""
+        if not self.records_bytes_only:
+            self._refuse_bytes(topic)
+        for sink in self._bytes_sinks:
+            sink.publish_bytes_many(topic, log_time_ns, datas)
+
+    def _refuse_bytes(self, topic: str) -> NoReturn:
+        raise LogsError(
+            f"a sink of this fan-out needs each message itself, not only its bytes; "
+            f"cannot pass on {topic!r} as bytes"
+        )

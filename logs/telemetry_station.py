@@ -20,7 +20,8 @@ import logging
 import math
 import threading
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
+from typing import NoReturn
 
 import zenoh
 
@@ -98,10 +99,7 @@ class RateLimitedSink:
         """As ``publish``, for a message's bytes alone (only when ``records_bytes_only``)."""
         sink = self._sink_bytes
         if sink is None:
-            raise TelemetryError(
-                "this rate limiter's sink needs each message itself, not only its bytes (records_bytes_only "
-                f"is False); cannot pass on {topic!r} as bytes"
-            )
+            _refuse_bytes(topic)
         # _due, inline: with the recorder and Zenoh behind a fan-out every message of a trial comes this way.
         due = self._next_ns.get(topic)
         if due is not None:
@@ -110,6 +108,28 @@ class RateLimitedSink:
                 return
             self._next_ns[topic] = log_time_ns + self._period_ns[topic]
         sink.publish_bytes(topic, log_time_ns, data)
+
+    def publish_bytes_many(self, topic: str, log_time_ns: int, datas: Sequence[bytes]) -> None:
+        """As ``publish_bytes`` for each of ``datas`` in turn, decided once: they share one log time, so
+        at most the first can pass a thinned topic (the next is due a period later); every one passes a
+        topic that is not thinned, or one whose period rounds to 0 ns."""
+        sink = self._sink_bytes
+        if sink is None:
+            _refuse_bytes(topic)
+        due = self._next_ns.get(topic)
+        if due is None or not datas:
+            sink.publish_bytes_many(topic, log_time_ns, datas)
+            return
+        if log_time_ns < due:
+            self.dropped += len(datas)
+            return
+        period = self._period_ns[topic]
+        self._next_ns[topic] = log_time_ns + period
+        if period == 0:
+            sink.publish_bytes_many(topic, log_time_ns, datas)
+            return
+        self.dropped += len(datas) - 1
+        sink.publish_bytes(topic, log_time_ns, datas[0])
 
     def _due(self, topic: str, log_time_ns: int) -> bool:
         due = self._next_ns.get(topic)
@@ -120,6 +140,13 @@ class RateLimitedSink:
             return False
         self._next_ns[topic] = log_time_ns + self._period_ns[topic]
         return True
+
+
+def _refuse_bytes(topic: str) -> NoReturn:
+    raise TelemetryError(
+        "this rate limiter's sink needs each message itself, not only its bytes (records_bytes_only "
+        f"is False); cannot pass on {topic!r} as bytes"
+    )
 
 
 class StreamRecorder:

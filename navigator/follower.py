@@ -161,7 +161,8 @@ class PurePursuit:
         cfg = self._config
         if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(yaw) and math.isfinite(speed)):
             raise ParameterError(f"rover pose must be finite, got x={x}, y={y}, yaw={yaw}, speed={speed}")
-        points = self._adopt(path)
+        # The same path as on the last tick (the common case) without the call into _adopt.
+        points = self._path if path is self._source and self._path is not None else self._adopt(path)
         lookahead = cfg.lookahead_m + cfg.lookahead_gain_s * abs(speed)
 
         projection, cross_track = self._project(points, x, y, lookahead)

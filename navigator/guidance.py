@@ -224,10 +224,13 @@ class Guidance:
             raise ParameterError(f"pose must be finite, got x={x}, y={y}, yaw={yaw}, speed={speed}")
         self._last_xy = (x, y)
         details: list[str] = []
-        path_changed = self._collect(details)
-        if self._job is None:
+        path_changed = self._collect(details) if self._job is not None else False
+        # Planning work only if something asks for it (_submit checks each in detail): on nearly every
+        # tick nothing is pending, and the calls were a share of the tick.
+        if self._job is None and (self._pending or self._moved_off or self._needs_plan):
             self._submit(x, y)
-            path_changed |= self._collect(details)  # an inline executor has finished already
+            if self._job is not None:
+                path_changed |= self._collect(details)  # an inline executor has finished already
         if self._goal is None:
             return self._stopped(IDLE, "", path_changed)
         if self._mode == ARRIVED:
@@ -246,12 +249,12 @@ class Guidance:
             if changed:
                 path_changed = True
                 command = self._follower.command(x, y, yaw, speed, self._path.points)
-        detail = _joined(details)
+        detail = _joined(details) if details else ""
         if command.arrived:
             self._mode = ARRIVED
             return self._stopped(ARRIVED, detail or "goal reached", path_changed, arrived=True)
         judged_speed = max(abs(speed), self._blocked_at_speed) if self._blocker is not None else abs(speed)
-        blocker = self._blocking_obstacle(t_ns, x, y, judged_speed)
+        blocker = self._blocking_obstacle(t_ns, x, y, judged_speed) if self._moving else None
         if blocker is not None:
             self._clear_since_ns = None
         elif self._blocker is not None and not self._clear_long_enough(t_ns):

@@ -20,15 +20,16 @@ from __future__ import annotations
 import enum
 import logging
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass
+from typing import NamedTuple
 
 from estimator.estimator import Estimator
 from estimator.geodesy import to_enu
 from estimator.pose import PoseEstimate
 from firmware_bridge.can_health import CanLinkState
-from firmware_bridge.can_link import CanLink
+from firmware_bridge.can_link import CanLink, WheelReading
 from firmware_bridge.mavlink_commands import GoalRequest, StopRequest
 from firmware_bridge.mavlink_link import AttitudeSample, GpsFix, ImuSample, MavlinkLink
 from logs import topics
@@ -73,8 +74,43 @@ class Mode(enum.StrEnum):
 
 # Guidance's mode names -> Mode, looked up every tick (a dict, not the enum's slower call).
 _MODE_OF = {mode.value: mode for mode in Mode}
+# Guidance's modes in which the wheels are meant to turn (read every tick).
+_DRIVING_MODES = (Mode.DRIVING, Mode.YIELDING)
 # The last start-up check, worded once.
 _NOT_SETTLED = f"estimate healthy for < {SETTLE_NS / NS_PER_S:g} s"
+
+
+class _WheelSnapshot(NamedTuple):
+    """What the tick reads of one snapshot of the wheel controllers' readings, built once per snapshot
+    (the start-up checks, the estimator and the safety inputs all read it)."""
+
+    status_ns: tuple[int | None, ...]  # each controller's last STATUS time, None: never heard
+    heard: bool  # every controller heard
+    speeds_mps: list[float]  # as reported
+    # For the stall check: a controller never heard has no speed or current to judge (wheel_silent covers
+    # it): 0.0, not stalled.
+    judged_speeds_mps: tuple[float, ...]
+    judged_currents_a: tuple[float, ...]
+    battery_v: float | None  # the lowest pack voltage reported (None: no controller reported one yet)
+
+    @classmethod
+    def of(cls, readings: Sequence[WheelReading]) -> _WheelSnapshot:
+        # List comprehensions: the same values as generator expressions, cheaper.
+        status_ns = tuple([r.last_status_ns for r in readings])
+        heard = None not in status_ns
+        speeds = [r.speed_mps for r in readings]
+        voltages = [r.input_voltage_v for r in readings if r.input_voltage_v > 0.0]
+        return cls(
+            status_ns,
+            heard,
+            speeds,
+            # All heard (the usual case): the speeds as they are.
+            tuple(speeds)
+            if heard
+            else tuple([r.speed_mps if r.last_status_ns is not None else 0.0 for r in readings]),
+            tuple([r.motor_current_a if r.last_status_ns is not None else 0.0 for r in readings]),
+            min(voltages) if voltages else None,
+        )
 
 
 @dataclass(frozen=True)
@@ -239,8 +275,7 @@ class OnboardStack:
         self._commands = commands
         self._obstacles = obstacles
         self._ground_station = ground_station
-        self._wheels = can_link.readings()
-        self._wheels_heard = all(r.last_status_ns is not None for r in self._wheels)  # of this snapshot
+        self._wheels = _WheelSnapshot.of(can_link.readings())
         self._terrain = terrain
         self._map_published = False
         self._event = _EventFn(clock, sink)
@@ -263,11 +298,18 @@ class OnboardStack:
         self._last_ground_ns: int | None = None
         self._attitude: AttitudeSample | None = None
         self._sent_speed_mps = 0.0
-        self._sent_wheels_mps: tuple[float, ...] = (0.0,) * len(self._wheels)  # as the bus carried them
+        # As the bus carried them.
+        self._sent_wheels_mps: tuple[float, ...] = (0.0,) * len(self._wheels.status_ns)
         self._send_failing_since_ns: int | None = None
         self._sent_at_ns = clock.now_ns()
         self._deferred = deferred
         self._pacing = config.pacing_sensor
+        # The links in the order _read_links reads them (the pacing sensor's first), chosen once.
+        self._link_readers = (
+            (self._read_can, self._read_mavlink)
+            if self._pacing == "wheels"
+            else (self._read_mavlink, self._read_can)
+        )
         self._pacing_rx_ns: int | None = None  # receive time of the newest pacing sample in this read
         # The last tick's sensor-to-command latency: from the receive time of the pacing sample that
         # started it to its wheel commands handed to the bus (None: no pacing sample fed the tick).
@@ -355,35 +397,41 @@ class OnboardStack:
                 # The loop's ``ingest`` read the links an instant ago and found the trigger: reading them
                 # again would only put a CAN poll on the sensor-to-command path.
                 trigger = trigger_ns
-            self._read_commands()
-            self._read_obstacles(now)
+            if self._commands is not None:
+                self._read_commands()
+            if self._obstacles is not None:
+                self._read_obstacles(now)
 
             pose = self.estimator.pose()
             ready = self._ready(now, pose)
-            self._report_start_up(ready)
-            guidance = self.guidance.tick(now, pose, ready)
+            if not self._start_up_passed:
+                self._report_start_up(ready)
+            route = self.guidance
+            guidance = route.tick(now, pose, ready)
             # Backing off out of a moving obstacle's way is driving too: the supervisor must let the
             # wheels turn (and judges stuck and stalls on it as on any commanded motion).
-            driving = self.guidance.mode in (Mode.DRIVING, Mode.YIELDING)
+            driving = route.mode in _DRIVING_MODES
             decision = self.safety.update(
                 self._safety_inputs(now, pose),
                 driving,
-                "" if driving else self.guidance.why_stopped(self._not_ready),
+                "" if driving else route.why_stopped(self._not_ready),
             )
             speed = guidance.speed_mps * decision.speed_scale
             yaw_rate = guidance.yaw_rate_rps * decision.speed_scale
             self._last_tick_ns = now
 
             wheel_speeds = mix_skid_steer(speed, yaw_rate, self._config.vehicle)
-            errors_before, tx_before = self._can.counters.bus_errors, self._can.counters.tx
-            erpm = self._can.send_wheel_speeds(wheel_speeds)
-            failed = self._can.counters.tx == tx_before and self._can.counters.bus_errors > errors_before
+            can = self._can
+            errors_before, tx_before = can.counters.bus_errors, can.counters.tx
+            erpm = can.send_wheel_speeds(wheel_speeds)
+            counters = can.counters
+            failed = counters.tx == tx_before and counters.bus_errors > errors_before
             if not failed:
                 self._send_failing_since_ns = None
             elif self._send_failing_since_ns is None:
                 self._send_failing_since_ns = now
             self._sent_speed_mps, self._sent_at_ns = speed, now
-            erpm_per_mps = self._can.profile.erpm_per_mps  # computed once per profile
+            erpm_per_mps = can.profile.erpm_per_mps  # computed once per profile
             self._sent_wheels_mps = tuple([e / erpm_per_mps for e in erpm])
             self.last_sensor_to_command_ns = None if trigger is None else self._clock.now_ns() - trigger
         finally:
@@ -396,34 +444,37 @@ class OnboardStack:
             if self._ground_station is not None:
                 self._ground_station.send_heartbeat()
             self._last_heartbeat_sent_ns = now
-        self._sink.publish(
+        sink = self._sink
+        sink.publish(
             topics.WHEELS_COMMAND,
             now,
             {
                 "timestamp": topics.stamp(now),
-                "speed_mps": list(wheel_speeds),
+                "speed_mps": wheel_speeds,  # mix_skid_steer's own new list
                 "erpm": list(erpm),
                 "body_speed_mps": speed,
                 "body_yaw_rate_rps": yaw_rate,
             },
         )
         self.estimator.publish_pose(now)
-        goal = self.goal
-        self._sink.publish(
+        goal = route.goal
+        safety_mode = decision.mode
+        sink.publish(
             topics.NAVIGATOR_STATE,
             now,
             {
                 "timestamp": topics.stamp(now),
-                "mode": self.mode.value,
+                # _value_: the plain attribute behind .value (an enum property: a Python-level call).
+                "mode": route.mode._value_,
                 "goal": {"x": goal.x, "y": goal.y} if goal else {"x": math.nan, "y": math.nan},
                 "cross_track_error_m": guidance.cross_track_error_m,
                 "speed_limit_mps": guidance.speed_limit_mps * decision.speed_scale,
-                "speed_limit_reason": _limit_reason(guidance, decision.mode, decision.speed_scale),
+                "speed_limit_reason": _limit_reason(guidance, safety_mode, decision.speed_scale),
                 "target_speed_mps": speed,
                 "target_yaw_rate_rps": yaw_rate,
                 # The supervisor's word next to guidance's, so the topic never shows DRIVING alone while
                 # the wheels are held.
-                "safety_mode": decision.mode.value,
+                "safety_mode": safety_mode._value_,
                 "failsafes": list(decision.faults),
             },
         )
@@ -471,7 +522,7 @@ class OnboardStack:
         missing = []  # in this order
         if self._mavlink.last_heartbeat_ns is None:
             missing.append("no autopilot heartbeat")
-        if not self._wheels_heard:
+        if not self._wheels.heard:
             missing.append("wheel controllers not all heard")
         if pose is None:
             missing.append("no estimate yet")
@@ -509,33 +560,33 @@ class OnboardStack:
             self._start_up_report(line)
 
     def _safety_inputs(self, now: int, pose: PoseEstimate | None) -> SafetyInputs:
-        # Per-wheel tuples from list comprehensions: the same values as generator expressions, cheaper.
-        readings = self._wheels
-        voltages = [r.input_voltage_v for r in readings if r.input_voltage_v > 0.0]
+        wheels = self._wheels
         attitude = self._attitude
+        last_tick = self._last_tick_ns
+        # Positional, in SafetyInputs' field order (keywords cost a dict per tick): now, tick gap, wheel
+        # status times, bus off, send failing since, estimator healthy, last GPS, last heartbeat, last
+        # ground contact, sent speed, sent at, measured speed, roll/pitch, lateral accel, position,
+        # battery, then per wheel: commands, speeds, currents.
         return SafetyInputs(
-            now_ns=now,
-            tick_gap_ns=None if self._last_tick_ns is None else now - self._last_tick_ns,
-            wheel_last_status_ns=tuple([r.last_status_ns for r in readings]),
-            can_bus_off=self._can.state is CanLinkState.BUS_OFF,
-            can_send_failing_since_ns=self._send_failing_since_ns,
-            estimator_healthy=pose is not None and pose.healthy,
-            last_gps_ns=self._last_gps_ns,
-            last_heartbeat_ns=self._mavlink.last_heartbeat_ns,
-            last_ground_contact_ns=self._ground_contact_ns(),
-            sent_speed_mps=self._sent_speed_mps,
-            sent_at_ns=self._sent_at_ns,
-            measured_speed_mps=None if pose is None else pose.speed,
-            roll_pitch_rad=None if attitude is None else (attitude.roll_rad, attitude.pitch_rad),
-            lateral_accel_mps2=0.0 if pose is None else pose.speed * pose.yaw_rate,
-            position_xy=None if pose is None else (pose.x, pose.y),
-            battery_v=min(voltages) if voltages else None,
-            wheel_commands_mps=self._sent_wheels_mps,
-            # A controller never heard has no speed to judge (wheel_silent covers it): not stalled.
-            wheel_speeds_mps=tuple([r.speed_mps if r.last_status_ns is not None else 0.0 for r in readings]),
-            wheel_currents_a=tuple(
-                [r.motor_current_a if r.last_status_ns is not None else 0.0 for r in readings]
-            ),
+            now,
+            None if last_tick is None else now - last_tick,
+            wheels.status_ns,
+            self._can.state is CanLinkState.BUS_OFF,
+            self._send_failing_since_ns,
+            pose is not None and pose.healthy,
+            self._last_gps_ns,
+            self._mavlink.last_heartbeat_ns,
+            self._ground_contact_ns(),
+            self._sent_speed_mps,
+            self._sent_at_ns,
+            None if pose is None else pose.speed,
+            None if attitude is None else (attitude.roll_rad, attitude.pitch_rad),
+            0.0 if pose is None else pose.speed * pose.yaw_rate,
+            None if pose is None else (pose.x, pose.y),
+            wheels.battery_v,
+            self._sent_wheels_mps,
+            wheels.judged_speeds_mps,
+            wheels.judged_currents_a,
         )
 
     def _ground_contact_ns(self) -> int | None:
@@ -598,12 +649,9 @@ class OnboardStack:
         soon as a pacing sample is in (the tick it starts should not wait for the other links: they are
         read again within a millisecond)."""
         self._pacing_rx_ns = None
-        self._read_ground_station()
-        first, second = (
-            (self._read_can, self._read_mavlink)
-            if self._pacing == "wheels"
-            else (self._read_mavlink, self._read_can)
-        )
+        if self._ground_station is not None:
+            self._read_ground_station()
+        first, second = self._link_readers
         first(now)
         if stop_at_pacing and self._pacing_rx_ns is not None:
             return
@@ -646,13 +694,12 @@ class OnboardStack:
         if self._can.poll():
             # One snapshot per poll: the readings change only when frames arrive, and the start-up checks
             # and the safety inputs of this tick read the same snapshot.
-            self._wheels = readings = self._can.readings()
-            self._wheels_heard = all([r.last_status_ns is not None for r in readings])
-            if self._wheels_heard:
+            self._wheels = wheels = _WheelSnapshot.of(self._can.readings())
+            if wheels.heard:
                 if self._pacing == "wheels":
                     self._pacing_rx_ns = can_read_ns
                 # All six: disagreement between the wheels of one side is a slip signal to the estimator.
-                self.estimator.on_wheel_speeds(now, [r.speed_mps for r in readings])
+                self.estimator.on_wheel_speeds(now, wheels.speeds_mps)
 
 
 def _limit_reason(guidance: GuidanceCommand | GuidanceOutput, mode: SafetyMode, scale: float) -> str:

@@ -45,6 +45,8 @@ BATTERY_CRITICAL = "battery_critical"
 # Failsafes with other actions.
 BATTERY_LOW = "battery_low"  # speed limited
 ESTOP = "estop"  # latched ESTOP mode
+# Why a self-clearing failsafe cleared.
+_GONE = "condition gone"
 # A pack reading below this is "no reading yet" (STATUS_5 not received), not a flat battery.
 _NO_VOLTAGE_V = 1.0
 
@@ -130,6 +132,7 @@ class SafetySupervisor:
         self._stall_trips: list[int] = []  # when wheel_stalled tripped, within the latch window
         self._stall_latched = False
         self._stall_key_names: list[str] = []  # grown by _stall_keys
+        self._stall_timing = False  # whether a wheel's stall timer may be in _since
         self._battery_ns = to_ns(c.battery_debounce_s)
         self._tip_rad = math.radians(c.tip_margin_deg)
         self._tip_clear_rad = math.radians(c.tip_margin_deg + c.tip_clear_deg)
@@ -185,12 +188,17 @@ class SafetySupervisor:
         # Judged per tick: the tick after a stall runs with zero commands, the next on-time tick clears it.
         stalled = gap is not None and gap > self._stall_ns
         # Details are written only when a failsafe holds: formatting them on every tick was a share of it.
-        self._set(
-            LOOP_STALL,
-            _over(f"control tick {_ms(gap or 0)} after the previous one", self._stall_ns)
-            if stalled
-            else None,
-        )
+        # A self-clearing failsafe is active exactly while its condition holds: tripped with its detail
+        # when it does, cleared (if active) when it does not. Written out at each check, not through a
+        # shared helper: they run on every tick, nearly always with nothing to do, and the call was a share.
+        if stalled:
+            self._trip(
+                LOOP_STALL,
+                "error",
+                _over(f"control tick {_ms(gap or 0)} after the previous one", self._stall_ns),
+            )
+        elif LOOP_STALL in self._active:
+            self._clear(LOOP_STALL, _GONE)
 
     def _check_links(self, i: SafetyInputs) -> None:
         now, start, limit = i.now_ns, self._start_ns, self._silent_ns
@@ -200,23 +208,24 @@ class SafetySupervisor:
             for index, t in enumerate(i.wheel_last_status_ns)
             if now - (start if t is None else t) > limit
         ]
-        self._set(
-            WHEEL_SILENT,
-            f"motor controller of {wheel_labels(silent, self._controller_ids)} silent for more than "
-            f"{_ms(self._silent_ns)}"
-            if silent
-            else None,
-        )
+        if silent:
+            self._trip(
+                WHEEL_SILENT,
+                "error",
+                f"motor controller of {wheel_labels(silent, self._controller_ids)} silent for more than "
+                f"{_ms(self._silent_ns)}",
+            )
+        elif WHEEL_SILENT in self._active:
+            self._clear(WHEEL_SILENT, _GONE)
         failing = 0 if i.can_send_failing_since_ns is None else i.now_ns - i.can_send_failing_since_ns
         if i.can_bus_off:
-            self._set(CAN_BUS_OFF, "the CAN link reports bus-off")
-        else:
-            self._set(
-                CAN_BUS_OFF,
-                _over(f"CAN sends failing for {_ms(failing)}", self._can_fail_ns)
-                if failing > self._can_fail_ns
-                else None,
+            self._trip(CAN_BUS_OFF, "error", "the CAN link reports bus-off")
+        elif failing > self._can_fail_ns:
+            self._trip(
+                CAN_BUS_OFF, "error", _over(f"CAN sends failing for {_ms(failing)}", self._can_fail_ns)
             )
+        elif CAN_BUS_OFF in self._active:
+            self._clear(CAN_BUS_OFF, _GONE)
         self._timeout(
             HEARTBEAT_LOST, "no autopilot heartbeat", i.now_ns, i.last_heartbeat_ns, self._heartbeat_ns
         )
@@ -230,15 +239,19 @@ class SafetySupervisor:
 
     def _check_estimate(self, i: SafetyInputs, wants_to_drive: bool) -> None:
         self._timeout(GPS_LOST, "no 3D GPS fix", i.now_ns, i.last_gps_ns, self._gps_ns)
+        if i.estimator_healthy:  # (_sustained's case for a condition gone, written out)
+            self._since.pop(ESTIMATOR_UNHEALTHY, None)
+            if ESTIMATOR_UNHEALTHY in self._active:
+                self._clear(ESTIMATOR_UNHEALTHY, _GONE)
+            return
+        unhealthy = self._sustained(ESTIMATOR_UNHEALTHY, True, i.now_ns)
         # Before driving, an unhealthy estimate is the start-up wait, not a fault.
-        unhealthy = self._sustained(ESTIMATOR_UNHEALTHY, not i.estimator_healthy, i.now_ns)
-        if self._active.get(ESTIMATOR_UNHEALTHY) is None and not wants_to_drive:
+        if ESTIMATOR_UNHEALTHY not in self._active and not wants_to_drive:
             unhealthy = 0
-        if i.estimator_healthy:
-            self._set(ESTIMATOR_UNHEALTHY, None)
-        elif unhealthy > self._unhealthy_ns:
-            self._set(
+        if unhealthy > self._unhealthy_ns:
+            self._trip(
                 ESTIMATOR_UNHEALTHY,
+                "error",
                 f"estimate unhealthy for {_ms(unhealthy)} (limit {_ms(self._unhealthy_ns)})",
             )
 
@@ -294,13 +307,29 @@ class SafetySupervisor:
             return
         min_command, max_speed = c.wheel_stall_min_command_mps, c.wheel_stall_max_speed_mps
         min_current = c.wheel_stall_min_current_a
-        keys = self._stall_keys(len(i.wheel_commands_mps))
         judged = zip(i.wheel_commands_mps, i.wheel_speeds_mps, i.wheel_currents_a, strict=False)
-        for index, (command, speed, current) in enumerate(judged):
+        stalling = [
+            abs(command) >= min_command and abs(speed) < max_speed and abs(current) >= min_current
+            for command, speed, current in judged
+        ]
+        if not any(stalling):
+            # The common tick: no wheel stalling. Its timers are dropped (as _sustained drops a condition
+            # gone) only when one may be running, not with a dict pop per wheel on every tick.
+            if self._stall_timing:
+                for key in self._stall_key_names:
+                    self._since.pop(key, None)
+                self._stall_timing = False
+            return
+        self._stall_timing = True
+        keys = self._stall_keys(len(i.wheel_commands_mps))
+        for index, stalled in enumerate(stalling):
             key = keys[index]
-            if not (abs(command) >= min_command and abs(speed) < max_speed and abs(current) >= min_current):
-                self._since.pop(key, None)  # as _sustained does for a condition gone (the common case)
+            if not stalled:
+                self._since.pop(key, None)  # as _sustained does for a condition gone
                 continue
+            command, speed, current = (
+                i.wheel_commands_mps[index], i.wheel_speeds_mps[index], i.wheel_currents_a[index]
+            )  # fmt: skip
             # Counted from when the command went out, as for ``stuck``.
             held = self._sustained(key, True, i.now_ns, start_ns=i.sent_at_ns)
             if held > self._wheel_stall_ns:
@@ -380,14 +409,11 @@ class SafetySupervisor:
         if limit_ns <= 0:
             return
         age = now_ns - (self._start_ns if last_ns is None else last_ns)  # never seen: from the start
-        self._set(name, _over(f"{what} for {_ms(age)}", limit_ns) if age > limit_ns else None)
-
-    def _set(self, name: str, detail: str | None, severity: str = "error") -> None:
-        """A self-clearing failsafe: active exactly while ``detail`` is not None."""
-        if detail is not None:
-            self._trip(name, severity, detail)
-        elif name in self._active:  # most checks pass most ticks: nothing to clear
-            self._clear(name, "condition gone")
+        # Self-clearing (see _check_loop).
+        if age > limit_ns:
+            self._trip(name, "error", _over(f"{what} for {_ms(age)}", limit_ns))
+        elif name in self._active:
+            self._clear(name, _GONE)
 
     def _trip(self, name: str, severity: str, detail: str) -> None:
         if name not in self._active:

@@ -128,3 +128,31 @@ def test_non_finite_measurements_are_typed_errors(bad):
         ekf.update_position(bad, 0.0, 0.5)
     with pytest.raises(EstimatorOperationError, match="std"):
         ekf.update_odometry(1.0, 0.0, 0.0, 0.1)
+
+
+@pytest.mark.parametrize("learning", [True, False])
+def test_update_at_a_time_is_predict_then_update_to_the_bit(learning):
+    """``update_*(..., t_ns=t)`` (one compiled call) gives the very floats of ``predict(t)`` then the update,
+    for the gyro and both odometry forms, while the scale is learnt and while it is only considered."""
+    fused, stepwise = _ekf(yaw=0.3), _ekf(yaw=0.3)
+    for ekf in (fused, stepwise):
+        ekf.learn_scale(learning)
+    t = 0
+    for k in range(40):
+        t += 20_000_000 + 37 * k  # uneven steps
+        speed, rate = 0.8 + 0.01 * k, 0.2 - 0.013 * k
+        stepwise.predict(t)
+        expected = [stepwise.update_gyro(rate + 0.001)]
+        got = [fused.update_gyro(rate + 0.001, t_ns=t)]
+        t += 3_000_000
+        stepwise.predict(t)
+        use_speed = k % 3 != 0
+        expected.append(stepwise.update_odometry(speed, rate, 0.05, 0.02, use_speed=use_speed))
+        got.append(fused.update_odometry(speed, rate, 0.05, 0.02, use_speed=use_speed, t_ns=t))
+        assert got == expected
+        assert np.array_equal(fused.x, stepwise.x) and np.array_equal(fused.covariance, stepwise.covariance)
+        assert fused.t_ns == stepwise.t_ns == t
+    # A time not after the filter's own: no prediction, as predict() would do.
+    before = fused.x
+    fused.update_gyro(float(before[YAW_RATE] + before[BIAS]), t_ns=t - 1)
+    assert fused.t_ns == t

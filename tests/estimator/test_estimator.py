@@ -151,6 +151,9 @@ def test_pose_extrapolation_does_not_change_the_filter():
     assert math.hypot(ahead.x - now.x, ahead.y - now.y) == pytest.approx(abs(now.speed), rel=0.05)
     assert (again.x, again.y, again.yaw, again.t_ns) == (now.x, now.y, now.yaw, now.t_ns)
     assert np.array_equal(again.covariance, now.covariance)
+    # Asked for a time not after the filter's own: the last answer itself; a later time: extrapolated.
+    assert run.estimator.pose(again.t_ns) is again and run.estimator.pose(again.t_ns - 1) is again
+    assert run.estimator.pose(again.t_ns + 1).t_ns == again.t_ns + 1
 
 
 def test_a_pose_asked_again_is_reused_only_while_nothing_was_fused():

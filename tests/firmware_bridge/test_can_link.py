@@ -18,7 +18,7 @@ from logs.clock import SimClock
 from logs.encoding import encode_message
 from logs.settings import ConfigError, parse_toml
 from logs.sink import MemorySink
-from logs.topics import CAN_FRAMES, WHEELS_STATUS
+from logs.topics import CAN_FRAMES, SAFETY_EVENTS, WHEELS_STATUS
 from tests.firmware_bridge.virtual_can import TEST_PROFILE, make_codec, virtual_bus_pair
 
 
@@ -231,9 +231,14 @@ def test_a_bytes_only_sink_gets_the_frames_bytes_and_no_dicts(buses):
         def __init__(self):
             super().__init__()
             self.data = []
+            self.batches = []
 
         def publish_bytes(self, topic, log_time_ns, data):
             self.data.append((topic, log_time_ns, data))
+
+        def publish_bytes_many(self, topic, log_time_ns, datas):
+            self.batches.append((topic, log_time_ns, len(datas)))
+            self.data.extend((topic, log_time_ns, data) for data in datas)
 
     ours, theirs = buses
     bytes_only, plain = BytesOnly(), MemorySink()
@@ -251,5 +256,67 @@ def test_a_bytes_only_sink_gets_the_frames_bytes_and_no_dicts(buses):
     expected = [(CAN_FRAMES, t, encode_message(m)) for topic, t, m in plain.records if topic == CAN_FRAMES]
     assert len(expected) == 8 and {t for _, t, _ in expected} == {2_000_000_000, 2_001_000_000}
     assert bytes_only.data == expected
+    # One call per command round and per poll: six SET_RPM, then the poll's two frames (the rejected one's
+    # record included: a rejection sends the frames so far on, ahead of its warning on the log topic).
+    assert bytes_only.batches == [(CAN_FRAMES, 2_000_000_000, 6), (CAN_FRAMES, 2_001_000_000, 2)]
     assert not bytes_only.on(CAN_FRAMES)
     assert bytes_only.on(WHEELS_STATUS)[0]["wheels"][1]["erpm"] == 1200.0
+
+
+def test_status_read_by_field_decoders_gives_the_readings_decode_gives(buses, monkeypatch):
+    """The link reads its status frames with field decoders; a codec without packers (cantools for
+    everything) has none, so its link takes every frame through decode: both keep the same readings."""
+    fast_codec = make_codec()
+    monkeypatch.setattr("firmware_bridge.vesc.FramePacker.for_message", lambda message: None)
+    slow_codec = make_codec()
+    assert fast_codec.field_decoders("STATUS", ("erpm",)) and not slow_codec.field_decoders(
+        "STATUS", ("erpm",)
+    )
+    ours, theirs = buses
+    readings = []
+    for codec in (fast_codec, slow_codec):
+        rng = random.Random(11)  # the same frames for both
+        clock = SimClock()
+        link = CanLink(ours, codec, clock, MemorySink())
+        for _ in range(40):
+            clock.advance(20_000_000)
+            for cid in range(1, 7):
+                for kind, length in (("STATUS", 8), ("STATUS_4", 8), ("STATUS_5", 8)):
+                    frame_id = fast_codec.encoder(kind, cid).message.frame_id
+                    theirs.send(ext(frame_id, bytes(rng.randrange(256) for _ in range(length))))
+            link.poll()
+        readings.append([dataclasses.asdict(r) for r in link.readings()])
+        assert link.counters.rx == 40 * 18 and link.counters.rejected == 0
+    assert readings[0] == readings[1]
+    assert any(r["erpm"] != 0.0 and r["input_voltage_v"] != 0.0 for r in readings[0])
+
+
+def test_a_safety_event_in_a_poll_is_recorded_after_the_frames_before_it(buses):
+    """Frames go to a bytes-only sink a poll at a time, but anything else the link publishes during the
+    poll (here: a silent controller reporting again) comes after the frames received before it and
+    before those after it, as when each frame was published on its own."""
+
+    class Ordered(MemorySink):
+        records_bytes_only = True
+
+        def publish_bytes(self, topic, log_time_ns, data):
+            self.records.append((topic, log_time_ns, data))
+
+        def publish_bytes_many(self, topic, log_time_ns, datas):
+            self.records.extend((topic, log_time_ns, data) for data in datas)
+
+    ours, theirs = buses
+    clock, sink = SimClock(), Ordered()
+    codec = make_codec()
+    link = CanLink(ours, codec, clock, sink)
+    clock.advance(1_000_000_000)
+    link.poll()  # a second without status: every controller silent
+    assert not any(link.controllers_alive().values())
+    del sink.records[:]
+    for cid in (1, 2):
+        theirs.send(codec.encode("STATUS", cid, erpm=100.0 * cid, current=0.0, duty=0.0))
+    link.poll()
+    topics = [topic for topic, _, _ in sink.records]
+    assert topics[:4] == [CAN_FRAMES, SAFETY_EVENTS, CAN_FRAMES, SAFETY_EVENTS]
+    assert [m["kind"] for m in sink.on(SAFETY_EVENTS)] == ["can_controller_alive"] * 2
+    assert b'"id":2305' in sink.records[0][2] and b'"id":2306' in sink.records[2][2]  # 0x901, 0x902

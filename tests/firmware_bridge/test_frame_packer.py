@@ -9,7 +9,7 @@ import cantools
 import pytest
 from cantools.database.conversion import LinearConversion
 
-from firmware_bridge.errors import FrameError
+from firmware_bridge.errors import BridgeOperationError, BridgeSetupError, FrameError
 from firmware_bridge.frame_packer import FramePacker
 from firmware_bridge.vesc_dbc import VESC_MESSAGES, message_name
 from tests.firmware_bridge.virtual_can import make_codec
@@ -148,8 +148,87 @@ def test_layouts_struct_cannot_express_are_declined() -> None:
     for _ in range(200):
         values = {signal.name: _random_in_range(rng, signal) for signal in plain.signals}
         assert packer.pack(values) == plain.encode(values, strict=False)
+        # An offset and a fractional scale: the inlined conversion of ``packing`` rounds as cantools does.
+        names = ["second", "first"]
+        assert packer.packing(names, {})([values[n] for n in names]) == plain.encode(values, strict=False)
         data = bytes(rng.randrange(256) for _ in range(8))
         decoded = plain.decode(data, decode_choices=False)
         assert isinstance(decoded, dict)
         assert all(isinstance(value, int | float) for value in decoded.values())
         assert packer.unpack(data) == {key: float(value) for key, value in decoded.items()}  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_field_decoders_give_decode_numbers_and_leave_what_decode_refuses_to_it(seed: int) -> None:
+    rng = random.Random(seed)
+    codec = make_codec()
+    for spec in VESC_MESSAGES:
+        names = [signal.name for signal in spec.signals]
+        rng.shuffle(names)
+        names = names[: rng.randint(1, len(names))]  # some fields, in any order
+        decoders = codec.field_decoders(spec.kind, names)
+        assert len(decoders) == 6
+        for frame_id, decoder in decoders.items():
+            assert decoder.kind == spec.kind
+            for _ in range(50):
+                data = bytes(rng.randrange(256) for _ in range(spec.length))
+                msg = can.Message(arbitration_id=frame_id, is_extended_id=True, data=data)
+                frame = codec.decode(msg)
+                assert decoder.values(msg) == [frame.values[name] for name in names]
+                assert decoder.controller_id == frame.controller_id
+            full = bytes(spec.length)
+            refused = [
+                can.Message(arbitration_id=frame_id, is_extended_id=False, data=full),
+                can.Message(
+                    arbitration_id=frame_id, is_extended_id=True, is_remote_frame=True, dlc=spec.length
+                ),
+                can.Message(arbitration_id=frame_id, is_extended_id=True, data=full[:-1]),
+                can.Message(arbitration_id=frame_id, is_extended_id=True, data=full + b"\x00"),
+                can.Message(arbitration_id=frame_id, is_extended_id=True, data=full, dlc=spec.length - 1),
+            ]
+            for msg in refused:
+                assert decoder.values(msg) is None
+                with pytest.raises(FrameError):
+                    codec.decode(msg)
+
+
+def test_a_field_decoder_of_a_signal_the_message_lacks_is_refused_at_setup() -> None:
+    with pytest.raises(BridgeSetupError, match="no signal volts"):
+        make_codec().field_decoders("STATUS", ("erpm", "volts"))
+
+
+@pytest.mark.parametrize("packed", [True, False])
+def test_field_encoders_give_the_frame_encoders_bytes(packed: bool, monkeypatch: pytest.MonkeyPatch) -> None:
+    """From values in the sender's order, some signals held fixed, a field encoder's frame is the frame
+    ``FrameEncoder.encode`` makes of the same values: by the packer, or by cantools without one."""
+    if not packed:
+        monkeypatch.setattr("firmware_bridge.vesc.FramePacker.for_message", lambda message: None)
+    rng = random.Random(5)
+    codec = make_codec()
+    for spec in VESC_MESSAGES:
+        message = codec.database.get_message_by_name(message_name(spec.kind, 3))
+        for _ in range(100):
+            values = {signal.name: _random_in_range(rng, signal) for signal in message.signals}
+            names = list(values)
+            rng.shuffle(names)
+            held = names[rng.randint(1, len(names)) :]  # the first one at least is a value
+            varying = [name for name in names if name not in held]
+            fields = codec.encoder(spec.kind, 3).fields(varying, {name: values[name] for name in held})
+            frame = fields.encode([values[name] for name in varying])
+            expected = codec.encoder(spec.kind, 3).encode(values)
+            assert bytes(frame.data) == bytes(expected.data), values
+            assert (frame.arbitration_id, frame.is_extended_id, frame.dlc) == (
+                expected.arbitration_id,
+                True,
+                expected.dlc,
+            )
+
+
+def test_a_field_encoder_must_name_every_signal_once() -> None:
+    encoder = make_codec().encoder("STATUS", 1)
+    with pytest.raises(BridgeSetupError, match="once"):
+        encoder.fields(("erpm", "current"))  # duty missing
+    with pytest.raises(BridgeSetupError, match="once"):
+        encoder.fields(("erpm", "current", "duty"), {"duty": 0.0})
+    with pytest.raises(BridgeOperationError, match="cannot encode VESC_STATUS_C1"):
+        encoder.fields(("erpm", "current", "duty")).encode((1.0, 2.0))  # a value short

@@ -9,6 +9,8 @@ from pymavlink.dialects.v20 import common as mavlink2
 from firmware_bridge.mavlink_link import GpsFix, ImuSample, MavlinkLink
 from firmware_bridge.mavlink_transport import memory_pipe_pair
 from hil.autopilot_sim import AutopilotTruth, SimAutopilot
+from hil.faults import FaultSchedule
+from hil.sensors import GpsModel
 from logs.clock import SimClock, to_ns
 from logs.sink import MemorySink
 from logs.topics import MAVLINK_RAW, SENSORS_GPS
@@ -148,3 +150,26 @@ def test_gps_geodesy_in_steps_gives_pymap3d_enu2geodetic_bits(datum):
         ours = [float(v) for v in sim._enu_to_geodetic(east, north, up)]
         theirs = [float(v) for v in pymap3d.enu2geodetic(east, north, up, *datum)]
         assert ours == theirs
+
+
+@pytest.mark.parametrize("latency_s", [0.0, 0.1])
+def test_each_gps_fix_reports_the_truth_of_its_moment(latency_s):
+    """Without a look-back the autopilot keeps only the truth of the ticks a fix is due; with a latency
+    it keeps every tick's. Either way a fix reports where the rover was ``latency_s`` before it."""
+    clock, _, link, sim = make_pair(
+        gps_noise_m=0.0,
+        gps=None
+        if latency_s == 0.0
+        else GpsModel(np.random.default_rng(1), FaultSchedule(), noise_m=0.0, latency_s=latency_s),
+    )
+    fixes = []
+    for tick in range(300):
+        t_s = tick * DT_S
+        sim.step(TRUTH._replace(x_m=10.0 * t_s, y_m=-3.0 * t_s))
+        fixes += [(clock.now_ns(), r) for r in link.poll() if isinstance(r, GpsFix)]
+        clock.advance(to_ns(DT_S))
+    assert len(fixes) == 15
+    for t_ns, fix in fixes:
+        east, north, _ = pymap3d.geodetic2enu(fix.lat_deg, fix.lon_deg, fix.alt_m, *DATUM)
+        seen_s = max(0.0, t_ns / 1e9 - latency_s)
+        assert (east, north) == pytest.approx((10.0 * seen_s, -3.0 * seen_s), abs=0.02)

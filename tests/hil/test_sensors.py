@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from hil.faults import Fault, FaultSchedule
-from hil.sensors import ImuModel
+from hil.sensors import GpsModel, GpsSample, ImuModel
 
 
 def _numpy_reading(
@@ -57,3 +57,32 @@ def test_imu_reading_equals_the_array_formulation(with_fault: bool) -> None:
             reference, yaw_rate, force, gyro_bias, accel_bias, wrong if with_fault else None
         )
         assert (reading.gyro_flu_rps, reading.accel_flu_mps2) == expected  # exactly, not approximately
+
+
+def _numpy_fix_position(
+    noise: np.random.Generator, truth: GpsSample, noise_m: float, wrong: Fault | None
+) -> tuple[float, float, float]:
+    """The reference: the fix's noise as it was drawn and scaled on arrays (east, north, up x 2)."""
+    scaled = noise.normal(0.0, 1.0, 3) * np.array([1.0, 1.0, 2.0]) * noise_m
+    noise.random()  # the dropout draw
+    x, y, z = truth.x_m + float(scaled[0]), truth.y_m + float(scaled[1]), truth.z_m + float(scaled[2])
+    if wrong is not None:
+        x += wrong.offset_m[0]
+        y += wrong.offset_m[1]
+    return x, y, z
+
+
+@pytest.mark.parametrize("with_fault", [False, True])
+def test_gps_fix_equals_the_array_formulation(with_fault: bool) -> None:
+    wrong = Fault(target="gps", kind="wrong", start_ns=0, end_ns=100_000_000_000, offset_m=(3.0, -1.25))
+    model = GpsModel(np.random.default_rng(5), FaultSchedule((wrong,) if with_fault else ()), noise_m=0.7)
+    reference = np.random.default_rng(5)
+    inputs = np.random.default_rng(9)
+    for tick in range(300):
+        now = tick * 200_000_000
+        truth = GpsSample(now, *(float(v) for v in inputs.normal(0.0, 50.0, 5)))
+        model.record(truth)
+        fix = model.fix(now)
+        assert fix is not None
+        expected = _numpy_fix_position(reference, truth, 0.7, wrong if with_fault else None)
+        assert (fix.x_m, fix.y_m, fix.z_m) == expected  # exactly, not approximately

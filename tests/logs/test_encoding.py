@@ -6,6 +6,7 @@ import io
 import json
 import math
 import random
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -138,6 +139,9 @@ class _BytesOnlySink:
     def publish_bytes(self, topic: str, log_time_ns: int, data: bytes) -> None:
         self.data.append((topic, log_time_ns, data))
 
+    def publish_bytes_many(self, topic: str, log_time_ns: int, datas: Sequence[bytes]) -> None:
+        self.data.extend((topic, log_time_ns, data) for data in datas)
+
 
 def test_a_fanout_of_bytes_only_sinks_passes_bytes_alone_and_thins_as_for_messages() -> None:
     first, second = _BytesOnlySink(), _BytesOnlySink()
@@ -196,3 +200,52 @@ def test_the_recorder_records_bytes_alone_as_it_records_messages() -> None:
         stream.seek(0)
         streams.append([(c.topic, m.log_time, m.data) for _, c, m in make_reader(stream).iter_messages()])
     assert streams[0] == streams[1] == [(LOG, 5, encode_message(message))]
+
+
+# 2e9 Hz: a period that rounds to 0 ns, so nothing is thinned.
+@pytest.mark.parametrize("rate_hz", [10.0, 2e9])
+def test_a_batch_is_recorded_and_thinned_as_its_messages_one_by_one(rate_hz: float) -> None:
+    """``publish_bytes_many`` through a fan-out of the recorder and a rate limiter gives the same MCAP file
+    (records, chunks, summary) and the same live stream and drop count as ``publish_bytes`` per message."""
+    rng = random.Random(3)
+    batches = []
+    t_ns = 0
+    for _ in range(60):
+        t_ns += rng.choice([0, 1, 20_000_000, 110_000_000, 400_000_000])
+        topic = rng.choice([CAN_FRAMES, CAN_FRAMES, LOG])
+        datas = [encode_message({"i": rng.randrange(1000)}) for _ in range(rng.choice([0, 1, 6, 18]))]
+        batches.append((topic, t_ns, datas))
+    outputs = []
+    for batched in (False, True):
+        stream, live = io.BytesIO(), _BytesOnlySink()
+        recorder = McapRecorder(stream, chunk_duration_ns=300_000_000)
+        limited = RateLimitedSink(live, {CAN_FRAMES: rate_hz})
+        fanout = FanoutSink([recorder, limited])
+        for topic, t_ns, datas in batches:
+            if batched:
+                fanout.publish_bytes_many(topic, t_ns, datas)
+            else:
+                for data in datas:
+                    fanout.publish_bytes(topic, t_ns, data)
+        recorder.close()
+        outputs.append((stream.getvalue(), recorder.message_count, live.data, limited.dropped))
+    assert outputs[0] == outputs[1]
+    assert outputs[0][1] == sum(len(datas) for _, _, datas in batches)
+    assert (outputs[0][3] > 0) == (rate_hz == 10.0)
+
+
+def test_a_batch_is_refused_as_its_messages_would_be() -> None:
+    recorder = McapRecorder(io.BytesIO())
+    with pytest.raises(RecordingError, match="non-negative"):
+        recorder.publish_bytes_many(CAN_FRAMES, -1, [b"{}"])
+    with pytest.raises(RecordingError, match="unknown topic"):
+        recorder.publish_bytes_many("no/such/topic", 0, [b"{}"])
+    recorder.publish_bytes_many(CAN_FRAMES, 0, [b"{}", b"{}"])
+    recorder.close()
+    assert recorder.message_count == 2
+    with pytest.raises(RecordingError, match="closed"):
+        recorder.publish_bytes_many(CAN_FRAMES, 1, [b"{}"])
+    with pytest.raises(LogsError, match="needs each message itself"):
+        FanoutSink([_BytesOnlySink(), MemorySink()]).publish_bytes_many(CAN_FRAMES, 0, [b"{}"])
+    with pytest.raises(TelemetryError, match="needs each message itself"):
+        RateLimitedSink(MemorySink(), {CAN_FRAMES: 10.0}).publish_bytes_many(CAN_FRAMES, 0, [b"{}"])

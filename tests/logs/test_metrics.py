@@ -322,3 +322,46 @@ def test_near_polyline_agrees_with_the_exact_distances():
         exact = distances_to_polyline(points, polyline) <= radius
         assert np.array_equal(near_polyline(points, polyline, radius), exact)
     assert near_polyline(np.zeros((0, 2)), np.zeros((3, 2)), 0.5).shape == (0,)
+
+
+def test_estimated_poses_count_only_when_they_are_the_trajectory() -> None:
+    """A simulated trial's estimated poses are not used (the truth is): a broken one is not the metrics'
+    concern. A real run's are the trajectory: a broken one is skipped and counted."""
+
+    def recording(with_truth: bool) -> io.BytesIO:
+        buffer = io.BytesIO()
+        with McapRecorder(buffer) as rec:
+            for i, (x, y) in enumerate([(0.0, 0.0), (3.0, 4.0), (6.0, 8.0)]):
+                t_ns = to_ns(float(i))
+                if with_truth:
+                    rec.publish(TRUTH_POSE, t_ns, _pose(t_ns, x, y))
+                rec.publish(ESTIMATOR_POSE, t_ns, _pose(t_ns, x, y))
+            rec.publish_bytes(ESTIMATOR_POSE, to_ns(3.0), b"[1, 2]")  # JSON, but not an object
+            rec.publish(ESTIMATOR_POSE, to_ns(4.0), {"timestamp": stamp(to_ns(4.0)), "pose": {}})
+        return io.BytesIO(buffer.getvalue())
+
+    simulated = compute_metrics(recording(with_truth=True))
+    assert simulated.trajectory_topic == TRUTH_POSE and simulated.distance_m == pytest.approx(10.0)
+    assert simulated.skipped_messages == 0
+    assert not any(ESTIMATOR_POSE in problem for problem in simulated.problems)
+
+    real = compute_metrics(recording(with_truth=False))
+    assert real.trajectory_topic == ESTIMATOR_POSE and real.distance_m == pytest.approx(10.0)
+    assert real.skipped_messages == 2
+    assert f"{ESTIMATOR_POSE}: 2 message(s) without usable values skipped" in real.problems
+
+
+def test_wheel_power_with_a_non_finite_value_is_skipped() -> None:
+    buffer = io.BytesIO()
+    with McapRecorder(buffer) as rec:
+        for i, current in enumerate([1.0, 0.0, 2.0, math.nan, 3.0]):
+            t_ns = to_ns(float(i))
+            rec.publish(TRUTH_POSE, t_ns, _pose(t_ns, float(i), 0.0))
+            status = _wheels(t_ns, current)
+            if i == 1:
+                status["wheels"][0]["input_voltage_v"] = math.inf  # inf V x 0 A: the product is NaN
+            rec.publish_bytes(WHEELS_STATUS, t_ns, json.dumps(status).encode())
+    metrics = compute_metrics(io.BytesIO(buffer.getvalue()))
+    assert metrics.skipped_messages == 2
+    # the usable samples: 6 wheels x 24 V x {1, 2, 3} A = 144, 288, 432 W at t = 0, 2, 4 s (trapezoids)
+    assert metrics.energy_wh == pytest.approx((2 * (144 + 288) / 2 + 2 * (288 + 432) / 2) / 3600.0)

@@ -93,3 +93,37 @@ def test_reversing_as_commanded_is_not_stuck_but_a_reverse_command_without_motio
         supervisor.update(reversing, True)
     assert ("stuck" in supervisor.faults) is stuck
     assert any(e[0] == "failsafe.stuck" for e in events) is stuck
+
+
+def test_a_wheel_stall_timer_restarts_after_a_tick_without_the_stall() -> None:
+    """The stall check skips its per-wheel bookkeeping on ticks with no wheel stalling; such a tick must
+    still end a running stall timer, so 0.8 s + one turning tick + 0.8 s of stall never trips (1 s limit)."""
+    events: list[tuple[str, str, str]] = []
+    supervisor = SafetySupervisor(SafetyConfig(), VehicleParams(), 0, lambda *e: events.append(e))
+    tick = 20_000_000
+
+    def judged(k: int, stalled: bool) -> SafetyInputs:
+        speeds = (0.0 if stalled else 0.5,) + (0.5,) * 5
+        return inputs(k * tick, (5.0, 5.0))._replace(
+            sent_speed_mps=0.5,
+            measured_speed_mps=0.5,
+            sent_at_ns=0,
+            wheel_commands_mps=(0.5,) * 6,
+            wheel_speeds_mps=speeds,
+            wheel_currents_a=(5.0,) * 6,
+        )
+
+    k = 1
+    for _ in range(40):  # 0.8 s stalled
+        assert supervisor.update(judged(k, True), True).faults == ()
+        k += 1
+    supervisor.update(judged(k, False), True)  # turning again for one tick
+    k += 1
+    start = k
+    for _ in range(40):  # another 0.8 s: a timer that kept running would pass 1 s here
+        assert supervisor.update(judged(k, True)._replace(sent_at_ns=start * tick), True).faults == ()
+        k += 1
+    for _ in range(15):  # past 1 s of this stall: trips
+        decision = supervisor.update(judged(k, True)._replace(sent_at_ns=start * tick), True)
+        k += 1
+    assert decision.faults == ("wheel_stalled",)
