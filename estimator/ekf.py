@@ -64,9 +64,6 @@ _SCALE_MIN, _SCALE_MAX = 0.7, 2.0
 
 Array = NDArray[np.float64]
 
-# The random-walk states, in the order of the process noise intensities.
-_WALK_STATES = np.array([SPEED, YAW_RATE, BIAS, SCALE], dtype=np.int64)
-
 
 def _rows(*selected: int) -> Array:
     """A constant measurement matrix picking the given states."""
@@ -79,7 +76,6 @@ def _rows(*selected: int) -> Array:
 _H_POSITION = _rows(X, Y)
 _H_HEADING = _rows(YAW)
 _H_ODOMETRY_YAW_RATE = _rows(YAW_RATE)
-_H_GYRO = np.array([[0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0]])  # the gyro sees yaw rate + bias
 
 
 # A NamedTuple, immutable like a frozen dataclass but cheaper to build (two or three per control tick:
@@ -131,7 +127,8 @@ class RoverEkf:
         self._t_ns: int | None = None
         # Counts changes of x, P or the time (``revision``): a reader can tell the estimate is unchanged.
         self._revision = 0
-        # Process noise intensities (per second) of the random walks, in _WALK_STATES' order.
+        # Process noise intensities (per second) of the random walks, in the order of the kernels' WALK_STATES
+        # (speed, yaw rate, gyro bias, odometry scale).
         self._q_rate: Array = np.array(
             [
                 config.accel_process_noise**2,
@@ -277,7 +274,7 @@ class RoverEkf:
         dt_ns = t_ns - (self._t_ns if self._t_ns is not None else self._require_time())
         if dt_ns <= 0:
             return
-        predict_kernel(self._x, self._p, dt_ns * 1e-9, self._q_rate, _WALK_STATES)
+        predict_kernel(self._x, self._p, dt_ns * 1e-9, self._q_rate)
         self._t_ns = t_ns
         self._revision += 1
 
@@ -333,7 +330,7 @@ class RoverEkf:
         dt = self._seconds_to(t_ns)
         y = self._y1
         nis, accepted = gyro_kernel(
-            self._x, self._p, dt, self._q_rate, _WALK_STATES, z_rps, y, _H_GYRO, self._r_gyro,
+            self._x, self._p, dt, self._q_rate, z_rps, y, self._r_gyro,
             self._gate[1], -1 if self._scale_learning else SCALE,
         )  # fmt: skip
         self._revision += 1
@@ -366,7 +363,7 @@ class RoverEkf:
         else:
             y, h, r = self._y1, _H_ODOMETRY_YAW_RATE, self._r1
         nis, accepted = odometry_kernel(
-            self._x, self._p, dt, self._q_rate, _WALK_STATES, speed_mps, yaw_rate_rps, speed_std_mps**2,
+            self._x, self._p, dt, self._q_rate, speed_mps, yaw_rate_rps, speed_std_mps**2,
             yaw_rate_std_rps**2, y, h, r, self._gate[len(y)], -1 if self._scale_learning else SCALE,
             _SCALE_MIN, _SCALE_MAX,
         )  # fmt: skip

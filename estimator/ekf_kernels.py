@@ -22,6 +22,11 @@ Array = NDArray[np.float64]
 # State indices, repeated here so the kernels see compile-time constants (they match estimator.ekf).
 _X, _Y, _YAW, _SPEED, _YAW_RATE, _BIAS, _SCALE = 0, 1, 2, 3, 4, 5, 6
 _TWO_PI = 2.0 * math.pi
+# Constant model arrays, read by the kernels as globals (numba freezes them into the compiled code): each
+# array argument costs the per-call dispatch a type check and an unboxing, on every control tick.
+# The random-walk states, in the order of the process noise intensities (``q_rate``).
+WALK_STATES = np.array([_SPEED, _YAW_RATE, _BIAS, _SCALE], dtype=np.int64)
+H_GYRO = np.array([[0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0]])  # the gyro sees yaw rate + bias
 
 
 @numba.njit(cache=True)
@@ -65,7 +70,7 @@ def _product_t(a: Array, b: Array) -> Array:
 
 
 @numba.njit(cache=True)
-def predict_kernel(x: Array, p: Array, dt: float, q_rate: Array, walk_states: NDArray[np.int64]) -> None:
+def predict_kernel(x: Array, p: Array, dt: float, q_rate: Array) -> None:
     """Constant speed and yaw rate over ``dt`` (s), mid-interval heading; P = F P F^T + Q dt, in place."""
     n = x.shape[0]
     v = x[_SPEED]
@@ -86,8 +91,8 @@ def predict_kernel(x: Array, p: Array, dt: float, q_rate: Array, walk_states: ND
     f[_Y, _YAW_RATE] = step * cos_h * 0.5 * dt
     f[_YAW, _YAW_RATE] = dt
     new = _product_t(_product(f, p), f)  # F P F^T
-    for i in range(walk_states.shape[0]):
-        s = walk_states[i]
+    for i in range(WALK_STATES.shape[0]):
+        s = WALK_STATES[i]
         new[s, s] += q_rate[i] * dt
     for i in range(n):  # symmetrise: F P F^T is symmetric in exact arithmetic only
         for j in range(i + 1, n):
@@ -178,22 +183,20 @@ def gyro_kernel(
     p: Array,
     dt: float,
     q_rate: Array,
-    walk_states: NDArray[np.int64],
     z_rps: float,
     y: Array,
-    h: Array,
     r: Array,
     gate: float,
     schmidt_state: int,
 ) -> tuple[float, bool]:
     """Predict over ``dt`` (s; none when ``dt`` <= 0), then the gated gyro update ``z = yaw_rate + bias``.
 
-    ``y`` (shape (1,)) receives the residual; ``h`` and ``r`` are the gyro's constant model and noise.
+    ``y`` (shape (1,)) receives the residual; ``r`` is the gyro's noise (its model is ``H_GYRO``).
     """
     if dt > 0.0:
-        predict_kernel(x, p, dt, q_rate, walk_states)
+        predict_kernel(x, p, dt, q_rate)
     y[0] = z_rps - x[_YAW_RATE] - x[_BIAS]
-    return update_kernel(x, p, y, h, r, gate, True, schmidt_state)
+    return update_kernel(x, p, y, H_GYRO, r, gate, True, schmidt_state)
 
 
 @numba.njit(cache=True)
@@ -202,7 +205,6 @@ def odometry_kernel(
     p: Array,
     dt: float,
     q_rate: Array,
-    walk_states: NDArray[np.int64],
     speed_mps: float,
     yaw_rate_rps: float,
     speed_variance: float,
@@ -223,7 +225,7 @@ def odometry_kernel(
     constant row, ``r`` (1, 1) gets ``yaw_rate_variance``; ``speed_*`` unused).
     """
     if dt > 0.0:
-        predict_kernel(x, p, dt, q_rate, walk_states)
+        predict_kernel(x, p, dt, q_rate)
     if y.shape[0] == 1:
         y[0] = yaw_rate_rps - x[_YAW_RATE]
         r[0, 0] = yaw_rate_variance

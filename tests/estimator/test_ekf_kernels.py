@@ -6,7 +6,8 @@ import numba
 import numpy as np
 import pytest
 
-from estimator.ekf_kernels import _product, _product_t
+from estimator.ekf import BIAS, SCALE, SPEED, YAW_RATE
+from estimator.ekf_kernels import WALK_STATES, _product, _product_t
 
 Array = np.ndarray
 
@@ -50,3 +51,8 @@ def test_product_of_a_covariance_propagation_is_the_blas_one() -> None:
         f[1, 2:5] = rng.normal(size=3) * 0.01
         f[2, 4] = 0.02
         np.testing.assert_array_equal(_product_t(_product(f, p), f), _blas_product_t(_blas_product(f, p), f))
+
+
+def test_the_kernels_walk_the_states_the_filter_has_noise_intensities_for() -> None:
+    # RoverEkf builds q_rate in this order; the kernels read the states from their own constant.
+    assert tuple(WALK_STATES) == (SPEED, YAW_RATE, BIAS, SCALE)
