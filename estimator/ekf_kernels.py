@@ -40,10 +40,11 @@ def _wrap(angle: float) -> float:
 # rounding per step), which is how BLAS's dgemm (what ``a @ b`` called) sums them on a CPU with FMA; a
 # test compares the two. Why not BLAS: a predict runs once per control tick after the rest of the tick has
 # pushed BLAS's code and buffers out of the cache, and its two 7 x 7 dgemm calls then cost ~10 us against
-# a few us for these loops.
+# a few us for these loops. The same loops in ``update_kernel`` (P H^T, H P H^T, the gain) stay unfused:
+# they were loops before, without FMA, and must keep their floats, so they cannot share this function.
 @numba.njit(cache=True, fastmath={"contract"})
 def _product(a: Array, b: Array) -> Array:
-    """``a @ b``, as explicit loops."""
+    """``a @ b``, as explicit loops (``b`` may be a transposed view: ``_product(a, b.T)`` is ``a @ b.T``)."""
     rows, inner, columns = a.shape[0], a.shape[1], b.shape[1]
     out = np.empty((rows, columns))
     for i in range(rows):
@@ -51,20 +52,6 @@ def _product(a: Array, b: Array) -> Array:
             acc = 0.0
             for c in range(inner):
                 acc += a[i, c] * b[c, j]
-            out[i, j] = acc
-    return out
-
-
-@numba.njit(cache=True, fastmath={"contract"})
-def _product_t(a: Array, b: Array) -> Array:
-    """``a @ b.T``, as explicit loops."""
-    rows, inner, columns = a.shape[0], a.shape[1], b.shape[0]
-    out = np.empty((rows, columns))
-    for i in range(rows):
-        for j in range(columns):
-            acc = 0.0
-            for c in range(inner):
-                acc += a[i, c] * b[j, c]
             out[i, j] = acc
     return out
 
@@ -90,7 +77,7 @@ def predict_kernel(x: Array, p: Array, dt: float, q_rate: Array) -> None:
     f[_Y, _SPEED] = dt * sin_h
     f[_Y, _YAW_RATE] = step * cos_h * 0.5 * dt
     f[_YAW, _YAW_RATE] = dt
-    new = _product_t(_product(f, p), f)  # F P F^T
+    new = _product(_product(f, p), f.T)  # F P F^T
     for i in range(WALK_STATES.shape[0]):
         s = WALK_STATES[i]
         new[s, s] += q_rate[i] * dt
@@ -160,7 +147,7 @@ def update_kernel(
     x[_YAW] = _wrap(x[_YAW])
     if schmidt_state >= 0:
         i_kh = np.eye(n) - _product(k, h)
-        new = _product_t(_product(i_kh, p), i_kh) + _product_t(_product(k, r), k)  # Joseph form
+        new = _product(_product(i_kh, p), i_kh.T) + _product(_product(k, r), k.T)  # Joseph form
         for i in range(n):
             for j in range(n):
                 p[i, j] = 0.5 * (new[i, j] + new[j, i])
