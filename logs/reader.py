@@ -17,7 +17,6 @@ from __future__ import annotations
 import json
 import logging
 import struct
-import zlib
 from collections.abc import Collection, Iterator
 from contextlib import ExitStack
 from dataclasses import dataclass, field
@@ -27,6 +26,7 @@ from typing import Any, BinaryIO
 
 import orjson
 import zstandard
+from fastcrc import crc32
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
 from mcap.opcode import Opcode
@@ -451,7 +451,9 @@ def _chunk_records(chunk: Chunk, name: str, offset: int, skip_channels: Collecti
             f"{name}: chunk at byte {offset} uses {chunk.compression!r} compression; "
             "only zstd and uncompressed recordings are supported"
         )
-    if chunk.uncompressed_crc != 0 and zlib.crc32(data) != chunk.uncompressed_crc:
+    # fastcrc's CRC-32 (ISO-HDLC: zlib's, the one MCAP uses) runs ~7x zlib's here: zlib's took a tenth
+    # of the metrics pass every trial ends with (~17 MB of chunks).
+    if chunk.uncompressed_crc != 0 and crc32.iso_hdlc(data) != chunk.uncompressed_crc:
         raise RecordingDamaged(name, ReadStop(DAMAGED, offset, "the chunk fails its CRC check"))
     rows, status, _ = chunk_layout(data, skip_mask(skip_channels))
     if status == LAYOUT_CUT_HEAD:
