@@ -179,6 +179,17 @@ def test_damaged_chunk_raises_log_read_error(recording: tuple[bytes, list]) -> N
         list(read_messages(io.BytesIO(bytes(damaged))))
 
 
+def test_a_chunk_that_fails_to_decompress_leaves_the_next_read_whole(recording: tuple[bytes, list]) -> None:
+    # The reader keeps one zstd decompressor per thread: a failure inside it must not spoil the next chunk.
+    data, expected = recording
+    chunk = data.index(b"\x28\xb5\x2f\xfd")  # the first zstd frame's magic
+    damaged = bytearray(data)
+    damaged[chunk + 20 : chunk + 60] = bytes(40)
+    with pytest.raises(LogReadError, match="damaged"):
+        list(read_messages(io.BytesIO(bytes(damaged))))
+    assert len(list(read_messages(io.BytesIO(data)))) == len(expected)
+
+
 def test_a_chunk_whose_bytes_fail_its_crc_is_damage() -> None:
     # Uncompressed, one payload letter changed: the framing and the JSON still read, only the CRC can tell.
     buffer = io.BytesIO()
