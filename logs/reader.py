@@ -339,6 +339,13 @@ def _read_up_to(stream: BinaryIO, size: int, name: str) -> bytes:
     pieces: list[bytes] = []
     remaining = size
     try:
+        if size <= _READ_PIECE:
+            # The usual case (every record head, most bodies): one read returns it all, or the end.
+            piece = stream.read(size)
+            if len(piece) == size or not piece:
+                return piece
+            pieces.append(piece)
+            remaining -= len(piece)
         while remaining > 0:
             piece = stream.read(min(remaining, _READ_PIECE))
             if not piece:

@@ -190,6 +190,26 @@ def test_a_chunk_that_fails_to_decompress_leaves_the_next_read_whole(recording: 
     assert len(list(read_messages(io.BytesIO(data)))) == len(expected)
 
 
+class _Trickle(io.RawIOBase):
+    """A stream that returns at most 7 bytes a read, as a pipe may return less than asked."""
+
+    def __init__(self, data: bytes) -> None:
+        self._data = io.BytesIO(data)
+
+    def readable(self) -> bool:
+        return True
+
+    def read(self, size: int = -1) -> bytes:
+        return self._data.read(min(size, 7) if size >= 0 else 7)
+
+
+def test_a_stream_that_returns_less_than_asked_reads_the_same(recording: tuple[bytes, list]) -> None:
+    data, _ = recording
+    whole = list(read_messages(io.BytesIO(data)))
+    assert list(read_messages(_Trickle(data))) == whole  # type: ignore[arg-type]
+    assert len(whole) > 100
+
+
 def test_a_chunk_whose_bytes_fail_its_crc_is_damage() -> None:
     # Uncompressed, one payload letter changed: the framing and the JSON still read, only the CRC can tell.
     buffer = io.BytesIO()
