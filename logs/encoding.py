@@ -26,12 +26,14 @@ import orjson
 Message = dict[str, Any]
 _SEPARATORS = (",", ":")
 # numpy arrays and scalars as JSON numbers and lists; int dict keys as strings, as json.dumps does.
-_ORJSON_OPTIONS = orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS
+# Public with ``json_default`` for the one caller that makes encode_message's first step inline, a
+# Python frame fewer per message (``logs.sink.FanoutSink.publish``, every dict message of a trial).
+ORJSON_OPTIONS = orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS
 # orjson's words for data nested deeper than it recurses (a cycle, in practice).
 _ORJSON_RECURSION = "Recursion limit reached"
 
 
-def _json_default(value: Any) -> Any:
+def json_default(value: Any) -> Any:
     # numpy scalars and arrays have tolist(); anything else is a caller bug worth a clear error.
     tolist = getattr(value, "tolist", None)
     if tolist is not None:
@@ -59,7 +61,7 @@ def _encode_with_json(message: Message) -> bytes:
         repaired = _finite(message)
     except RecursionError as err:
         raise ValueError("message is circular or nested too deeply to encode as JSON") from err
-    text = json.dumps(repaired, separators=_SEPARATORS, allow_nan=False, default=_json_default)
+    text = json.dumps(repaired, separators=_SEPARATORS, allow_nan=False, default=json_default)
     return text.encode()
 
 
@@ -69,7 +71,7 @@ def encode_message(message: Message) -> bytes:
     Raises ``TypeError`` for values JSON cannot hold and ``ValueError`` for circular data.
     """
     try:
-        return orjson.dumps(message, default=_json_default, option=_ORJSON_OPTIONS)
+        return orjson.dumps(message, default=json_default, option=ORJSON_OPTIONS)
     except TypeError as err:  # orjson.JSONEncodeError is a TypeError
         if _ORJSON_RECURSION in str(err):
             raise ValueError("message is circular or nested too deeply to encode as JSON") from err

@@ -131,17 +131,20 @@ class _Trial:
 def _gather(entries: Iterable[Entry]) -> _Trial:
     trial = _Trial()
     for entry in entries:
-        if isinstance(entry, RecordedMetadata):
+        # Messages first: all but a handful of the entries are messages.
+        if isinstance(entry, RecordedMessage):
+            if entry.topic in _TOPICS:
+                trial.seen.add(entry.topic)
+                _take_or_reject(trial, entry)
+        elif isinstance(entry, RecordedRaw):
+            if entry.topic == ESTIMATOR_POSE:
+                trial.seen.add(entry.topic)
+                trial.deferred_estimates.append(entry)
+        elif isinstance(entry, RecordedMetadata):
             if entry.name == SCENARIO_METADATA:
                 trial.scenario = entry.data
             elif entry.name == WORLD_METADATA:
                 trial.world = entry.data
-        elif isinstance(entry, RecordedMessage) and entry.topic in _TOPICS:
-            trial.seen.add(entry.topic)
-            _take_or_reject(trial, entry)
-        elif isinstance(entry, RecordedRaw) and entry.topic == ESTIMATOR_POSE:
-            trial.seen.add(entry.topic)
-            trial.deferred_estimates.append(entry)
     if not trial.poses.get(TRUTH_POSE):
         _take_deferred_estimates(trial)
     trial.deferred_estimates.clear()

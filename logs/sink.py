@@ -10,7 +10,9 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import NoReturn, Protocol
 
-from logs.encoding import EncodedSink, Message, bytes_only_sink, encode_message
+import orjson
+
+from logs.encoding import ORJSON_OPTIONS, EncodedSink, Message, bytes_only_sink, encode_message, json_default
 from logs.errors import LogsError
 
 __all__ = ["FanoutSink", "MemorySink", "Message", "MessageSink", "NullSink"]
@@ -69,9 +71,11 @@ class FanoutSink:
         data: bytes | None = None
         if self._any_encoded:
             try:
-                data = encode_message(message)
-            except (TypeError, ValueError):
-                data = None
+                # encode_message's first step inline (orjson with its options): a Python frame fewer on
+                # every dict message of a trial. What orjson refuses goes through encode_message itself.
+                data = orjson.dumps(message, default=json_default, option=ORJSON_OPTIONS)
+            except TypeError:
+                data = self._encode_refused(message)
         if data is None:
             for sink, _ in self._sinks:
                 sink.publish(topic, log_time_ns, message)
@@ -81,6 +85,15 @@ class FanoutSink:
                 bytes_sink.publish_bytes(topic, log_time_ns, data)
         else:
             self.publish_encoded(topic, log_time_ns, message, data)
+
+    @staticmethod
+    def _encode_refused(message: Message) -> bytes | None:
+        """``encode_message`` for what orjson refused: its fallback's bytes, or None when JSON cannot hold
+        the message (each sink is then handed the message, to report it in its own words)."""
+        try:
+            return encode_message(message)
+        except (TypeError, ValueError):
+            return None
 
     def publish_encoded(self, topic: str, log_time_ns: int, message: Message, data: bytes) -> None:
         for sink, encoded in self._sinks:

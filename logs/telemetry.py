@@ -204,6 +204,11 @@ class ZenohTelemetry:
         self._closed = False
         self.published = 0
         self.failures = 0
+        # The attachment of the last put and its log time: the messages of one tick share their log time
+        # (~5 puts per attachment in a lockstep trial), and zenoh takes a ZBytes it is given as it is,
+        # where bytes are converted on every put (~0.15 us of a ~0.65 us put).
+        self._attachment_ns: int | None = None
+        self._attachment = zenoh.ZBytes(b"")
 
     def publish(self, topic: str, log_time_ns: int, message: Message) -> None:
         try:
@@ -229,7 +234,10 @@ class ZenohTelemetry:
             if publisher is None:
                 return
         try:
-            publisher.put(data, attachment=_LOG_TIME.pack(log_time_ns))
+            if log_time_ns != self._attachment_ns:
+                self._attachment = zenoh.ZBytes(_LOG_TIME.pack(log_time_ns))
+                self._attachment_ns = log_time_ns
+            publisher.put(data, attachment=self._attachment)
         except (zenoh.ZError, struct.error) as err:
             self._failed("put on %s failed: %s", topic, err)
             return

@@ -10,6 +10,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+import orjson
 import pytest
 
 from logs.encoding import bytes_only_sink, encode_message
@@ -98,12 +99,14 @@ def test_fanout_encodes_once_and_shares_the_bytes(monkeypatch: pytest.MonkeyPatc
     import logs.sink
 
     calls = []
+    dumps = orjson.dumps
 
-    def counting(message: Message) -> bytes:
+    def counting(message: Message, **options: Any) -> bytes:
         calls.append(message)
-        return encode_message(message)
+        return dumps(message, **options)
 
-    monkeypatch.setattr(logs.sink, "encode_message", counting)
+    # The fan-out makes encode_message's orjson step inline: count the encodings there.
+    monkeypatch.setattr(logs.sink.orjson, "dumps", counting)
     first, second, plain = _CountingEncodedSink(), _CountingEncodedSink(), MemorySink()
     limited = RateLimitedSink(second, {CAN_FRAMES: 10.0})
     fanout = FanoutSink([first, limited, plain])
@@ -123,6 +126,16 @@ def test_fanout_lets_each_sink_report_a_message_it_cannot_encode() -> None:
         fanout.publish(LOG, 0, {"bad": object()})
     assert len(memory.records) == 1
     recorder.close()
+
+
+def test_fanout_shares_the_bytes_of_what_only_the_standard_library_encodes() -> None:
+    # orjson refuses an integer beyond 64 bits: the fan-out's inline orjson step hands the message to
+    # encode_message, whose fallback bytes every sink gets.
+    first, second = _CountingEncodedSink(), _CountingEncodedSink()
+    message = {"big": 2**70, "x": math.nan}
+    FanoutSink([first, second]).publish(LOG, 0, message)
+    assert first.data == second.data == [b'{"big":1180591620717411303424,"x":null}']
+    assert first.data == [encode_message(message)]
 
 
 class _BytesOnlySink:

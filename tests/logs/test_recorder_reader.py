@@ -7,10 +7,12 @@ import io
 import json
 import math
 import os
+import zlib
 from pathlib import Path
 
 import numpy as np
 import pytest
+from fastcrc import crc32
 from mcap.reader import make_reader
 from mcap.writer import Writer
 
@@ -175,6 +177,58 @@ def test_damaged_chunk_raises_log_read_error(recording: tuple[bytes, list]) -> N
         damaged[i] ^= 0xFF
     with pytest.raises(LogReadError, match="damaged"):
         list(read_messages(io.BytesIO(bytes(damaged))))
+
+
+def test_a_chunk_that_fails_to_decompress_leaves_the_next_read_whole(recording: tuple[bytes, list]) -> None:
+    # The reader keeps one zstd decompressor per thread: a failure inside it must not spoil the next chunk.
+    data, expected = recording
+    chunk = data.index(b"\x28\xb5\x2f\xfd")  # the first zstd frame's magic
+    damaged = bytearray(data)
+    damaged[chunk + 20 : chunk + 60] = bytes(40)
+    with pytest.raises(LogReadError, match="damaged"):
+        list(read_messages(io.BytesIO(bytes(damaged))))
+    assert len(list(read_messages(io.BytesIO(data)))) == len(expected)
+
+
+class _Trickle(io.RawIOBase):
+    """A stream that returns at most 7 bytes a read, as a pipe may return less than asked."""
+
+    def __init__(self, data: bytes) -> None:
+        self._data = io.BytesIO(data)
+
+    def readable(self) -> bool:
+        return True
+
+    def read(self, size: int = -1) -> bytes:
+        return self._data.read(min(size, 7) if size >= 0 else 7)
+
+
+def test_a_stream_that_returns_less_than_asked_reads_the_same(recording: tuple[bytes, list]) -> None:
+    data, _ = recording
+    whole = list(read_messages(io.BytesIO(data)))
+    assert list(read_messages(_Trickle(data))) == whole  # type: ignore[arg-type]
+    assert len(whole) > 100
+
+
+def test_a_chunk_whose_bytes_fail_its_crc_is_damage() -> None:
+    # Uncompressed, one payload letter changed: the framing and the JSON still read, only the CRC can tell.
+    buffer = io.BytesIO()
+    with McapRecorder(buffer, compression="none") as recorder:
+        for t in range(20):
+            recorder.publish(LOG, t, _log(t))
+    data = buffer.getvalue()
+    assert len(list(read_messages(io.BytesIO(data)))) == 20
+    damaged = data.replace(b'"line 7"', b'"Line 7"')
+    assert damaged != data
+    with pytest.raises(LogReadError, match="fails its CRC check"):
+        list(read_messages(io.BytesIO(damaged)))
+
+
+def test_the_chunk_crc_is_zlibs_crc32() -> None:
+    rng = np.random.default_rng(3)
+    for size in (0, 1, 7, 64, 4099, 1 << 16):
+        data = rng.integers(0, 256, size, dtype=np.uint8).tobytes()
+        assert crc32.iso_hdlc(data) == zlib.crc32(data)
 
 
 def _raw_payloads_on_one_channel(payloads: list[bytes]) -> bytes:
