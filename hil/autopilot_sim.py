@@ -144,6 +144,8 @@ class SimAutopilot:
         now = clock.now_ns()
         self._next_ns = dict.fromkeys(self._periods_ns, now)
         self._next_any_ns = now  # the earliest of _next_ns: before it, a step has nothing to send
+        # Before this clock reading a step would neither send nor remember anything (step's docstring).
+        self.next_truth_ns = now
         self.sent: dict[str, int] = dict.fromkeys(self._periods_ns, 0)
         self.send_errors = 0
         self.heartbeats_received = 0
@@ -164,7 +166,10 @@ class SimAutopilot:
 
         The IMU goes first: it paces the rover's control loop, and a real IMU samples on its own timer;
         behind the GPS fix's geodesy and the other encodings it would leave 0.1-0.3 ms later on the steps
-        where those are due, and the loop would take that as period jitter."""
+        where those are due, and the loop would take that as period jitter.
+
+        A caller may leave out the steps at clock readings before ``next_truth_ns``: they would send
+        nothing and remember nothing (a GPS that looks back keeps it at or before every later tick)."""
         now = self._clock.now_ns()
         gps = self._gps
         if gps.looks_back or not gps.has_history():
@@ -204,6 +209,8 @@ class SimAutopilot:
                 ),
             )
         self._next_any_ns = min(due.values())
+        # A GPS that looks back remembers every tick's truth: it wants the next tick's too (now is before it).
+        self.next_truth_ns = now if gps.looks_back else self._next_any_ns
 
     def _take_turn(self, stream: str, now: int) -> None:
         """Schedule ``stream``'s next send after the one due now."""
