@@ -295,13 +295,19 @@ class SimAutopilot:
         # a third as much as packing it. Nothing keeps a sent message (the wire gets its packed bytes).
         msg = self._imu_msg
         msg.time_boot_ms = (now // 1_000_000) % (1 << 32)
-        # FLU -> FRD: y and z change sign.
-        msg.xacc = _int16(ax * _MPS2_TO_MG)
-        msg.yacc = _int16(-ay * _MPS2_TO_MG)
-        msg.zacc = _int16(-az * _MPS2_TO_MG)
-        msg.xgyro = _int16(gx * _RAD_TO_MRAD)
-        msg.ygyro = _int16(-gy * _RAD_TO_MRAD)
-        msg.zgyro = _int16(-gz * _RAD_TO_MRAD)
+        # FLU -> FRD: y and z change sign. Rounded, then one range test for all six: a field past int16
+        # is rare, so the per-field clamp (_int16) runs only then, not six calls a sample.
+        fields: tuple[int, ...] = (
+            round(ax * _MPS2_TO_MG),  # xacc
+            round(-ay * _MPS2_TO_MG),  # yacc
+            round(-az * _MPS2_TO_MG),  # zacc
+            round(gx * _RAD_TO_MRAD),  # xgyro
+            round(-gy * _RAD_TO_MRAD),  # ygyro
+            round(-gz * _RAD_TO_MRAD),  # zgyro
+        )
+        if not (min(fields) >= -_INT16_MAX and max(fields) <= _INT16_MAX):
+            fields = tuple(_int16(field) for field in fields)
+        msg.xacc, msg.yacc, msg.zacc, msg.xgyro, msg.ygyro, msg.zgyro = fields
         return msg
 
     # --- receiving -----------------------------------------------------------------------------

@@ -207,3 +207,17 @@ def test_steps_left_out_before_next_truth_ns_change_nothing_sent(latency_s):
     # Without a look-back the IMU's 20 ms leaves every other 10 ms tick out (the first tick, 10 ms after
     # the start, has everything due); with one, no tick is left out.
     assert skipping_steps == (every_steps // 2 + 1 if latency_s == 0.0 else every_steps)
+
+
+def test_imu_fields_past_int16_are_clamped_each_on_its_own_side():
+    _clock, sink, link, sim = make_pair(gyro_noise_rps=0.0, accel_noise_mps2=0.0)
+    # 400 m/s^2 backward is ~-40 800 mG (past int16); -50 rad/s of yaw rate is +50 000 mrad/s in FRD.
+    violent = TRUTH._replace(yaw_rate_rps=-50.0, accel_body_mps2=(-400.0, 0.2, 9.80665))
+    sim.step(violent)
+    link.poll()
+    (record,) = [r for r in sink.on(MAVLINK_RAW) if r["name"] == "SCALED_IMU"]
+    (msg,) = mavlink2.MAVLink(None).parse_buffer(base64.b64decode(record["data"]))
+    assert (msg.xacc, msg.zgyro) == (-32767, 32767)
+    # The fields within range keep their rounded values (FLU -> FRD: y and z change sign).
+    assert (msg.yacc, msg.zacc) == (round(-0.2 * 1000 / 9.80665), -1000)
+    assert (msg.xgyro, msg.ygyro) == (0, 0)
