@@ -229,7 +229,7 @@ class SimWorld:
         if record or step.collided or step.rollover or truth_recorder.in_collision:
             truth_recorder.on_step(now, body, step, battery, record_state=record)
         if self._has_moving_obstacles:
-            self._moving_contacts(now)
+            self._moving_contacts(now, step)
         self.last_step = step
         return step
 
@@ -259,10 +259,15 @@ class SimWorld:
             else:
                 self.battery.set_sag(sag.sag_v, sag.extra_resistance_ohm)
 
-    def _moving_contacts(self, now: int) -> None:
+    def _moving_contacts(self, now: int, step: DynamicsStep) -> None:
         """A moving obstacle (a disc) touching the footprint rectangle is a collision (reported once per
-        contact)."""
-        pose = (self.body.x, self.body.y, self.body.yaw)
-        for obstacle, (x, y, _vx, _vy) in self.perception.moving_states(now):
-            gap = disc_gap_m(pose, self._footprint, (x, y), obstacle.radius_m)
-            self.truth.on_moving_contact(now, obstacle.id, gap < 0.0, self.body)
+        contact). Every tick: the pose is the step's (the body's state after it, without property calls),
+        and the truth recorder hears all the obstacles' contacts in one call."""
+        pose = (step.x, step.y, step.yaw)
+        footprint = self._footprint
+        touching = [
+            obstacle.id
+            for obstacle, (x, y, _vx, _vy) in self.perception.moving_states(now)
+            if disc_gap_m(pose, footprint, (x, y), obstacle.radius_m) < 0.0
+        ]
+        self.truth.on_moving_contacts(now, touching, self.body)
