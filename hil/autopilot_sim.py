@@ -144,6 +144,8 @@ class SimAutopilot:
         now = clock.now_ns()
         self._next_ns = dict.fromkeys(self._periods_ns, now)
         self._next_any_ns = now  # the earliest of _next_ns: before it, a step has nothing to send
+        # Before this clock reading a step would neither send nor remember anything (step's docstring).
+        self.next_truth_ns = now
         self.sent: dict[str, int] = dict.fromkeys(self._periods_ns, 0)
         self.send_errors = 0
         self.heartbeats_received = 0
@@ -164,7 +166,10 @@ class SimAutopilot:
 
         The IMU goes first: it paces the rover's control loop, and a real IMU samples on its own timer;
         behind the GPS fix's geodesy and the other encodings it would leave 0.1-0.3 ms later on the steps
-        where those are due, and the loop would take that as period jitter."""
+        where those are due, and the loop would take that as period jitter.
+
+        A caller may leave out the steps at clock readings before ``next_truth_ns``: they would send
+        nothing and remember nothing (a GPS that looks back keeps it at or before every later tick)."""
         now = self._clock.now_ns()
         gps = self._gps
         if gps.looks_back or not gps.has_history():
@@ -204,6 +209,8 @@ class SimAutopilot:
                 ),
             )
         self._next_any_ns = min(due.values())
+        # A GPS that looks back remembers every tick's truth: it wants the next tick's too (now is before it).
+        self.next_truth_ns = now if gps.looks_back else self._next_any_ns
 
     def _take_turn(self, stream: str, now: int) -> None:
         """Schedule ``stream``'s next send after the one due now."""
@@ -288,13 +295,19 @@ class SimAutopilot:
         # a third as much as packing it. Nothing keeps a sent message (the wire gets its packed bytes).
         msg = self._imu_msg
         msg.time_boot_ms = (now // 1_000_000) % (1 << 32)
-        # FLU -> FRD: y and z change sign.
-        msg.xacc = _int16(ax * _MPS2_TO_MG)
-        msg.yacc = _int16(-ay * _MPS2_TO_MG)
-        msg.zacc = _int16(-az * _MPS2_TO_MG)
-        msg.xgyro = _int16(gx * _RAD_TO_MRAD)
-        msg.ygyro = _int16(-gy * _RAD_TO_MRAD)
-        msg.zgyro = _int16(-gz * _RAD_TO_MRAD)
+        # FLU -> FRD: y and z change sign. Rounded, then one range test for all six: a field past int16
+        # is rare, so the per-field clamp (_int16) runs only then, not six calls a sample.
+        fields: tuple[int, ...] = (
+            round(ax * _MPS2_TO_MG),  # xacc
+            round(-ay * _MPS2_TO_MG),  # yacc
+            round(-az * _MPS2_TO_MG),  # zacc
+            round(gx * _RAD_TO_MRAD),  # xgyro
+            round(-gy * _RAD_TO_MRAD),  # ygyro
+            round(-gz * _RAD_TO_MRAD),  # zgyro
+        )
+        if not (min(fields) >= -_INT16_MAX and max(fields) <= _INT16_MAX):
+            fields = tuple(_int16(field) for field in fields)
+        msg.xacc, msg.yacc, msg.zacc, msg.xgyro, msg.ygyro, msg.zgyro = fields
         return msg
 
     # --- receiving -----------------------------------------------------------------------------

@@ -280,7 +280,10 @@ class RoverDynamics:
         or is not commanded."""
         if not (math.isfinite(dt_s) and dt_s > 0.0):
             raise DynamicsError(f"time step must be a finite number of seconds > 0, got {dt_s}")
-        check_wheel_speeds(wheel_surface_speeds)
+        # The usual case settled here without a call, every physics step: six speeds with a finite sum (an
+        # inf or a NaN never sums away). Anything else goes to check_wheel_speeds, which names the fault.
+        if len(wheel_surface_speeds) != 6 or not math.isfinite(sum(wheel_surface_speeds)):
+            check_wheel_speeds(wheel_surface_speeds)
         values = self._values
         values[WHEELS : WHEELS + 6] = wheel_surface_speeds
         if not math.isfinite(battery_voltage_v):

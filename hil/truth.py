@@ -97,13 +97,18 @@ class TruthRecorder:
             self._rollover_reported = True
             self._publish_contact(now, "rollover", "", body)
 
-    def on_moving_contact(self, now: int, obstacle_id: str, touching: bool, body: RoverDynamics) -> None:
-        """A moving obstacle's contact with the footprint: reported once when it begins."""
-        if touching and obstacle_id not in self._touching_movers:
-            self._touching_movers.add(obstacle_id)
-            self._publish_contact(now, "collision", obstacle_id, body)
-        elif not touching:
-            self._touching_movers.discard(obstacle_id)
+    def on_moving_contacts(self, now: int, touching: list[str], body: RoverDynamics) -> None:
+        """The moving obstacles whose discs touch the footprint this tick (ids, in the world's order): a
+        contact is reported once, when it begins; one that ended may be reported again when it begins anew.
+        """
+        movers = self._touching_movers
+        if not touching and not movers:
+            return  # the usual tick: nothing touches, nothing did
+        for obstacle_id in touching:
+            if obstacle_id not in movers:
+                movers.add(obstacle_id)
+                self._publish_contact(now, "collision", obstacle_id, body)
+        movers.intersection_update(touching)
 
     def _publish_contact(self, now: int, kind: str, obstacle_id: str, body: RoverDynamics) -> None:
         self._sink.publish(

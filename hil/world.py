@@ -198,24 +198,29 @@ class SimWorld:
         voltage = battery.draw(step.motor_input_current_a + ELECTRONICS_CURRENT_A, dt_s)
         vescs.set_electrical(step.motor_currents_a, voltage, step.duty)
         vescs.step(dt_s)
-        # The pose from the step (the body's state after it, as plain tuple fields: no property calls).
-        # Positional, in AutopilotTruth's field order: keywords cost half as much again, every tick.
-        truth = AutopilotTruth(
-            step.x,  # x_m
-            step.y,  # y_m
-            body.elevation_m,  # z_m
-            step.yaw,  # yaw_rad
-            step.speed_mps,
-            step.yaw_rate_rps,
-            step.specific_force_body_mps2,  # accel_body_mps2
-            step.roll_rad,
-            step.pitch_rad,
-            voltage,  # battery_voltage_v
-            battery.current_a,
-            round(100.0 * battery.state_of_charge),  # battery_remaining_pct
-        )
         autopilot = self.autopilot
-        autopilot.step(truth)
+        # Every other tick at the default rates the autopilot has nothing to send and its GPS nothing to
+        # remember (SimAutopilot.next_truth_ns): its truth is neither built nor given. The world's clocks
+        # hold still through a tick (SimClock, the real-time peer's StepClock), so ``now`` is the reading
+        # step would take itself.
+        if now >= autopilot.next_truth_ns:
+            # The pose from the step (the body's state after it, as plain tuple fields: no property calls).
+            # Positional, in AutopilotTruth's field order: keywords cost half as much again.
+            truth = AutopilotTruth(
+                step.x,  # x_m
+                step.y,  # y_m
+                body.elevation_m,  # z_m
+                step.yaw,  # yaw_rad
+                step.speed_mps,
+                step.yaw_rate_rps,
+                step.specific_force_body_mps2,  # accel_body_mps2
+                step.roll_rad,
+                step.pitch_rad,
+                voltage,  # battery_voltage_v
+                battery.current_a,
+                round(100.0 * battery.state_of_charge),  # battery_remaining_pct
+            )
+            autopilot.step(truth)
         autopilot.poll()
         # Ground truth is recorded every TRUTH_DIVIDER-th tick; between those, the recorder has something
         # to do only while a contact may begin or end (TruthRecorder.on_step), so it is not called at all.
@@ -224,7 +229,7 @@ class SimWorld:
         if record or step.collided or step.rollover or truth_recorder.in_collision:
             truth_recorder.on_step(now, body, step, battery, record_state=record)
         if self._has_moving_obstacles:
-            self._moving_contacts(now)
+            self._moving_contacts(now, step)
         self.last_step = step
         return step
 
@@ -254,10 +259,15 @@ class SimWorld:
             else:
                 self.battery.set_sag(sag.sag_v, sag.extra_resistance_ohm)
 
-    def _moving_contacts(self, now: int) -> None:
+    def _moving_contacts(self, now: int, step: DynamicsStep) -> None:
         """A moving obstacle (a disc) touching the footprint rectangle is a collision (reported once per
-        contact)."""
-        pose = (self.body.x, self.body.y, self.body.yaw)
-        for obstacle, (x, y, _vx, _vy) in self.perception.moving_states(now):
-            gap = disc_gap_m(pose, self._footprint, (x, y), obstacle.radius_m)
-            self.truth.on_moving_contact(now, obstacle.id, gap < 0.0, self.body)
+        contact). Every tick: the pose is the step's (the body's state after it, without property calls),
+        and the truth recorder hears all the obstacles' contacts in one call."""
+        pose = (step.x, step.y, step.yaw)
+        footprint = self._footprint
+        touching = [
+            obstacle.id
+            for obstacle, (x, y, _vx, _vy) in self.perception.moving_states(now)
+            if disc_gap_m(pose, footprint, (x, y), obstacle.radius_m) < 0.0
+        ]
+        self.truth.on_moving_contacts(now, touching, self.body)

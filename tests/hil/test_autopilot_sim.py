@@ -173,3 +173,51 @@ def test_each_gps_fix_reports_the_truth_of_its_moment(latency_s):
         east, north, _ = pymap3d.geodetic2enu(fix.lat_deg, fix.lon_deg, fix.alt_m, *DATUM)
         seen_s = max(0.0, t_ns / 1e9 - latency_s)
         assert (east, north) == pytest.approx((10.0 * seen_s, -3.0 * seen_s), abs=0.02)
+
+
+def _wire_bytes(*, skip_until_due, latency_s, seconds=3.0):
+    """What the autopilot sends over ``seconds`` of a moving truth, stepped every tick or only from its
+    ``next_truth_ns`` on (as the world steps it)."""
+    clock = SimClock()
+    companion_end, autopilot_end = memory_pipe_pair()
+    rng = np.random.default_rng(4)
+    gps = GpsModel(rng, FaultSchedule(), noise_m=0.5, latency_s=latency_s)
+    sim = SimAutopilot(
+        autopilot_end, clock, rng, datum_lat_deg=DATUM[0], datum_lon_deg=DATUM[1], datum_alt_m=DATUM[2],
+        gps=gps, imu_rate_hz=50.0, gps_rate_hz=5.0,
+    )  # fmt: skip
+    wire = b""
+    steps = 0
+    for tick in range(round(seconds / DT_S)):
+        clock.advance(to_ns(DT_S))
+        if skip_until_due and clock.now_ns() < sim.next_truth_ns:
+            continue
+        truth = TRUTH._replace(x_m=0.01 * tick, y_m=-0.02 * tick, yaw_rad=0.001 * tick)
+        sim.step(truth)
+        steps += 1
+        wire += companion_end.read()
+    return wire, steps
+
+
+@pytest.mark.parametrize("latency_s", [0.0, 0.15])
+def test_steps_left_out_before_next_truth_ns_change_nothing_sent(latency_s):
+    every, every_steps = _wire_bytes(skip_until_due=False, latency_s=latency_s)
+    skipping, skipping_steps = _wire_bytes(skip_until_due=True, latency_s=latency_s)
+    assert skipping == every and len(every) > 0
+    # Without a look-back the IMU's 20 ms leaves every other 10 ms tick out (the first tick, 10 ms after
+    # the start, has everything due); with one, no tick is left out.
+    assert skipping_steps == (every_steps // 2 + 1 if latency_s == 0.0 else every_steps)
+
+
+def test_imu_fields_past_int16_are_clamped_each_on_its_own_side():
+    _clock, sink, link, sim = make_pair(gyro_noise_rps=0.0, accel_noise_mps2=0.0)
+    # 400 m/s^2 backward is ~-40 800 mG (past int16); -50 rad/s of yaw rate is +50 000 mrad/s in FRD.
+    violent = TRUTH._replace(yaw_rate_rps=-50.0, accel_body_mps2=(-400.0, 0.2, 9.80665))
+    sim.step(violent)
+    link.poll()
+    (record,) = [r for r in sink.on(MAVLINK_RAW) if r["name"] == "SCALED_IMU"]
+    (msg,) = mavlink2.MAVLink(None).parse_buffer(base64.b64decode(record["data"]))
+    assert (msg.xacc, msg.zgyro) == (-32767, 32767)
+    # The fields within range keep their rounded values (FLU -> FRD: y and z change sign).
+    assert (msg.yacc, msg.zacc) == (round(-0.2 * 1000 / 9.80665), -1000)
+    assert (msg.xgyro, msg.ygyro) == (0, 0)
