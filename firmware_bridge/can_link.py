@@ -28,7 +28,7 @@ from firmware_bridge.can_health import (
 )
 from firmware_bridge.errors import BridgeOperationError, FrameError
 from firmware_bridge.foreign_controllers import ForeignControllers
-from firmware_bridge.vesc import WHEEL_COUNT, FieldDecoder, VescCodec, encode_frames, erpm_command
+from firmware_bridge.vesc import WHEEL_COUNT, FieldDecoder, VescCodec, erpm_command
 from firmware_bridge.wheel_names import wheel_label
 from logs.can_load import frame_bits
 from logs.clock import Clock, to_ns
@@ -361,12 +361,13 @@ class CanLink(ClosesOnExit):
             if erpm != self._zero_erpm:
                 self.counters.withheld += 1
             erpm = self._zero_erpm
+        failures = 0
         self._begin_frames(t_ns, "tx")
         try:
-            if background or self._bytes_sink is None:
-                failures = self._send_each(t_ns, erpm, background=background)
-            else:
-                failures = self._send_batch(t_ns, erpm)
+            # ``erpm`` holds erpm_command's integers (or zeros), already in the field: encoded as they are.
+            for set_rpm, value in zip(self._set_rpm, erpm, strict=True):
+                if not self._send(t_ns, set_rpm.encode((value,)), background=background):
+                    failures += 1
         finally:
             self._flush_frames()
         self.last_sent_erpm = list(erpm)
@@ -375,57 +376,19 @@ class CanLink(ClosesOnExit):
             self._apply(t_ns, self._bus_state.on_signal(BusSignal.BUS_OFF, "every send failed"), background)
         return erpm
 
-    def _send_each(self, t_ns: int, erpm: list[int], *, background: bool) -> int:
-        """Encode and send the round's frames one at a time (``_send``); return how many failed."""
-        failures = 0
-        # ``erpm`` holds erpm_command's integers (or zeros), already in the field: encoded as they are.
-        for set_rpm, value in zip(self._set_rpm, erpm, strict=True):
-            if not self._send(t_ns, set_rpm.encode((value,)), background=background):
-                failures += 1
-        return failures
-
-    def _send_batch(self, t_ns: int, erpm: list[int]) -> int:
-        """``_send_each`` for the loop's own rounds to a bytes-only sink: the same frames, counts and
-        records, with the six frames encoded in one call (``encode_frames``) and ``_send``'s bookkeeping
-        inline for a frame the bus takes (every control tick). Returns how many sends failed."""
-        try:
-            msgs = encode_frames(list(zip(self._set_rpm, [(value,) for value in erpm], strict=True)))
-        except BridgeOperationError:
-            return self._send_each(t_ns, erpm, background=False)  # raises for the frame, as it always did
-        send, echoes, frames, counters = self._bus.send, self._echoes, self._frames, self.counters
-        failures = 0
-        for msg in msgs:
-            try:
-                send(msg)
-            except can.CanError as err:
-                self._send_failed(msg, err)  # records the frames so far: collect the rest afresh
-                frames = self._frames
-                failures += 1
-                continue
-            counters.tx += 1
-            self.bits_total += _frame_bits(msg.is_extended_id, msg.dlc)
-            if echoes is not None:
-                echoes.sent(msg)
-            frames.append(msg)
-        return failures
-
-    def _send_failed(self, msg: can.Message, err: can.CanError) -> None:
-        """Count and log a send the bus refused."""
-        self._flush_frames()  # the round's frames sent so far go before the warning on the log topic
-        self.counters.bus_errors += 1
-        log = logger.warning if self.counters.bus_errors == 1 else logger.debug
-        log(
-            "CAN send of id 0x%08x failed (%d send failures so far): %s",
-            msg.arbitration_id,
-            self.counters.bus_errors,
-            err,
-        )
-
     def _send(self, t_ns: int, msg: can.Message, *, background: bool = False) -> bool:
         try:
             self._bus.send(msg)
         except can.CanError as err:
-            self._send_failed(msg, err)
+            self._flush_frames()  # the round's frames sent so far go before the warning on the log topic
+            self.counters.bus_errors += 1
+            log = logger.warning if self.counters.bus_errors == 1 else logger.debug
+            log(
+                "CAN send of id 0x%08x failed (%d send failures so far): %s",
+                msg.arbitration_id,
+                self.counters.bus_errors,
+                err,
+            )
             return False
         self.counters.tx += 1
         self.bits_total += _frame_bits(msg.is_extended_id, msg.dlc)

@@ -234,27 +234,6 @@ class FieldEncoder:
         return can.Message(0.0, self._frame_id, True, False, False, None, self._length, data)
 
 
-def encode_frames(frames: Sequence[tuple[FieldEncoder, Sequence[float]]]) -> list[can.Message]:
-    """``FieldEncoder.encode`` of each (encoder, values) in turn, in one call: the same frames, in order.
-
-    Hot path (a status period's 6-18 frames in the simulator, the link's six SET_RPM per control tick):
-    one loop over the frames instead of an ``encode`` call and its ``try`` per frame. A frame that cannot
-    be encoded raises ``encode``'s ``BridgeOperationError`` for it (the batch is redone frame by frame to
-    find it), so a caller that sends what it can falls back to ``encode`` per frame."""
-    message = can.Message
-    try:
-        # Positional, in can.Message's order, as FieldEncoder.encode builds it.
-        return [
-            message(0.0, encoder._frame_id, True, False, False, None, encoder._length, encoder._pack(values))
-            for encoder, values in frames
-        ]
-    except (cantools.database.EncodeError, KeyError, ValueError, TypeError, IndexError):
-        pass
-    for encoder, values in frames:
-        encoder.encode(values)  # raises for the frame that failed, with encode's message
-    raise BridgeOperationError("a frame failed to encode in a batch but not on its own")  # pragma: no cover
-
-
 class VescCodec:
     """Encodes and decodes VESC frames defined by the DBC, strictly: bad frames raise ``FrameError``.
 

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 import can
 
 from firmware_bridge.errors import BridgeError, FrameError
-from firmware_bridge.vesc import WHEEL_COUNT, FieldEncoder, VescCodec, VescFrame, encode_frames
+from firmware_bridge.vesc import WHEEL_COUNT, FieldEncoder, VescCodec, VescFrame
 from firmware_bridge.wheel_names import wheel_label
 from logs.clock import Clock, to_ns
 
@@ -280,22 +280,6 @@ class SimVescBank:
     def _send_all(self, frames: list[tuple[FieldEncoder, tuple[float, ...]]]) -> None:
         """Encode and send each frame in order; one that fails is counted and the rest still go."""
         send = self._bus.send  # 6-18 frames per status period: one lookup, one call per frame
-        try:
-            # Hot path: the period's frames encoded in one call (encode_frames), then sent.
-            msgs = encode_frames(frames)
-        except BridgeError:
-            self._send_one_by_one(frames)  # find and count the frame that cannot be encoded
-            return
-        for msg, (encoder, _) in zip(msgs, frames, strict=True):
-            try:
-                send(msg)
-            except (can.CanError, BridgeError, ValueError, KeyError) as err:
-                self.send_errors += 1
-                logger.debug("simulated VESC: cannot send %s: %s", encoder.message.name, err)
-
-    def _send_one_by_one(self, frames: list[tuple[FieldEncoder, tuple[float, ...]]]) -> None:
-        """``_send_all``, encoding each frame on its own: one that fails is counted and the rest still go."""
-        send = self._bus.send
         for encoder, values in frames:
             try:
                 send(encoder.encode(values))

@@ -11,7 +11,6 @@ from cantools.database.conversion import LinearConversion
 
 from firmware_bridge.errors import BridgeOperationError, BridgeSetupError, FrameError
 from firmware_bridge.frame_packer import FramePacker
-from firmware_bridge.vesc import encode_frames
 from firmware_bridge.vesc_dbc import VESC_MESSAGES, message_name
 from tests.firmware_bridge.virtual_can import make_codec
 
@@ -236,29 +235,3 @@ def test_a_field_encoder_must_name_every_signal_once() -> None:
         encoder.fields(("erpm", "current", "duty"), {"duty": 0.0})
     with pytest.raises(BridgeOperationError, match="cannot encode VESC_STATUS_C1"):
         encoder.fields(("erpm", "current", "duty")).encode((1.0, 2.0))  # a value short
-
-
-def test_encode_frames_gives_each_encoders_frame_in_order() -> None:
-    """A batch of (encoder, values) encodes to the frames ``FieldEncoder.encode`` gives one by one."""
-    rng = random.Random(11)
-    codec = make_codec()
-    batch = []
-    for cid in (1, 4, 2):
-        for spec in VESC_MESSAGES:
-            message = codec.database.get_message_by_name(message_name(spec.kind, cid))
-            names = [signal.name for signal in message.signals]
-            values = [_random_in_range(rng, signal) for signal in message.signals]
-            batch.append((codec.encoder(spec.kind, cid).fields(names), values))
-    frames = encode_frames(batch)
-    expected = [encoder.encode(values) for encoder, values in batch]
-    assert [(f.arbitration_id, f.is_extended_id, f.dlc, bytes(f.data)) for f in frames] == [
-        (f.arbitration_id, f.is_extended_id, f.dlc, bytes(f.data)) for f in expected
-    ]
-
-
-def test_encode_frames_names_the_frame_it_cannot_encode() -> None:
-    codec = make_codec()
-    good = (codec.encoder("SET_RPM", 1).fields(("erpm",)), (100,))
-    short = (codec.encoder("STATUS", 2).fields(("erpm", "current", "duty")), (1.0, 2.0))
-    with pytest.raises(BridgeOperationError, match="cannot encode VESC_STATUS_C2"):
-        encode_frames([good, short, good])
