@@ -260,10 +260,17 @@ class CanLink(ClosesOnExit):
         self._wheel_of = {cid: index for index, cid in enumerate(self._ids)}
         # Frame id -> the reader of the fields the readings keep (_STATUS_FIELDS), for each controller's
         # status frames: _take's usual case, without decode's dict and VescFrame per frame.
-        self._status_decoders: dict[int, FieldDecoder] = {
+        status_decoders: dict[int, FieldDecoder] = {
             frame_id: decoder
             for kind, names in _STATUS_FIELDS.items()
             for frame_id, decoder in codec.field_decoders(kind, names).items()
+        }
+        # ... as (its reader, kind, controller id, the bits of a frame the reader accepts), all _take asks
+        # per status frame in one lookup. A frame the reader accepts has the message's format (a 29-bit id,
+        # as VescCodec requires, and dlc = length), so its bits (frame_bits) are known before it arrives.
+        self._status_frames = {
+            frame_id: (decoder.values, decoder.kind, decoder.controller_id, frame_bits(True, decoder.length))
+            for frame_id, decoder in status_decoders.items()
         }
         self._foreign = ForeignControllers(self._ids)
         self._closed = False
@@ -539,16 +546,17 @@ class CanLink(ClosesOnExit):
             self.counters.own_echoes += 1
             return False
         self.counters.rx += 1
-        self.bits_total += _frame_bits(msg.is_extended_id, msg.dlc)
         if self._bytes_sink is not None:  # _publish_frame's usual case, inline: every frame comes this way
             self._frames.append(msg)
         else:
             self._publish_frame(t_ns, "rx", msg)
         values: list[float] | None
-        decoder = self._status_decoders.get(msg.arbitration_id)
-        if decoder is not None and (values := decoder.values(msg)) is not None:
-            kind, cid = decoder.kind, decoder.controller_id
+        status = self._status_frames.get(msg.arbitration_id)
+        if status is not None and (values := status[0](msg)) is not None:
+            _, kind, cid, bits = status
+            self.bits_total += bits
         else:  # anything else, and what the decoder refuses: the codec decodes it or says why not
+            self.bits_total += _frame_bits(msg.is_extended_id, msg.dlc)
             try:
                 frame = self._codec.decode(msg)
             except FrameError as err:

@@ -156,16 +156,22 @@ class FramePacker:
         missing = [name for name in names if name not in index]
         if missing:
             raise ValueError(f"{self.message.name} has no signal {', '.join(missing)}")
-        picks = tuple((index[name], *self._scaling[index[name]][1:]) for name in names)
+        picks = tuple((index[name], *_float_identity(*self._scaling[index[name]][1:])) for name in names)
         unpack = self._struct.unpack
         extended = self.message.is_extended_frame
         length = self.message.length
+
+        # Where every field has a float scale or offset, each expression below is a float already and
+        # float() would return its argument: the same numbers without a call per field (hot path).
+        floats = all(isinstance(scale, float) or isinstance(offset, float) for _, scale, offset in picks)
 
         def read(msg: can.Message) -> list[float] | None:
             data = msg.data
             if msg.is_extended_id != extended or msg.is_remote_frame or not msg.dlc == length == len(data):
                 return None
             raws = unpack(data)
+            if floats:
+                return [raws[i] * scale + offset for i, scale, offset in picks]
             return [float(raws[i] * scale + offset) for i, scale, offset in picks]
 
         return read
@@ -177,6 +183,15 @@ def _to_raw(conversion: Any) -> Callable[[float], float]:
     if isinstance(conversion, IdentityConversion) and not conversion.is_float:
         return round
     return conversion.numeric_scaled_to_raw
+
+
+def _float_identity(scale: float, offset: float) -> tuple[float, float]:
+    """An identity conversion's integer (1, 0) as (1.0, 0.0): ``raw * 1.0 + 0.0`` is ``float(raw)``
+    exactly (the integer is rounded to a float once either way, the rest is exact), so a reader may leave
+    out the float() call; any other scale and offset as they are."""
+    if type(scale) is int and type(offset) is int and scale == 1 and offset == 0:
+        return 1.0, 0.0
+    return scale, offset
 
 
 def _inline_or_call(

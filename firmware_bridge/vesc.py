@@ -143,6 +143,7 @@ class FieldDecoder:
     kind: str
     controller_id: int
     values: Callable[[can.Message], list[float] | None]
+    length: int  # the message's data length: the dlc of every frame ``values`` accepts
 
 
 class FrameEncoder:
@@ -313,7 +314,7 @@ class VescCodec:
             if message_kind != kind or packer is None:
                 continue
             try:
-                decoders[frame_id] = FieldDecoder(kind, cid, packer.frame_reader(names))
+                decoders[frame_id] = FieldDecoder(kind, cid, packer.frame_reader(names), message.length)
             except ValueError as err:
                 raise BridgeSetupError(f"cannot read {list(names)} from {message.name}: {err}") from err
         return decoders

@@ -174,8 +174,11 @@ def test_field_decoders_give_decode_numbers_and_leave_what_decode_refuses_to_it(
                 data = bytes(rng.randrange(256) for _ in range(spec.length))
                 msg = can.Message(arbitration_id=frame_id, is_extended_id=True, data=data)
                 frame = codec.decode(msg)
-                assert decoder.values(msg) == [frame.values[name] for name in names]
+                values = decoder.values(msg)
+                assert values == [frame.values[name] for name in names]
+                assert values is not None and all(type(value) is float for value in values)  # as decode's
                 assert decoder.controller_id == frame.controller_id
+                assert decoder.length == len(data)
             full = bytes(spec.length)
             refused = [
                 can.Message(arbitration_id=frame_id, is_extended_id=False, data=full),
