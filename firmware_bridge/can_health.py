@@ -199,6 +199,14 @@ class BusLoadMeter:
         self._frames_at_start = 0
         self._bits_at_start = 0
 
+    def restart(self, now_ns: int, *, frames_total: int, bits_total: int) -> None:
+        """Open a new window at ``now_ns`` from the link's running totals, discarding the open one: the link
+        does it when its loop starts, so the first window measures the running bus, not a start-up
+        during which nothing is sent (which could last longer than a window)."""
+        self._start_ns = now_ns
+        self._frames_at_start = frames_total
+        self._bits_at_start = bits_total
+
     def message(
         self,
         now_ns: int,

@@ -316,9 +316,12 @@ class CanLink(ClosesOnExit):
     def start_watch(self, now_ns: int) -> None:
         """Count the silence of controllers not heard since ``now_ns`` from then, not from construction:
         the control loop calls this on its first tick, so a long start-up is not reported as silent
-        controllers (``can_controller_silent``)."""
+        controllers (``can_controller_silent``), nor as a ``can/stats`` window of an idle bus."""
         with self._lock:
             self._liveness.start(now_ns)
+            # The bus load's first window opens here too (BusLoadMeter.restart).
+            c = self.counters
+            self._load.restart(now_ns, frames_total=c.tx + c.rx, bits_total=self.bits_total)
 
     # --- commands ------------------------------------------------------------------------------
     def send_wheel_speeds(self, speeds_mps: Sequence[float]) -> list[float]:

@@ -122,3 +122,25 @@ def test_rejected_frames_are_in_can_stats_and_one_warning_per_window(
     assert len(warnings) == 1
     assert warnings[0].startswith("CAN: 100 received frame(s) rejected in the last 1.0 s")
     assert "unknown_id 50, wrong_dlc 50, decode_errors 0" in warnings[0]
+
+
+def test_first_window_opens_when_the_loop_starts_not_at_construction() -> None:
+    """A start-up longer than a window (kernels compiling, a slow disk) is not reported as an idle bus:
+    the first ``can/stats`` window opens at the loop's first read (``start_watch``)."""
+    clock, sink = SimClock(0), MemorySink()
+    with virtual_bus_pair("startup") as (ours, theirs):
+        bank = SimVescBank(theirs, make_codec(), clock)
+        with CanLink(ours, make_codec(), clock, sink, config=CanConfig()) as link:
+            clock.advance(to_ns(1.5))  # start-up: nothing sent, nothing heard
+            link.start_watch(clock.now_ns())
+            for _ in range(60):  # 1.2 s at 50 Hz
+                link.poll()
+                link.send_wheel_speeds([0.5] * 6)
+                bank.poll()
+                bank.step(0.02)
+                clock.advance(to_ns(0.02))
+    stats = sink.on(CAN_STATS)
+    assert len(stats) == 1
+    assert stats[0]["timestamp"] == {"sec": 2, "nsec": 500_000_000}  # 1 s after the loop's start
+    assert stats[0]["window_s"] == pytest.approx(1.0)
+    assert stats[0]["frames"] > 0 and stats[0]["load_pct"] > 0.0
