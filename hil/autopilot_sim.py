@@ -172,7 +172,7 @@ class SimAutopilot:
         nothing and remember nothing (a GPS that looks back keeps it at or before every later tick)."""
         now = self._clock.now_ns()
         gps = self._gps
-        if gps.looks_back or not gps.has_history():
+        if gps.looks_back:
             self._record(now, truth)
         if now < self._next_any_ns:
             return  # nothing due (every other physics tick at the default rates: the IMU's is the fastest)

@@ -89,9 +89,6 @@ class GpsModel:
         while len(self._history) > 1 and self._history[0].t_ns < horizon:
             self._history.popleft()
 
-    def has_history(self) -> bool:
-        return bool(self._history)
-
     def fix(self, now: int) -> GpsFix | None:
         """The fix due at ``now``, or None when it is lost (dropout, loss fault, slow fault)."""
         # Three standard normals, scaled per axis and by the noise in plain floats: the same IEEE products
