@@ -78,7 +78,7 @@ from hil.dynamics_kernel import (  # the step's vector layout, read every step
     WHEELS,
     X,
 )
-from navigator.footprint import BOUNDARY, CLEAR, OBSTACLE, rectangle_contact
+from navigator.footprint import BOUNDARY, CLEAR, OBSTACLE
 from navigator.ground_kernel import GroundUnder
 from navigator.terrain import TerrainMap
 from navigator.terrain_classes import REFERENCE_WHEEL_LOAD_N, TERRAIN_CLASSES, TerrainClass
@@ -407,19 +407,8 @@ class RoverDynamics:
         self._resolution_m = terrain.resolution_m
         under = terrain.ground_at(x, y, yaw)
         values[k.CLASS], values[k.ELEVATION], values[k.ROLL], values[k.PITCH] = under
-        half_length, half_width = self._body[k.HALF_LENGTH], self._body[k.HALF_WIDTH]
-        kind = rectangle_contact(
-            self._obstacles,
-            self._resolution_m,
-            self._origin_x,
-            self._origin_y,
-            x,
-            y,
-            yaw,
-            half_length,
-            half_width,
-        )
-        overlapping = kind != CLEAR
+        grid = (self._obstacles, self._resolution_m, self._origin_x, self._origin_y)
+        overlapping = k.contact_kind(grid, self._body, x, y, yaw, 0.0) != CLEAR
         values[k.OVERLAP_HERE] = 1.0 if overlapping else 0.0
 
 

@@ -76,7 +76,7 @@ def wrap_angle(angle: float) -> float:
 
 
 @numba.njit(cache=True)
-def _contact_kind(grid: Grid, body: Array, x: float, y: float, yaw: float, grow_m: float) -> int:
+def contact_kind(grid: Grid, body: Array, x: float, y: float, yaw: float, grow_m: float) -> int:
     """What the footprint at (x, y, yaw), grown by ``grow_m`` on every side, overlaps (CLEAR, OBSTACLE,
     BOUNDARY of ``navigator.footprint``)."""
     obstacles, res, ox, oy = grid
@@ -89,14 +89,14 @@ def _contact_kind(grid: Grid, body: Array, x: float, y: float, yaw: float, grow_
 def _depth(grid: Grid, body: Array, x: float, y: float, yaw: float) -> float:
     """How far the footprint reaches into obstacles or past the edge: the least shrink of every side (m)
     that clears it (bisection); 0 when clear, half its width when even its centre line overlaps."""
-    if _contact_kind(grid, body, x, y, yaw, 0.0) == CLEAR:
+    if contact_kind(grid, body, x, y, yaw, 0.0) == CLEAR:
         return 0.0
     lo, hi = 0.0, min(body[HALF_LENGTH], body[HALF_WIDTH])
-    if _contact_kind(grid, body, x, y, yaw, -hi) != CLEAR:
+    if contact_kind(grid, body, x, y, yaw, -hi) != CLEAR:
         return hi
     for _ in range(_DEPTH_BISECTIONS):
         mid = 0.5 * (lo + hi)
-        if _contact_kind(grid, body, x, y, yaw, -mid) != CLEAR:
+        if contact_kind(grid, body, x, y, yaw, -mid) != CLEAR:
             lo = mid
         else:
             hi = mid
@@ -107,7 +107,7 @@ def _depth(grid: Grid, body: Array, x: float, y: float, yaw: float) -> float:
 def _refused(grid: Grid, body: Array, values: Array, x: float, y: float, yaw: float) -> bool:
     """Whether moving to (x, y, yaw) pushes the footprint further in: into an overlap from clear, or
     deeper into one it already overlaps (e.g. an obstacle appeared on it: it may still back out)."""
-    if _contact_kind(grid, body, x, y, yaw, 0.0) == CLEAR:
+    if contact_kind(grid, body, x, y, yaw, 0.0) == CLEAR:
         return False
     if values[OVERLAP_HERE] == 0.0:
         return True
@@ -133,7 +133,7 @@ def _advance_to_contact(
         mid = 0.5 * (lo + hi)
         x = x0 + mid * (new_x - x0)
         y = y0 + mid * (new_y - y0)
-        if _contact_kind(grid, body, x, y, yaw_from + mid * turn, 0.0) == CLEAR:
+        if contact_kind(grid, body, x, y, yaw_from + mid * turn, 0.0) == CLEAR:
             lo = mid
         else:
             hi = mid
@@ -230,7 +230,7 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., int]:
 
         # Contact: refuse a move that pushes the footprint further into an obstacle or over the edge. Most
         # steps touch nothing: one test of the rectangle grown by the tolerance settles them.
-        kind = _contact_kind(grid, body, new_x, new_y, new_yaw, CONTACT_TOLERANCE_M)
+        kind = contact_kind(grid, body, new_x, new_y, new_yaw, CONTACT_TOLERANCE_M)
         touching = kind != CLEAR
         overlapping = False
         if touching and _refused(grid, body, values, new_x, new_y, new_yaw):
@@ -243,10 +243,10 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., int]:
                 yaw_rate = 0.0
             accel = (0.0 - speed0) / dt
             speed = 0.0
-            again = _contact_kind(grid, body, new_x, new_y, new_yaw, CONTACT_TOLERANCE_M)
+            again = contact_kind(grid, body, new_x, new_y, new_yaw, CONTACT_TOLERANCE_M)
             kind = again if again != CLEAR else kind
         if touching:
-            overlapping = _contact_kind(grid, body, new_x, new_y, new_yaw, 0.0) != CLEAR
+            overlapping = contact_kind(grid, body, new_x, new_y, new_yaw, 0.0) != CLEAR
         values[OVERLAP_HERE] = 1.0 if overlapping else 0.0
         values[CONTACT_BEGAN] = 1.0 if touching and values[IN_CONTACT] == 0.0 else 0.0
         values[IN_CONTACT] = values[TOUCHING] = 1.0 if touching else 0.0
