@@ -109,13 +109,8 @@ class FramePacker:
 
         For a sender of the same message over and over with values it holds as numbers (the simulated
         controllers' status frames, the link's SET_RPM). A raw value outside its field goes to cantools, as
-        in ``pack``."""
-        signals = [name for name, _ in self._fields]
-        if sorted(signals) != sorted([*names, *fixed]):
-            raise ValueError(
-                f"{self.message.name}: give each of its signals {signals} once, as a value or held fixed; "
-                f"got values {list(names)} and fixed {sorted(fixed)}"
-            )
+        in ``pack``. ``names`` and ``fixed`` name each of the message's signals once: the caller checks
+        that (``FieldEncoder``, which also serves a message without a packer)."""
         # The raw values in struct order, the fixed ones filled in; per frame, (position in the struct,
         # position in the caller's values, conversion) of each of the others, the conversion given as
         # (scale, offset) alone for an integer signal of cantools' LinearConversion: its

@@ -124,12 +124,12 @@ class _Trial:
     world: dict[str, str] | None = None  # the simulated world's start (hil.world), when recorded
     seen: set[str] = field(default_factory=set)
     rejected: Counter[str] = field(default_factory=Counter)
-    # estimator/pose read undecoded (compute_metrics): decoded only when no truth/pose gives the trajectory.
-    deferred_estimates: list[RecordedRaw] = field(default_factory=list)
 
 
 def _gather(entries: Iterable[Entry]) -> _Trial:
     trial = _Trial()
+    # estimator/pose read undecoded (compute_metrics): decoded only when no truth/pose gives the trajectory.
+    deferred_estimates: list[RecordedRaw] = []
     for entry in entries:
         # Messages first: all but a handful of the entries are messages.
         if isinstance(entry, RecordedMessage):
@@ -139,15 +139,14 @@ def _gather(entries: Iterable[Entry]) -> _Trial:
         elif isinstance(entry, RecordedRaw):
             if entry.topic == ESTIMATOR_POSE:
                 trial.seen.add(entry.topic)
-                trial.deferred_estimates.append(entry)
+                deferred_estimates.append(entry)
         elif isinstance(entry, RecordedMetadata):
             if entry.name == SCENARIO_METADATA:
                 trial.scenario = entry.data
             elif entry.name == WORLD_METADATA:
                 trial.world = entry.data
     if not trial.poses.get(TRUTH_POSE):
-        _take_deferred_estimates(trial)
-    trial.deferred_estimates.clear()
+        _take_deferred_estimates(trial, deferred_estimates)
     return trial
 
 
@@ -158,10 +157,10 @@ def _take_or_reject(trial: _Trial, entry: RecordedMessage) -> None:
         trial.rejected[entry.topic] += 1
 
 
-def _take_deferred_estimates(trial: _Trial) -> None:
+def _take_deferred_estimates(trial: _Trial, deferred_estimates: list[RecordedRaw]) -> None:
     """The estimated poses become the trajectory (no usable truth): decode them now. One that is not a
     JSON object is rejected as one without usable values."""
-    for raw in trial.deferred_estimates:
+    for raw in deferred_estimates:
         message = decode_json_object(raw.data)
         if message is None:
             trial.rejected[raw.topic] += 1
