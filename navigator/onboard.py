@@ -536,9 +536,8 @@ class OnboardStack:
         """Until the start-up checks first pass: a ``startup_checks`` event naming the pending ones on the
         first tick and whenever they change, then one when all have passed. Without it nothing said why a
         rover without a goal waited (the supervisor starts in IDLE: no mode change to report), nor when it
-        became ready; after that, a check failing again shows as guidance's WAITING_ESTIMATE cause."""
-        if self._start_up_passed:
-            return
+        became ready; after that, a check failing again shows as guidance's WAITING_ESTIMATE cause. The tick
+        calls it only until they have passed."""
         if ready:
             self._start_up_passed = True
             settle_s = SETTLE_NS / NS_PER_S
