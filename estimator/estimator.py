@@ -499,14 +499,13 @@ class Estimator:
 
     def _advance(self, t_ns: int) -> None:
         """Predict to ``t_ns``, feeding the heading bootstrap the motion the filter believes in meanwhile."""
-        self._feed_bootstrap(t_ns)
+        if not self._heading_known:
+            self._feed_bootstrap(t_ns)
         self._ekf.predict(t_ns)
 
     def _feed_bootstrap(self, t_ns: int) -> None:
-        """While the heading is unknown: the motion the filter believes in up to ``t_ns`` (it is about to
-        predict there) goes to the heading bootstrap."""
-        if self._heading_known:
-            return
+        """For a caller that knows the heading is unknown: the motion the filter believes in up to ``t_ns``
+        (it is about to predict there) goes to the heading bootstrap."""
         dt_ns = t_ns - self._ekf.t_ns
         if dt_ns > 0:
             dt = dt_ns * 1e-9

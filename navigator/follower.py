@@ -225,8 +225,7 @@ class PurePursuit:
 
     # --- path bookkeeping -------------------------------------------------------------------------
     def _adopt(self, path: np.ndarray) -> np.ndarray:
-        if path is self._source and self._path is not None:
-            return self._path
+        """Check and take in a path that is not the one adopted last (``command`` keeps that one itself)."""
         points = np.asarray(path, dtype=np.float64)
         if points.ndim != 2 or points.shape[1] != 2 or points.shape[0] < 1:
             raise ParameterError(

@@ -86,9 +86,9 @@ class _WheelSnapshot(NamedTuple):
 
     status_ns: tuple[int | None, ...]  # each controller's last STATUS time, None: never heard
     heard: bool  # every controller heard
-    speeds_mps: list[float]  # as reported
     # For the stall check: a controller never heard has no speed or current to judge (wheel_silent covers
-    # it): 0.0, not stalled.
+    # it): 0.0, not stalled. With every controller heard (when the estimator reads them), the speeds as
+    # reported.
     judged_speeds_mps: tuple[float, ...]
     judged_currents_a: tuple[float, ...]
     battery_v: float | None  # the lowest pack voltage reported (None: no controller reported one yet)
@@ -103,7 +103,6 @@ class _WheelSnapshot(NamedTuple):
         return cls(
             status_ns,
             heard,
-            speeds,
             # All heard (the usual case): the speeds as they are.
             tuple(speeds)
             if heard
@@ -537,9 +536,8 @@ class OnboardStack:
         """Until the start-up checks first pass: a ``startup_checks`` event naming the pending ones on the
         first tick and whenever they change, then one when all have passed. Without it nothing said why a
         rover without a goal waited (the supervisor starts in IDLE: no mode change to report), nor when it
-        became ready; after that, a check failing again shows as guidance's WAITING_ESTIMATE cause."""
-        if self._start_up_passed:
-            return
+        became ready; after that, a check failing again shows as guidance's WAITING_ESTIMATE cause. The tick
+        calls it only until they have passed."""
         if ready:
             self._start_up_passed = True
             settle_s = SETTLE_NS / NS_PER_S
@@ -699,7 +697,7 @@ class OnboardStack:
                 if self._pacing == "wheels":
                     self._pacing_rx_ns = can_read_ns
                 # All six: disagreement between the wheels of one side is a slip signal to the estimator.
-                self.estimator.on_wheel_speeds(now, wheels.speeds_mps)
+                self.estimator.on_wheel_speeds(now, wheels.judged_speeds_mps)  # all heard: as reported
 
 
 def _limit_reason(guidance: GuidanceCommand | GuidanceOutput, mode: SafetyMode, scale: float) -> str:
