@@ -225,9 +225,7 @@ class Guidance:
         self._last_xy = (x, y)
         details: list[str] = []
         path_changed = self._collect(details) if self._job is not None else False
-        # Planning work only if something asks for it (_submit checks each in detail): on nearly every
-        # tick nothing is pending, and the calls were a share of the tick.
-        if self._job is None and (self._pending or self._moved_off or self._needs_plan):
+        if self._job is None:
             self._submit(x, y)
             if self._job is not None:
                 path_changed |= self._collect(details)  # an inline executor has finished already
@@ -280,6 +278,8 @@ class Guidance:
     def _submit(self, x: float, y: float, *, why: str = "", must_plan: bool = False) -> None:
         """Start a planning job if there is work: static obstacles now within range, obstacles in the map
         that have moved on, or a plan needed."""
+        if not (self._pending or self._moved_off or self._needs_plan or must_plan):
+            return  # nothing asks for planning (nearly every tick): no list built, nothing filtered
         near = [o for o in self._pending.values() if in_range(o, (x, y), self._config.sensing_range_m)]
         must_plan = must_plan or (self._needs_plan and self._goal is not None and self._mode != ARRIVED)
         if not near and not must_plan and not self._moved_off:
