@@ -28,11 +28,14 @@ Edge models as in ``navigator.astar_kernel``: ``MODEL_MEAN`` (the planner's, ``s
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numba
 import numpy as np
 
+from navigator import astar_kernel
 from navigator.astar_kernel import MODEL_MEAN, MOVES
+from navigator.kernel_cache import sources_fingerprint
 
 #: The ring would need more slots than this (a huge spread between the cheapest and dearest edge): the
 #: caller should use the heap search instead.
@@ -95,109 +98,119 @@ def _grown(buckets: np.ndarray, lengths: np.ndarray) -> np.ndarray:
     return grown
 
 
-# nogil: in real time the search runs on the planner thread (navigator.plan_worker); the control
-# thread must keep ticking meanwhile.
-@numba.njit(cache=True, error_model="numpy", nogil=True)
-def search(
-    frame: np.ndarray,
-    cols: int,
-    start: int,
-    goal: int,
-    alpha: float,
-    c_min: float,
-    slots: int,
-    factors: np.ndarray,
-    use_factors: bool,
-    model: int,
-    diagonal_step: float,
-    no_corner_cutting: bool,
-) -> tuple[np.ndarray, float, int]:
-    """Bucket A* over ``frame`` (``padded``'s grid of a map ``cols`` wide). Returns (parent, goal cost,
-    expanded).
+def _compile_search(fingerprint: str) -> Callable[..., tuple[np.ndarray, float, int]]:
+    """``search``, with ``fingerprint`` (of ``navigator.astar_kernel``, whose moves and edge models it
+    compiles in) in numba's cache key: see ``navigator.kernel_cache``."""
 
-    ``start`` and ``goal`` are flat indices of the *unpadded* map; ``parent`` is over the padded grid
-    (indices of the padded grid, -1 at the start; ``navigator.astar.trace`` maps it back). ``slots`` from
-    ``slots_needed``; ``factors`` (indexed by unpadded cell) as for ``navigator.astar_kernel.search``.
-    The goal cost is ``inf`` when the goal is unreachable.
-    """
-    stride = cols + 2
-    # row = index // stride through a float reciprocal: exact for any grid that fits in memory (the
-    # fraction col / stride stays >= 0.5 / stride away from an integer) and far cheaper than a division.
-    inv_stride = 1.0 / stride
-    g = np.full(frame.size, np.inf)
-    parent = np.empty(frame.size, dtype=np.int32)
-    inv_span = 1.0 / ((1.0 - alpha) * c_min)
-    h_scale = alpha * c_min
-    buckets = np.empty((slots, 256), dtype=np.int32)
-    lengths = np.zeros(slots, dtype=np.int64)
-    mask = slots - 1  # slots is a power of two
-    goal_row = goal // cols + 1
-    goal_col = goal % cols + 1
-    source = (start // cols + 1) * stride + start % cols + 1
-    target = goal_row * stride + goal_col
-    g[source] = 0.0
-    parent[source] = -1
-    start_h = h_scale * _octile(source // stride, source % stride, goal_row, goal_col, diagonal_step)
-    bucket = int(start_h * inv_span)
-    buckets[bucket & mask, 0] = source
-    lengths[bucket & mask] = 1
-    longest = 1
-    pending = 1
-    expanded = 0
-    while pending > 0:
-        slot = bucket & mask
-        while lengths[slot] > 0:
-            lengths[slot] -= 1
-            pending -= 1
-            index = buckets[slot, lengths[slot]]
-            here_g = g[index]
-            if here_g < 0.0:
-                continue  # a duplicate entry of a cell already closed
-            g[index] = -here_g
-            expanded += 1
-            if index == target:
-                return parent, here_g, expanded
-            if longest + 8 > buckets.shape[1]:
-                buckets = _grown(buckets, lengths)
-            row = int((index + 0.5) * inv_stride)
-            col = index - row * stride
-            here_cost = frame[index]
-            # A diagonal move needs the two orthogonal cells beside it finite (no corner cutting).
-            free_up = frame[index - stride] != np.inf
-            free_down = frame[index + stride] != np.inf
-            free_left = frame[index - 1] != np.inf
-            free_right = frame[index + 1] != np.inf
-            for move in range(8):
-                d_row = MOVES[move, 0]
-                d_col = MOVES[move, 1]
-                n_index = index + d_row * stride + d_col
-                # An obstacle (or a corner cut past one) makes the edge inf, so "tentative < g" fails:
-                # a select instead of two hard-to-predict branches (measured ~5-10 % faster).
-                n_cost = frame[n_index]
-                step = 1.0
-                if move >= 4:
-                    step = diagonal_step
-                    if no_corner_cutting:
-                        vertical_free = free_up if d_row < 0 else free_down
-                        horizontal_free = free_left if d_col < 0 else free_right
-                        n_cost = n_cost if (vertical_free and horizontal_free) else np.inf
-                if model == MODEL_MEAN:
-                    edge = step * 0.5 * (here_cost + n_cost)
-                    if use_factors:
-                        edge *= factors[move, (row - 1) * cols + col - 1]
-                else:
-                    edge = step * n_cost
-                tentative = here_g + edge
-                if tentative < g[n_index]:
-                    g[n_index] = tentative
-                    parent[n_index] = index
-                    n_h = h_scale * _octile(row + d_row, col + d_col, goal_row, goal_col, diagonal_step)
-                    # >= bucket + 1 in exact arithmetic; rounding may land it in this bucket: still final
-                    # to float tolerance, and the inner loop picks it up.
-                    n_slot = max(int((tentative + n_h) * inv_span), bucket) & mask
-                    buckets[n_slot, lengths[n_slot]] = n_index
-                    lengths[n_slot] += 1
-                    longest = max(longest, lengths[n_slot])
-                    pending += 1
-        bucket += 1
-    return parent, np.inf, expanded
+    # nogil: in real time the search runs on the planner thread (navigator.plan_worker); the control
+    # thread must keep ticking meanwhile.
+    @numba.njit(cache=True, error_model="numpy", nogil=True)
+    def search(
+        frame: np.ndarray,
+        cols: int,
+        start: int,
+        goal: int,
+        alpha: float,
+        c_min: float,
+        slots: int,
+        factors: np.ndarray,
+        use_factors: bool,
+        model: int,
+        diagonal_step: float,
+        no_corner_cutting: bool,
+    ) -> tuple[np.ndarray, float, int]:
+        """Bucket A* over ``frame`` (``padded``'s grid of a map ``cols`` wide). Returns (parent, goal cost,
+        expanded).
+
+        ``start`` and ``goal`` are flat indices of the *unpadded* map; ``parent`` is over the padded grid
+        (indices of the padded grid, -1 at the start; ``navigator.astar.trace`` maps it back). ``slots`` from
+        ``slots_needed``; ``factors`` (indexed by unpadded cell) as for ``navigator.astar_kernel.search``.
+        The goal cost is ``inf`` when the goal is unreachable.
+        """
+        _ = fingerprint  # in the closure, so in numba's cache key (see _compile_search)
+        stride = cols + 2
+        # row = index // stride through a float reciprocal: exact for any grid that fits in memory (the
+        # fraction col / stride stays >= 0.5 / stride away from an integer) and far cheaper than a division.
+        inv_stride = 1.0 / stride
+        g = np.full(frame.size, np.inf)
+        parent = np.empty(frame.size, dtype=np.int32)
+        inv_span = 1.0 / ((1.0 - alpha) * c_min)
+        h_scale = alpha * c_min
+        buckets = np.empty((slots, 256), dtype=np.int32)
+        lengths = np.zeros(slots, dtype=np.int64)
+        mask = slots - 1  # slots is a power of two
+        goal_row = goal // cols + 1
+        goal_col = goal % cols + 1
+        source = (start // cols + 1) * stride + start % cols + 1
+        target = goal_row * stride + goal_col
+        g[source] = 0.0
+        parent[source] = -1
+        start_h = h_scale * _octile(source // stride, source % stride, goal_row, goal_col, diagonal_step)
+        bucket = int(start_h * inv_span)
+        buckets[bucket & mask, 0] = source
+        lengths[bucket & mask] = 1
+        longest = 1
+        pending = 1
+        expanded = 0
+        while pending > 0:
+            slot = bucket & mask
+            while lengths[slot] > 0:
+                lengths[slot] -= 1
+                pending -= 1
+                index = buckets[slot, lengths[slot]]
+                here_g = g[index]
+                if here_g < 0.0:
+                    continue  # a duplicate entry of a cell already closed
+                g[index] = -here_g
+                expanded += 1
+                if index == target:
+                    return parent, here_g, expanded
+                if longest + 8 > buckets.shape[1]:
+                    buckets = _grown(buckets, lengths)
+                row = int((index + 0.5) * inv_stride)
+                col = index - row * stride
+                here_cost = frame[index]
+                # A diagonal move needs the two orthogonal cells beside it finite (no corner cutting).
+                free_up = frame[index - stride] != np.inf
+                free_down = frame[index + stride] != np.inf
+                free_left = frame[index - 1] != np.inf
+                free_right = frame[index + 1] != np.inf
+                for move in range(8):
+                    d_row = MOVES[move, 0]
+                    d_col = MOVES[move, 1]
+                    n_index = index + d_row * stride + d_col
+                    # An obstacle (or a corner cut past one) makes the edge inf, so "tentative < g" fails:
+                    # a select instead of two hard-to-predict branches (measured ~5-10 % faster).
+                    n_cost = frame[n_index]
+                    step = 1.0
+                    if move >= 4:
+                        step = diagonal_step
+                        if no_corner_cutting:
+                            vertical_free = free_up if d_row < 0 else free_down
+                            horizontal_free = free_left if d_col < 0 else free_right
+                            n_cost = n_cost if (vertical_free and horizontal_free) else np.inf
+                    if model == MODEL_MEAN:
+                        edge = step * 0.5 * (here_cost + n_cost)
+                        if use_factors:
+                            edge *= factors[move, (row - 1) * cols + col - 1]
+                    else:
+                        edge = step * n_cost
+                    tentative = here_g + edge
+                    if tentative < g[n_index]:
+                        g[n_index] = tentative
+                        parent[n_index] = index
+                        n_h = h_scale * _octile(row + d_row, col + d_col, goal_row, goal_col, diagonal_step)
+                        # >= bucket + 1 in exact arithmetic; rounding may land it in this bucket: still final
+                        # to float tolerance, and the inner loop picks it up.
+                        n_slot = max(int((tentative + n_h) * inv_span), bucket) & mask
+                        buckets[n_slot, lengths[n_slot]] = n_index
+                        lengths[n_slot] += 1
+                        longest = max(longest, lengths[n_slot])
+                        pending += 1
+            bucket += 1
+        return parent, np.inf, expanded
+
+    return search
+
+
+search = _compile_search(sources_fingerprint(astar_kernel))
