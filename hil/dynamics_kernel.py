@@ -3,15 +3,15 @@
 The step's model is described in ``hil.dynamics``; this module holds its arithmetic. Every physics tick
 used to make about a dozen Python-level calls (normal forces, the traction kernels, the footprint contact
 test, the terrain look-up, the stability margins, the motor outputs), each with its own dispatch and
-boxing; here they run in one numba kernel on preallocated arrays, and the Python side only reads back
-what its callers use.
+boxing; here they run in one numba kernel on preallocated arrays, which returns the body's state and the
+step's record (``BodyState``, ``DynamicsStep``) as plain numbers and tuples.
 
 The floats are the ones the Python form gave, bit for bit (the recorded trials' digests pin them): numba
 without ``fastmath`` uses the same IEEE operations and the same libm calls, and every expression keeps the
 Python form's operation order.
 
 The kernel reads and writes one float vector, ``values``, laid out by the index constants below: the
-body's state (kept from step to step), the wheel speeds given, and what the step produced.
+body's state (kept from step to step), the wheel speeds given, what the step produced, and the map's frame.
 """
 
 from __future__ import annotations
