@@ -6,7 +6,7 @@ and ``ImuSample`` use x forward, y left, z up (FLU), so y and z change sign here
 
 from __future__ import annotations
 
-import base64
+import binascii
 import logging
 import math
 import struct
@@ -312,7 +312,8 @@ class MavlinkLink(ClosesOnExit):
     def _publish_raw(
         self, t_ns: int, direction: str, frame: bytes, msgid: int, name: str, sysid: int, compid: int
     ) -> None:
-        data = base64.b64encode(frame).decode("ascii")
+        # base64.b64encode's own call, without its Python wrapper: ~70 frames a simulated second.
+        data = binascii.b2a_base64(frame, newline=False).decode("ascii")
         if self._bytes_sink is not None and name in _DIALECT_NAMES:
             self._bytes_sink.publish_bytes(
                 MAVLINK_RAW, t_ns, _raw_json(t_ns, direction, msgid, name, sysid, compid, data)
@@ -362,7 +363,7 @@ class MavlinkLink(ClosesOnExit):
         return kept
 
     def _take(self, msg: Any, t_ns: int, readings: list[Reading]) -> None:
-        frame = bytes(msg.get_msgbuf())
+        frame = msg.get_msgbuf()  # the decoded frame's own bytes (read only: recorded, header read)
         kind = msg.get_type()
         if isinstance(msg, mavlink2.MAVLink_unknown):
             msgid, sysid, compid = _header_fields(frame)

@@ -47,38 +47,12 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Sequence
-from typing import NamedTuple
 
 import numpy as np
 
 from hil import dynamics_kernel as k
-from hil.dynamics_kernel import (  # the step's vector layout, read every step
-    CLASS,
-    CONTACT_BEGAN,
-    CONTACT_KIND,
-    CURRENTS,
-    DUTY,
-    ELEVATION,
-    ENERGY_J,
-    FORCE_X,
-    FORCE_Y,
-    FORCE_Z,
-    INPUT_CURRENT_A,
-    LATERAL,
-    NORMALS,
-    PITCH,
-    PITCH_MARGIN,
-    POWER_W,
-    ROLL_MARGIN,
-    ROLLOVER_STARTED,
-    SLIP,
-    STEP_ACCEL,
-    TOUCHING,
-    TRACTION,
-    WHEELS,
-    X,
-)
-from navigator.footprint import BOUNDARY, CLEAR, OBSTACLE
+from hil.dynamics_kernel import WHEELS, BodyState, DynamicsStep
+from navigator.footprint import CLEAR
 from navigator.ground_kernel import GroundUnder
 from navigator.terrain import TerrainMap
 from navigator.terrain_classes import REFERENCE_WHEEL_LOAD_N, TERRAIN_CLASSES, TerrainClass
@@ -89,51 +63,11 @@ class DynamicsError(ValueError):
     """The simulated body was given something it cannot use (bad time step, wheel speeds, start pose)."""
 
 
-class DynamicsStep(NamedTuple):
-    """What one step produced. Per-wheel tuples are in wheel order (LF LM LR RF RM RR).
-
-    A NamedTuple, not a frozen dataclass: one is built every physics step, and a frozen dataclass's
-    ``__init__`` (one ``object.__setattr__`` per field, 27 of them) cost about three times as much."""
-
-    x: float
-    y: float
-    yaw: float
-    speed_mps: float
-    yaw_rate_rps: float
-    roll_rad: float
-    pitch_rad: float
-    terrain_class: int
-    terrain_name: str
-    wheel_speeds_mps: tuple[float, ...]  # wheel surface speeds applied this step
-    # From the class's traction curve for each wheel's pull; (surface − ground) / max(|surface|, |ground|)
-    # once it spins or slides; in [-1, 1].
-    slip: tuple[float, ...]
-    normal_forces_n: tuple[float, ...]
-    traction_forces_n: tuple[float, ...]  # forward pull of each wheel's motor at the ground contact
-    motor_currents_a: tuple[float, ...]
-    duty: tuple[float, ...]
-    longitudinal_accel_mps2: float
-    lateral_accel_mps2: float
-    specific_force_body_mps2: tuple[float, float, float]  # what an IMU measures, gravity included
-    roll_margin_rad: float
-    pitch_margin_rad: float
-    rollover: bool  # latched: true from the step it tipped over onwards
-    rollover_started: bool  # true only on the step it tipped over
-    collided: bool  # the footprint touches an obstacle / the map edge, or a move into one was refused
-    collided_obstacle: bool  # true only on the step a contact began
-    collision_with: str  # "obstacle", "boundary" or "" (no contact)
-    energy_wh: float  # electrical energy used by the six motors so far
-    battery_current_a: float  # motor power / battery voltage this step
-    # What the six motors draw from the pack: the sum of each one's current x duty that is positive (a
-    # braking motor generates, and with no regeneration gives nothing back, nor draws).
-    motor_input_current_a: float = 0.0
-
-
 class RoverDynamics:
     """The rover body on the true terrain, stepped with the wheel speeds the simulated motors achieve.
 
     A step runs as one compiled call (``hil.dynamics_kernel.step_kernel``) on a float vector holding the
-    state; the properties read its copy as plain floats, taken after every step."""
+    state; the properties read the ``BodyState`` it returns (plain numbers) with the step's record."""
 
     def __init__(
         self,
@@ -186,6 +120,7 @@ class RoverDynamics:
         self._values = values = np.zeros(k.VALUES_SIZE)
         values[k.X], values[k.Y], values[k.YAW] = float(x), float(y), k.wrap_angle(float(yaw))
         self._rolled_over = False
+        self._state: BodyState  # the state after the last step (plain numbers; _read_state)
         self._use_terrain(terrain)
         values[k.IN_CONTACT] = values[k.OVERLAP_HERE]
         self._read_state()
@@ -193,50 +128,51 @@ class RoverDynamics:
     # --- state ------------------------------------------------------------------------------------
     @property
     def x(self) -> float:
-        return self._x
+        return self._state.x
 
     @property
     def y(self) -> float:
-        return self._y
+        return self._state.y
 
     @property
     def yaw(self) -> float:
-        return self._yaw
+        return self._state.yaw
 
     @property
     def speed(self) -> float:
         """Speed along the heading (m/s, along the ground)."""
-        return self._speed
+        return self._state.speed
 
     @property
     def yaw_rate(self) -> float:
-        return self._yaw_rate
+        return self._state.yaw_rate
 
     @property
     def roll(self) -> float:
-        return self._roll
+        return self._state.roll
 
     @property
     def pitch(self) -> float:
-        return self._pitch
+        return self._state.pitch
 
     @property
     def elevation_m(self) -> float:
         """The true terrain's elevation under the rover (m)."""
-        return self._elevation
+        return self._state.elevation
 
     @property
     def ground(self) -> GroundUnder:
         """The true terrain under the rover: class, elevation, roll and pitch at its heading."""
-        return GroundUnder(self._class_id, self._elevation, self._roll, self._pitch)
+        state = self._state
+        return GroundUnder(state.class_id, state.elevation, state.roll, state.pitch)
 
     @property
     def energy_j(self) -> float:
-        return self._energy_j
+        return self._state.energy_j
 
     @property
     def energy_wh(self) -> float:
-        return self._energy_j / 3600.0
+        return self._state.energy_j / 3600.0
 
     @property
     def motor_current_limit_a(self) -> float:
@@ -252,8 +188,9 @@ class RoverDynamics:
 
     def set_terrain(self, terrain: TerrainMap) -> None:
         """Swap in a new true terrain (e.g. moved obstacles); it must cover the rover's position."""
-        if not terrain.contains(self._x, self._y):
-            raise DynamicsError(f"new terrain does not cover the rover at ({self._x:.2f}, {self._y:.2f})")
+        x, y = self._state.x, self._state.y
+        if not terrain.contains(x, y):
+            raise DynamicsError(f"new terrain does not cover the rover at ({x:.2f}, {y:.2f})")
         _check_classes(terrain, self._classes)
         self._use_terrain(terrain)
         self._read_state()
@@ -294,84 +231,47 @@ class RoverDynamics:
         if seized and (len(stalled) != 6 or any(d not in (-1.0, 0.0, 1.0) for d in stalled)):
             raise DynamicsError(f"stalled must be six values of -1, 0 or +1, got {list(stalled)}")
 
-        class_id = self._class_id  # where the rover stands: from the end of the last step
+        class_id = self._state.class_id  # where the rover stands: from the end of the last step
         terrain_name = self._class_names[class_id]  # every class on the map has one (_check_classes)
         if self._rolled_over:
             return self._rolled_over_step(class_id, terrain_name)
         if seized:
             self._stalled[:] = stalled
-        status = k.step_kernel(
+        # The kernel hands back the state and the step's record as plain numbers and tuples it boxes itself.
+        status, state_fields, fields = k.step_kernel(
             values, self._body, self._ground_table, self._stalled if seized else self._none_stalled,
-            self._obstacles, self._class_layer, self._elevation_layer, self._grad_x, self._grad_y,
-            self._origin_x, self._origin_y, self._resolution_m, dt_s, battery_voltage_v,
+            self._obstacles, self._class_layer, self._surface, dt_s, battery_voltage_v,
         )  # fmt: skip
-        v = self._read_state()
+        self._state = state = BodyState._make(state_fields)
         if status == k.OFF_MAP:
-            self._terrain.ground_at(
-                self._x, self._y, self._yaw
-            )  # raises the map's own error, naming the point
-        rollover_started = v[ROLLOVER_STARTED] != 0.0
-        if rollover_started:
+            self._terrain.ground_at(state.x, state.y, state.yaw)  # raises the map's error, naming the point
+        step = DynamicsStep._make((*fields, terrain_name))
+        if step.rollover_started:
             self._rolled_over = True
-        touching = v[TOUCHING] != 0.0
-        power = v[POWER_W]
-        # Positional, in the fields' order: with 28 fields, keywords cost twice as much, every step.
-        return DynamicsStep(
-            self._x,
-            self._y,
-            self._yaw,
-            self._speed,
-            self._yaw_rate,
-            self._roll,
-            self._pitch,
-            class_id,
-            terrain_name,
-            tuple(v[WHEELS : WHEELS + 6]),  # wheel_speeds_mps
-            tuple(v[SLIP : SLIP + 6]),
-            tuple(v[NORMALS : NORMALS + 6]),
-            tuple(v[TRACTION : TRACTION + 6]),
-            tuple(v[CURRENTS : CURRENTS + 6]),
-            tuple(v[DUTY : DUTY + 6]),
-            v[STEP_ACCEL],  # longitudinal_accel_mps2
-            v[LATERAL],
-            (v[FORCE_X], v[FORCE_Y], v[FORCE_Z]),  # specific_force_body_mps2
-            v[ROLL_MARGIN],
-            v[PITCH_MARGIN],
-            self._rolled_over,  # rollover
-            rollover_started,
-            touching,  # collided
-            v[CONTACT_BEGAN] != 0.0,  # collided_obstacle
-            _KIND_NAMES[int(v[CONTACT_KIND])] if touching else "",  # collision_with
-            self._energy_j / 3600.0,  # energy_wh
-            power / battery_voltage_v if battery_voltage_v > 0.0 else 0.0,  # battery_current_a
-            v[INPUT_CURRENT_A],  # motor_input_current_a
-        )
+        return step
 
     # --- pieces -----------------------------------------------------------------------------------
-    def _read_state(self) -> list[float]:
-        """Copy the kernel's vector into plain floats (one ``tolist``), keep the state's, return them all."""
-        v = self._values.tolist()
-        self._x, self._y, self._yaw, self._speed, self._yaw_rate, _, self._energy_j = v[X : ENERGY_J + 1]
-        self._class_id = int(v[CLASS])
-        self._elevation, self._roll, self._pitch = v[ELEVATION : PITCH + 1]
-        return v
+    def _read_state(self) -> None:
+        """Keep the state in the kernel's vector for the properties (after a change made outside a step)."""
+        self._state = BodyState._make(k.state(self._values))
 
     def _rolled_over_step(self, class_id: int, terrain_name: str) -> DynamicsStep:
         """On its side the rover goes nowhere; wheels spin in the air with no load, no current."""
         zeros = (0.0,) * 6
         values = self._values
-        roll_margin, pitch_margin = stability_margins(self._params, self._roll, self._pitch)
+        state = self._state
+        roll_margin, pitch_margin = stability_margins(self._params, state.roll, state.pitch)
         values[k.STEP_ACCEL] = 0.0
         k.specific_force(values, 0.0)
         v = values.tolist()
         return DynamicsStep(
-            x=self._x,
-            y=self._y,
-            yaw=self._yaw,
+            x=state.x,
+            y=state.y,
+            yaw=state.yaw,
             speed_mps=0.0,
             yaw_rate_rps=0.0,
-            roll_rad=self._roll,
-            pitch_rad=self._pitch,
+            roll_rad=state.roll,
+            pitch_rad=state.pitch,
             terrain_class=class_id,
             terrain_name=terrain_name,
             wheel_speeds_mps=tuple(v[k.WHEELS : k.WHEELS + 6]),
@@ -392,6 +292,7 @@ class RoverDynamics:
             collision_with="",
             energy_wh=self.energy_wh,
             battery_current_a=0.0,
+            motor_input_current_a=0.0,
         )
 
     def _use_terrain(self, terrain: TerrainMap) -> None:
@@ -401,13 +302,17 @@ class RoverDynamics:
         x, y, yaw = values[k.X], values[k.Y], values[k.YAW]
         self._terrain = terrain
         self._obstacles = np.ascontiguousarray(terrain.obstacles)
-        self._class_layer, self._elevation_layer = terrain.terrain_class, terrain.elevation_m
-        self._grad_x, self._grad_y = terrain.slope_gradient()
-        self._origin_x, self._origin_y = terrain.origin_xy
-        self._resolution_m = terrain.resolution_m
+        self._class_layer = terrain.terrain_class
+        # One stacked copy of the float layers: one kernel argument instead of three (dynamics_kernel).
+        surface = np.empty((3, *terrain.elevation_m.shape))
+        surface[k.ELEVATION_LAYER] = terrain.elevation_m
+        surface[k.GRAD_X_LAYER], surface[k.GRAD_Y_LAYER] = terrain.slope_gradient()
+        self._surface = surface
+        values[k.ORIGIN_X], values[k.ORIGIN_Y] = terrain.origin_xy
+        values[k.RESOLUTION] = terrain.resolution_m
         under = terrain.ground_at(x, y, yaw)
         values[k.CLASS], values[k.ELEVATION], values[k.ROLL], values[k.PITCH] = under
-        grid = (self._obstacles, self._resolution_m, self._origin_x, self._origin_y)
+        grid = (self._obstacles, terrain.resolution_m, terrain.origin_xy[0], terrain.origin_xy[1])
         overlapping = k.contact_kind(grid, self._body, x, y, yaw, 0.0) != CLEAR
         values[k.OVERLAP_HERE] = 1.0 if overlapping else 0.0
 
@@ -478,7 +383,6 @@ def _ground_table(classes: dict[int, TerrainClass]) -> np.ndarray:
     return table
 
 
-_KIND_NAMES = {CLEAR: "", BOUNDARY: "boundary", OBSTACLE: "obstacle"}
 _NONE_SEIZED = (0.0,) * 6  # what SimVescBank.stalled() says while every wheel turns freely
 
 

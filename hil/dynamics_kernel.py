@@ -3,15 +3,15 @@
 The step's model is described in ``hil.dynamics``; this module holds its arithmetic. Every physics tick
 used to make about a dozen Python-level calls (normal forces, the traction kernels, the footprint contact
 test, the terrain look-up, the stability margins, the motor outputs), each with its own dispatch and
-boxing; here they run in one numba kernel on preallocated arrays, and the Python side only reads back
-what its callers use.
+boxing; here they run in one numba kernel on preallocated arrays, which returns the body's state and the
+step's record (``BodyState``, ``DynamicsStep``) as plain numbers and tuples.
 
 The floats are the ones the Python form gave, bit for bit (the recorded trials' digests pin them): numba
 without ``fastmath`` uses the same IEEE operations and the same libm calls, and every expression keeps the
 Python form's operation order.
 
 The kernel reads and writes one float vector, ``values``, laid out by the index constants below: the
-body's state (kept from step to step), the wheel speeds given, and what the step produced.
+body's state (kept from step to step), the wheel speeds given, what the step produced, and the map's frame.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ import math
 from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
+from typing import Any, NamedTuple
 
 import numba
 import numpy as np
@@ -29,7 +30,7 @@ from numpy.typing import NDArray
 from hil import traction
 from hil.traction import drive_forces, wheel_outputs
 from navigator import footprint, ground_kernel, vehicle
-from navigator.footprint import CLEAR, rectangle_contact
+from navigator.footprint import BOUNDARY, CLEAR, OBSTACLE, rectangle_contact
 from navigator.ground_kernel import ground_at_kernel
 from navigator.vehicle import G, normal_forces_into, tilt_margins_kernel
 
@@ -55,7 +56,12 @@ POWER_W, INPUT_CURRENT_A = 21, 22
 FORCE_X, FORCE_Y, FORCE_Z = 23, 24, 25  # specific force in body axes
 # --- per wheel, six each in wheel order: the speeds given (an input), then the step's outputs ---
 WHEELS, SLIP, NORMALS, TRACTION, CURRENTS, DUTY = 26, 32, 38, 44, 50, 56
-VALUES_SIZE = 62
+# --- the map's frame (TerrainMap.origin_xy, resolution_m), set with the terrain ---
+ORIGIN_X, ORIGIN_Y, RESOLUTION = 62, 63, 64
+VALUES_SIZE = 65
+
+# --- ``surface``: the map's float layers stacked, one (rows, cols) plane each ---
+ELEVATION_LAYER, GRAD_X_LAYER, GRAD_Y_LAYER = 0, 1, 2
 
 # --- ``body``: the vehicle and motor constants, built once ---
 # drive_forces' ``vehicle`` vector (its docstring has the layout), then wheel_outputs' ``motor`` vector.
@@ -65,8 +71,138 @@ RESISTANCE = 12  # the motor vector's winding resistance
 CG_HEIGHT, TIP_ROLL, TIP_PITCH, CURRENT_LIMIT, HALF_LENGTH, HALF_WIDTH = 14, 15, 16, 17, 18, 19
 BODY_SIZE = 20
 
-# What ``step_kernel`` returns.
+# How ``step_kernel``'s step ended (the first of the three things it returns).
 STEPPED, OFF_MAP = 0, 1
+
+
+class BodyState(NamedTuple):
+    """The body's state in ``values`` as plain numbers: ``state``'s fields, in order (``step_kernel``
+    returns them too)."""
+
+    x: float
+    y: float
+    yaw: float
+    speed: float  # m/s along the heading
+    yaw_rate: float
+    energy_j: float  # electrical energy used by the motors so far
+    class_id: int  # the terrain under the rover: its class, elevation, roll and pitch at its heading
+    elevation: float
+    roll: float
+    pitch: float
+
+
+class DynamicsStep(NamedTuple):
+    """What one step produced. Per-wheel tuples are in wheel order (LF LM LR RF RM RR).
+
+    Its fields but the last come from the compiled step itself (``step_kernel``, in this order: numba boxes
+    the floats, bools and tuples straight from the vector), so Python neither reads the vector back nor
+    assembles 28 fields every physics step; it adds the terrain's name and makes the tuple this class with
+    ``_make``. (numba could box this class itself, but its boxing looks the class up anew every call
+    through a Python function: more than it saves.) A NamedTuple, not a frozen dataclass: one is built
+    every physics step."""
+
+    x: float
+    y: float
+    yaw: float
+    speed_mps: float
+    yaw_rate_rps: float
+    roll_rad: float
+    pitch_rad: float
+    terrain_class: int
+    wheel_speeds_mps: tuple[float, ...]  # wheel surface speeds applied this step
+    # From the class's traction curve for each wheel's pull; (surface − ground) / max(|surface|, |ground|)
+    # once it spins or slides; in [-1, 1].
+    slip: tuple[float, ...]
+    normal_forces_n: tuple[float, ...]
+    traction_forces_n: tuple[float, ...]  # forward pull of each wheel's motor at the ground contact
+    motor_currents_a: tuple[float, ...]
+    duty: tuple[float, ...]
+    longitudinal_accel_mps2: float
+    lateral_accel_mps2: float
+    specific_force_body_mps2: tuple[float, float, float]  # what an IMU measures, gravity included
+    roll_margin_rad: float
+    pitch_margin_rad: float
+    rollover: bool  # latched: true from the step it tipped over onwards
+    rollover_started: bool  # true only on the step it tipped over
+    collided: bool  # the footprint touches an obstacle / the map edge, or a move into one was refused
+    collided_obstacle: bool  # true only on the step a contact began
+    collision_with: str  # "obstacle", "boundary" or "" (no contact)
+    energy_wh: float  # electrical energy used by the six motors so far
+    battery_current_a: float  # motor power / battery voltage this step
+    # What the six motors draw from the pack: the sum of each one's current x duty that is positive (a
+    # braking motor generates, and with no regeneration gives nothing back, nor draws).
+    motor_input_current_a: float
+    # Last: the one field the compiled step leaves to Python (a str passed into a numba call costs about
+    # as much as the rest of the call's arguments together).
+    terrain_name: str
+
+
+StateFields = tuple[float, float, float, float, float, float, int, float, float, float]
+
+
+@numba.njit(cache=True)
+def state(values: Array) -> StateFields:
+    """The body's state in ``values``: ``BodyState``'s fields."""
+    return (
+        values[X], values[Y], values[YAW], values[SPEED], values[YAW_RATE], values[ENERGY_J],
+        int(values[CLASS]), values[ELEVATION], values[ROLL], values[PITCH],
+    )  # fmt: skip
+
+
+@numba.njit(cache=True)
+def _six(values: Array, start: int) -> tuple[float, float, float, float, float, float]:
+    """The six per-wheel values from ``start`` on, as a tuple."""
+    v = values
+    return (v[start], v[start + 1], v[start + 2], v[start + 3], v[start + 4], v[start + 5])
+
+
+@numba.njit(cache=True)
+def _kind_name(kind: float) -> str:
+    """What a touching footprint touches (``DynamicsStep.collision_with``), from ``values[CONTACT_KIND]``."""
+    if kind == BOUNDARY:
+        return "boundary"
+    if kind == OBSTACLE:
+        return "obstacle"
+    return ""
+
+
+@numba.njit(cache=True)
+def _record(values: Array, terrain_class: int, battery_voltage: float) -> tuple[Any, ...]:
+    """The fields of the ``DynamicsStep`` of the step just taken on ``values``, in order but the last
+    (``terrain_name``), by a body that had not rolled over before it (so ``rollover`` is whether it tipped
+    over now); ``terrain_class``: the class it stood on when the step began."""
+    touching = values[TOUCHING] != 0.0
+    rollover_started = values[ROLLOVER_STARTED] != 0.0
+    power = values[POWER_W]
+    return (
+        values[X],
+        values[Y],
+        values[YAW],
+        values[SPEED],  # speed_mps
+        values[YAW_RATE],  # yaw_rate_rps
+        values[ROLL],  # roll_rad
+        values[PITCH],  # pitch_rad
+        terrain_class,
+        _six(values, WHEELS),  # wheel_speeds_mps
+        _six(values, SLIP),
+        _six(values, NORMALS),  # normal_forces_n
+        _six(values, TRACTION),  # traction_forces_n
+        _six(values, CURRENTS),  # motor_currents_a
+        _six(values, DUTY),
+        values[STEP_ACCEL],  # longitudinal_accel_mps2
+        values[LATERAL],  # lateral_accel_mps2
+        (values[FORCE_X], values[FORCE_Y], values[FORCE_Z]),  # specific_force_body_mps2
+        values[ROLL_MARGIN],
+        values[PITCH_MARGIN],
+        rollover_started,  # rollover: latched from here on by RoverDynamics
+        rollover_started,
+        touching,  # collided
+        values[CONTACT_BEGAN] != 0.0,  # collided_obstacle
+        _kind_name(values[CONTACT_KIND]) if touching else "",  # collision_with
+        values[ENERGY_J] / 3600.0,  # energy_wh
+        power / battery_voltage if battery_voltage > 0.0 else 0.0,  # battery_current_a
+        values[INPUT_CURRENT_A],  # motor_input_current_a
+    )
 
 
 @numba.njit(cache=True)
@@ -164,7 +300,7 @@ def sources_fingerprint(*modules: ModuleType) -> str:
     return digest.hexdigest()
 
 
-def _compile_step_kernel(fingerprint: str) -> Callable[..., int]:
+def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFields, tuple[Any, ...]]]:
     """``step_kernel``, cached by numba with ``fingerprint`` (of the modules it calls) in its cache key.
 
     numba's on-disk cache is checked against the caller's own source file only, but the cached machine
@@ -182,23 +318,24 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., int]:
         stalled: Array,
         obstacles: NDArray[np.bool_],
         classes: NDArray[np.uint8],
-        elevation: Array,
-        grad_x: Array,
-        grad_y: Array,
-        ox: float,
-        oy: float,
-        res: float,
+        surface: Array,
         dt: float,
         battery_voltage: float,
-    ) -> int:
+    ) -> tuple[int, StateFields, tuple[Any, ...]]:
         """One step of ``dt`` s of the rover (not rolled over) on ``values``'s state with its wheel speeds.
 
         ``ground_table`` row ``c``: class ``c``'s traction parameters (``hil.traction.drive_forces``'s
-        ``ground``). ``stalled``: per wheel -1 / 0 / +1 (``RoverDynamics.step``). The terrain's layers and
-        frame as ``TerrainMap``'s. Returns STEPPED, or OFF_MAP when the new position is off the map (the
-        state then holds the new pose, and the terrain under it is the old one).
+        ``ground``). ``stalled``: per wheel -1 / 0 / +1 (``RoverDynamics.step``). The terrain's obstacle and
+        class layers as ``TerrainMap``'s, its float layers stacked in ``surface`` (``ELEVATION_LAYER``, ...),
+        its frame in ``values`` (``ORIGIN_X``, ...): few arguments, as each costs the call's dispatch time.
+
+        Returns STEPPED, or OFF_MAP when the new position is off the map (the state then holds the new
+        pose, and the terrain under it is the old one; the step is not one to use); the body's state
+        after the step (``BodyState``'s fields); and the step's ``DynamicsStep`` fields but the last.
         """
         _ = fingerprint  # in the closure, so in numba's cache key (see _compile_step_kernel)
+        terrain_class = int(values[CLASS])
+        ox, oy, res = values[ORIGIN_X], values[ORIGIN_Y], values[RESOLUTION]
         grid = (obstacles, res, ox, oy)
         x, y, yaw = values[X], values[Y], values[YAW]
         speed0, yaw_rate0 = values[SPEED], values[YAW_RATE]
@@ -256,10 +393,19 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., int]:
         values[SPEED], values[YAW_RATE], values[ACCEL] = speed, yaw_rate, accel
         values[STEP_ACCEL] = accel
         class_id, height, new_roll, new_pitch = ground_at_kernel(
-            classes, elevation, grad_x, grad_y, ox, oy, res, new_x, new_y, new_yaw
+            classes,
+            surface[ELEVATION_LAYER],
+            surface[GRAD_X_LAYER],
+            surface[GRAD_Y_LAYER],
+            ox,
+            oy,
+            res,
+            new_x,
+            new_y,
+            new_yaw,
         )
         if class_id < 0:
-            return OFF_MAP
+            return OFF_MAP, state(values), _record(values, terrain_class, battery_voltage)
         values[CLASS], values[ELEVATION], values[ROLL], values[PITCH] = class_id, height, new_roll, new_pitch
         lateral = speed * yaw_rate
         roll_margin, pitch_margin = tilt_margins_kernel(
@@ -298,7 +444,7 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., int]:
             input_current += max(currents[i] * duty[i], 0.0)
         values[INPUT_CURRENT_A] = input_current
         specific_force(values, lateral)
-        return STEPPED
+        return STEPPED, state(values), _record(values, terrain_class, battery_voltage)
 
     return step_kernel
 

@@ -7,7 +7,9 @@ import numpy as np
 import pytest
 
 from hil import dynamics_kernel
-from hil.dynamics import DynamicsError, RoverDynamics
+from hil.dynamics import DynamicsError, DynamicsStep, RoverDynamics
+from hil.dynamics_kernel import BodyState
+from navigator.footprint import BOUNDARY, CLEAR, OBSTACLE
 from navigator.terrain import TerrainMap
 from navigator.terrain_classes import TerrainClass
 from navigator.vehicle import VehicleParams, stability_margins, tilt_margins_kernel
@@ -85,3 +87,84 @@ def test_a_swapped_in_terrain_with_a_class_the_table_lacks_is_a_typed_error():
     with pytest.raises(DynamicsError, match=r"terrain classes \[1\]"):
         body.set_terrain(TerrainMap(other.elevation_m, classes, np.zeros(classes.shape, bool), 0.25))
     body.step(0.01, [0.2] * 6, 24.0)  # still on its old map
+
+
+def _record_read_back(body: RoverDynamics, before: BodyState, voltage: float) -> DynamicsStep:
+    """The step just taken as read back from the kernel's vector in Python (the form the compiled record
+    replaced): one ``tolist()``, the layout's indices, the contact kind's name from a table."""
+    v = body._values.tolist()
+    k = dynamics_kernel
+    touching = v[k.TOUCHING] != 0.0
+    kinds = {CLEAR: "", BOUNDARY: "boundary", OBSTACLE: "obstacle"}
+    wheels, slip, normals, traction, currents, duty = (
+        tuple(v[start : start + 6]) for start in (k.WHEELS, k.SLIP, k.NORMALS, k.TRACTION, k.CURRENTS, k.DUTY)
+    )
+    return DynamicsStep(
+        v[k.X],
+        v[k.Y],
+        v[k.YAW],
+        v[k.SPEED],
+        v[k.YAW_RATE],
+        v[k.ROLL],
+        v[k.PITCH],
+        before.class_id,
+        wheels,
+        slip,
+        normals,
+        traction,
+        currents,
+        duty,
+        v[k.STEP_ACCEL],
+        v[k.LATERAL],
+        (v[k.FORCE_X], v[k.FORCE_Y], v[k.FORCE_Z]),
+        v[k.ROLL_MARGIN],
+        v[k.PITCH_MARGIN],
+        body.rolled_over,
+        v[k.ROLLOVER_STARTED] != 0.0,
+        touching,
+        v[k.CONTACT_BEGAN] != 0.0,
+        kinds[int(v[k.CONTACT_KIND])] if touching else "",
+        v[k.ENERGY_J] / 3600.0,
+        v[k.POWER_W] / voltage if voltage > 0.0 else 0.0,
+        v[k.INPUT_CURRENT_A],
+        body._class_names[before.class_id],
+    )
+
+
+def test_the_compiled_step_record_is_the_vector_read_back_bit_for_bit():
+    """The kernel boxes the step's record and the body's state itself; they must be the vector's numbers,
+    field by field and of the same types, through contacts (walls, the map edge), seized wheels, a rough
+    slope with two classes, and rollovers."""
+    rng = np.random.default_rng(11)
+    size = (60, 60)
+    classes = np.zeros(size, np.uint8)
+    classes[:, 30:] = 1
+    obstacles = np.zeros(size, bool)
+    obstacles[14:18, :] = True  # a wall along x from y = 3.5 m, 1 m north of the start
+    two = {
+        0: TerrainClass(0, "grass", 0.7, 0.05, 1.0, "test"),
+        1: TerrainClass(1, "sand", 0.4, 0.12, 1.0, "test"),
+    }
+    compared = contacts = rollovers = 0
+    for trial in range(12):
+        # Gentle slopes to rollover-steep ones, across the two classes.
+        elevation = np.cumsum(rng.uniform(-0.02, 0.02 + 0.04 * trial, size), axis=1)
+        terrain = TerrainMap(elevation, classes, obstacles, 0.25)
+        body = RoverDynamics(terrain, PARAMS, two, x=7.4, y=2.5, yaw=float(rng.uniform(-3, 3)))
+        for i in range(400):
+            before = body._state
+            if body.rolled_over:
+                break
+            if i % 40 == 0:  # a command held for 0.4 s, so the body gets somewhere
+                wheels = rng.uniform(-1.5, 1.5, 6).tolist()
+            stalled = tuple(rng.choice([-1.0, 0.0, 1.0], 6).tolist()) if rng.random() < 0.2 else ()
+            voltage = float(rng.choice([24.0, 0.0])) if rng.random() < 0.05 else 24.0
+            step = body.step(0.01, wheels, voltage, stalled)  # the map's edge stops it: it never leaves
+            expected = _record_read_back(body, before, voltage)
+            assert [(type(f), f) for f in step] == [(type(f), f) for f in expected]
+            state = dynamics_kernel.state(body._values)
+            assert tuple(body._state) == state and [type(f) for f in state] == [type(f) for f in body._state]
+            compared += 1
+            contacts += step.collided
+            rollovers += step.rollover_started
+    assert compared > 1000 and contacts > 0 and rollovers > 0
