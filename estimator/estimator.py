@@ -305,7 +305,9 @@ class Estimator:
         """The estimate of state ``x`` and covariance ``p`` at ``t_ns``, judged as ``health`` judges it
         (only the flags ``healthy`` needs: no ``EstimatorHealth`` built every tick)."""
         config = self._config
-        p.flags.writeable = False  # the pose's own copy, handed to every reader until the filter changes
+        # The pose's own copy, handed to every reader until the filter changes. setflags: the same flag
+        # without building the array's flags object on every tick.
+        p.setflags(write=False)
         position_std = position_std_m(p)
         healthy = (
             position_std < config.healthy_position_std_m
