@@ -207,8 +207,8 @@ class Guidance:
         """Take in obstacle observations (any number, any order); acted on at the next ``update``."""
         for obs in observations:
             if (
-                not all(math.isfinite(v) for v in (obs.x, obs.y, obs.radius_m, obs.vx, obs.vy))
-                or obs.radius_m < 0
+                # map(): the same tests as a generator expression, without its frame per observation.
+                not all(map(math.isfinite, (obs.x, obs.y, obs.radius_m, obs.vx, obs.vy))) or obs.radius_m < 0
             ):
                 _log.warning(
                     "rejected obstacle observation %r: non-finite or negative values", obs.obstacle_id

@@ -536,8 +536,13 @@ class OnboardStack:
         elif self._healthy_since_ns is None:
             self._healthy_since_ns = now
         settled = self._healthy_since_ns is not None and now - self._healthy_since_ns >= SETTLE_NS
+        heartbeat_heard = self._mavlink.last_heartbeat_ns is not None
+        if settled and heartbeat_heard and self._wheels.heard:
+            # Every tick once driving: all checks pass (settled implies a healthy pose), no list to join.
+            self._not_ready = ""
+            return True
         missing = []  # in this order
-        if self._mavlink.last_heartbeat_ns is None:
+        if not heartbeat_heard:
             missing.append("no autopilot heartbeat")
         if not self._wheels.heard:
             missing.append("wheel controllers not all heard")
