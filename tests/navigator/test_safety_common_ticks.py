@@ -11,28 +11,17 @@ import pytest
 from navigator.safety import SafetyInputs, SafetySupervisor
 from navigator.safety_config import SafetyConfig
 from navigator.vehicle import VehicleParams
+from tests.runtime.test_supervisor import inputs
 
 TICK_NS = 20_000_000
 
 
 def _inputs(now_ns: int, **changes: Any) -> SafetyInputs:
-    calm = SafetyInputs(
-        now_ns=now_ns,
-        tick_gap_ns=TICK_NS,
-        wheel_last_status_ns=(now_ns,) * 6,
-        can_bus_off=False,
-        can_send_failing_since_ns=None,
-        estimator_healthy=True,
-        last_gps_ns=now_ns,
-        last_heartbeat_ns=now_ns,
-        last_ground_contact_ns=None,
+    """A calm driving tick (the supervisor tests' inputs, every wheel commanded and turning), changed."""
+    calm = inputs(now_ns, (5.0, 5.0))._replace(
         sent_speed_mps=0.5,
         sent_at_ns=0,
         measured_speed_mps=0.5,
-        roll_pitch_rad=(0.0, 0.0),
-        lateral_accel_mps2=0.0,
-        position_xy=(5.0, 5.0),
-        battery_v=24.0,
         wheel_commands_mps=(0.5,) * 6,
         wheel_speeds_mps=(0.5,) * 6,
         wheel_currents_a=(5.0,) * 6,
