@@ -178,7 +178,7 @@ class RoverEkf:
 
     def state(self, index: int) -> float:
         """One state value without copying the vector."""
-        return float(self._x[index])
+        return self._x.item(index)  # a Python float straight away, not a numpy scalar then float()
 
     def state_values(self) -> list[float]:
         """The state as Python floats, in ``STATE_NAMES`` order (one C call, not one per value)."""

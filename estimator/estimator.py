@@ -305,7 +305,9 @@ class Estimator:
         """The estimate of state ``x`` and covariance ``p`` at ``t_ns``, judged as ``health`` judges it
         (only the flags ``healthy`` needs: no ``EstimatorHealth`` built every tick)."""
         config = self._config
-        p.flags.writeable = False  # the pose's own copy, handed to every reader until the filter changes
+        # The pose's own copy, handed to every reader until the filter changes. setflags: the same flag
+        # without building the array's flags object on every tick.
+        p.setflags(write=False)
         position_std = position_std_m(p)
         healthy = (
             position_std < config.healthy_position_std_m
@@ -415,28 +417,28 @@ class Estimator:
         self._counters["gps_fused_late"] += 1
 
     def _fuse_wheels(self, t_ns: int, motion: BodyMotion) -> None:
-        if not self._ekf.initialised:
+        ekf = self._ekf
+        if not ekf.initialised:
             self._counters["wheels_before_init"] += 1
             return
-        if t_ns < self._ekf.t_ns - _MAX_SAMPLE_LAG_NS:
-            self._reject("wheels_stale", f"sample at {t_ns} ns, filter already at {self._ekf.t_ns} ns")
+        if t_ns < ekf.t_ns - _MAX_SAMPLE_LAG_NS:
+            self._reject("wheels_stale", f"sample at {t_ns} ns, filter already at {ekf.t_ns} ns")
             return
-        if self._last_wheels_ns is not None and t_ns > self._last_wheels_ns:
-            self._stuck.add_odometry(
-                t_ns, motion.speed_mps * (t_ns - self._last_wheels_ns) * 1e-9, self._ekf.state(YAW)
-            )
+        last_wheels_ns = self._last_wheels_ns
+        if last_wheels_ns is not None and t_ns > last_wheels_ns:
+            self._stuck.add_odometry(t_ns, motion.speed_mps * (t_ns - last_wheels_ns) * 1e-9, ekf.state(YAW))
         self._last_wheels_ns = t_ns
         self._transient.add(t_ns, motion.speed_mps)
         speed_std, yaw_rate_std = self._odometry_noise(t_ns, motion)
         use_speed = not self._stuck.spinning
         if not use_speed:
             self._counters["odometry_speed_left_out"] += 1
-        before = self._ekf.snapshot() if self._history is not None else None
+        before = ekf.snapshot() if self._history is not None else None
         if not self._heading_known:
             self._feed_bootstrap(t_ns)
-        self._ekf.learn_scale(self._scale_observable(t_ns))
+        ekf.learn_scale(self._scale_observable(t_ns))
         # The predict to t_ns in the same compiled call as the update.
-        innovation = self._ekf.update_odometry(
+        innovation = ekf.update_odometry(
             motion.speed_mps, motion.yaw_rate_rps, speed_std, yaw_rate_std, use_speed=use_speed, t_ns=t_ns
         )
         if before is not None:

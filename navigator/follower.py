@@ -186,21 +186,21 @@ class PurePursuit:
             yaw_rate = math.copysign(cfg.max_yaw_rate_rps, heading_error)
             return FollowCommand(0.0, yaw_rate, cross_track, 0.0, REASON_TURN_IN_PLACE, False)
 
-        limits = [(cfg.max_speed_mps, REASON_MAX_SPEED)]
-        if abs(curvature) > 1e-9:
+        # The first (in this order) of the smallest limits names the reason: top speed, curvature, goal
+        # approach. Compared as they are worked out (strictly smaller replaces), as ``first_smallest`` over
+        # a list of them would, without building the list every tick.
+        limit, reason = cfg.max_speed_mps, REASON_MAX_SPEED
+        abs_curvature = abs(curvature)
+        if abs_curvature > 1e-9:
             turn_limit = min(
-                math.sqrt(cfg.max_lateral_accel_mps2 / abs(curvature)), cfg.max_yaw_rate_rps / abs(curvature)
+                math.sqrt(cfg.max_lateral_accel_mps2 / abs_curvature), cfg.max_yaw_rate_rps / abs_curvature
             )
-            limits.append((turn_limit, REASON_CURVATURE))
+            if turn_limit < limit:
+                limit, reason = turn_limit, REASON_CURVATURE
         approach = max(distance_to_goal, remaining)
-        limits.append(
-            (
-                max(cfg.min_speed_mps, cfg.max_speed_mps * approach / cfg.slowdown_radius_m),
-                REASON_GOAL_APPROACH,
-            )
-        )
-        # The first (in listed order) of the smallest limits names the reason.
-        limit, reason = first_smallest(limits)
+        approach_limit = max(cfg.min_speed_mps, cfg.max_speed_mps * approach / cfg.slowdown_radius_m)
+        if approach_limit < limit:
+            limit, reason = approach_limit, REASON_GOAL_APPROACH
         return FollowCommand(limit, limit * curvature, cross_track, limit, reason, False, curvature)
 
     def _arrived(self, cross_track: float) -> FollowCommand:

@@ -36,7 +36,7 @@ import numpy as np
 
 from navigator.config import PlannerConfig
 from navigator.errors import ParameterError
-from navigator.follower import FollowCommand, FollowerConfig, PurePursuit, first_smallest
+from navigator.follower import FollowCommand, FollowerConfig, PurePursuit
 from navigator.footprint import Footprint
 from navigator.perception import ObstacleObservation
 from navigator.plan_worker import InlineExecutor, PlanOutcome, PlanRequest, in_range, run_plan_request
@@ -118,8 +118,14 @@ class Guidance:
             else PurePursuit(follower_config)
         )
         self._clearance_m = params.footprint_radius_m + planner_config.inflation_m
-        # For the slope speed limit of every tick.
+        # For the speed limits of every tick, worked out once: the slope limit's divisor, each terrain
+        # class's limit (the classes are fixed for the guidance's life) and the roll room before the margin.
         self._tan_tip_roll = math.tan(params.tip_roll_rad)
+        self._terrain_limit_mps = {
+            terrain_class: follower_config.max_speed_mps / math.sqrt(max(spec.cost_factor, 1.0))
+            for terrain_class, spec in classes.items()
+        }
+        self._tip_room_rad = params.tip_roll_rad - follower_config.min_tip_margin_rad
         self._goal: tuple[float, float] | None = None
         self._path: Path | None = None
         self._mode = IDLE
@@ -201,8 +207,8 @@ class Guidance:
         """Take in obstacle observations (any number, any order); acted on at the next ``update``."""
         for obs in observations:
             if (
-                not all(math.isfinite(v) for v in (obs.x, obs.y, obs.radius_m, obs.vx, obs.vy))
-                or obs.radius_m < 0
+                # map(): the same tests as a generator expression, without its frame per observation.
+                not all(map(math.isfinite, (obs.x, obs.y, obs.radius_m, obs.vx, obs.vy))) or obs.radius_m < 0
             ):
                 _log.warning(
                     "rejected obstacle observation %r: non-finite or negative values", obs.obstacle_id
@@ -376,26 +382,31 @@ class Guidance:
         self, command: FollowCommand, x: float, y: float, yaw: float, path_changed: bool, detail: str
     ) -> GuidanceOutput:
         cfg = self._follower_config
-        limits = [(command.speed_limit_mps, command.speed_limit_reason)]
+        # The first (in this order) of the smallest limits names the reason: follower, slope, terrain class,
+        # tip margin. Compared as they are worked out (strictly smaller replaces), as ``first_smallest`` over
+        # a list of them would, without building the list every tick.
+        limit, reason = command.speed_limit_mps, command.speed_limit_reason
         # Class and tilt in one look-up; None off the map.
         ground = self.planner.terrain.ground_on_map(x, y, yaw) if command.speed_mps > 0.0 else None
         if ground is not None:
             roll, pitch = ground.roll_rad, ground.pitch_rad
-            tilt = max(abs(roll), abs(pitch))
-            slope_scale = max(0.3, 1.0 - math.tan(tilt) / self._tan_tip_roll)
-            limits.append((cfg.max_speed_mps * slope_scale, REASON_SLOPE))
-            factor = self._classes[ground.terrain_class].cost_factor
-            limits.append((cfg.max_speed_mps / math.sqrt(max(factor, 1.0)), REASON_TERRAIN))
-            room = self._params.tip_roll_rad - cfg.min_tip_margin_rad - abs(roll)
-            if abs(command.curvature_1pm) > 1e-9:
+            abs_roll, abs_pitch = abs(roll), abs(pitch)
+            tilt = abs_pitch if abs_pitch > abs_roll else abs_roll  # max(abs(roll), abs(pitch)), same pick
+            slope_scale = 1.0 - math.tan(tilt) / self._tan_tip_roll
+            slope_scale = slope_scale if slope_scale > 0.3 else 0.3  # max(0.3, scale), NaN too
+            candidate = cfg.max_speed_mps * slope_scale
+            if candidate < limit:
+                limit, reason = candidate, REASON_SLOPE
+            candidate = self._terrain_limit_mps[ground.terrain_class]
+            if candidate < limit:
+                limit, reason = candidate, REASON_TERRAIN
+            curvature = abs(command.curvature_1pm)
+            if curvature > 1e-9:
+                room = self._tip_room_rad - abs_roll
                 lateral = G * math.tan(max(room, 0.0))
-                limits.append(
-                    (
-                        max(math.sqrt(lateral / abs(command.curvature_1pm)), cfg.min_speed_mps),
-                        REASON_TIP_MARGIN,
-                    )
-                )
-        limit, reason = first_smallest(limits)
+                candidate = max(math.sqrt(lateral / curvature), cfg.min_speed_mps)
+                if candidate < limit:
+                    limit, reason = candidate, REASON_TIP_MARGIN
         speed, yaw_rate = command.speed_mps, command.yaw_rate_rps
         if speed > limit > 0.0:
             # Scale speed and yaw rate together: the curvature the follower asked for is kept.

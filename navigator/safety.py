@@ -16,7 +16,7 @@ from __future__ import annotations
 import enum
 import math
 from collections.abc import Callable, Sequence
-from typing import NamedTuple
+from typing import NamedTuple, cast
 
 from firmware_bridge.wheel_names import wheel_label, wheel_labels
 from logs.clock import NS_PER_S, to_ns
@@ -49,6 +49,8 @@ ESTOP = "estop"  # latched ESTOP mode
 _GONE = "condition gone"
 # A pack reading below this is "no reading yet" (STATUS_5 not received), not a flat battery.
 _NO_VOLTAGE_V = 1.0
+# Wheel status times once None (never heard) is known not to be among them.
+_Heard = tuple[int, ...]
 
 
 class SafetyMode(enum.StrEnum):
@@ -202,12 +204,15 @@ class SafetySupervisor:
 
     def _check_links(self, i: SafetyInputs) -> None:
         now, start, limit = i.now_ns, self._start_ns, self._silent_ns
-        # Each wheel's age; a controller never heard counts from the supervisor's start (``start``).
-        silent = [
-            index
-            for index, t in enumerate(i.wheel_last_status_ns)
-            if now - (start if t is None else t) > limit
-        ]
+        statuses = i.wheel_last_status_ns
+        # cast: the min is taken only once None is known not to be among them.
+        if not statuses or (None not in statuses and now - min(cast(_Heard, statuses)) <= limit):
+            # The common tick: every wheel heard, the oldest within the limit, so none is silent (the
+            # oldest status in C, not a comprehension over the wheels).
+            silent = []
+        else:
+            # Each wheel's age; a controller never heard counts from the supervisor's start (``start``).
+            silent = [index for index, t in enumerate(statuses) if now - (start if t is None else t) > limit]
         if silent:
             self._trip(
                 WHEEL_SILENT,
@@ -307,11 +312,20 @@ class SafetySupervisor:
             return
         min_command, max_speed = c.wheel_stall_min_command_mps, c.wheel_stall_max_speed_mps
         min_current = c.wheel_stall_min_current_a
-        judged = zip(i.wheel_commands_mps, i.wheel_speeds_mps, i.wheel_currents_a, strict=False)
-        stalling = [
-            abs(command) >= min_command and abs(speed) < max_speed and abs(current) >= min_current
-            for command, speed, current in judged
-        ]
+        commands, speeds = i.wheel_commands_mps, i.wheel_speeds_mps
+        # The common ticks, judged in C over the wheels: no wheel commanded enough to judge (stopped), or
+        # every wheel turning fast enough (driving). Either way no wheel can be stalling; anything else
+        # (a NaN first included: min and max then return it and the test fails) is judged wheel by wheel.
+        none_commanded = not commands or max(map(abs, commands)) < min_command
+        all_turning = not speeds or min(map(abs, speeds)) >= max_speed
+        if none_commanded or all_turning:
+            stalling = []
+        else:
+            judged = zip(commands, speeds, i.wheel_currents_a, strict=False)
+            stalling = [
+                abs(command) >= min_command and abs(speed) < max_speed and abs(current) >= min_current
+                for command, speed, current in judged
+            ]
         if not any(stalling):
             # The common tick: no wheel stalling. Its timers are dropped (as _sustained drops a condition
             # gone) only when one may be running, not with a dict pop per wheel on every tick.
