@@ -16,11 +16,8 @@ body's state (kept from step to step), the wheel speeds given, what the step pro
 
 from __future__ import annotations
 
-import hashlib
 import math
 from collections.abc import Callable
-from pathlib import Path
-from types import ModuleType
 from typing import Any, NamedTuple
 
 import numba
@@ -32,6 +29,7 @@ from hil.traction import drive_forces, wheel_outputs
 from navigator import footprint, ground_kernel, vehicle
 from navigator.footprint import BOUNDARY, CLEAR, OBSTACLE, rectangle_contact
 from navigator.ground_kernel import ground_at_kernel
+from navigator.kernel_cache import sources_fingerprint
 from navigator.vehicle import G, normal_forces_into, tilt_margins_kernel
 
 Array = NDArray[np.float64]
@@ -156,7 +154,11 @@ def _six(values: Array, start: int) -> tuple[float, float, float, float, float, 
     return (v[start], v[start + 1], v[start + 2], v[start + 3], v[start + 4], v[start + 5])
 
 
-@numba.njit(cache=True)
+# Not cached on their own (_kind_name, _record, _depth, _refused, _advance_to_contact): they compile in
+# navigator.footprint's code or constants and run only inside step_kernel, whose cache key carries
+# footprint's fingerprint. A cached copy of their own would be checked against this file only, and could
+# bring stale footprint code into a freshly compiled step_kernel.
+@numba.njit
 def _kind_name(kind: float) -> str:
     """What a touching footprint touches (``DynamicsStep.collision_with``), from ``values[CONTACT_KIND]``."""
     if kind == BOUNDARY:
@@ -166,7 +168,7 @@ def _kind_name(kind: float) -> str:
     return ""
 
 
-@numba.njit(cache=True)
+@numba.njit  # not cached on its own: see _kind_name
 def _record(values: Array, terrain_class: int, battery_voltage: float) -> tuple[Any, ...]:
     """The fields of the ``DynamicsStep`` of the step just taken on ``values``, in order but the last
     (``terrain_name``), by a body that had not rolled over before it (so ``rollover`` is whether it tipped
@@ -211,17 +213,27 @@ def wrap_angle(angle: float) -> float:
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
-@numba.njit(cache=True)
-def contact_kind(grid: Grid, body: Array, x: float, y: float, yaw: float, grow_m: float) -> int:
-    """What the footprint at (x, y, yaw), grown by ``grow_m`` on every side, overlaps (CLEAR, OBSTACLE,
-    BOUNDARY of ``navigator.footprint``)."""
-    obstacles, res, ox, oy = grid
-    return rectangle_contact(
-        obstacles, res, ox, oy, x, y, yaw, body[HALF_LENGTH] + grow_m, body[HALF_WIDTH] + grow_m
-    )
+def _compile_contact_kind(fingerprint: str) -> Callable[[Grid, Array, float, float, float, float], int]:
+    """``contact_kind``, with ``fingerprint`` (of ``navigator.footprint``, whose contact test it compiles
+    in) in numba's cache key: see ``navigator.kernel_cache``."""
+
+    @numba.njit(cache=True)
+    def contact_kind(grid: Grid, body: Array, x: float, y: float, yaw: float, grow_m: float) -> int:
+        """What the footprint at (x, y, yaw), grown by ``grow_m`` on every side, overlaps (CLEAR, OBSTACLE,
+        BOUNDARY of ``navigator.footprint``)."""
+        _ = fingerprint  # in the closure, so in numba's cache key (see _compile_contact_kind)
+        obstacles, res, ox, oy = grid
+        return rectangle_contact(
+            obstacles, res, ox, oy, x, y, yaw, body[HALF_LENGTH] + grow_m, body[HALF_WIDTH] + grow_m
+        )
+
+    return contact_kind
 
 
-@numba.njit(cache=True)
+contact_kind = _compile_contact_kind(sources_fingerprint(footprint))
+
+
+@numba.njit  # not cached on its own: see _kind_name
 def _depth(grid: Grid, body: Array, x: float, y: float, yaw: float) -> float:
     """How far the footprint reaches into obstacles or past the edge: the least shrink of every side (m)
     that clears it (bisection); 0 when clear, half its width when even its centre line overlaps."""
@@ -239,7 +251,7 @@ def _depth(grid: Grid, body: Array, x: float, y: float, yaw: float) -> float:
     return hi
 
 
-@numba.njit(cache=True)
+@numba.njit  # not cached on its own: see _kind_name
 def _refused(grid: Grid, body: Array, values: Array, x: float, y: float, yaw: float) -> bool:
     """Whether moving to (x, y, yaw) pushes the footprint further in: into an overlap from clear, or
     deeper into one it already overlaps (e.g. an obstacle appeared on it: it may still back out)."""
@@ -251,7 +263,7 @@ def _refused(grid: Grid, body: Array, values: Array, x: float, y: float, yaw: fl
     return _depth(grid, body, x, y, yaw) > here
 
 
-@numba.njit(cache=True)
+@numba.njit  # not cached on its own: see _kind_name
 def _advance_to_contact(
     grid: Grid, body: Array, values: Array, new_x: float, new_y: float, yaw_from: float, turn: float
 ) -> tuple[float, float, float]:
@@ -292,23 +304,10 @@ def _stall(stalled: Array, body: Array, battery_voltage: float, currents: Array,
     return power
 
 
-def sources_fingerprint(*modules: ModuleType) -> str:
-    """sha256 of the modules' source files."""
-    digest = hashlib.sha256()
-    for module in modules:
-        digest.update(Path(str(module.__file__)).read_bytes())
-    return digest.hexdigest()
-
-
 def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFields, tuple[Any, ...]]]:
-    """``step_kernel``, cached by numba with ``fingerprint`` (of the modules it calls) in its cache key.
-
-    numba's on-disk cache is checked against the caller's own source file only, but the cached machine
-    code holds the compiled functions it calls from other modules too (the traction laws, the footprint
-    contact test, the terrain look-up, the load balance): an edit there would leave this kernel running
-    the old code. A closure variable's value is part of numba's cache key, so the fingerprint of those
-    modules' sources makes an edit to any of them compile the kernel afresh.
-    """
+    """``step_kernel``, with ``fingerprint`` (of the modules whose compiled functions it calls: the
+    traction laws, the footprint contact test, the terrain look-up, the load balance) in numba's cache
+    key: see ``navigator.kernel_cache``."""
 
     @numba.njit(cache=True)
     def step_kernel(
@@ -454,12 +453,22 @@ KERNEL_SOURCES = (traction, footprint, ground_kernel, vehicle)
 step_kernel = _compile_step_kernel(sources_fingerprint(*KERNEL_SOURCES))
 
 
-@numba.njit(cache=True)
-def specific_force(values: Array, lateral: float) -> None:
-    """Acceleration minus gravity in body axes (x fwd, y left, z up): (0, 0, +g) at rest on the level,
-    from ``values``'s terrain tilt and step acceleration."""
-    roll, pitch = values[ROLL], values[PITCH]
-    cos_pitch = math.cos(pitch)
-    values[FORCE_X] = values[STEP_ACCEL] + G * math.sin(pitch)
-    values[FORCE_Y] = lateral + G * cos_pitch * math.sin(roll)
-    values[FORCE_Z] = G * cos_pitch * math.cos(roll)
+def _compile_specific_force(fingerprint: str) -> Callable[[Array, float], None]:
+    """``specific_force``, with ``fingerprint`` (of ``navigator.vehicle``, whose ``G`` it compiles in) in
+    numba's cache key: see ``navigator.kernel_cache``."""
+
+    @numba.njit(cache=True)
+    def specific_force(values: Array, lateral: float) -> None:
+        """Acceleration minus gravity in body axes (x fwd, y left, z up): (0, 0, +g) at rest on the level,
+        from ``values``'s terrain tilt and step acceleration."""
+        _ = fingerprint  # in the closure, so in numba's cache key (see _compile_specific_force)
+        roll, pitch = values[ROLL], values[PITCH]
+        cos_pitch = math.cos(pitch)
+        values[FORCE_X] = values[STEP_ACCEL] + G * math.sin(pitch)
+        values[FORCE_Y] = lateral + G * cos_pitch * math.sin(roll)
+        values[FORCE_Z] = G * cos_pitch * math.cos(roll)
+
+    return specific_force
+
+
+specific_force = _compile_specific_force(sources_fingerprint(vehicle))

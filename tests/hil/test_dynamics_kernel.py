@@ -2,7 +2,6 @@
 
 import math
 
-import numba
 import numpy as np
 import pytest
 
@@ -45,23 +44,6 @@ def test_the_compiled_tilt_margins_are_the_planners_bit_for_bit():
         expected = stability_margins(PARAMS, roll, pitch, lateral)
         got = tilt_margins_kernel(PARAMS.tip_roll_rad, PARAMS.tip_pitch_rad, roll, pitch, lateral)
         assert got == expected
-
-
-def test_the_step_kernels_cache_key_holds_every_module_it_compiles_in():
-    """numba checks a cached kernel against its own file only; step_kernel's closure carries a fingerprint
-    of the other modules' sources (dynamics_kernel._compile_step_kernel). Every compiled function it
-    imports must come from a fingerprinted module, and the fingerprint must be the current sources'."""
-    fingerprinted = {module.__name__ for module in dynamics_kernel.KERNEL_SOURCES}
-    imported = {
-        value.py_func.__module__
-        for value in vars(dynamics_kernel).values()
-        if isinstance(value, numba.core.registry.CPUDispatcher)
-        and value.py_func.__module__ != dynamics_kernel.__name__
-    }
-    assert imported and imported <= fingerprinted
-    closure = dynamics_kernel.step_kernel.py_func.__closure__
-    cells = [cell.cell_contents for cell in closure or ()]
-    assert dynamics_kernel.sources_fingerprint(*dynamics_kernel.KERNEL_SOURCES) in cells
 
 
 @pytest.mark.parametrize("degrees", [5.0, 70.0])
