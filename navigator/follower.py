@@ -187,8 +187,7 @@ class PurePursuit:
             return FollowCommand(0.0, yaw_rate, cross_track, 0.0, REASON_TURN_IN_PLACE, False)
 
         # The first (in this order) of the smallest limits names the reason: top speed, curvature, goal
-        # approach. Compared as they are worked out (strictly smaller replaces), as ``first_smallest`` over
-        # a list of them would, without building the list every tick.
+        # approach. Compared as they are worked out: only a strictly smaller limit replaces the one so far.
         limit, reason = cfg.max_speed_mps, REASON_MAX_SPEED
         abs_curvature = abs(curvature)
         if abs_curvature > 1e-9:
@@ -278,13 +277,3 @@ class PurePursuit:
         # Per coordinate the arithmetic numpy did on the two rows: the same floats.
         (x0, y0), (x1, y1) = xy[index], xy[index + 1]
         return x0 + fraction * (x1 - x0), y0 + fraction * (y1 - y0)
-
-
-def first_smallest(limits: list[tuple[float, str]]) -> tuple[float, str]:
-    """The smallest (limit, reason) by limit; the first in listed order on ties (as ``min`` with a key,
-    without a key function's call per item)."""
-    limit, reason = limits[0]
-    for candidate, why in limits[1:]:
-        if candidate < limit:
-            limit, reason = candidate, why
-    return limit, reason

@@ -383,8 +383,7 @@ class Guidance:
     ) -> GuidanceOutput:
         cfg = self._follower_config
         # The first (in this order) of the smallest limits names the reason: follower, slope, terrain class,
-        # tip margin. Compared as they are worked out (strictly smaller replaces), as ``first_smallest`` over
-        # a list of them would, without building the list every tick.
+        # tip margin. Compared as they are worked out: only a strictly smaller limit replaces the one so far.
         limit, reason = command.speed_limit_mps, command.speed_limit_reason
         # Class and tilt in one look-up; None off the map.
         ground = self.planner.terrain.ground_on_map(x, y, yaw) if command.speed_mps > 0.0 else None

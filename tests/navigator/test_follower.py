@@ -5,7 +5,7 @@ import pytest
 
 from logs.settings import ConfigError, parse_toml
 from navigator.errors import ParameterError
-from navigator.follower import FollowerConfig, PurePursuit, first_smallest
+from navigator.follower import FollowerConfig, PurePursuit
 from navigator.stanley import Stanley
 
 
@@ -178,9 +178,3 @@ def test_a_new_read_only_path_and_a_reset_start_over():
     assert follower.command(0.0, 4.0, 0.0, 0.0, second).cross_track_error_m == pytest.approx(-1.0)
     follower.reset()
     assert follower.command(0.0, 1.0, 0.0, 0.0, first).cross_track_error_m == pytest.approx(1.0)
-
-
-def test_the_first_of_the_smallest_limits_names_the_reason():
-    limits = [(1.0, "max_speed"), (0.5, "curvature"), (0.5, "goal_approach"), (0.7, "slope")]
-    assert first_smallest(limits) == min(limits, key=lambda item: item[0]) == (0.5, "curvature")
-    assert first_smallest([(0.2, "only")]) == (0.2, "only")
