@@ -60,7 +60,7 @@ _MAX_CACHED_FRAME_KINDS = 512
 _frame_bits = functools.lru_cache(maxsize=128)(frame_bits)
 
 
-@dataclass
+@dataclass(slots=True)  # six copies per control tick (readings()), a store per status frame
 class WheelReading:
     """The latest VESC status of one wheel, in physical units."""
 

@@ -106,6 +106,7 @@ class SimVescBank:
             )
             for cid in self._ids
         ]
+        self._status_of_wheel = [status for status, _, _ in self._status_encoders]  # STATUS, every 20 ms
 
     # --- commands in ---------------------------------------------------------------------------
     def poll(self) -> int:
@@ -287,13 +288,20 @@ class SimVescBank:
         # Each frame's values in its encoder's order (FieldEncoder): numbers, no dict per frame.
         frames: list[tuple[FieldEncoder, tuple[float, ...]]] = []
         if fast_due:
-            for i, (status, _, _) in enumerate(self._status_encoders):
-                if not self._rebooting[i]:
-                    erpm = round(self._erpm[i])  # clamped to the int32 field by comparisons (hot path)
+            # Every 20 ms, six wheels: their lists walked together rather than indexed (hot path).
+            for status, rebooting, motor_erpm, current, duty in zip(
+                self._status_of_wheel,
+                self._rebooting,
+                self._erpm,
+                self._motor_current_a,
+                self._duty_cycle,
+                strict=True,
+            ):
+                if not rebooting:
+                    erpm = round(motor_erpm)  # clamped to the int32 field by comparisons (hot path)
                     if not -_INT32_MAX <= erpm <= _INT32_MAX:
                         erpm = _INT32_MAX if erpm > 0 else -_INT32_MAX
-                    current = self._motor_current_a[i]
-                    frames.append((status, (erpm, current, self._duty_cycle[i])))
+                    frames.append((status, (erpm, current, duty)))
         if slow_due:
             voltage = self._input_voltage_v
             for i, (_, status_4, status_5) in enumerate(self._status_encoders):
