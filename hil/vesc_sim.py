@@ -107,6 +107,12 @@ class SimVescBank:
             for cid in self._ids
         ]
         self._status_of_wheel = [status for status, _, _ in self._status_encoders]  # STATUS, every 20 ms
+        # Frame id -> message name of each status frame we send, for a send failure's log line.
+        self._status_names = {
+            encoder.message.frame_id: encoder.message.name
+            for encoders in self._status_encoders
+            for encoder in encoders
+        }
 
     # --- commands in ---------------------------------------------------------------------------
     def poll(self) -> int:
@@ -316,29 +322,29 @@ class SimVescBank:
 
     def _send_all(self, frames: list[tuple[FieldEncoder, tuple[float, ...]]]) -> None:
         """Encode each frame, then send them in order; one that fails is counted and the rest still go."""
-        encoded: list[tuple[FieldEncoder, can.Message]] = []
+        msgs: list[can.Message] = []
         for encoder, values in frames:
             try:
-                encoded.append((encoder, encoder.encode(values)))
+                msgs.append(encoder.encode(values))
             except _SEND_ERRORS as err:
-                self._send_failed(encoder, err)
+                self._send_failed(encoder.message.name, err)
         if self._batch_bus is not None:
             # Hot path (6-18 frames per status period): one call for them all on the lockstep bus.
             try:
-                self._batch_bus.send_all([msg for _, msg in encoded])
+                self._batch_bus.send_all(msgs)
                 return
             except can.CanError:
                 pass  # it sent none of them: one by one below, so each failure is counted as before
         send = self._bus.send
-        for encoder, msg in encoded:
+        for msg in msgs:
             try:
                 send(msg)
             except _SEND_ERRORS as err:
-                self._send_failed(encoder, err)
+                self._send_failed(self._status_names[msg.arbitration_id], err)
 
-    def _send_failed(self, encoder: FieldEncoder, err: Exception) -> None:
+    def _send_failed(self, name: str, err: Exception) -> None:
         self.send_errors += 1
-        logger.debug("simulated VESC: cannot send %s: %s", encoder.message.name, err)
+        logger.debug("simulated VESC: cannot send %s: %s", name, err)
 
     # --- accessors -----------------------------------------------------------------------------
     def wheel_speeds_mps(self) -> list[float]:

@@ -2,6 +2,7 @@
 CAN link and the simulated controllers do with them: the same as frame by frame, record for record."""
 
 import dataclasses
+import logging
 from typing import Any
 
 import can
@@ -33,6 +34,15 @@ class OneByOne(can.BusABC):
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
         return self._inner.recv(timeout=0), False
+
+
+class LogLines(logging.Handler):
+    def __init__(self) -> None:
+        super().__init__(logging.DEBUG)
+        self.lines: list[tuple[str, int, str]] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.lines.append((record.name, record.levelno, record.getMessage()))
 
 
 class BytesRecorder(MemorySink):
@@ -89,6 +99,11 @@ def _exchange(batched: bool) -> dict[str, Any]:
     sim = SimVescBank(sim_bus, make_codec(), clock)
     stranger = lockstep_bus_pair("stranger")[0]  # sends on the rover's bus as a third node would
     stranger._connect(rover_end)
+    logs = LogLines()
+    root = logging.getLogger()
+    level = root.level
+    root.addHandler(logs)
+    root.setLevel(logging.DEBUG)
     try:
         for tick in range(1, 61):
             clock.advance(10_000_000)
@@ -105,6 +120,9 @@ def _exchange(batched: bool) -> dict[str, Any]:
                 link.send_wheel_speeds([0.5, 0.5, 0.5, -0.5, -0.5, 0.02 * tick])
         rover_end.shutdown()  # every send refused: six failures, then bus-off
         link.send_wheel_speeds([0.5] * 6)
+        sim_end.shutdown()  # the controllers' eighteen status frames refused, each counted
+        clock.advance(100_000_000)
+        sim.step(0.01)
         return {
             "records": sink.records,
             "frames": sink.frames,
@@ -112,8 +130,11 @@ def _exchange(batched: bool) -> dict[str, Any]:
             "state": link.state,
             "readings": [dataclasses.asdict(r) for r in link.readings()],
             "sim": (sim.commands_applied, sim.ignored_frames, sim.bad_frames, sim.send_errors, sim.erpm()),
+            "logs": logs.lines,
         }
     finally:
+        root.removeHandler(logs)
+        root.setLevel(level)
         rover_end.shutdown()
         sim_end.shutdown()
         stranger.shutdown()
@@ -125,4 +146,5 @@ def test_batches_give_the_records_counters_and_readings_of_frame_by_frame():
     counters = batched["counters"]
     assert counters["unknown_id"] == 2 and counters["wrong_dlc"] == 1 and counters["bus_errors"] == 7
     assert batched["state"].name == "BUS_OFF"
-    assert batched["sim"][0] > 100 and batched["readings"][0]["erpm"] != 0.0
+    assert any("cannot send VESC_STATUS_5_C6" in line for _, _, line in batched["logs"])
+    assert batched["sim"][0] > 100 and batched["sim"][3] == 18 and batched["readings"][0]["erpm"] != 0.0
