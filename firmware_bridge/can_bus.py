@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import errno
 import logging
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import can
 
@@ -68,6 +69,21 @@ class CanConfig:
             raise table.error("channel", "must not be empty")
         table.finish()
         return config
+
+
+@runtime_checkable
+class BatchBus(Protocol):
+    """A bus that also moves frames a batch at a time (``hil.lockstep_bus.LockstepBus``): the CAN link and
+    the simulated controllers use these where the bus has them, ``send`` and ``recv`` elsewhere.
+
+    ``send_all(msgs)``: the same as ``send`` of each in turn when all go; when the bus refuses (raises
+    ``can.CanError``), it has sent none of them, so the caller can send them one by one to learn which
+    fail. ``recv_all()``: what calling ``recv(timeout=0)`` until it gives None would give, in order.
+    A wrapper that changes frames (faults) is not one unless it implements both itself."""
+
+    def send_all(self, msgs: Sequence[can.Message]) -> None: ...
+
+    def recv_all(self) -> Sequence[can.Message]: ...
 
 
 def open_bus(config: CanConfig, receive_own_messages: bool = False) -> can.BusABC:

@@ -14,7 +14,7 @@ from typing import Any
 
 import can
 
-from firmware_bridge.can_bus import CanConfig, open_bus
+from firmware_bridge.can_bus import BatchBus, CanConfig, open_bus
 from firmware_bridge.can_echo import OwnEchoFilter, echoes_own_sends
 from firmware_bridge.can_health import (
     BusLoadMeter,
@@ -60,7 +60,7 @@ _MAX_CACHED_FRAME_KINDS = 512
 _frame_bits = functools.lru_cache(maxsize=128)(frame_bits)
 
 
-@dataclass
+@dataclass(slots=True)  # six copies per control tick (readings()), a store per status frame
 class WheelReading:
     """The latest VESC status of one wheel, in physical units."""
 
@@ -104,6 +104,21 @@ class CanCounters:
     def rejected(self) -> int:
         """Received frames refused: not ours, the wrong length, or not decodable."""
         return sum(getattr(self, name) for name in CAN_REJECTION_CAUSES)
+
+
+def _store_status(
+    reading: WheelReading, kind: str, values: list[float], erpm_per_mps: float, t_ns: int
+) -> None:
+    """Keep a status frame's ``values`` (its kind's ``_STATUS_FIELDS``, in that order) in its wheel's
+    reading, heard at ``t_ns``."""
+    if kind == "STATUS":
+        reading.erpm, reading.motor_current_a, reading.duty = values
+        reading.speed_mps = reading.erpm / erpm_per_mps  # VescProfile.speed_from_erpm, inline (hot path)
+    elif kind == "STATUS_4":
+        (reading.input_current_a,) = values
+    else:  # STATUS_5
+        reading.tachometer, reading.input_voltage_v = values
+    reading.last_status_ns = t_ns
 
 
 def _frame_json(t_ns: int, direction: str, msg: can.Message) -> bytes:
@@ -256,6 +271,9 @@ class CanLink(ClosesOnExit):
         self._set_rpm = tuple(
             codec.encoder("SET_RPM", cid).fields(("erpm",)) for cid in self._ids
         )  # wheel order
+        # A command round's bits (frame_bits of each SET_RPM, as the encoders make them: 29-bit ids, dlc =
+        # length), counted at once when the round goes in one call (_send_batch).
+        self._round_bits = sum(frame_bits(True, encoder.length) for encoder in self._set_rpm)
         self._readings = [WheelReading(cid) for cid in self._ids]
         self._wheel_of = {cid: index for index, cid in enumerate(self._ids)}
         # Frame id -> the reader of the fields the readings keep (_STATUS_FIELDS), for each controller's
@@ -265,11 +283,18 @@ class CanLink(ClosesOnExit):
             for kind, names in _STATUS_FIELDS.items()
             for frame_id, decoder in codec.field_decoders(kind, names).items()
         }
-        # ... as (its reader, kind, controller id, the bits of a frame the reader accepts), all _take asks
-        # per status frame in one lookup. A frame the reader accepts has the message's format (a 29-bit id,
-        # as VescCodec requires, and dlc = length), so its bits (frame_bits) are known before it arrives.
+        # ... as (its reader, kind, controller id, the bits of a frame the reader accepts, the wheel's
+        # reading), all _take asks per status frame in one lookup. A frame the reader accepts has the
+        # message's format (a 29-bit id, as VescCodec requires, and dlc = length), so its bits (frame_bits)
+        # are known before it arrives.
         self._status_frames = {
-            frame_id: (decoder.values, decoder.kind, decoder.controller_id, frame_bits(True, decoder.length))
+            frame_id: (
+                decoder.values,
+                decoder.kind,
+                decoder.controller_id,
+                frame_bits(True, decoder.length),
+                self._readings[self._wheel_of[decoder.controller_id]],
+            )
             for frame_id, decoder in status_decoders.items()
         }
         self._foreign = ForeignControllers(self._ids)
@@ -285,6 +310,9 @@ class CanLink(ClosesOnExit):
         self._rejected_reported = 0  # rejections already in a warning
         self._last_rejection = ""  # the reason of the latest, for the next warning
         self._echoes = OwnEchoFilter() if echoes_own_sends(bus) else None
+        # The lockstep bus moves a command round, and everything waiting, in one call (BatchBus); the
+        # background thread's reader and repeater stay frame by frame.
+        self._batch_bus = bus if isinstance(bus, BatchBus) and not threaded else None
         self._zero_erpm = [0] * WHEEL_COUNT
         self._latest_erpm: list[int] = list(self._zero_erpm)
         self._latest_ns: int | None = None  # when the control loop last asked for wheel speeds
@@ -367,10 +395,11 @@ class CanLink(ClosesOnExit):
         failures = 0
         self._begin_frames(t_ns, "tx")
         try:
-            # ``erpm`` holds erpm_command's integers (or zeros), already in the field: encoded as they are.
-            for set_rpm, value in zip(self._set_rpm, erpm, strict=True):
-                if not self._send(t_ns, set_rpm.encode((value,)), background=background):
-                    failures += 1
+            if background or not self._send_batch(t_ns, erpm):
+                # ``erpm`` holds erpm_command's integers (or zeros), already in the field: encoded as is.
+                for set_rpm, value in zip(self._set_rpm, erpm, strict=True):
+                    if not self._send(t_ns, set_rpm.encode((value,)), background=background):
+                        failures += 1
         finally:
             self._flush_frames()
         self.last_sent_erpm = list(erpm)
@@ -378,6 +407,33 @@ class CanLink(ClosesOnExit):
             # socketcan refuses every send while the interface is down or the controller is bus-off.
             self._apply(t_ns, self._bus_state.on_signal(BusSignal.BUS_OFF, "every send failed"), background)
         return erpm
+
+    def _send_batch(self, t_ns: int, erpm: list[int]) -> bool:
+        """The loop's command round in one call on a ``BatchBus``: True if every frame went (each counted
+        and recorded as ``_send`` does); False if nothing was sent (no such bus, a frame that does not
+        encode, the bus refusing), and the caller sends frame by frame, which counts and reports each
+        failure as always.
+
+        Hot path (a round of six SET_RPM per control tick): one send call per round, the bits of the
+        round known beforehand (``_round_bits``)."""
+        if self._batch_bus is None:
+            return False
+        try:
+            msgs = [set_rpm.encode((value,)) for set_rpm, value in zip(self._set_rpm, erpm, strict=True)]
+            self._batch_bus.send_all(msgs)
+        except (BridgeOperationError, can.CanError):
+            return False
+        self.counters.tx += len(msgs)
+        self.bits_total += self._round_bits
+        if self._echoes is not None:
+            for msg in msgs:
+                self._echoes.sent(msg)
+        if self._bytes_sink is not None:
+            self._frames.extend(msgs)
+        else:
+            for msg in msgs:
+                self._publish_frame(t_ns, "tx", msg)
+        return True
 
     def _send(self, t_ns: int, msg: can.Message, *, background: bool = False) -> bool:
         try:
@@ -476,22 +532,12 @@ class CanLink(ClosesOnExit):
         with self._lock:
             self._flush_background_records()
             t_ns = self._clock.now_ns()
-            frames = 0
-            status_seen = False
-            receive = self._bus.recv if self._reader is None else self._reader.get_message
             self._begin_frames(t_ns, "rx")
             try:
-                while True:
-                    try:
-                        msg = receive(timeout=0)
-                    except (can.CanError, OSError, ValueError) as err:
-                        self.counters.bus_errors += 1
-                        logger.debug("CAN receive failed: %s", err)
-                        break
-                    if msg is None:
-                        break
-                    frames += 1
-                    status_seen |= self._take(msg, t_ns)
+                if self._batch_bus is not None:
+                    frames, status_seen = self._take_all(self._batch_bus, t_ns)
+                else:
+                    frames, status_seen = self._take_each(t_ns)
             finally:
                 self._flush_frames()
             self._check_bus_state(t_ns)
@@ -501,6 +547,75 @@ class CanLink(ClosesOnExit):
                 self._publish_status(t_ns)
             self._publish_load(t_ns)
             return frames
+
+    def _take_each(self, t_ns: int) -> tuple[int, bool]:
+        """Receive and take frames one by one until none is waiting (or the bus fails); returns how many
+        came and whether any was a status frame."""
+        receive = self._bus.recv if self._reader is None else self._reader.get_message
+        frames = 0
+        status_seen = False
+        while True:
+            try:
+                msg = receive(timeout=0)
+            except (can.CanError, OSError, ValueError) as err:
+                self.counters.bus_errors += 1
+                logger.debug("CAN receive failed: %s", err)
+                break
+            if msg is None:
+                break
+            frames += 1
+            status_seen |= self._take(msg, t_ns)
+        return frames, status_seen
+
+    def _take_all(self, bus: BatchBus, t_ns: int) -> tuple[int, bool]:
+        """``_take_each`` on a ``BatchBus``: everything waiting, received in one call (hot path: each control
+        tick's poll, 6-18 frames, no receive call per frame nor for the frame that is not there)."""
+        try:
+            msgs = bus.recv_all()
+        except (can.CanError, OSError, ValueError) as err:
+            self.counters.bus_errors += 1
+            logger.debug("CAN receive failed: %s", err)
+            return 0, False
+        if self._echoes is not None or self._bytes_sink is None:
+            status_seen = False
+            for msg in msgs:
+                status_seen |= self._take(msg, t_ns)
+            return len(msgs), status_seen
+        return len(msgs), self._take_statuses(msgs, t_ns)
+
+    def _take_statuses(self, msgs: Sequence[can.Message], t_ns: int) -> bool:
+        """``_take`` of each frame for a bytes-only sink on a bus without echoes; True if any was a status
+        frame.
+
+        Hot path (every control tick's 6-18 frames): a status frame of one of our controllers, in its
+        message's format, on an OK bus, is taken here with _take's steps for it, in its order, and the
+        lookups made once per poll; any other frame, and every frame while the bus is not OK, goes to
+        ``_take`` itself. (``_frames`` is read per frame: recording an event flushes it.)"""
+        status_seen = False
+        counters, status_frames, bus_state = self.counters, self._status_frames, self._bus_state
+        heard = self._liveness.heard
+        erpm_per_mps = self.profile.erpm_per_mps
+        for msg in msgs:
+            status = status_frames.get(msg.arbitration_id)
+            if (
+                status is None
+                or msg.is_error_frame
+                or bus_state.state is not CanLinkState.OK
+                or (values := status[0](msg)) is None
+            ):
+                status_seen |= self._take(msg, t_ns)
+                continue
+            _, kind, cid, bits, reading = status
+            counters.rx += 1
+            self._frames.append(msg)
+            self.bits_total += bits
+            _store_status(reading, kind, values, erpm_per_mps, t_ns)
+            if (change := heard(cid, t_ns)) is not None:
+                self._apply(t_ns, change, False)
+            # The bus is OK (checked above; recording a liveness change does not change it): the bus state
+            # machine has nothing to learn from this frame, as in _take.
+            status_seen = True
+        return status_seen
 
     def _publish_load(self, t_ns: int) -> None:
         c = self.counters
@@ -556,7 +671,7 @@ class CanLink(ClosesOnExit):
         values: list[float] | None
         status = self._status_frames.get(msg.arbitration_id)
         if status is not None and (values := status[0](msg)) is not None:
-            _, kind, cid, bits = status
+            _, kind, cid, bits, reading = status
             self.bits_total += bits
         else:  # anything else, and what the decoder refuses: the codec decodes it or says why not
             self.bits_total += _frame_bits(msg.is_extended_id, msg.dlc)
@@ -568,6 +683,7 @@ class CanLink(ClosesOnExit):
             kind, cid = frame.kind, frame.controller_id
             fields = _STATUS_FIELDS.get(kind)
             values = None if fields is None else [frame.values[name] for name in fields]
+            reading = self._readings[self._wheel_of[cid]]
         # Hot path (~420 frames per simulated second): the health machines return a change only when
         # there is one to report, so the common frame skips _apply altogether; and a good frame or a
         # status tells the bus state machine something only while the bus is not OK (bus-off: frames are
@@ -577,7 +693,7 @@ class CanLink(ClosesOnExit):
             self._apply(t_ns, change, False)
         if values is None:
             return False  # not a status frame
-        self._store_status(kind, cid, values, t_ns)
+        _store_status(reading, kind, values, self.profile.erpm_per_mps, t_ns)
         if (change := self._liveness.heard(cid, t_ns)) is not None:
             self._apply(t_ns, change, False)
         if bus_state.state is not CanLinkState.OK and (change := bus_state.on_status(cid)) is not None:
@@ -632,18 +748,6 @@ class CanLink(ClosesOnExit):
         while self._background_records:
             topic, t_ns, message = self._background_records.popleft()
             self._sink.publish(topic, t_ns, message)
-
-    def _store_status(self, kind: str, controller_id: int, values: list[float], t_ns: int) -> None:
-        """Keep a status frame's ``values`` (its ``_STATUS_FIELDS``, in that order) in its wheel's reading."""
-        reading = self._readings[self._wheel_of[controller_id]]
-        if kind == "STATUS":
-            reading.erpm, reading.motor_current_a, reading.duty = values
-            reading.speed_mps = reading.erpm / self.profile.erpm_per_mps  # speed_from_erpm, inline (hot path)
-        elif kind == "STATUS_4":
-            (reading.input_current_a,) = values
-        else:  # STATUS_5
-            reading.tachometer, reading.input_voltage_v = values
-        reading.last_status_ns = t_ns
 
     def _publish_status(self, t_ns: int) -> None:
         wheels = [

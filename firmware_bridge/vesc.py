@@ -205,7 +205,7 @@ class FieldEncoder:
         self._names = names
         self._fixed = fixed
         self._frame_id = message.frame_id
-        self._length = message.length
+        self.length = message.length  # the data length (and dlc) of every frame it makes
         signals = sorted(signal.name for signal in message.signals)
         if signals != sorted([*names, *fixed]):
             raise BridgeSetupError(
@@ -231,7 +231,7 @@ class FieldEncoder:
             ) from err
         # Positional, in can.Message's order (timestamp, arbitration_id, is_extended_id, is_remote_frame,
         # is_error_frame, channel, dlc, data): binding these by keyword is ~35 % of the constructor's cost.
-        return can.Message(0.0, self._frame_id, True, False, False, None, self._length, data)
+        return can.Message(0.0, self._frame_id, True, False, False, None, self.length, data)
 
 
 class VescCodec:

@@ -13,6 +13,7 @@ from collections.abc import Sequence
 
 import can
 
+from firmware_bridge.can_bus import BatchBus
 from firmware_bridge.errors import BridgeError, FrameError
 from firmware_bridge.vesc import WHEEL_COUNT, FieldEncoder, VescCodec, VescFrame
 from firmware_bridge.wheel_names import wheel_label
@@ -28,6 +29,8 @@ _IDLE_STATUS_4 = {"temp_fet": _IDLE_TEMPERATURE_C, "temp_motor": _IDLE_TEMPERATU
 _STATUS_CURRENT_LIMIT_A = 3000.0  # the int16 / 10 field holds +-3276.7 A
 _INT32_MAX = (1 << 31) - 1
 _VOLTAGE_FIELD_MAX_V = 3000.0  # int16 / 10
+# What a status frame that cannot be encoded or sent raises: counted (send_errors), the rest still go.
+_SEND_ERRORS = (can.CanError, BridgeError, ValueError, KeyError)
 # No command for this long: the firmware releases the motor (what SimVescBank does by default).
 DEFAULT_COMMAND_TIMEOUT_S = 0.5
 
@@ -86,10 +89,15 @@ class SimVescBank:
         self.reboots = 0
         self._rebooting = [False] * WHEEL_COUNT  # fault: controller silent while it restarts
         self._stuck = [False] * WHEEL_COUNT  # fault: the wheel is seized
+        # Frame id -> (the reader of each controller's SET_RPM, its wheel): the commands of every control
+        # tick, _take's usual case, in one lookup and without decode's dict and VescFrame per frame.
+        self._set_rpm_readers = {
+            frame_id: (decoder.values, self._wheel_of[decoder.controller_id])
+            for frame_id, decoder in codec.field_decoders("SET_RPM", ("erpm",)).items()
+        }
+        # The lockstep bus takes a status period's frames, and gives everything waiting, in one call.
+        self._batch_bus = bus if isinstance(bus, BatchBus) else None
         # Per wheel: the encoders of its status frames, looked up once (eighteen frames per 20 ms).
-        # Frame id -> the reader of each controller's SET_RPM (the commands of every control tick): poll's
-        # usual case, without decode's dict and VescFrame per frame.
-        self._set_rpm_decoders = codec.field_decoders("SET_RPM", ("erpm",))
         self._status_encoders = [
             (
                 codec.encoder("STATUS", cid).fields(("erpm", "current", "duty")),
@@ -98,13 +106,37 @@ class SimVescBank:
             )
             for cid in self._ids
         ]
+        self._status_of_wheel = [status for status, _, _ in self._status_encoders]  # STATUS, every 20 ms
+        # Frame id -> message name of each status frame we send, for a send failure's log line.
+        self._status_names = {
+            encoder.message.frame_id: encoder.message.name
+            for encoders in self._status_encoders
+            for encoder in encoders
+        }
 
     # --- commands in ---------------------------------------------------------------------------
     def poll(self) -> int:
         """Drain the bus and apply the commands addressed to our controllers; returns frames read."""
         now = self._clock.now_ns()
+        if self._batch_bus is not None:  # the lockstep bus: everything waiting in one call (BatchBus)
+            try:
+                frames = self._batch_bus.recv_all()
+            except can.CanError as err:
+                logger.debug("simulated VESC bank: receive failed: %s", err)
+                return 0
+            readers = self._set_rpm_readers
+            for msg in frames:  # _take's usual frame, a SET_RPM of ours, without the call (every tick)
+                set_rpm = readers.get(msg.arbitration_id)
+                if set_rpm is None or msg.is_error_frame or (values := set_rpm[0](msg)) is None:
+                    self._take(msg, now)
+                else:
+                    self._command_erpm(set_rpm[1], values[0], now)
+            return len(frames)
+        return self._poll_each(now)
+
+    def _poll_each(self, now: int) -> int:
+        """``poll`` on a bus without ``recv_all``: frame by frame until none is waiting or receiving fails."""
         count = 0
-        set_rpm_decoders = self._set_rpm_decoders
         while True:
             try:
                 msg = self._bus.recv(timeout=0)
@@ -114,23 +146,27 @@ class SimVescBank:
             if msg is None:
                 break
             count += 1
-            if msg.is_error_frame:
-                continue
-            decoder = set_rpm_decoders.get(msg.arbitration_id)
-            if decoder is not None and (values := decoder.values(msg)) is not None:
-                self._command_erpm(self._wheel_of[decoder.controller_id], values[0], now)
-                continue
-            try:
-                frame = self._codec.decode(msg)
-            except FrameError as err:
-                if err.reason == "unknown_id":
-                    self.ignored_frames += 1
-                else:
-                    self.bad_frames += 1
-                    logger.debug("simulated VESC bank: rejected frame: %s", err)
-                continue
-            self._apply(frame, now)
+            self._take(msg, now)
         return count
+
+    def _take(self, msg: can.Message, now: int) -> None:
+        """One received frame: a command for one of our controllers is applied, anything else counted."""
+        if msg.is_error_frame:
+            return
+        set_rpm = self._set_rpm_readers.get(msg.arbitration_id)
+        if set_rpm is not None and (values := set_rpm[0](msg)) is not None:
+            self._command_erpm(set_rpm[1], values[0], now)
+            return
+        try:
+            frame = self._codec.decode(msg)
+        except FrameError as err:
+            if err.reason == "unknown_id":
+                self.ignored_frames += 1
+            else:
+                self.bad_frames += 1
+                logger.debug("simulated VESC bank: rejected frame: %s", err)
+            return
+        self._apply(frame, now)
 
     def _command_erpm(self, wheel: int, erpm: float, now_ns: int) -> None:
         """A SET_RPM of ``erpm`` for ``wheel``: poll's usual frame, read without the codec's VescFrame."""
@@ -258,13 +294,20 @@ class SimVescBank:
         # Each frame's values in its encoder's order (FieldEncoder): numbers, no dict per frame.
         frames: list[tuple[FieldEncoder, tuple[float, ...]]] = []
         if fast_due:
-            for i, (status, _, _) in enumerate(self._status_encoders):
-                if not self._rebooting[i]:
-                    erpm = round(self._erpm[i])  # clamped to the int32 field by comparisons (hot path)
+            # Every 20 ms, six wheels: their lists walked together rather than indexed (hot path).
+            for status, rebooting, motor_erpm, current, duty in zip(
+                self._status_of_wheel,
+                self._rebooting,
+                self._erpm,
+                self._motor_current_a,
+                self._duty_cycle,
+                strict=True,
+            ):
+                if not rebooting:
+                    erpm = round(motor_erpm)  # clamped to the int32 field by comparisons (hot path)
                     if not -_INT32_MAX <= erpm <= _INT32_MAX:
                         erpm = _INT32_MAX if erpm > 0 else -_INT32_MAX
-                    current = self._motor_current_a[i]
-                    frames.append((status, (erpm, current, self._duty_cycle[i])))
+                    frames.append((status, (erpm, current, duty)))
         if slow_due:
             voltage = self._input_voltage_v
             for i, (_, status_4, status_5) in enumerate(self._status_encoders):
@@ -278,14 +321,30 @@ class SimVescBank:
         self._send_all(frames)
 
     def _send_all(self, frames: list[tuple[FieldEncoder, tuple[float, ...]]]) -> None:
-        """Encode and send each frame in order; one that fails is counted and the rest still go."""
-        send = self._bus.send  # 6-18 frames per status period: one lookup, one call per frame
+        """Encode each frame, then send them in order; one that fails is counted and the rest still go."""
+        msgs: list[can.Message] = []
         for encoder, values in frames:
             try:
-                send(encoder.encode(values))
-            except (can.CanError, BridgeError, ValueError, KeyError) as err:
-                self.send_errors += 1
-                logger.debug("simulated VESC: cannot send %s: %s", encoder.message.name, err)
+                msgs.append(encoder.encode(values))
+            except _SEND_ERRORS as err:
+                self._send_failed(encoder.message.name, err)
+        if self._batch_bus is not None:
+            # Hot path (6-18 frames per status period): one call for them all on the lockstep bus.
+            try:
+                self._batch_bus.send_all(msgs)
+                return
+            except can.CanError:
+                pass  # it sent none of them: one by one below, so each failure is counted as before
+        send = self._bus.send
+        for msg in msgs:
+            try:
+                send(msg)
+            except _SEND_ERRORS as err:
+                self._send_failed(self._status_names[msg.arbitration_id], err)
+
+    def _send_failed(self, name: str, err: Exception) -> None:
+        self.send_errors += 1
+        logger.debug("simulated VESC: cannot send %s: %s", name, err)
 
     # --- accessors -----------------------------------------------------------------------------
     def wheel_speeds_mps(self) -> list[float]:

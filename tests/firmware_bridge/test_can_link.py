@@ -19,12 +19,14 @@ from logs.encoding import encode_message
 from logs.settings import ConfigError, parse_toml
 from logs.sink import MemorySink
 from logs.topics import CAN_FRAMES, SAFETY_EVENTS, WHEELS_STATUS
-from tests.firmware_bridge.virtual_can import TEST_PROFILE, make_codec, virtual_bus_pair
+from tests.firmware_bridge.virtual_can import BUS_KINDS, TEST_PROFILE, bus_pair, make_codec
 
 
-@pytest.fixture
+@pytest.fixture(params=BUS_KINDS)
 def buses(request):
-    with virtual_bus_pair(request.node.name) as pair:
+    """Each test on a virtual bus and on the lockstep one, whose link and controllers move frames in
+    batches (BatchBus): the same behaviour either way."""
+    with bus_pair(request.param, request.node.name) as pair:
         yield pair
 
 

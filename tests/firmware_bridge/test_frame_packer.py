@@ -162,10 +162,11 @@ def test_layouts_struct_cannot_express_are_declined() -> None:
 def test_field_decoders_give_decode_numbers_and_leave_what_decode_refuses_to_it(seed: int) -> None:
     rng = random.Random(seed)
     codec = make_codec()
-    for spec in VESC_MESSAGES:
+    shapes = [(message, count) for message in VESC_MESSAGES for count in range(1, len(message.signals) + 1)]
+    for spec, count in shapes:
         names = [signal.name for signal in spec.signals]
         rng.shuffle(names)
-        names = names[: rng.randint(1, len(names))]  # some fields, in any order
+        names = names[:count]  # one field, two, ... all, in any order (the readers written out and looped)
         decoders = codec.field_decoders(spec.kind, names)
         assert len(decoders) == 6
         for frame_id, decoder in decoders.items():
@@ -235,3 +236,43 @@ def test_a_field_encoder_must_name_every_signal_once() -> None:
         encoder.fields(("erpm", "current", "duty"), {"duty": 0.0})
     with pytest.raises(BridgeOperationError, match="cannot encode VESC_STATUS_C1"):
         encoder.fields(("erpm", "current", "duty")).encode((1.0, 2.0))  # a value short
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_packing_of_every_signal_in_struct_order_gives_cantools_bytes(seed: int) -> None:
+    """Every signal given, in the struct's order, none held: ``packing`` writes the conversions out (STATUS,
+    STATUS_5, SET_RPM: what the controllers and the link send); the bytes are still cantools', ints and
+    floats alike, and a value beyond its field goes to cantools, which raises what it always raised."""
+    rng = random.Random(seed)
+    codec = make_codec()
+    written_out = 0
+    for spec in VESC_MESSAGES:
+        message = codec.database.get_message_by_name(message_name(spec.kind, 2))
+        packer = FramePacker.for_message(message)
+        assert packer is not None
+        names = [signal.name for signal in sorted(message.signals, key=lambda signal: signal.start // 8)]
+        pack = packer.packing(names, {})
+        written_out += pack.__name__ != "pack_values"  # the loop's name: this shape is written out
+        for _ in range(300):
+            values = {signal.name: _random_in_range(rng, signal) for signal in message.signals}
+            if rng.random() < 0.5:  # whole numbers as ints (the controllers' rounded ERPM)
+                values = {name: _int_if_whole(value) for name, value in values.items()}
+            assert pack([values[name] for name in names]) == message.encode(values, strict=False), values
+    assert written_out >= 3
+    status = codec.database.get_message_by_name(message_name("STATUS", 2))
+    pack_status = FramePacker.for_message(status).packing(("erpm", "current", "duty"), {})  # type: ignore[union-attr]
+    for erpm in (0, -1, 2**31 - 1, -(2**31), 2**53 + 1):
+        values = {"erpm": erpm, "current": -12.3, "duty": 0.25}
+        try:
+            expected: bytes | type[Exception] = status.encode(values, strict=False)
+        except Exception as err:  # beyond the field: cantools' own error
+            expected = type(err)
+        if isinstance(expected, bytes):
+            assert pack_status([erpm, -12.3, 0.25]) == expected
+        else:
+            with pytest.raises(expected):
+                pack_status([erpm, -12.3, 0.25])
+
+
+def _int_if_whole(value: float) -> float:
+    return round(value) if value == round(value) else value

@@ -6,14 +6,16 @@ from hil.vesc_sim import SimVescBank
 from logs.clock import SimClock, to_ns
 from logs.sink import MemorySink
 from logs.topics import CAN_FRAMES, WHEELS_STATUS
-from tests.firmware_bridge.virtual_can import TEST_PROFILE, make_codec, virtual_bus_pair
+from tests.firmware_bridge.virtual_can import BUS_KINDS, TEST_PROFILE, bus_pair, make_codec, virtual_bus_pair
 
 DT_S = 0.01
 
 
-@pytest.fixture
+@pytest.fixture(params=BUS_KINDS)
 def buses(request):
-    with virtual_bus_pair(request.node.name) as pair:
+    """Each test on a virtual bus and on the lockstep one, whose link and controllers move frames in
+    batches (BatchBus): the same behaviour either way."""
+    with bus_pair(request.param, request.node.name) as pair:
         yield pair
 
 
