@@ -11,7 +11,7 @@ import itertools
 import json
 import math
 from collections import Counter
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -55,15 +55,6 @@ DECIMALS = 6
 DISTANCE_EPSILON_M = 1e-9
 _J_PER_WH = 3600.0
 _POINT_BLOCK = 1024  # points per vectorised distance block: bounds memory at block x path segments
-
-METRIC_TOPICS = _TOPICS = (
-    TRUTH_POSE,
-    ESTIMATOR_POSE,
-    NAVIGATOR_PATH,
-    NAVIGATOR_STATE,
-    TRUTH_CONTACTS,
-    WHEELS_STATUS,
-)
 
 FloatArray = NDArray[np.float64]
 
@@ -133,9 +124,10 @@ def _gather(entries: Iterable[Entry]) -> _Trial:
     for entry in entries:
         # Messages first: all but a handful of the entries are messages.
         if isinstance(entry, RecordedMessage):
-            if entry.topic in _TOPICS:
+            take = _TAKERS.get(entry.topic)
+            if take is not None:
                 trial.seen.add(entry.topic)
-                _take_or_reject(trial, entry)
+                _take_or_reject(trial, entry, take)
         elif isinstance(entry, RecordedRaw):
             if entry.topic == ESTIMATOR_POSE:
                 trial.seen.add(entry.topic)
@@ -150,9 +142,9 @@ def _gather(entries: Iterable[Entry]) -> _Trial:
     return trial
 
 
-def _take_or_reject(trial: _Trial, entry: RecordedMessage) -> None:
+def _take_or_reject(trial: _Trial, entry: RecordedMessage, take: _Taker) -> None:
     try:
-        _take(trial, entry)
+        take(trial, entry.topic, entry.log_time_ns, entry.message)
     except (KeyError, TypeError, ValueError, IndexError):
         trial.rejected[entry.topic] += 1
 
@@ -165,7 +157,7 @@ def _take_deferred_estimates(trial: _Trial, deferred_estimates: list[RecordedRaw
         if message is None:
             trial.rejected[raw.topic] += 1
         else:
-            _take_or_reject(trial, RecordedMessage(raw.topic, raw.log_time_ns, message))
+            _take_or_reject(trial, RecordedMessage(raw.topic, raw.log_time_ns, message), _take_pose)
 
 
 def _finite(value: Any) -> float:
@@ -175,34 +167,57 @@ def _finite(value: Any) -> float:
     return number
 
 
-def _take(trial: _Trial, entry: RecordedMessage) -> None:
-    topic, t_ns, message = entry.topic, entry.log_time_ns, entry.message
-    if topic in (TRUTH_POSE, ESTIMATOR_POSE):
-        position = message["pose"]["position"]
-        speed = message.get("speed_mps")
-        speed = float(speed) if isinstance(speed, int | float) and not isinstance(speed, bool) else math.nan
-        trial.poses.setdefault(topic, []).append(
-            (t_ns, _finite(position["x"]), _finite(position["y"]), speed)
-        )
-    elif topic == NAVIGATOR_PATH:
-        points = [(_finite(p["position"]["x"]), _finite(p["position"]["y"])) for p in message["poses"]]
-        trial.paths.append((t_ns, np.asarray(points, dtype=np.float64).reshape(-1, 2)))
-    elif topic == NAVIGATOR_STATE:
-        if not isinstance(message.get("mode"), str):
-            raise ValueError("navigator/state without a mode")
-        trial.states.append((t_ns, message))
-    elif topic == TRUTH_CONTACTS:
-        if message["kind"] not in ("collision", "rollover"):
-            raise ValueError(f"unknown contact kind {message['kind']!r}")
-        trial.contacts.append(message)
-    elif topic == WHEELS_STATUS:
-        wheels = message["wheels"]
-        if not wheels:
-            raise ValueError("wheels/status without wheels")
-        # A non-finite voltage or current makes its product, and so the sum, non-finite (inf * 0 is NaN):
-        # one check of the sum is the check of every value (the hot loop of the metrics pass).
-        watts = sum(float(w["input_voltage_v"]) * float(w["input_current_a"]) for w in wheels)
-        trial.power.append((t_ns, _finite(watts)))
+# What each metrics topic's message adds to the trial: (trial, topic, log time, message); raises KeyError,
+# TypeError, ValueError or IndexError for a message without usable values (_take_or_reject).
+_Taker = Callable[[_Trial, str, int, dict[str, Any]], None]
+
+
+def _take_pose(trial: _Trial, topic: str, t_ns: int, message: dict[str, Any]) -> None:
+    position = message["pose"]["position"]
+    speed = message.get("speed_mps")
+    speed = float(speed) if isinstance(speed, int | float) and not isinstance(speed, bool) else math.nan
+    trial.poses.setdefault(topic, []).append((t_ns, _finite(position["x"]), _finite(position["y"]), speed))
+
+
+def _take_path(trial: _Trial, topic: str, t_ns: int, message: dict[str, Any]) -> None:
+    points = [(_finite(p["position"]["x"]), _finite(p["position"]["y"])) for p in message["poses"]]
+    trial.paths.append((t_ns, np.asarray(points, dtype=np.float64).reshape(-1, 2)))
+
+
+def _take_state(trial: _Trial, topic: str, t_ns: int, message: dict[str, Any]) -> None:
+    if not isinstance(message.get("mode"), str):
+        raise ValueError("navigator/state without a mode")
+    trial.states.append((t_ns, message))
+
+
+def _take_contact(trial: _Trial, topic: str, t_ns: int, message: dict[str, Any]) -> None:
+    if message["kind"] not in ("collision", "rollover"):
+        raise ValueError(f"unknown contact kind {message['kind']!r}")
+    trial.contacts.append(message)
+
+
+def _take_power(trial: _Trial, topic: str, t_ns: int, message: dict[str, Any]) -> None:
+    wheels = message["wheels"]
+    if not wheels:
+        raise ValueError("wheels/status without wheels")
+    # A non-finite voltage or current makes its product, and so the sum, non-finite (inf * 0 is NaN):
+    # one check of the sum is the check of every value (the hot loop of the metrics pass). A list, not a
+    # generator, for sum: the same additions in the same order, without a generator frame per message.
+    watts = sum([float(w["input_voltage_v"]) * float(w["input_current_a"]) for w in wheels])
+    trial.power.append((t_ns, _finite(watts)))
+
+
+# Looked up once per message, instead of comparing its topic with each metrics topic in turn.
+_TAKERS: dict[str, _Taker] = {
+    TRUTH_POSE: _take_pose,
+    ESTIMATOR_POSE: _take_pose,
+    NAVIGATOR_PATH: _take_path,
+    NAVIGATOR_STATE: _take_state,
+    TRUTH_CONTACTS: _take_contact,
+    WHEELS_STATUS: _take_power,
+}
+# The topics the metrics read (the rest of a recording is passed over).
+METRIC_TOPICS = tuple(_TAKERS)
 
 
 # --- geometry ----------------------------------------------------------------------------------

@@ -69,6 +69,25 @@ def test_numpy_values_big_integers_and_int_keys_encode_as_json_dumps_would() -> 
     }
 
 
+class _Key(str):
+    """A str subclass as a dict key: orjson's fast form refuses it, as it refuses an int."""
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_fast_first_try_writes_the_bytes_of_the_any_key_form(seed: int) -> None:
+    # encode_message tries orjson without OPT_NON_STR_KEYS first (faster) and again with it when a key
+    # is refused: either way the bytes are those of the one-call any-key form, nested keys included.
+    any_key = orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS
+    rng = random.Random(seed)
+    for index in range(200):
+        message: dict[Any, Any] = {"timestamp": {"sec": 1, "nsec": 2}, "value": _random_value(rng)}
+        if index % 3 == 1:
+            message["nested"] = {7: np.float32(0.5), "list": [{2.5: "float key"}]}
+        elif index % 3 == 2:
+            message[_Key("sub")] = {None: np.arange(3)}
+        assert encode_message(message) == orjson.dumps(message, option=any_key)
+
+
 def test_encoder_can_be_reused_after_a_failed_message() -> None:
     with pytest.raises(TypeError):
         encode_message({"a": {"b": object()}})
