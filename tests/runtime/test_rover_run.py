@@ -98,7 +98,9 @@ def test_rover_run_stops_wheels_and_closes_recording_on_signal(tmp_path: Path, s
     process = start_rover(config, out, "--goal", "8,8", "--no-telemetry")
     try:
         announced = wait_until_running(process)
-        time.sleep(1.3)  # ticks with nobody answering: the supervisor holds; one runtime/timing window
+        # Ticks with nobody answering: the supervisor holds. Long enough for one runtime/timing window and
+        # one can/stats window, which opens at the loop's first tick (1.3 s was once too short at load 7).
+        time.sleep(2.0)
         process.send_signal(stop_signal)
         stdout, _ = process.communicate(timeout=20)
     finally:
