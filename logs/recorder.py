@@ -129,6 +129,8 @@ class McapRecorder(ClosesOnExit):
         # time limit.
         self._chunk_due_ns: float = self._no_open_chunk_due()
         self._closed = False
+        # The log time checked last (publish_bytes): a non-negative int, or None before the first message.
+        self._checked_ns: int | None = None
         self._owned_file: BinaryIO | None = None
         if isinstance(output, str | Path):
             path = Path(output)
@@ -188,13 +190,15 @@ class McapRecorder(ClosesOnExit):
     def publish_bytes(self, topic: str, log_time_ns: int, data: bytes) -> None:
         """Record ``data``: a message's JSON bytes (``encode_message`` of it, or the same text formatted
         directly, as the CAN link formats its frame records)."""
+        # A closed recorder has no channels (_abandon), so a topic's channel found is an open recorder's:
+        # the message that finds none goes to _register, which refuses on a closed recorder.
         log = self._channels.get(topic)
         if log is None:
             log = self._register(topic)
-        elif self._closed:
-            raise RecordingError(f"recorder {self.name} is closed; cannot record {topic!r}")
-        if not isinstance(log_time_ns, int) or log_time_ns < 0:
-            raise RecordingError(f"{topic}: log_time_ns must be a non-negative int, got {log_time_ns!r}")
+        # The messages of one tick share their log time, the very int object (the clock's): the one
+        # checked last passes with an identity comparison, every other one is checked in full.
+        if log_time_ns is not self._checked_ns:
+            self._check_log_time(topic, log_time_ns)
         log(data, log_time_ns)  # publish_time = log_time, as the SDK writes it
         if self._output.failure is not None:  # this message closed a chunk that could not be written
             self._write_failed()
@@ -213,13 +217,11 @@ class McapRecorder(ClosesOnExit):
         so the file holds the same records and chunks."""
         log = self._channels.get(topic)
         if log is None:
-            if not datas:
+            if not datas and not self._closed:
                 return  # nothing to record: no channel either, as before the first message
             log = self._register(topic)
-        elif self._closed:
-            raise RecordingError(f"recorder {self.name} is closed; cannot record {topic!r}")
-        if not isinstance(log_time_ns, int) or log_time_ns < 0:
-            raise RecordingError(f"{topic}: log_time_ns must be a non-negative int, got {log_time_ns!r}")
+        if log_time_ns is not self._checked_ns:
+            self._check_log_time(topic, log_time_ns)
         output = self._output
         for data in datas:
             log(data, log_time_ns)
@@ -228,6 +230,12 @@ class McapRecorder(ClosesOnExit):
             self.message_count += 1
             if log_time_ns >= self._chunk_due_ns:
                 self._chunk_by_time(log_time_ns)
+
+    def _check_log_time(self, topic: str, log_time_ns: int) -> None:
+        """Refuse a log time that is not a non-negative int; remember one that is (``_checked_ns``)."""
+        if not isinstance(log_time_ns, int) or log_time_ns < 0:
+            raise RecordingError(f"{topic}: log_time_ns must be a non-negative int, got {log_time_ns!r}")
+        self._checked_ns = log_time_ns
 
     def _chunk_by_time(self, log_time_ns: int) -> None:
         """``log_time_ns`` opens a chunk (its age counts from here) or is ``chunk_duration_ns`` past the
@@ -317,6 +325,7 @@ class McapRecorder(ClosesOnExit):
 
     def _abandon(self) -> None:
         self._closed = True
+        self._channels.clear()  # publish_bytes finds no channel, so _register refuses every message
         if self._owned_file is not None:
             self._owned_file.close()
             self._owned_file = None

@@ -73,7 +73,8 @@ class FanoutSink:
             try:
                 # encode_message's first step inline (orjson with its options): a Python frame fewer on
                 # every dict message of a trial. What orjson refuses goes through encode_message itself.
-                data = orjson.dumps(message, default=json_default, option=ORJSON_OPTIONS)
+                # default and option positional (orjson takes them so): no keyword names to match per call.
+                data = orjson.dumps(message, json_default, ORJSON_OPTIONS)
             except TypeError:
                 data = self._encode_refused(message)
         if data is None:

@@ -226,15 +226,17 @@ class ZenohTelemetry:
 
     def publish_bytes(self, topic: str, log_time_ns: int, data: bytes) -> None:
         """Put ``data``, a message's JSON bytes."""
-        if self._closed:
-            raise TelemetryError(f"telemetry {self._prefix} is closed; cannot publish {topic!r}")
+        # A closed stream has no publishers (close), so a publisher found is an open stream's: the message
+        # that finds none goes to _declare, which refuses on a closed stream.
         publisher = self._publishers.get(topic)
         if publisher is None:
             publisher = self._declare(topic)
             if publisher is None:
                 return
         try:
-            if log_time_ns != self._attachment_ns:
+            # Identity, not equality: the messages of one tick pass the clock's very int object, and a
+            # different object of the same value only builds the same attachment again.
+            if log_time_ns is not self._attachment_ns:
                 self._attachment = zenoh.ZBytes(_LOG_TIME.pack(log_time_ns))
                 self._attachment_ns = log_time_ns
             publisher.put(data, attachment=self._attachment)
@@ -249,6 +251,8 @@ class ZenohTelemetry:
             self.publish_bytes(topic, log_time_ns, data)
 
     def _declare(self, topic: str) -> zenoh.Publisher | None:
+        if self._closed:
+            raise TelemetryError(f"telemetry {self._prefix} is closed; cannot publish {topic!r}")
         if topic not in TOPICS:
             known = ", ".join(sorted(TOPICS))
             raise TelemetryError(f"cannot publish unknown topic {topic!r}; known topics: {known}")

@@ -75,11 +75,13 @@ class RateLimitedSink:
         self._sink_bytes = bytes_only_sink(sink)
         # BytesSink (logs.encoding): bytes alone will do when the sink behind takes bytes alone.
         self.records_bytes_only = self._sink_bytes is not None
-        self._period_ns = {topic: int(1e9 / rate) for topic, rate in rates_hz.items()}
-        # Thinned topic -> log time from which its next message passes. Every thinned topic is a key from
-        # the start (the first message always passes), so one lookup tells a topic that is not thinned
-        # (most of them) from one that is, and a dropped message costs that lookup and a comparison.
-        self._next_ns: dict[str, int] = dict.fromkeys(rates_hz, _FIRST_PASSES)
+        # Thinned topic -> [log time from which its next message passes, period in ns]. Every thinned topic
+        # is a key from the start (the first message always passes), so one lookup tells a topic that is
+        # not thinned (most of them) from one that is and gives a thinned one's whole state: a dropped
+        # message costs that lookup and a comparison, a passed one a store more.
+        self._thinned: dict[str, list[int]] = {
+            topic: [_FIRST_PASSES, int(1e9 / rate)] for topic, rate in rates_hz.items()
+        }
         self.dropped = 0
 
     def publish(self, topic: str, log_time_ns: int, message: Message) -> None:
@@ -101,12 +103,12 @@ class RateLimitedSink:
         if sink is None:
             _refuse_bytes(topic)
         # _due, inline: with the recorder and Zenoh behind a fan-out every message of a trial comes this way.
-        due = self._next_ns.get(topic)
-        if due is not None:
-            if log_time_ns < due:
+        thinned = self._thinned.get(topic)
+        if thinned is not None:
+            if log_time_ns < thinned[0]:
                 self.dropped += 1
                 return
-            self._next_ns[topic] = log_time_ns + self._period_ns[topic]
+            thinned[0] = log_time_ns + thinned[1]
         sink.publish_bytes(topic, log_time_ns, data)
 
     def publish_bytes_many(self, topic: str, log_time_ns: int, datas: Sequence[bytes]) -> None:
@@ -116,15 +118,15 @@ class RateLimitedSink:
         sink = self._sink_bytes
         if sink is None:
             _refuse_bytes(topic)
-        due = self._next_ns.get(topic)
-        if due is None or not datas:
+        thinned = self._thinned.get(topic)
+        if thinned is None or not datas:
             sink.publish_bytes_many(topic, log_time_ns, datas)
             return
-        if log_time_ns < due:
+        if log_time_ns < thinned[0]:
             self.dropped += len(datas)
             return
-        period = self._period_ns[topic]
-        self._next_ns[topic] = log_time_ns + period
+        period = thinned[1]
+        thinned[0] = log_time_ns + period
         if period == 0:
             sink.publish_bytes_many(topic, log_time_ns, datas)
             return
@@ -132,13 +134,13 @@ class RateLimitedSink:
         sink.publish_bytes(topic, log_time_ns, datas[0])
 
     def _due(self, topic: str, log_time_ns: int) -> bool:
-        due = self._next_ns.get(topic)
-        if due is None:
+        thinned = self._thinned.get(topic)
+        if thinned is None:
             return True  # not thinned
-        if log_time_ns < due:
+        if log_time_ns < thinned[0]:
             self.dropped += 1
             return False
-        self._next_ns[topic] = log_time_ns + self._period_ns[topic]
+        thinned[0] = log_time_ns + thinned[1]
         return True
 
 

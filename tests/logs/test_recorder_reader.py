@@ -304,6 +304,30 @@ def test_recorder_rejects_unknown_topics_bad_values_and_use_after_close() -> Non
         McapRecorder(io.BytesIO(), compression="lz77")
 
 
+def test_each_log_time_is_checked_though_the_last_good_one_is_remembered() -> None:
+    # publish_bytes checks a log time in full only when it is not the very object checked last: a value
+    # equal to a good one but of another type, or a bad one after good ones, is still refused.
+    recorder = McapRecorder(io.BytesIO())
+    good = 2**40 + 7  # an int object of its own, as the clock hands out
+    recorder.publish_bytes(LOG, good, encode_message(_log(0)))
+    recorder.publish_bytes(LOG, good, encode_message(_log(1)))
+    for bad in (float(good), str(good), -good, None):
+        with pytest.raises(RecordingError, match="log_time_ns must be a non-negative int"):
+            recorder.publish_bytes(LOG, bad, b"{}")  # type: ignore[arg-type]
+        with pytest.raises(RecordingError, match="log_time_ns must be a non-negative int"):
+            recorder.publish_bytes_many(LOG, bad, [b"{}"])  # type: ignore[arg-type]
+    assert recorder.message_count == 2
+    recorder.close()
+    # A closed recorder keeps no channels: every topic, recorded before or not, is refused as closed.
+    for topic in (LOG, TRUTH_POSE):
+        with pytest.raises(RecordingError, match="closed; cannot record"):
+            recorder.publish_bytes(topic, good, b"{}")
+        with pytest.raises(RecordingError, match="closed; cannot record"):
+            recorder.publish_bytes_many(topic, good, [b"{}"])
+        with pytest.raises(RecordingError, match="closed; cannot record"):
+            recorder.publish_bytes_many(topic, good, [])
+
+
 class _DiskFills(io.BytesIO):
     """A stream that takes the header, then refuses every write as a full disk does."""
 
