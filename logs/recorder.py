@@ -57,6 +57,8 @@ DEFAULT_CHUNK_SIZE = 1024 * 1024
 # The SDK's writer raises on flush and close only, and then without the operating system's reason
 # ("a write method failed"); writes that fail while a message closes a chunk it logs, not raises.
 _SDK_FAILURES = (OSError, RuntimeError)
+# McapRecorder._checked_ns before the first message: no log time is this object.
+_NOTHING_CHECKED = object()
 # McapRecorder._chunk_due_ns while no chunk is open: below every log time, so the next message opens one.
 _NO_OPEN_CHUNK = -1
 
@@ -129,8 +131,9 @@ class McapRecorder(ClosesOnExit):
         # time limit.
         self._chunk_due_ns: float = self._no_open_chunk_due()
         self._closed = False
-        # The log time checked last (publish_bytes): a non-negative int, or None before the first message.
-        self._checked_ns: int | None = None
+        # The log time checked last (publish_bytes): a non-negative int, or before the first message an
+        # object of our own that no caller can pass (not None, not a small int: those are shared objects).
+        self._checked_ns: object = _NOTHING_CHECKED
         self._owned_file: BinaryIO | None = None
         if isinstance(output, str | Path):
             path = Path(output)

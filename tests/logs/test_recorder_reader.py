@@ -307,6 +307,11 @@ def test_recorder_rejects_unknown_topics_bad_values_and_use_after_close() -> Non
 def test_each_log_time_is_checked_though_the_last_good_one_is_remembered() -> None:
     # publish_bytes checks a log time in full only when it is not the very object checked last: a value
     # equal to a good one but of another type, or a bad one after good ones, is still refused.
+    for first in (None, -1, 0.0):  # nothing checked yet: the first message's log time is checked too
+        with pytest.raises(RecordingError, match="log_time_ns must be a non-negative int"):
+            McapRecorder(io.BytesIO()).publish_bytes(LOG, first, b"{}")  # type: ignore[arg-type]
+        with pytest.raises(RecordingError, match="log_time_ns must be a non-negative int"):
+            McapRecorder(io.BytesIO()).publish_bytes_many(LOG, first, [b"{}"])  # type: ignore[arg-type]
     recorder = McapRecorder(io.BytesIO())
     good = 2**40 + 7  # an int object of its own, as the clock hands out
     recorder.publish_bytes(LOG, good, encode_message(_log(0)))

@@ -230,3 +230,49 @@ def test_rates_for_unknown_topics_are_refused() -> None:
     table = parse_toml('[zenoh.rates]\n"no/such" = 5.0\n', "<test>").table("zenoh")
     with pytest.raises(ConfigError, match="no/such"):
         ZenohSettings.from_table(table)
+
+
+class _PutRecorder:
+    """A publisher that keeps what it was given (no network): payload and attachment bytes per put."""
+
+    def __init__(self) -> None:
+        self.puts: list[tuple[bytes, bytes]] = []
+
+    def put(self, payload: bytes, *, attachment: zenoh.ZBytes) -> None:
+        self.puts.append((payload, attachment.to_bytes()))
+
+    def undeclare(self) -> None:
+        return None
+
+
+class _StubSession:
+    def __init__(self) -> None:
+        self.publishers: dict[str, _PutRecorder] = {}
+
+    def declare_publisher(self, key: str, encoding: zenoh.Encoding) -> _PutRecorder:
+        return self.publishers.setdefault(key, _PutRecorder())
+
+
+def test_each_put_carries_its_own_log_time_and_a_bad_one_is_counted() -> None:
+    # The attachment is reused while the log time is the same object; an equal value of another object
+    # gives the same bytes, and a log time that is no int fails the put (counted), the first one too.
+    session = _StubSession()
+    telemetry = ZenohTelemetry(session, "r1")  # type: ignore[arg-type]
+    telemetry.publish_bytes(LOG, None, b"{}")  # type: ignore[arg-type]
+    assert telemetry.failures == 1 and telemetry.published == 0
+    first = 2**40 + 1
+    same_value = int(str(first))
+    for log_time_ns in (first, first, same_value, 7, 7.5, 8):
+        telemetry.publish_bytes(LOG, log_time_ns, b'{"a":1}')  # type: ignore[arg-type]
+    puts = session.publishers["rover/r1/log"].puts
+    assert [int.from_bytes(attachment, "little", signed=True) for _, attachment in puts] == [
+        first,
+        first,
+        first,
+        7,
+        8,
+    ]
+    assert telemetry.failures == 2 and telemetry.published == 5
+    telemetry.close()
+    with pytest.raises(TelemetryError, match="closed"):
+        telemetry.publish_bytes(LOG, 9, b"{}")
