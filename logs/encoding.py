@@ -77,7 +77,8 @@ def encode_message(message: Message) -> bytes:
     Raises ``TypeError`` for values JSON cannot hold and ``ValueError`` for circular data.
     """
     try:
-        return orjson.dumps(message, default=json_default, option=ORJSON_OPTIONS)
+        # default and option positional (orjson takes them so): no keyword names to match per message.
+        return orjson.dumps(message, json_default, ORJSON_OPTIONS)
     except TypeError:  # orjson.JSONEncodeError is a TypeError: a key that is not a str, or worse
         pass
     try:
