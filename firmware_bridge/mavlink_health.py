@@ -141,7 +141,8 @@ class MavlinkHealth:
         self._warning_window_ns = warning_window_ns
         self._stats = _Window(start_ns, counters)
         self._warning = _Window(start_ns, counters)
-        self._next_close_ns = self._earliest_close_ns()
+        # When the next window closes: before it, ``report`` has nothing to say (the link skips the call).
+        self.next_close_ns = self._earliest_close_ns()
 
     def _earliest_close_ns(self) -> int:
         return min(
@@ -149,7 +150,7 @@ class MavlinkHealth:
         )
 
     def report(self, now_ns: int, counters: MavlinkCounters) -> HealthReport:
-        if now_ns < self._next_close_ns:
+        if now_ns < self.next_close_ns:
             # The link asks at every poll (100 a second); a window closes at most once a second.
             return _NOTHING_DUE
         stats = None
@@ -162,5 +163,5 @@ class MavlinkHealth:
         if now_ns - self._warning.start_ns >= self._warning_window_ns:
             window_s = (now_ns - self._warning.start_ns) / NS_PER_S
             warning = describe_garbage(self._warning.close(now_ns, counters), window_s, self._link)
-        self._next_close_ns = self._earliest_close_ns()
+        self.next_close_ns = self._earliest_close_ns()
         return HealthReport(stats, warning)

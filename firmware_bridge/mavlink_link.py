@@ -174,7 +174,7 @@ class _TransportFile:
 
 
 def _header_fields(frame: bytes) -> tuple[int, int, int]:
-    """(msgid, sysid, compid) straight from a frame's header, for frames pymavlink does not know."""
+    """(msgid, sysid, compid) straight from a frame's header (MAVLink 2 or 1), as pymavlink reads them."""
     if frame[0] == mavlink2.PROTOCOL_MARKER_V2 and len(frame) >= 10:
         return frame[7] | frame[8] << 8 | frame[9] << 16, frame[5], frame[6]
     if len(frame) >= 6:
@@ -339,8 +339,17 @@ class MavlinkLink(ClosesOnExit):
             if self._datagrams is not None:
                 # A frame never spans two datagrams: what is left is cut short, not waiting for more.
                 self._drop_partial_frame()
-        self._check_link(t_ns)
-        self._report_health(t_ns)
+        limit_ns = self._link_timeout_ns
+        if limit_ns is not None:
+            # The autopilot's silence, judged at every poll (inline: a call fewer on the usual poll).
+            last = self.last_heartbeat_ns
+            silent_ns = t_ns - (self._started_ns if last is None else last)
+            ok = silent_ns <= limit_ns
+            if ok != self.autopilot_link_ok:
+                self._link_changed(t_ns, ok, silent_ns, limit_ns)
+        # A health window closes once a second at most: the health is asked only when one may close.
+        if t_ns >= self._health.next_close_ns:
+            self._report_health(t_ns)
         return readings
 
     def _admitted(self, t_ns: int) -> list[bytes]:
@@ -365,11 +374,11 @@ class MavlinkLink(ClosesOnExit):
     def _take(self, msg: Any, t_ns: int, readings: list[Reading]) -> None:
         frame = msg.get_msgbuf()  # the decoded frame's own bytes (read only: recorded, header read)
         kind = msg.get_type()
+        # The ids from the frame's header, where pymavlink's decode read them too: one call, not three
+        # getters per frame (and the only way for a frame of an id the dialect does not know).
+        msgid, sysid, compid = _header_fields(frame)
         if isinstance(msg, mavlink2.MAVLink_unknown):
-            msgid, sysid, compid = _header_fields(frame)
             self.counters.unknown_frames += 1
-        else:
-            msgid, sysid, compid = msg.get_msgId(), msg.get_srcSystem(), msg.get_srcComponent()
         self.counters.rx_frames += 1
         self._publish_raw(t_ns, "rx", frame, msgid, kind, sysid, compid)
         if kind in COMMAND_MESSAGES:
@@ -452,20 +461,15 @@ class MavlinkLink(ClosesOnExit):
             },
         )
 
-    def _check_link(self, t_ns: int) -> None:
-        if self._link_timeout_ns is None:
-            return
-        last = self.last_heartbeat_ns if self.last_heartbeat_ns is not None else self._started_ns
-        silent_ns = t_ns - last
-        ok = silent_ns <= self._link_timeout_ns
-        if ok == self.autopilot_link_ok:
-            return
+    def _link_changed(self, t_ns: int, ok: bool, silent_ns: int, limit_ns: int) -> None:
+        """The autopilot's link came back (``ok``) or went down, silent ``silent_ns`` past the timeout
+        ``limit_ns``: log and record it."""
         self.autopilot_link_ok = ok
         if ok:
             kind, severity, detail = "mavlink_link_restored", "info", "autopilot HEARTBEAT received again"
         else:
             kind, severity = "mavlink_link_lost", "error"
-            limit_s = self._link_timeout_ns / 1e9
+            limit_s = limit_ns / 1e9
             detail = f"no autopilot HEARTBEAT for {silent_ns / 1e9:.1f} s (limit {limit_s:.1f} s)"
         (logger.info if ok else logger.warning)("%s: %s", kind, detail)
         self._sink.publish(

@@ -43,16 +43,16 @@ class MemoryPipe:
     """One direction of an in-memory byte stream: what is written is read back in order, once."""
 
     def __init__(self) -> None:
-        self._buffer = bytearray()
+        self.pending = bytearray()  # written, not yet taken (read only outside: PipeEnd.read looks)
 
     def push(self, data: bytes) -> None:
-        self._buffer += data
+        self.pending += data
 
     def take(self) -> bytes:
-        if not self._buffer:
-            return b""  # most reads in lockstep find nothing new: no copy, nothing to clear
-        data = bytes(self._buffer)
-        self._buffer.clear()
+        if not self.pending:
+            return b""  # nothing new: no copy, nothing to clear
+        data = bytes(self.pending)
+        self.pending.clear()
         return data
 
 
@@ -70,9 +70,12 @@ class PipeEnd:
         self._outgoing.push(data)
 
     def read(self) -> bytes:
-        if self._closed:
+        incoming = self._incoming
+        if self._closed or not incoming.pending:
+            # Most reads in lockstep find nothing new (the simulated autopilot reads every physics tick,
+            # the companion writes a few frames a second): answered here, without a call into the pipe.
             return b""
-        return self._incoming.take()
+        return incoming.take()
 
     def close(self) -> None:
         self._closed = True

@@ -18,7 +18,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from hil.faults import FaultSchedule
+from hil.faults import Fault, FaultSchedule
 from logs.clock import to_ns
 
 FIX_NONE = 0
@@ -177,11 +177,14 @@ class ImuModel:
         # normal(0.0, sigma, 3) gave, for one call's overhead.
         z0, z1, z2, z3, z4, z5 = self._rng.standard_normal(6).tolist()
         gyro_sigma, accel_sigma = self._gyro_noise, self._accel_noise
-        kinds = {f.kind: f for f in self._faults.active_all("imu", now)} if self._has_faults else {}
-        if "off" in kinds:
-            return None
-        if "stuck" in kinds and self._last is not None:
-            return self._last
+        wrong: Fault | None = None
+        if self._has_faults:  # without an IMU fault scheduled (the usual trial) no fault is looked up
+            kinds = {f.kind: f for f in self._faults.active_all("imu", now)}
+            if "off" in kinds:
+                return None
+            if "stuck" in kinds and self._last is not None:
+                return self._last
+            wrong = kinds.get("wrong")
         # Three-element sums in plain floats (once per 20 ms; numpy's per-call overhead was most of the
         # model's time). The same IEEE additions in the same order as the arrays did: the same numbers.
         gb, ab = self._gyro_bias, self._accel_bias
@@ -196,7 +199,6 @@ class ImuModel:
             float(f1) + ab[1] + (0.0 + accel_sigma * z4),
             float(f2) + ab[2] + (0.0 + accel_sigma * z5),
         )
-        wrong = kinds.get("wrong")
         if wrong is not None:
             gyro = _plus(gyro, wrong.gyro_bias_rps)
             accel = _plus(accel, wrong.accel_bias_mps2)

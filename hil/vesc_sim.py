@@ -70,6 +70,8 @@ class SimVescBank:
         self._slow_period_ns = to_ns(1.0 / slow_status_rate_hz)
         self._timeout_ns = to_ns(command_timeout_s)
         self._tau_s = motor_time_constant_s
+        self._blend_dt_s = math.nan  # the step length _blend is for (step): none yet
+        self._blend = 0.0
         self._max_erpm = max_erpm
         now = clock.now_ns()
         self._next_status_ns = now
@@ -234,13 +236,16 @@ class SimVescBank:
         if not (math.isfinite(dt_s) and dt_s >= 0):
             raise ValueError(f"SimVescBank.step needs a finite dt_s >= 0, got {dt_s}")
         now = self._clock.now_ns()
-        blend = 1.0 - math.exp(-dt_s / self._tau_s)
+        if dt_s != self._blend_dt_s:
+            # The motor's first-order blend for this step length, kept: every physics step has the same one.
+            self._blend_dt_s, self._blend = dt_s, 1.0 - math.exp(-dt_s / self._tau_s)
+        blend = self._blend
         # Every physics step, six wheels: the per-wheel lists held in locals (they are mutated in place).
         erpm, targets, stuck, tacho = self._erpm, self._targets, self._stuck, self._tacho_erev
-        last_command_ns = self._last_command_ns
+        last_command_ns, timeout_ns = self._last_command_ns, self._timeout_ns
         for i in range(WHEEL_COUNT):
             last = last_command_ns[i]
-            if last is not None and now - last > self._timeout_ns:
+            if last is not None and now - last > timeout_ns:
                 # Firmware behaviour: no command within the timeout => release the motor (brake current 0).
                 targets[i] = 0.0
                 last_command_ns[i] = None
