@@ -20,17 +20,16 @@ from __future__ import annotations
 import enum
 import logging
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from concurrent.futures import Executor
 from dataclasses import dataclass
-from operator import attrgetter
 from typing import NamedTuple
 
 from estimator.estimator import Estimator
 from estimator.geodesy import to_enu
 from estimator.pose import PoseEstimate
 from firmware_bridge.can_health import CanLinkState
-from firmware_bridge.can_link import CanLink, WheelReading
+from firmware_bridge.can_link import CanLink, WheelStatus
 from firmware_bridge.mavlink_commands import GoalRequest, StopRequest
 from firmware_bridge.mavlink_link import AttitudeSample, GpsFix, ImuSample, MavlinkLink
 from logs import topics
@@ -81,13 +80,6 @@ _DRIVING_MODES = (Mode.DRIVING, Mode.YIELDING)
 _NOT_SETTLED = f"estimate healthy for < {SETTLE_NS / NS_PER_S:g} s"
 
 
-# The WheelReading fields a snapshot reads, as C-level getters for map().
-_STATUS_NS = attrgetter("last_status_ns")
-_SPEED_MPS = attrgetter("speed_mps")
-_MOTOR_CURRENT_A = attrgetter("motor_current_a")
-_INPUT_VOLTAGE_V = attrgetter("input_voltage_v")
-
-
 class _WheelSnapshot(NamedTuple):
     """What the tick reads of one snapshot of the wheel controllers' readings, built once per snapshot
     (the start-up checks, the estimator and the safety inputs all read it)."""
@@ -102,30 +94,26 @@ class _WheelSnapshot(NamedTuple):
     battery_v: float | None  # the lowest pack voltage reported (None: no controller reported one yet)
 
     @classmethod
-    def of(cls, readings: Sequence[WheelReading]) -> _WheelSnapshot:
-        # map() with attrgetters: each field read in C, without a list comprehension's frame per field
-        # (once per control tick, four of them were a measurable share of the snapshot).
-        status_ns = tuple(map(_STATUS_NS, readings))
+    def of(cls, status: WheelStatus) -> _WheelSnapshot:
+        # The link's tuples taken as they are (CanLink.wheel_status builds them once per poll): nothing
+        # read wheel by wheel in the usual case.
+        status_ns = status.status_ns
         heard = None not in status_ns
-        voltages = tuple(map(_INPUT_VOLTAGE_V, readings))
+        voltages = status.input_voltages_v
         lowest_v = min(voltages) if voltages else None
         if lowest_v is not None and not lowest_v > 0.0:
             # Some controller reported no voltage (yet): the lowest of those that did.
             reported = [v for v in voltages if v > 0.0]
             lowest_v = min(reported) if reported else None
         if heard:  # the usual case: the speeds and currents as reported
-            return cls(
-                status_ns,
-                heard,
-                tuple(map(_SPEED_MPS, readings)),
-                tuple(map(_MOTOR_CURRENT_A, readings)),
-                lowest_v,
-            )
+            return cls(status_ns, heard, status.speeds_mps, status.motor_currents_a, lowest_v)
         return cls(
             status_ns,
             heard,
-            tuple([r.speed_mps if r.last_status_ns is not None else 0.0 for r in readings]),
-            tuple([r.motor_current_a if r.last_status_ns is not None else 0.0 for r in readings]),
+            tuple([v if t is not None else 0.0 for v, t in zip(status.speeds_mps, status_ns, strict=True)]),
+            tuple(
+                [a if t is not None else 0.0 for a, t in zip(status.motor_currents_a, status_ns, strict=True)]
+            ),
             lowest_v,
         )
 
@@ -292,7 +280,7 @@ class OnboardStack:
         self._commands = commands
         self._obstacles = obstacles
         self._ground_station = ground_station
-        self._wheels = _WheelSnapshot.of(can_link.readings())
+        self._wheels = _WheelSnapshot.of(can_link.wheel_status())
         self._terrain = terrain
         self._map_published = False
         self._event = _EventFn(clock, sink)
@@ -715,7 +703,7 @@ class OnboardStack:
         if self._can.poll():
             # One snapshot per poll: the readings change only when frames arrive, and the start-up checks
             # and the safety inputs of this tick read the same snapshot.
-            self._wheels = wheels = _WheelSnapshot.of(self._can.readings())
+            self._wheels = wheels = _WheelSnapshot.of(self._can.wheel_status())
             if wheels.heard:
                 if self._pacing == "wheels":
                     self._pacing_rx_ns = can_read_ns

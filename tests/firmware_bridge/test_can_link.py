@@ -8,6 +8,7 @@ from firmware_bridge.can_link import (
     _MAX_CACHED_FRAME_KINDS,
     CanConfig,
     CanLink,
+    WheelStatus,
     _frame_json,
     _frame_record,
     _FrameRecords,
@@ -106,6 +107,40 @@ def test_poll_counts_bad_frames_and_keeps_good_status(buses):
     # nothing more to read: no frames, no new status message
     assert link.poll() == 0
     assert len(sink.on(WHEELS_STATUS)) == 1
+
+
+def _status_of_readings(link: CanLink) -> WheelStatus:
+    """``wheel_status()`` written the plain way, from ``readings()``."""
+    readings = link.readings()
+    return WheelStatus(
+        tuple(r.last_status_ns for r in readings),
+        tuple(r.speed_mps for r in readings),
+        tuple(r.motor_current_a for r in readings),
+        tuple(r.input_voltage_v for r in readings),
+    )
+
+
+def test_wheel_status_follows_the_readings_and_is_rebuilt_after_each_poll(buses):
+    ours, theirs = buses
+    clock = SimClock(1_000)
+    link = make_link(ours, clock)
+    before = link.wheel_status()
+    assert before == _status_of_readings(link)
+    assert before.status_ns == (None,) * 6
+    assert link.wheel_status() is before  # nothing polled: the same tuples
+    theirs.send(ext((9 << 8) | 2, bytes.fromhex("000004d2007b01f4")))  # STATUS of controller 2
+    theirs.send(ext((27 << 8) | 2, bytes.fromhex("00000258 00f5 0000")))  # STATUS_5: 24.5 V
+    assert link.poll() == 2
+    after = link.wheel_status()
+    assert after is not before
+    assert after == _status_of_readings(link)
+    assert after.status_ns[1] == 1_000 and after.speeds_mps[1] == TEST_PROFILE.speed_from_erpm(1234)
+    assert after.input_voltages_v[1] == pytest.approx(24.5)
+    clock.advance(1_000)
+    theirs.send(ext((9 << 8) | 2, bytes.fromhex("fffffb2e007b01f4")))  # STATUS: -1234 ERPM
+    assert link.poll() == 1
+    assert link.wheel_status().speeds_mps[1] == TEST_PROFILE.speed_from_erpm(-1234)
+    assert link.wheel_status() == _status_of_readings(link)
 
 
 def test_readings_are_copies(buses):

@@ -1,4 +1,5 @@
-"""The control tick's wheel snapshot: its map()-based reads give what a plain reading of the fields gives."""
+"""The control tick's wheel snapshot: built from the link's ``WheelStatus`` tuples, it gives what a plain
+reading of the readings' fields gives."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ import math
 
 import pytest
 
-from firmware_bridge.can_link import WheelReading
+from firmware_bridge.can_link import WheelReading, WheelStatus
 from navigator.onboard import _WheelSnapshot
 
 
@@ -33,6 +34,16 @@ def _readings(voltages: list[float], heard: list[bool]) -> list[WheelReading]:
     ]
 
 
+def _status(readings: list[WheelReading]) -> WheelStatus:
+    """``CanLink.wheel_status`` of these readings, written the plain way."""
+    return WheelStatus(
+        tuple(r.last_status_ns for r in readings),
+        tuple(r.speed_mps for r in readings),
+        tuple(r.motor_current_a for r in readings),
+        tuple(r.input_voltage_v for r in readings),
+    )
+
+
 ALL = [True] * 6
 
 
@@ -51,9 +62,9 @@ ALL = [True] * 6
 )
 def test_snapshot_reads_the_fields_as_written(voltages: list[float], heard: list[bool]) -> None:
     readings = _readings(voltages, heard)
-    snapshot = _WheelSnapshot.of(readings)
+    snapshot = _WheelSnapshot.of(_status(readings))
     assert tuple(snapshot) == _reference(readings)
 
 
 def test_no_readings_is_an_empty_snapshot() -> None:
-    assert tuple(_WheelSnapshot.of([])) == ((), True, (), (), None)
+    assert tuple(_WheelSnapshot.of(_status([]))) == ((), True, (), (), None)
