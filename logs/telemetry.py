@@ -195,10 +195,19 @@ class ZenohTelemetry:
 
     The session is the caller's: ``close()`` undeclares our publishers, not the session. One publisher per
     topic, declared on first use.
+
+    Congestion: by default a put that finds the link's queue full is dropped (zenoh's ``DROP``), so a slow
+    or stalled subscriber can never hold up the rover's control loop. ``block_when_congested`` makes puts
+    wait for room instead (``BLOCK``): nothing is lost, at the cost of the publisher's pace. That suits a
+    lockstep trial streamed to a consumer that must see every message (it runs many times real time and
+    can outpace the link), never a real-time loop.
     """
 
-    def __init__(self, session: zenoh.Session, rover_id: str) -> None:
+    def __init__(self, session: zenoh.Session, rover_id: str, *, block_when_congested: bool = False) -> None:
         self._session = session
+        self._congestion = (
+            zenoh.CongestionControl.BLOCK if block_when_congested else zenoh.CongestionControl.DROP
+        )
         self._prefix = key_prefix(rover_id)
         self._publishers: dict[str, zenoh.Publisher] = {}
         self._closed = False
@@ -260,7 +269,9 @@ class ZenohTelemetry:
             raise TelemetryError(f"cannot publish unknown topic {topic!r}; known topics: {known}")
         try:
             publisher = self._session.declare_publisher(
-                f"{self._prefix}/{topic}", encoding=zenoh.Encoding.APPLICATION_JSON
+                f"{self._prefix}/{topic}",
+                encoding=zenoh.Encoding.APPLICATION_JSON,
+                congestion_control=self._congestion,
             )
         except zenoh.ZError as err:
             self._failed("cannot declare a publisher for %s: %s", topic, err)

@@ -248,9 +248,25 @@ class _PutRecorder:
 class _StubSession:
     def __init__(self) -> None:
         self.publishers: dict[str, _PutRecorder] = {}
+        self.congestion: dict[str, zenoh.CongestionControl] = {}
 
-    def declare_publisher(self, key: str, encoding: zenoh.Encoding) -> _PutRecorder:
+    def declare_publisher(
+        self, key: str, encoding: zenoh.Encoding, congestion_control: zenoh.CongestionControl
+    ) -> _PutRecorder:
+        self.congestion[key] = congestion_control
         return self.publishers.setdefault(key, _PutRecorder())
+
+
+@pytest.mark.parametrize(
+    ("blocking", "expected"), [(False, zenoh.CongestionControl.DROP), (True, zenoh.CongestionControl.BLOCK)]
+)
+def test_puts_drop_when_congested_unless_asked_to_block(
+    blocking: bool, expected: zenoh.CongestionControl
+) -> None:
+    session = _StubSession()
+    telemetry = ZenohTelemetry(session, "r1", block_when_congested=blocking)  # type: ignore[arg-type]
+    telemetry.publish_bytes(LOG, 1, b"{}")
+    assert session.congestion == {"rover/r1/log": expected}
 
 
 def test_each_put_carries_its_own_log_time_and_a_bad_one_is_counted() -> None:
