@@ -22,9 +22,12 @@ from logs.report import write_report
 from logs.topics import TRUTH_POSE
 
 ROOT = Path(__file__).resolve().parents[2]
-# The default scenario: about 40 s simulated, several seconds of wall time even at full speed, so the
-# latest kill point (1.5 s after the first chunk) falls well inside the trial on a loaded machine.
+# The default scenario: about 40 s simulated, ~0.8 s of wall time alone at full speed (~50x real time),
+# longer with three trials on two cores. The latest kill point, KILL_WINDOW_S after the first chunk (1 s
+# simulated, ~20 ms in), falls inside the recording even on a machine twice as fast; 1.5 s, chosen when a
+# trial took several seconds, once fell after the recorder had closed the file.
 SCENARIO = ROOT / "scenarios" / "default.toml"
+KILL_WINDOW_S = 0.4
 KILL_POINTS = 3
 # Three trials start at once: on a loaded 2-core machine (another suite beside this one) their first chunk
 # took longer than 60 s to appear once; a cold numba cache is a compile on top. Waiting is all this bounds.
@@ -85,7 +88,7 @@ def _chunk_spans_ns(path: Path) -> list[int]:
 def test_sigkill_then_recover_then_report(tmp_path: Path) -> None:
     # Random kill points (seeded, so a failure reproduces): a delay after the first chunk is on disk.
     # Wall-time points, not sizes: the trial's real-time factor varies with the machine's load.
-    delays = np.random.default_rng(20240607).uniform(0.0, 1.5, KILL_POINTS).tolist()
+    delays = np.random.default_rng(20240607).uniform(0.0, KILL_WINDOW_S, KILL_POINTS).tolist()
     runs = [(tmp_path / f"kill{i}", delay) for i, delay in enumerate(delays)]
     processes = [_start(out) for out, _ in runs]  # concurrently: the three trials share the wait
     try:
