@@ -580,8 +580,7 @@ class CanLink(ClosesOnExit):
             try:
                 msg = receive(timeout=0)
             except (can.CanError, OSError, ValueError) as err:
-                self.counters.bus_errors += 1
-                logger.debug("CAN receive failed: %s", err)
+                self._receive_failed(err)
                 break
             if msg is None:
                 break
@@ -595,8 +594,7 @@ class CanLink(ClosesOnExit):
         try:
             msgs = bus.recv_all()
         except (can.CanError, OSError, ValueError) as err:
-            self.counters.bus_errors += 1
-            logger.debug("CAN receive failed: %s", err)
+            self._receive_failed(err)
             return 0, False
         if self._echoes is not None or self._bytes_sink is None:
             status_seen = False
@@ -604,6 +602,11 @@ class CanLink(ClosesOnExit):
                 status_seen |= self._take(msg, t_ns)
             return len(msgs), status_seen
         return len(msgs), self._take_statuses(msgs, t_ns)
+
+    def _receive_failed(self, err: Exception) -> None:
+        """A receive call the bus refused: counted; the poll takes what came before it."""
+        self.counters.bus_errors += 1
+        logger.debug("CAN receive failed: %s", err)
 
     def _take_statuses(self, msgs: Sequence[can.Message], t_ns: int) -> bool:
         """``_take`` of each frame for a bytes-only sink on a bus without echoes; True if any was a status

@@ -40,17 +40,7 @@ class LockstepBus(can.BusABC):
         self._peer = peer
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
-        if not self._open:
-            raise can.CanOperationError(f"lockstep CAN bus {self.channel_info} is shut down")
-        peer = self._peer
-        if peer is not None and peer._open:
-            # One thread owns both ends and frames are never mutated after sending: no copy needed. The
-            # timestamp is set on the frame itself, as python-can's virtual bus does on its copy.
-            if self._clock is not None:
-                msg.timestamp = self._clock.now_ns() / 1e9
-            msg.channel = self.channel_info
-            peer._incoming.append(msg)
-        self.frames_sent += 1
+        self.send_all((msg,))
 
     def send_all(self, msgs: Sequence[can.Message]) -> None:
         """``send`` of each frame in turn, in one call; all of them or, shut down, none (the error).
@@ -62,6 +52,8 @@ class LockstepBus(can.BusABC):
             raise can.CanOperationError(f"lockstep CAN bus {self.channel_info} is shut down")
         peer = self._peer
         if peer is not None and peer._open:
+            # One thread owns both ends and frames are never mutated after sending: no copy needed. The
+            # timestamp is set on the frame itself, as python-can's virtual bus does on its copy.
             channel = self.channel_info
             if self._clock is None:
                 for msg in msgs:
