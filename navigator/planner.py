@@ -124,6 +124,8 @@ class Planner:
         # The grid's obstacle-free part, kept while the elevation and class layers stay (adding obstacles
         # keeps them): a grid recomputed for each obstacle seen skips refiltering the whole map.
         self._ground: GroundCost | None = None
+        self._flat: TerrainMap | None = None  # classical mode's flat layers (``_costed``)
+        self.grid_updates = 0  # obstacle updates of the cost grid (``_set_terrain``)
         self._terrain = terrain
         self._base_terrain = terrain  # the map as given: obstacles added later can be taken off again
         self._cost = self._grid(terrain)
@@ -164,7 +166,8 @@ class Planner:
 
     @property
     def cost_grid(self) -> np.ndarray:
-        """The cached ``(rows, cols)`` cost grid (read-only view)."""
+        """The cached ``(rows, cols)`` cost grid (read-only view; obstacle updates change it in place, so
+        copy it to keep the costs of one moment)."""
         view = self._cost.view()
         view.setflags(write=False)
         return view
@@ -182,21 +185,33 @@ class Planner:
     def cost_mode(self) -> str:
         return self._cost_mode
 
-    def _grid(self, terrain: TerrainMap) -> np.ndarray:
-        if self._cost_mode == "classical":
-            # Obstacles only: the same map flattened to firm ground, so no slope, roughness or class
-            # cost and no lethal slope; obstacle inflation and the clearance band stay.
-            flat = TerrainMap(
-                np.zeros(terrain.shape), np.zeros(terrain.shape, np.uint8), terrain.obstacles,
+    def _costed(self, terrain: TerrainMap) -> TerrainMap:
+        """The map the cost grid is computed on: ``terrain``, or in classical mode (obstacles only) its
+        obstacles on the same map flattened to firm ground, so no slope, roughness or class cost and no
+        lethal slope; obstacle inflation and the clearance band stay. The flat layers are made once and
+        shared, so the flat map's ground cost is kept as the terrain's is."""
+        if self._cost_mode != "classical":
+            return terrain
+        if self._flat is None or self._flat.shape != terrain.shape:
+            self._flat = TerrainMap(
+                np.zeros(terrain.shape), np.zeros(terrain.shape, np.uint8), np.zeros(terrain.shape, bool),
                 terrain.resolution_m, terrain.origin_xy,
             )  # fmt: skip
-            return self._cost_model.grid(flat, self._inflation_params, self._classes)
-        if self._ground is None or not self._ground.made_for(terrain):
-            self._ground = self._cost_model.ground_cost(terrain, self._inflation_params, self._classes)
-        return self._cost_model.grid(terrain, self._inflation_params, self._classes, ground=self._ground)
+        return self._flat.with_obstacles(terrain.obstacles)
+
+    def _ground_of(self, costed: TerrainMap) -> GroundCost:
+        if self._ground is None or not self._ground.made_for(costed):
+            self._ground = self._cost_model.ground_cost(costed, self._inflation_params, self._classes)
+        return self._ground
+
+    def _grid(self, terrain: TerrainMap) -> np.ndarray:
+        costed = self._costed(terrain)
+        return self._cost_model.grid(
+            costed, self._inflation_params, self._classes, ground=self._ground_of(costed)
+        )
 
     def update_obstacles(self, mask: np.ndarray) -> np.ndarray:
-        """Add obstacle cells (bool, map shape) and recompute the costs; returns where the cost changed."""
+        """Add obstacle cells (bool, map shape) and update the costs; returns where the cost changed."""
         return self._set_terrain(self._terrain.with_obstacles(mask))
 
     def reset_obstacles(self, mask: np.ndarray) -> np.ndarray:
@@ -206,12 +221,20 @@ class Planner:
         return self._set_terrain(self._base_terrain.with_obstacles(mask))
 
     def _set_terrain(self, terrain: TerrainMap) -> np.ndarray:
+        """Take ``terrain`` (this map's layers, other obstacles) and update the cost grid in place where its
+        obstacles differ (``CostModel.update_grid``: the grid made anew, bit for bit, but only the windows
+        the changed cells reach are recomputed: on a large map a whole-map dilation and distance transform
+        per obstacle seen was most of a replan)."""
+        before = self._terrain.obstacles
         self._terrain = terrain
-        before = self._cost
-        self._cost = self._grid(self._terrain)
+        costed = self._costed(terrain)
+        changed = self._cost_model.update_grid(
+            self._cost, costed, self._inflation_params, self._ground_of(costed), before
+        )
+        self.grid_updates += 1
         if self._repairing is not None:
             self._repairing.update_costs(self._cost)
-        return np.asarray(before != self._cost)
+        return changed
 
     def plan_cells(self, start_cell: tuple[int, int], goal_cell: tuple[int, int]) -> PlanResult:
         """A* between two cells over the current costs (no start escape)."""
