@@ -85,16 +85,17 @@ def run_plan_request(planner: Planner, request: PlanRequest) -> PlanOutcome:
     details: list[str] = []
     must_plan = request.must_plan
     repair_kept = False
+    changed = _update_map(planner, request)
     if request.moved_off:
-        planner.reset_obstacles(_discs(planner.terrain, request.static_obstacles))
         # Costs fell where they stood: the path around them may no longer be the best one, and a goal that
         # had no path may have one now.
         must_plan |= request.goal is not None
         details.append(f"obstacles {', '.join(request.moved_off)} moved on: taken off the map")
     if request.new_obstacles:
         ids = ", ".join(o.obstacle_id for o in request.new_obstacles)
-        changed = planner.update_obstacles(_discs(planner.terrain, request.new_obstacles))
-        if request.path is None or request.goal is None:
+        if changed is None or request.path is None or request.goal is None or request.moved_off:
+            # (``changed`` is set whenever obstacles are new.) With some taken off in the same update,
+            # costs fell too: the plan is remade whatever the new ones touch.
             must_plan |= request.goal is not None and request.retry_no_path
             details.append(f"obstacles {ids} added to the map")
         elif path_touches(planner, request.path, changed, request.start_xy):
@@ -116,6 +117,19 @@ def run_plan_request(planner: Planner, request: PlanRequest) -> PlanOutcome:
     reason = f" ({request.why})" if request.why else ""
     details.append(f"planned {path.length_m:.1f} m, cost {path.cost:.1f}{reason}")
     return PlanOutcome(request.generation, tuple(details), True, path, repair_kept)
+
+
+def _update_map(planner: Planner, request: PlanRequest) -> np.ndarray | None:
+    """Put the request's obstacle changes into the planner's map in one cost update; returns where the
+    cost changed (None: nothing to change). Obstacles that moved on are taken off by resetting the map to
+    the given one plus ``static_obstacles``, with the new ones in the same mask: one update, not a reset
+    and then an addition (each is a cost update)."""
+    if request.moved_off:
+        mask = _discs(planner.terrain, (*request.static_obstacles, *request.new_obstacles))
+        return planner.reset_obstacles(mask)
+    if request.new_obstacles:
+        return planner.update_obstacles(_discs(planner.terrain, request.new_obstacles))
+    return None
 
 
 def _discs(terrain: TerrainMap, observations: Iterable[ObstacleObservation]) -> np.ndarray:

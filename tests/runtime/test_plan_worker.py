@@ -14,8 +14,9 @@ from navigator.config import PlannerConfig
 from navigator.follower import FollowerConfig
 from navigator.guidance import DRIVING, NO_PATH, PLANNING, Guidance
 from navigator.perception import ObstacleObservation
-from navigator.plan_worker import InlineExecutor, plan_worker
-from navigator.terrain import TerrainMap
+from navigator.plan_worker import InlineExecutor, PlanRequest, plan_worker, run_plan_request
+from navigator.planner import Planner
+from navigator.terrain import TerrainMap, disc_mask
 from navigator.vehicle import VehicleParams
 
 T = TypeVar("T")
@@ -117,3 +118,36 @@ def test_a_long_plan_on_the_worker_thread_does_not_block_the_tick() -> None:
         plan_s = time.perf_counter() - started
     assert out.mode == DRIVING and out.path is not None
     assert tick_s < plan_s / 3, (tick_s, plan_s)
+
+
+def test_obstacles_moved_off_and_new_ones_are_one_cost_update() -> None:
+    """A job that takes obstacles off (moved on) and adds new ones updates the cost grid once, to the grid
+    of the map as given plus the obstacles still standing, new ones included."""
+    terrain = _flat()
+    planner = Planner(terrain, VehicleParams())
+    cart = ObstacleObservation(1, "cart-a", 10.0, 12.0, 0.6)
+    rock = ObstacleObservation(2, "rock", 20.0, 6.0, 0.8)
+    boulder = ObstacleObservation(3, "boulder", 14.0, 15.0, 1.0)
+    run_plan_request(planner, _request(new_obstacles=(cart, rock)))
+    assert planner.grid_updates == 1
+    outcome = run_plan_request(
+        planner, _request(new_obstacles=(boulder,), moved_off=("cart-a",), static_obstacles=(rock, boulder))
+    )
+    assert planner.grid_updates == 2  # one more: not a reset and then an addition
+    standing = disc_mask(terrain, 20.0, 6.0, 0.8) | disc_mask(terrain, 14.0, 15.0, 1.0)
+    fresh = Planner(terrain.with_obstacles(standing), VehicleParams())
+    np.testing.assert_array_equal(planner.cost_grid, fresh.cost_grid)
+    assert outcome.planned and outcome.path is not None and not outcome.repair_kept
+    assert outcome.details[:2] == (
+        "obstacles cart-a moved on: taken off the map",
+        "obstacles boulder added to the map",
+    )
+
+
+def _request(**changes: Any) -> PlanRequest:
+    fields: dict[str, Any] = dict(
+        generation=0, start_xy=(2.0, 10.0), goal=(27.0, 10.0), new_obstacles=(), path=None, must_plan=False,
+        retry_no_path=False,
+    )  # fmt: skip
+    fields.update(changes)
+    return PlanRequest(**fields)
