@@ -440,7 +440,14 @@ def disc_mask(terrain: TerrainMap, x: float, y: float, radius: float) -> np.ndar
     rows, cols = terrain.shape
     xs = terrain.origin_xy[0] + (np.arange(cols) + 0.5) * terrain.resolution_m
     ys = terrain.origin_xy[1] + (np.arange(rows) + 0.5) * terrain.resolution_m
-    mask = (xs[np.newaxis, :] - x) ** 2 + (ys[:, np.newaxis] - y) ** 2 <= radius**2
+    dx2, dy2, r2 = (xs - x) ** 2, (ys - y) ** 2, radius**2
+    mask = np.zeros((rows, cols), dtype=bool)
+    # Only the rows and columns within the radius can hold a cell of the disc (dx2 + dy2 <= r2 needs
+    # dy2 <= r2 and dx2 <= r2, rounding too, as both are >= 0): one disc is a small block of a large map.
+    in_rows, in_cols = np.flatnonzero(dy2 <= r2), np.flatnonzero(dx2 <= r2)
+    if in_rows.size and in_cols.size:
+        row0, row1, col0, col1 = in_rows[0], in_rows[-1] + 1, in_cols[0], in_cols[-1] + 1
+        mask[row0:row1, col0:col1] = dx2[np.newaxis, col0:col1] + dy2[row0:row1, np.newaxis] <= r2
     if terrain.contains(x, y):
         mask[terrain.cell_of(x, y)] = True
     return mask

@@ -2,6 +2,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
 
 from navigator.errors import TerrainError
 from navigator.terrain import TerrainMap, disc_mask, from_maze, load_npy_layers, procedural
@@ -155,3 +157,23 @@ def test_with_obstacles_is_the_map_made_anew_with_the_added_cells_sharing_its_la
     assert (added.resolution_m, added.origin_xy) == (0.5, (1.0, -2.0)) and not terrain.obstacles.any()
     with pytest.raises(TerrainError, match="obstacle mask has shape"):
         terrain.with_obstacles(np.zeros((3, 3), bool))
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    x=st.floats(-3.0, 15.0),
+    y=st.floats(-3.0, 15.0),
+    radius=st.floats(0.0, 8.0),
+    res=st.sampled_from([0.1, 0.25, 0.3, 1.0]),
+)
+@example(x=5.0, y=2.75, radius=2.0, res=1.0)  # cells exactly on the circle: its first, last row and column
+def test_disc_mask_computed_in_its_block_is_the_whole_map_formula(x, y, radius, res):
+    """disc_mask computes only the rows and columns within the radius; the same cells as the formula over
+    every cell of the map (discs partly or wholly off the map, radius 0 included)."""
+    terrain = flat(rows=41, cols=37, res=res, origin=(-0.5, 0.25))
+    xs = terrain.origin_xy[0] + (np.arange(37) + 0.5) * res
+    ys = terrain.origin_xy[1] + (np.arange(41) + 0.5) * res
+    expected = (xs[np.newaxis, :] - x) ** 2 + (ys[:, np.newaxis] - y) ** 2 <= radius**2
+    if terrain.contains(x, y):
+        expected[terrain.cell_of(x, y)] = True
+    np.testing.assert_array_equal(disc_mask(terrain, x, y, radius), expected)
