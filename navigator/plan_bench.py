@@ -24,6 +24,11 @@ and ``ours_target`` must match pyastar2d, each to a relative 1e-9 (``checks``).
 ``repair``: a local change on the map (a 3 x 3 block of obstacles dropped on the current path near its
 middle, and one beside it) and the plan repaired by ``navigator.replanning.RepairingPlanner`` (A* with the
 goal's cost-to-go field as heuristic) against a fresh plan; the field's one-off cost is reported too.
+
+``obstacle update``: one rock seen on a procedural terrain map (0.25 m cells, 20 rocks on it already): the
+cost grid made anew (inflation and distance transform over the whole map, the ground cost kept: what a
+planner did per update before) against ``CostModel.update_grid`` (only the window the rock reaches), in
+the same run; the grids must be equal bit for bit.
 """
 
 from __future__ import annotations
@@ -42,7 +47,10 @@ from scipy.sparse.csgraph import dijkstra
 from navigator import astar_bucket_kernel, astar_kernel
 from navigator.astar import BUCKET_ALPHA, SQRT2, PlanResult, astar
 from navigator.astar_python import astar_python
+from navigator.costs import CostModel
 from navigator.replanning import RepairingPlanner
+from navigator.terrain import disc_mask, procedural
+from navigator.vehicle import VehicleParams
 
 OBSTACLE_FRACTION = 0.2
 COST_TOLERANCE = 1e-9  # relative; sums of ~10^4 edges in a different order differ in the last bits
@@ -227,3 +235,38 @@ def repair_figures(size: int, seed: int, repeats: int) -> dict[str, Any]:
         figures[f"{key}repair_expanded"] = repaired.expanded
         figures[f"{key}same_cost"] = bool(abs(repaired.cost - fresh.cost) <= 1e-9 * fresh.cost)
     return figures
+
+
+def obstacle_update_figures(size: int, seed: int, repeats: int) -> dict[str, Any]:
+    """One rock added to a ``size`` x ``size`` map at 0.25 m: the cost grid made anew vs updated in place.
+
+    Both keep the ground cost (class, slope, roughness), as the planner does; ``full_ms`` is
+    ``CostModel.grid`` (whole-map dilation and distance transform), ``update_ms`` is
+    ``CostModel.update_grid`` on a copy of the grid before the rock (the copy is not timed).
+    """
+    rng = np.random.default_rng(seed)
+    params, model = VehicleParams(), CostModel()
+    terrain = procedural((size, size), 0.25, rng, hill_count=8, class_patch_count=8)
+    side_m = size * 0.25
+    rocks = np.zeros(terrain.shape, dtype=bool)
+    for x, y, radius in rng.uniform((0.0, 0.0, 0.3), (side_m, side_m, 1.5), (20, 3)).tolist():
+        rocks |= disc_mask(terrain, x, y, radius)
+    before = terrain.with_obstacles(rocks)
+    after = before.with_obstacles(disc_mask(terrain, side_m / 2, side_m / 2, 1.0))
+    ground = model.ground_cost(terrain, params)
+    cost = model.grid(before, params, ground=ground)
+    full_ms, full = _median_ms(lambda: model.grid(after, params, ground=ground), repeats)
+    times = []
+    for _ in range(repeats):
+        updated = cost.copy()
+        began = time.perf_counter()
+        model.update_grid(updated, after, params, ground, before.obstacles)
+        times.append((time.perf_counter() - began) * 1e3)
+    update_ms = statistics.median(times)
+    return {
+        "size": size,
+        "full_ms": full_ms,
+        "update_ms": update_ms,
+        "ratio": update_ms / full_ms,
+        "same_grid": bool(np.array_equal(updated, full)),
+    }

@@ -27,15 +27,18 @@ def register(commands: Any) -> None:
 
 def run_bench(args: argparse.Namespace) -> int:
     # Imported when picked: the benchmark's peers (scipy.sparse, pyastar2d, tcod) are no other command's cost.
-    from navigator.plan_bench import SizeResult, repair_figures, run_size, warm_up
+    from navigator.plan_bench import SizeResult, obstacle_update_figures, repair_figures, run_size, warm_up
 
     warm_up()
     smallest = min(args.sizes)
     results: list[SizeResult] = [run_size(s, args.seed, args.repeats, s == smallest) for s in args.sizes]
-    repair = repair_figures(1024 if 1024 in args.sizes else max(args.sizes), args.seed, args.repeats)
-    all_optimal = all(all(r.checks.values()) for r in results) and repair["same_cost"]
+    repair_size = 1024 if 1024 in args.sizes else max(args.sizes)
+    repair = repair_figures(repair_size, args.seed, args.repeats)
+    update = obstacle_update_figures(repair_size, args.seed, args.repeats)
+    all_optimal = all(all(r.checks.values()) for r in results) and repair["same_cost"] and update["same_grid"]
     if args.json:
-        print(json.dumps({"sizes": [vars(r) for r in results], "repair": repair, "optimal": all_optimal}))
+        figures = {"sizes": [vars(r) for r in results], "repair": repair, "obstacle_update": update}
+        print(json.dumps({**figures, "optimal": all_optimal}))
         return 0 if all_optimal else 1
     for r in results:
         print(f"{r.size} x {r.size}:")
@@ -63,6 +66,11 @@ def run_bench(args: argparse.Namespace) -> int:
         f"  goal cost-to-go field (once per goal, reused by every repair): {repair['field_ms']:.1f} ms "
         f"({100 * repair['field_ratio']:.0f} % of a fresh plan)"
     )
+    print(
+        f"obstacle update on {update['size']}^2 (one rock): cost grid updated in its window "
+        f"{update['update_ms']:.1f} ms vs made anew {update['full_ms']:.1f} ms "
+        f"({100 * update['ratio']:.1f} %), same grid: {update['same_grid']}"
+    )
     if not all_optimal:
-        print("NOT OPTIMAL: a cost differs from its reference (see 'same cost' above)")
+        print("NOT OPTIMAL: a cost or grid differs from its reference (see 'same cost' / 'same grid' above)")
     return 0 if all_optimal else 1

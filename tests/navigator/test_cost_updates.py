@@ -156,3 +156,11 @@ def test_update_grid_refuses_another_maps_ground_or_shape() -> None:
         model.update_grid(cost, terrain, PARAMS, model.ground_cost(other, PARAMS), terrain.obstacles)
     with pytest.raises(ParameterError, match="must have the map's shape"):
         model.update_grid(cost[:5], terrain, PARAMS, model.ground_cost(terrain, PARAMS), terrain.obstacles)
+
+
+def test_the_benchmark_row_times_equal_grids() -> None:
+    from navigator.plan_bench import obstacle_update_figures
+
+    figures = obstacle_update_figures(96, seed=4, repeats=1)
+    assert figures["same_grid"] and figures["size"] == 96
+    assert figures["update_ms"] > 0.0 and figures["full_ms"] > 0.0
