@@ -353,7 +353,8 @@ def _judge_silent_imu(
     before = [m for s, t, m in windows if start - BASELINE_S * NS <= s and t <= start]
     during = [m for s, t, m in windows if start + IMU_GRACE_S * NS <= s and t <= end]
     after = [m for s, t, m in windows if end <= s and t <= end + RECOVER_LIMIT_S * NS]
-    # Without a window before it (the rover had only just started), the share of a rover at rest.
+    # No window before it (the rover had only just started): no pace of its own to hold it to, so the
+    # fixed share of a quiet host.
     share_before = _sensor_share(before) if before else 1.0
     seen = share_before > 0.0 and any(m["sensor_ticks"] == 0 for m in during)
     recovered = any(
