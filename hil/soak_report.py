@@ -1,11 +1,18 @@
 """Judging a soak from its recordings: each fault injected, seen on the rover and recovered from; memory
 growth; ticks and overruns; the peer's stalls; failsafes no planned fault explains; crashes.
 
-Not OK (``SoakReport.problems``): a crash; a fault not injected, seen or recovered; any failsafe that no
-planned fault explains (``hil.soak_plan.RAISES``: what each fault may raise, from its start until
-``SEEN_SLACK_S`` after its end); a stall of the peer (the real time between two of its steps) longer than
-the simulated controllers' command timeout (``PEER_STALL_LIMIT_MS``): beyond it the controllers stop the
-wheels by themselves, and the soak tests the machine's scheduler, not the rover.
+Not OK (``SoakReport.problems``): a crash; a fault not injected, seen or recovered; any failsafe that
+neither a planned fault explains (``hil.soak_plan.RAISES``: what each fault may raise, from its start
+until ``SEEN_SLACK_S`` after its end) nor a recorded stall of the peer accounts for (``stall_accounts_for``:
+the stall's silence covers the failsafe's own budget); a stall of the peer (the real time between two of
+its steps) longer than the simulated controllers' command timeout (``PEER_STALL_LIMIT_MS``): beyond it the
+controllers stop the wheels by themselves, and the soak tests the machine's scheduler, not the rover.
+
+A silent IMU (the pacing sensor) is judged from ``runtime/timing``, one window per second, against the
+rover's own pace just before it: seen when a whole window inside the fault ran on the deadline alone, and
+recovered when a whole window after it was sensor-paced again at ``RECOVERED_SHARE`` of that pace. On a
+busy host the rover is sensor-paced only part of the time, so a fixed share would fail a rover that
+recovered, and "some deadline ticks" would see a fault that the rover never noticed.
 
 Times: both recordings carry the OS monotonic clock (``rover run`` and ``rover hil peer`` both use
 ``MonotonicClock``), so the peer's ``fault injected`` / ``fault cleared`` records (``hil.faults``) and the
@@ -17,7 +24,7 @@ from __future__ import annotations
 import json
 import math
 import re
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +35,7 @@ from hil.soak_plan import DEADLINE_TICKS, SoakFault
 from hil.vesc_sim import DEFAULT_COMMAND_TIMEOUT_S
 from logs import topics
 from logs.reader import read_messages, read_metadata
+from navigator.safety_config import SafetyConfig
 
 NS = 1_000_000_000
 SEEN_SLACK_S = 3.0  # a failsafe may fire this long after its fault ended (the tick that judges it)
@@ -35,6 +43,15 @@ RECOVER_LIMIT_S = 15.0  # after the fault ends, it must have cleared within this
 LEAD_SLACK_S = 0.1  # a failsafe this long before its fault's recorded start still counts (e-stop send time)
 PEER_STALL_LIMIT_MS = DEFAULT_COMMAND_TIMEOUT_S * 1000.0
 STALL_HINT_S = 1.0  # a peer stall this long before an unexplained failsafe is named beside it
+# A peer stall shorter than PEER_STALL_LIMIT_MS is the machine's and accepted; what it silences is too. Of
+# the rover's failsafes only wheel_silent has a budget that short (docs/safety.md: GPS and heartbeat 3 s).
+WHEEL_SILENT_S = SafetyConfig().wheel_silent_s  # the soak's rover keeps the default
+STATUS_PERIOD_S = 0.02  # the simulated controllers' STATUS period (hil.vesc_sim: 50 Hz)
+# After a stall the rover hears status again within this: the catch-up step's send, the UDP hop, one tick.
+STALL_DELIVERY_S = 0.05
+BASELINE_S = 5.0  # a silent IMU's "before": the rover's sensor-paced share over this long before it
+IMU_GRACE_S = 0.1  # a window inside a silent IMU starts this long after it (samples already in flight)
+RECOVERED_SHARE = 0.8  # of the share before the fault, in one whole window after it
 _FAULT_LOG = re.compile(r"fault (injected|cleared): (\S+)")
 
 
@@ -95,6 +112,9 @@ class SoakReport:
     failsafe_events: dict[str, int] = field(default_factory=dict)
     peer: PeerTiming = field(default_factory=PeerTiming.unknown)
     unexplained_failsafes: list[str] = field(default_factory=list)  # each with its time and detail
+    # Failsafes a recorded peer stall accounts for (the machine's, not the stack's), with the stall.
+    stall_failsafes: list[str] = field(default_factory=list)
+    rover_first_tick_s: float | None = None  # when the rover's control loop first ran; None: never
     peer_scheduling: str = "normal scheduling"  # what `rover hil peer --fifo` got (its `scheduling:` line)
 
     @property
@@ -152,6 +172,7 @@ def judge_soak(
     peer, stalls = _peer_timing(truth_mcap) if truth_mcap.exists() else (PeerTiming.unknown(), [])
     results = []
     placed: list[tuple[SoakFault, tuple[float, float] | None]] = []
+    first_tick_s = _first_tick_s(timing, epoch_s)
     for fault in plan:
         if fault.target == "estop":
             window = estop_windows.pop(0) if estop_windows else None
@@ -159,7 +180,7 @@ def judge_soak(
             found = windows.get(fault.name, [])
             window = found.pop(0) if found else None
         placed.append((fault, window))
-        results.append(_judge_fault(fault, window, events, timing, epoch_s))
+        results.append(_too_early(_judge_fault(fault, window, events, timing, epoch_s), first_tick_s))
     failsafes = _failsafes(rover_mcap) if rover_mcap.exists() else []
     totals = _totals(rover_mcap) if rover_mcap.exists() else {}
     crashes = []
@@ -187,7 +208,35 @@ def judge_soak(
         failsafe_events=fired,
         peer=peer,
         unexplained_failsafes=unexplained_failsafes(failsafes, placed, stalls, epoch_s),
+        stall_failsafes=stall_failsafes(failsafes, stalls, epoch_s),
+        rover_first_tick_s=first_tick_s,
     )
+
+
+def _first_tick_s(timing: list[tuple[int, dict[str, Any]]], epoch_s: float) -> float | None:
+    """When the rover's loop first ticked (s from the epoch), from its first ``runtime/timing`` window
+    with ticks: the window's end less its ticks at the nominal period (the window itself may start at
+    the publisher's construction, before the warm-up)."""
+    for t_ns, m in timing:
+        if m["ticks"] > 0:
+            return t_ns / NS - epoch_s - m["ticks"] * m["nominal_period_ms"] / 1000.0
+    return None
+
+
+def _too_early(result: FaultResult, first_tick_s: float | None) -> FaultResult:
+    """A fault not seen or not recovered that began before the rover's loop ran says so: the soak's
+    warm-up was too short for this machine, and the rover could not have seen it (nor had a pace before
+    it to recover to)."""
+    if (result.seen and result.recovered) or not result.injected:
+        return result
+    if first_tick_s is not None and result.start_s >= first_tick_s:
+        return result
+    if first_tick_s is None:
+        return replace(result, evidence=f"{result.evidence}; the rover's control loop never ran")
+    evidence = (
+        f"{result.evidence}; the rover's control loop first ran at {first_tick_s:.1f} s, after it began"
+    )
+    return replace(result, evidence=evidence)
 
 
 def unexplained_failsafes(
@@ -196,15 +245,18 @@ def unexplained_failsafes(
     stalls: list[tuple[int, float, float]],
     epoch_s: float,
 ) -> list[str]:
-    """Each failsafe raised (``(ns, "failsafe.<name>", detail)``) that no planned fault explains, in words.
+    """Each failsafe raised (``(ns, "failsafe.<name>", detail)``) that neither a planned fault explains nor
+    a stall of the peer accounts for (``stall_failsafes``), in words.
 
     ``placed``: each planned fault with its window as recorded (ns on the shared clock; None: never
     injected); ``stalls``: the peer's, ``(ns, gap ms, dropped ms)``; a stall shortly before an unexplained
-    failsafe is named beside it, as its likely cause.
+    failsafe, though its silence does not cover the failsafe's budget, is named beside it as a lead.
     """
     unexplained = []
     for t_ns, kind, detail in failsafes:
         name = kind.removeprefix("failsafe.")
+        if _stall_behind(t_ns, name, stalls) is not None:
+            continue
         if any(
             window is not None
             and name in fault.may_raise
@@ -221,6 +273,46 @@ def unexplained_failsafes(
     return unexplained
 
 
+def stall_failsafes(
+    failsafes: list[tuple[int, str, str]], stalls: list[tuple[int, float, float]], epoch_s: float
+) -> list[str]:
+    """Each failsafe that a recorded stall of the peer accounts for (``stall_accounts_for``), in words."""
+    explained = []
+    for t_ns, kind, detail in failsafes:
+        stall = _stall_behind(t_ns, kind.removeprefix("failsafe."), stalls)
+        if stall is not None:
+            at, gap_ms, _dropped = stall
+            explained.append(
+                f"{kind} at {t_ns / NS - epoch_s:.1f} s ({detail}): the peer stalled {gap_ms:.0f} ms "
+                f"between steps at {at / NS - epoch_s:.1f} s"
+            )
+    return explained
+
+
+def _stall_behind(
+    t_ns: int, name: str, stalls: list[tuple[int, float, float]]
+) -> tuple[int, float, float] | None:
+    """The recorded stall that accounts for failsafe ``name`` raised at ``t_ns``, if one does."""
+    if name != "wheel_silent":
+        return None
+    return next((s for s in stalls if stall_accounts_for(s, t_ns)), None)
+
+
+def stall_accounts_for(stall: tuple[int, float, float], t_ns: int) -> bool:
+    """Whether a peer stall (``(ns of the step after it, gap ms, dropped ms)``) silenced the controllers
+    for the whole budget of a ``wheel_silent`` raised at ``t_ns``.
+
+    The frozen peer sent nothing from its last status before the gap (up to one status period before it)
+    until the step after it, which the rover hears within ``STALL_DELIVERY_S``; the failsafe says nothing
+    was heard over the ``WHEEL_SILENT_S`` before ``t_ns``. The stall accounts for it only if that silence
+    lies within the stall's: a failsafe later than the delivery, or a gap too short to cover the budget,
+    had a silence the stall does not explain (the stack's, or a stall of the rover itself).
+    """
+    end_ns, gap_ms, _dropped = stall
+    silent_from = end_ns - (gap_ms / 1000.0 + STATUS_PERIOD_S) * NS
+    return silent_from <= t_ns - WHEEL_SILENT_S * NS and t_ns <= end_ns + STALL_DELIVERY_S * NS
+
+
 def _judge_fault(
     fault: SoakFault,
     window: tuple[float, float] | None,
@@ -234,11 +326,7 @@ def _judge_fault(
     start, end = int(window[0]), int(window[1])
     at = ((start / NS) - epoch_s, (end / NS) - epoch_s)
     if fault.evidence == DEADLINE_TICKS:
-        during = [m for t, m in timing if start + NS <= t <= end + NS // 2]
-        seen = any(m["deadline_ticks"] > 0 for m in during)
-        after = [m for t, m in timing if end + NS < t <= end + RECOVER_LIMIT_S * NS]
-        recovered = any(m["ticks"] > 0 and m["sensor_ticks"] >= 0.8 * m["ticks"] for m in after)
-        detail = f"deadline ticks in {sum(m['deadline_ticks'] for m in during)} of the silent window's ticks"
+        seen, recovered, detail = _judge_silent_imu(start, end, timing)
         return FaultResult(fault.name, *at, True, seen, recovered, detail)
     raised, lowered = f"failsafe.{fault.failsafe}", f"cleared.{fault.failsafe}"
     fired = [t for t, kind in events if kind == raised and start <= t <= end + SEEN_SLACK_S * NS]
@@ -255,6 +343,36 @@ def _judge_fault(
     if cleared:
         detail += f", cleared {(cleared[0] - end) / NS:.2f} s after the end"
     return FaultResult(fault.name, *at, True, True, bool(cleared), detail)
+
+
+def _judge_silent_imu(
+    start: int, end: int, timing: list[tuple[int, dict[str, Any]]]
+) -> tuple[bool, bool, str]:
+    """(seen, recovered, evidence) of a silent IMU from the rover's ``runtime/timing`` windows."""
+    windows = [(t - round(m["window_s"] * NS), t, m) for t, m in timing if m["ticks"] > 0]
+    before = [m for s, t, m in windows if start - BASELINE_S * NS <= s and t <= start]
+    during = [m for s, t, m in windows if start + IMU_GRACE_S * NS <= s and t <= end]
+    after = [m for s, t, m in windows if end <= s and t <= end + RECOVER_LIMIT_S * NS]
+    # No window before it (the rover had only just started): no pace of its own to hold it to, so the
+    # fixed share of a quiet host.
+    share_before = _sensor_share(before) if before else 1.0
+    seen = share_before > 0.0 and any(m["sensor_ticks"] == 0 for m in during)
+    recovered = any(
+        m["sensor_ticks"] > 0 and _sensor_share([m]) >= RECOVERED_SHARE * share_before for m in after
+    )
+    best_after = max((_sensor_share([m]) for m in after), default=0.0)
+    silent = min((m["sensor_ticks"] for m in during), default=None)
+    detail = (
+        f"sensor-paced {share_before:.0%} of ticks before; "
+        + ("no whole window inside the fault" if silent is None else f"fewest in a window during: {silent}")
+        + f"; best window after: {best_after:.0%} (needs {RECOVERED_SHARE * share_before:.0%})"
+    )
+    return seen, recovered, detail
+
+
+def _sensor_share(windows: list[dict[str, Any]]) -> float:
+    ticks = sum(int(m["ticks"]) for m in windows)
+    return sum(int(m["sensor_ticks"]) for m in windows) / ticks if ticks else 0.0
 
 
 def _active_at(events: list[tuple[int, str]], raised: str, lowered: str, t_ns: int) -> int | None:

@@ -1,4 +1,4 @@
-"""The soak: its seeded plan, and a 30 s real-time soak (peer + rover run, four faults) judged clean."""
+"""The soak: its seeded plan, and a 42 s real-time soak (peer + rover run, four faults) judged clean."""
 
 from __future__ import annotations
 
@@ -36,10 +36,14 @@ def test_the_scenario_carries_the_peer_side_faults(tmp_path: Path) -> None:
 
 @needs_netns
 def test_a_short_soak_injects_sees_and_recovers_every_fault(tmp_path: Path) -> None:
-    # Seed 3 in 30 s: a controller reboot, an e-stop over Zenoh, a silent IMU (the pacing sensor), a CAN
+    # Seed 3 in 42 s: a controller reboot, an e-stop over Zenoh, a silent IMU (the pacing sensor), a CAN
     # bus-off (the peer's error frames put the rover's link bus-off: hil.bus_off.BusOffAnnouncer).
+    # The faults count from the peer's start, and `rover run` starts after it: on this 2-core host its
+    # loop first ticked 5-7 s in under the other helpers' load (~9), 11-13 s in with two busy loops
+    # besides and 15.6-25.2 s at load 12-14, so a 6 s warm-up lost the first fault before the rover ran
+    # (the report says so: rover_first_tick_s). 20 s, the soak's own default, covers all but the last.
     settings = SoakSettings(
-        30.0, 3, tmp_path, rss_period_s=1.0, warmup_s=6.0, gap_s=(3.0, 4.0), peer_fifo=PEER_FIFO_PRIORITY
+        42.0, 3, tmp_path, rss_period_s=1.0, warmup_s=20.0, gap_s=(3.0, 4.0), peer_fifo=PEER_FIFO_PRIORITY
     )
     report = run_soak(settings)
     names = [f.name.split("[")[0] for f in report.faults]
@@ -47,10 +51,16 @@ def test_a_short_soak_injects_sees_and_recovers_every_fault(tmp_path: Path) -> N
     assert report.ok, report.to_json()
     (can_off,) = [f for f in report.faults if f.name == "can/off"]
     assert can_off.seen and "failsafe.can_bus_off" in can_off.evidence, can_off
-    # Mostly sensor-paced: the silent IMU's 3 s (~150 ticks) run on the deadline, and so does every tick
-    # whose sample comes later than the grace, which on a 2-core machine running the peer, the rover and
-    # the test side by side is a few percent of them (0.80-0.87 sensor-paced seen; 0.8 once failed).
-    assert not report.crashes and report.ticks > 1000 and report.sensor_ticks > 0.65 * report.ticks
+    # Sensor-paced in part: the silent IMU's 3 s (~150 ticks) run on the deadline, and so does every tick
+    # whose sample comes later than the grace. On this 2-core machine that share is the host's load:
+    # 0.68-0.87 sensor-paced under the other helpers' load (load ~9; 0.51 once), 0.15-0.33 with two busy
+    # loops besides. The judge holds the rover to its own pace around the silent IMU (hil.soak_report);
+    # this floor fails a rover whose pacing is broken, not a busy host.
+    assert not report.crashes and report.sensor_ticks > 0.2 * report.ticks
+    # 50 Hz from the loop's first tick to the stop (0.85-1.0 of it seen, at load 12-14 too): a count
+    # from the soak's start would measure how long this host took to start `rover run`.
+    assert report.rover_first_tick_s is not None
+    assert report.ticks > 0.75 * 50.0 * (settings.seconds - report.rover_first_tick_s), report.ticks
     assert report.deadline_ticks > 0  # the silent IMU's fallback ticks
     # A normal start does not trip the stall failsafe (the first plan runs off the control thread).
     assert "failsafe.loop_stall" not in report.failsafe_events
