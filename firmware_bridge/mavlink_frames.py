@@ -108,7 +108,10 @@ def send_unsigned_v2(mav: mavlink2.MAVLink, msg: Any) -> None:
 def decode_unsigned_v2(frame: bytearray, decode: Callable[[bytearray], Any]) -> Any:
     """The message of one whole ``frame``, as ``decode`` (a ``MAVLink.decode``) makes it, which decodes any
     frame but an unsigned MAVLink 2 frame of a plain message with a matching CRC; ``frame`` is kept in the
-    message (``get_msgbuf``), as ``decode`` keeps it."""
+    message (``get_msgbuf``), as ``decode`` keeps it.
+
+    Only for a ``MAVLink`` without a signing key: with one, ``decode`` asks its allow-unsigned callback
+    about every unsigned frame, so such a frame must go there (the link calls this only without a key)."""
     size = len(frame)
     plain = _PLAIN.get(frame[7] | frame[8] << 8 | frame[9] << 16) if size >= _V2_OVERHEAD else None
     if (
