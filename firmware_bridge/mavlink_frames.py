@@ -29,8 +29,6 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 _V2_HEADER_LEN = 10
 _V2_OVERHEAD = 12  # the header and a 2-byte CRC
-
-
 _V2_HEADER = struct.Struct("<BBBBBBBHB")  # marker, length, incompat and compat flags, seq, ids, msgid
 
 
