@@ -17,6 +17,7 @@ import pymap3d
 from pymavlink.dialects.v20 import common as mavlink2
 
 from firmware_bridge.errors import BridgeOperationError
+from firmware_bridge.mavlink_frames import send_unsigned_v2
 from firmware_bridge.mavlink_transport import Transport
 from hil.faults import FaultSchedule
 from hil.sensors import GpsModel, GpsSample, ImuModel, course_bearing_deg
@@ -220,7 +221,9 @@ class SimAutopilot:
 
     def _send(self, stream: str, msg: Any) -> None:
         try:
-            self._mav.send(msg)
+            # mav.send's bytes without its per-frame work for the plain messages all streams send
+            # (firmware_bridge.mavlink_frames); the message is not stamped with its frame: nothing reads it.
+            send_unsigned_v2(self._mav, msg)
         except (BridgeOperationError, OSError) as err:
             self.send_errors += 1
             logger.debug("simulated autopilot: cannot send %s: %s", msg.get_type(), err)
