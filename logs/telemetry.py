@@ -197,7 +197,7 @@ class _TopicStream:
     (~0.7 us: the payload copied into zenoh, the routing looked up); a lockstep trial streamed to nobody
     (``rover bench hil``) made ~20,000 of them. So the stream puts only while ``heard``. The status is read
     once at declaration; zenoh reports each later change to a matching listener whose handler keeps the
-    latest one (a ring of one), which ``take_change`` takes without waiting (~0.05 us) before each message.
+    latest one (a ring of one), which ``take_change`` takes without waiting (~0.1 us) before each message.
     A handler, not a Python callback: zenoh runs each callback on a thread of its own that holds up the
     process's exit until the session closes.
     """
