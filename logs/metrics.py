@@ -121,13 +121,19 @@ def _gather(entries: Iterable[Entry]) -> _Trial:
     trial = _Trial()
     # estimator/pose read undecoded (compute_metrics): decoded only when no truth/pose gives the trajectory.
     deferred_estimates: list[RecordedRaw] = []
+    seen = trial.seen
     for entry in entries:
         # Messages first: all but a handful of the entries are messages.
         if isinstance(entry, RecordedMessage):
-            take = _TAKERS.get(entry.topic)
+            topic = entry.topic
+            take = _TAKERS.get(topic)
             if take is not None:
-                trial.seen.add(entry.topic)
-                _take_or_reject(trial, entry, take)
+                seen.add(topic)
+                # _take_or_reject, inline: a Python frame fewer on each of ~6,000 messages a trial.
+                try:
+                    take(trial, topic, entry.log_time_ns, entry.message)
+                except _UNUSABLE:
+                    trial.rejected[topic] += 1
         elif isinstance(entry, RecordedRaw):
             if entry.topic == ESTIMATOR_POSE:
                 trial.seen.add(entry.topic)
@@ -142,10 +148,14 @@ def _gather(entries: Iterable[Entry]) -> _Trial:
     return trial
 
 
+# What a taker raises for a message without usable values: it is rejected (counted), not taken.
+_UNUSABLE = (KeyError, TypeError, ValueError, IndexError)
+
+
 def _take_or_reject(trial: _Trial, entry: RecordedMessage, take: _Taker) -> None:
     try:
         take(trial, entry.topic, entry.log_time_ns, entry.message)
-    except (KeyError, TypeError, ValueError, IndexError):
+    except _UNUSABLE:
         trial.rejected[entry.topic] += 1
 
 

@@ -148,7 +148,9 @@ def test_loopback_stream_delivers_same_payloads_and_log_times(
             assert encode_message(sample.message) == encode_message(message)
         assert received[-4].message["xte"] is None  # NaN travels as null, as in the recording
         assert subscription.rejected == 0
-        assert telemetry.failures == 0 and telemetry.published == len(sent) + attempt + 1
+        # Probes sent before zenoh reported the station's subscriber were not put (nobody matched).
+        assert telemetry.failures == 0 and telemetry.published >= len(sent) + 1
+        assert telemetry.published + telemetry.unheard == len(sent) + attempt + 1
         with pytest.raises(TelemetryError, match="unknown topic"):
             telemetry.publish("no/such/topic", 0, {})
     finally:
@@ -232,29 +234,50 @@ def test_rates_for_unknown_topics_are_refused() -> None:
         ZenohSettings.from_table(table)
 
 
-class _PutRecorder:
-    """A publisher that keeps what it was given (no network): payload and attachment bytes per put."""
+class _Matching:
+    def __init__(self, matching: bool) -> None:
+        self.matching = matching
 
-    def __init__(self) -> None:
+
+class _PutRecorder:
+    """A publisher that keeps what it was given (no network): payload and attachment bytes per put.
+
+    Its matching status (whether a subscriber would receive its puts) starts as ``matching``; ``match``
+    changes it and reports the change to the matching listener's handler, as zenoh does."""
+
+    def __init__(self, matching: bool = True) -> None:
         self.puts: list[tuple[bytes, bytes]] = []
+        self.matching_status = _Matching(matching)
+        self._reported: list[_Matching] = []
 
     def put(self, payload: bytes, *, attachment: zenoh.ZBytes) -> None:
         self.puts.append((payload, attachment.to_bytes()))
+
+    def declare_matching_listener(self, handler: object) -> _PutRecorder:
+        return self
+
+    def try_recv(self) -> _Matching | None:
+        return self._reported.pop() if self._reported else None
+
+    def match(self, matching: bool) -> None:
+        self.matching_status = _Matching(matching)
+        self._reported = [_Matching(matching)]  # a ring of one: the latest change
 
     def undeclare(self) -> None:
         return None
 
 
 class _StubSession:
-    def __init__(self) -> None:
+    def __init__(self, matching: bool = True) -> None:
         self.publishers: dict[str, _PutRecorder] = {}
         self.congestion: dict[str, zenoh.CongestionControl] = {}
+        self._matching = matching
 
     def declare_publisher(
         self, key: str, encoding: zenoh.Encoding, congestion_control: zenoh.CongestionControl
     ) -> _PutRecorder:
         self.congestion[key] = congestion_control
-        return self.publishers.setdefault(key, _PutRecorder())
+        return self.publishers.setdefault(key, _PutRecorder(self._matching))
 
 
 @pytest.mark.parametrize(
@@ -292,3 +315,57 @@ def test_each_put_carries_its_own_log_time_and_a_bad_one_is_counted() -> None:
     telemetry.close()
     with pytest.raises(TelemetryError, match="closed"):
         telemetry.publish_bytes(LOG, 9, b"{}")
+
+
+def test_nothing_is_put_while_no_subscriber_matches_and_everything_once_one_does() -> None:
+    session = _StubSession(matching=False)
+    telemetry = ZenohTelemetry(session, "r1")  # type: ignore[arg-type]
+    telemetry.publish_bytes(LOG, 1, b'{"n":1}')
+    telemetry.publish_bytes_many(LOG, 2, [b'{"n":2}', b'{"n":3}'])
+    publisher = session.publishers["rover/r1/log"]
+    assert publisher.puts == [] and telemetry.unheard == 3 and telemetry.published == 0
+    telemetry.publish_bytes(LOG, None, b"{}")  # type: ignore[arg-type]
+    assert telemetry.failures == 1  # a bad log time is counted though nobody listens
+    publisher.match(True)  # a subscriber came
+    telemetry.publish_bytes_many(LOG, 4, [b'{"n":4}', b'{"n":5}'])
+    assert [payload for payload, _ in publisher.puts] == [b'{"n":4}', b'{"n":5}']
+    assert telemetry.published == 2 and telemetry.unheard == 3
+    publisher.match(False)  # and went
+    telemetry.publish_bytes(LOG, 6, b'{"n":6}')
+    assert len(publisher.puts) == 2 and telemetry.unheard == 4
+    # A topic declared while a subscriber matches puts from its first message (the status read then).
+    matched = _StubSession(matching=True)
+    telemetry = ZenohTelemetry(matched, "r1")  # type: ignore[arg-type]
+    telemetry.publish_bytes(NAVIGATOR_STATE, 7, b'{"n":7}')
+    assert matched.publishers["rover/r1/navigator/state"].puts[0][0] == b'{"n":7}'
+    assert telemetry.published == 1 and telemetry.unheard == 0
+
+
+def test_a_subscriber_in_the_session_gets_a_topic_once_zenoh_reports_the_match() -> None:
+    session = open_session(ZenohSettings(enabled=True))
+    try:
+        telemetry = ZenohTelemetry(session, "r3")
+        telemetry.publish_bytes(LOG, 1, b'{"n":1}')  # nobody subscribed: not put
+        assert telemetry.unheard == 1 and telemetry.published == 0
+        collector = _Collector()
+        subscription = subscribe(session, "r3", collector)
+        try:
+            # A publisher declared after the subscriber matches from its first message.
+            telemetry.publish_bytes(NAVIGATOR_STATE, 2, b'{"n":2}')
+            assert telemetry.published == 1
+            assert collector.wait_for(lambda samples: len(samples) == 1, WAIT_S)
+            # The log publisher, declared before the subscriber, puts once zenoh has reported the match.
+            log_messages = 1
+            while telemetry.published < 2:
+                assert log_messages < WAIT_S / 0.01, "zenoh never reported the subscriber's match"
+                collector.wait_for(lambda samples: False, 0.01)
+                telemetry.publish_bytes(LOG, 3, b'{"n":3}')
+                log_messages += 1
+            assert collector.wait_for(lambda samples: len(samples) == 2, WAIT_S)
+            assert [s.topic for s in collector.samples] == [NAVIGATOR_STATE, LOG]
+            assert telemetry.published + telemetry.unheard == 1 + log_messages
+        finally:
+            subscription.close()
+            telemetry.close()
+    finally:
+        session.close()
