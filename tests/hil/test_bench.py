@@ -78,3 +78,23 @@ def test_repeated_runs_report_their_median_and_keep_every_wall_time() -> None:
     assert median.real_time_factor == 20.0
     report = BenchReport("s", None, False, (median,), {}, {}, 0.0, 0.0, 40.0).as_dict()
     assert report["runs_wall_s"] == {"lockstep": [2.5, 1.8, 2.0]}
+
+
+def test_bench_command_reports_every_peer_and_what_zenoh_put(capsys: pytest.CaptureFixture[str]) -> None:
+    """The whole command on a small scenario: each peer timed, and with nobody subscribed every live message
+    is counted as unheard, none put (the figure says Zenoh cost the matching check, not a delivery)."""
+    import json
+    from pathlib import Path
+
+    from rover_cli.main import main
+
+    small = Path(__file__).resolve().parents[1] / "data" / "small_rocky.toml"
+    code = main(["bench", "hil", "--scenario", str(small), "--repeats", "1", "--all-cores", "--json"])
+    assert code == 0
+    figures = json.loads(capsys.readouterr().out)
+    assert set(figures["real_time_factor"]) == {"lockstep", "lockstep-virtual-can", "world-only"}
+    assert all(factor > 0 for factor in figures["real_time_factor"].values())
+    assert figures["breakdown"]["telemetry"]["calls"] > 0
+    assert figures["zenoh_instrumented_run"]["put"] == 0
+    # Each message the rate limits pass reaches the stream once (the limits thin can/frames and innovations).
+    assert figures["zenoh_instrumented_run"]["unheard"] > 0.5 * figures["breakdown"]["telemetry"]["calls"]
