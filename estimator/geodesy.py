@@ -8,7 +8,9 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
+import numpy as np
 import pymap3d
 
 from estimator.errors import EstimatorSetupError
@@ -61,21 +63,46 @@ def check_longitude(field: str, lon_deg: float) -> None:
 def to_enu(datum: Datum, lat_deg: float, lon_deg: float, alt_m: float) -> tuple[float, float, float]:
     """Geodetic point to (east, north, up) metres relative to ``datum``.
 
-    ``pymap3d.geodetic2enu`` in its own steps (both points to ECEF, then the difference into the datum's
-    ENU), with the datum's ECEF position computed once per datum rather than on every GPS fix: the same
-    pymap3d calls on the same numbers, so the same floats (tests/estimator/test_geodesy.py).
+    ``pymap3d.geodetic2enu`` in its own steps (both points to ECEF, then the difference turned into the
+    datum's ENU axes), with what depends on the datum alone (its ECEF position, the sines and cosines of
+    its latitude and longitude) worked out once per datum rather than on every GPS fix: the same numbers
+    through the same operations, so the same floats (tests/estimator/test_geodesy.py).
     """
     x, y, z = pymap3d.geodetic2ecef(lat_deg, lon_deg, alt_m, _WGS84, deg=True)
-    x0, y0, z0 = _ecef_of(datum)
-    e, n, u = pymap3d.uvw2enu(x - x0, y - y0, z - z0, datum.lat_deg, datum.lon_deg, deg=True)
-    return float(e), float(n), float(u)
+    frame = _frame_of(datum)
+    u, v, w = float(x) - frame.x0, float(y) - frame.y0, float(z) - frame.z0
+    # The ECEF offset rotated onto the datum's east / north / up axes, each product and sum in the order
+    # pymap3d.uvw2enu takes them (Python floats and numpy float64 scalars round alike).
+    t = frame.cos_lon * u + frame.sin_lon * v
+    east = -frame.sin_lon * u + frame.cos_lon * v
+    up = frame.cos_lat * t + frame.sin_lat * w
+    north = -frame.sin_lat * t + frame.cos_lat * w
+    return east, north, up
+
+
+class _DatumFrame(NamedTuple):
+    """A datum's ECEF position (m) and the sines and cosines of its latitude and longitude."""
+
+    x0: float
+    y0: float
+    z0: float
+    sin_lat: float
+    cos_lat: float
+    sin_lon: float
+    cos_lon: float
 
 
 @functools.lru_cache(maxsize=16)
-def _ecef_of(datum: Datum) -> tuple[float, float, float]:
-    """The datum's ECEF position, metres (a rover has one datum; a test suite a few)."""
-    x, y, z = pymap3d.geodetic2ecef(datum.lat_deg, datum.lon_deg, datum.alt_m, _WGS84, deg=True)
-    return x, y, z
+def _frame_of(datum: Datum) -> _DatumFrame:
+    """The datum's ECEF position and ENU rotation terms, once per datum (a rover has one; a test suite a few).
+
+    numpy's ufuncs, as pymap3d applies them: pymap3d's own sines and cosines to the bit."""
+    x0, y0, z0 = pymap3d.geodetic2ecef(datum.lat_deg, datum.lon_deg, datum.alt_m, _WGS84, deg=True)
+    lat, lon = np.radians(datum.lat_deg), np.radians(datum.lon_deg)
+    return _DatumFrame(
+        float(x0), float(y0), float(z0),
+        float(np.sin(lat)), float(np.cos(lat)), float(np.sin(lon)), float(np.cos(lon)),
+    )  # fmt: skip
 
 
 def to_geodetic(datum: Datum, east_m: float, north_m: float, up_m: float) -> tuple[float, float, float]:

@@ -14,7 +14,6 @@ launch a little and cost the estimator-level dropout test, whose body follows it
 from __future__ import annotations
 
 from collections import deque
-from operator import itemgetter
 
 
 class WheelTransient:
@@ -37,19 +36,23 @@ class WheelTransient:
         self._window_ns = round(self.WINDOW_S * 1e9)
         self._limit_mps = accel_limit_mps2 * self.WINDOW_S
         self._settle_ns = round(settle_s * 1e9)
-        self._recent: deque[tuple[int, float]] = deque()  # t_ns, speed m/s, within the window
+        # The samples within the window, oldest first, as two parallel deques (time ns, speed m/s): the
+        # spread is max and min straight over the speeds in C, every sample, with no per-item call.
+        self._times: deque[int] = deque()
+        self._speeds: deque[float] = deque()
         self._unsettled_until_ns: int | None = None
 
     def add(self, t_ns: int, speed_mps: float) -> None:
         """One odometry speed sample (m/s) at ``t_ns``; samples at or before the last one are ignored."""
-        recent = self._recent
-        if recent and t_ns <= recent[-1][0]:
+        times, speeds = self._times, self._speeds
+        if times and t_ns <= times[-1]:
             return
-        recent.append((t_ns, speed_mps))
-        while t_ns - recent[0][0] > self._window_ns:
-            recent.popleft()
-        speed_of = itemgetter(1)  # max and min over the window without a list of its speeds
-        if max(map(speed_of, recent)) - min(map(speed_of, recent)) <= self._limit_mps:
+        times.append(t_ns)
+        speeds.append(speed_mps)
+        while t_ns - times[0] > self._window_ns:
+            times.popleft()
+            speeds.popleft()
+        if max(speeds) - min(speeds) <= self._limit_mps:
             return
         self._unsettled_until_ns = t_ns + self._settle_ns
 

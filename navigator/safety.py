@@ -136,6 +136,7 @@ class SafetySupervisor:
         self._stall_key_names: list[str] = []  # grown by _stall_keys
         self._stall_timing = False  # whether a wheel's stall timer may be in _since
         self._battery_ns = to_ns(c.battery_debounce_s)
+        self._battery_floor_v = max(c.battery_low_v, c.battery_critical_v)  # below it a battery timer may run
         self._tip_rad = math.radians(c.tip_margin_deg)
         self._tip_clear_rad = math.radians(c.tip_margin_deg + c.tip_clear_deg)
 
@@ -372,6 +373,15 @@ class SafetySupervisor:
     def _check_battery(self, i: SafetyInputs) -> None:
         c = self._config
         v = i.battery_v if i.battery_v is not None and i.battery_v > _NO_VOLTAGE_V else None
+        active = self._active
+        if v is None or (
+            v >= self._battery_floor_v and BATTERY_LOW not in active and BATTERY_CRITICAL not in active
+        ):
+            # Nearly every tick: no reading, or a pack above both thresholds with neither failsafe active to
+            # clear. All the loop below would do is drop the two low-voltage timers (a condition gone).
+            self._since.pop(BATTERY_CRITICAL, None)
+            self._since.pop(BATTERY_LOW, None)
+            return
         for name, threshold, severity in (
             (BATTERY_CRITICAL, c.battery_critical_v, "error"),
             (BATTERY_LOW, c.battery_low_v, "warning"),

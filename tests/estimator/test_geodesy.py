@@ -20,10 +20,17 @@ def test_round_trip_is_below_a_millimetre():
 
 
 def test_to_enu_gives_pymap3ds_own_floats():
-    """``to_enu`` keeps the datum's ECEF position between calls: the result must still be, to the bit,
-    what pymap3d.geodetic2enu computes from scratch."""
+    """``to_enu`` keeps the datum's ECEF position and rotation terms between calls: the result must still
+    be, to the bit, what pymap3d.geodetic2enu computes from scratch."""
     rng = np.random.default_rng(3)
-    for datum in (Datum(47.3769, 8.5417, 408.0), Datum(-33.0, 151.0, 0.0), Datum(47.3769, 8.5417, 1.0)):
+    datums = (
+        Datum(47.3769, 8.5417, 408.0),
+        Datum(-33.0, 151.0, 0.0),
+        Datum(47.3769, 8.5417, 1.0),
+        Datum(0.01, -179.97, -20.0),  # every sign of the sines and cosines, near the equator and date line
+        Datum(-89.5, -95.0, 2800.0),
+    )
+    for datum in datums:
         for lat, lon, alt in zip(
             datum.lat_deg + rng.uniform(-0.02, 0.02, 200),
             datum.lon_deg + rng.uniform(-0.02, 0.02, 200),

@@ -71,3 +71,30 @@ def test_one_silent_wheel_among_fresh_ones_trips(statuses: str) -> None:
     stale: int | None = 0 if statuses == "one_old" else None
     decision = supervisor.update(_inputs(now, wheel_last_status_ns=(now, now, stale, now, now, now)), True)
     assert decision.faults == ("wheel_silent",)
+
+
+def _battery_run(voltages: list[float | None], *, forced: bool) -> tuple[list[Any], list[Any]]:
+    events: list[tuple[str, str, str]] = []
+    supervisor = SafetySupervisor(SafetyConfig(), VehicleParams(), 0, lambda *event: events.append(event))
+    if forced:
+        supervisor._battery_floor_v = math.inf  # never the shortcut: the full check on every tick
+    decisions = [
+        supervisor.update(_inputs(k * TICK_NS, battery_v=v), True) for k, v in enumerate(voltages, start=1)
+    ]
+    return events, decisions
+
+
+def test_the_battery_shortcut_judges_as_the_full_check() -> None:
+    """Above both thresholds (or with no reading) the battery check only drops its timers; a supervisor
+    forced through the full check on every tick must report the same events and decisions."""
+    # Around both thresholds: sags, sustained lows, recoveries through the hysteresis, no readings between.
+    levels = [24.0, 20.9, 21.05, 19.5, 20.1, 20.35, 21.2, 21.4, 0.0, math.nan, 19.0, 21.5, 22.0]
+    voltages: list[float | None] = [None]
+    for level in levels:
+        voltages += [level] * 150  # 3 s each: past battery_debounce_s
+    voltages += [None] * 10 + [19.5] * 5 + [24.0] * 5
+    events, decisions = _battery_run(voltages, forced=False)
+    assert (events, decisions) == _battery_run(voltages, forced=True)
+    kinds = {kind for kind, _, _ in events}
+    assert {"failsafe.battery_low", "failsafe.battery_critical", "cleared.battery_low"} <= kinds
+    assert "cleared.battery_critical" in kinds
