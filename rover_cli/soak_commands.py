@@ -84,7 +84,9 @@ def run_soak_command(args: argparse.Namespace) -> int:
             m.name, _mb(m.start_mb), _mb(m.end_mb), _mb(m.max_mb), _mb(m.slope_mb_per_min, "{:+.3f}")
         )
     console.print(memory)
+    first_tick = "never" if report.rover_first_tick_s is None else f"at {report.rover_first_tick_s:.1f} s"
     console.print(
+        f"rover's first tick {first_tick}; "
         f"ticks {report.ticks} (sensor {report.sensor_ticks}, deadline {report.deadline_ticks}), "
         f"overruns {report.overruns}; failsafes fired: {report.failsafe_events}"
     )
@@ -95,6 +97,10 @@ def run_soak_command(args: argparse.Namespace) -> int:
         f"({peer.dropped_sim_ms:.0f} ms of simulated time dropped), longest gap between steps "
         f"{_mb(peer.longest_step_gap_ms, '{:.0f} ms') if peer.longest_step_gap_ms is not None else 'unknown'}"
     )
+    # A failsafe the host's stall of the peer accounts for is not the stack's (hil.soak_report).
+    console.print(f"failsafes a stall of the peer explains: {len(report.stall_failsafes) or 'none'}")
+    for failsafe in report.stall_failsafes:
+        console.print(f"  - {failsafe}", markup=False, soft_wrap=True)
     unexplained = report.unexplained_failsafes
     console.print(f"failsafes no planned fault explains: {len(unexplained) or 'none'}")
     for failsafe in unexplained:
