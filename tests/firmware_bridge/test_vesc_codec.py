@@ -4,7 +4,7 @@ import can
 import pytest
 
 from firmware_bridge.errors import BridgeOperationError, BridgeSetupError, FrameError
-from firmware_bridge.vesc import VescProfile
+from firmware_bridge.vesc import VescProfile, data_frame
 from logs.settings import ConfigError, parse_toml
 from tests.firmware_bridge.virtual_can import TEST_PROFILE, make_codec
 
@@ -47,6 +47,18 @@ def test_set_rpm_encoding_matches_hand_written_bytes():
     assert bytes(codec.encode("SET_RPM", 3, erpm=1234).data) == bytes.fromhex("000004d2")
     # clamped to int32 rather than overflowing
     assert bytes(codec.encode_set_rpm(1, 1e12).data) == bytes.fromhex("7fffffff")
+
+
+def test_data_frame_is_the_constructors_message_slot_for_slot():
+    """data_frame writes the message's slots itself (hot path): every slot python-can's Message has,
+    named by the class (so a python-can that adds one fails here), holds what its constructor gives."""
+    for frame_id, data in ((0x903, b"\x00\x00\x04\xd2"), (0x1FFFFFFF, bytes(range(8))), (0, b"")):
+        fast = data_frame(frame_id, len(data), data)
+        slow = can.Message(arbitration_id=frame_id, is_extended_id=True, data=data, dlc=len(data))
+        slots = [name for name in can.Message.__slots__ if name != "__weakref__"]
+        assert {name: getattr(fast, name) for name in slots} == {name: getattr(slow, name) for name in slots}
+        assert type(fast.data) is bytearray
+        assert fast.equals(slow)
 
 
 def test_encode_round_trips_through_decode():
