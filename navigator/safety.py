@@ -386,9 +386,7 @@ class SafetySupervisor:
             (BATTERY_CRITICAL, c.battery_critical_v, "error"),
             (BATTERY_LOW, c.battery_low_v, "warning"),
         ):
-            low_for = self._sustained(name, v is not None and v < threshold, i.now_ns)
-            if v is None:
-                continue
+            low_for = self._sustained(name, v < threshold, i.now_ns)  # v is a reading here (returned above)
             if low_for > self._battery_ns:
                 self._trip(name, severity, f"battery {v:.2f} V below {threshold} V for {_ms(low_for)}")
             elif v > threshold + c.battery_clear_v and name in self._active:
