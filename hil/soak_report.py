@@ -357,10 +357,10 @@ def _judge_silent_imu(
     # fixed share of a quiet host.
     share_before = _sensor_share(before) if before else 1.0
     seen = share_before > 0.0 and any(m["sensor_ticks"] == 0 for m in during)
-    recovered = any(
-        m["sensor_ticks"] > 0 and _sensor_share([m]) >= RECOVERED_SHARE * share_before for m in after
-    )
     best_after = max((_sensor_share([m]) for m in after), default=0.0)
+    # Recovered: some window after it sensor-paced at all (its share > 0: every window here has ticks) and
+    # at RECOVERED_SHARE of the pace before; the best window is that one if any is.
+    recovered = best_after > 0.0 and best_after >= RECOVERED_SHARE * share_before
     silent = min((m["sensor_ticks"] for m in during), default=None)
     detail = (
         f"sensor-paced {share_before:.0%} of ticks before; "
