@@ -121,14 +121,17 @@ class Planner:
         self._cost_mode = cost_mode
         self._direction_weights = direction_weights or DirectionWeights()
         self._cost_model = cost_model or CostModel(inflation_m=inflation_m)
-        # The grid's obstacle-free part, kept while the elevation and class layers stay (adding obstacles
-        # keeps them): a grid recomputed for each obstacle seen skips refiltering the whole map.
-        self._ground: GroundCost | None = None
-        self._flat: TerrainMap | None = None  # classical mode's flat layers (``_costed``)
+        # Classical mode's flat layers (``_costed``), made once: every obstacle update shares them.
+        self._flat = _flattened(terrain) if cost_mode == "classical" else None
         self.grid_updates = 0  # obstacle updates of the cost grid (``_set_terrain``)
         self._terrain = terrain
         self._base_terrain = terrain  # the map as given: obstacles added later can be taken off again
-        self._cost = self._grid(terrain)
+        costed = self._costed(terrain)
+        # The grid's obstacle-free part: every map the planner takes later is this one with other obstacles
+        # (``TerrainMap.with_obstacles`` shares the elevation and class layers), so it is made once and an
+        # obstacle update skips refiltering the whole map (``CostModel.update_grid`` checks the layers).
+        self._ground: GroundCost = self._cost_model.ground_cost(costed, self._inflation_params, classes)
+        self._cost = self._cost_model.grid(costed, self._inflation_params, classes, ground=self._ground)
         self._factors: np.ndarray | None = None
         if cost_mode == "terrain":
             self._factors = direction_factors(terrain, params, classes, self._direction_weights)
@@ -188,27 +191,9 @@ class Planner:
     def _costed(self, terrain: TerrainMap) -> TerrainMap:
         """The map the cost grid is computed on: ``terrain``, or in classical mode (obstacles only) its
         obstacles on the same map flattened to firm ground, so no slope, roughness or class cost and no
-        lethal slope; obstacle inflation and the clearance band stay. The flat layers are made once and
-        shared, so the flat map's ground cost is kept as the terrain's is."""
-        if self._cost_mode != "classical":
-            return terrain
-        if self._flat is None or self._flat.shape != terrain.shape:
-            self._flat = TerrainMap(
-                np.zeros(terrain.shape), np.zeros(terrain.shape, np.uint8), np.zeros(terrain.shape, bool),
-                terrain.resolution_m, terrain.origin_xy,
-            )  # fmt: skip
-        return self._flat.with_obstacles(terrain.obstacles)
-
-    def _ground_of(self, costed: TerrainMap) -> GroundCost:
-        if self._ground is None or not self._ground.made_for(costed):
-            self._ground = self._cost_model.ground_cost(costed, self._inflation_params, self._classes)
-        return self._ground
-
-    def _grid(self, terrain: TerrainMap) -> np.ndarray:
-        costed = self._costed(terrain)
-        return self._cost_model.grid(
-            costed, self._inflation_params, self._classes, ground=self._ground_of(costed)
-        )
+        lethal slope; obstacle inflation and the clearance band stay. The flat layers are shared, so the
+        flat map's ground cost is kept as the terrain's is."""
+        return terrain if self._flat is None else self._flat.with_obstacles(terrain.obstacles)
 
     def update_obstacles(self, mask: np.ndarray) -> np.ndarray:
         """Add obstacle cells (bool, map shape) and update the costs; returns where the cost changed."""
@@ -229,7 +214,7 @@ class Planner:
         self._terrain = terrain
         costed = self._costed(terrain)
         changed = self._cost_model.update_grid(
-            self._cost, costed, self._inflation_params, self._ground_of(costed), before
+            self._cost, costed, self._inflation_params, self._ground, before
         )
         self.grid_updates += 1
         if self._repairing is not None:
@@ -342,3 +327,11 @@ class Planner:
             return self._terrain.cell_of(float(xy[0]), float(xy[1]))
         except TerrainError as err:
             raise PlanningError(f"{what} position is not on the map: {err}") from err
+
+
+def _flattened(terrain: TerrainMap) -> TerrainMap:
+    """``terrain``'s grid flattened to firm ground with no obstacles (classical mode's layers)."""
+    return TerrainMap(
+        np.zeros(terrain.shape), np.zeros(terrain.shape, np.uint8), np.zeros(terrain.shape, bool),
+        terrain.resolution_m, terrain.origin_xy,
+    )  # fmt: skip
