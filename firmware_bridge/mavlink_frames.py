@@ -28,7 +28,7 @@ from typing import Any, NamedTuple
 from pymavlink.dialects.v20 import common as mavlink2
 
 _V2_HEADER_LEN = 10
-_V2_OVERHEAD = 12  # the header and a 2-byte CRC
+V2_FRAME_OVERHEAD = 12  # MAVLink 2: the header and a 2-byte CRC around the payload
 _V2_HEADER = struct.Struct("<BBBBBBBHB")  # marker, length, incompat and compat flags, seq, ids, msgid
 
 
@@ -111,12 +111,12 @@ def decode_unsigned_v2(frame: bytearray, decode: Callable[[bytearray], Any]) -> 
     Only for a ``MAVLink`` without a signing key: with one, ``decode`` asks its allow-unsigned callback
     about every unsigned frame, so such a frame must go there (the link calls this only without a key)."""
     size = len(frame)
-    plain = _PLAIN.get(frame[7] | frame[8] << 8 | frame[9] << 16) if size >= _V2_OVERHEAD else None
+    plain = _PLAIN.get(frame[7] | frame[8] << 8 | frame[9] << 16) if size >= V2_FRAME_OVERHEAD else None
     if (
         plain is None
         or frame[0] != mavlink2.PROTOCOL_MARKER_V2
         or frame[2] != 0  # incompat flags: signed, or a flag this version does not know
-        or frame[1] != size - _V2_OVERHEAD
+        or frame[1] != size - V2_FRAME_OVERHEAD
     ):
         return decode(frame)
     crc = frame[-2] | frame[-1] << 8

@@ -31,7 +31,7 @@ from firmware_bridge.mavlink_commands import (
     judge_command,
     statustext_chunks,
 )
-from firmware_bridge.mavlink_frames import decode_unsigned_v2
+from firmware_bridge.mavlink_frames import V2_FRAME_OVERHEAD, decode_unsigned_v2
 from firmware_bridge.mavlink_health import MavlinkCounters, MavlinkHealth
 from firmware_bridge.mavlink_transport import DatagramTransport, Transport, check_connection
 from logs.clock import Clock, to_ns
@@ -51,7 +51,6 @@ _GPS_FRAME_ID = "gps"
 _IMU_FRAME_ID = "base_link"
 _COVARIANCE_UNKNOWN = 0
 _COVARIANCE_DIAGONAL_KNOWN = 2
-_V2_FRAME_OVERHEAD = 12  # MAVLink 2: a 10-byte header and a 2-byte CRC around the payload
 
 
 @dataclass(frozen=True)
@@ -547,7 +546,7 @@ class MavlinkLink(ClosesOnExit):
         start = 0
         decode = self._mav.decode
         while start + 3 <= size and buf[start] == mavlink2.PROTOCOL_MARKER_V2 and buf[start + 2] == 0:
-            end = start + _V2_FRAME_OVERHEAD + buf[start + 1]
+            end = start + V2_FRAME_OVERHEAD + buf[start + 1]
             if end > size:
                 break
             try:
