@@ -13,6 +13,7 @@ Telemetry never stops the rover: a failed put is counted and logged, not raised.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import re
@@ -314,9 +315,16 @@ class ZenohTelemetry:
                 encoding=zenoh.Encoding.APPLICATION_JSON,
                 congestion_control=self._congestion,
             )
-            stream = _TopicStream(publisher)
         except zenoh.ZError as err:
             self._failed("cannot declare a publisher for %s: %s", topic, err)
+            return None
+        try:
+            stream = _TopicStream(publisher)
+        except zenoh.ZError as err:
+            # The publisher is ours alone: undeclared here, not left declared for the session's life.
+            with contextlib.suppress(zenoh.ZError):
+                publisher.undeclare()
+            self._failed("cannot follow who subscribes to %s: %s", topic, err)
             return None
         self._streams[topic] = stream
         return stream
