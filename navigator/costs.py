@@ -85,9 +85,9 @@ class CostModel:
         params: VehicleParams,
         ground: GroundCost,
         before: np.ndarray,
-    ) -> np.ndarray:
+    ) -> GridChange:
         """Bring ``cost``, this model's grid of ``terrain``'s layers with the obstacle layer ``before``, up to
-        ``terrain``'s obstacles, in place; returns where the cost changed (bool, map shape).
+        ``terrain``'s obstacles, in place; returns where the cost changed and the windows recomputed.
 
         Only the windows an added or removed obstacle cell can reach are recomputed (``_ObstacleTerms``),
         so the result is ``grid(terrain, params, ground=ground)`` bit for bit at the cost of those windows.
@@ -100,12 +100,13 @@ class CostModel:
             )
         terms = self._terms(params)
         changed = np.zeros(terrain.shape, dtype=bool)
-        for window in change_windows(before != terrain.obstacles, terms.reach_cells(terrain.resolution_m)):
+        windows = change_windows(before != terrain.obstacles, terms.reach_cells(terrain.resolution_m))
+        for window in windows:
             rows, cols = window_slices(window)
             fresh = terms.cost(ground, terrain.obstacles, terrain.resolution_m, window)
             changed[rows, cols] |= cost[rows, cols] != fresh  # windows may overlap: |=, not =
             cost[rows, cols] = fresh
-        return changed
+        return GridChange(changed, tuple(windows))
 
     def _terms(self, params: VehicleParams) -> _ObstacleTerms:
         return _ObstacleTerms(
@@ -268,7 +269,18 @@ def inflate_obstacles(terrain: TerrainMap, clearance_m: float, edge_is_obstacle:
 
 
 # (first row, end row, first column, end column) of a block of map cells, ends excluded.
+# (first row, row past the last, first column, column past the last) of a rectangle of map cells.
 Window = tuple[int, int, int, int]
+
+
+@dataclass(frozen=True, eq=False)
+class GridChange:
+    """What ``CostModel.update_grid`` did to a cost grid."""
+
+    changed: np.ndarray  # bool, map shape: the cells whose cost differs from before
+    # The windows recomputed: no cell outside them changed, so a caller keeping a copy of the grid
+    # (``RepairingPlanner.update_costs``) need look at these alone.
+    windows: tuple[Window, ...]
 
 
 def window_slices(window: Window) -> tuple[slice, slice]:

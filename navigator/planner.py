@@ -213,13 +213,14 @@ class Planner:
         before = self._terrain.obstacles
         self._terrain = terrain
         costed = self._costed(terrain)
-        changed = self._cost_model.update_grid(
+        change = self._cost_model.update_grid(
             self._cost, costed, self._inflation_params, self._ground, before
         )
         self.grid_updates += 1
         if self._repairing is not None:
-            self._repairing.update_costs(self._cost)
-        return changed
+            # Only the recomputed windows: a whole-grid check and copy cost more than the update itself.
+            self._repairing.update_costs(self._cost, windows=change.windows)
+        return change.changed
 
     def plan_cells(self, start_cell: tuple[int, int], goal_cell: tuple[int, int]) -> PlanResult:
         """A* between two cells over the current costs (no start escape)."""

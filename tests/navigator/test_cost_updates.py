@@ -73,10 +73,14 @@ def test_updated_grid_equals_the_grid_made_anew(
         # Obstacles added and taken off, as a planner's map after ``with_obstacles`` or a reset.
         terrain = TerrainMap(base.elevation_m, base.terrain_class, _apply(before, add, boxes), res)
         ground = model.ground_cost(terrain, PARAMS)  # the new map's own layers (equal values)
-        changed = model.update_grid(cost, terrain, PARAMS, ground, before)
+        change = model.update_grid(cost, terrain, PARAMS, ground, before)
         fresh = model.grid(terrain, PARAMS)
         np.testing.assert_array_equal(cost, fresh)  # bit for bit, inf where lethal
-        np.testing.assert_array_equal(changed, before_cost != fresh)
+        np.testing.assert_array_equal(change.changed, before_cost != fresh)
+        outside = np.ones(shape, dtype=bool)  # the windows hold every change
+        for row0, row1, col0, col1 in change.windows:
+            outside[row0:row1, col0:col1] = False
+        assert not (before_cost != fresh)[outside].any()
 
 
 @settings(max_examples=25, deadline=None)
@@ -164,3 +168,26 @@ def test_the_benchmark_row_times_equal_grids() -> None:
     figures = obstacle_update_figures(96, seed=4, repeats=1)
     assert figures["same_grid"] and figures["size"] == 96
     assert figures["update_ms"] > 0.0 and figures["full_ms"] > 0.0
+
+
+@pytest.mark.parametrize("cost_mode", ["terrain", "classical"])
+def test_a_repairing_planner_takes_each_update_in_its_windows(cost_mode: str) -> None:
+    """``reuse_goal_field``: the repair sees only the windows the grid update recomputed; its plans after
+    rocks added and taken off cost what a planner made anew on that map plans."""
+    rough = _terrain(60, 80, 0.25, 4)
+    base = TerrainMap(rough.elevation_m, rough.terrain_class, np.zeros(rough.shape, dtype=bool), 0.25)
+    start, goal = (15, 15), (45, 65)  # (3.75, 3.75) m and (16.25, 11.25) m: the rocks lie between
+    planner = Planner(base, PARAMS, cost_mode=cost_mode, reuse_goal_field=True)
+    planner.plan_cells(start, goal)
+    first = disc_mask(base, 10.0, 7.5, 0.8)
+    second = disc_mask(base, 7.0, 5.7, 0.6)
+    for update, standing in (
+        (lambda: planner.update_obstacles(first), first),
+        (lambda: planner.update_obstacles(second), first | second),
+        (lambda: planner.reset_obstacles(second), second),  # the first moved on: a cost fell
+    ):
+        update()
+        fresh = Planner(base.with_obstacles(standing), PARAMS, cost_mode=cost_mode)
+        assert planner.plan_cells(start, goal).cost == pytest.approx(
+            fresh.plan_cells(start, goal).cost, rel=1e-12
+        )

@@ -137,6 +137,46 @@ def test_bad_new_costs_are_planning_errors() -> None:
         planner.update_costs(bad)
 
 
+def test_windowed_update_takes_exactly_the_windows_costs() -> None:
+    """Given where the costs may differ, the planner checks and copies those cells alone: its plans then
+    equal those after a whole-grid update, and a cost that fell inside a window still drops the field."""
+    cost = _random_map(5)
+    goal = (29, 39)
+    windowed, whole = RepairingPlanner(cost), RepairingPlanner(cost)
+    windowed.prepare(goal)
+    whole.prepare(goal)
+    rose = cost.copy()
+    rose[10:13, 14:18] = np.inf
+    rose[25, 3] += 2.0
+    windows = [(10, 13, 14, 18), (24, 27, 2, 5)]
+    assert windowed.update_costs(rose, windows=windows) and whole.update_costs(rose)
+    for start in [(0, 0), (12, 2), (3, 30)]:
+        if np.isfinite(rose[start]):
+            assert windowed.plan(start, goal).cost == whole.plan(start, goal).cost
+    fell = rose.copy()
+    fell[11, 15] = 1.0
+    assert not windowed.update_costs(fell, windows=[(11, 12, 15, 16)])
+    assert windowed.plan((0, 0), goal).cost == pytest.approx(astar(fell, (0, 0), goal).cost, rel=1e-12)
+    # A change outside every window is not looked at: the caller promised there was none.
+    outside = fell.copy()
+    outside[0, 39] = np.inf
+    windowed.update_costs(outside, windows=[])
+    assert windowed.plan((0, 0), goal).cost == pytest.approx(astar(fell, (0, 0), goal).cost, rel=1e-12)
+
+
+def test_bad_windows_and_bad_costs_in_a_window_leave_the_costs_untouched() -> None:
+    planner = RepairingPlanner(np.ones((5, 6)))
+    with pytest.raises(PlanningError, match="not on the 5 x 6 grid"):
+        planner.update_costs(np.ones((5, 6)), windows=[(0, 6, 0, 2)])
+    with pytest.raises(PlanningError, match="not on the 5 x 6 grid"):
+        planner.update_costs(np.ones((5, 6)), windows=[(3, 2, 0, 2)])
+    raised = np.full((5, 6), 3.0)
+    raised[4, 5] = np.nan  # in the second window: the first window's rise must not be taken either
+    with pytest.raises(PlanningError, match="NaN"):
+        planner.update_costs(raised, windows=[(0, 2, 0, 2), (4, 5, 4, 6)])
+    assert planner.plan((0, 0), (4, 5)).cost == pytest.approx(astar(np.ones((5, 6)), (0, 0), (4, 5)).cost)
+
+
 @pytest.mark.parametrize("spread", [4.0, 500.0])
 def test_bucket_field_equals_the_heap_field(spread: float) -> None:
     rng = np.random.default_rng(int(spread))
@@ -150,3 +190,12 @@ def test_bucket_field_equals_the_heap_field(spread: float) -> None:
         heap = cost_to_go(cost.ravel(), 31, 24 * 31 + 30, flat_factors, with_factors, SQRT2)
         assert np.isfinite(field).sum() > 100
         np.testing.assert_allclose(field.ravel(), heap, rtol=1e-12)
+
+
+def test_the_benchmark_repair_rows_agree_with_fresh_plans() -> None:
+    from navigator.plan_bench import repair_figures
+
+    figures = repair_figures(64, seed=2, repeats=1)
+    for key in ("", "window_", "off_path_", "off_path_window_"):
+        assert figures[f"{key}same_cost"], key
+    assert figures["window_repair_ms"] > 0.0 and figures["off_path_window_repair_ms"] > 0.0
