@@ -199,8 +199,14 @@ class RoverDynamics:
         """Step a throwaway copy once, so the compiled kernels every step runs (traction, ground look-up,
         footprint contact) are loaded from numba's cache, or compiled, now: a real-time peer calls this
         before its clock starts. On a cold cache the first step compiles for seconds, and in real time
-        that is seconds of silent controllers and a missing IMU, which the rover's failsafes report."""
-        copy.deepcopy(self).step(0.01, [0.0] * 6, 24.0)
+        that is seconds of silent controllers and a missing IMU, which the rover's failsafes report.
+
+        The copy shares the map's layers: a deep copy of a read-only layer is writable, which numba types
+        apart, so the kernel compiled for the copy was compiled again on the real body's first step
+        (~4 s with a cold cache, on a running peer's clock)."""
+        shared = (self._terrain, self._obstacles, self._class_layer, self._surface)
+        throwaway = copy.deepcopy(self, memo={id(layer): layer for layer in shared})
+        throwaway.step(0.01, [0.0] * 6, 24.0)
 
     # --- stepping ---------------------------------------------------------------------------------
     def step(

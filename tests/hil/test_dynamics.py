@@ -239,6 +239,30 @@ def test_warm_up_steps_a_copy_and_leaves_the_body_where_it_was() -> None:
     assert step.energy_wh > 0.0
 
 
+def test_warm_up_calls_the_kernel_with_the_argument_types_of_the_real_steps(monkeypatch) -> None:
+    """numba compiles once per argument types: a warm-up with other types (a read-only map layer copied
+    into a writable one) leaves the real first step to compile again, seconds on a cold cache."""
+    import numba
+
+    from hil import dynamics_kernel
+
+    terrain = from_maze(np.full((10, 10), 2), 1.0)
+    for layer in (terrain.obstacles, terrain.terrain_class, terrain.elevation_m):
+        layer.setflags(write=False)  # as the world's map holds them
+    body = RoverDynamics(terrain, PARAMS, x=5.0, y=5.0, yaw=0.3)
+    seen: list[tuple[object, ...]] = []
+    kernel = dynamics_kernel.step_kernel
+
+    def typed(*args: object) -> object:
+        seen.append(tuple(numba.typeof(arg) for arg in args))
+        return kernel(*args)
+
+    monkeypatch.setattr(dynamics_kernel, "step_kernel", typed)
+    body.warm_up()
+    body.step(0.01, [1.0] * 6, 24.0)
+    assert len(seen) == 2 and seen[0] == seen[1]
+
+
 @pytest.mark.parametrize(
     "speeds",
     [[0.0] * 5 + [math.inf], [math.inf, -math.inf] + [0.0] * 4, [0.0, math.nan] + [0.0] * 4],
