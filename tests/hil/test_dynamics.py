@@ -239,7 +239,9 @@ def test_warm_up_steps_a_copy_and_leaves_the_body_where_it_was() -> None:
     assert step.energy_wh > 0.0
 
 
-def test_warm_up_calls_the_kernel_with_the_argument_types_of_the_real_steps(monkeypatch) -> None:
+def test_warm_up_calls_the_kernel_with_the_argument_types_of_the_real_steps(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     """numba compiles once per argument types: a warm-up with other types (a read-only map layer copied
     into a writable one) leaves the real first step to compile again, seconds on a cold cache."""
     import numba
