@@ -114,7 +114,9 @@ class SoakReport:
     unexplained_failsafes: list[str] = field(default_factory=list)  # each with its time and detail
     # Failsafes a recorded peer stall accounts for (the machine's, not the stack's), with the stall.
     stall_failsafes: list[str] = field(default_factory=list)
-    rover_first_tick_s: float | None = None  # when the rover's control loop first ran; None: never
+    # When the rover's control loop first ran, from the soak's time zero (the rover's first wheel command,
+    # so about 0, a little below it if the loop ticked before it commanded); None: never.
+    rover_first_tick_s: float | None = None
     peer_scheduling: str = "normal scheduling"  # what `rover hil peer --fifo` got (its `scheduling:` line)
 
     @property

@@ -42,7 +42,7 @@ def test_prints_the_rover_start_and_the_stall_failsafes_apart_from_the_unexplain
     )
     assert _run(monkeypatch, tmp_path, report) == 1  # an unexplained failsafe is a problem
     out = " ".join(capsys.readouterr().out.split())  # rich wraps long lines
-    assert "rover's first tick at 21.3 s" in out
+    assert "times in s from the rover's first wheel command; rover's first tick at 21.3 s" in out
     assert "failsafes a stall of the peer explains: 1" in out
     assert "failsafe.wheel_silent at 30.9 s: the peer stalled 250 ms" in out
     assert "failsafes no planned fault explains: 1" in out
