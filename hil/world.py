@@ -59,7 +59,8 @@ class SimWorld:
         self._clock = clock
         self._sink = sink
         # The world's start on its clock: time zero of the scenario's faults and moving obstacles (the
-        # real-time peer's monotonic clock counts from the boot). Recorded by record_start (metadata "world").
+        # real-time peer's monotonic clock counts from the boot). Recorded by record_start (metadata "world");
+        # hold and start_now move it (the real-time peer's start on the rover's first command).
         self.epoch_ns = clock.now_ns()
         self.faults = FaultSchedule(
             scenario.faults, epoch_ns=self.epoch_ns, controller_ids=codec.profile.controller_ids

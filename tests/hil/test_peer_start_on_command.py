@@ -31,6 +31,7 @@ from hil.lockstep import lockstep_wires
 from hil.peer import PeerResult, run_peer
 from hil.peer_stalls import PeerStalls
 from hil.peer_start import ON_FIRST_COMMAND, ON_PEER_START, ScenarioStart
+from hil.realtime_metrics import realtime_metrics
 from hil.world import SimWorld
 from logs import topics
 from logs.clock import NS_PER_S, SimClock, to_ns
@@ -41,6 +42,7 @@ from logs.sink import MemorySink
 from navigator.config import RoverConfig, rover_config_from_table
 from navigator.runtime import TimingStats
 from rover_cli.main import main
+from tests.hil.test_realtime_metrics_epoch import WORLD_START_NS, _write_rover, _write_truth
 from tests.hil.test_world_epoch import CART  # waits 600 s at (2, 7), then 1 m/s down x = 2
 from tests.hil.world_harness import scenario_with
 
@@ -347,3 +349,14 @@ def test_a_scenario_start_refuses_a_mode_it_does_not_know() -> None:
         ScenarioStart("whenever", 0)
     with pytest.raises(ValueError, match="must be > 0"):
         ScenarioStart(ON_FIRST_COMMAND, 0, 0)
+
+
+def test_the_metrics_time_carts_from_a_held_scenarios_start_not_the_peers(tmp_path: Path) -> None:
+    # The rover drove 2 s after the scenario started, which the peer held 30 s for it: its carts are
+    # where the scenario's start puts them (one met on the way), as in a lockstep trial of that drive.
+    _write_rover(tmp_path / "rover.mcap")
+    start = ScenarioStart(ON_FIRST_COMMAND, WORLD_START_NS - to_ns(30.0))
+    held = {"epoch_ns": str(WORLD_START_NS), **start.record()}
+    _write_truth(tmp_path / "truth.mcap", held)
+    metrics = realtime_metrics(tmp_path / "rover.mcap", tmp_path / "truth.mcap")
+    assert metrics.obstacles_encountered == 1 and not metrics.problems, metrics
