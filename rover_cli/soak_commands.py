@@ -98,9 +98,12 @@ def run_soak_command(args: argparse.Namespace) -> int:
         f"overruns {report.overruns}; failsafes fired: {report.failsafe_events}"
     )
     peer = report.peer
+    # Before the rover's first command the peer held its scenario: no rover drove on its steps yet.
+    held = peer.stalls_before_start
+    before_start = f", {held} of them before the rover's first command (not judged)" if held else ""
     console.print(
         f"peer ({report.peer_scheduling}): overruns {'unknown' if peer.overruns is None else peer.overruns}, "
-        f"stalls {peer.stalls} "
+        f"stalls {peer.stalls}{before_start} "
         f"({peer.dropped_sim_ms:.0f} ms of simulated time dropped), longest gap between steps "
         f"{_mb(peer.longest_step_gap_ms, '{:.0f} ms') if peer.longest_step_gap_ms is not None else 'unknown'}"
     )
