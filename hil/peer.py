@@ -18,6 +18,10 @@ some (it counts them as overruns), the next deadline is several steps on and the
 sub-steps of ``PHYSICS_DT_NS``, each on its own grid time, so the simulated rover keeps to real time even
 when the machine is busy. A gap of more than ``MAX_SUBSTEPS`` steps is a stall: the time beyond them is
 dropped, counted (``hil.peer_stalls``) and recorded on ``log``.
+
+The scenario (its faults and moving obstacles) starts with the peer, or, with ``start_on_command``, is
+held until the rover's first wheel command reaches the simulated controllers (``hil.peer_start``), so
+its times count from the rover's start however long ``rover run`` took to come up.
 """
 
 from __future__ import annotations
@@ -39,6 +43,7 @@ from firmware_bridge.mavlink_transport import Transport, UdpTransport, open_tran
 from firmware_bridge.vesc import VescCodec
 from hil.peer_files import write_peer_files
 from hil.peer_stalls import PeerStalls, stall_message
+from hil.peer_start import ON_FIRST_COMMAND, ON_PEER_START, ScenarioStart
 from hil.scenario import Scenario
 from hil.step_clock import StepClock
 from hil.world import SimWorld
@@ -66,6 +71,7 @@ class PeerResult:
     vesc_timeouts: int
     commands_applied: int
     stalls: PeerStalls
+    start: ScenarioStart  # how and when the scenario started (never, if the rover did not command)
     bus_off: dict[str, int] | None = None  # the bus-off announcer's counts; None without a can/off fault
 
     def describe_bus_off(self) -> str:
@@ -87,15 +93,27 @@ class RealtimePeer:
     its 20 ms. ``status_path`` (optional) is rewritten atomically every ``STATUS_PERIOD_NS`` with the
     body's pose and speed and the wheels' speeds and command timeouts, so a test or an operator can watch
     the simulated rover without opening the MCAP that is still being written.
+
+    ``start`` (default: the scenario started with the peer): a held world (``SimWorld.hold``) is started
+    on the first step that finds a wheel command applied; if the wait runs out first, ``stop`` is set.
     """
 
     def __init__(
-        self, world: SimWorld, clock: StepClock, recorder: McapRecorder, status_path: Path | None
+        self,
+        world: SimWorld,
+        clock: StepClock,
+        recorder: McapRecorder,
+        status_path: Path | None,
+        *,
+        start: ScenarioStart | None = None,
+        stop: threading.Event | None = None,
     ) -> None:
         self.world = world
         self._clock = clock
         self._recorder = recorder
         self._status_path = status_path
+        self.start = start or ScenarioStart(ON_PEER_START, clock.now_ns())
+        self._stop = stop or threading.Event()
         self._last_ns: int | None = None  # the previous step's due time; None before the first step
         self._next_status_ns = clock.now_ns()
         self._timeouts_seen = 0
@@ -123,10 +141,28 @@ class RealtimePeer:
             self._clock.t = due_ns - (steps - 1 - index) * elapsed // steps
             self.world.tick(dt_s)
         self.simulated_ns += elapsed
+        if self.start.held:
+            self._start_on_command(due_ns)
         self._note_timeouts(due_ns)
         if self._status_path is not None and due_ns >= self._next_status_ns:
             self._next_status_ns = due_ns + STATUS_PERIOD_NS
             self.write_status()
+
+    def _start_on_command(self, now: int) -> None:
+        """Start the held scenario now if a wheel command of the rover's was applied (``SimVescBank``
+        counts them; the rover sends a round every tick from its first, zeros while not ready); give up
+        and stop the peer if the wait ran out."""
+        if self.world.vescs.commands_applied > 0:
+            words = self.start.start(self.world.start_now())
+            self.world.record_start(self._recorder, **self.start.record())
+            self._log(now, words, topics.LOG_INFO)
+            _log.info("HIL peer: %s", words)
+            return
+        gave_up = self.start.expired(now)
+        if gave_up is not None:
+            self._log(now, gave_up, topics.LOG_ERROR)
+            _log.error("HIL peer: %s", gave_up)
+            self._stop.set()
 
     def _note_timeouts(self, now: int) -> None:
         """Record each command timeout: the evidence that the controllers stopped a silent rover's wheels."""
@@ -135,10 +171,8 @@ class RealtimePeer:
             self._log(now, f"VESC command timeout: {timeouts - self._timeouts_seen} wheel(s) stopped")
             self._timeouts_seen = timeouts
 
-    def _log(self, now: int, message: str) -> None:
-        self._recorder.publish(
-            topics.LOG, now, topics.log_message(now, topics.LOG_WARNING, "hil.peer", message)
-        )
+    def _log(self, now: int, message: str, level: int = topics.LOG_WARNING) -> None:
+        self._recorder.publish(topics.LOG, now, topics.log_message(now, level, "hil.peer", message))
 
     def write_status(self) -> None:
         assert self._status_path is not None
@@ -154,6 +188,7 @@ class RealtimePeer:
             "vesc_timeouts": self.world.vescs.timeouts,
             "commands_applied": self.world.vescs.commands_applied,
             "rolled_over": self.world.rolled_over,
+            **self.start.status(self._clock.now_ns()),
             **self.stalls.summary(),
         }
         announcer = self.world.bus_off_announcer
@@ -208,12 +243,17 @@ def run_peer(
     port_file: Path | None = None,
     on_ready: Callable[[Path], None] | None = None,
     spin_ns: int = DEFAULT_SPIN_NS,
+    start_on_command: bool = False,
+    start_timeout_ns: int | None = None,
 ) -> PeerResult:
     """Run the simulated rover in real time on opened wires until ``stop`` or ``duration_ns``.
 
     Writes ``truth.mcap`` and the rover-side files (``hil.peer_files``) into ``out_dir``; the port file
     last, so whoever waits on it finds the rest in place. ``on_ready`` gets the generated rover config.
     ``spin_ns``: each step's last stretch is spun, not slept (0: plain sleep; needs a real clock).
+    ``start_on_command``: hold the scenario until the rover's first wheel command (``hil.peer_start``),
+    for at most ``start_timeout_ns`` (None: no limit) after the peer's start, then stop.
+    ``duration_ns`` counts from the peer's start either way.
     The wires are the caller's; they are not closed here.
     """
     seed = scenario.seed if seed is None else seed
@@ -223,14 +263,19 @@ def run_peer(
         # Names this run in truth.mcap and in the rover config it writes, so the rover's recording names it
         # too: a report pairs each rover recording with its own truth even when runs overlap in time.
         peer_run = secrets.token_hex(8)
-        write_peer_header(recorder, scenario, config, seed, peer_run)
+        start_on = ON_FIRST_COMMAND if start_on_command else ON_PEER_START
+        write_peer_header(recorder, scenario, config, seed, peer_run, start_on)
         codec = VescCodec.for_profile(config.vesc)
         step_clock = StepClock(clock.now_ns())
         with SimWorld(scenario, config.vehicle, codec, step_clock, can_bus, mavlink, recorder, seed) as world:
             world.announce_bus_off(can_bus)  # the rover's controller is in another process: tell it
-            world.record_start(recorder)  # its obstacles and faults count from here, not from the boot
+            start = ScenarioStart(start_on, world.epoch_ns, start_timeout_ns)
+            if start_on_command:
+                world.hold()  # recorded when it starts (RealtimePeer._start_on_command)
+            else:
+                world.record_start(recorder)  # its obstacles and faults count from here, not from the boot
             world.body.warm_up()  # before the port file: whoever waits on it meets a peer that runs on time
-            peer = RealtimePeer(world, step_clock, recorder, status_path)
+            peer = RealtimePeer(world, step_clock, recorder, status_path, start=start, stop=stop)
             if status_path is not None:
                 peer.write_status()
             rover_config = write_peer_files(out_dir, scenario, config, mavlink_port, peer_run)
@@ -252,6 +297,7 @@ def run_peer(
             runtime = {
                 "timing_json": json.dumps(timing.summary()),
                 "stalls_json": json.dumps(peer.stalls.summary()),
+                "start_json": json.dumps(start.status(step_clock.now_ns())),
             }
             if bus_off is not None:
                 runtime["bus_off_json"] = json.dumps(bus_off)
@@ -263,21 +309,29 @@ def run_peer(
         world.vescs.timeouts,
         world.vescs.commands_applied,
         peer.stalls,
+        start,
         bus_off,
     )
 
 
 def write_peer_header(
-    recorder: McapRecorder, scenario: Scenario, config: RoverConfig, seed: int, peer_run: str
+    recorder: McapRecorder, scenario: Scenario, config: RoverConfig, seed: int, peer_run: str, start_on: str
 ) -> None:
-    """The lockstep trial's scenario metadata (the metrics need it), and this run's mode."""
+    """The lockstep trial's scenario metadata (the metrics need it), and this run's mode and what starts
+    its scenario (``hil.peer_start``)."""
     # hil.trial writes the same scenario record; it keeps its writer private, so reuse it through the
     # module and then say which kind of run this is (the later "trial" record wins for readers).
     from hil import trial
 
     trial.write_header(recorder, scenario, config, seed, mode="sim-realtime-peer")
     recorder.add_metadata(
-        "peer", {"mode": "sim-realtime-peer", "physics_dt_ns": str(PHYSICS_DT_NS), "run": peer_run}
+        "peer",
+        {
+            "mode": "sim-realtime-peer",
+            "physics_dt_ns": str(PHYSICS_DT_NS),
+            "run": peer_run,
+            "start": start_on,  # what starts the scenario (hil.peer_start)
+        },
     )
 
 

@@ -7,11 +7,18 @@ MAVLink on UDP 127.0.0.1. The soak itself is the ground station: over Zenoh on l
 scouting off) it sends patrol goals and the e-stop / resume of the plan. Every ``rss_period_s`` it reads
 both processes' resident memory from ``/proc``. At the end it stops both with SIGINT and judges the
 recordings (``hil.soak_report``).
+
+The peer holds its scenario until the rover's first wheel command (``rover hil peer --start-on-command``,
+``hil.peer_start``): ``rover run`` may take 5-45 s to come up (a cold numba cache compiles for 30-45 s),
+and a fault timed from the peer's start could run its course before the rover existed. The soak's time
+zero is that first command, which the peer writes in its status file; the plan's faults (the peer's and
+the soak's own e-stops), the warm-up and the RSS samples count from it.
 """
 
 from __future__ import annotations
 
 import itertools
+import json
 import logging
 import math
 import os
@@ -39,6 +46,9 @@ class SoakSetupError(RuntimeError):
 
 
 START_TIMEOUT_S = 120.0  # the peer's first start may compile numba kernels
+# From the peer's start to the rover's first wheel command: `rover run` on a cold numba cache compiles for
+# 30-45 s, longer on a loaded host. The peer gives up after it (`--start-timeout`), and so does the soak.
+ROVER_START_TIMEOUT_S = 120.0
 POLL_S = 0.1
 
 
@@ -48,7 +58,9 @@ class SoakSettings:
     seed: int
     out_dir: Path
     rss_period_s: float = 5.0
-    warmup_s: float = 20.0  # before the first fault: both processes up, estimate settled, driving
+    # From the rover's first wheel command (the soak's time zero) to the first fault: estimate settled,
+    # driving.
+    warmup_s: float = 20.0
     gap_s: tuple[float, float] = (12.0, 20.0)  # recovery time after each fault
     can_interface: str = "udp_multicast"
     can_channel: str | None = None  # default: a fresh multicast group
@@ -83,7 +95,8 @@ def run_soak(settings: SoakSettings) -> SoakReport:
                 "hil", "peer", str(scenario), "--can-interface", settings.can_interface,
                 "--can-channel", channel, "--port-file", str(peer_dir / "port"),
                 "--status-file", str(peer_dir / "status.json"), "--out", str(peer_dir),
-                "--duration", str(settings.seconds + 60.0),
+                "--start-on-command", "--start-timeout", str(ROVER_START_TIMEOUT_S),
+                "--duration", str(ROVER_START_TIMEOUT_S + settings.seconds + 60.0),
                 *(("--fifo", str(settings.peer_fifo)) if settings.peer_fifo else ()),
             ),
             stdout=peer_log,
@@ -92,7 +105,6 @@ def run_soak(settings: SoakSettings) -> SoakReport:
         rover: subprocess.Popen[bytes] | None = None
         try:
             _wait_for_file(peer_dir / "port", peer)
-            epoch = time.monotonic()  # the peer's world started a moment ago: fault times count from here
             endpoint = f"tcp/127.0.0.1:{_free_port()}"
             config = _rover_config(peer_dir / "rover-hil.toml", rover_dir / "rover-soak.toml", endpoint)
             goal = PATROL[0]
@@ -110,6 +122,8 @@ def run_soak(settings: SoakSettings) -> SoakReport:
                 stdout=rover_log,
                 stderr=subprocess.STDOUT,
             )
+            # The peer's scenario, and every time of the soak's, starts at the rover's first wheel command.
+            epoch = _wait_for_scenario_start(peer_dir / "status.json", peer, rover)
             runs, estops = _drive(settings, plan, epoch, endpoint, peer, rover, peer_dir / "status.json")
         finally:
             for process in (rover, peer):
@@ -205,8 +219,6 @@ def _drive(
 
 
 def _near(status_file: Path, goal: tuple[float, float]) -> bool:
-    import json
-
     try:
         status = json.loads(status_file.read_text(encoding="utf-8"))
     except (FileNotFoundError, ValueError):
@@ -276,6 +288,35 @@ def _wait_for_file(path: Path, process: subprocess.Popen[bytes]) -> None:
         if time.monotonic() > deadline:
             raise SoakSetupError(f"the HIL peer did not write {path} within {START_TIMEOUT_S:g} s")
         time.sleep(0.05)
+
+
+def _wait_for_scenario_start(
+    status_file: Path, peer: subprocess.Popen[bytes], rover: subprocess.Popen[bytes]
+) -> float:
+    """When the peer started its held scenario, on the rover's first wheel command (monotonic clock,
+    s): what its status file says. A process that exits first, or a peer that never says, is a soak that
+    cannot start (each log is in the soak's folder)."""
+    deadline = time.monotonic() + ROVER_START_TIMEOUT_S + START_TIMEOUT_S
+    while (started_ns := _scenario_started_ns(status_file)) is None:
+        for name, process in (("rover run", rover), ("the HIL peer", peer)):
+            if process.poll() is not None:
+                raise SoakSetupError(
+                    f"{name} exited ({process.returncode}) before the rover's first wheel command "
+                    "started the scenario (see rover/rover.log and peer/peer.log)"
+                )
+        if time.monotonic() > deadline:
+            raise SoakSetupError(f"the HIL peer did not say in {status_file} that its scenario started")
+        time.sleep(0.05)
+    return started_ns / 1e9
+
+
+def _scenario_started_ns(status_file: Path) -> int | None:
+    """The peer status's ``scenario_started_ns`` (None: not yet, or no whole status file yet)."""
+    try:
+        started = json.loads(status_file.read_text(encoding="utf-8")).get("scenario_started_ns")
+    except (FileNotFoundError, ValueError):
+        return None
+    return started if isinstance(started, int) else None
 
 
 def _sleep_until(monotonic_s: float) -> None:

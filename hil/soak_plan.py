@@ -25,7 +25,7 @@ class SoakFault:
 
     target: str
     kind: str
-    start_s: float  # from the peer's start
+    start_s: float  # from the scenario's start: the rover's first wheel command (hil.soak)
     duration_s: float
     evidence: str  # FAILSAFE or DEADLINE_TICKS
     failsafe: str = ""  # the failsafe name when evidence is FAILSAFE

@@ -7,6 +7,8 @@ until ``SEEN_SLACK_S`` after its end) nor a recorded stall of the peer accounts 
 the stall's silence covers the failsafe's own budget); a stall of the peer (the real time between two of
 its steps) longer than the simulated controllers' command timeout (``PEER_STALL_LIMIT_MS``): beyond it the
 controllers stop the wheels by themselves, and the soak tests the machine's scheduler, not the rover.
+Only stalls from the soak's time zero (the rover's first wheel command) are judged: before it the peer
+held its scenario while ``rover run`` came up, and nothing drove on its steps (they are counted apart).
 
 A silent IMU (the pacing sensor) is judged from ``runtime/timing``, one window per second, against the
 rover's own pace just before it: seen when a whole window inside the fault ran on the deadline alone, and
@@ -92,6 +94,13 @@ class PeerTiming:
     stalls: int  # steps later than the peer integrates in one go
     dropped_sim_ms: float  # the simulated time those stalls dropped
     longest_step_gap_ms: float | None  # real time between two steps; None: unknown
+    # The stalls above before the soak's time zero, while the peer held its scenario for `rover run` to
+    # come up (hil.peer_start): its first steps on a cold numba cache compile for seconds. No rover drove
+    # on the peer's steps then, so they are not judged.
+    stalls_before_start: int = 0
+    # The longest gap of a stall from the soak's time zero on: the one judged (PEER_STALL_LIMIT_MS); None:
+    # no stall then (every gap within the peer's catch-up, PeerStalls.cap_ns).
+    longest_soak_stall_ms: float | None = None
 
     @classmethod
     def unknown(cls) -> PeerTiming:
@@ -114,7 +123,9 @@ class SoakReport:
     unexplained_failsafes: list[str] = field(default_factory=list)  # each with its time and detail
     # Failsafes a recorded peer stall accounts for (the machine's, not the stack's), with the stall.
     stall_failsafes: list[str] = field(default_factory=list)
-    rover_first_tick_s: float | None = None  # when the rover's control loop first ran; None: never
+    # When the rover's control loop first ran, from the soak's time zero (the rover's first wheel command,
+    # so about 0, a little below it if the loop ticked before it commanded); None: never.
+    rover_first_tick_s: float | None = None
     peer_scheduling: str = "normal scheduling"  # what `rover hil peer --fifo` got (its `scheduling:` line)
 
     @property
@@ -129,7 +140,7 @@ class SoakReport:
                     f"fault {f.name} at {f.start_s:.1f} s not {' / '.join(missing)}: {f.evidence}"
                 )
         problems += [f"unexplained {failsafe}" for failsafe in self.unexplained_failsafes]
-        gap = self.peer.longest_step_gap_ms
+        gap = self.peer.longest_soak_stall_ms
         if gap is not None and gap > PEER_STALL_LIMIT_MS:
             problems.append(
                 f"the peer stalled {gap:.0f} ms between two steps, longer than the simulated controllers' "
@@ -169,7 +180,7 @@ def judge_soak(
     estop_windows = [(start * NS + epoch_s * NS, end * NS + epoch_s * NS) for start, end in estops]
     events = _events(rover_mcap) if rover_mcap.exists() else []
     timing = _timing(rover_mcap) if rover_mcap.exists() else []
-    peer, stalls = _peer_timing(truth_mcap) if truth_mcap.exists() else (PeerTiming.unknown(), [])
+    peer, stalls = _peer_timing(truth_mcap, epoch_s) if truth_mcap.exists() else (PeerTiming.unknown(), [])
     results = []
     placed: list[tuple[SoakFault, tuple[float, float] | None]] = []
     first_tick_s = _first_tick_s(timing, epoch_s)
@@ -404,11 +415,12 @@ def _fault_windows(truth_mcap: Path) -> dict[str, list[tuple[float, float]]]:
     return windows
 
 
-def _peer_timing(truth_mcap: Path) -> tuple[PeerTiming, list[tuple[int, float, float]]]:
+def _peer_timing(truth_mcap: Path, epoch_s: float) -> tuple[PeerTiming, list[tuple[int, float, float]]]:
     """The peer's timing summary and its stalls ``(ns, gap ms, dropped ms)`` from its recording.
 
     The stalls come from its ``log`` records, so they are there even if the peer was killed; the summary
     (overruns, longest gap) only if it stopped cleanly, else it is rebuilt from the stalls it recorded.
+    Those before ``epoch_s`` (the soak's time zero) are told apart: the peer was holding its scenario.
     """
     stalls = []
     for message in read_messages(truth_mcap, [topics.LOG]):
@@ -427,6 +439,13 @@ def _peer_timing(truth_mcap: Path) -> tuple[PeerTiming, list[tuple[int, float, f
     else:
         gaps = [gap for _, gap, _ in stalls]
         peer = PeerTiming(None, len(stalls), sum(d for _, _, d in stalls), max(gaps) if gaps else None)
+    # A stall is recorded on the step after it: one that ended at or after time zero is the soak's.
+    in_soak = [gap for t_ns, gap, _ in stalls if t_ns >= epoch_s * NS]
+    peer = replace(
+        peer,
+        stalls_before_start=len(stalls) - len(in_soak),
+        longest_soak_stall_ms=max(in_soak, default=None),
+    )
     return peer, stalls
 
 

@@ -36,6 +36,9 @@ from navigator.vehicle import VehicleParams
 
 ELECTRONICS_CURRENT_A = 0.5  # computer, radios and controllers at idle
 TRUTH_DIVIDER = 2  # ground truth recorded every second physics tick
+# A held scenario's time zero (SimWorld.hold): later than any clock's reading (int64 nanoseconds: 146
+# years), so every fault's start lies ahead and scenario time before it is negative.
+_HELD_EPOCH_NS = 2**62
 
 
 class SimWorld:
@@ -56,7 +59,8 @@ class SimWorld:
         self._clock = clock
         self._sink = sink
         # The world's start on its clock: time zero of the scenario's faults and moving obstacles (the
-        # real-time peer's monotonic clock counts from the boot). Recorded by record_start (metadata "world").
+        # real-time peer's monotonic clock counts from the boot). Recorded by record_start (metadata "world");
+        # hold and start_now move it (the real-time peer's start on the rover's first command).
         self.epoch_ns = clock.now_ns()
         self.faults = FaultSchedule(
             scenario.faults, epoch_ns=self.epoch_ns, controller_ids=codec.profile.controller_ids
@@ -118,17 +122,8 @@ class SimWorld:
         self._footprint = Footprint.of(vehicle)
         self.battery = Battery()
         self.truth = TruthRecorder(sink, scenario)
-        self.perception = PerceptionSim(
-            clock,
-            lambda: (self.body.x, self.body.y),
-            scenario.obstacles,
-            scenario.moving_obstacles,
-            perception_rng,
-            range_m=sensors.perception_range_m,
-            rate_hz=sensors.perception_rate_hz,
-            noise_m=sensors.perception_noise_m,
-            epoch_ns=self.epoch_ns,
-        )
+        self._perception_rng = perception_rng
+        self.perception = self._perception(self.epoch_ns)
         self._tick = 0
         self._has_faults = bool(scenario.faults)
         self._next_fault_change_ns: float = self.epoch_ns  # the first tick applies the faults (_apply_faults)
@@ -153,9 +148,50 @@ class SimWorld:
     ) -> None:
         self.close()
 
-    def record_start(self, recorder: McapRecorder) -> None:
-        """The world's start on its clock (metadata ``world``): the metrics move the obstacles from it."""
-        recorder.add_metadata(WORLD_METADATA, {"epoch_ns": str(self.epoch_ns)})
+    def _perception(self, epoch_ns: int) -> PerceptionSim:
+        """Perception of the scenario's obstacles, its moving ones moving from ``epoch_ns``."""
+        sensors = self.scenario.sensors
+        return PerceptionSim(
+            self._clock,
+            lambda: (self.body.x, self.body.y),
+            self.scenario.obstacles,
+            self.scenario.moving_obstacles,
+            self._perception_rng,
+            range_m=sensors.perception_range_m,
+            rate_hz=sensors.perception_rate_hz,
+            noise_m=sensors.perception_noise_m,
+            epoch_ns=epoch_ns,
+        )
+
+    def record_start(self, recorder: McapRecorder, **how: str) -> None:
+        """The world's start on its clock (metadata ``world``): the metrics move the obstacles from it.
+        ``how``: further string entries of the record (the real-time peer's, saying what started it)."""
+        recorder.add_metadata(WORLD_METADATA, {"epoch_ns": str(self.epoch_ns), **how})
+
+    def hold(self) -> None:
+        """Hold the scenario's time at zero until ``start_now``; call before the first tick.
+
+        The world still steps, its sensors and controllers still talk (a rover needs GPS, IMU and wheel
+        status to start up), but no fault is active or announced and the moving obstacles wait at their
+        first waypoints: the scenario's time zero lies beyond any reading of the clock. The real-time
+        peer holds a scenario until the rover's first wheel command (``hil.peer_start``).
+        """
+        self._move_epoch(_HELD_EPOCH_NS)
+
+    def start_now(self) -> int:
+        """Start a held scenario's time at the clock's now (after the tick that read it); returns it."""
+        self._move_epoch(self._clock.now_ns())
+        return self.epoch_ns
+
+    def _move_epoch(self, epoch_ns: int) -> None:
+        # Every part that counts from the world's start, with it: the faults (and so the fault-wrapped
+        # wires, the sensor models and the bus-off announcer, which ask them), the moving obstacles (a
+        # fresh perception: the real-time peer uses only its moving_states, and nothing is drawn from its
+        # generator on construction) and the next fault change, which the next tick then applies.
+        self.epoch_ns = epoch_ns
+        self.faults.epoch_ns = epoch_ns
+        self.perception = self._perception(epoch_ns)
+        self._next_fault_change_ns = epoch_ns
 
     def rover_can_end(self, bus: can.BusABC) -> can.BusABC:
         """The rover's end of an in-process CAN bus, as the scenario's faults leave it.

@@ -12,6 +12,7 @@ from rich.console import Console
 from rich.table import Table as RichTable
 
 from hil.campaign_workers import MAX_WORKERS
+from hil.peer_start import DEFAULT_TIMEOUT_S as DEFAULT_START_TIMEOUT_S
 from logs.settings import ConfigError, parse_toml
 from logs.sink import MessageSink
 from navigator.config import RoverConfig, load_rover_config, rover_config_from_table
@@ -73,7 +74,26 @@ def _register_peer(commands: Any) -> None:
     )
     peer.add_argument("--port-file", type=Path, default=None, help="write the bound MAVLink UDP port here")
     peer.add_argument("--status-file", type=Path, default=None, help="keep the body's state here (JSON)")
-    peer.add_argument("--duration", type=positive_seconds, default=None, help="stop after this many seconds")
+    peer.add_argument(
+        "--duration",
+        type=positive_seconds,
+        default=None,
+        help="stop this many seconds after the peer started (with --start-on-command too)",
+    )
+    peer.add_argument(
+        "--start-on-command",
+        action="store_true",
+        help="hold the scenario (rover parked at its start; faults and moving obstacles not counting; "
+        "sensors and wheel status sent as usual) until the rover's first wheel command arrives on CAN, and "
+        "count the scenario's time from then (default: from the peer's start)",
+    )
+    peer.add_argument(
+        "--start-timeout",
+        type=positive_seconds,
+        default=None,
+        help="with --start-on-command: stop (exit 1) if no wheel command came within this many seconds of "
+        f"the peer's start (default {DEFAULT_START_TIMEOUT_S:g})",
+    )
     peer.add_argument("--out", type=Path, default=None, help="output directory (default: logs/trials/<run>)")
     peer.add_argument(
         "--fifo",
@@ -289,6 +309,8 @@ def _print_campaign_verdict(console: Console, outcomes: list[TrialOutcome]) -> i
 
 
 def run_peer_command(args: argparse.Namespace) -> int:
+    """Exit 0 when stopped (signal or ``--duration``); 1: ``--start-on-command`` and the rover never
+    commanded within ``--start-timeout``; 2: bad input."""
     import dataclasses
     import signal
     import threading
@@ -302,6 +324,9 @@ def run_peer_command(args: argparse.Namespace) -> int:
     from logs.clock import MonotonicClock
 
     console = Console(stderr=True)
+    if args.start_timeout is not None and not args.start_on_command:
+        print_error(console, "--start-timeout is how long --start-on-command waits: give both, or neither")
+        return 2
     try:
         scenario = load_scenario(args.scenario)
         config = load_config(args.config)
@@ -352,6 +377,8 @@ def run_peer_command(args: argparse.Namespace) -> int:
             status_path=args.status_file,
             port_file=args.port_file,
             on_ready=on_ready,
+            start_on_command=args.start_on_command,
+            start_timeout_ns=round((args.start_timeout or DEFAULT_START_TIMEOUT_S) * 1e9),
         )
     finally:
         transport.close()
@@ -362,4 +389,5 @@ def run_peer_command(args: argparse.Namespace) -> int:
         f"command timeouts {result.vesc_timeouts}; steps: {result.timing.describe()}; "
         f"{result.stalls.describe()}; {result.describe_bus_off()}"
     )
-    return 0
+    print(result.start.describe())
+    return 1 if result.start.timed_out else 0

@@ -25,7 +25,12 @@ def register(commands: Any) -> None:
     soak.add_argument("--seed", type=seed, default=1, help="seed of the fault schedule")
     soak.add_argument("--out", type=Path, default=None, help="output directory (default: logs/trials/soak-*)")
     soak.add_argument("--rss-period", type=float, default=5.0, help="seconds between memory samples")
-    soak.add_argument("--warmup", type=float, default=20.0, help="seconds before the first fault")
+    soak.add_argument(
+        "--warmup",
+        type=float,
+        default=20.0,
+        help="seconds from the rover's first wheel command (the soak's time zero) to the first fault",
+    )
     soak.add_argument("--can-interface", default="udp_multicast", help="udp_multicast (netns) or socketcan")
     soak.add_argument("--can-channel", default=None, help="e.g. vcan0 (default: a fresh multicast group)")
     soak.add_argument(
@@ -86,14 +91,19 @@ def run_soak_command(args: argparse.Namespace) -> int:
     console.print(memory)
     first_tick = "never" if report.rover_first_tick_s is None else f"at {report.rover_first_tick_s:.1f} s"
     console.print(
+        # The peer held its scenario until the rover's first wheel command: every time counts from it.
+        "times in s from the rover's first wheel command; "
         f"rover's first tick {first_tick}; "
         f"ticks {report.ticks} (sensor {report.sensor_ticks}, deadline {report.deadline_ticks}), "
         f"overruns {report.overruns}; failsafes fired: {report.failsafe_events}"
     )
     peer = report.peer
+    # Before the rover's first command the peer held its scenario: no rover drove on its steps yet.
+    held = peer.stalls_before_start
+    before_start = f", {held} of them before the rover's first command (not judged)" if held else ""
     console.print(
         f"peer ({report.peer_scheduling}): overruns {'unknown' if peer.overruns is None else peer.overruns}, "
-        f"stalls {peer.stalls} "
+        f"stalls {peer.stalls}{before_start} "
         f"({peer.dropped_sim_ms:.0f} ms of simulated time dropped), longest gap between steps "
         f"{_mb(peer.longest_step_gap_ms, '{:.0f} ms') if peer.longest_step_gap_ms is not None else 'unknown'}"
     )

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 import hil.soak
-from hil.soak_report import SoakReport
+from hil.soak_report import PeerTiming, SoakReport
 from rover_cli.main import main
 
 
@@ -42,7 +42,7 @@ def test_prints_the_rover_start_and_the_stall_failsafes_apart_from_the_unexplain
     )
     assert _run(monkeypatch, tmp_path, report) == 1  # an unexplained failsafe is a problem
     out = " ".join(capsys.readouterr().out.split())  # rich wraps long lines
-    assert "rover's first tick at 21.3 s" in out
+    assert "times in s from the rover's first wheel command; rover's first tick at 21.3 s" in out
     assert "failsafes a stall of the peer explains: 1" in out
     assert "failsafe.wheel_silent at 30.9 s: the peer stalled 250 ms" in out
     assert "failsafes no planned fault explains: 1" in out
@@ -52,9 +52,13 @@ def test_prints_the_rover_start_and_the_stall_failsafes_apart_from_the_unexplain
 def test_a_stall_explained_failsafe_alone_leaves_the_soak_ok(
     monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    report = _report(stall_failsafes=["failsafe.wheel_silent at 30.9 s: the peer stalled 250 ms"])
+    report = _report(
+        stall_failsafes=["failsafe.wheel_silent at 30.9 s: the peer stalled 250 ms"],
+        peer=PeerTiming(3, 2, 2200.0, 2140.0, stalls_before_start=1, longest_soak_stall_ms=250.0),
+    )
     assert _run(monkeypatch, tmp_path, report) == 0
     out = " ".join(capsys.readouterr().out.split())
+    assert "stalls 2, 1 of them before the rover's first command (not judged) (2200 ms" in out
     assert "rover's first tick never" in out
     assert "failsafes no planned fault explains: none" in out
     assert "NOT OK" not in out

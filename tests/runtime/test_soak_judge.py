@@ -7,6 +7,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+import pytest
+
 from hil.peer_stalls import stall_message
 from hil.soak_plan import DEADLINE_TICKS, FAILSAFE, SoakFault
 from hil.soak_report import (
@@ -162,9 +164,14 @@ def _log(t_ns: int, name: str, message: str) -> dict[str, Any]:
 
 
 def _soak(
-    tmp_path: Path, failsafes: list[tuple[float, str]], stall_gap_ms: float, peer_summary: bool
+    tmp_path: Path,
+    failsafes: list[tuple[float, str]],
+    stall_gap_ms: float,
+    peer_summary: bool,
+    stall_at_s: float = 20.2,
 ) -> SoakReport:
-    """A soak of one controller reboot (10-11.5 s), judged from recordings written here."""
+    """A soak of one controller reboot (10-11.5 s) and a stall of the peer ending at ``stall_at_s``,
+    judged from recordings written here."""
     epoch_s = 100.0
 
     def at(seconds: float) -> int:  # soak seconds -> ns on the shared monotonic clock
@@ -191,9 +198,8 @@ def _soak(
         recorder.publish(LOG, at(10.0), _log(at(10.0), "hil.faults", "fault injected: vesc[4]/off (...)"))
         recorder.publish(LOG, at(11.5), _log(at(11.5), "hil.faults", "fault cleared: vesc[4]/off"))
         dropped_ns = round((stall_gap_ms - 50.0) * 1e6)
-        recorder.publish(
-            LOG, at(20.2), _log(at(20.2), "hil.peer", stall_message(round(stall_gap_ms * 1e6), dropped_ns))
-        )
+        stall = _log(at(stall_at_s), "hil.peer", stall_message(round(stall_gap_ms * 1e6), dropped_ns))
+        recorder.publish(LOG, at(stall_at_s), stall)
         if peer_summary:
             timing = {"ticks": 3000, "overruns": 44}
             stalls = {"stalls": 1, "dropped_sim_ms": stall_gap_ms - 50.0, "longest_step_gap_ms": stall_gap_ms}
@@ -209,7 +215,7 @@ def test_a_soak_with_an_unplanned_failsafe_after_a_peer_stall_is_not_ok(tmp_path
     # 0.4 s after the stall's end: the silence began after the peer was stepping again.
     report = _soak(tmp_path, [(20.6, ALL_SIX)], 440.0, peer_summary=True)
     assert [f.seen and f.recovered for f in report.faults] == [True]
-    assert report.peer == PeerTiming(44, 1, 390.0, 440.0)
+    assert report.peer == PeerTiming(44, 1, 390.0, 440.0, stalls_before_start=0, longest_soak_stall_ms=440.0)
     assert not report.ok and report.stall_failsafes == []
     assert report.problems == [
         f"unexplained failsafe.wheel_silent at 20.6 s ({ALL_SIX}); "
@@ -231,9 +237,27 @@ def test_a_soak_whose_only_extra_failsafe_came_from_a_peer_stall_is_ok(tmp_path:
 def test_a_peer_stall_beyond_the_command_timeout_is_not_ok_by_itself(tmp_path: Path) -> None:
     report = _soak(tmp_path, [], 600.0, peer_summary=False)  # the peer was killed: no summary
     assert report.unexplained_failsafes == []
-    assert report.peer == PeerTiming(None, 1, 550.0, 600.0)  # rebuilt from its log records
+    assert report.peer == PeerTiming(None, 1, 550.0, 600.0, 0, 600.0)  # rebuilt from its log records
     assert report.problems == [
         "the peer stalled 600 ms between two steps, longer than the simulated controllers' command "
+        "timeout (500 ms)"
+    ]
+
+
+@pytest.mark.parametrize("peer_summary", [True, False])
+def test_a_peer_stall_while_it_held_its_scenario_for_the_rover_is_counted_not_judged(
+    tmp_path: Path, peer_summary: bool
+) -> None:
+    # 2140 ms in the peer's first steps on a cold numba cache, 65 s before the rover's first command (as in
+    # a cold-cache soak): the rover was not driving on its steps yet.
+    report = _soak(tmp_path, [], 2140.0, peer_summary=peer_summary, stall_at_s=-65.2)
+    assert report.ok, report.problems
+    assert report.peer.stalls == report.peer.stalls_before_start == 1
+    assert report.peer.longest_step_gap_ms == 2140.0 and report.peer.longest_soak_stall_ms is None
+    # The same stall after time zero is the soak's.
+    late = _soak(tmp_path, [], 2140.0, peer_summary=peer_summary, stall_at_s=0.0)
+    assert late.peer.stalls_before_start == 0 and late.problems == [
+        "the peer stalled 2140 ms between two steps, longer than the simulated controllers' command "
         "timeout (500 ms)"
     ]
 
