@@ -9,7 +9,6 @@ both buses the peer and the rover can share: the lockstep pair, and python-can `
 from __future__ import annotations
 
 import json
-import threading
 from collections.abc import Callable, Iterator
 from contextlib import AbstractContextManager, contextmanager
 from dataclasses import dataclass, field
@@ -26,13 +25,12 @@ from firmware_bridge.vesc import VescCodec
 from hil.bus_off import BUS_OFF_REPEAT_NS, BusOffAnnouncer
 from hil.faults import Fault, FaultSchedule
 from hil.lockstep_bus import lockstep_bus_pair
-from hil.peer import run_peer
 from logs.clock import NS_PER_S
 from logs.reader import RecordedMetadata, read_entries
 from logs.settings import parse_toml
 from logs.sink import MemorySink
 from navigator.config import RoverConfig, rover_config_from_table
-from tests.hil.world_harness import scenario_with
+from tests.hil.world_harness import run_peer_on_test_clock, scenario_with
 from tests.system.realtime_rig import fresh_multicast_group, needs_netns
 
 MS = 1_000_000
@@ -145,18 +143,14 @@ def run_rover_against_peer(
         link = CanLink(rover_end, codec, clock, sink, config=config.can)
         rover = Rover(rover_end, link, sink, T0_NS + round(listen_from_s * NS_PER_S))
         clock.rover = rover
-        run_peer(
+        run_peer_on_test_clock(
             scenario_with(faults),
             config,
             tmp_path / "peer",
-            clock=clock,
-            can_bus=peer_end,
-            mavlink=sim_mavlink,
-            mavlink_port=14_550,
-            wait=clock.wait,
-            stop=threading.Event(),
+            clock,
+            peer_end,
+            sim_mavlink,
             duration_ns=round(seconds * NS_PER_S),
-            spin_ns=0,
         )
     return rover
 

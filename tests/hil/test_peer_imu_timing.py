@@ -8,18 +8,16 @@ deadline.
 
 from __future__ import annotations
 
-import threading
 from pathlib import Path
 
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink2
 
 from hil.lockstep import lockstep_wires
-from hil.peer import run_peer
 from logs.clock import NS_PER_S
 from logs.settings import parse_toml
 from navigator.config import rover_config_from_table
-from tests.hil.world_harness import scenario_with
+from tests.hil.world_harness import run_peer_on_test_clock, scenario_with
 
 MS = 1_000_000
 RUN_NS = 3 * NS_PER_S
@@ -56,18 +54,9 @@ def test_imu_samples_are_20ms_apart_by_their_time_stamps_when_steps_wake_late(tm
     config = rover_config_from_table(parse_toml("", "<defaults>"))
     clock = LateWakingClock(seed=7)
     with lockstep_wires(config.can) as wires:
-        result = run_peer(
-            scenario,
-            config,
-            tmp_path / "peer",
-            clock=clock,
-            can_bus=wires.sim_bus,
-            mavlink=wires.sim_mavlink,
-            mavlink_port=14_550,
-            wait=clock.wait,
-            stop=threading.Event(),
-            duration_ns=RUN_NS,
-            spin_ns=0,  # plain sleeps: every step starts on a late wake-up
+        # Nothing spun: every step starts on a late wake-up.
+        result = run_peer_on_test_clock(
+            scenario, config, tmp_path / "peer", clock, wires.sim_bus, wires.sim_mavlink, duration_ns=RUN_NS
         )
         stamps = imu_stamps_ms(wires.onboard_mavlink.read())
     # The clock did wake late: the steps started off their deadlines by up to 3 ms.

@@ -13,7 +13,6 @@ import io
 import json
 import math
 import signal
-import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,7 +27,7 @@ from firmware_bridge.can_link import CanLink
 from firmware_bridge.mavlink_transport import PipeEnd
 from firmware_bridge.vesc import VescCodec
 from hil.lockstep import lockstep_wires
-from hil.peer import PeerResult, run_peer
+from hil.peer import PeerResult
 from hil.peer_stalls import PeerStalls
 from hil.peer_start import ON_FIRST_COMMAND, ON_PEER_START, ScenarioStart
 from hil.realtime_metrics import realtime_metrics
@@ -44,7 +43,7 @@ from navigator.runtime import TimingStats
 from rover_cli.main import main
 from tests.hil.test_realtime_metrics_epoch import WORLD_START_NS, _write_rover, _write_truth
 from tests.hil.test_world_epoch import CART  # waits 600 s at (2, 7), then 1 m/s down x = 2
-from tests.hil.world_harness import scenario_with
+from tests.hil.world_harness import run_peer_on_test_clock, scenario_with
 
 MS = 1_000_000
 T0_NS = 1_000 * NS_PER_S  # a monotonic clock's epoch is arbitrary; not zero
@@ -120,19 +119,15 @@ def run_against_rover(
         clock = TurnsClock(lambda now_ns: rover.turn(now_ns) if rover is not None else None)
         link = CanLink(wires.onboard_bus, VescCodec.for_profile(config.vesc), clock, sink, config=config.can)
         rover = Rover(link, wires.onboard_mavlink, out / "status.json", T0_NS + commands_from_s * NS_PER_S)
-        result = run_peer(
+        result = run_peer_on_test_clock(
             scenario_with(GPS_OFF),
             config,
             out,
-            clock=clock,
-            can_bus=wires.sim_bus,
-            mavlink=wires.sim_mavlink,
-            mavlink_port=14_550,
-            wait=clock.wait,
-            stop=threading.Event(),
+            clock,
+            wires.sim_bus,
+            wires.sim_mavlink,
             duration_ns=to_ns(seconds),
             status_path=out / "status.json",
-            spin_ns=0,
             start_on_command=start_on_command,
             start_timeout_ns=None if start_timeout_s is None else to_ns(start_timeout_s),
         )

@@ -6,22 +6,27 @@ constant wheel speeds, so a test sees faults the way a recording shows them.
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Protocol
 
+import can
 import pymap3d
 
 from firmware_bridge.can_link import CanLink
 from firmware_bridge.mavlink_link import MavlinkLink
+from firmware_bridge.mavlink_transport import Transport
 from firmware_bridge.vesc import VescCodec
 from hil.lockstep import lockstep_wires
+from hil.peer import PeerResult, run_peer
 from hil.scenario import Scenario, scenario_from_table
 from hil.world import SimWorld
 from logs.clock import SimClock, to_ns
 from logs.settings import parse_toml
 from logs.sink import MemorySink
 from logs.topics import stamp_ns
-from navigator.config import rover_config_from_table
+from navigator.config import RoverConfig, rover_config_from_table
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 BASE = (DATA / "small_rocky.toml").read_text(encoding="utf-8")
@@ -79,3 +84,37 @@ def run_world(extra: str = "", seconds: float = 4.0, speed_mps: float = 0.6) -> 
                     can_link.send_wheel_speeds([speed_mps] * 6)
         can_link.close()
     return WorldRun(sink, world, scenario)
+
+
+class SteppedClock(Protocol):
+    """A test clock the peer's waits advance (no real sleeping)."""
+
+    def now_ns(self) -> int: ...
+
+    def wait(self, seconds: float) -> None: ...
+
+
+def run_peer_on_test_clock(
+    scenario: Scenario,
+    config: RoverConfig,
+    out_dir: Path,
+    clock: SteppedClock,
+    can_bus: can.BusABC,
+    mavlink: Transport,
+    **options: Any,
+) -> PeerResult:
+    """``hil.peer.run_peer`` on in-process wires: its waits advance ``clock``, nothing is spun or slept,
+    never stopped from outside; ``options`` are run_peer's others (``duration_ns``, ``status_path``...)."""
+    return run_peer(
+        scenario,
+        config,
+        out_dir,
+        clock=clock,
+        can_bus=can_bus,
+        mavlink=mavlink,
+        mavlink_port=14_550,
+        wait=clock.wait,
+        stop=threading.Event(),
+        spin_ns=0,
+        **options,
+    )
