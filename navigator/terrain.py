@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -213,8 +213,12 @@ class TerrainMap:
         if extra.shape != self.obstacles.shape:
             raise TerrainError(f"obstacle mask has shape {extra.shape}, the map has {self.obstacles.shape}")
         # The fields as __post_init__ left them (the map keeps no other state), without running it again.
+        # Field by field, not through ``__dict__``: CPython 3.11 gives an instance whose ``__dict__`` was
+        # read a dict of its own, and every attribute load on it then takes twice as long (the world's
+        # map is read every physics step).
         copy = object.__new__(type(self))
-        copy.__dict__.update(self.__dict__)
+        for each in fields(self):
+            object.__setattr__(copy, each.name, getattr(self, each.name))
         obstacles = self.obstacles | extra.astype(bool)  # a new array, this map's own
         obstacles.setflags(write=False)
         object.__setattr__(copy, "obstacles", obstacles)
