@@ -334,6 +334,9 @@ class CanLink(ClosesOnExit):
         self._rejected_reported = 0  # rejections already in a warning
         self._last_rejection = ""  # the reason of the latest, for the next warning
         self._echoes = OwnEchoFilter() if echoes_own_sends(bus) else None
+        # python-can's own BusABC.state is ACTIVE for ever: a bus that does not override it (socketcan,
+        # virtual, the lockstep bus) tells a poll nothing there, so polls do not ask (_check_bus_state).
+        self._bus_tracks_state = getattr(type(bus), "state", None) is not can.BusABC.state
         # The lockstep bus moves a command round, and everything waiting, in one call (BatchBus); the
         # background thread's reader and repeater stay frame by frame.
         self._batch_bus = bus if isinstance(bus, BatchBus) and not threaded else None
@@ -572,12 +575,14 @@ class CanLink(ClosesOnExit):
                     frames, status_seen = self._take_each(t_ns)
             finally:
                 self._flush_frames()
-            self._check_bus_state(t_ns)
+            if self._bus_tracks_state:
+                self._check_bus_state(t_ns)
             for change in self._liveness.check(t_ns):
                 self._apply(t_ns, change, background=False)
             if status_seen:
                 self._publish_status(t_ns)
-            self._publish_load(t_ns)
+            if t_ns >= self._load.due_ns:  # a can/stats window is over (BusLoadMeter.message): one poll in 50
+                self._publish_load(t_ns)
             return frames
 
     def _take_each(self, t_ns: int) -> tuple[int, bool]:
