@@ -19,6 +19,8 @@ from firmware_bridge.wheel_names import wheel_label
 from logs.can_load import WINDOW_NS
 from logs.topics import stamp
 
+_NEVER_NS = 1 << 63  # a log time no run reaches
+
 # Error classes (arbitration id bits of an error frame).
 CAN_ERR_CRTL = 0x0004  # controller problem, details in data[1]
 CAN_ERR_BUSOFF = 0x0040
@@ -146,6 +148,10 @@ class ControllerLiveness:
         self._silent_after_ns = silent_after_ns
         self._last_heard = dict.fromkeys(self._ids, start_ns)
         self._alive = dict.fromkeys(self._ids, True)
+        # Until this time no living controller can have been silent too long: the earliest of their last
+        # hearings plus the limit, as the last full check found it (hearings only move later). check()
+        # runs at every poll, and before this time it has nothing to look at.
+        self._quiet_until_ns = start_ns + silent_after_ns
 
     def start(self, now_ns: int) -> None:
         """Count silence from ``now_ns`` for every controller not heard since (the watch's real start)."""
@@ -156,11 +162,14 @@ class ControllerLiveness:
         if self._alive[controller_id]:
             return None
         self._alive[controller_id] = True
+        self._quiet_until_ns = min(self._quiet_until_ns, t_ns + self._silent_after_ns)
         return StateChange(
             "can_controller_alive", "info", f"motor controller of {self._label(controller_id)} reports again"
         )
 
     def check(self, now_ns: int) -> list[StateChange]:
+        if now_ns <= self._quiet_until_ns:
+            return []
         changes: list[StateChange] = []
         for cid in self._ids:
             silence = now_ns - self._last_heard[cid]
@@ -174,6 +183,9 @@ class ControllerLiveness:
                         f"(limit {self._silent_after_ns / 1e6:.0f} ms)",
                     )
                 )
+        living = [self._last_heard[cid] for cid in self._ids if self._alive[cid]]
+        # None alive: nothing to check until one reports again (heard() brings this time back then).
+        self._quiet_until_ns = min(living) + self._silent_after_ns if living else _NEVER_NS
         return changes
 
     def alive(self) -> dict[int, bool]:
@@ -198,6 +210,7 @@ class BusLoadMeter:
         self._start_ns = start_ns
         self._frames_at_start = 0
         self._bits_at_start = 0
+        self.due_ns = start_ns + window_ns  # message() gives the window's stats from this log time on
 
     def restart(self, now_ns: int, *, frames_total: int, bits_total: int) -> None:
         """Open a new window at ``now_ns`` from the link's running totals, discarding the open one: the link
@@ -206,6 +219,7 @@ class BusLoadMeter:
         self._start_ns = now_ns
         self._frames_at_start = frames_total
         self._bits_at_start = bits_total
+        self.due_ns = now_ns + self._window_ns
 
     def message(
         self,
@@ -230,6 +244,7 @@ class BusLoadMeter:
         self._start_ns = now_ns
         self._frames_at_start = frames_total
         self._bits_at_start = bits_total
+        self.due_ns = now_ns + self._window_ns
         return {
             "timestamp": stamp(now_ns),
             "window_s": window_s,

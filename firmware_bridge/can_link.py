@@ -194,19 +194,13 @@ class _FrameRecords:
                 return _frame_json(t_ns, direction, msg)
         return f'{self._json_head}{middle}{msg.data.hex()}"}}'.encode()
 
-    def json_many(self, t_ns: int, direction: str, msgs: Sequence[can.Message]) -> list[bytes]:
-        """``json`` of each frame in turn: a poll's or a command round's frames, formatted in one call."""
+    def head(self, t_ns: int) -> str:
+        """The JSON text of a record at ``t_ns`` before its middle: a caller that knows a frame's middle
+        (``_record_middle``) already, as the link does for its own controllers' frames, makes the frame's
+        ``json`` as ``f'{head}{middle}{msg.data.hex()}"}}'`` without a lookup per frame."""
         if t_ns != self._t_ns:
             self._start(t_ns)
-        head, middles = self._json_head, self._json_middles
-        datas = []
-        for msg in msgs:
-            middle = middles.get((direction, msg.arbitration_id, msg.is_extended_id, msg.dlc))
-            if middle is None:  # a new kind, or one past the bound
-                datas.append(self.json(t_ns, direction, msg))
-            else:
-                datas.append(f'{head}{middle}{msg.data.hex()}"}}'.encode())
-        return datas
+        return self._json_head
 
     def format(self, t_ns: int, direction: str, msg: can.Message) -> tuple[dict[str, object], bytes]:
         """The frame's record and its JSON bytes (``encode_message`` of the record)."""
@@ -231,11 +225,18 @@ class _FrameRecords:
         """The JSON text between the timestamp and the data of a new kind, kept; None past the bound."""
         if len(self._json_middles) >= _MAX_CACHED_FRAME_KINDS:
             return None
-        middle = self._json_middles[key] = (
-            f'"direction":"{direction}","id":{int(msg.arbitration_id)},'
-            f'"extended":{"true" if msg.is_extended_id else "false"},"dlc":{int(msg.dlc)},"data":"'
+        middle = self._json_middles[key] = _record_middle(
+            direction, msg.arbitration_id, msg.is_extended_id, msg.dlc
         )
         return middle
+
+
+def _record_middle(direction: str, frame_id: int, extended: bool, dlc: int) -> str:
+    """The JSON text of a frame record between its timestamp and its data (``_frame_json``'s)."""
+    return (
+        f'"direction":"{direction}","id":{int(frame_id)},'
+        f'"extended":{"true" if extended else "false"},"dlc":{int(dlc)},"data":"'
+    )
 
 
 class CanLink(ClosesOnExit):
@@ -277,12 +278,11 @@ class CanLink(ClosesOnExit):
         self._encoded_sink = sink if isinstance(sink, EncodedSink) else None
         self._bytes_sink = bytes_only_sink(sink)
         self._frame_records = _FrameRecords()
-        # For a bytes-only sink, the frames of one poll or command round (all at _frames_ns, all rx or all
-        # tx), recorded in one publish_bytes_many call (_flush_frames) before anything else is published
-        # or logged.
-        self._frames: list[can.Message] = []
+        # For a bytes-only sink, the records (JSON bytes) of the frames of one poll or command round, all at
+        # _frames_ns, formatted as each frame is taken or sent and recorded in one publish_bytes_many call
+        # (_flush_frames) before anything else is published or logged.
+        self._frames: list[bytes] = []
         self._frames_ns = 0
-        self._frames_direction = "rx"
         self.profile = codec.profile
         self.counters = CanCounters()
         self._ids = codec.profile.controller_ids
@@ -292,6 +292,10 @@ class CanLink(ClosesOnExit):
         # A command round's bits (frame_bits of each SET_RPM, as the encoders make them: 29-bit ids, dlc =
         # length), counted at once when the round goes in one call (_send_batch).
         self._round_bits = sum(frame_bits(True, encoder.length) for encoder in self._set_rpm)
+        # ... and the record text of each of its frames but the timestamp and the data (_FrameRecords).
+        self._round_middles = tuple(
+            _record_middle("tx", encoder.message.frame_id, True, encoder.length) for encoder in self._set_rpm
+        )
         self._readings = [WheelReading(cid) for cid in self._ids]
         self._wheel_status: WheelStatus | None = None  # wheel_status() of the readings; None: not built
         self._wheel_of = {cid: index for index, cid in enumerate(self._ids)}
@@ -303,9 +307,9 @@ class CanLink(ClosesOnExit):
             for frame_id, decoder in codec.field_decoders(kind, names).items()
         }
         # ... as (its reader, kind, controller id, the bits of a frame the reader accepts, the wheel's
-        # reading), all _take asks per status frame in one lookup. A frame the reader accepts has the
-        # message's format (a 29-bit id, as VescCodec requires, and dlc = length), so its bits (frame_bits)
-        # are known before it arrives.
+        # reading, its record's text but the timestamp and data), all _take asks per status frame in one
+        # lookup. A frame the reader accepts has the message's format (a 29-bit id, as VescCodec requires,
+        # and dlc = length), so its bits (frame_bits) and most of its record are known before it arrives.
         self._status_frames = {
             frame_id: (
                 decoder.values,
@@ -313,6 +317,7 @@ class CanLink(ClosesOnExit):
                 decoder.controller_id,
                 frame_bits(True, decoder.length),
                 self._readings[self._wheel_of[decoder.controller_id]],
+                _record_middle("rx", frame_id, True, decoder.length),
             )
             for frame_id, decoder in status_decoders.items()
         }
@@ -329,6 +334,9 @@ class CanLink(ClosesOnExit):
         self._rejected_reported = 0  # rejections already in a warning
         self._last_rejection = ""  # the reason of the latest, for the next warning
         self._echoes = OwnEchoFilter() if echoes_own_sends(bus) else None
+        # python-can's own BusABC.state is ACTIVE for ever: a bus that does not override it (socketcan,
+        # virtual, the lockstep bus) tells a poll nothing there, so polls do not ask (_check_bus_state).
+        self._bus_tracks_state = getattr(type(bus), "state", None) is not can.BusABC.state
         # The lockstep bus moves a command round, and everything waiting, in one call (BatchBus); the
         # background thread's reader and repeater stay frame by frame.
         self._batch_bus = bus if isinstance(bus, BatchBus) and not threaded else None
@@ -412,7 +420,7 @@ class CanLink(ClosesOnExit):
                 self.counters.withheld += 1
             erpm = self._zero_erpm
         failures = 0
-        self._begin_frames(t_ns, "tx")
+        self._begin_frames(t_ns)
         try:
             if background or not self._send_batch(t_ns, erpm):
                 # ``erpm`` holds erpm_command's integers (or zeros), already in the field: encoded as is.
@@ -448,7 +456,15 @@ class CanLink(ClosesOnExit):
             for msg in msgs:
                 self._echoes.sent(msg)
         if self._bytes_sink is not None:
-            self._frames.extend(msgs)
+            # Each frame is its encoder's, with that encoder's id, format and length: its record's middle is
+            # known (_round_middles), the lookup of _FrameRecords.json is not needed.
+            head = self._frame_records.head(t_ns)
+            self._frames.extend(
+                [
+                    f'{head}{middle}{msg.data.hex()}"}}'.encode()
+                    for middle, msg in zip(self._round_middles, msgs, strict=True)
+                ]
+            )
         else:
             for msg in msgs:
                 self._publish_frame(t_ns, "tx", msg)
@@ -475,41 +491,38 @@ class CanLink(ClosesOnExit):
         if background:
             self._record(CAN_FRAMES, t_ns, _frame_record(t_ns, "tx", msg), background)
         elif self._bytes_sink is not None:  # _publish_frame's usual case, inline: six frames per tick
-            self._frames.append(msg)
+            self._frames.append(self._frame_records.json(t_ns, "tx", msg))
         else:
             self._publish_frame(t_ns, "tx", msg)
         return True
 
     def _publish_frame(self, t_ns: int, direction: str, msg: can.Message) -> None:
-        if self._bytes_sink is not None:  # the caller began the batch at t_ns, direction (_begin_frames)
-            self._frames.append(msg)
+        if self._bytes_sink is not None:  # the caller began the batch at t_ns (_begin_frames)
+            self._frames.append(self._frame_records.json(t_ns, direction, msg))
         elif self._encoded_sink is None:
             self._sink.publish(CAN_FRAMES, t_ns, _frame_record(t_ns, direction, msg))
         else:
             record, data = self._frame_records.format(t_ns, direction, msg)
             self._encoded_sink.publish_encoded(CAN_FRAMES, t_ns, record, data)
 
-    def _begin_frames(self, t_ns: int, direction: str) -> None:
-        """Start collecting the frames of one poll (``"rx"``) or command round (``"tx"``), all at ``t_ns``."""
+    def _begin_frames(self, t_ns: int) -> None:
+        """Start collecting the frames of one poll or command round, all at ``t_ns``."""
         if self._frames:
             self._flush_frames()
         self._frames_ns = t_ns
-        self._frames_direction = direction
 
     def _flush_frames(self) -> None:
         """Record the frames collected so far (``_frames``), in one call, in the order they came.
 
-        Hot path: their records are formatted in one call (``_FrameRecords.json_many``) and go down the
-        sink chain in one call for a poll's or a command round's 6-18 frames instead of one each (with the
-        recorder and a rate-limited Zenoh behind a fan-out, three calls a frame). Called before the link
-        publishes or logs anything else, so the recorded order is the frames' own."""
+        Hot path: their records (formatted as each frame came) go down the sink chain in one call for a
+        poll's or a command round's 6-18 frames instead of one each (with the recorder and a rate-limited
+        Zenoh behind a fan-out, three calls a frame). Called before the link publishes or logs anything
+        else, so the recorded order is the frames' own."""
         frames = self._frames
         if frames:
             self._frames = []
             assert self._bytes_sink is not None  # only a bytes-only sink's frames are collected
-            t_ns = self._frames_ns
-            datas = self._frame_records.json_many(t_ns, self._frames_direction, frames)
-            self._bytes_sink.publish_bytes_many(CAN_FRAMES, t_ns, datas)
+            self._bytes_sink.publish_bytes_many(CAN_FRAMES, self._frames_ns, frames)
 
     def keep_alive(self) -> None:
         """Repeat the latest command if a command period passed without one; zero once it is too old."""
@@ -551,7 +564,7 @@ class CanLink(ClosesOnExit):
         with self._lock:
             self._flush_background_records()
             t_ns = self._clock.now_ns()
-            self._begin_frames(t_ns, "rx")
+            self._begin_frames(t_ns)
             # The readings may change from here (even if taking the frames fails half-way): wheel_status()
             # builds a new one when next asked.
             self._wheel_status = None
@@ -562,12 +575,14 @@ class CanLink(ClosesOnExit):
                     frames, status_seen = self._take_each(t_ns)
             finally:
                 self._flush_frames()
-            self._check_bus_state(t_ns)
+            if self._bus_tracks_state:
+                self._check_bus_state(t_ns)
             for change in self._liveness.check(t_ns):
                 self._apply(t_ns, change, background=False)
             if status_seen:
                 self._publish_status(t_ns)
-            self._publish_load(t_ns)
+            if t_ns >= self._load.due_ns:  # a can/stats window is over (BusLoadMeter.message): one poll in 50
+                self._publish_load(t_ns)
             return frames
 
     def _take_each(self, t_ns: int) -> tuple[int, bool]:
@@ -620,6 +635,7 @@ class CanLink(ClosesOnExit):
         counters, status_frames, bus_state = self.counters, self._status_frames, self._bus_state
         heard = self._liveness.heard
         erpm_per_mps = self.profile.erpm_per_mps
+        head = self._frame_records.head(t_ns)
         for msg in msgs:
             status = status_frames.get(msg.arbitration_id)
             if (
@@ -630,9 +646,11 @@ class CanLink(ClosesOnExit):
             ):
                 status_seen |= self._take(msg, t_ns)
                 continue
-            _, kind, cid, bits, reading = status
+            _, kind, cid, bits, reading, middle = status
             counters.rx += 1
-            self._frames.append(msg)
+            # The frame has its message's id, format and length (the reader accepted it): its record is
+            # _FrameRecords.json's, from the middle known beforehand.
+            self._frames.append(f'{head}{middle}{msg.data.hex()}"}}'.encode())
             self.bits_total += bits
             _store_status(reading, kind, values, erpm_per_mps, t_ns)
             if (change := heard(cid, t_ns)) is not None:
@@ -690,13 +708,13 @@ class CanLink(ClosesOnExit):
             return False
         self.counters.rx += 1
         if self._bytes_sink is not None:  # _publish_frame's usual case, inline: every frame comes this way
-            self._frames.append(msg)
+            self._frames.append(self._frame_records.json(t_ns, "rx", msg))
         else:
             self._publish_frame(t_ns, "rx", msg)
         values: list[float] | None
         status = self._status_frames.get(msg.arbitration_id)
         if status is not None and (values := status[0](msg)) is not None:
-            _, kind, cid, bits, reading = status
+            _, kind, cid, bits, reading, _ = status
             self.bits_total += bits
         else:  # anything else, and what the decoder refuses: the codec decodes it or says why not
             self.bits_total += _frame_bits(msg.is_extended_id, msg.dlc)
@@ -845,7 +863,7 @@ class CanLink(ClosesOnExit):
             self._flush_background_records()
             try:
                 t_ns = self._clock.now_ns()
-                self._begin_frames(t_ns, "tx")
+                self._begin_frames(t_ns)
                 try:
                     for cid in self._ids:
                         self._send(t_ns, self._codec.encode_set_rpm(cid, 0))

@@ -83,6 +83,8 @@ class SimVescBank:
         self._motor_current_a = [0.0] * WHEEL_COUNT
         self._duty_cycle = [0.0] * WHEEL_COUNT  # the motors' duty from the physics (set_electrical)
         self._input_voltage_v = input_voltage_v
+        # The latest set_electrical's loads, not yet clamped into the fields above (_take_loads); None: none.
+        self._loads: tuple[tuple[float, ...], float, tuple[float, ...]] | None = None
         self.commands_applied = 0
         self.timeouts = 0
         self.ignored_frames = 0  # valid traffic not for us (other ids, other kinds)
@@ -270,8 +272,20 @@ class SimVescBank:
             raise ValueError(f"need {WHEEL_COUNT} motor currents in wheel order, got {len(motor_currents_a)}")
         if len(duties) != WHEEL_COUNT:
             raise ValueError(f"need {WHEEL_COUNT} duty cycles in wheel order, got {len(duties)}")
-        # Runs every physics step, so the clamps are comparisons (a third of max(min()) calls' cost), each
-        # with max(min())'s results: a value in range is kept as it is; a current beyond the field's limit
+        # Kept as given (tuple() of the physics' tuples is the tuple itself) and clamped only when a status
+        # frame is next due (_take_loads): the physics gives them every step, while STATUS goes every other
+        # step at the default rates and STATUS_4 / STATUS_5 every tenth, so half of the clamping was for
+        # loads the next step replaced unread.
+        self._loads = (tuple(motor_currents_a), input_voltage_v, tuple(duties))
+
+    def _take_loads(self) -> None:
+        """Clamp the latest loads (``set_electrical``) into the fields the status frames carry."""
+        if self._loads is None:
+            return
+        motor_currents_a, input_voltage_v, duties = self._loads
+        self._loads = None
+        # Every status period: the clamps are comparisons (a third of max(min()) calls' cost), each with
+        # max(min())'s results: a value in range is kept as it is; a current beyond the field's limit
         # is the limit, and a non-finite one reads 0; a duty beyond +-1 is +-1, and NaN reads 1.0 (as
         # max(-1.0, min(1.0, nan)) gave).
         limit = _STATUS_CURRENT_LIMIT_A
@@ -293,6 +307,7 @@ class SimVescBank:
             self._next_slow_ns = _next_due(self._next_slow_ns, self._slow_period_ns, now)
         if not (fast_due or slow_due):
             return
+        self._take_loads()
         # Every value is clamped into its field's range before it gets here (ERPM, currents, duty,
         # tachometer, voltage), so the encoders skip cantools' strict range check. The frame order is the
         # firmware's schedule as before: every controller's STATUS, then each one's STATUS_4 and STATUS_5.

@@ -1,3 +1,4 @@
+import random
 import time
 
 import can
@@ -9,6 +10,7 @@ from firmware_bridge.can_health import (
     CAN_ERR_CRTL_RX_PASSIVE,
     CAN_ERR_CRTL_TX_PASSIVE,
     BusSignal,
+    ControllerLiveness,
     classify_bus_state,
     classify_error_frame,
 )
@@ -279,3 +281,62 @@ def test_threaded_link_repeats_by_itself_and_stops_a_stalled_loop(buses):
     assert 0.1 <= (first_zero // 6) * 0.02 <= 0.3
     # background records reached the sink from the loop's thread at poll()/close()
     assert len([m for m in sink.on(CAN_FRAMES) if m["direction"] == "tx"]) == link.counters.tx
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_liveness_skips_checks_only_while_no_controller_can_be_silent(seed):
+    """check() returns early until the earliest living controller's limit (hot path: every poll); its
+    changes are those of looking at every controller each time, through hearings, silences, revivals and
+    start()."""
+    rng = random.Random(seed)
+    ids, limit = (1, 2, 3), 60
+    liveness = ControllerLiveness(ids, limit, 0)
+    last, alive = dict.fromkeys(ids, 0), dict.fromkeys(ids, True)
+    now = 0
+    for _ in range(2000):
+        now += rng.choice([0, 1, 7, 20, 45])
+        action = rng.random()
+        if action < 0.5:
+            cid = rng.choice(ids)
+            change = liveness.heard(cid, now)
+            assert (change is not None) == (not alive[cid])
+            last[cid], alive[cid] = now, True
+        elif action < 0.53:
+            liveness.start(now)
+            last = {cid: max(t, now) for cid, t in last.items()}
+        else:
+            silent = [cid for cid in ids if alive[cid] and now - last[cid] > limit]
+            changes = liveness.check(now)
+            assert [c.kind for c in changes] == ["can_controller_silent"] * len(silent)
+            for cid in silent:
+                alive[cid] = False
+        assert liveness.alive() == alive
+
+
+def test_a_bus_that_keeps_python_cans_fixed_state_is_not_asked_for_it(buses):
+    """BusABC.state is ACTIVE for ever: a poll asks only a bus whose class gives its own state."""
+
+    class Tracking(can.BusABC):
+        asked = 0
+
+        def __init__(self, inner: can.BusABC) -> None:
+            super().__init__(channel="tracking")
+            self._inner = inner
+
+        @property  # type: ignore[misc]  # read-only: this bus only reports its state
+        def state(self) -> can.BusState:
+            Tracking.asked += 1
+            return can.BusState.ACTIVE
+
+        def send(self, msg: can.Message, timeout: float | None = None) -> None:
+            self._inner.send(msg)
+
+        def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+            return self._inner.recv(timeout=0), False
+
+    clock = SimClock()
+    plain = CanLink(buses[0], make_codec(), clock, MemorySink())
+    tracking = CanLink(Tracking(buses[0]), make_codec(), clock, MemorySink())
+    assert not plain._bus_tracks_state and tracking._bus_tracks_state
+    tracking.poll()
+    assert Tracking.asked == 1

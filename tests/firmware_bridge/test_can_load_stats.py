@@ -52,6 +52,25 @@ def test_meter_publishes_once_per_window_with_the_window_counts() -> None:
     assert second["window_s"] == pytest.approx(1.0)
 
 
+def test_meter_due_time_is_where_message_starts_giving_stats() -> None:
+    """The link asks message() only from due_ns on: before it, message() gives None; at it, the stats."""
+    meter = BusLoadMeter(bitrate=500_000, start_ns=5)
+
+    def stats(now_ns: int) -> dict[str, object] | None:
+        return meter.message(
+            now_ns, tx_total=1, rx_total=1, bits_total=100, own_echoes_total=0, link_counters=dict
+        )
+
+    for start in (5, 3_000_000_000):
+        if start != 5:
+            meter.restart(start, frames_total=2, bits_total=100)
+        for _ in range(2):
+            due = meter.due_ns
+            assert stats(due - 1) is None
+            assert stats(due) is not None
+            assert meter.due_ns == due + 1_000_000_000
+
+
 def test_link_stats_match_the_frames_it_recorded() -> None:
     clock, sink = SimClock(1_000_000_000), MemorySink()
     config = CanConfig(bitrate=250_000)

@@ -123,8 +123,9 @@ def test_lockstep_run_is_deterministic(request):
 
 
 def test_loads_from_the_physics_are_clamped_into_the_status_fields_as_max_min_clamps_them(buses):
-    """set_electrical's comparisons give what max(-limit, min(limit, x)) gives, edges included: a current
-    beyond +-3000 A is the limit and a non-finite one 0; a duty beyond +-1 is +-1, NaN 1.0 (as before)."""
+    """The loads' clamps (set_electrical's, applied when a status is next due) give what
+    max(-limit, min(limit, x)) gives, edges included: a current beyond +-3000 A is the limit and a
+    non-finite one 0; a duty beyond +-1 is +-1, NaN 1.0 (as before)."""
     import math
 
     import numpy as np
@@ -135,6 +136,7 @@ def test_loads_from_the_physics_are_clamped_into_the_status_fields_as_max_min_cl
     duties = [nan, inf, -inf, 2.0, -2.0, -0.0]
     for convert in (list, np.array):
         sim.set_electrical(convert(currents), 24.0, convert(duties))
+        sim._take_loads()  # what the next status period does first
         want_currents = [max(-3000.0, min(3000.0, c)) if math.isfinite(c) else 0.0 for c in convert(currents)]
         want_duties = [max(-1.0, min(1.0, d)) for d in convert(duties)]
         assert [(float(c), math.copysign(1.0, c)) for c in sim._motor_current_a] == [
@@ -144,6 +146,7 @@ def test_loads_from_the_physics_are_clamped_into_the_status_fields_as_max_min_cl
             (float(d), math.copysign(1.0, d)) for d in want_duties
         ]
     sim.set_electrical([1.5, -2.5, 3000.0, -3000.0, 0.25, 0.0], 24.0, [0.5, -0.5, 1.0, -1.0, 0.0, 0.999])
+    sim._take_loads()
     assert sim._motor_current_a == [1.5, -2.5, 3000.0, -3000.0, 0.25, 0.0]
     assert sim._duty_cycle == [0.5, -0.5, 1.0, -1.0, 0.0, 0.999]
 
