@@ -94,8 +94,9 @@ class RealtimePeer:
     body's pose and speed and the wheels' speeds and command timeouts, so a test or an operator can watch
     the simulated rover without opening the MCAP that is still being written.
 
-    ``start`` (default: the scenario started with the peer): a held world (``SimWorld.hold``) is started
-    on the first step that finds a wheel command applied; if the wait runs out first, ``stop`` is set.
+    ``start`` (default: the scenario started with the peer): if it is held, the peer holds the world
+    (``SimWorld.hold``) and starts it once the rover commands (``_start_on_command``); if the wait runs out
+    first, it sets ``stop`` (required then: the scheduler's).
     """
 
     def __init__(
@@ -113,7 +114,17 @@ class RealtimePeer:
         self._recorder = recorder
         self._status_path = status_path
         self.start = start or ScenarioStart(ON_PEER_START, clock.now_ns())
+        if self.start.held:
+            if stop is None:
+                raise ValueError(
+                    "a peer holding its scenario needs the scheduler's stop: its wait can run out"
+                )
+            world.hold()
         self._stop = stop or threading.Event()
+        # The wheel commands the controllers had applied at the last step, and the step that first found
+        # new ones since the rover began (None: none yet).
+        self._commands_seen = 0
+        self._first_round_ns: int | None = None
         self._last_ns: int | None = None  # the previous step's due time; None before the first step
         self._next_status_ns = clock.now_ns()
         self._timeouts_seen = 0
@@ -149,15 +160,28 @@ class RealtimePeer:
             self.write_status()
 
     def _start_on_command(self, now: int) -> None:
-        """Start the held scenario now if a wheel command of the rover's was applied (``SimVescBank``
-        counts them; the rover sends a round every tick from its first, zeros while not ready); give up
-        and stop the peer if the wait ran out."""
-        if self.world.vescs.commands_applied > 0:
-            words = self.start.start(self.world.start_now())
-            self.world.record_start(self._recorder, **self.start.record())
-            self._log(now, words, topics.LOG_INFO)
-            _log.info("HIL peer: %s", words)
-            return
+        """Start the held scenario once the rover commands its wheels; give up and stop the peer if the
+        wait ran out.
+
+        The rover sends a round of wheel commands every control tick from its first (zeros while it is not
+        ready; ``SimVescBank`` counts those applied). The scenario starts on a round that follows another
+        within the controllers' command timeout, with its time zero at the first of them: a lone round,
+        such as the zeros a link sends as it closes (a ``rover run`` that stopped in its warm-up), starts
+        nothing."""
+        vescs = self.world.vescs
+        applied = vescs.commands_applied
+        if applied > self._commands_seen:
+            self._commands_seen = applied
+            first = self._first_round_ns
+            if first is None or now - first > vescs.command_timeout_ns:
+                self._first_round_ns = now  # the first round, or one long after a lone round
+            else:
+                self.world.start_at(first)
+                words = self.start.start(first)
+                self.world.record_start(self._recorder, **self.start.record())
+                self._log(now, words, topics.LOG_INFO)
+                _log.info("HIL peer: %s", words)
+                return
         gave_up = self.start.expired(now)
         if gave_up is not None:
             self._log(now, gave_up, topics.LOG_ERROR)
@@ -269,12 +293,16 @@ def run_peer(
         step_clock = StepClock(clock.now_ns())
         with SimWorld(scenario, config.vehicle, codec, step_clock, can_bus, mavlink, recorder, seed) as world:
             world.announce_bus_off(can_bus)  # the rover's controller is in another process: tell it
-            start = ScenarioStart(start_on, world.epoch_ns, start_timeout_ns)
-            if start_on_command:
-                world.hold()  # recorded when it starts (RealtimePeer._start_on_command)
-            else:
+            if not start_on_command:
                 world.record_start(recorder)  # its obstacles and faults count from here, not from the boot
             world.body.warm_up()  # before the port file: whoever waits on it meets a peer that runs on time
+            # A held scenario's wait counts from here, the peer ready (its warm-up may have taken seconds;
+            # the rover cannot start before the port file below anyway). Recorded when it starts.
+            start = (
+                ScenarioStart(ON_FIRST_COMMAND, clock.now_ns(), start_timeout_ns)
+                if start_on_command
+                else ScenarioStart(ON_PEER_START, world.epoch_ns)
+            )
             peer = RealtimePeer(world, step_clock, recorder, status_path, start=start, stop=stop)
             if status_path is not None:
                 peer.write_status()

@@ -1,14 +1,17 @@
 """When the real-time peer's scenario starts: with the peer, or on the rover's first wheel command.
 
 ``rover run`` is another process, and it may first tick 5-45 s after ``rover hil peer`` came up (process
-start, imports, a cold numba cache compiling). A scenario that starts with the peer runs its faults and
-moving obstacles on a clock the rover has not joined yet: a fault at 10 s can be over before the rover
-exists. With ``rover hil peer --start-on-command`` the peer holds the scenario (``SimWorld.hold``: sensors
+start, imports, a cold numba cache compiling; 76 s was seen on an empty cache on a loaded host). A
+scenario that starts with the peer runs its faults and moving obstacles on a clock the rover has not
+joined yet: a fault at 10 s can be over before the rover exists. With ``rover hil peer --start-on-command`` the peer holds the scenario (``SimWorld.hold``: sensors
 and wheel status stream as usual, the rover stands at its start, no fault or moving obstacle counts) until
-the first wheel command of the rover's reaches its simulated controllers, and starts the scenario's time
-then (``SimWorld.start_now``). It says when in ``truth.mcap`` (the ``world`` record's ``epoch_ns``, its
+the rover's wheel commands reach its simulated controllers, and starts the scenario's time at the first
+of them (``SimWorld.start_at``; ``RealtimePeer._start_on_command``: a round of commands counts only when
+another follows within the controllers' command timeout, so the zeros a link sends as it closes do not
+start it). It says when in ``truth.mcap`` (the ``world`` record's ``epoch_ns``, its
 ``start``, a ``hil.peer`` log line) and in its status file (``status()``). A rover that never commands
-is given up on after ``timeout_ns``: the peer stops and says so, rather than wait on silently.
+is given up on ``timeout_ns`` after the peer is ready (``peer_start_ns``, after its own warm-up): the
+peer stops and says so, rather than wait on silently.
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ from logs.clock import NS_PER_S
 
 ON_PEER_START = "peer start"
 ON_FIRST_COMMAND = "first wheel command"
-DEFAULT_TIMEOUT_S = 120.0  # covers a first `rover run` on a cold numba cache (30-45 s) on a busy host
+DEFAULT_TIMEOUT_S = 120.0  # covers a first `rover run` on a cold numba cache (76 s seen at load 7)
 
 
 @dataclass

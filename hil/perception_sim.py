@@ -52,11 +52,12 @@ class PerceptionSim:
         self._period_ns = to_ns(1.0 / rate_hz)
         self._noise_m = noise_m
         self._next_ns = clock.now_ns()
-        self._epoch_ns = self._next_ns if epoch_ns is None else epoch_ns
+        # Time zero of the moving obstacles; the world moves it when it holds and starts its scenario.
+        self.epoch_ns = self._next_ns if epoch_ns is None else epoch_ns
 
     def moving_states(self, t_ns: int) -> list[tuple[MovingObstacle, tuple[float, float, float, float]]]:
         """Each moving obstacle's (x, y, vx, vy) at the clock reading ``t_ns``; it moves from the epoch."""
-        t_s = seconds(t_ns - self._epoch_ns)
+        t_s = seconds(t_ns - self.epoch_ns)
         return [(m, m.state_at(t_s)) for m in self._moving]
 
     def poll(self) -> list[ObstacleObservation]:

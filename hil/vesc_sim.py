@@ -367,6 +367,11 @@ class SimVescBank:
         logger.debug("simulated VESC: cannot send %s: %s", name, err)
 
     # --- accessors -----------------------------------------------------------------------------
+    @property
+    def command_timeout_ns(self) -> int:
+        """A controller that hears no command for longer than this stops its motor (firmware behaviour)."""
+        return self._timeout_ns
+
     def wheel_speeds_mps(self) -> list[float]:
         # VescProfile.speed_from_erpm's arithmetic, inline: every physics step asks, six wheels.
         erpm_per_mps = self.profile.erpm_per_mps

@@ -60,7 +60,7 @@ class SimWorld:
         self._sink = sink
         # The world's start on its clock: time zero of the scenario's faults and moving obstacles (the
         # real-time peer's monotonic clock counts from the boot). Recorded by record_start (metadata "world");
-        # hold and start_now move it (the real-time peer's start on the rover's first command).
+        # hold and start_at move it (the real-time peer's start on the rover's first command).
         self.epoch_ns = clock.now_ns()
         self.faults = FaultSchedule(
             scenario.faults, epoch_ns=self.epoch_ns, controller_ids=codec.profile.controller_ids
@@ -122,8 +122,17 @@ class SimWorld:
         self._footprint = Footprint.of(vehicle)
         self.battery = Battery()
         self.truth = TruthRecorder(sink, scenario)
-        self._perception_rng = perception_rng
-        self.perception = self._perception(self.epoch_ns)
+        self.perception = PerceptionSim(
+            clock,
+            lambda: (self.body.x, self.body.y),
+            scenario.obstacles,
+            scenario.moving_obstacles,
+            perception_rng,
+            range_m=sensors.perception_range_m,
+            rate_hz=sensors.perception_rate_hz,
+            noise_m=sensors.perception_noise_m,
+            epoch_ns=self.epoch_ns,
+        )
         self._tick = 0
         self._has_faults = bool(scenario.faults)
         self._next_fault_change_ns: float = self.epoch_ns  # the first tick applies the faults (_apply_faults)
@@ -148,28 +157,13 @@ class SimWorld:
     ) -> None:
         self.close()
 
-    def _perception(self, epoch_ns: int) -> PerceptionSim:
-        """Perception of the scenario's obstacles, its moving ones moving from ``epoch_ns``."""
-        sensors = self.scenario.sensors
-        return PerceptionSim(
-            self._clock,
-            lambda: (self.body.x, self.body.y),
-            self.scenario.obstacles,
-            self.scenario.moving_obstacles,
-            self._perception_rng,
-            range_m=sensors.perception_range_m,
-            rate_hz=sensors.perception_rate_hz,
-            noise_m=sensors.perception_noise_m,
-            epoch_ns=epoch_ns,
-        )
-
     def record_start(self, recorder: McapRecorder, **how: str) -> None:
         """The world's start on its clock (metadata ``world``): the metrics move the obstacles from it.
         ``how``: further string entries of the record (the real-time peer's, saying what started it)."""
         recorder.add_metadata(WORLD_METADATA, {"epoch_ns": str(self.epoch_ns), **how})
 
     def hold(self) -> None:
-        """Hold the scenario's time at zero until ``start_now``; call before the first tick.
+        """Hold the scenario's time at zero until ``start_at``; call before the first tick.
 
         The world still steps, its sensors and controllers still talk (a rover needs GPS, IMU and wheel
         status to start up), but no fault is active or announced and the moving obstacles wait at their
@@ -178,19 +172,22 @@ class SimWorld:
         """
         self._move_epoch(_HELD_EPOCH_NS)
 
-    def start_now(self) -> int:
-        """Start a held scenario's time at the clock's now (after the tick that read it); returns it."""
-        self._move_epoch(self._clock.now_ns())
-        return self.epoch_ns
+    def start_at(self, epoch_ns: int) -> None:
+        """Start a held scenario with its time zero at ``epoch_ns`` on the clock (at most now: the next tick
+        applies what is due by then)."""
+        if epoch_ns > self._clock.now_ns():
+            raise ValueError(
+                f"a scenario cannot start in the future: {epoch_ns} ns > now {self._clock.now_ns()}"
+            )
+        self._move_epoch(epoch_ns)
 
     def _move_epoch(self, epoch_ns: int) -> None:
         # Every part that counts from the world's start, with it: the faults (and so the fault-wrapped
-        # wires, the sensor models and the bus-off announcer, which ask them), the moving obstacles (a
-        # fresh perception: the real-time peer uses only its moving_states, and nothing is drawn from its
-        # generator on construction) and the next fault change, which the next tick then applies.
+        # wires, the sensor models and the bus-off announcer, which ask them), the moving obstacles and the
+        # next fault change, which the next tick then applies.
         self.epoch_ns = epoch_ns
         self.faults.epoch_ns = epoch_ns
-        self.perception = self._perception(epoch_ns)
+        self.perception.epoch_ns = epoch_ns
         self._next_fault_change_ns = epoch_ns
 
     def rover_can_end(self, bus: can.BusABC) -> can.BusABC:

@@ -84,15 +84,16 @@ def _register_peer(commands: Any) -> None:
         "--start-on-command",
         action="store_true",
         help="hold the scenario (rover parked at its start; faults and moving obstacles not counting; "
-        "sensors and wheel status sent as usual) until the rover's first wheel command arrives on CAN, and "
-        "count the scenario's time from then (default: from the peer's start)",
+        "sensors and wheel status sent as usual) until the rover commands its wheels on CAN (a second round "
+        "of commands within the controllers' timeout), and count the scenario's time from its first "
+        "command (default: from the peer's start)",
     )
     peer.add_argument(
         "--start-timeout",
         type=positive_seconds,
         default=None,
-        help="with --start-on-command: stop (exit 1) if no wheel command came within this many seconds of "
-        f"the peer's start (default {DEFAULT_START_TIMEOUT_S:g})",
+        help="with --start-on-command: stop (exit 1) if the rover did not command within this many seconds "
+        f"of the peer being ready (default {DEFAULT_START_TIMEOUT_S:g})",
     )
     peer.add_argument("--out", type=Path, default=None, help="output directory (default: logs/trials/<run>)")
     peer.add_argument(

@@ -63,12 +63,18 @@ class Rover:
     mavlink: PipeEnd
     status_path: Path
     commands_from_ns: float
+    # One round of zero commands alone at this time (what a link sends as it closes), before commanding.
+    lone_round_ns: float = math.inf
     first_command_ns: int | None = None
     status_frames_before: int = 0
     mavlink_before: bytes = b""
     status_at_first_command: dict[str, Any] = field(default_factory=dict)
 
     def turn(self, now_ns: int) -> None:
+        if now_ns >= self.lone_round_ns:
+            self.lone_round_ns = math.inf
+            self.link.send_wheel_speeds([0.0] * 6)
+            return
         if now_ns < self.commands_from_ns:
             self.link.poll()
             self.status_frames_before = self.link.counters.rx
@@ -110,6 +116,7 @@ def run_against_rover(
     start_on_command: bool,
     seconds: float = 5.0,
     start_timeout_s: float | None = None,
+    lone_round_s: float = NEVER,
 ) -> tuple[PeerResult, Rover]:
     config = _config()
     out = tmp_path / "peer"
@@ -118,7 +125,13 @@ def run_against_rover(
         rover: Rover | None = None
         clock = TurnsClock(lambda now_ns: rover.turn(now_ns) if rover is not None else None)
         link = CanLink(wires.onboard_bus, VescCodec.for_profile(config.vesc), clock, sink, config=config.can)
-        rover = Rover(link, wires.onboard_mavlink, out / "status.json", T0_NS + commands_from_s * NS_PER_S)
+        rover = Rover(
+            link,
+            wires.onboard_mavlink,
+            out / "status.json",
+            T0_NS + commands_from_s * NS_PER_S,
+            lone_round_ns=T0_NS + lone_round_s * NS_PER_S,
+        )
         result = run_peer_on_test_clock(
             scenario_with(GPS_OFF),
             config,
@@ -175,8 +188,9 @@ def test_a_fault_at_t_begins_t_after_the_rovers_first_command(tmp_path: Path, co
         "start": ON_FIRST_COMMAND,
         "peer_start_ns": str(T0_NS),
     }
+    # Said on the round after the first, which shows the rover is commanding (not a lone round).
     (said_ns, level, words), *_ = peer_log(truth)
-    assert said_ns == started and level == topics.LOG_INFO
+    assert started < said_ns <= started + ROVER_PERIOD_NS + PHYSICS_NS and level == topics.LOG_INFO
     assert words.startswith(
         f"scenario started on the rover's first wheel command, {(started - T0_NS) / NS_PER_S:.2f} s after"
     )
@@ -233,6 +247,33 @@ def test_a_rover_that_never_commands_is_given_up_on_and_the_peer_says_so(tmp_pat
     assert status["scenario_started_ns"] is None and status["scenario_start_timed_out"] is True
 
 
+def test_a_lone_round_of_commands_does_not_start_the_scenario(tmp_path: Path) -> None:
+    """The zeros a link sends as it closes (a `rover run` that stopped in its warm-up) are one round: the
+    scenario stays held, and the peer still gives up on a rover that never drives."""
+    result, _rover = run_against_rover(
+        tmp_path,
+        commands_from_s=NEVER,
+        start_on_command=True,
+        seconds=10.0,
+        start_timeout_s=1.5,
+        lone_round_s=0.5,
+    )
+    assert result.start.timed_out and result.start.started_ns is None
+    assert result.simulated_s == pytest.approx(1.5, abs=0.02)
+    assert fault_log(tmp_path / "peer" / "truth.mcap") == []
+
+
+def test_a_rover_commanding_after_a_lone_round_starts_the_scenario_at_its_first_command(
+    tmp_path: Path,
+) -> None:
+    result, rover = run_against_rover(tmp_path, commands_from_s=2.0, start_on_command=True, lone_round_s=0.5)
+    first = rover.first_command_ns
+    started = result.start.started_ns
+    assert first is not None and started is not None and first <= started <= first + PHYSICS_NS
+    (injected_ns, injected), _cleared = fault_log(tmp_path / "peer" / "truth.mcap")
+    assert injected.startswith("fault injected: gps/off") and injected_ns == started + to_ns(FAULT_AT_S)
+
+
 def test_a_held_world_holds_its_carts_and_faults_then_counts_them_from_its_start() -> None:
     config = _config()
     scenario = scenario_with(CART + GPS_OFF)
@@ -263,8 +304,11 @@ def test_a_held_world_holds_its_carts_and_faults_then_counts_them_from_its_start
             world.tick(0.01)
             assert world.faults.active("gps", clock.now_ns()) is None
         assert cart_at(clock.now_ns()) == cart_at(clock.now_ns() + to_ns(10_000.0)) == (2.0, 7.0)
-        started = world.start_now()
+        world.start_at(clock.now_ns())
+        started = world.epoch_ns
         world.record_start(recorder)
+        with pytest.raises(ValueError, match="cannot start in the future"):
+            world.start_at(clock.now_ns() + 1)
         assert started == clock.now_ns() == T0_NS + to_ns(5.0)
         assert world.faults.active("gps", started + to_ns(FAULT_AT_S) - 1) is None
         assert world.faults.active("gps", started + to_ns(FAULT_AT_S)) is not None
@@ -346,9 +390,9 @@ def test_a_scenario_start_refuses_a_mode_it_does_not_know() -> None:
         ScenarioStart(ON_FIRST_COMMAND, 0, 0)
 
 
-def test_the_metrics_time_carts_from_a_held_scenarios_start_not_the_peers(tmp_path: Path) -> None:
-    # The rover drove 2 s after the scenario started, which the peer held 30 s for it: its carts are
-    # where the scenario's start puts them (one met on the way), as in a lockstep trial of that drive.
+def test_a_held_peers_world_record_still_gives_the_metrics_its_epoch(tmp_path: Path) -> None:
+    # The held peer's world record has more entries (what started it, when the peer did): the metrics
+    # still time the carts from its epoch_ns, the scenario's start, as for a peer that did not hold.
     _write_rover(tmp_path / "rover.mcap")
     start = ScenarioStart(ON_FIRST_COMMAND, WORLD_START_NS - to_ns(30.0))
     held = {"epoch_ns": str(WORLD_START_NS), **start.record()}
