@@ -200,7 +200,7 @@ class BusLoadMeter:
 
     The link sees every frame on the bus (it sends the commands and receives everything else), so its
     count is right wherever the recorded or streamed ``can/frames`` are thinned. Pure: the link counts bits
-    per frame and asks ``message()`` at each poll; a window is closed by the first poll at or after its end
+    per frame and asks ``message()`` at the first poll at or after ``due_ns``, which closes the window
     (``window_s`` is the real length).
     """
 
@@ -231,12 +231,12 @@ class BusLoadMeter:
         own_echoes_total: int,
         link_counters: Callable[[], Mapping[str, int]],
     ) -> dict[str, Any] | None:
-        """The window's stats if it is over, else ``None``. ``link_counters`` is asked only then: the link
-        calls this on every poll (every tick), and building the counters' dict each time was a measurable
-        share of the lockstep trial's CAN time."""
-        elapsed_ns = now_ns - self._start_ns
-        if elapsed_ns < self._window_ns:
+        """The window's stats if it is over (``now_ns >= due_ns``), else ``None``. ``link_counters`` is
+        asked only then: building the counters' dict at every poll was a measurable share of the lockstep
+        trial's CAN time."""
+        if now_ns < self.due_ns:
             return None
+        elapsed_ns = now_ns - self._start_ns
         frames_total = tx_total + rx_total
         frames = frames_total - self._frames_at_start
         bits = bits_total - self._bits_at_start

@@ -3,15 +3,16 @@
 ``rover run`` is another process, and it may first tick 5-45 s after ``rover hil peer`` came up (process
 start, imports, a cold numba cache compiling; 76 s was seen on an empty cache on a loaded host). A
 scenario that starts with the peer runs its faults and moving obstacles on a clock the rover has not
-joined yet: a fault at 10 s can be over before the rover exists. With ``rover hil peer --start-on-command`` the peer holds the scenario (``SimWorld.hold``: sensors
-and wheel status stream as usual, the rover stands at its start, no fault or moving obstacle counts) until
-the rover's wheel commands reach its simulated controllers, and starts the scenario's time at the first
-of them (``SimWorld.start_at``; ``RealtimePeer._start_on_command``: a round of commands counts only when
-another follows within the controllers' command timeout, so the zeros a link sends as it closes do not
-start it). It says when in ``truth.mcap`` (the ``world`` record's ``epoch_ns``, its
-``start``, a ``hil.peer`` log line) and in its status file (``status()``). A rover that never commands
-is given up on ``timeout_ns`` after the peer is ready (``peer_start_ns``, after its own warm-up): the
-peer stops and says so, rather than wait on silently.
+joined yet: a fault at 10 s can be over before the rover exists. With ``rover hil peer
+--start-on-command`` the peer holds the scenario (``SimWorld.hold``: sensors and wheel status stream as
+usual, the rover stands at its start, no fault or moving obstacle counts) until the rover's wheel commands
+reach its simulated controllers, and starts the scenario's time at the first of them
+(``SimWorld.start_at``; ``RealtimePeer._start_on_command``: a round of commands counts only when another
+follows within the controllers' command timeout, so the zeros a link sends as it closes do not start it).
+It says when in ``truth.mcap`` (the ``world`` record's ``epoch_ns``, its ``start``, a ``hil.peer`` log
+line) and in its status file (``status()``). A rover that never commands is given up on ``timeout_ns``
+after the peer is ready (``peer_start_ns``, after its own warm-up): the peer stops and says so, rather
+than wait on silently.
 """
 
 from __future__ import annotations

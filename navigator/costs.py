@@ -269,7 +269,6 @@ def inflate_obstacles(terrain: TerrainMap, clearance_m: float, edge_is_obstacle:
 
 
 # (first row, end row, first column, end column) of a block of map cells, ends excluded.
-# (first row, row past the last, first column, column past the last) of a rectangle of map cells.
 Window = tuple[int, int, int, int]
 
 

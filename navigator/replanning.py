@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import logging
 import math
+import operator
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -160,7 +161,13 @@ class RepairingPlanner:
         rows, cols = self._cost.shape
         regions = []
         for window in windows:
-            row0, row1, col0, col1 = (int(edge) for edge in window)
+            try:
+                # Whole numbers only: int() would cut 2.5 to 2 as silently as a slice cuts a window.
+                row0, row1, col0, col1 = (operator.index(edge) for edge in window)
+            except (TypeError, ValueError) as err:
+                raise PlanningError(
+                    f"cost window {window!r} must be four whole numbers (row0, row1, col0, col1): {err}"
+                ) from err
             if not (0 <= row0 <= row1 <= rows and 0 <= col0 <= col1 <= cols):
                 raise PlanningError(
                     f"cost window {tuple(window)} (row0, row1, col0, col1) is not on the {rows} x {cols} grid"

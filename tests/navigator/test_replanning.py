@@ -170,6 +170,10 @@ def test_bad_windows_and_bad_costs_in_a_window_leave_the_costs_untouched() -> No
         planner.update_costs(np.ones((5, 6)), windows=[(0, 6, 0, 2)])
     with pytest.raises(PlanningError, match="not on the 5 x 6 grid"):
         planner.update_costs(np.ones((5, 6)), windows=[(3, 2, 0, 2)])
+    with pytest.raises(PlanningError, match="four whole numbers"):
+        planner.update_costs(np.ones((5, 6)), windows=[(0, 2.5, 0, 2)])  # type: ignore[list-item]
+    with pytest.raises(PlanningError, match="four whole numbers"):
+        planner.update_costs(np.ones((5, 6)), windows=[(0, 2, 0)])  # type: ignore[list-item]
     raised = np.full((5, 6), 3.0)
     raised[4, 5] = np.nan  # in the second window: the first window's rise must not be taken either
     with pytest.raises(PlanningError, match="NaN"):
