@@ -29,6 +29,7 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from firmware_bridge.errors import BridgeSetupError
 from firmware_bridge.private_network import require_loopback_only
@@ -218,10 +219,18 @@ def _drive(
     return sampled, estops
 
 
-def _near(status_file: Path, goal: tuple[float, float]) -> bool:
+def _peer_status(status_file: Path) -> dict[str, Any]:
+    """The peer's status file ({} while there is none, or no whole one: it is replaced atomically)."""
     try:
         status = json.loads(status_file.read_text(encoding="utf-8"))
     except (FileNotFoundError, ValueError):
+        return {}
+    return status if isinstance(status, dict) else {}
+
+
+def _near(status_file: Path, goal: tuple[float, float]) -> bool:
+    status = _peer_status(status_file)
+    if not status:
         return False
     return bool(math.hypot(status["x_m"] - goal[0], status["y_m"] - goal[1]) < 1.0)
 
@@ -312,10 +321,7 @@ def _wait_for_scenario_start(
 
 def _scenario_started_ns(status_file: Path) -> int | None:
     """The peer status's ``scenario_started_ns`` (None: not yet, or no whole status file yet)."""
-    try:
-        started = json.loads(status_file.read_text(encoding="utf-8")).get("scenario_started_ns")
-    except (FileNotFoundError, ValueError):
-        return None
+    started = _peer_status(status_file).get("scenario_started_ns")
     return started if isinstance(started, int) else None
 
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import threading
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Protocol
 
 import can
 import pymap3d
@@ -101,10 +101,14 @@ def run_peer_on_test_clock(
     clock: SteppedClock,
     can_bus: can.BusABC,
     mavlink: Transport,
-    **options: Any,
+    *,
+    duration_ns: int,
+    status_path: Path | None = None,
+    start_on_command: bool = False,
+    start_timeout_ns: int | None = None,
 ) -> PeerResult:
-    """``hil.peer.run_peer`` on in-process wires: its waits advance ``clock``, nothing is spun or slept,
-    never stopped from outside; ``options`` are run_peer's others (``duration_ns``, ``status_path``...)."""
+    """``hil.peer.run_peer`` on in-process wires for ``duration_ns``: its waits advance ``clock``, nothing
+    is spun or slept, never stopped from outside."""
     return run_peer(
         scenario,
         config,
@@ -115,6 +119,9 @@ def run_peer_on_test_clock(
         mavlink_port=14_550,
         wait=clock.wait,
         stop=threading.Event(),
+        duration_ns=duration_ns,
+        status_path=status_path,
         spin_ns=0,
-        **options,
+        start_on_command=start_on_command,
+        start_timeout_ns=start_timeout_ns,
     )
