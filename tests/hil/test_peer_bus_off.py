@@ -132,7 +132,12 @@ BUS_PAIRS = [
 
 
 def run_rover_against_peer(
-    pair: BusPair, tmp_path: Path, faults: str, listen_from_s: float = 0.0, seconds: float = 3.0
+    pair: BusPair,
+    tmp_path: Path,
+    faults: str,
+    listen_from_s: float = 0.0,
+    seconds: float = 3.0,
+    start_on_command: bool = False,
 ) -> Rover:
     config: RoverConfig = rover_config_from_table(parse_toml("", "<defaults>"))
     codec = VescCodec.for_profile(config.vesc)
@@ -151,6 +156,7 @@ def run_rover_against_peer(
             peer_end,
             sim_mavlink,
             duration_ns=round(seconds * NS_PER_S),
+            start_on_command=start_on_command,
         )
     return rover
 
@@ -225,3 +231,31 @@ def test_overlapping_and_back_to_back_faults_are_one_bus_off() -> None:
         rover_end.shutdown()
     assert heard == [(1 * s, CAN_ERR_BUSOFF), (4 * s, CAN_ERR_RESTARTED)]
     assert (announcer.sent, announcer.repeats, announcer.send_errors) == (2, 0, 0)
+
+
+def test_a_peer_holding_its_scenario_announces_the_bus_off_from_the_rovers_first_command(
+    tmp_path: Path,
+) -> None:
+    """``--start-on-command``: no error frame while the scenario is held, though the fault's start from
+    the peer's (1 s) passes in the hold; the bus-off comes ``FAULT_START_S`` after the rover began
+    commanding (its first turn from 1.5 s)."""
+    listen_from_s = 1.5
+    rover = run_rover_against_peer(
+        lockstep_pair, tmp_path, CAN_OFF, listen_from_s=listen_from_s, seconds=4.5, start_on_command=True
+    )
+    events = rover.events()
+    assert [kind for _t, kind, _detail in events] == list(LINK_EVENTS), events
+    (off_s, _, _), (back_s, _, _), _recovered = events
+    begun = listen_from_s + FAULT_START_S
+    # The rover's first turn, the peer's step that heard it, the error frame's next turn: within 60 ms.
+    assert begun <= off_s <= begun + 0.06
+    assert back_s - off_s == pytest.approx(FAULT_END_S - FAULT_START_S, abs=0.03)
+    repeats = round((FAULT_END_S - FAULT_START_S) * NS_PER_S) // BUS_OFF_REPEAT_NS - 1
+    assert rover.link.counters.bus_errors == 1 + repeats + 1
+    runtime = [
+        e.data
+        for e in read_entries(tmp_path / "peer" / "truth.mcap", messages=False)
+        if isinstance(e, RecordedMetadata) and e.name == "runtime"
+    ]
+    # The peer sent none while it held the scenario (they would have been lost on a rover not listening).
+    assert json.loads(runtime[-1]["bus_off_json"])["error_frames_sent"] == 1 + repeats + 1
