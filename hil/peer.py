@@ -20,7 +20,7 @@ when the machine is busy. A gap of more than ``MAX_SUBSTEPS`` steps is a stall: 
 dropped, counted (``hil.peer_stalls``) and recorded on ``log``.
 
 The scenario (its faults and moving obstacles) starts with the peer, or, with ``start_on_command``, is
-held until the rover's first wheel command reaches the simulated controllers (``hil.peer_start``), so
+held until the rover's wheel commands reach the simulated controllers (``hil.peer_start``), so
 its times count from the rover's start however long ``rover run`` took to come up.
 """
 
@@ -275,8 +275,9 @@ def run_peer(
     Writes ``truth.mcap`` and the rover-side files (``hil.peer_files``) into ``out_dir``; the port file
     last, so whoever waits on it finds the rest in place. ``on_ready`` gets the generated rover config.
     ``spin_ns``: each step's last stretch is spun, not slept (0: plain sleep; needs a real clock).
-    ``start_on_command``: hold the scenario until the rover's first wheel command (``hil.peer_start``),
-    for at most ``start_timeout_ns`` (None: no limit) after the peer's start, then stop.
+    ``start_on_command``: hold the scenario until the rover commands its wheels, time zero at its first
+    command (``hil.peer_start``), for at most ``start_timeout_ns`` (None: no limit) from the peer being
+    ready (after its warm-up), then stop.
     ``duration_ns`` counts from the peer's start either way.
     The wires are the caller's; they are not closed here.
     """
