@@ -9,6 +9,9 @@ Measured in one run, on the same scenario and seed:
 * ``world-only``: the simulated world and its peers without the onboard stack, recording to nowhere; the
   ceiling the simulator alone allows.
 
+Each round also times a fixed pure-Python workload (``hil.host_probe``) just before its lockstep trial:
+when the trials' times spread and the probe's spread alike, the host's speed moved, not the code's.
+
 Before anything is timed, a short warm-up trial (``WARMUP_S`` simulated seconds of the same scenario)
 pays the one-time costs a long-running process pays once: imports done lazily, the numba kernels loaded
 from their cache (or compiled, after a source change: tens of seconds that once landed in the first
@@ -37,6 +40,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from hil.host_probe import time_host_probe
 from hil.lockstep import CanBackend, lockstep_wires
 from hil.scenario import Scenario
 from hil.trial import PHYSICS_DT_NS, run_trial
@@ -240,6 +244,7 @@ class BenchReport:
     metrics_s: float
     simulated_s: float
     warmup_s: float = 0.0
+    host_probe_s: tuple[float, ...] = ()  # the fixed workload's wall time, once per round (hil.host_probe)
 
     def as_dict(self) -> dict[str, Any]:
         loop = sum(self.breakdown_s.values())
@@ -268,6 +273,7 @@ class BenchReport:
             },
             "metrics_from_mcap_s": round(self.metrics_s, 4),
             "instrumented_wall_s": round(self.instrumented_wall_s, 3),
+            "host_probe_s": [round(wall, 4) for wall in self.host_probe_s],
         }
 
 
@@ -296,7 +302,9 @@ def run_bench(
             ("lockstep-virtual-can", "virtual"),
         )
         rounds: list[list[PeerFigure]] = []
+        host_probe_s: list[float] = []
         for _ in range(repeats):
+            host_probe_s.append(time_host_probe())
             figures = []
             for name, backend in trial_peers:
                 telemetry, close = telemetry_factory()
@@ -336,6 +344,7 @@ def run_bench(
         metrics_s=metrics_s,
         simulated_s=peers[0].simulated_s,
         warmup_s=warmup_s,
+        host_probe_s=tuple(host_probe_s),
     )
 
 

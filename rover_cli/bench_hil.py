@@ -88,39 +88,73 @@ def run_bench_command(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(figures, indent=2))
         return 0
+    print_figures(console, figures, scenario.name, args.repeats)
+    return 0
+
+
+# Lockstep runs further apart than this (slowest over fastest) get a note under the table: on a shared VM the
+# host's speed moves minute to minute, and a reader should know the median met a slow stretch.
+UNSTEADY_SPREAD = 1.2
+
+
+def unsteady_note(lockstep_runs: list[float], probe_runs: list[float]) -> str:
+    """A note when the lockstep runs spread past ``UNSTEADY_SPREAD``, with the host probe's spread beside
+    theirs (the same fixed work each round: if it spread too, the host's speed moved); "" when steady."""
+    if len(lockstep_runs) < 2 or max(lockstep_runs) <= UNSTEADY_SPREAD * min(lockstep_runs):
+        return ""
+    note = (
+        f"note: the lockstep runs took {min(lockstep_runs):.2f} to {max(lockstep_runs):.2f} s, "
+        f"{_apart_pct(lockstep_runs):.0f} % apart"
+    )
+    if len(probe_runs) > 1:
+        note += (
+            f"; a fixed Python workload timed in each round took {1e3 * min(probe_runs):.0f} to "
+            f"{1e3 * max(probe_runs):.0f} ms, {_apart_pct(probe_runs):.0f} % apart"
+        )
+    return note + ". On a busy or shared host, rerun when it is idle for a steady figure."
+
+
+def _apart_pct(runs: list[float]) -> float:
+    return 100.0 * (max(runs) / min(runs) - 1.0)
+
+
+def print_figures(console: Console, figures: dict[str, Any], scenario_name: str, repeats: int) -> None:
+    """The bench's figures as two tables and a summary line, readable at 80 columns (a CI log, a pipe).
+
+    Figures never wrap or get cut: the labels wrap instead."""
     goal = figures["goal_real_time_factor"]
     peers = RichTable(
-        title=f"rover bench hil: {scenario.name}, {figures['simulated_s']} s simulated, "
-        f"median of {args.repeats} interleaved run(s)"
+        title=f"rover bench hil: {scenario_name}, {figures['simulated_s']} s simulated, "
+        f"median of {repeats} interleaved run(s)"
     )
-    peers.add_column("peer / baseline", no_wrap=True)
-    peers.add_column("wall s", justify="right")
-    peers.add_column("real-time factor", justify="right")
-    peers.add_column("CPU s", justify="right")
-    peers.add_column("on CPU time", justify="right")
-    peers.add_column("of goal", justify="right", no_wrap=True)
-    peers.add_column("wall s of each run", justify="right")
+    peers.add_column("peer / baseline", ratio=1, min_width=20)
+    # Short headers, the caption spells them out: at 80 columns long ones squeezed the figures.
+    # Short headers, the caption spells them out: at 80 columns long ones squeezed the figures.
+    peers.caption = "x real time: simulated s / wall s; CPU x: / CPU s; runs: fastest-slowest, s"
+    for header in ("wall s", "x real time", "CPU x", "of goal", "runs"):
+        peers.add_column(header, justify="right", no_wrap=True)
     for name, factor in figures["real_time_factor"].items():
+        runs = figures["runs_wall_s"][name] or [figures["wall_s"][name]]  # a single run keeps no list
         peers.add_row(
             name,
             f"{figures['wall_s'][name]:.2f}",
             f"{factor:.1f}x",
-            f"{figures['cpu_s'][name]:.2f}",
             f"{figures['cpu_real_time_factor'][name]:.1f}x",
             f"{100.0 * factor / goal:.0f} %",
-            " ".join(f"{w:.2f}" for w in figures["runs_wall_s"][name]),
+            f"{min(runs):.2f}-{max(runs):.2f}" if len(runs) > 1 else f"{runs[0]:.2f}",
         )
     for name, (low, high) in figures["named_baselines"].items():
         span = f"<= {high:.0f}x" if low == 0 else f"{low:.0f}-{high:.0f}x"
-        peers.add_row(f"[dim]{name}[/dim]", "", f"[dim]{span}[/dim]", "", "", "[dim]elsewhere[/dim]", "")
-    peers.add_row("[bold]goal[/bold]", "", f"[bold]{goal:.0f}x[/bold]", "", "", "100 %", "")
+        peers.add_row(f"[dim]{name}, measured elsewhere[/dim]", "", f"[dim]{span}[/dim]", "", "", "")
+    peers.add_row("[bold]goal[/bold]", "", f"[bold]{goal:.0f}x[/bold]", "", "100 %", "")
     console.print(peers)
+    note = unsteady_note(figures["runs_wall_s"].get("lockstep", []), figures.get("host_probe_s", []))
+    if note:
+        console.print(note)
     breakdown = RichTable(title="per component (instrumented run, exclusive time)")
-    breakdown.add_column("component", no_wrap=True)
-    breakdown.add_column("s", justify="right")
-    breakdown.add_column("%", justify="right")
-    breakdown.add_column("calls", justify="right")
-    breakdown.add_column("us/call", justify="right")
+    breakdown.add_column("component", ratio=1)
+    for header in ("s", "%", "calls", "us/call"):
+        breakdown.add_column(header, justify="right", no_wrap=True)
     for entry in figures["breakdown"].values():
         per_call = 1e6 * entry["seconds"] / entry["calls"] if entry["calls"] else 0.0
         breakdown.add_row(
@@ -137,7 +171,6 @@ def run_bench_command(args: argparse.Namespace) -> int:
         f"untimed warm-up {figures['warmup_wall_s']:.2f} s; "
         f"pinned to CPU {figures['cpu']}; Zenoh {_zenoh_line(figures)}"
     )
-    return 0
 
 
 def _zenoh_line(figures: dict[str, Any]) -> str:

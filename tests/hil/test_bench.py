@@ -93,8 +93,57 @@ def test_bench_command_reports_every_peer_and_what_zenoh_put(capsys: pytest.Capt
     assert code == 0
     figures = json.loads(capsys.readouterr().out)
     assert set(figures["real_time_factor"]) == {"lockstep", "lockstep-virtual-can", "world-only"}
+    assert len(figures["host_probe_s"]) == 1 and figures["host_probe_s"][0] > 0  # once per round
     assert all(factor > 0 for factor in figures["real_time_factor"].values())
     assert figures["breakdown"]["telemetry"]["calls"] > 0
     assert figures["zenoh_instrumented_run"]["put"] == 0
     # Each message the rate limits pass reaches the stream once (the limits thin can/frames and innovations).
     assert figures["zenoh_instrumented_run"]["unheard"] > 0.5 * figures["breakdown"]["telemetry"]["calls"]
+
+
+def _printed_figures(lockstep_runs: list[float]) -> str:
+    import io
+
+    from rich.console import Console
+
+    from rover_cli.bench_hil import print_figures
+
+    runs = [PeerFigure("lockstep", wall, 41.1, cpu_s=wall) for wall in lockstep_runs]
+    world = PeerFigure("world-only", 0.15, 41.1, cpu_s=0.15)
+    peers = (PeerFigure.median_of(runs), world)
+    report = BenchReport("rocky", 0, True, peers, {"onboard": 0.2}, {"onboard": 2056}, 1.1, 0.06, 41.1)
+    figures = report.as_dict()
+    out = io.StringIO()
+    print_figures(Console(file=out, width=80), figures, "rocky-boulders", len(lockstep_runs))
+    return out.getvalue()
+
+
+def test_bench_table_keeps_every_figure_whole_at_80_columns() -> None:
+    """A CI log or a pipe is 80 columns wide: the figures must read whole there (labels wrap instead)."""
+    text = _printed_figures([0.82, 0.80, 0.84])
+    assert all(len(line) <= 80 for line in text.splitlines())
+    lockstep = next(line for line in text.splitlines() if "lockstep" in line)
+    for figure in ("0.82", "50.1x", "100 %", "0.80-0.84"):
+        assert figure in lockstep
+    assert "note:" not in text
+
+
+def test_bench_says_when_the_runs_differ_enough_to_doubt_the_median() -> None:
+    text = " ".join(_printed_figures([0.70, 0.95, 0.72, 0.90, 0.75]).split())
+    assert "the lockstep runs took 0.70 to 0.95 s, 36 % apart" in text
+
+
+def test_the_note_puts_the_host_probes_spread_beside_the_trials() -> None:
+    from rover_cli.bench_hil import unsteady_note
+
+    note = unsteady_note([0.70, 0.95, 0.72], [0.040, 0.052, 0.041])
+    assert "0.70 to 0.95 s, 36 % apart" in note
+    assert "took 40 to 52 ms, 30 % apart" in note
+    assert unsteady_note([0.70, 0.80, 0.72], [0.040, 0.080]) == ""  # the trials steady: nothing to say
+
+
+def test_host_probe_times_fixed_work() -> None:
+    from hil.host_probe import time_host_probe
+
+    short, long = time_host_probe(steps=1_000), time_host_probe(steps=400_000)  # 400x the work
+    assert 0.0 < short < long
