@@ -31,8 +31,10 @@ from __future__ import annotations
 import dataclasses
 import functools
 import os
+import platform
 import shutil
 import statistics
+import sys
 import tempfile
 import time
 from collections.abc import Callable
@@ -232,6 +234,19 @@ def time_world_only(scenario: Scenario, config: RoverConfig, simulated_s: float)
     return PeerFigure("world-only", wall, seconds(clock.now_ns()), cpu)
 
 
+def interpreter_facts() -> dict[str, str]:
+    """Which Python ran the bench: the same code runs faster on an interpreter built with profile-guided and
+    link-time optimization (a distribution's python3) than on one built without (pyenv's default); docs/hil.md
+    has both on the build VM."""
+    return {
+        "version": platform.python_version(),
+        "implementation": platform.python_implementation(),
+        "executable": os.path.realpath(getattr(sys, "_base_executable", sys.executable)),
+        "compiler": platform.python_compiler(),
+        "build": " ".join(platform.python_build()),
+    }
+
+
 @dataclass(frozen=True)
 class BenchReport:
     scenario: str
@@ -274,6 +289,7 @@ class BenchReport:
             "metrics_from_mcap_s": round(self.metrics_s, 4),
             "instrumented_wall_s": round(self.instrumented_wall_s, 3),
             "host_probe_s": [round(wall, 4) for wall in self.host_probe_s],
+            "python": interpreter_facts(),
         }
 
 

@@ -171,6 +171,12 @@ def print_figures(console: Console, figures: dict[str, Any], scenario_name: str,
         f"untimed warm-up {figures['warmup_wall_s']:.2f} s; "
         f"pinned to CPU {figures['cpu']}; Zenoh {_zenoh_line(figures)}"
     )
+    python = figures.get("python")
+    if python:
+        console.print(
+            f"{python['implementation']} {python['version']} ({python['executable']}, {python['compiler']}): "
+            "how the interpreter was built moves every figure (docs/hil.md)"
+        )
 
 
 def _zenoh_line(figures: dict[str, Any]) -> str:

@@ -84,6 +84,7 @@ def test_bench_command_reports_every_peer_and_what_zenoh_put(capsys: pytest.Capt
     """The whole command on a small scenario: each peer timed, and with nobody subscribed every live message
     is counted as unheard, none put (the figure says Zenoh cost the matching check, not a delivery)."""
     import json
+    import platform
     from pathlib import Path
 
     from rover_cli.main import main
@@ -94,6 +95,7 @@ def test_bench_command_reports_every_peer_and_what_zenoh_put(capsys: pytest.Capt
     figures = json.loads(capsys.readouterr().out)
     assert set(figures["real_time_factor"]) == {"lockstep", "lockstep-virtual-can", "world-only"}
     assert len(figures["host_probe_s"]) == 1 and figures["host_probe_s"][0] > 0  # once per round
+    assert figures["python"]["version"] == platform.python_version()
     assert all(factor > 0 for factor in figures["real_time_factor"].values())
     assert figures["breakdown"]["telemetry"]["calls"] > 0
     assert figures["zenoh_instrumented_run"]["put"] == 0
