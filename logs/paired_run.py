@@ -24,7 +24,7 @@ from collections.abc import Collection, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from logs.errors import LogsError
+from logs.errors import LogReadError, LogsError
 from logs.metrics import METRIC_TOPICS, TrialMetrics, metrics_from_entries
 from logs.reader import (
     Entry,
@@ -63,7 +63,9 @@ class PairedRead:
     truth_kept: int = 0  # truth messages inside the window
     truth_dropped: int = 0  # truth messages outside it (the peer before the rover started or after it ended)
     problems: list[str] = field(default_factory=list)
-    refused: bool = False  # not merged at all (a lockstep trial on either side): the rover's file alone
+    # Not merged at all (a lockstep trial on either side, or a truth file that cannot be read): the
+    # rover's file alone.
+    refused: bool = False
 
 
 def read_paired(
@@ -73,7 +75,8 @@ def read_paired(
     topics: Collection[str],
     raw_topics: Collection[str] = (),
 ) -> PairedRead:
-    """Read both files (``LogReadError`` for one that is missing, not MCAP or damaged) and merge them.
+    """Read both files and merge them: ``LogReadError`` for a rover file that is missing, not MCAP or
+    damaged; such a truth file is a problem named in ``problems``, and the entries are the rover's alone.
 
     ``topics``: the topics wanted; those in ``TRUTH_TOPICS`` are read from ``truth`` only, the others
     (and ``raw_topics``) from ``rover`` only. A truth file that has no truth message inside the rover's
@@ -98,28 +101,36 @@ def read_paired(
     truth_metadata: list[Entry] = []
     first_truth_ns: int | None = None
     last_truth_ns = 0
-    for entry in read_entries(truth, topics=wanted_truth, stats=truth_stats):
-        if isinstance(entry, RecordedMessage):
-            first_truth_ns = entry.log_time_ns if first_truth_ns is None else first_truth_ns
-            last_truth_ns = entry.log_time_ns
-            if window[0] <= entry.log_time_ns <= window[1]:
-                kept.append(entry)
-            else:
-                result.truth_dropped += 1
-        elif isinstance(entry, RecordedMetadata):
-            truth_mode = _trial_mode([entry]) or truth_mode
-            keep_name = entry.name == WORLD_METADATA or (
-                entry.name == SCENARIO_METADATA and not rover_has_scenario
-            )
-            truth_metadata.append(
-                entry if keep_name else RecordedMetadata(TRUTH_PREFIX + entry.name, entry.data)
-            )
-        elif isinstance(entry, RecordedAttachment):
-            truth_metadata.append(
-                RecordedAttachment(TRUTH_PREFIX + entry.name, entry.media_type, entry.log_time_ns, entry.data)
-            )
+    unreadable: str | None = None
+    try:
+        for entry in read_entries(truth, topics=wanted_truth, stats=truth_stats):
+            if isinstance(entry, RecordedMessage):
+                first_truth_ns = entry.log_time_ns if first_truth_ns is None else first_truth_ns
+                last_truth_ns = entry.log_time_ns
+                if window[0] <= entry.log_time_ns <= window[1]:
+                    kept.append(entry)
+                else:
+                    result.truth_dropped += 1
+            elif isinstance(entry, RecordedMetadata):
+                truth_mode = _trial_mode([entry]) or truth_mode
+                keep_name = entry.name == WORLD_METADATA or (
+                    entry.name == SCENARIO_METADATA and not rover_has_scenario
+                )
+                truth_metadata.append(
+                    entry if keep_name else RecordedMetadata(TRUTH_PREFIX + entry.name, entry.data)
+                )
+            elif isinstance(entry, RecordedAttachment):
+                truth_metadata.append(
+                    RecordedAttachment(
+                        TRUTH_PREFIX + entry.name, entry.media_type, entry.log_time_ns, entry.data
+                    )
+                )
+    except LogReadError as err:
+        # The truth is the second input of this run, not the run: the rover's readable file is still
+        # reported, alone, with the truth file's problem named (as a truth of another run is).
+        unreadable = f"{truth}: not merged: not readable ({err}); the run is the rover's file alone"
     kept.sort(key=_log_time)  # stable
-    refused = _lockstep_refusal(rover, rover_mode, truth, truth_mode)
+    refused = unreadable or _lockstep_refusal(rover, rover_mode, truth, truth_mode)
     if refused is not None:
         result.problems.append(refused)
         result.refused = True

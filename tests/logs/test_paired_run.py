@@ -72,3 +72,26 @@ def test_truth_with_several_recordings_is_refused(tmp_path: Path) -> None:
         write_report([reference, rover], tmp_path / "out", truth=truth)
     out = str(tmp_path / "out")
     assert main(["logs", "report", str(reference), str(rover), "--truth", str(truth), "--out", out]) == 2
+
+
+@pytest.mark.parametrize("truth_kind", ["not MCAP", "missing", "damaged"])
+def test_an_unreadable_truth_is_named_and_the_rover_run_kept(tmp_path: Path, truth_kind: str) -> None:
+    """`rover logs report rover.mcap --truth T` with a T that cannot be read once dropped the rover's
+    readable recording too ("skipped rover.mcap: T is not an MCAP file", exit 2: no report of the run)."""
+    _, rover, good_truth = _write_pair(tmp_path / "runs")
+    truth = tmp_path / "truth.mcap"
+    if truth_kind == "not MCAP":
+        truth.write_bytes(b"not a recording\n")
+    elif truth_kind == "damaged":
+        data = bytearray(good_truth.read_bytes())
+        data[len(data) // 2] ^= 0xFF  # a flipped byte inside a chunk: it fails its CRC
+        truth.write_bytes(bytes(data))
+    out = tmp_path / "out"
+    assert main(["logs", "report", str(rover), "--truth", str(truth), "--out", str(out), "--no-plots"]) == 1
+    document = json.loads((out / "report.json").read_text(encoding="utf-8"))
+    assert document["failed"] == {}
+    (run,) = document["runs"]
+    assert (run["path"], run["truth_path"], run["truth_merged"]) == (str(rover), str(truth), False)
+    assert run["metrics"]["trajectory_topic"] == "estimator/pose"  # the rover's own estimate
+    assert run["figures"]["can_frames"]
+    assert any(f"{truth}: not merged: not readable" in p for p in run["metrics"]["problems"])
