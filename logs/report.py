@@ -166,9 +166,11 @@ def write_report(
             result.failed[str(path)] = "holds no messages (cut before the first one?)"
             continue
         result.runs.append(run)
-    # A campaign's order (terrains, then variants, as in its file: the first variant is the baseline);
-    # the sort is stable, so runs without that metadata keep the order they were given in.
-    result.runs.sort(key=campaign_order)
+    if campaign:
+        # A campaign's order (terrains, then variants, as in its file: the first variant is the
+        # baseline); the sort is stable, so runs without that metadata keep the order they were given in.
+        # Files given one by one keep the order given: the first is the baseline of the comparisons.
+        result.runs.sort(key=campaign_order)
     result.comparisons = [compare_runs(a, b) for a, b in comparison_pairs(result.runs, campaign=campaign)]
     if campaign or len(result.runs) > 2:
         result.terrain_table = terrain_table(result.runs)

@@ -118,3 +118,18 @@ def test_a_campaign_is_grouped_and_ordered_as_the_campaign(tmp_path: Path) -> No
     baselines = {Path(c.a).parent.parent.name for c in result.comparisons}
     assert baselines == {"terrain-aware"}
     assert "collisions (total)" in result.markdown.read_text(encoding="utf-8")
+
+
+def test_files_given_one_by_one_are_compared_in_the_order_given(tmp_path: Path) -> None:
+    """The first file given is A, each other one B (docs/reports.md). `rover logs report trial.mcap
+    campaign/rocky/classical/seed1/trial.mcap` once made the campaign's trial A, the file given first B:
+    every B - A had its sign turned, since the campaign order was applied to files given one by one."""
+    lone = _write(tmp_path / "trial.mcap", trial={"mode": "sim-lockstep"})
+    placed = {"terrain": "rocky", "terrain_index": "0", "variant": "classical", "variant_index": "1"}
+    campaign_trial = _write(tmp_path / "classical.mcap", trial=placed, contact_at=(6.0, 0.2))
+    result = write_report([lone, campaign_trial], tmp_path / "out", plots=False)
+    assert [run.path for run in result.runs] == [str(lone), str(campaign_trial)]
+    (comparison,) = result.comparisons
+    assert (comparison.a, comparison.b) == (str(lone), str(campaign_trial))
+    text = result.markdown.read_text(encoding="utf-8")
+    assert f"## Comparison: A = {lone}, B = {campaign_trial}" in text
