@@ -82,18 +82,33 @@ def doctor_command(args: argparse.Namespace) -> int:
     )
     table = RichTable()
     for column in ("topic", "messages", "first (s)", "last (s)", "encoding"):
-        table.add_column(column, justify="left" if column in ("topic", "encoding") else "right")
+        table.add_column(
+            column, justify="left" if column in ("topic", "encoding") else "right", overflow="fold"
+        )
     for topic, summary in sorted(report.topics.items()):
         first = "" if summary.first_ns is None else f"{summary.first_ns / 1e9:.3f}"
         last = "" if summary.last_ns is None else f"{summary.last_ns / 1e9:.3f}"
         table.add_row(topic, str(summary.messages), first, last, summary.encoding)
-    console.print(table)
+    _print_table(console, table)
     console.print(
         f"metadata: {', '.join(report.metadata) or '-'}; attachments: {', '.join(report.attachments) or '-'}"
     )
     for problem in report.problems:
         console.print(f"[red]problem:[/red] {escape(problem)}")
     return 0 if report.healthy else 1
+
+
+UNBOUNDED_WIDTH = 10_000  # columns: wider than any table these commands print
+
+
+def _print_table(console: Console, table: RichTable) -> None:
+    """``table`` whole. Piped to a file or a program, rich would fit it to 80 columns and cut topic names
+    and paths with '…': there it gets the width it needs, one row a line. A terminal's narrower screen
+    folds a long cell onto more lines (``overflow="fold"`` on the columns) rather than cutting it."""
+    if not console.is_terminal:
+        unbounded = console.options.update_width(UNBOUNDED_WIDTH)
+        console.width = max(console.width, console.measure(table, options=unbounded).maximum)
+    console.print(table)
 
 
 def recover_command(args: argparse.Namespace) -> int:
@@ -170,10 +185,10 @@ def csv_command(args: argparse.Namespace) -> int:
         return 2
     table = RichTable()
     for column in ("topic", "rows", "file"):
-        table.add_column(column, justify="right" if column == "rows" else "left")
+        table.add_column(column, justify="right" if column == "rows" else "left", overflow="fold")
     for topic, path in result.files.items():
         table.add_row(escape(topic), str(result.rows[topic]), escape(str(path)))
-    console.print(table)
+    _print_table(console, table)
     if result.skipped_messages:
         console.print(
             f"[yellow]skipped[/yellow] {result.skipped_messages} message(s) that could not be decoded"
