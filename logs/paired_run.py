@@ -103,7 +103,9 @@ def read_paired(
     last_truth_ns = 0
     unreadable: str | None = None
     try:
-        for entry in read_entries(truth, topics=wanted_truth, stats=truth_stats):
+        # refuse_empty: a truth file with no recording in it is not readable, not a recording cut short
+        # (that would read as this run's being cut).
+        for entry in read_entries(truth, topics=wanted_truth, stats=truth_stats, refuse_empty=True):
             if isinstance(entry, RecordedMessage):
                 first_truth_ns = entry.log_time_ns if first_truth_ns is None else first_truth_ns
                 last_truth_ns = entry.log_time_ns

@@ -95,3 +95,15 @@ def test_an_unreadable_truth_is_named_and_the_rover_run_kept(tmp_path: Path, tru
     assert run["metrics"]["trajectory_topic"] == "estimator/pose"  # the rover's own estimate
     assert run["figures"]["can_frames"]
     assert any(f"{truth}: not merged: not readable" in p for p in run["metrics"]["problems"])
+
+
+def test_an_empty_truth_is_named_and_the_rover_file_not_called_cut(tmp_path: Path) -> None:
+    """An empty truth.mcap (the peer killed before it wrote a byte) was reported as "recording is cut
+    short; metrics cover the part before the cut", of a rover recording that was whole."""
+    _, rover, _ = _write_pair(tmp_path / "runs")
+    truth = tmp_path / "truth.mcap"
+    truth.write_bytes(b"")
+    (run,) = write_report([rover], tmp_path / "out", plots=False, truth=truth).runs
+    assert not run.metrics.truncated
+    assert not any("cut short" in p for p in run.metrics.problems), run.metrics.problems
+    assert any(f"{truth}: not merged: not readable ({truth} is empty" in p for p in run.metrics.problems)
