@@ -66,6 +66,9 @@ class PairedRead:
     # Not merged at all (a lockstep trial on either side, or a truth file that cannot be read): the
     # rover's file alone.
     refused: bool = False
+    # The truth merged covers only part of the drive (the peer stopped first, or its file is cut): the
+    # figures from the truth and those from the rover's file are of different spans.
+    truth_partial: bool = False
 
 
 def read_paired(
@@ -143,6 +146,10 @@ def read_paired(
         result.entries = _merged([], rover_entries, [], result)
         return result
     result.truth_kept = len(kept)
+    partial = _partial_cover(truth, kept, window)
+    if partial is not None:
+        result.problems.append(partial)
+        result.truth_partial = True
     if wanted_truth and not kept:
         span = None if first_truth_ns is None else (first_truth_ns, last_truth_ns)
         result.problems.append(_no_overlap(truth, span, window))
@@ -213,6 +220,28 @@ def _no_overlap(truth: str | Path, span: tuple[int, int] | None, window: tuple[i
         f"(truth {span[0] / 1e9:.3f}-{span[1] / 1e9:.3f} s, "
         f"rover {window[0] / 1e9:.3f}-{window[1] / 1e9:.3f} s of the monotonic clock): not the same run, or "
         "not recorded on the same machine; the run is the rover's alone"
+    )
+
+
+# How far inside the rover's drive the truth may start or end and still count as covering it: the peer
+# records its truth every physics step, so a whole run's ends are one step (10-20 ms) from the drive's.
+COVER_SLACK_NS = 500_000_000
+
+
+def _partial_cover(truth: Path, kept: Sequence[Entry], window: tuple[int, int]) -> str | None:
+    """Why the truth ``kept`` inside the drive ``window`` does not cover all of it; None when it does (or
+    has nothing in it: ``_no_overlap`` says that)."""
+    times = [entry.log_time_ns for entry in kept if isinstance(entry, RecordedMessage)]
+    if not times or (times[0] - window[0] <= COVER_SLACK_NS and window[1] - times[-1] <= COVER_SLACK_NS):
+        return None
+    end = "ends" if window[1] - times[-1] > COVER_SLACK_NS else "starts"
+    return (
+        f"{truth}: the truth {end} inside the rover's drive (truth {times[0] / 1e9:.3f}-"
+        f"{times[-1] / 1e9:.3f} s, drive {window[0] / 1e9:.3f}-{window[1] / 1e9:.3f} s of the monotonic "
+        "clock: the peer stopped first, or its file is cut): trajectory, distance, duration, accuracy, "
+        f"obstacle and goal-distance figures are of the {(times[-1] - times[0]) / 1e9:.1f} s it covers, "
+        f"energy and the rover's other figures of the whole {(window[1] - window[0]) / 1e9:.1f} s drive; "
+        "energy per metre, which would divide one by the other, is left out"
     )
 
 
@@ -311,7 +340,16 @@ def paired_metrics(rover: str | Path, truth: str | Path) -> TrialMetrics:
     """The paper's metrics of one real-time run (``logs.metrics``) on the merged stream; a pairing problem
     (no truth inside the rover's drive) is among ``problems``."""
     paired = read_paired(rover, truth, topics=METRIC_TOPICS)
-    return with_problems(metrics_from_entries(paired.entries, paired.stats), paired.problems)
+    return merged_metrics(metrics_from_entries(paired.entries, paired.stats), paired)
+
+
+def merged_metrics(metrics: TrialMetrics, paired: PairedRead) -> TrialMetrics:
+    """The metrics of the merged stream as the run's: the pairing's problems added, and no energy per
+    metre when the truth covers only part of the drive (the rover's energy of the whole drive over the
+    truth's distance of a part of it)."""
+    if paired.truth_partial:
+        metrics = replace(metrics, energy_wh_per_m=None)
+    return with_problems(metrics, paired.problems)
 
 
 def with_problems(metrics: TrialMetrics, problems: Sequence[str]) -> TrialMetrics:

@@ -151,12 +151,15 @@ def report_command(args: argparse.Namespace) -> int:
         )
     unmerged = [run for run in result.runs if run.truth_path and not run.truth_merged]
     for run in result.runs:
+        # The pairing's own problems name the truth file: said here, not only in the report.
+        why = "; ".join(p for p in run.metrics.problems if str(run.truth_path) in p)
         if run.truth_path and run.truth_merged:
             console.print(
-                f"real-time run: {escape(run.path)} + truth {escape(run.truth_path)}", soft_wrap=True
+                f"real-time run: {escape(run.path)} + truth {escape(run.truth_path)}"
+                + (f" [yellow]but[/yellow] {escape(why)}" if why else ""),
+                soft_wrap=True,
             )
         elif run.truth_path:
-            why = "; ".join(p for p in run.metrics.problems if str(run.truth_path) in p)
             console.print(
                 f"[yellow]truth not merged[/yellow] with {escape(run.path)}: {escape(why)}", soft_wrap=True
             )

@@ -107,3 +107,27 @@ def test_an_empty_truth_is_named_and_the_rover_file_not_called_cut(tmp_path: Pat
     assert not run.metrics.truncated
     assert not any("cut short" in p for p in run.metrics.problems), run.metrics.problems
     assert any(f"{truth}: not merged: not readable ({truth} is empty" in p for p in run.metrics.problems)
+
+
+def test_a_truth_that_ends_before_the_drive_says_so_and_gives_no_energy_per_metre(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The peer stopped before the rover did (docs/hil.md: a peer given 75 s for a 60 s run). The report
+    said nothing, exit 0, and divided the energy of the whole drive by the distance of the truth's part
+    of it: 0.060 Wh/m on a run of 0.025."""
+    reference, rover, truth = _write_pair(tmp_path / "runs", truth_until_s=6.0)
+    out = tmp_path / "out"
+    assert main(["logs", "report", str(rover), "--truth", str(truth), "--out", str(out), "--no-plots"]) == 0
+    assert "the truth ends" in " ".join(capsys.readouterr().out.split())
+    (run,) = json.loads((out / "report.json").read_text(encoding="utf-8"))["runs"]
+    whole = analyse(reference).metrics
+    assert run["truth_merged"] and whole.distance_m is not None
+    assert run["metrics"]["distance_m"] < 0.6 * whole.distance_m  # the truth's part
+    assert run["metrics"]["energy_wh"] == pytest.approx(whole.energy_wh, rel=1e-6)  # the whole drive
+    assert run["metrics"]["energy_wh_per_m"] is None
+    assert any(f"{truth}: the truth ends" in p for p in run["metrics"]["problems"])
+    assert realtime_metrics(rover, truth).energy_wh_per_m is None  # the Python API says the same
+
+    _, rover, truth = _write_pair(tmp_path / "whole")
+    (run_whole,) = write_report([rover], tmp_path / "out-whole", plots=False, truth=truth).runs
+    assert run_whole.metrics.energy_wh_per_m is not None and not run_whole.metrics.problems
