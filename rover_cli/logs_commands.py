@@ -193,8 +193,15 @@ def csv_command(args: argparse.Namespace) -> int:
         table.add_row(escape(topic), str(result.rows[topic]), escape(str(path)))
     _print_table(console, table)
     if result.skipped_messages:
+        per_topic = ", ".join(
+            f"{escape(topic)} {count} of {count + result.rows.get(topic, 0)}"
+            + ("" if topic in result.files else " (no CSV)")
+            for topic, count in result.undecodable.items()
+        )
         console.print(
-            f"[yellow]skipped[/yellow] {result.skipped_messages} message(s) that could not be decoded"
+            f"[yellow]skipped[/yellow] {result.skipped_messages} message(s) that could not be decoded: "
+            f"{per_topic} (the warnings say why)",
+            soft_wrap=True,
         )
     if result.stop is not None:
         kept = f"the CSV files in {args.out} hold the {sum(result.rows.values())} messages before it"
