@@ -5,12 +5,13 @@ gap between runs of different scenarios."""
 from __future__ import annotations
 
 import re
+import warnings
 from pathlib import Path
 
 from logs.recorder import McapRecorder
 from logs.report import write_report
 from logs.synthetic import synthetic_metadata, synthetic_trial
-from logs.topics import NAVIGATOR_PATH, TRUTH_CONTACTS, planar_pose, stamp
+from logs.topics import LOG, NAVIGATOR_PATH, TRUTH_CONTACTS, planar_pose, stamp
 
 DURATION_S = 20.0
 TRUTH_TOPICS = frozenset({"truth/pose", "truth/wheels", "truth/stability", "truth/contacts"})
@@ -133,3 +134,24 @@ def test_files_given_one_by_one_are_compared_in_the_order_given(tmp_path: Path) 
     assert (comparison.a, comparison.b) == (str(lone), str(campaign_trial))
     text = result.markdown.read_text(encoding="utf-8")
     assert f"## Comparison: A = {lone}, B = {campaign_trial}" in text
+
+
+def test_a_run_without_a_trajectory_draws_its_plots_without_a_warning(tmp_path: Path) -> None:
+    """`rover logs report` of a recording with no pose (a rover stopped in its warm-up, another tool's
+    file) printed matplotlib's "/.../logs/plots.py:75: UserWarning: No artists with labels found to put
+    in legend" amid its own output: the trajectory plot asked for a legend with nothing in it."""
+    path = tmp_path / "warm-up.mcap"
+    with McapRecorder(path) as recorder:
+        message = {
+            "timestamp": stamp(0),
+            "level": 3,
+            "message": "start-up",
+            "name": "rover",
+            "file": "",
+            "line": 0,
+        }
+        recorder.publish(LOG, 0, message)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        result = write_report([path], tmp_path / "out")
+    assert "trajectory" in result.html.read_text(encoding="utf-8")
