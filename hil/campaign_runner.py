@@ -1,8 +1,11 @@
 """Running a campaign: every trial in a worker process, one MCAP each, then the summary tables.
 
 Workers are separate processes (``spawn``: a clean interpreter per worker, nothing inherited from the
-parent's threads), so a campaign uses every core and a trial that crashes is recorded as failed without
-stopping the others. Each trial's numbers come from its own ``metrics.json``, computed from its MCAP.
+parent's threads), so a campaign uses every core and a trial that raises is recorded as failed without
+stopping the others. A worker process that dies (killed, out of memory, a crash outside Python) breaks the
+pool, which then runs nothing more: its trial and every one not finished yet are recorded as errors, and
+the summary is still written for those that finished. Each trial's numbers come from its own
+``metrics.json``, computed from its MCAP.
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ import multiprocessing
 import time
 from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -91,7 +95,10 @@ def run_campaign(
         with ProcessPoolExecutor(max_workers=min(count, len(specs)), mp_context=context) as pool:
             futures: dict[Future[TrialOutcome], TrialSpec] = {pool.submit(run_one, s): s for s in specs}
             for future in as_completed(futures):
-                outcome = future.result()
+                try:
+                    outcome = future.result()
+                except BrokenProcessPool as err:
+                    outcome = _lost(futures[future], err)
                 outcomes.append(outcome)
                 if on_done is not None:
                     on_done(outcome)
@@ -100,6 +107,17 @@ def run_campaign(
     rows = [_row(o) for o in outcomes]
     markdown, json_path = write_summary(campaign, rows, out_dir)
     return outcomes, markdown, json_path
+
+
+def _lost(spec: TrialSpec, err: BrokenProcessPool) -> TrialOutcome:
+    """A trial whose worker process died, or that was still pending when another worker died (the pool
+    is then broken and runs nothing more): an error row, so the trials that finished are still summed up."""
+    logger.error("trial %s lost: %s", spec.label, err)
+    reason = (
+        "a worker process died (killed, out of memory, or a crash outside Python) before this trial "
+        "finished; the campaign's other unfinished trials were lost with it"
+    )
+    return TrialOutcome(spec, False, "error", False, (), None, 0.0, 0.0, reason)
 
 
 def _row(outcome: TrialOutcome) -> dict[str, Any]:
