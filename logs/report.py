@@ -295,16 +295,18 @@ def comparison_pairs(
     """Which runs are compared point by point.
 
     Files given one by one: the first against each other one (a sim run against the real runs, say). A
-    campaign: only runs that differ in nothing but the variant (the same scenario and seed), the first
-    variant against each other one; across terrains or seeds a point-by-point gap says nothing, and the
-    per-terrain table compares those.
+    campaign: only runs that differ in nothing but the variant (the same campaign terrain, scenario and
+    seed), the first variant against each other one; across terrains or seeds a point-by-point gap says
+    nothing, and the per-terrain table compares those. The terrain counts apart from the scenario's name:
+    two terrains' scenario files may share one (a copy with another map).
     """
     if not campaign:
         return [(runs[0], other) for other in runs[1:]]
-    groups: dict[tuple[str, str], list[TrialAnalysis]] = {}
+    groups: dict[tuple[str, str, str], list[TrialAnalysis]] = {}
     for run in runs:
         scenario = run.metadata.get("scenario", {})
-        groups.setdefault((scenario.get("name", run.path), scenario.get("seed", "")), []).append(run)
+        key = (terrain_of(run), scenario.get("name", run.path), scenario.get("seed", ""))
+        groups.setdefault(key, []).append(run)
     return [
         (members[0], other)
         for members in groups.values()
