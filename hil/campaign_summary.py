@@ -8,11 +8,13 @@ tolerance of the path, which says how well a run tracked while it lasted, not ho
 did), energy Wh/m, duration,
 collisions, the ground-truth distance to the goal at the end, the share of trials whose rover reported
 ARRIVED (``goal_reached``, judged on its estimate) and the share meeting the scenario's success criteria
-(docs/metrics.md defines both accuracies). Table 2: the same per run (seed), as the paper lists its
-simulation runs, with each failed criterion in words. Every figure comes from the trials'
-``metrics.json``; the JSON's means are rounded to six significant digits, its seconds to the millisecond.
-The header says what "encountered" meant for the obstacle-avoidance figures: the encounter margins the
-trials recorded (``encounter_margin_m``, distinct values; ``encounter_margins_m`` in the JSON).
+(docs/metrics.md defines both accuracies); the means are over the trials that ran, and a row with trials
+that errored (no metrics) says so in its Trials cell ("3 (2 errors: means of 1)"). Table 2: the same per
+run (seed), as the paper lists its simulation runs, with each failed criterion in words. Every figure
+comes from the trials' ``metrics.json``; the JSON's means are rounded to six significant digits, its
+seconds to the millisecond. The header says what "encountered" meant for the obstacle-avoidance figures:
+the encounter margins the trials recorded (``encounter_margin_m``, distinct values; ``encounter_margins_m``
+in the JSON).
 """
 
 from __future__ import annotations
@@ -137,6 +139,16 @@ def _cell(value: Any, pattern: str) -> str:
     return pattern.format(value)
 
 
+def _trials_cell(entry: dict[str, Any]) -> str:
+    """The trial count, and when some errored (no metrics), how many the row's means are of."""
+    errors = entry["errors"]
+    if not errors:
+        return str(entry["trials"])
+    return (
+        f"{entry['trials']} ({errors} error{'s' if errors > 1 else ''}: means of {entry['trials'] - errors})"
+    )
+
+
 def _goal_cell(value: Any) -> str:
     return "n/a" if value is None else ("yes" if value else "no")
 
@@ -163,7 +175,7 @@ def _markdown(campaign: Campaign, table1: list[dict[str, Any]], rows: list[dict[
     for entry in table1:
         cells = [_cell(entry[key], mean_fmt) for key, _title, mean_fmt, _run_fmt in COLUMNS]
         lines.append(
-            f"| {entry['terrain']} | {entry['variant']} | {entry['trials']} | "
+            f"| {entry['terrain']} | {entry['variant']} | {_trials_cell(entry)} | "
             + " | ".join(cells)
             + f" | {_cell(entry['goal_reached_pct'], '{:.0f}')} | {entry['success_pct']:.0f} |"
         )
