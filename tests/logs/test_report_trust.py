@@ -155,3 +155,32 @@ def test_a_run_without_a_trajectory_draws_its_plots_without_a_warning(tmp_path: 
         warnings.simplefilter("error")
         result = write_report([path], tmp_path / "out")
     assert "trajectory" in result.html.read_text(encoding="utf-8")
+
+
+def test_two_campaign_directories_are_kept_apart(tmp_path: Path) -> None:
+    """`rover logs report before/ after/` (a campaign run twice, before and after a change) pooled the two:
+    one row per terrain and variant with runs 6 for 3 + 3, the means of both, and the terrain-aware run
+    of one folder compared with the classical run of the other."""
+    for folder, contact in (("before", None), ("after", (6.0, 0.2))):
+        for variant_index, variant in enumerate(("terrain-aware", "classical")):
+            placed = {"terrain": "rocky", "terrain_index": "0", "variant": variant}
+            _write(
+                tmp_path / folder / "rocky" / variant / "seed3" / "trial.mcap",
+                trial=placed | {"variant_index": str(variant_index)},
+                contact_at=contact if variant == "classical" else None,
+            )
+    before, after = tmp_path / "before", tmp_path / "after"
+    result = write_report([before, after], tmp_path / "out", plots=False)
+    rows = [(r["campaign"], r["variant"], r["runs"], r["collisions"]) for r in result.terrain_table]
+    assert rows == [
+        (str(before), "terrain-aware", 1, 0),
+        (str(before), "classical", 1, 0),
+        (str(after), "terrain-aware", 1, 0),
+        (str(after), "classical", 1, 1),
+    ]
+    pairs = [
+        (Path(c.a).relative_to(tmp_path).parts[0], Path(c.b).relative_to(tmp_path).parts[0])
+        for c in result.comparisons
+    ]
+    assert pairs == [("before", "before"), ("after", "after")]
+    assert "| campaign (folder) |" in result.markdown.read_text(encoding="utf-8")
