@@ -23,7 +23,7 @@ from typing import Any
 
 from hil.campaign import Campaign, TrialSpec, campaign_config
 from hil.campaign_place import CampaignPlace
-from hil.campaign_summary import write_summary
+from hil.campaign_summary import others_sentence, write_summary
 from hil.scenario import load_scenario
 from hil.trial_log_label import trial_log_label
 
@@ -82,6 +82,9 @@ def run_campaign(
 
     ``workers``: worker processes (0: one per core); None: the campaign file's ``workers``."""
     specs = campaign.trials(out_dir)
+    others = other_recordings(out_dir, specs)
+    if others:
+        logger.warning("%s", others_sentence(out_dir, others))
     count = campaign.worker_count(workers)
     outcomes: list[TrialOutcome] = []
     if count <= 1:
@@ -105,8 +108,18 @@ def run_campaign(
     order = {spec.label: index for index, spec in enumerate(specs)}
     outcomes.sort(key=lambda o: order[o.spec.label])
     rows = [_row(o) for o in outcomes]
-    markdown, json_path = write_summary(campaign, rows, out_dir)
+    markdown, json_path = write_summary(campaign, rows, out_dir, others)
     return outcomes, markdown, json_path
+
+
+def other_recordings(out_dir: Path, specs: list[TrialSpec]) -> list[str]:
+    """The recordings already in ``out_dir`` that this campaign does not write (an earlier run's, with
+    other seeds, terrains or variants), relative to it: its summary leaves them out, but
+    ``rover logs report OUT`` reads every recording in the folder."""
+    ours = {spec.out_dir / "trial.mcap" for spec in specs}
+    if not out_dir.is_dir():
+        return []
+    return sorted(str(path.relative_to(out_dir)) for path in out_dir.rglob("*.mcap") if path not in ours)
 
 
 def _lost(spec: TrialSpec, err: BrokenProcessPool) -> TrialOutcome:
