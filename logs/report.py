@@ -371,8 +371,17 @@ def _fmt(value: Any, key: str = "") -> str:
     if isinstance(value, float):
         if not math.isfinite(value):
             return "n/a"
-        return f"{value:.4g}" if key in SIGNIFICANT_METRICS else f"{value:.3f}"
+        return _significant(value) if key in SIGNIFICANT_METRICS else f"{value:.3f}"
     return str(value)
+
+
+def _significant(value: float, digits: int = 4) -> str:
+    """``value`` with ``digits`` significant digits, trailing zeros kept and never in scientific notation
+    (``f"{v:.4g}"`` gave "0.025" beside "0.0249", and "9.7e-05" for their difference)."""
+    if value == 0:
+        return "0.000"
+    decimals = max(0, digits - 1 - math.floor(math.log10(abs(value))))
+    return f"{value:.{decimals}f}"
 
 
 def metric_label(key: str, source: str) -> str:

@@ -9,7 +9,7 @@ import warnings
 from pathlib import Path
 
 from logs.recorder import McapRecorder
-from logs.report import write_report
+from logs.report import _fmt, write_report
 from logs.synthetic import synthetic_metadata, synthetic_trial
 from logs.topics import LOG, NAVIGATOR_PATH, TRUTH_CONTACTS, planar_pose, stamp
 
@@ -184,3 +184,15 @@ def test_two_campaign_directories_are_kept_apart(tmp_path: Path) -> None:
     ]
     assert pairs == [("before", "before"), ("after", "after")]
     assert "| campaign (folder) |" in result.markdown.read_text(encoding="utf-8")
+
+
+def test_energy_per_metre_keeps_its_4_significant_digits() -> None:
+    """docs/reports.md: energy per metre with 4 significant digits. A run of 0.02500 Wh/m read "0.025" beside
+    another's "0.0249", and their difference "9.7e-05": trailing zeros were dropped, small numbers went
+    to scientific notation."""
+    assert _fmt(0.025, "energy_wh_per_m") == "0.02500"
+    assert _fmt(0.0244013, "energy_wh_per_m") == "0.02440"
+    assert _fmt(9.7e-05, "energy_wh_per_m") == "0.00009700"
+    assert _fmt(-2e-05, "energy_wh_per_m") == "-0.00002000"
+    assert _fmt(0.0, "energy_wh_per_m") == "0.000"
+    assert _fmt(1.23456, "energy_wh_per_m") == "1.235"
