@@ -47,6 +47,7 @@ TRUTH_PREFIX = "truth:"  # the truth file's own metadata and attachments, kept a
 # so they overlap any other lockstep trial's whichever run that was, and say nothing about pairing.
 LOCKSTEP_MODE = "sim-lockstep"
 TRIAL_METADATA = "trial"
+PEER_METADATA = "peer"  # the truth file's record of its HIL peer run (``run``: its id)
 
 
 @dataclass
@@ -98,7 +99,9 @@ def read_paired(
     window = drive_window(ticks)
     rover_has_scenario = any(isinstance(e, RecordedMetadata) and e.name == SCENARIO_METADATA for e in ticks)
     rover_mode = _trial_mode(ticks)
+    rover_run = _metadata_value(ticks, TRIAL_METADATA, "hil_peer_run")
     truth_mode: str | None = None
+    truth_run = ""
     result = PairedRead(rover, truth, iter(()), ReadStats(), rover_stats, truth_stats, window)
     kept: list[Entry] = []
     truth_metadata: list[Entry] = []
@@ -118,6 +121,7 @@ def read_paired(
                     result.truth_dropped += 1
             elif isinstance(entry, RecordedMetadata):
                 truth_mode = _trial_mode([entry]) or truth_mode
+                truth_run = _metadata_value([entry], PEER_METADATA, "run") or truth_run
                 keep_name = entry.name == WORLD_METADATA or (
                     entry.name == SCENARIO_METADATA and not rover_has_scenario
                 )
@@ -135,7 +139,11 @@ def read_paired(
         # reported, alone, with the truth file's problem named (as a truth of another run is).
         unreadable = f"{truth}: not merged: not readable ({err}); the run is the rover's file alone"
     kept.sort(key=_log_time)  # stable
-    refused = unreadable or _lockstep_refusal(rover, rover_mode, truth, truth_mode)
+    refused = (
+        unreadable
+        or _lockstep_refusal(rover, rover_mode, truth, truth_mode)
+        or _other_run_refusal(rover, rover_run, truth, truth_run)
+    )
     if refused is not None:
         result.problems.append(refused)
         result.refused = True
@@ -165,6 +173,25 @@ def _trial_mode(entries: Iterable[Entry]) -> str | None:
         if isinstance(entry, RecordedMetadata) and entry.name == TRIAL_METADATA:
             return entry.data.get("mode")
     return None
+
+
+def _metadata_value(entries: Iterable[Entry], record: str, key: str) -> str:
+    """``record.key`` among ``entries``' metadata; "" when not recorded."""
+    for entry in entries:
+        if isinstance(entry, RecordedMetadata) and entry.name == record:
+            return entry.data.get(key) or ""
+    return ""
+
+
+def _other_run_refusal(rover: Path, rover_run: str, truth: Path, truth_run: str) -> str | None:
+    """Why a truth recorded by another HIL peer run than the one the rover ran against must not be merged
+    (two runs at the same time overlap in log time); None when the ids agree or either is not recorded."""
+    if not rover_run or not truth_run or rover_run == truth_run:
+        return None
+    return (
+        f"{truth}: not merged: recorded by HIL peer run {truth_run}, and {rover} ran against peer run "
+        f"{rover_run}: another run's truth; the run is the rover's file alone"
+    )
 
 
 def _lockstep_refusal(rover: Path, rover_mode: str | None, truth: Path, truth_mode: str | None) -> str | None:
@@ -301,7 +328,7 @@ def _real_time_span(outline: RecordingOutline) -> tuple[int, int] | None:
 def _peer_run(outline: RecordingOutline) -> str:
     """The HIL peer run a recording belongs to: a truth's own (``peer`` ``run``), a rover recording's
     (``trial`` ``hil_peer_run``, from the rover-hil.toml the peer wrote); "" for older recordings."""
-    return outline.metadata.get("peer", {}).get("run") or outline.metadata.get(TRIAL_METADATA, {}).get(
+    return outline.metadata.get(PEER_METADATA, {}).get("run") or outline.metadata.get(TRIAL_METADATA, {}).get(
         "hil_peer_run", ""
     )
 

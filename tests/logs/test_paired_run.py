@@ -131,3 +131,18 @@ def test_a_truth_that_ends_before_the_drive_says_so_and_gives_no_energy_per_metr
     _, rover, truth = _write_pair(tmp_path / "whole")
     (run_whole,) = write_report([rover], tmp_path / "out-whole", plots=False, truth=truth).runs
     assert run_whole.metrics.energy_wh_per_m is not None and not run_whole.metrics.problems
+
+
+def test_a_truth_of_another_peer_run_is_not_merged_with_one_rover_recording(tmp_path: Path) -> None:
+    """Two HIL runs at once (two peers, two rovers): `rover logs report R1.mcap --truth T2.mcap`, the other
+    run's truth, was merged as this run's (exit 0, its figures measured on the other rover's drive): the
+    peer run ids both files record were compared only when several pairs were given."""
+    _, rover, _ = _write_pair(tmp_path / "one", peer_run="aaaa1111", seed=1)
+    _, _, other_truth = _write_pair(tmp_path / "two", peer_run="bbbb2222", seed=2, wobble_m=0.6)
+    for given in (["--truth", str(other_truth)], [str(other_truth)]):  # with --truth, and paired as given
+        out = tmp_path / f"out{len(given)}"
+        assert main(["logs", "report", str(rover), *given, "--out", str(out), "--no-plots"]) == 1
+        (run,) = json.loads((out / "report.json").read_text(encoding="utf-8"))["runs"]
+        assert (run["truth_path"], run["truth_merged"]) == (str(other_truth), False)
+        assert run["metrics"]["trajectory_topic"] == "estimator/pose"
+        assert any("bbbb2222" in p and "aaaa1111" in p for p in run["metrics"]["problems"])
