@@ -1,8 +1,11 @@
 """Running a campaign: every trial in a worker process, one MCAP each, then the summary tables.
 
 Workers are separate processes (``spawn``: a clean interpreter per worker, nothing inherited from the
-parent's threads), so a campaign uses every core and a trial that crashes is recorded as failed without
-stopping the others. Each trial's numbers come from its own ``metrics.json``, computed from its MCAP.
+parent's threads), so a campaign uses every core and a trial that raises is recorded as failed without
+stopping the others. A worker process that dies (killed, out of memory, a crash outside Python) breaks the
+pool, which then runs nothing more: its trial and every one not finished yet are recorded as errors, and
+the summary is still written for those that finished. Each trial's numbers come from its own
+``metrics.json``, computed from its MCAP.
 """
 
 from __future__ import annotations
@@ -13,13 +16,14 @@ import multiprocessing
 import time
 from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from hil.campaign import Campaign, TrialSpec, campaign_config
 from hil.campaign_place import CampaignPlace
-from hil.campaign_summary import write_summary
+from hil.campaign_summary import others_sentence, write_summary
 from hil.scenario import load_scenario
 from hil.trial_log_label import trial_log_label
 
@@ -78,6 +82,9 @@ def run_campaign(
 
     ``workers``: worker processes (0: one per core); None: the campaign file's ``workers``."""
     specs = campaign.trials(out_dir)
+    others = other_recordings(out_dir, specs)
+    if others:
+        logger.warning("%s", others_sentence(out_dir, others))
     count = campaign.worker_count(workers)
     outcomes: list[TrialOutcome] = []
     if count <= 1:
@@ -91,15 +98,39 @@ def run_campaign(
         with ProcessPoolExecutor(max_workers=min(count, len(specs)), mp_context=context) as pool:
             futures: dict[Future[TrialOutcome], TrialSpec] = {pool.submit(run_one, s): s for s in specs}
             for future in as_completed(futures):
-                outcome = future.result()
+                try:
+                    outcome = future.result()
+                except BrokenProcessPool as err:
+                    outcome = _lost(futures[future], err)
                 outcomes.append(outcome)
                 if on_done is not None:
                     on_done(outcome)
     order = {spec.label: index for index, spec in enumerate(specs)}
     outcomes.sort(key=lambda o: order[o.spec.label])
     rows = [_row(o) for o in outcomes]
-    markdown, json_path = write_summary(campaign, rows, out_dir)
+    markdown, json_path = write_summary(campaign, rows, out_dir, others)
     return outcomes, markdown, json_path
+
+
+def other_recordings(out_dir: Path, specs: list[TrialSpec]) -> list[str]:
+    """The recordings already in ``out_dir`` that this campaign does not write (an earlier run's, with
+    other seeds, terrains or variants), relative to it: its summary leaves them out, but
+    ``rover logs report OUT`` reads every recording in the folder."""
+    ours = {spec.out_dir / "trial.mcap" for spec in specs}
+    if not out_dir.is_dir():
+        return []
+    return sorted(str(path.relative_to(out_dir)) for path in out_dir.rglob("*.mcap") if path not in ours)
+
+
+def _lost(spec: TrialSpec, err: BrokenProcessPool) -> TrialOutcome:
+    """A trial whose worker process died, or that was still pending when another worker died (the pool
+    is then broken and runs nothing more): an error row, so the trials that finished are still summed up."""
+    logger.error("trial %s lost: %s", spec.label, err)
+    reason = (
+        "a worker process died (killed, out of memory, or a crash outside Python) before this trial "
+        "finished; the campaign's other unfinished trials were lost with it"
+    )
+    return TrialOutcome(spec, False, "error", False, (), None, 0.0, 0.0, reason)
 
 
 def _row(outcome: TrialOutcome) -> dict[str, Any]:

@@ -8,11 +8,14 @@ tolerance of the path, which says how well a run tracked while it lasted, not ho
 did), energy Wh/m, duration,
 collisions, the ground-truth distance to the goal at the end, the share of trials whose rover reported
 ARRIVED (``goal_reached``, judged on its estimate) and the share meeting the scenario's success criteria
-(docs/metrics.md defines both accuracies). Table 2: the same per run (seed), as the paper lists its
-simulation runs, with each failed criterion in words. Every figure comes from the trials'
-``metrics.json``; the JSON's means are rounded to six significant digits, its seconds to the millisecond.
-The header says what "encountered" meant for the obstacle-avoidance figures: the encounter margins the
-trials recorded (``encounter_margin_m``, distinct values; ``encounter_margins_m`` in the JSON).
+(docs/metrics.md defines both accuracies); the means are over the trials that ran, and a row with trials
+that errored (no metrics) says so in its Trials cell ("3 (2 errors: means of 1)"). Table 2: the same per
+run (seed), as the paper lists its simulation runs, with each failed criterion in words. Every figure
+comes from the trials' ``metrics.json``; the JSON's means are rounded to six significant digits, its
+seconds to the millisecond. The header says what "encountered" meant for the obstacle-avoidance figures:
+the encounter margins the trials recorded (``encounter_margin_m``, distinct values; ``encounter_margins_m``
+in the JSON), and names the recordings in the folder the campaign did not write (``other_recordings``): an
+earlier run's, which ``rover logs report`` of the folder reads and these tables leave out.
 """
 
 from __future__ import annotations
@@ -104,7 +107,22 @@ def rounded_times(row: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def write_summary(campaign: Campaign, rows: list[dict[str, Any]], out_dir: Path) -> tuple[Path, Path]:
+def others_sentence(out_dir: Path, others: list[str]) -> str:
+    """What the summary says of recordings in its folder that the campaign did not write."""
+    listed = ", ".join(others[:5]) + (f" and {len(others) - 5} more" if len(others) > 5 else "")
+    return (
+        f"{out_dir} also holds {len(others)} recording{'s' if len(others) > 1 else ''} this campaign did not "
+        f"write ({listed}), perhaps of an earlier run into the same folder: the campaign's summary leaves "
+        f"{'them' if len(others) > 1 else 'it'} out, while `rover logs report {out_dir}` reads every "
+        "recording in the folder."
+    )
+
+
+def write_summary(
+    campaign: Campaign, rows: list[dict[str, Any]], out_dir: Path, others: list[str] | None = None
+) -> tuple[Path, Path]:
+    """``others``: recordings in ``out_dir`` that the campaign did not write (``other_recordings``)."""
+    others = others or []
     out_dir.mkdir(parents=True, exist_ok=True)
     rows = [rounded_times(row) for row in rows]
     table1 = summarise(rows)
@@ -115,6 +133,7 @@ def write_summary(campaign: Campaign, rows: list[dict[str, Any]], out_dir: Path)
                 "campaign": campaign.name,
                 "source": campaign.source,
                 "encounter_margins_m": encounter_margins(rows),
+                "other_recordings": others,
                 "table1": table1,
                 "table2": rows,
             },
@@ -125,7 +144,10 @@ def write_summary(campaign: Campaign, rows: list[dict[str, Any]], out_dir: Path)
         encoding="utf-8",
     )
     markdown_path = out_dir / "summary.md"
-    markdown_path.write_text(_markdown(campaign, table1, rows), encoding="utf-8")
+    markdown_path.write_text(
+        _markdown(campaign, table1, rows, others_sentence(out_dir, others) if others else ""),
+        encoding="utf-8",
+    )
     return markdown_path, json_path
 
 
@@ -137,6 +159,16 @@ def _cell(value: Any, pattern: str) -> str:
     return pattern.format(value)
 
 
+def _trials_cell(entry: dict[str, Any]) -> str:
+    """The trial count, and when some errored (no metrics), how many the row's means are of."""
+    errors = entry["errors"]
+    if not errors:
+        return str(entry["trials"])
+    return (
+        f"{entry['trials']} ({errors} error{'s' if errors > 1 else ''}: means of {entry['trials'] - errors})"
+    )
+
+
 def _goal_cell(value: Any) -> str:
     return "n/a" if value is None else ("yes" if value else "no")
 
@@ -145,7 +177,7 @@ def _text_cell(text: str) -> str:
     return text.replace("|", "\\|")
 
 
-def _markdown(campaign: Campaign, table1: list[dict[str, Any]], rows: list[dict[str, Any]]) -> str:
+def _markdown(campaign: Campaign, table1: list[dict[str, Any]], rows: list[dict[str, Any]], note: str) -> str:
     titles = [title for _key, title, _mean_fmt, _run_fmt in COLUMNS]
     lines = [
         f"# Campaign {campaign.name}",
@@ -153,7 +185,8 @@ def _markdown(campaign: Campaign, table1: list[dict[str, Any]], rows: list[dict[
         f"Source: `{Path(campaign.source).name}`; seeds {list(campaign.seeds)}. "
         "Every figure is computed from each trial's metrics.json (from its MCAP). Goal reached is the "
         "rover's own ARRIVED (judged on its estimate); the final distance to goal is the ground truth. "
-        + _encounter_sentence(encounter_margins(rows)),
+        + _encounter_sentence(encounter_margins(rows))
+        + (f" {note}" if note else ""),
         "",
         "## Table 1. Average results across terrains",
         "",
@@ -163,7 +196,7 @@ def _markdown(campaign: Campaign, table1: list[dict[str, Any]], rows: list[dict[
     for entry in table1:
         cells = [_cell(entry[key], mean_fmt) for key, _title, mean_fmt, _run_fmt in COLUMNS]
         lines.append(
-            f"| {entry['terrain']} | {entry['variant']} | {entry['trials']} | "
+            f"| {entry['terrain']} | {entry['variant']} | {_trials_cell(entry)} | "
             + " | ".join(cells)
             + f" | {_cell(entry['goal_reached_pct'], '{:.0f}')} | {entry['success_pct']:.0f} |"
         )

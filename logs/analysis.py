@@ -30,7 +30,14 @@ from logs.can_load import WINDOW_NS, BusLoad, frame_bits, load_from_frame_window
 from logs.errors import LogReadError
 from logs.metrics import METRIC_TOPICS, TrialMetrics, metrics_from_entries
 from logs.obstacle_motion import MovingObstacle
-from logs.paired_run import TRUTH_TOPICS, PairedRead, part_sources, read_paired, with_problems
+from logs.paired_run import (
+    TRUTH_TOPICS,
+    PairedRead,
+    merged_metrics,
+    part_sources,
+    read_paired,
+    with_problems,
+)
 from logs.reader import (
     Entry,
     ReadStats,
@@ -380,7 +387,7 @@ def analyse(
     rover_counts = (
         _summary_counts(path) if paired.rover_stats.complete and not paired.rover_stats.truncated else None
     )
-    run = _finish(str(path), with_problems(metrics, paired.problems), collector, stats, can_bitrate, None)
+    run = _finish(str(path), merged_metrics(metrics, paired), collector, stats, can_bitrate, None)
     run.truth_path = str(paired.truth)
     run.truth_merged = paired.truth_kept > 0
     run.sources = part_sources(paired)

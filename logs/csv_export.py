@@ -46,6 +46,8 @@ class CsvExport:
     truncated: bool = False  # the recording was cut short: the rows are its readable part
     stop: ReadStop | None = None  # where a cut or damage ended the export early (None: read to the end)
     skipped_messages: int = 0  # messages that could not be decoded (counted by the reader)
+    # topic -> its messages that could not be decoded (not JSON, not an object), of those exported
+    undecodable: dict[str, int] = field(default_factory=dict)
 
 
 def flatten(message: dict[str, Any]) -> dict[str, Cell]:
@@ -132,6 +134,10 @@ def export_csv(source: Path, out_dir: Path, topics: Collection[str] | None = Non
         result.truncated = stats.truncated
         result.stop = stats.stop
         result.skipped_messages = stats.skipped
+        # Per topic, so the summary can name what got fewer rows (or no CSV at all) than it has messages.
+        for topic in wanted:
+            if present[topic] > result.rows.get(topic, 0):
+                result.undecodable[topic] = present[topic] - result.rows.get(topic, 0)
     except OSError as err:
         raise CsvExportError(f"cannot write the CSV files in {out_dir}: {err.strerror or err}") from err
     finally:

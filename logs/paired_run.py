@@ -24,7 +24,7 @@ from collections.abc import Collection, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from logs.errors import LogsError
+from logs.errors import LogReadError, LogsError
 from logs.metrics import METRIC_TOPICS, TrialMetrics, metrics_from_entries
 from logs.reader import (
     Entry,
@@ -47,6 +47,7 @@ TRUTH_PREFIX = "truth:"  # the truth file's own metadata and attachments, kept a
 # so they overlap any other lockstep trial's whichever run that was, and say nothing about pairing.
 LOCKSTEP_MODE = "sim-lockstep"
 TRIAL_METADATA = "trial"
+PEER_METADATA = "peer"  # the truth file's record of its HIL peer run (``run``: its id)
 
 
 @dataclass
@@ -63,7 +64,12 @@ class PairedRead:
     truth_kept: int = 0  # truth messages inside the window
     truth_dropped: int = 0  # truth messages outside it (the peer before the rover started or after it ended)
     problems: list[str] = field(default_factory=list)
-    refused: bool = False  # not merged at all (a lockstep trial on either side): the rover's file alone
+    # Not merged at all (a lockstep trial on either side, or a truth file that cannot be read): the
+    # rover's file alone.
+    refused: bool = False
+    # The truth merged covers only part of the drive (the peer stopped first, or its file is cut): the
+    # figures from the truth and those from the rover's file are of different spans.
+    truth_partial: bool = False
 
 
 def read_paired(
@@ -73,7 +79,8 @@ def read_paired(
     topics: Collection[str],
     raw_topics: Collection[str] = (),
 ) -> PairedRead:
-    """Read both files (``LogReadError`` for one that is missing, not MCAP or damaged) and merge them.
+    """Read both files and merge them: ``LogReadError`` for a rover file that is missing, not MCAP or
+    damaged; such a truth file is a problem named in ``problems``, and the entries are the rover's alone.
 
     ``topics``: the topics wanted; those in ``TRUTH_TOPICS`` are read from ``truth`` only, the others
     (and ``raw_topics``) from ``rover`` only. A truth file that has no truth message inside the rover's
@@ -92,34 +99,51 @@ def read_paired(
     window = drive_window(ticks)
     rover_has_scenario = any(isinstance(e, RecordedMetadata) and e.name == SCENARIO_METADATA for e in ticks)
     rover_mode = _trial_mode(ticks)
+    rover_run = _metadata_value(ticks, TRIAL_METADATA, "hil_peer_run")
     truth_mode: str | None = None
+    truth_run = ""
     result = PairedRead(rover, truth, iter(()), ReadStats(), rover_stats, truth_stats, window)
     kept: list[Entry] = []
     truth_metadata: list[Entry] = []
     first_truth_ns: int | None = None
     last_truth_ns = 0
-    for entry in read_entries(truth, topics=wanted_truth, stats=truth_stats):
-        if isinstance(entry, RecordedMessage):
-            first_truth_ns = entry.log_time_ns if first_truth_ns is None else first_truth_ns
-            last_truth_ns = entry.log_time_ns
-            if window[0] <= entry.log_time_ns <= window[1]:
-                kept.append(entry)
-            else:
-                result.truth_dropped += 1
-        elif isinstance(entry, RecordedMetadata):
-            truth_mode = _trial_mode([entry]) or truth_mode
-            keep_name = entry.name == WORLD_METADATA or (
-                entry.name == SCENARIO_METADATA and not rover_has_scenario
-            )
-            truth_metadata.append(
-                entry if keep_name else RecordedMetadata(TRUTH_PREFIX + entry.name, entry.data)
-            )
-        elif isinstance(entry, RecordedAttachment):
-            truth_metadata.append(
-                RecordedAttachment(TRUTH_PREFIX + entry.name, entry.media_type, entry.log_time_ns, entry.data)
-            )
+    unreadable: str | None = None
+    try:
+        # refuse_empty: a truth file with no recording in it is not readable, not a recording cut short
+        # (that would read as this run's being cut).
+        for entry in read_entries(truth, topics=wanted_truth, stats=truth_stats, refuse_empty=True):
+            if isinstance(entry, RecordedMessage):
+                first_truth_ns = entry.log_time_ns if first_truth_ns is None else first_truth_ns
+                last_truth_ns = entry.log_time_ns
+                if window[0] <= entry.log_time_ns <= window[1]:
+                    kept.append(entry)
+                else:
+                    result.truth_dropped += 1
+            elif isinstance(entry, RecordedMetadata):
+                truth_mode = _trial_mode([entry]) or truth_mode
+                truth_run = _metadata_value([entry], PEER_METADATA, "run") or truth_run
+                keep_name = entry.name == WORLD_METADATA or (
+                    entry.name == SCENARIO_METADATA and not rover_has_scenario
+                )
+                truth_metadata.append(
+                    entry if keep_name else RecordedMetadata(TRUTH_PREFIX + entry.name, entry.data)
+                )
+            elif isinstance(entry, RecordedAttachment):
+                truth_metadata.append(
+                    RecordedAttachment(
+                        TRUTH_PREFIX + entry.name, entry.media_type, entry.log_time_ns, entry.data
+                    )
+                )
+    except LogReadError as err:
+        # The truth is the second input of this run, not the run: the rover's readable file is still
+        # reported, alone, with the truth file's problem named (as a truth of another run is).
+        unreadable = f"{truth}: not merged: not readable ({err}); the run is the rover's file alone"
     kept.sort(key=_log_time)  # stable
-    refused = _lockstep_refusal(rover, rover_mode, truth, truth_mode)
+    refused = (
+        unreadable
+        or _lockstep_refusal(rover, rover_mode, truth, truth_mode)
+        or _other_run_refusal(rover, rover_run, truth, truth_run)
+    )
     if refused is not None:
         result.problems.append(refused)
         result.refused = True
@@ -130,6 +154,10 @@ def read_paired(
         result.entries = _merged([], rover_entries, [], result)
         return result
     result.truth_kept = len(kept)
+    partial = _partial_cover(truth, kept, window)
+    if partial is not None:
+        result.problems.append(partial)
+        result.truth_partial = True
     if wanted_truth and not kept:
         span = None if first_truth_ns is None else (first_truth_ns, last_truth_ns)
         result.problems.append(_no_overlap(truth, span, window))
@@ -145,6 +173,25 @@ def _trial_mode(entries: Iterable[Entry]) -> str | None:
         if isinstance(entry, RecordedMetadata) and entry.name == TRIAL_METADATA:
             return entry.data.get("mode")
     return None
+
+
+def _metadata_value(entries: Iterable[Entry], record: str, key: str) -> str:
+    """``record.key`` among ``entries``' metadata; "" when not recorded."""
+    for entry in entries:
+        if isinstance(entry, RecordedMetadata) and entry.name == record:
+            return entry.data.get(key) or ""
+    return ""
+
+
+def _other_run_refusal(rover: Path, rover_run: str, truth: Path, truth_run: str) -> str | None:
+    """Why a truth recorded by another HIL peer run than the one the rover ran against must not be merged
+    (two runs at the same time overlap in log time); None when the ids agree or either is not recorded."""
+    if not rover_run or not truth_run or rover_run == truth_run:
+        return None
+    return (
+        f"{truth}: not merged: recorded by HIL peer run {truth_run}, and {rover} ran against peer run "
+        f"{rover_run}: another run's truth; the run is the rover's file alone"
+    )
 
 
 def _lockstep_refusal(rover: Path, rover_mode: str | None, truth: Path, truth_mode: str | None) -> str | None:
@@ -200,6 +247,28 @@ def _no_overlap(truth: str | Path, span: tuple[int, int] | None, window: tuple[i
         f"(truth {span[0] / 1e9:.3f}-{span[1] / 1e9:.3f} s, "
         f"rover {window[0] / 1e9:.3f}-{window[1] / 1e9:.3f} s of the monotonic clock): not the same run, or "
         "not recorded on the same machine; the run is the rover's alone"
+    )
+
+
+# How far inside the rover's drive the truth may start or end and still count as covering it: the peer
+# records its truth every physics step, so a whole run's ends are one step (10-20 ms) from the drive's.
+COVER_SLACK_NS = 500_000_000
+
+
+def _partial_cover(truth: Path, kept: Sequence[Entry], window: tuple[int, int]) -> str | None:
+    """Why the truth ``kept`` inside the drive ``window`` does not cover all of it; None when it does (or
+    has nothing in it: ``_no_overlap`` says that)."""
+    times = [entry.log_time_ns for entry in kept if isinstance(entry, RecordedMessage)]
+    if not times or (times[0] - window[0] <= COVER_SLACK_NS and window[1] - times[-1] <= COVER_SLACK_NS):
+        return None
+    end = "ends" if window[1] - times[-1] > COVER_SLACK_NS else "starts"
+    return (
+        f"{truth}: the truth {end} inside the rover's drive (truth {times[0] / 1e9:.3f}-"
+        f"{times[-1] / 1e9:.3f} s, drive {window[0] / 1e9:.3f}-{window[1] / 1e9:.3f} s of the monotonic "
+        "clock: the peer stopped first, or its file is cut): trajectory, distance, duration, accuracy, "
+        f"obstacle and goal-distance figures are of the {(times[-1] - times[0]) / 1e9:.1f} s it covers, "
+        f"energy and the rover's other figures of the whole {(window[1] - window[0]) / 1e9:.1f} s drive; "
+        "energy per metre, which would divide one by the other, is left out"
     )
 
 
@@ -259,7 +328,7 @@ def _real_time_span(outline: RecordingOutline) -> tuple[int, int] | None:
 def _peer_run(outline: RecordingOutline) -> str:
     """The HIL peer run a recording belongs to: a truth's own (``peer`` ``run``), a rover recording's
     (``trial`` ``hil_peer_run``, from the rover-hil.toml the peer wrote); "" for older recordings."""
-    return outline.metadata.get("peer", {}).get("run") or outline.metadata.get(TRIAL_METADATA, {}).get(
+    return outline.metadata.get(PEER_METADATA, {}).get("run") or outline.metadata.get(TRIAL_METADATA, {}).get(
         "hil_peer_run", ""
     )
 
@@ -298,7 +367,16 @@ def paired_metrics(rover: str | Path, truth: str | Path) -> TrialMetrics:
     """The paper's metrics of one real-time run (``logs.metrics``) on the merged stream; a pairing problem
     (no truth inside the rover's drive) is among ``problems``."""
     paired = read_paired(rover, truth, topics=METRIC_TOPICS)
-    return with_problems(metrics_from_entries(paired.entries, paired.stats), paired.problems)
+    return merged_metrics(metrics_from_entries(paired.entries, paired.stats), paired)
+
+
+def merged_metrics(metrics: TrialMetrics, paired: PairedRead) -> TrialMetrics:
+    """The metrics of the merged stream as the run's: the pairing's problems added, and no energy per
+    metre when the truth covers only part of the drive (the rover's energy of the whole drive over the
+    truth's distance of a part of it)."""
+    if paired.truth_partial:
+        metrics = replace(metrics, energy_wh_per_m=None)
+    return with_problems(metrics, paired.problems)
 
 
 def with_problems(metrics: TrialMetrics, problems: Sequence[str]) -> TrialMetrics:

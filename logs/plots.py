@@ -71,8 +71,10 @@ def trajectory_svg(run: TrialAnalysis) -> str:
     axes.set_xlabel("east (m)")
     axes.set_ylabel("north (m)")
     axes.set_aspect("equal", adjustable="datalim")
-    # below the map: inside it the legend hid obstacles and contacts
-    axes.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=4, fontsize="small")
+    # below the map: inside it the legend hid obstacles and contacts; none for an empty map (matplotlib
+    # would warn on the console that it has nothing to list)
+    if axes.get_legend_handles_labels()[0]:
+        axes.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=4, fontsize="small")
     axes.set_title("trajectory")
     return _svg(figure)
 

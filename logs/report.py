@@ -16,7 +16,7 @@ import html
 import json
 import logging
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -82,6 +82,7 @@ OTHER_METRIC_LABELS = {
     "skipped_messages": "messages skipped",
 }
 TERRAIN_COLUMNS = {
+    "campaign": "campaign (folder)",
     "terrain": "terrain",
     "terrain_class": "terrain class",
     "variant": "variant",
@@ -129,6 +130,22 @@ def expand_inputs(inputs: Sequence[str | Path]) -> tuple[list[Path], bool]:
     return files, campaign
 
 
+def campaign_folders(inputs: Sequence[str | Path], files: Sequence[Path]) -> dict[str, str]:
+    """Each file's directory as given, when several were: each is a campaign of its own (a campaign run
+    before and after a change), kept apart in the tables and comparisons. Empty for one directory (or
+    none): its runs are one campaign however its folders nest."""
+    folders = [Path(item) for item in inputs if Path(item).is_dir()]
+    if len(folders) < 2:
+        return {}
+    found = {}
+    for path in files:
+        # The first folder given that holds the file (for a folder given inside another one too).
+        holder = next((folder for folder in folders if path.is_relative_to(folder)), None)
+        if holder is not None:
+            found[str(path)] = str(holder)
+    return found
+
+
 def write_report(
     inputs: Sequence[str | Path],
     out_dir: str | Path,
@@ -166,12 +183,20 @@ def write_report(
             result.failed[str(path)] = "holds no messages (cut before the first one?)"
             continue
         result.runs.append(run)
-    # A campaign's order (terrains, then variants, as in its file: the first variant is the baseline);
-    # the sort is stable, so runs without that metadata keep the order they were given in.
-    result.runs.sort(key=campaign_order)
-    result.comparisons = [compare_runs(a, b) for a, b in comparison_pairs(result.runs, campaign=campaign)]
+    folders = campaign_folders(inputs, files)
+    if campaign:
+        # A campaign's order (terrains, then variants, as in its file: the first variant is the
+        # baseline); the sort is stable, so runs without that metadata keep the order they were given in.
+        # Files given one by one keep the order given: the first is the baseline of the comparisons.
+        # Several campaign folders: each folder's runs together, in the order the folders were given.
+        rank = {folder: index for index, folder in enumerate(dict.fromkeys(folders.values()))}
+        result.runs.sort(
+            key=lambda run: (rank.get(folders.get(run.path, ""), len(rank)), *campaign_order(run))
+        )
+    pairs = comparison_pairs(result.runs, campaign=campaign, folders=folders)
+    result.comparisons = [compare_runs(a, b) for a, b in pairs]
     if campaign or len(result.runs) > 2:
-        result.terrain_table = terrain_table(result.runs)
+        result.terrain_table = terrain_table(result.runs, folders)
     document = _document(result)
     result.json.write_text(
         json.dumps(document, indent=2, sort_keys=True, default=str) + "\n", encoding="utf-8"
@@ -254,21 +279,27 @@ def terrain_of(run: TrialAnalysis) -> str:
     return run.metadata.get("trial", {}).get("terrain") or run.terrain_class
 
 
-def terrain_table(runs: Sequence[TrialAnalysis]) -> list[dict[str, Any]]:
+def terrain_table(
+    runs: Sequence[TrialAnalysis], folders: Mapping[str, str] | None = None
+) -> list[dict[str, Any]]:
     """Per campaign terrain (and per campaign variant, when the runs hold more than one), in the order the
     runs come (``campaign_order``): number of runs, mean path accuracy (of the driven distance and of the
     route) and avoidance success, total rollovers and collisions, mean Wh/m (means over the runs where
-    the metric is known)."""
+    the metric is known). ``folders`` (``campaign_folders``): with several campaign folders, per folder
+    too, in a first column."""
+    folders = folders or {}
     split = len({_variant(run) for run in runs}) > 1
-    groups: dict[tuple[str, str], list[TrialAnalysis]] = {}
+    groups: dict[tuple[str, str, str], list[TrialAnalysis]] = {}
     for run in runs:
-        groups.setdefault((terrain_of(run), _variant(run) if split else ""), []).append(run)
+        key = (folders.get(run.path, ""), terrain_of(run), _variant(run) if split else "")
+        groups.setdefault(key, []).append(run)
     rows = []
-    for (terrain, variant), members in groups.items():
+    for (folder, terrain, variant), members in groups.items():
         metrics = [run.metrics for run in members]
         collisions = [m.collisions for m in metrics if m.collisions is not None]
         rows.append(
             {
+                **({"campaign": folder or "(files given)"} if folders else {}),
                 "terrain": terrain,
                 "terrain_class": members[0].terrain_class,
                 **({"variant": variant or "n/a"} if split else {}),
@@ -288,21 +319,25 @@ def terrain_table(runs: Sequence[TrialAnalysis]) -> list[dict[str, Any]]:
 
 
 def comparison_pairs(
-    runs: Sequence[TrialAnalysis], *, campaign: bool
+    runs: Sequence[TrialAnalysis], *, campaign: bool, folders: Mapping[str, str] | None = None
 ) -> list[tuple[TrialAnalysis, TrialAnalysis]]:
     """Which runs are compared point by point.
 
     Files given one by one: the first against each other one (a sim run against the real runs, say). A
-    campaign: only runs that differ in nothing but the variant (the same scenario and seed), the first
-    variant against each other one; across terrains or seeds a point-by-point gap says nothing, and the
-    per-terrain table compares those.
+    campaign: only runs that differ in nothing but the variant (the same campaign terrain, scenario and
+    seed), the first variant against each other one; across terrains or seeds a point-by-point gap says
+    nothing, and the per-terrain table compares those. The terrain counts apart from the scenario's name:
+    two terrains' scenario files may share one (a copy with another map). Several campaign folders
+    (``folders``): within each.
     """
     if not campaign:
         return [(runs[0], other) for other in runs[1:]]
-    groups: dict[tuple[str, str], list[TrialAnalysis]] = {}
+    folders = folders or {}
+    groups: dict[tuple[str, str, str, str], list[TrialAnalysis]] = {}
     for run in runs:
         scenario = run.metadata.get("scenario", {})
-        groups.setdefault((scenario.get("name", run.path), scenario.get("seed", "")), []).append(run)
+        place = (terrain_of(run), scenario.get("name", run.path), scenario.get("seed", ""))
+        groups.setdefault((folders.get(run.path, ""), *place), []).append(run)
     return [
         (members[0], other)
         for members in groups.values()
@@ -336,8 +371,17 @@ def _fmt(value: Any, key: str = "") -> str:
     if isinstance(value, float):
         if not math.isfinite(value):
             return "n/a"
-        return f"{value:.4g}" if key in SIGNIFICANT_METRICS else f"{value:.3f}"
+        return _significant(value) if key in SIGNIFICANT_METRICS else f"{value:.3f}"
     return str(value)
+
+
+def _significant(value: float, digits: int = 4) -> str:
+    """``value`` with ``digits`` significant digits, trailing zeros kept and never in scientific notation
+    (``f"{v:.4g}"`` gave "0.025" beside "0.0249", and "9.7e-05" for their difference)."""
+    if value == 0:
+        return "0.000"
+    decimals = max(0, digits - 1 - math.floor(math.log10(abs(value))))
+    return f"{value:.{decimals}f}"
 
 
 def metric_label(key: str, source: str) -> str:

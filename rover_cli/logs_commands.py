@@ -82,18 +82,33 @@ def doctor_command(args: argparse.Namespace) -> int:
     )
     table = RichTable()
     for column in ("topic", "messages", "first (s)", "last (s)", "encoding"):
-        table.add_column(column, justify="left" if column in ("topic", "encoding") else "right")
+        table.add_column(
+            column, justify="left" if column in ("topic", "encoding") else "right", overflow="fold"
+        )
     for topic, summary in sorted(report.topics.items()):
         first = "" if summary.first_ns is None else f"{summary.first_ns / 1e9:.3f}"
         last = "" if summary.last_ns is None else f"{summary.last_ns / 1e9:.3f}"
         table.add_row(topic, str(summary.messages), first, last, summary.encoding)
-    console.print(table)
+    _print_table(console, table)
     console.print(
         f"metadata: {', '.join(report.metadata) or '-'}; attachments: {', '.join(report.attachments) or '-'}"
     )
     for problem in report.problems:
         console.print(f"[red]problem:[/red] {escape(problem)}")
     return 0 if report.healthy else 1
+
+
+UNBOUNDED_WIDTH = 10_000  # columns: wider than any table these commands print
+
+
+def _print_table(console: Console, table: RichTable) -> None:
+    """``table`` whole. Piped to a file or a program, rich would fit it to 80 columns and cut topic names
+    and paths with '…': there it gets the width it needs, one row a line. A terminal's narrower screen
+    folds a long cell onto more lines (``overflow="fold"`` on the columns) rather than cutting it."""
+    if not console.is_terminal:
+        unbounded = console.options.update_width(UNBOUNDED_WIDTH)
+        console.width = max(console.width, console.measure(table, options=unbounded).maximum)
+    console.print(table)
 
 
 def recover_command(args: argparse.Namespace) -> int:
@@ -136,12 +151,15 @@ def report_command(args: argparse.Namespace) -> int:
         )
     unmerged = [run for run in result.runs if run.truth_path and not run.truth_merged]
     for run in result.runs:
+        # The pairing's own problems name the truth file: said here, not only in the report.
+        why = "; ".join(p for p in run.metrics.problems if str(run.truth_path) in p)
         if run.truth_path and run.truth_merged:
             console.print(
-                f"real-time run: {escape(run.path)} + truth {escape(run.truth_path)}", soft_wrap=True
+                f"real-time run: {escape(run.path)} + truth {escape(run.truth_path)}"
+                + (f" [yellow]but[/yellow] {escape(why)}" if why else ""),
+                soft_wrap=True,
             )
         elif run.truth_path:
-            why = "; ".join(p for p in run.metrics.problems if str(run.truth_path) in p)
             console.print(
                 f"[yellow]truth not merged[/yellow] with {escape(run.path)}: {escape(why)}", soft_wrap=True
             )
@@ -170,13 +188,20 @@ def csv_command(args: argparse.Namespace) -> int:
         return 2
     table = RichTable()
     for column in ("topic", "rows", "file"):
-        table.add_column(column, justify="right" if column == "rows" else "left")
+        table.add_column(column, justify="right" if column == "rows" else "left", overflow="fold")
     for topic, path in result.files.items():
         table.add_row(escape(topic), str(result.rows[topic]), escape(str(path)))
-    console.print(table)
+    _print_table(console, table)
     if result.skipped_messages:
+        per_topic = ", ".join(
+            f"{escape(topic)} {count} of {count + result.rows.get(topic, 0)}"
+            + ("" if topic in result.files else " (no CSV)")
+            for topic, count in result.undecodable.items()
+        )
         console.print(
-            f"[yellow]skipped[/yellow] {result.skipped_messages} message(s) that could not be decoded"
+            f"[yellow]skipped[/yellow] {result.skipped_messages} message(s) that could not be decoded: "
+            f"{per_topic} (the warnings say why)",
+            soft_wrap=True,
         )
     if result.stop is not None:
         kept = f"the CSV files in {args.out} hold the {sum(result.rows.values())} messages before it"

@@ -95,3 +95,16 @@ def test_several_encounter_margins_are_all_named_and_a_missing_one_is_said(tmp_p
     markdown, json_path = write_summary(CAMPAIGN, ROWS, tmp_path / "older")  # metrics without the margin
     assert "No trial recorded its encounter margin" in markdown.read_text(encoding="utf-8")
     assert json.loads(json_path.read_text(encoding="utf-8"))["encounter_margins_m"] == []
+
+
+def test_table_1_says_how_many_trials_its_means_are_of(tmp_path):
+    """A row of 3 trials, 2 of which errored, read "| rocky | classical | 3 | 100.0 | ..." with every figure
+    the one trial that ran: the means looked like those of 3 runs."""
+    errored = [{**ROWS[0], "seed": s, "ok": False, "error": "boom", "metrics": {}} for s in (3, 4)]
+    markdown, _json_path = write_summary(CAMPAIGN, [ROWS[0], *errored], tmp_path)
+    table1 = markdown.read_text(encoding="utf-8").split("## Table 1")[1].split("## Table 2")[0]
+    row = next(line for line in table1.splitlines() if line.startswith("| rocky |"))
+    assert [c.strip() for c in row.strip("|").split("|")][2] == "3 (2 errors: means of 1)"
+    markdown, _json_path = write_summary(CAMPAIGN, ROWS, tmp_path / "all-ran")
+    table1 = markdown.read_text(encoding="utf-8").split("## Table 1")[1].split("## Table 2")[0]
+    assert "| rocky | classical | 2 |" in table1

@@ -39,13 +39,15 @@ def write_pair(
     wobble_m: float = 0.3,
     seed: int = 1,
     peer_run: str | None = None,
+    truth_until_s: float | None = None,
 ) -> tuple[Path, Path, Path]:
     """(one-file reference, rover.mcap, truth.mcap) of the same synthetic trial in ``folder``.
 
     ``boot_ns``: the clock's reading at the rover's start; ``clock_offset_ns`` the same for the truth
     file (default ``boot_ns``: the same run; another value: a truth recorded at another time);
     ``wobble_m`` and ``seed`` as for ``synthetic_trial`` (two runs that drive differently); ``peer_run``
-    the HIL peer run id both files name, as ``rover hil peer`` and ``rover run`` record it (None: none)."""
+    the HIL peer run id both files name, as ``rover hil peer`` and ``rover run`` record it (None: none);
+    ``truth_until_s``: the peer stopped that long into the trial, before the rover did (None: after it)."""
     folder.mkdir(parents=True, exist_ok=True)
     truth_ns = boot_ns if clock_offset_ns is None else clock_offset_ns
     records = list(synthetic_trial(DURATION_S, wobble_m=wobble_m, seed=seed))
@@ -74,8 +76,10 @@ def write_pair(
             t = truth_ns - PEER_EARLY_NS + k * 100_000_000
             recorder.publish(TRUTH_POSE, t, _moved(first, t, start["x"], start["y"]))
         for topic, t, message in records:
-            if topic in TRUTH_TOPICS:
+            if topic in TRUTH_TOPICS and (truth_until_s is None or t <= truth_until_s * 1e9):
                 recorder.publish(topic, truth_ns + t, message)
+        if truth_until_s is not None:
+            return reference, rover, truth
         end_ns = truth_ns + records[-1][1]
         for k in range(1, 11):  # after the rover stopped: pushed aside, 1 m over a second
             t = end_ns + k * 100_000_000

@@ -7,9 +7,11 @@ from logs.analysis import TrialAnalysis
 from logs.report import comparison_pairs
 
 
-def _run(name: str, seed: int, variant: str) -> TrialAnalysis:
-    metadata = {"scenario": {"name": name, "seed": str(seed)}, "trial": {"variant": variant}}
-    run: Any = SimpleNamespace(path=f"{name}/{variant}/seed{seed}", metadata=metadata)
+def _run(name: str, seed: int, variant: str, terrain: str = "") -> TrialAnalysis:
+    trial = {"variant": variant, **({"terrain": terrain} if terrain else {})}
+    metadata = {"scenario": {"name": name, "seed": str(seed)}, "trial": trial}
+    path = f"{terrain or name}/{variant}/seed{seed}"
+    run: Any = SimpleNamespace(path=path, metadata=metadata, terrain_class="sandy")
     return cast(TrialAnalysis, run)
 
 
@@ -34,3 +36,12 @@ def test_a_campaign_compares_variants_of_the_same_scenario_and_seed_only() -> No
 def test_files_given_one_by_one_compare_the_first_with_each_other() -> None:
     sim, real_1, real_2 = _run("sim", 1, ""), _run("real", 1, ""), _run("real", 2, "")
     assert comparison_pairs([sim, real_1, real_2], campaign=False) == [(sim, real_1), (sim, real_2)]
+
+
+def test_a_campaign_compares_within_a_terrain_only() -> None:
+    """Two campaign terrains whose scenario files share a name (field-b.toml copied from field-a.toml, its
+    map changed): field-a's terrain-aware run was compared with field-b's classical one, across maps, and
+    field-b's two variants not at all."""
+    runs = [_run("sandy-boulders", 1, v, terrain) for terrain in ("field-a", "field-b") for v in ("ta", "cl")]
+    pairs = [(a.path, b.path) for a, b in comparison_pairs(runs, campaign=True)]
+    assert pairs == [("field-a/ta/seed1", "field-a/cl/seed1"), ("field-b/ta/seed1", "field-b/cl/seed1")]

@@ -8,6 +8,7 @@ from io import BytesIO
 from pathlib import Path
 
 import pytest
+from mcap.writer import Writer
 
 from logs.csv_export import CsvExportError, export_csv, file_name_for, flatten
 from logs.errors import LogReadError, NotARecording
@@ -114,3 +115,32 @@ def test_a_file_with_no_recording_in_it_is_an_error_and_writes_nothing(
     assert main(["logs", "csv", str(source), "--out", str(tmp_path / "cli")]) == 2
     assert "no recording in it" in " ".join(capsys.readouterr().out.split())
     assert not (tmp_path / "csv").exists() and not (tmp_path / "cli").exists()
+
+
+def _foreign(path: Path) -> Path:
+    """An MCAP from another tool: a CDR topic (ROS 2) beside one JSON topic, 3 messages each."""
+    with path.open("wb") as handle:
+        writer = Writer(handle)
+        writer.start(profile="ros2", library="other-tool")
+        cdr = writer.register_schema(name="nav_msgs/msg/Odometry", encoding="ros2msg", data=b"float64 x")
+        json_schema = writer.register_schema(name="Odom", encoding="jsonschema", data=b'{"type":"object"}')
+        odom = writer.register_channel(topic="/odom", message_encoding="cdr", schema_id=cdr)
+        fix = writer.register_channel(topic="/fix", message_encoding="json", schema_id=json_schema)
+        for i in range(3):
+            writer.add_message(channel_id=odom, log_time=i, publish_time=i, data=bytes(16))
+            writer.add_message(channel_id=fix, log_time=i, publish_time=i, data=b'{"lat": 47.0}')
+        writer.finish()
+    return path
+
+
+def test_a_topic_that_could_not_be_exported_is_named(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`rover logs csv ros.mcap --out DIR --topics /odom` printed an empty table and "skipped 3 message(s)
+    that could not be decoded", naming no topic: which topic got no CSV was left to guess."""
+    source = _foreign(tmp_path / "ros.mcap")
+    result = export_csv(source, tmp_path / "all")
+    assert result.rows == {"/fix": 3} and result.undecodable == {"/odom": 3}
+    assert main(["logs", "csv", str(source), "--out", str(tmp_path / "odom"), "--topics", "/odom"]) == 0
+    printed = " ".join(capsys.readouterr().out.split())
+    assert "skipped 3 message(s) that could not be decoded: /odom 3 of 3 (no CSV)" in printed

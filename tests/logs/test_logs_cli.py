@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import pytest
+from mcap.writer import Writer
 
 from logs.doctor import diagnose
 from logs.errors import NotARecording
@@ -104,3 +105,39 @@ def test_doctor_words_a_cut_and_damage_as_the_exports_do(recording: Path, tmp_pa
     list(read_entries(cut, stats=stop))
     assert stop.stop is not None and findings.cut_at == stop.stop.offset == damaged_at
     assert f"is {stop.stop.describe()}" in " ".join(findings.problems)
+
+
+LONG_TOPIC = "/robot/sensors/front_left_stereo_camera/image_rectified/compressed_depth"
+
+
+def _foreign_recording(path: Path) -> Path:
+    """An MCAP from another tool: one JSON topic with a long ROS-style name, on a clock far from zero."""
+    with path.open("wb") as handle:
+        writer = Writer(handle)
+        writer.start(profile="", library="other-tool")
+        schema = writer.register_schema(name="Depth", encoding="jsonschema", data=b'{"type":"object"}')
+        channel = writer.register_channel(topic=LONG_TOPIC, message_encoding="json", schema_id=schema)
+        for i in range(3):
+            t = 1_700_000_000_000_000_000 + i * 123_456_789_012
+            writer.add_message(channel_id=channel, log_time=t, publish_time=t, data=b'{"v": 1}')
+        writer.finish()
+    return path
+
+
+def test_doctor_and_csv_tables_piped_to_a_file_keep_every_name_whole(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Piped (`rover logs doctor F > out.txt`), rich fitted the tables to 80 columns and cut the topic
+    and the CSV file's path with '…': '/robot/sensors/fron…', 'csv/robot.sensors.front_left_s…'."""
+    monkeypatch.setenv("COLUMNS", "80")  # what rich assumes for a pipe
+    recording = _foreign_recording(tmp_path / "foreign.mcap")
+    assert main(["logs", "doctor", str(recording)]) == 0
+    printed = capsys.readouterr().out
+    assert "…" not in printed
+    row = next(line for line in printed.splitlines() if LONG_TOPIC in line)
+    assert "1700000246.914" in row  # the whole row on one line: topic, count, first and last time
+    out = tmp_path / "a" / "long" / "folder" / "for" / "the" / "csv" / "files"
+    assert main(["logs", "csv", str(recording), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    (written,) = out.iterdir()
+    assert "…" not in printed and str(written) in printed

@@ -5,12 +5,13 @@ gap between runs of different scenarios."""
 from __future__ import annotations
 
 import re
+import warnings
 from pathlib import Path
 
 from logs.recorder import McapRecorder
-from logs.report import write_report
+from logs.report import _fmt, write_report
 from logs.synthetic import synthetic_metadata, synthetic_trial
-from logs.topics import NAVIGATOR_PATH, TRUTH_CONTACTS, planar_pose, stamp
+from logs.topics import LOG, NAVIGATOR_PATH, TRUTH_CONTACTS, planar_pose, stamp
 
 DURATION_S = 20.0
 TRUTH_TOPICS = frozenset({"truth/pose", "truth/wheels", "truth/stability", "truth/contacts"})
@@ -118,3 +119,80 @@ def test_a_campaign_is_grouped_and_ordered_as_the_campaign(tmp_path: Path) -> No
     baselines = {Path(c.a).parent.parent.name for c in result.comparisons}
     assert baselines == {"terrain-aware"}
     assert "collisions (total)" in result.markdown.read_text(encoding="utf-8")
+
+
+def test_files_given_one_by_one_are_compared_in_the_order_given(tmp_path: Path) -> None:
+    """The first file given is A, each other one B (docs/reports.md). `rover logs report trial.mcap
+    campaign/rocky/classical/seed1/trial.mcap` once made the campaign's trial A, the file given first B:
+    every B - A had its sign turned, since the campaign order was applied to files given one by one."""
+    lone = _write(tmp_path / "trial.mcap", trial={"mode": "sim-lockstep"})
+    placed = {"terrain": "rocky", "terrain_index": "0", "variant": "classical", "variant_index": "1"}
+    campaign_trial = _write(tmp_path / "classical.mcap", trial=placed, contact_at=(6.0, 0.2))
+    result = write_report([lone, campaign_trial], tmp_path / "out", plots=False)
+    assert [run.path for run in result.runs] == [str(lone), str(campaign_trial)]
+    (comparison,) = result.comparisons
+    assert (comparison.a, comparison.b) == (str(lone), str(campaign_trial))
+    text = result.markdown.read_text(encoding="utf-8")
+    assert f"## Comparison: A = {lone}, B = {campaign_trial}" in text
+
+
+def test_a_run_without_a_trajectory_draws_its_plots_without_a_warning(tmp_path: Path) -> None:
+    """`rover logs report` of a recording with no pose (a rover stopped in its warm-up, another tool's
+    file) printed matplotlib's "/.../logs/plots.py:75: UserWarning: No artists with labels found to put
+    in legend" amid its own output: the trajectory plot asked for a legend with nothing in it."""
+    path = tmp_path / "warm-up.mcap"
+    with McapRecorder(path) as recorder:
+        message = {
+            "timestamp": stamp(0),
+            "level": 3,
+            "message": "start-up",
+            "name": "rover",
+            "file": "",
+            "line": 0,
+        }
+        recorder.publish(LOG, 0, message)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        result = write_report([path], tmp_path / "out")
+    assert "trajectory" in result.html.read_text(encoding="utf-8")
+
+
+def test_two_campaign_directories_are_kept_apart(tmp_path: Path) -> None:
+    """`rover logs report before/ after/` (a campaign run twice, before and after a change) pooled the two:
+    one row per terrain and variant with runs 6 for 3 + 3, the means of both, and the terrain-aware run
+    of one folder compared with the classical run of the other."""
+    for folder, contact in (("before", None), ("after", (6.0, 0.2))):
+        for variant_index, variant in enumerate(("terrain-aware", "classical")):
+            placed = {"terrain": "rocky", "terrain_index": "0", "variant": variant}
+            _write(
+                tmp_path / folder / "rocky" / variant / "seed3" / "trial.mcap",
+                trial=placed | {"variant_index": str(variant_index)},
+                contact_at=contact if variant == "classical" else None,
+            )
+    before, after = tmp_path / "before", tmp_path / "after"
+    result = write_report([before, after], tmp_path / "out", plots=False)
+    rows = [(r["campaign"], r["variant"], r["runs"], r["collisions"]) for r in result.terrain_table]
+    assert rows == [
+        (str(before), "terrain-aware", 1, 0),
+        (str(before), "classical", 1, 0),
+        (str(after), "terrain-aware", 1, 0),
+        (str(after), "classical", 1, 1),
+    ]
+    pairs = [
+        (Path(c.a).relative_to(tmp_path).parts[0], Path(c.b).relative_to(tmp_path).parts[0])
+        for c in result.comparisons
+    ]
+    assert pairs == [("before", "before"), ("after", "after")]
+    assert "| campaign (folder) |" in result.markdown.read_text(encoding="utf-8")
+
+
+def test_energy_per_metre_keeps_its_4_significant_digits() -> None:
+    """docs/reports.md: energy per metre with 4 significant digits. A run of 0.02500 Wh/m read "0.025" beside
+    another's "0.0249", and their difference "9.7e-05": trailing zeros were dropped, small numbers went
+    to scientific notation."""
+    assert _fmt(0.025, "energy_wh_per_m") == "0.02500"
+    assert _fmt(0.0244013, "energy_wh_per_m") == "0.02440"
+    assert _fmt(9.7e-05, "energy_wh_per_m") == "0.00009700"
+    assert _fmt(-2e-05, "energy_wh_per_m") == "-0.00002000"
+    assert _fmt(0.0, "energy_wh_per_m") == "0.000"
+    assert _fmt(1.23456, "energy_wh_per_m") == "1.235"

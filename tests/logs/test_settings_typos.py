@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
+from hil.campaign import load_campaign
 from logs.settings import ConfigError, parse_toml
 from navigator.config import rover_config_from_table
 
@@ -21,3 +24,28 @@ def test_a_typo_names_the_key_meant(text: str, key: str, guess: str) -> None:
         rover_config_from_table(parse_toml(text, "rover.toml"))
     assert caught.value.key == key
     assert caught.value.problem.startswith(f"unknown key ({guess} known here: "), caught.value.problem
+
+
+def test_a_typo_of_a_key_read_only_when_present_names_it(tmp_path: Path) -> None:
+    """Optional keys read only after ``has()`` (a campaign's ``config``, a scenario's ``[success]
+    max_collisions``) were missing from the known keys: `confg = ...` in a campaign said "known here:
+    description, name, seeds, ...", without config, and `max_colisions` said "did you mean
+    'max_rollovers'?"."""
+    table = parse_toml("max_colisions = 0\n", "scenario.toml")
+    assert not table.has("max_collisions")
+    table.integer("max_rollovers", 0)
+    with pytest.raises(ConfigError) as caught:
+        table.finish()
+    assert caught.value.problem.startswith("unknown key (did you mean 'max_collisions'? "), caught.value
+    assert caught.value.key == "max_colisions"
+
+    scenario = Path(__file__).resolve().parents[2] / "scenarios" / "rocky.toml"
+    campaign = tmp_path / "campaign.toml"
+    campaign.write_text(
+        f'name = "c"\nconfg = "rover.toml"\n[[terrains]]\nname = "rocky"\nscenario = "{scenario}"\n',
+        encoding="utf-8",
+    )
+    with pytest.raises(ConfigError) as caught:
+        load_campaign(campaign)
+    assert caught.value.key == "confg"
+    assert "did you mean 'config'?" in caught.value.problem and "seed_count" in caught.value.problem
