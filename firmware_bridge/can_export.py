@@ -30,7 +30,7 @@ from firmware_bridge.can_log_dates import DatedAscWriter, DatedTrcWriter, TimeBa
 from firmware_bridge.errors import BridgeOperationError, BridgeSetupError, FrameError
 from logs.errors import LogReadError
 from logs.read_stop import ReadStop
-from logs.reader import ReadStats, RecordedMessage, RecordedMetadata, Source, read_entries
+from logs.reader import ReadStats, RecordedMessage, RecordedMetadata, Source, read_entries, topic_counts
 from logs.topics import CAN_FRAMES
 from logs.wall_clock import WALL_CLOCK_METADATA, WallClockAnchor
 
@@ -141,8 +141,9 @@ def export_can_log(
     ``channel`` is the interface name written on each line (candump needs one; ``can0`` replays on the
     rover, ``vcan0`` on a HIL host). ``wall_ns`` (Unix ns) dates a log whose recording does not say when it
     ran (module docstring). Raises ``BridgeSetupError`` for an output it cannot create and
-    ``BridgeOperationError`` for a recording it cannot read (missing, empty, not MCAP: nothing is
-    written); a recording cut short or damaged is exported up to that point (``stop``, ``truncated``).
+    ``BridgeOperationError`` for a recording it cannot read (missing, empty, not MCAP) or a whole one with no
+    ``can/frames`` record (nothing is written); a recording cut short or damaged is exported up to that
+    point (``stop``, ``truncated``), even if no frame came before it (an empty log).
     """
     if not channel or any(c.isspace() for c in channel):
         raise BridgeSetupError(f"CAN log channel must be a name without spaces, got {channel!r}")
@@ -193,7 +194,17 @@ def export_can_log(
     finally:
         if opened is not None:
             opened[1].stop()
-    if opened is None:  # a recording without frames: the log is written all the same, empty
+    if opened is None and not stats.rejected and read_stats.stop is None:
+        # A whole recording with no frame record at all is the wrong file (the peer's truth.mcap, a
+        # ground-station recording): an empty log and exit 0 would hide that.
+        has = ""
+        if isinstance(source, str | Path):  # a stream was read to its end: only a file is read again
+            has = f" (it has {', '.join(topic_counts(source)) or 'no messages'})"
+        raise BridgeOperationError(
+            f"cannot export CAN frames: {source} has no {CAN_FRAMES} records{has}; the rover's recording "
+            "holds them (a trial's trial.mcap, or rover run's), not the peer's truth.mcap"
+        )
+    if opened is None:  # cut short or damaged before its first frame: the log is written, empty
         _open_writer(path, channel, time_base(suffix, anchor, 0, wall_ns())).stop()
     stats.truncated = read_stats.truncated
     stats.stop = read_stats.stop

@@ -295,3 +295,15 @@ def test_the_command_says_how_much_of_a_damaged_or_cut_recording_it_exported(req
     assert main(["can", "export", str(empty), str(tmp_path / "empty.log")]) == 2
     assert f"{empty} is empty (0 bytes)" in capsys.readouterr().err
     assert not (tmp_path / "empty.log").exists()
+
+
+def test_a_whole_recording_without_can_frames_is_refused_naming_what_it_has(tmp_path, capsys):
+    """The peer's truth.mcap (no CAN side) exported by mistake: not an empty log and exit 0."""
+    truth = tmp_path / "truth.mcap"
+    with McapRecorder(truth) as recorder:
+        recorder.publish("truth/pose", 0, {"timestamp": stamp(0), "x": 1.0})
+    out = tmp_path / "truth.log"
+    assert main(["can", "export", str(truth), str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"{truth} has no can/frames records (it has truth/pose)" in err
+    assert not out.exists()
