@@ -61,6 +61,9 @@ class Table:
         self.source = source
         self.prefix = prefix
         self._used: set[str] = set()
+        # Keys asked about with ``has``: optional keys read only when present. They are known
+        # here, so a typo in one is named by ``finish``; asking does not make a present key accepted.
+        self._asked: set[str] = set()
 
     # --- helpers -------------------------------------------------------------------------------
     def key_path(self, key: str) -> str:
@@ -70,6 +73,7 @@ class Table:
         return ConfigError(self.source, self.key_path(key), problem)
 
     def has(self, key: str) -> bool:
+        self._asked.add(key)
         return key in self._data
 
     def keys(self) -> Iterator[str]:
@@ -198,10 +202,11 @@ class Table:
         unknown = sorted(set(self._data) - self._used)
         if unknown:
             key = unknown[0]
+            known = sorted(self._used | self._asked)
             # A typo is the usual cause: name the nearest known key first, then all of them.
-            nearest = difflib.get_close_matches(key, sorted(self._used), n=1, cutoff=0.6)
+            nearest = difflib.get_close_matches(key, known, n=1, cutoff=0.6)
             guess = f"did you mean {nearest[0]!r}? " if nearest else ""
-            problem = f"unknown key ({guess}known here: {', '.join(sorted(self._used)) or 'none'})"
+            problem = f"unknown key ({guess}known here: {', '.join(known) or 'none'})"
             # No setting has a dot in its name: this is a quoted dotted key, which reads as the real one.
             if "." in key:
                 table, _, leaf = key.rpartition(".")

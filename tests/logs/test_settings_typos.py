@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
+from hil.scenario import scenario_from_table
 from logs.settings import ConfigError, parse_toml
 from navigator.config import rover_config_from_table
 
@@ -21,3 +24,36 @@ def test_a_typo_names_the_key_meant(text: str, key: str, guess: str) -> None:
         rover_config_from_table(parse_toml(text, "rover.toml"))
     assert caught.value.key == key
     assert caught.value.problem.startswith(f"unknown key ({guess} known here: "), caught.value.problem
+
+
+_SCENARIO = """
+name = "typo"
+duration_s = 60.0
+[terrain]
+kind = "procedural"
+size_m = [10.0, 10.0]
+[start]
+xy = [2.0, 2.0]
+[[goals]]
+xy = [8.0, 8.0]
+"""
+
+
+@pytest.mark.parametrize(
+    ("tail", "key", "guess"),
+    [
+        # Keys read only when present (optional, no default) are known keys too: a typo in one names it.
+        ('[[faults]]\ntarget = "gps"\nkind = "off"\nduraton_s = 4.0\n', "faults[0].duraton_s", "duration_s"),
+        ("[success]\nmax_colisions = 0\n", "success.max_colisions", "max_collisions"),
+        ("[success]\nmax_final_distance = 0.5\n", "success.max_final_distance", "max_final_distance_m"),
+    ],
+)
+def test_a_typo_in_a_key_read_only_when_present_names_it(tail: str, key: str, guess: str) -> None:
+    text = _SCENARIO + tail
+    with pytest.raises(ConfigError) as caught:
+        scenario_from_table(parse_toml(text, "scenario.toml"), text, base_dir=Path("."))
+    assert caught.value.key == key
+    assert caught.value.problem.startswith(f"unknown key (did you mean {guess!r}? known here: "), (
+        caught.value.problem
+    )
+    assert guess in caught.value.problem.partition("known here: ")[2]
