@@ -1,0 +1,124 @@
+"""Property tests on a running onboard stack: odd CAN frames and MAVLink garbage arriving between the valid
+traffic of a drive never raise out of a tick, are counted where the stack can see them, leave every tick's
+records in place, and (when the link must refuse them) do not stop the rover.
+
+The links alone are fuzzed in tests/firmware_bridge/test_garbage_properties.py; here the same kind of input
+reaches the estimator, the safety supervisor and the mixer through a lockstep rig (``tests.runtime.rig``)
+driven by its simulated clock.
+"""
+
+from __future__ import annotations
+
+import can
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from tests.firmware_bridge.virtual_can import make_codec
+from tests.runtime.rig import Rig, rig_config
+
+PROPERTY = settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+CONTROLLER_IDS = (1, 2, 3, 4, 5, 6)
+CODEC = make_codec()
+# The ids our controllers' status frames use (29-bit): the frames most likely to be mistaken for ours.
+OUR_STATUS_IDS = [
+    CODEC.encode("STATUS", cid, erpm=0.0, current=0.0, duty=0.0).arbitration_id for cid in CONTROLLER_IDS
+]
+
+
+def _frame(
+    can_id: int, extended: bool, data: bytes, dlc: int | None = None, remote: bool = False
+) -> can.Message:
+    return can.Message(
+        arbitration_id=can_id if extended else can_id & 0x7FF,
+        is_extended_id=extended,
+        data=b"" if remote else data,
+        dlc=len(data) if dlc is None else dlc,
+        is_remote_frame=remote,
+    )
+
+
+# Frames the link must refuse whatever they hold: one of our status ids with the wrong length, as a remote
+# frame, or as an 11-bit id; and ids nothing on our bus uses (the VESC command numbers go up to 64).
+wrong_length = st.builds(
+    lambda can_id, data: _frame(can_id, True, data),
+    st.sampled_from(OUR_STATUS_IDS),
+    st.binary(max_size=7),
+)
+remote = st.builds(
+    lambda can_id, dlc: _frame(can_id, True, b"", dlc=dlc, remote=True),
+    st.sampled_from(OUR_STATUS_IDS),
+    st.integers(0, 8),
+)
+standard_id = st.builds(
+    lambda can_id, data: _frame(can_id, False, data), st.sampled_from(OUR_STATUS_IDS), st.binary(max_size=8)
+)
+unknown_id = st.builds(
+    lambda command, cid, data: _frame((command << 8) | cid, True, data),
+    st.integers(100, 0xFF),
+    st.integers(0, 0xFF),
+    st.binary(max_size=8),
+)
+refused_frames = wrong_length | remote | standard_id | unknown_id
+# Error frames with any class and data: what a controller's error reporting says about the bus.
+error_frame = st.builds(
+    lambda error_class, data: can.Message(
+        arbitration_id=error_class, is_extended_id=False, is_error_frame=True, data=data, dlc=len(data)
+    ),
+    st.integers(0, 0x1FFFFFFF),
+    st.binary(max_size=8),
+)
+
+
+def _driving(rig: Rig) -> bool:
+    return rig.stack.safety_mode.value == "DRIVING"
+
+
+def _ticks_recorded(rig: Rig, since_ns: int) -> list[int]:
+    return [t for topic, t, _ in rig.sink.records if topic == "wheels/command" and t > since_ns]
+
+
+@PROPERTY
+@given(bursts=st.lists(st.lists(refused_frames, max_size=6), min_size=1, max_size=25))
+def test_frames_the_link_refuses_are_counted_and_the_rover_drives_on(bursts: list[list[can.Message]]) -> None:
+    rig = Rig(rig_config())
+    try:
+        rig.drive()
+        began = rig.now_ns
+        rejected_before = rig.stack._can.counters.rejected
+        for burst in bursts:
+            for msg in burst:
+                rig._sim_bus.send(msg)
+            rig.control_tick()
+            assert _driving(rig), f"stopped driving: {rig.stack.safety.mode} after {burst}"
+        injected = sum(len(burst) for burst in bursts)
+        assert rig.stack._can.counters.rejected - rejected_before == injected
+        assert len(_ticks_recorded(rig, began)) == len(bursts)
+        # The refused frames are in the recording too, as received (rx) frames.
+        foreign = [m for topic, t, m in rig.sink.records if topic == "can/frames" and t > began]
+        recorded = sum(m["direction"] == "rx" and m["id"] not in OUR_STATUS_IDS for m in foreign)
+        assert recorded >= sum(msg.arbitration_id not in OUR_STATUS_IDS for burst in bursts for msg in burst)
+    finally:
+        rig.close()
+
+
+@PROPERTY
+@given(bursts=st.lists(st.lists(error_frame | refused_frames, max_size=4), min_size=1, max_size=20))
+def test_error_frames_never_raise_out_of_a_tick_and_each_is_counted(bursts: list[list[can.Message]]) -> None:
+    rig = Rig(rig_config())
+    try:
+        rig.drive()
+        began = rig.now_ns
+        errors_before = rig.stack._can.counters.bus_errors
+        for burst in bursts:
+            for msg in burst:
+                rig._sim_bus.send(msg)
+            rig.control_tick()
+        errors = sum(msg.is_error_frame for burst in bursts for msg in burst)
+        assert rig.stack._can.counters.bus_errors - errors_before >= errors
+        assert len(_ticks_recorded(rig, began)) == len(bursts)
+        # Whatever the error frames said of the bus, a restart announcement and the controllers' status
+        # bring it back: the rover drives again.
+        rig._sim_bus.send(can.Message(arbitration_id=0x100, is_error_frame=True, is_extended_id=False, dlc=0))
+        rig.run_until(lambda: _driving(rig) and rig.body.speed > 0.3, 10.0, "driving again")
+    finally:
+        rig.close()
