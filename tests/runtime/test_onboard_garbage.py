@@ -9,12 +9,15 @@ driven by its simulated clock.
 
 from __future__ import annotations
 
+import math
+
 import can
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from pymavlink.dialects.v20 import common as mavlink2
 
 from tests.firmware_bridge.virtual_can import make_codec
-from tests.runtime.rig import Rig, rig_config
+from tests.runtime.rig import MSG_ATTITUDE, Rig, rig_config
 
 PROPERTY = settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 CONTROLLER_IDS = (1, 2, 3, 4, 5, 6)
@@ -120,5 +123,41 @@ def test_error_frames_never_raise_out_of_a_tick_and_each_is_counted(bursts: list
         # bring it back: the rover drives again.
         rig._sim_bus.send(can.Message(arbitration_id=0x100, is_error_frame=True, is_extended_id=False, dlc=0))
         rig.run_until(lambda: _driving(rig) and rig.body.speed > 0.3, 10.0, "driving again")
+    finally:
+        rig.close()
+
+
+def _attitude_frame(roll: float, pitch: float, yaw: float) -> bytes:
+    msg = mavlink2.MAVLink_attitude_message(0, roll, pitch, yaw, 0.0, 0.0, 0.0)
+    return bytes(msg.pack(mavlink2.MAVLink(None, 1, 1)))
+
+
+not_finite = st.sampled_from([math.nan, math.inf, -math.inf])
+# An ATTITUDE whose roll or pitch (or both) the AHRS could not give (NaN) or overflowed (inf); yaw as sent.
+unusable_attitude = st.builds(
+    lambda roll, pitch, yaw, which: _attitude_frame(
+        roll if which != "pitch" else 0.0, pitch if which != "roll" else 0.0, yaw
+    ),
+    not_finite,
+    not_finite,
+    st.floats(-math.pi, math.pi) | not_finite,
+    st.sampled_from(["roll", "pitch", "both"]),
+)
+
+
+@PROPERTY
+@given(after=st.lists(unusable_attitude, min_size=1, max_size=3))
+def test_an_attitude_without_roll_or_pitch_does_not_hide_a_tip_over(after: list[bytes]) -> None:
+    rig = Rig(rig_config())
+    try:
+        rig.drive()
+        rig.wire.dropped = {MSG_ATTITUDE}  # the attitude the rover sees is only what the test sends
+        tipped = rig.stack._config.vehicle.tip_roll_rad  # no margin left at all
+        rig.wire._inner.write(_attitude_frame(tipped, 0.0, 0.5) + b"".join(after))
+        rig.control_tick()
+        # The unusable samples carry nothing to judge the tilt by: the tipped one before them stands.
+        assert rig.first_event_ns("failsafe.tip_over") is not None, rig.stack.safety.mode
+        assert rig.stack.safety_mode.value == "HOLD"
+        assert rig.stack.attitude_rejected == len(after)  # each counted (and the first logged)
     finally:
         rig.close()
