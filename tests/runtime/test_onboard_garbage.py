@@ -161,3 +161,69 @@ def test_an_attitude_without_roll_or_pitch_does_not_hide_a_tip_over(after: list[
         assert rig.stack.attitude_rejected == len(after)  # each counted (and the first logged)
     finally:
         rig.close()
+
+
+any_float = st.floats(width=32)  # NaN and +/-inf included
+small_int = st.integers(0, 255)
+
+
+def _pack(msg: mavlink2.MAVLink_message) -> bytes:
+    return bytes(msg.pack(mavlink2.MAVLink(None, 1, 1)))
+
+
+# Well-formed frames (the CRC is right) whose fields hold anything their types allow: what a buggy or
+# differently configured autopilot can send, which no checksum catches.
+odd_messages = st.one_of(
+    st.builds(mavlink2.MAVLink_attitude_message, st.just(0), *[any_float] * 6),
+    st.builds(mavlink2.MAVLink_highres_imu_message, st.just(0), *[any_float] * 13, st.just(0)),
+    st.builds(mavlink2.MAVLink_scaled_imu_message, st.just(0), *[st.integers(-32768, 32767)] * 9),
+    st.builds(
+        mavlink2.MAVLink_gps_raw_int_message,
+        st.just(0),
+        st.integers(0, 8),
+        st.integers(-(2**31), 2**31 - 1),
+        st.integers(-(2**31), 2**31 - 1),
+        st.integers(-(2**31), 2**31 - 1),
+        *[st.integers(0, 65535)] * 4,
+        small_int,
+    ),
+    st.builds(
+        mavlink2.MAVLink_heartbeat_message,
+        small_int,
+        small_int,
+        small_int,
+        st.integers(0, 2**32 - 1),
+        small_int,
+        small_int,
+    ),
+    st.builds(
+        mavlink2.MAVLink_command_long_message,
+        st.sampled_from([0, 1]),
+        st.sampled_from([0, 191]),
+        st.sampled_from([400, 185, 192, 16]),
+        small_int,
+        *[any_float] * 7,
+    ),
+).map(_pack)
+mavlink_garbage = st.binary(min_size=1, max_size=40) | st.builds(
+    lambda frame, cut: frame[: max(1, len(frame) - cut)], odd_messages, st.integers(1, 20)
+)
+
+
+@PROPERTY
+@given(bursts=st.lists(st.lists(odd_messages | mavlink_garbage, max_size=4), min_size=1, max_size=25))
+def test_mavlink_garbage_and_odd_values_never_raise_out_of_a_tick(bursts: list[list[bytes]]) -> None:
+    rig = Rig(rig_config())
+    try:
+        rig.drive()
+        began = rig.now_ns
+        for burst in bursts:
+            for chunk in burst:
+                rig.wire._inner.write(chunk)
+            rig.control_tick()
+        assert len(_ticks_recorded(rig, began)) == len(bursts)
+        assert len(
+            [t for topic, t, _ in rig.sink.records if topic == "navigator/state" and t > began]
+        ) == len(bursts)
+    finally:
+        rig.close()
