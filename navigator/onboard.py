@@ -684,13 +684,16 @@ class OnboardStack:
                     self._pacing_rx_ns = reading.t_ns
                 if reading.fix_type >= MIN_GPS_FIX_TYPE:
                     self._last_gps_ns = reading.t_ns
+                eph_m = reading.eph_m
                 self.estimator.on_gps(
                     reading.t_ns,
                     reading.lat_deg,
                     reading.lon_deg,
                     reading.alt_m,
                     reading.fix_type,
-                    reading.eph_m,
+                    # The link's NaN is MAVLink's "unknown" (UINT16_MAX); the estimator's is None (it then
+                    # takes its configured GPS noise). A NaN would be refused as a bad accuracy: every fix.
+                    None if math.isnan(eph_m) else eph_m,
                     reading.satellites,
                 )
             elif isinstance(reading, GoalRequest):
