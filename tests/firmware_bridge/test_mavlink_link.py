@@ -215,6 +215,7 @@ def test_udp_loopback_round_trip_with_os_chosen_port():
         ("/dev/no-such-tty-for-rover,57600", "cannot open"),
         ("serial:/dev/null:57600", "not a serial device"),
         ("serial:/dev/null:12345", "baud"),
+        ("serial:/dev/null:0", "baud 0 is not a rate"),
         ("carrier-pigeon", "unknown MAVLink connection"),
     ],
 )
@@ -238,6 +239,9 @@ def test_mavlink_config_from_table():
         ("tcp:127.0.0.1:0", "port 0 is out of range"),
         ("udpout:192.0.2.7:14550", "not a loopback"),
         ("serial:/dev/ttyS0:fast", "baud 'fast' is not a number"),
+        # termios has B0, but it is no rate: it hangs the line up, and the autopilot is never heard.
+        ("serial:/dev/ttyAMA0:0", "baud 0 is not a rate (B0 hangs the line up)"),
+        ("/dev/ttyACM0,0", "baud 0 is not a rate"),
         ("udp:127.0.0.1:14550", "unknown MAVLink connection"),
         ("", "unknown MAVLink connection"),
     ],
