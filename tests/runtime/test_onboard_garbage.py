@@ -10,6 +10,9 @@ driven by its simulated clock.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from typing import TypeVar
 
 import can
 from hypothesis import HealthCheck, given, settings
@@ -19,6 +22,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 from tests.firmware_bridge.virtual_can import make_codec
 from tests.runtime.rig import MSG_ATTITUDE, Rig, rig_config
 
+T = TypeVar("T")
 PROPERTY = settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 CONTROLLER_IDS = (1, 2, 3, 4, 5, 6)
 CODEC = make_codec()
@@ -72,6 +76,28 @@ error_frame = st.builds(
 )
 
 
+@contextmanager
+def _driving_rig() -> Iterator[Rig]:
+    """A rig whose rover has passed its start-up checks and is driving to its goal."""
+    rig = Rig(rig_config())
+    try:
+        rig.drive()
+        yield rig
+    finally:
+        rig.close()
+
+
+def _tick_through(
+    rig: Rig, bursts: Sequence[Sequence[T]], send: Callable[[T], None]
+) -> Iterator[Sequence[T]]:
+    """For each burst: ``send`` each of it, run one control tick, then yield the burst (to check the tick)."""
+    for burst in bursts:
+        for item in burst:
+            send(item)
+        rig.control_tick()
+        yield burst
+
+
 def _driving(rig: Rig) -> bool:
     return rig.stack.safety_mode.value == "DRIVING"
 
@@ -83,15 +109,10 @@ def _ticks_recorded(rig: Rig, since_ns: int) -> list[int]:
 @PROPERTY
 @given(bursts=st.lists(st.lists(refused_frames, max_size=6), min_size=1, max_size=25))
 def test_frames_the_link_refuses_are_counted_and_the_rover_drives_on(bursts: list[list[can.Message]]) -> None:
-    rig = Rig(rig_config())
-    try:
-        rig.drive()
+    with _driving_rig() as rig:
         began = rig.now_ns
         rejected_before = rig.stack._can.counters.rejected
-        for burst in bursts:
-            for msg in burst:
-                rig._sim_bus.send(msg)
-            rig.control_tick()
+        for burst in _tick_through(rig, bursts, rig._sim_bus.send):
             assert _driving(rig), f"stopped driving: {rig.stack.safety.mode} after {burst}"
         injected = sum(len(burst) for burst in bursts)
         assert rig.stack._can.counters.rejected - rejected_before == injected
@@ -100,22 +121,16 @@ def test_frames_the_link_refuses_are_counted_and_the_rover_drives_on(bursts: lis
         foreign = [m for topic, t, m in rig.sink.records if topic == "can/frames" and t > began]
         recorded = sum(m["direction"] == "rx" and m["id"] not in OUR_STATUS_IDS for m in foreign)
         assert recorded >= sum(msg.arbitration_id not in OUR_STATUS_IDS for burst in bursts for msg in burst)
-    finally:
-        rig.close()
 
 
 @PROPERTY
 @given(bursts=st.lists(st.lists(error_frame | refused_frames, max_size=4), min_size=1, max_size=20))
 def test_error_frames_never_raise_out_of_a_tick_and_each_is_counted(bursts: list[list[can.Message]]) -> None:
-    rig = Rig(rig_config())
-    try:
-        rig.drive()
+    with _driving_rig() as rig:
         began = rig.now_ns
         errors_before = rig.stack._can.counters.bus_errors
-        for burst in bursts:
-            for msg in burst:
-                rig._sim_bus.send(msg)
-            rig.control_tick()
+        for _ in _tick_through(rig, bursts, rig._sim_bus.send):
+            pass
         errors = sum(msg.is_error_frame for burst in bursts for msg in burst)
         assert rig.stack._can.counters.bus_errors - errors_before >= errors
         assert len(_ticks_recorded(rig, began)) == len(bursts)
@@ -123,13 +138,15 @@ def test_error_frames_never_raise_out_of_a_tick_and_each_is_counted(bursts: list
         # bring it back: the rover drives again.
         rig._sim_bus.send(can.Message(arbitration_id=0x100, is_error_frame=True, is_extended_id=False, dlc=0))
         rig.run_until(lambda: _driving(rig) and rig.body.speed > 0.3, 10.0, "driving again")
-    finally:
-        rig.close()
+
+
+def _pack(msg: mavlink2.MAVLink_message) -> bytes:
+    """A whole MAVLink 2 frame from the autopilot (system 1, component 1)."""
+    return bytes(msg.pack(mavlink2.MAVLink(None, 1, 1)))
 
 
 def _attitude_frame(roll: float, pitch: float, yaw: float) -> bytes:
-    msg = mavlink2.MAVLink_attitude_message(0, roll, pitch, yaw, 0.0, 0.0, 0.0)
-    return bytes(msg.pack(mavlink2.MAVLink(None, 1, 1)))
+    return _pack(mavlink2.MAVLink_attitude_message(0, roll, pitch, yaw, 0.0, 0.0, 0.0))
 
 
 not_finite = st.sampled_from([math.nan, math.inf, -math.inf])
@@ -148,9 +165,7 @@ unusable_attitude = st.builds(
 @PROPERTY
 @given(after=st.lists(unusable_attitude, min_size=1, max_size=3))
 def test_an_attitude_without_roll_or_pitch_does_not_hide_a_tip_over(after: list[bytes]) -> None:
-    rig = Rig(rig_config())
-    try:
-        rig.drive()
+    with _driving_rig() as rig:
         rig.wire.dropped = {MSG_ATTITUDE}  # the attitude the rover sees is only what the test sends
         tipped = rig.stack._config.vehicle.tip_roll_rad  # no margin left at all
         rig.wire._inner.write(_attitude_frame(tipped, 0.0, 0.5) + b"".join(after))
@@ -159,16 +174,10 @@ def test_an_attitude_without_roll_or_pitch_does_not_hide_a_tip_over(after: list[
         assert rig.first_event_ns("failsafe.tip_over") is not None, rig.stack.safety.mode
         assert rig.stack.safety_mode.value == "HOLD"
         assert rig.stack.attitude_rejected == len(after)  # each counted (and the first logged)
-    finally:
-        rig.close()
 
 
 any_float = st.floats(width=32)  # NaN and +/-inf included
 small_int = st.integers(0, 255)
-
-
-def _pack(msg: mavlink2.MAVLink_message) -> bytes:
-    return bytes(msg.pack(mavlink2.MAVLink(None, 1, 1)))
 
 
 # Well-formed frames (the CRC is right) whose fields hold anything their types allow: what a buggy or
@@ -213,17 +222,10 @@ mavlink_garbage = st.binary(min_size=1, max_size=40) | st.builds(
 @PROPERTY
 @given(bursts=st.lists(st.lists(odd_messages | mavlink_garbage, max_size=4), min_size=1, max_size=25))
 def test_mavlink_garbage_and_odd_values_never_raise_out_of_a_tick(bursts: list[list[bytes]]) -> None:
-    rig = Rig(rig_config())
-    try:
-        rig.drive()
+    with _driving_rig() as rig:
         began = rig.now_ns
-        for burst in bursts:
-            for chunk in burst:
-                rig.wire._inner.write(chunk)
-            rig.control_tick()
+        for _ in _tick_through(rig, bursts, rig.wire._inner.write):
+            pass
         assert len(_ticks_recorded(rig, began)) == len(bursts)
-        assert len(
-            [t for topic, t, _ in rig.sink.records if topic == "navigator/state" and t > began]
-        ) == len(bursts)
-    finally:
-        rig.close()
+        states = [t for topic, t, _ in rig.sink.records if topic == "navigator/state" and t > began]
+        assert len(states) == len(bursts)
