@@ -18,7 +18,7 @@ from hil.faults import Fault, faults_from_tables
 from hil.moving_obstacles import MovingObstacle
 from hil.scenario_placement import check_clear_of_obstacles
 from logs.metrics import DEFAULT_ENCOUNTER_MARGIN_M
-from logs.settings import MAX_SEED, Table, load_toml
+from logs.settings import MAX_SEED, Table, finite_float, load_toml, shown
 from navigator.map_config import terrain_from_table
 from navigator.terrain import TerrainMap, disc_mask
 
@@ -263,13 +263,8 @@ def _waypoints(table: Table, terrain: TerrainMap) -> tuple[tuple[float, float], 
         raise table.error("waypoints", f"need a list of at least two [x, y] points, got {raw!r}")
     points = []
     for index, point in enumerate(raw):
-        if (
-            not isinstance(point, list)
-            or len(point) != 2
-            or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in point)
-            or not all(math.isfinite(float(v)) for v in point)
-        ):
-            raise table.error("waypoints", f"point {index} must be [x, y] in metres, got {point!r}")
+        if not isinstance(point, list) or len(point) != 2 or any(finite_float(v) is None for v in point):
+            raise table.error("waypoints", f"point {index} must be [x, y] in metres, got {shown(point)}")
         xy = (float(point[0]), float(point[1]))
         if not terrain.contains(*xy):
             raise table.error("waypoints", f"point {index} {xy} lies outside the terrain map")

@@ -250,7 +250,7 @@ def from_maze(
     """
     try:
         maze = np.array(matrix, dtype=np.int64)
-    except (TypeError, ValueError) as err:
+    except (TypeError, ValueError, OverflowError) as err:  # Overflow: an integer past 64 bits
         raise TerrainError(f"maze matrix must be a rectangular list of integers: {err}") from err
     if maze.ndim != 2 or maze.size == 0:
         raise TerrainError(f"maze matrix must be a non-empty rectangle of rows, got shape {maze.shape}")
