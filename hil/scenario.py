@@ -18,7 +18,7 @@ from hil.faults import Fault, faults_from_tables
 from hil.moving_obstacles import MovingObstacle
 from hil.scenario_placement import check_clear_of_obstacles
 from logs.metrics import DEFAULT_ENCOUNTER_MARGIN_M
-from logs.settings import MAX_SEED, Table, finite_float, load_toml, shown
+from logs.settings import MAX_SEED, ConfigError, Table, finite_float, load_toml, shown
 from navigator.map_config import terrain_from_table
 from navigator.terrain import TerrainMap, disc_mask
 
@@ -144,7 +144,22 @@ def load_scenario(path: str | Path) -> Scenario:
     return scenario_from_table(root, text, base_dir=Path(path).parent)
 
 
+# Tables of a rover config (navigator.config) that no scenario has.
+_ROVER_CONFIG_TABLES = (
+    "vehicle",
+    "vesc",
+    "can",
+    "mavlink",
+    "zenoh",
+    "estimator",
+    "planner",
+    "follower",
+    "safety",
+)
+
+
 def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
+    _refuse_a_rover_config(root)
     name = root.text("name")
     root.text("description", "")
     duration_s = root.number("duration_s", 120.0, lo=1.0, hi=24 * 3600.0)
@@ -241,6 +256,20 @@ def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
         success=success,
         encounter_margin_m=encounter_margin_m,
     )
+
+
+def _refuse_a_rover_config(root: Table) -> None:
+    """A rover config where the scenario goes: say so, rather than "name: required key is missing"."""
+    present = set(root.keys())
+    found = [key for key in _ROVER_CONFIG_TABLES if key in present]
+    if found and "terrain" not in present:
+        tables = ", ".join(f"[{key}]" for key in found)
+        raise ConfigError(
+            root.source,
+            "",
+            f"this is a rover config (it has {tables}), not a scenario: a scenario (scenarios/default.toml, "
+            "docs/hil.md) goes here, the rover config after --config",
+        )
 
 
 def _tags(root: Table) -> tuple[str, ...]:
