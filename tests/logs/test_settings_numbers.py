@@ -6,12 +6,11 @@ raises. A hand-written file with a key held down too long reaches every numeric 
 from __future__ import annotations
 
 from collections.abc import Callable
-from pathlib import Path
 
 import pytest
 
-from hil.scenario import scenario_from_table
 from logs.settings import ConfigError, Table, parse_toml
+from tests.logs.small_scenario import SMALL_SCENARIO, load_text
 
 HUGE = "9" * 400
 
@@ -41,28 +40,16 @@ def test_an_integer_too_large_for_a_float_is_refused_naming_the_key(
     assert len(str(caught.value)) < 200  # the value is cut, not printed in its 400 digits
 
 
-_SCENARIO = """
-name = "huge"
-[terrain]
-kind = "procedural"
-size_m = [10.0, 10.0]
-[start]
-xy = [2.0, 2.0]
-[[goals]]
-xy = [8.0, 8.0]
-"""
-
-
 @pytest.mark.parametrize(
     ("text", "key"),
     [
         (
-            f"{_SCENARIO}[[moving_obstacles]]\nradius_m = 0.5\nspeed_mps = 1.0\n"
+            f"{SMALL_SCENARIO}[[moving_obstacles]]\nradius_m = 0.5\nspeed_mps = 1.0\n"
             f"waypoints = [[1, 1], [{HUGE}, 1]]\n",
             "moving_obstacles[0].waypoints",
         ),
         (
-            _SCENARIO.replace(
+            SMALL_SCENARIO.replace(
                 'kind = "procedural"\nsize_m = [10.0, 10.0]', f'kind = "maze"\nmatrix = [[2, {HUGE}]]'
             ),
             "terrain",
@@ -71,5 +58,5 @@ xy = [8.0, 8.0]
 )
 def test_a_scenario_with_an_integer_too_large_names_the_key(text: str, key: str) -> None:
     with pytest.raises(ConfigError) as caught:
-        scenario_from_table(parse_toml(text, "s.toml"), text, base_dir=Path("."))
+        load_text(text)
     assert caught.value.key == key, str(caught.value)

@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
 
-from hil.scenario import scenario_from_table
 from logs.settings import ConfigError, parse_toml
 from navigator.config import rover_config_from_table
+from tests.logs.small_scenario import SMALL_SCENARIO, load_text
 
 
 @pytest.mark.parametrize(
@@ -26,19 +24,6 @@ def test_a_typo_names_the_key_meant(text: str, key: str, guess: str) -> None:
     assert caught.value.problem.startswith(f"unknown key ({guess} known here: "), caught.value.problem
 
 
-_SCENARIO = """
-name = "typo"
-duration_s = 60.0
-[terrain]
-kind = "procedural"
-size_m = [10.0, 10.0]
-[start]
-xy = [2.0, 2.0]
-[[goals]]
-xy = [8.0, 8.0]
-"""
-
-
 @pytest.mark.parametrize(
     ("tail", "key", "guess"),
     [
@@ -49,9 +34,8 @@ xy = [8.0, 8.0]
     ],
 )
 def test_a_typo_in_a_key_read_only_when_present_names_it(tail: str, key: str, guess: str) -> None:
-    text = _SCENARIO + tail
     with pytest.raises(ConfigError) as caught:
-        scenario_from_table(parse_toml(text, "scenario.toml"), text, base_dir=Path("."))
+        load_text(SMALL_SCENARIO + tail)
     assert caught.value.key == key
     assert caught.value.problem.startswith(f"unknown key (did you mean {guess!r}? known here: "), (
         caught.value.problem
