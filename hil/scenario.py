@@ -219,15 +219,17 @@ def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
             raise moving_table.error("id", f"duplicate obstacle id {moving_id!r}")
         seen_ids.add(moving_id)
         waypoints = _waypoints(moving_table, terrain)
-        moving.append(
-            MovingObstacle(
-                moving_id,
-                moving_table.number("radius_m", lo=0.05, hi=50.0),
-                waypoints,
-                moving_table.number("speed_mps", lo=0.0, hi=20.0),
-                moving_table.number("start_s", 0.0, lo=0.0),
+        radius_m = moving_table.number("radius_m", lo=0.05, hi=50.0)
+        speed_mps = moving_table.number("speed_mps", lo=0.0, hi=20.0)
+        start_s = moving_table.number("start_s", 0.0, lo=0.0)
+        if start_s >= duration_s:
+            # As for a fault: one the trial never runs is a mistake in the file (start_s in ms, say).
+            raise moving_table.error(
+                "start_s",
+                f"{start_s:g} s is not before the scenario's duration_s {duration_s:g} s: the obstacle would "
+                "never move",
             )
-        )
+        moving.append(MovingObstacle(moving_id, radius_m, waypoints, speed_mps, start_s))
         moving_table.finish()
 
     sensors = SensorSettings.from_table(root.table("sensors", optional=True))
