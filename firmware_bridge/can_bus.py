@@ -19,6 +19,7 @@ logger = logging.getLogger(__name__)
 # socketcan: the rover (can0) and HIL on hosts with vcan; virtual: lockstep in one process;
 # udp_multicast: HIL across processes where vcan is missing (only inside a loopback-only namespace).
 CAN_INTERFACES: tuple[str, ...] = ("socketcan", "virtual", "udp_multicast")
+_CHANNEL_EXAMPLES = "e.g. 'can0', 'vcan0', 'rover0'"
 
 
 @dataclass(frozen=True)
@@ -39,7 +40,7 @@ class CanConfig:
                 f"CAN interface must be one of {', '.join(CAN_INTERFACES)}, got {self.interface!r}"
             )
         if not self.channel:
-            raise BridgeSetupError("CAN channel must not be empty (e.g. 'can0', 'vcan0', 'rover0')")
+            raise BridgeSetupError(f"CAN channel must not be empty ({_CHANNEL_EXAMPLES})")
         if self.bitrate <= 0:
             raise BridgeSetupError(f"CAN bitrate must be positive, got {self.bitrate}")
         if not self.command_rate_hz > 0:
@@ -56,17 +57,19 @@ class CanConfig:
         """Keys: interface, channel, bitrate, command_rate_hz, command_max_age_s, status_rate_hz,
         liveness_periods (all optional); unknown keys are errors."""
         defaults = cls()
+        interface = table.text("interface", defaults.interface, choices=CAN_INTERFACES)
+        channel = table.text("channel", defaults.channel)
+        if not channel:  # checked before the dataclass's own check, which knows neither file nor key
+            raise table.error("channel", f"must not be empty ({_CHANNEL_EXAMPLES})")
         config = cls(
-            interface=table.text("interface", defaults.interface, choices=CAN_INTERFACES),
-            channel=table.text("channel", defaults.channel),
+            interface=interface,
+            channel=channel,
             bitrate=table.integer("bitrate", defaults.bitrate, lo=10_000, hi=8_000_000),
             command_rate_hz=table.number("command_rate_hz", defaults.command_rate_hz, lo=1.0, hi=1000.0),
             command_max_age_s=table.number("command_max_age_s", defaults.command_max_age_s, lo=0.001, hi=5.0),
             status_rate_hz=table.number("status_rate_hz", defaults.status_rate_hz, lo=0.1, hi=1000.0),
             liveness_periods=table.integer("liveness_periods", defaults.liveness_periods, lo=1, hi=1000),
         )
-        if not config.channel:
-            raise table.error("channel", "must not be empty")
         table.finish()
         return config
 

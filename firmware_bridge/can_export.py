@@ -106,6 +106,9 @@ def record_to_message(record: dict[str, Any], log_time_ns: int, channel: str) ->
 
 
 def _check_suffix(output: Path) -> str:
+    if output.is_dir():
+        # The suffix would read as '' (or as a folder's own): what is wrong is that it names no file.
+        raise BridgeSetupError(f"{output} is a folder: name the log file in it, e.g. {output / 'can.log'}")
     suffix = output.suffix.lower()
     if suffix != CANDUMP_SUFFIX and suffix not in OTHER_SUFFIXES:
         raise BridgeSetupError(

@@ -128,7 +128,8 @@ def _judge_stop(msg: Any, t_ns: int) -> Verdict:
         reason = "forced disarm: emergency stop" if forced else "disarm: emergency stop"
     else:
         if not param1 > 0.5:
-            # Clearing termination would restart motors remotely: a new goal does that, deliberately.
+            # Clearing termination would restart motors remotely: the latched e-stop clears only on a
+            # deliberate resume (cmd/resume on Zenoh), not on this or on a new goal.
             return Verdict(
                 None, mavlink2.MAV_RESULT_UNSUPPORTED, "clearing flight termination is not supported"
             )

@@ -738,7 +738,10 @@ def _battery_status(msg: Any, t_ns: int) -> BatteryState:
 
 def _attitude(msg: Any, t_ns: int) -> AttitudeSample:
     yaw = math.pi / 2.0 - msg.yaw
-    return AttitudeSample(t_ns, msg.roll, msg.pitch, math.atan2(math.sin(yaw), math.cos(yaw)))
+    # An infinite yaw (an AHRS that overflowed) is no angle: unknown, like any value we cannot use, and
+    # math.sin would raise on it.
+    wrapped = math.atan2(math.sin(yaw), math.cos(yaw)) if math.isfinite(yaw) else math.nan
+    return AttitudeSample(t_ns, msg.roll, msg.pitch, wrapped)
 
 
 def _gps_fix(msg: Any, t_ns: int) -> GpsFix:

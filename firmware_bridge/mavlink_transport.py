@@ -220,6 +220,12 @@ def _serial_device_and_baud(connection: str) -> tuple[str, int]:
                 raise BridgeSetupError(
                     f"MAVLink connection {connection!r}: baud {baud_text!r} is not a number"
                 )
+            if int(baud_text) == 0:
+                # termios offers B0, which is no rate: setting it drops the line (DTR), so nothing is heard.
+                raise BridgeSetupError(
+                    f"MAVLink connection {connection!r}: baud 0 is not a rate (B0 hangs the line up); give "
+                    "the autopilot port's rate, e.g. 921600 or 57600"
+                )
             return device, int(baud_text)
     if not spec:
         raise BridgeSetupError(f"MAVLink connection {connection!r} must look like serial:DEVICE:BAUD")

@@ -364,7 +364,15 @@ class VescCodec:
             )
         kind, cid, message, length, packer = entry
         data = msg.data
-        if msg.is_remote_frame or msg.dlc != length or len(data) != length:
+        if msg.is_remote_frame:
+            # Its dlc is the length it asks for and it carries no data: "0 data bytes" would misname it.
+            raise FrameError(
+                f"{message.name} (id 0x{arbitration_id:08x}) came as a remote frame (a request for data, "
+                f"dlc {msg.dlc}), not the data frame a controller sends",
+                reason="wrong_dlc",
+                frame_id=arbitration_id,
+            )
+        if msg.dlc != length or len(data) != length:
             raise FrameError(
                 f"{message.name} (id 0x{arbitration_id:08x}) has {len(data)} data bytes (dlc {msg.dlc}), "
                 f"expected {length}",

@@ -18,7 +18,7 @@ from hil.faults import Fault, faults_from_tables
 from hil.moving_obstacles import MovingObstacle
 from hil.scenario_placement import check_clear_of_obstacles
 from logs.metrics import DEFAULT_ENCOUNTER_MARGIN_M
-from logs.settings import MAX_SEED, Table, load_toml
+from logs.settings import MAX_SEED, ConfigError, Table, finite_float, load_toml, shown
 from navigator.map_config import terrain_from_table
 from navigator.terrain import TerrainMap, disc_mask
 
@@ -144,7 +144,22 @@ def load_scenario(path: str | Path) -> Scenario:
     return scenario_from_table(root, text, base_dir=Path(path).parent)
 
 
+# Tables of a rover config (navigator.config) that no scenario has.
+_ROVER_CONFIG_TABLES = (
+    "vehicle",
+    "vesc",
+    "can",
+    "mavlink",
+    "zenoh",
+    "estimator",
+    "planner",
+    "follower",
+    "safety",
+)
+
+
 def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
+    _refuse_a_rover_config(root)
     name = root.text("name")
     root.text("description", "")
     duration_s = root.number("duration_s", 120.0, lo=1.0, hi=24 * 3600.0)
@@ -204,15 +219,17 @@ def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
             raise moving_table.error("id", f"duplicate obstacle id {moving_id!r}")
         seen_ids.add(moving_id)
         waypoints = _waypoints(moving_table, terrain)
-        moving.append(
-            MovingObstacle(
-                moving_id,
-                moving_table.number("radius_m", lo=0.05, hi=50.0),
-                waypoints,
-                moving_table.number("speed_mps", lo=0.0, hi=20.0),
-                moving_table.number("start_s", 0.0, lo=0.0),
+        radius_m = moving_table.number("radius_m", lo=0.05, hi=50.0)
+        speed_mps = moving_table.number("speed_mps", lo=0.0, hi=20.0)
+        start_s = moving_table.number("start_s", 0.0, lo=0.0)
+        if start_s >= duration_s:
+            # As for a fault: one the trial never runs is a mistake in the file (start_s in ms, say).
+            raise moving_table.error(
+                "start_s",
+                f"{start_s:g} s is not before the scenario's duration_s {duration_s:g} s: the obstacle would "
+                "never move",
             )
-        )
+        moving.append(MovingObstacle(moving_id, radius_m, waypoints, speed_mps, start_s))
         moving_table.finish()
 
     sensors = SensorSettings.from_table(root.table("sensors", optional=True))
@@ -243,6 +260,20 @@ def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
     )
 
 
+def _refuse_a_rover_config(root: Table) -> None:
+    """A rover config where the scenario goes: say so, rather than "name: required key is missing"."""
+    present = set(root.keys())
+    found = [key for key in _ROVER_CONFIG_TABLES if key in present]
+    if found and "terrain" not in present:
+        tables = ", ".join(f"[{key}]" for key in found)
+        raise ConfigError(
+            root.source,
+            "",
+            f"this is a rover config (it has {tables}), not a scenario: a scenario (scenarios/default.toml, "
+            "docs/hil.md) goes here, the rover config after --config",
+        )
+
+
 def _tags(root: Table) -> tuple[str, ...]:
     tags = root.raw("tags", [])
     if not isinstance(tags, list) or not all(isinstance(tag, str) for tag in tags):
@@ -263,13 +294,8 @@ def _waypoints(table: Table, terrain: TerrainMap) -> tuple[tuple[float, float], 
         raise table.error("waypoints", f"need a list of at least two [x, y] points, got {raw!r}")
     points = []
     for index, point in enumerate(raw):
-        if (
-            not isinstance(point, list)
-            or len(point) != 2
-            or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in point)
-            or not all(math.isfinite(float(v)) for v in point)
-        ):
-            raise table.error("waypoints", f"point {index} must be [x, y] in metres, got {point!r}")
+        if not isinstance(point, list) or len(point) != 2 or any(finite_float(v) is None for v in point):
+            raise table.error("waypoints", f"point {index} must be [x, y] in metres, got {shown(point)}")
         xy = (float(point[0]), float(point[1]))
         if not terrain.contains(*xy):
             raise table.error("waypoints", f"point {index} {xy} lies outside the terrain map")

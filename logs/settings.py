@@ -94,9 +94,9 @@ class Table:
         value = self._raw(key, _REQUIRED if default is None else default)
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise self.error(key, f"expected a number, got {type(value).__name__} {value!r}")
-        number = float(value)
-        if not math.isfinite(number):
-            raise self.error(key, f"expected a finite number, got {number}")
+        number = finite_float(value)
+        if number is None:
+            raise self.error(key, f"expected a finite number, got {shown(value)}")
         if lo is not None and number < lo:
             raise self.error(key, f"must be >= {lo}, got {number}")
         if hi is not None and number > hi:
@@ -130,21 +130,15 @@ class Table:
     def point(self, key: str, default: Any = None) -> tuple[float, float]:
         """An ``[x, y]`` pair of finite numbers."""
         value = self._raw(key, _REQUIRED if default is None else default)
-        if (
-            not isinstance(value, list | tuple)
-            or len(value) != 2
-            or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
-            or not all(math.isfinite(float(v)) for v in value)
-        ):
-            raise self.error(key, f"expected [x, y] with two finite numbers, got {value!r}")
+        numbers = [finite_float(v) for v in value] if isinstance(value, list | tuple) else []
+        if len(numbers) != 2 or None in numbers:
+            raise self.error(key, f"expected [x, y] with two finite numbers, got {shown(value)}")
         return float(value[0]), float(value[1])
 
     def numbers(self, key: str, default: Any = None, *, length: int | None = None) -> list[float]:
         value = self._raw(key, _REQUIRED if default is None else default)
-        if not isinstance(value, list) or not all(
-            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(float(v)) for v in value
-        ):
-            raise self.error(key, f"expected a list of finite numbers, got {value!r}")
+        if not isinstance(value, list) or any(finite_float(v) is None for v in value):
+            raise self.error(key, f"expected a list of finite numbers, got {shown(value)}")
         if length is not None and len(value) != length:
             raise self.error(key, f"expected {length} numbers, got {len(value)}")
         return [float(v) for v in value]
@@ -215,6 +209,24 @@ class Table:
                     f"{key} = ..., to set {leaf} in [{self.key_path(table)}]"
                 )
             raise self.error(key, problem)
+
+
+def finite_float(value: Any) -> float | None:
+    """``value`` as a finite float, or None when it is no number (a bool is not) or has no finite float:
+    NaN, inf, or an integer too large for one (TOML parses any number of digits; float() would raise)."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    try:
+        number = float(value)
+    except OverflowError:
+        return None
+    return number if math.isfinite(number) else None
+
+
+def shown(value: Any) -> str:
+    """``repr`` of a value for an error, with an integer of hundreds of digits cut to its length."""
+    text = repr(value)
+    return text if len(text) <= 80 else f"{text[:40]}... ({len(text)} characters)"
 
 
 class _Required:

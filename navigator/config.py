@@ -16,7 +16,7 @@ from firmware_bridge.can_link import CanConfig
 from firmware_bridge.mavlink_link import MavlinkConfig
 from firmware_bridge.vesc import VescProfile
 from logs.clock import NS_PER_S
-from logs.settings import Table, load_toml
+from logs.settings import ConfigError, Table, load_toml
 from logs.telemetry import ZenohSettings
 from navigator.astar import HEURISTICS
 from navigator.config_checks import check_cross_fields
@@ -36,6 +36,8 @@ HEURISTIC_WEIGHT_RANGE = (1.0, 10.0)
 # The measurement whose arrival starts a control tick in real time (navigator.paced_loop); "none": a
 # plain fixed-rate loop.
 PACING_SENSORS = ("imu", "gps", "wheels", "none")
+# The tables every scenario file has (hil.scenario) and no rover config does.
+_SCENARIO_TABLES = ("terrain", "start", "goals")
 # Skid-steer kinematics the estimator shares with the vehicle: single-sourced from [vehicle].
 _VEHICLE_KINEMATICS = ("track_m", "skid_factor")
 # Busy-poll the pacing link this long before (and at most after) each expected sample (navigator.paced_loop):
@@ -135,6 +137,15 @@ def rover_config_from_table(root: Table, base_dir: Path | None = None) -> RoverC
     """The config a root table describes; files it names (``[map]`` layers, ``[vesc] dbc``) are read
     relative to ``base_dir``, by default the folder of ``root.source`` (the file the table came from)."""
     base_dir = Path(root.source).parent if base_dir is None else base_dir
+    if all(key in set(root.keys()) for key in _SCENARIO_TABLES):
+        # A scenario where a rover config goes (--config): its first key would be "unknown", which names
+        # nothing the user got wrong.
+        raise ConfigError(
+            root.source,
+            "",
+            "this is a scenario file (it has [terrain], [start] and [[goals]]), not a rover config: a rover "
+            "config (configs/rover.toml lists every key) goes here",
+        )
     rover_id = root.text("rover_id", "rover1")
     if not rover_id or not all(c.isalnum() or c in "-_" for c in rover_id):
         raise root.error(

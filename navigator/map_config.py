@@ -17,6 +17,7 @@ from navigator.terrain import TerrainMap, check_map_cells, from_maze, load_npy_l
 from navigator.terrain_classes import class_by_name
 
 TERRAIN_KINDS = ("maze", "procedural", "npy", "png")
+_LAYERS = ("elevation", "classes", "obstacles")  # the layer file keys of the npy and png kinds
 
 
 def terrain_from_table(table: Table, base_dir: Path) -> tuple[TerrainMap, str]:
@@ -25,6 +26,13 @@ def terrain_from_table(table: Table, base_dir: Path) -> tuple[TerrainMap, str]:
     Paths of .npy / PNG layers are relative to ``base_dir`` (the directory of the file the table came from).
     """
     kind = table.text("kind", choices=TERRAIN_KINDS)
+    if kind in ("npy", "png") and not any(table.has(layer) for layer in _LAYERS):
+        # The map's shape comes from its layers: at least one is needed.
+        raise ConfigError(
+            table.source,
+            table.prefix,
+            f'kind = "{kind}" needs at least one layer file: elevation, classes or obstacles',
+        )
     try:
         if kind == "maze":
             matrix = table.raw("matrix")

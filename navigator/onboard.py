@@ -57,6 +57,8 @@ AHRS_HEADING_STD_RAD = math.radians(5.0)
 SETTLE_NS = 2 * NS_PER_S
 # MAVLink GPS_FIX_TYPE 3 = 3D fix; anything less does not count as "GPS present" for the GPS failsafe.
 MIN_GPS_FIX_TYPE = 3
+# A rejected input repeating every sample is logged on its first occurrence and then every this many.
+_LOG_EVERY = 100
 
 
 class Mode(enum.StrEnum):
@@ -301,7 +303,8 @@ class OnboardStack:
         self._last_tick_ns: int | None = None
         self._last_gps_ns: int | None = None
         self._last_ground_ns: int | None = None
-        self._attitude: AttitudeSample | None = None
+        self._attitude: AttitudeSample | None = None  # the last with a finite roll and pitch
+        self.attitude_rejected = 0  # AHRS attitudes whose roll or pitch was not finite (_reject_tilt)
         self._sent_speed_mps = 0.0
         # As the bus carried them.
         self._sent_wheels_mps: tuple[float, ...] = (0.0,) * len(self._wheels.status_ns)
@@ -681,13 +684,16 @@ class OnboardStack:
                     self._pacing_rx_ns = reading.t_ns
                 if reading.fix_type >= MIN_GPS_FIX_TYPE:
                     self._last_gps_ns = reading.t_ns
+                eph_m = reading.eph_m
                 self.estimator.on_gps(
                     reading.t_ns,
                     reading.lat_deg,
                     reading.lon_deg,
                     reading.alt_m,
                     reading.fix_type,
-                    reading.eph_m,
+                    # The link's NaN is MAVLink's "unknown" (UINT16_MAX); the estimator's is None (it then
+                    # takes its configured GPS noise). A NaN would be refused as a bad accuracy: every fix.
+                    None if math.isnan(eph_m) else eph_m,
                     reading.satellites,
                 )
             elif isinstance(reading, GoalRequest):
@@ -695,8 +701,27 @@ class OnboardStack:
             elif isinstance(reading, StopRequest):
                 self.estop(f"MAVLink {reading.source} from system {reading.sysid}")
             elif isinstance(reading, AttitudeSample):
-                self._attitude = reading
+                if math.isfinite(reading.roll_rad) and math.isfinite(reading.pitch_rad):
+                    self._attitude = reading
+                else:
+                    self._reject_tilt(reading)
                 self.estimator.on_attitude(reading.t_ns, reading.yaw_rad, AHRS_HEADING_STD_RAD)
+
+    def _reject_tilt(self, reading: AttitudeSample) -> None:
+        """An AHRS attitude without a usable roll or pitch (NaN, inf): the tip-over check would read no
+        margin at all from it (NaN: never trips, so one such sample hid a tipped rover) or an infinite tilt
+        (a false trip). It is counted and logged, and the last usable attitude stands; its yaw still goes
+        to the estimator, which judges that on its own."""
+        self.attitude_rejected += 1
+        count = self.attitude_rejected
+        if count == 1 or count % _LOG_EVERY == 0:
+            _log.warning(
+                "AHRS attitude rejected (%d so far): roll %s, pitch %s rad is not a tilt the tip-over check "
+                "can use; it judges on the last usable attitude",
+                count,
+                reading.roll_rad,
+                reading.pitch_rad,
+            )
 
     def _read_can(self, now: int) -> None:
         can_read_ns = self._clock.now_ns()

@@ -250,7 +250,7 @@ def from_maze(
     """
     try:
         maze = np.array(matrix, dtype=np.int64)
-    except (TypeError, ValueError) as err:
+    except (TypeError, ValueError, OverflowError) as err:  # Overflow: an integer past 64 bits
         raise TerrainError(f"maze matrix must be a rectangular list of integers: {err}") from err
     if maze.ndim != 2 or maze.size == 0:
         raise TerrainError(f"maze matrix must be a non-empty rectangle of rows, got shape {maze.shape}")
@@ -346,6 +346,10 @@ def _check_layer_values(layer: np.ndarray, path: str | Path, name: str) -> None:
         raise TerrainError(
             f"{name} layer file {str(path)!r} holds {what} (dtype {layer.dtype.str}), not {wanted}", key=name
         )
+    if layer.size == 0:
+        raise TerrainError(
+            f"{name} layer file {str(path)!r} holds an empty array (shape {layer.shape})", key=name
+        )
     if np.issubdtype(layer.dtype, np.floating) and not np.all(np.isfinite(layer)):
         row, col = np.argwhere(~np.isfinite(layer))[0]
         raise TerrainError(
@@ -353,6 +357,29 @@ def _check_layer_values(layer: np.ndarray, path: str | Path, name: str) -> None:
             f"(row {row}, col {col})",
             key=name,
         )
+    # What TerrainMap would refuse too, said here with the layer's key and file, and the first bad cell.
+    if name == "classes":
+        _refuse_cells(layer, path, name, layer != np.round(layer), "a whole-number class id")
+        _refuse_cells(layer, path, name, ~np.isin(layer, list(TERRAIN_CLASSES)), "a terrain class id")
+    elif name == "obstacles" and layer.dtype != np.bool_:
+        _refuse_cells(layer, path, name, ~np.isin(layer, (0, 1)), "0 or 1")
+
+
+def _refuse_cells(layer: np.ndarray, path: str | Path, name: str, bad: np.ndarray, wanted: str) -> None:
+    """TerrainError naming the first cell of ``layer`` where ``bad`` is set, and what it should hold."""
+    if np.any(bad):
+        row, col = np.argwhere(bad)[0]
+        value = layer[row, col].item()
+        known = f" (known ids: {sorted(TERRAIN_CLASSES)})" if wanted == "a terrain class id" else ""
+        raise TerrainError(
+            f"{name} layer file {str(path)!r} holds {value:g} at cell (row {row}, col {col}), "
+            f"not {wanted}{known}",
+            key=name,
+        )
+
+
+def _cells(shape: tuple[int, ...]) -> str:
+    return " x ".join(str(n) for n in shape)
 
 
 def load_npy_layers(
@@ -372,12 +399,18 @@ def load_npy_layers(
     }
     if not loaded:
         raise TerrainError("load_npy_layers needs at least one layer file to know the map's shape")
-    shape = next(iter(loaded.values())).shape
+    paths = {"elevation": elevation, "classes": classes, "obstacles": obstacles}
+    (first, shape), *others = [(name, layer.shape) for name, layer in loaded.items()]
+    for name, other in others:
+        if other != shape:
+            raise TerrainError(
+                f"{name} layer file {str(paths[name])!r} is {_cells(other)} cells but {first} layer file "
+                f"{str(paths[first])!r} is {_cells(shape)}: all layers must share one grid",
+                key=name,
+            )
     class_layer = loaded.get("classes", np.full(shape, base_class, dtype=np.int64))
     if "classes" in loaded and np.issubdtype(class_layer.dtype, np.floating):
-        if not np.all(np.isfinite(class_layer)) or not np.all(class_layer == np.round(class_layer)):
-            raise TerrainError(f"classes layer {str(classes)!r} must hold whole-number class ids")
-        class_layer = class_layer.astype(np.int64)
+        class_layer = class_layer.astype(np.int64)  # whole numbers (_check_layer_values)
     return TerrainMap(
         elevation_m=loaded.get("elevation", np.zeros(shape)),
         terrain_class=class_layer,

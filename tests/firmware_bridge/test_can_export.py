@@ -130,6 +130,11 @@ def test_other_formats_by_suffix_and_refusals(request, tmp_path):
         export_can_log(BytesIO(recording), tmp_path / "run.log", channel="can 0")
     with pytest.raises(BridgeOperationError, match="cannot export"):
         export_can_log(BytesIO(b"not an mcap file at all"), tmp_path / "x.log")
+    # An output folder, as other commands take (--out DIR): named as one, not as a log with suffix ''.
+    with pytest.raises(BridgeSetupError) as caught:
+        export_can_log(BytesIO(recording), tmp_path)
+    example = tmp_path / "can.log"
+    assert str(caught.value) == f"{tmp_path} is a folder: name the log file in it, e.g. {example}"
 
 
 def frame_fields(msg: can.Message) -> tuple[int, bool, int, bytes]:

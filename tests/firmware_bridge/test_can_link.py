@@ -191,6 +191,15 @@ def test_can_config_from_table_and_open_bus(request):
         CanConfig(interface="kvaser")
 
 
+@pytest.mark.parametrize("text", ['channel = ""', 'interface = "socketcan"\nchannel = ""'])
+def test_an_empty_can_channel_is_a_config_error_naming_the_key(text):
+    # It was a BridgeSetupError from the dataclass, raised before from_table's own check: a traceback out
+    # of rover run, rover hil trial --config and rover plan --config, naming neither file nor key.
+    with pytest.raises(ConfigError) as caught:
+        CanConfig.from_table(parse_toml(text, "rover.toml"))
+    assert str(caught.value) == "rover.toml: channel: must not be empty (e.g. 'can0', 'vcan0', 'rover0')"
+
+
 def test_open_bus_wraps_python_can_errors():
     # This machine has no SocketCAN at all; elsewhere the interface name does not exist. Either way:
     with pytest.raises(BridgeSetupError, match="socketcan:no-such-can9"):

@@ -6,7 +6,14 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
 from firmware_bridge.errors import BridgeSetupError
-from firmware_bridge.mavlink_link import GpsFix, ImuSample, MavlinkConfig, MavlinkLink, compass_to_enu_rad
+from firmware_bridge.mavlink_link import (
+    AttitudeSample,
+    GpsFix,
+    ImuSample,
+    MavlinkConfig,
+    MavlinkLink,
+    compass_to_enu_rad,
+)
 from firmware_bridge.mavlink_transport import UdpTransport, memory_pipe_pair, open_transport
 from logs.clock import SimClock
 from logs.settings import ConfigError, parse_toml
@@ -55,6 +62,22 @@ def test_unknown_and_out_of_range_gps_values_pass_through():
     assert fix.fix_type == 0
     assert math.isnan(fix.eph_m) and math.isnan(fix.speed_mps) and math.isnan(fix.course_rad)
     assert sink.on(SENSORS_GPS)[0]["position_covariance_type"] == 0
+
+
+@pytest.mark.parametrize("yaw", [math.inf, -math.inf, math.nan])
+def test_an_attitude_with_a_yaw_that_is_no_angle_passes_through_as_unknown(yaw):
+    # An AHRS that overflowed sends yaw = inf in a well-formed ATTITUDE: wrapping it raised ValueError out
+    # of poll(), and out of the rover's control tick. Like other values the link cannot use, it passes
+    # through as unknown (NaN), for the estimator to count and refuse; what follows is still read.
+    companion_end, autopilot_end = memory_pipe_pair()
+    link = MavlinkLink(companion_end, SimClock(), MemorySink())
+    attitude = mavlink2.MAVLink_attitude_message(0, 0.1, -0.2, yaw, 0.0, 0.0, 0.0)
+    autopilot_end.write(autopilot_frames(attitude, gps_msg()))
+    sample, fix = link.poll()
+    assert isinstance(sample, AttitudeSample)
+    assert math.isnan(sample.yaw_rad)
+    assert (sample.roll_rad, sample.pitch_rad) == pytest.approx((0.1, -0.2))
+    assert isinstance(fix, GpsFix)
 
 
 def test_scaled_and_raw_imu_become_flu_si_units():
@@ -192,6 +215,7 @@ def test_udp_loopback_round_trip_with_os_chosen_port():
         ("/dev/no-such-tty-for-rover,57600", "cannot open"),
         ("serial:/dev/null:57600", "not a serial device"),
         ("serial:/dev/null:12345", "baud"),
+        ("serial:/dev/null:0", "baud 0 is not a rate"),
         ("carrier-pigeon", "unknown MAVLink connection"),
     ],
 )
@@ -215,6 +239,9 @@ def test_mavlink_config_from_table():
         ("tcp:127.0.0.1:0", "port 0 is out of range"),
         ("udpout:192.0.2.7:14550", "not a loopback"),
         ("serial:/dev/ttyS0:fast", "baud 'fast' is not a number"),
+        # termios has B0, but it is no rate: it hangs the line up, and the autopilot is never heard.
+        ("serial:/dev/ttyAMA0:0", "baud 0 is not a rate (B0 hangs the line up)"),
+        ("/dev/ttyACM0,0", "baud 0 is not a rate"),
         ("udp:127.0.0.1:14550", "unknown MAVLink connection"),
         ("", "unknown MAVLink connection"),
     ],

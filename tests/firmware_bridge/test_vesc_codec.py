@@ -98,6 +98,14 @@ def test_encoders_refuse_what_encode_refuses():
         (frame((9 << 8) | 42, "0000000000000000"), "unknown_id", "0x0000092a"),
         (frame(0x123, "0000000000000000", extended=False), "not_extended", "11-bit"),
         (frame((9 << 8) | 1, "000004d2007b"), "wrong_dlc", "expected 8"),
+        # A request for a status frame (RTR, dlc 8, no data): it was said to have "0 data bytes (dlc 8),
+        # expected 8", a length that was right.
+        (
+            can.Message(arbitration_id=(9 << 8) | 2, is_extended_id=True, is_remote_frame=True, dlc=8),
+            "wrong_dlc",
+            r"^VESC_STATUS_C2 \(id 0x00000902\) came as a remote frame \(a request for data, dlc 8\), "
+            "not the data frame a controller sends",
+        ),
     ],
 )
 def test_decode_is_strict(msg, reason, text):

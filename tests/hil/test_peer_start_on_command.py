@@ -276,7 +276,7 @@ def test_a_rover_commanding_after_a_lone_round_starts_the_scenario_at_its_first_
 
 def test_a_held_world_holds_its_carts_and_faults_then_counts_them_from_its_start() -> None:
     config = _config()
-    scenario = scenario_with(CART + GPS_OFF)
+    scenario = scenario_with(CART + GPS_OFF, duration_s=700.0)  # long enough for the cart to move
     clock = SimClock(T0_NS)
     buffer = io.BytesIO()
     with (

@@ -144,3 +144,23 @@ def test_a_file_that_is_not_npy_gets_one_sentence(tmp_path: Path) -> None:
         load_scenario(path)
     assert caught.value.key == "terrain.elevation"
     assert caught.value.problem.count("e.npy") == 1 and caught.value.problem.count(".npy array") == 1
+
+
+@pytest.mark.parametrize("start_s", [4700.0, 45.0])
+def test_a_moving_obstacle_that_would_start_after_the_trial_is_refused(
+    tmp_path: Path, start_s: float
+) -> None:
+    # start_s in milliseconds (4.7 s written 4700): the cart would stand at its first waypoint for the whole
+    # trial, a static obstacle, and the trial pass having tested nothing that moves. A fault is refused so.
+    text = SCENARIO.read_text()
+    assert "duration_s = 45.0" in text
+    mover = (
+        '\n[[moving_obstacles]]\nid = "cart"\nradius_m = 0.4\nspeed_mps = 0.8\n'
+        f"waypoints = [[9.0, 1.0], [9.0, 8.0]]\nstart_s = {start_s}\n"
+    )
+    with pytest.raises(ConfigError) as caught:
+        load_scenario(_write(tmp_path, text + mover))
+    assert caught.value.key == "moving_obstacles[0].start_s"
+    assert caught.value.problem == (
+        f"{start_s:g} s is not before the scenario's duration_s 45 s: the obstacle would never move"
+    )

@@ -44,7 +44,7 @@ TIMES_S = (300.0, 600.5, 603.0, 605.0, 611.0)
 
 @contextmanager
 def world_from(start_ns: int, sink: MemorySink) -> Iterator[tuple[SimWorld, SimClock]]:
-    scenario = scenario_with(CART)
+    scenario = scenario_with(CART, duration_s=700.0)  # long enough for the cart to start moving
     config = rover_config_from_table(parse_toml("", "<defaults>"))
     clock = SimClock(start_ns)
     with lockstep_wires(config.can, clock=clock) as wires:

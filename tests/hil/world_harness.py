@@ -33,8 +33,12 @@ BASE = (DATA / "small_rocky.toml").read_text(encoding="utf-8")
 DT_NS = 10_000_000
 
 
-def scenario_with(extra: str) -> Scenario:
-    text = BASE + "\n" + extra
+def scenario_with(extra: str, *, duration_s: float | None = None) -> Scenario:
+    """small_rocky.toml with ``extra`` appended (and its 45 s ``duration_s`` replaced, when given)."""
+    base = (
+        BASE if duration_s is None else BASE.replace("duration_s = 45.0", f"duration_s = {duration_s!r}", 1)
+    )
+    text = base + "\n" + extra
     return scenario_from_table(parse_toml(text, "<test scenario>"), text, DATA)
 
 

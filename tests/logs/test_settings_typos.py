@@ -9,6 +9,7 @@ import pytest
 from hil.campaign import load_campaign
 from logs.settings import ConfigError, parse_toml
 from navigator.config import rover_config_from_table
+from tests.logs.small_scenario import SMALL_SCENARIO, load_text
 
 
 @pytest.mark.parametrize(
@@ -49,3 +50,22 @@ def test_a_typo_of_a_key_read_only_when_present_names_it(tmp_path: Path) -> None
         load_campaign(campaign)
     assert caught.value.key == "confg"
     assert "did you mean 'config'?" in caught.value.problem and "seed_count" in caught.value.problem
+
+
+@pytest.mark.parametrize(
+    ("tail", "key", "guess"),
+    [
+        # Keys read only when present (optional, no default) are known keys too: a typo in one names it.
+        ('[[faults]]\ntarget = "gps"\nkind = "off"\nduraton_s = 4.0\n', "faults[0].duraton_s", "duration_s"),
+        ("[success]\nmax_colisions = 0\n", "success.max_colisions", "max_collisions"),
+        ("[success]\nmax_final_distance = 0.5\n", "success.max_final_distance", "max_final_distance_m"),
+    ],
+)
+def test_a_typo_in_a_key_read_only_when_present_names_it(tail: str, key: str, guess: str) -> None:
+    with pytest.raises(ConfigError) as caught:
+        load_text(SMALL_SCENARIO + tail)
+    assert caught.value.key == key
+    assert caught.value.problem.startswith(f"unknown key (did you mean {guess!r}? known here: "), (
+        caught.value.problem
+    )
+    assert guess in caught.value.problem.partition("known here: ")[2]
