@@ -67,6 +67,8 @@ def parse_command(kind: str, payload: bytes, received_ns: int) -> RoverCommand:
         body = json.loads(payload)
     except (ValueError, UnicodeDecodeError) as err:
         raise ValueError(f"{kind} payload is not JSON: {err}") from err
+    except RecursionError as err:  # arrays or objects nested thousands deep
+        raise ValueError(f"{kind} payload is JSON nested too deep to read") from err
     if not isinstance(body, dict):
         raise ValueError(f"{kind} payload is a JSON {type(body).__name__}, not an object")
     if kind != "goal":
@@ -76,7 +78,8 @@ def parse_command(kind: str, payload: bytes, received_ns: int) -> RoverCommand:
         value = body.get(axis)
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise ValueError(f"goal needs a number {axis!r} in metres, got {value!r}")
-        if not math.isfinite(value) or abs(value) > MAX_GOAL_COORDINATE_M:
+        # The bound first: an integer of hundreds of digits is too large for math.isfinite's float.
+        if abs(value) > MAX_GOAL_COORDINATE_M or not math.isfinite(value):
             raise ValueError(f"goal {axis}={value!r} is not a finite ENU coordinate within 1000 km")
         coordinates.append(float(value))
     return RoverCommand("goal", received_ns, coordinates[0], coordinates[1])

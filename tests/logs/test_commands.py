@@ -38,6 +38,9 @@ def test_parse_goal_estop_resume() -> None:
         ("goal", b'{"x": "1", "y": 2}', "'x'"),
         ("goal", b'{"x": true, "y": 2}', "'x'"),
         ("goal", b'{"x": 1e300, "y": 2}', "finite"),
+        ("goal", b'{"x": ' + b"9" * 400 + b', "y": 2}', "finite"),  # too large for a float: no OverflowError
+        ("goal", b'{"x": NaN, "y": 2}', "finite"),
+        ("goal", b"[" * 100_000 + b"]" * 100_000, "nested too deep"),  # no RecursionError
         ("goal", b"not json", "not JSON"),
         ("estop", b"[1]", "not an object"),
         ("launch", b"{}", "unknown command"),
