@@ -6,10 +6,9 @@ battery low/critical with a debounce timer); docs/safety.md lists each failsafe 
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
-from logs.settings import Table
+from logs.settings import Table, finite_float, shown
 from navigator.fence_shape import Polygon, first_crossing, polygon_area
 
 # A fence polygon needs at least a triangle.
@@ -55,12 +54,12 @@ class SafetyConfig:
 
         fence_raw = table.raw("fence", [])
         if not isinstance(fence_raw, list) or any(
-            not isinstance(p, list)
-            or len(p) != 2
-            or not all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in p)
-            for p in fence_raw
+            not isinstance(point, list) or len(point) != 2 or any(finite_float(v) is None for v in point)
+            for point in fence_raw
         ):
-            raise table.error("fence", f"expected a list of [x, y] points in ENU metres, got {fence_raw!r}")
+            raise table.error(
+                "fence", f"expected a list of [x, y] points in ENU metres, got {shown(fence_raw)}"
+            )
         if fence_raw and len(fence_raw) < MIN_FENCE_VERTICES:
             raise table.error(
                 "fence", f"a fence needs at least {MIN_FENCE_VERTICES} points, got {len(fence_raw)}"

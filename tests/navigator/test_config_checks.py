@@ -144,6 +144,8 @@ def test_the_shipped_vehicle_loads() -> None:
             "safety.fence",
             ("lies wholly off the map", "x [0, 10) and y [0, 10)"),
         ),
+        # A key held down: an integer too large for a float (TOML reads any length) is no coordinate.
+        (f"[[0.0, 0.0], [5.0, 0.0], [{'9' * 400}, 5.0]]", "safety.fence", ("expected a list of [x, y]",)),
     ],
 )
 def test_a_fence_that_cannot_be_meant_is_refused(fence: str, key: str, named: tuple[str, ...]) -> None:
