@@ -191,7 +191,14 @@ def faults_from_tables(tables: Sequence[Table], duration_s: float) -> tuple[Faul
             )
         # Without a duration the fault lasts past the trial's end (it never clears).
         if table.has("duration_s"):
-            end_s = start_s + table.number("duration_s", lo=0.0, hi=24 * 3600.0)
+            fault_s = table.number("duration_s", lo=0.0, hi=24 * 3600.0)
+            if fault_s == 0.0:  # active from start_s until start_s: it would never happen
+                raise table.error(
+                    "duration_s",
+                    "a fault of 0 s never happens; give it a duration, or leave duration_s out for one that "
+                    "lasts until the trial ends",
+                )
+            end_s = start_s + fault_s
             if end_s > duration_s:
                 raise table.error(
                     "duration_s",

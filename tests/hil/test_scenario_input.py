@@ -164,3 +164,12 @@ def test_a_moving_obstacle_that_would_start_after_the_trial_is_refused(
     assert caught.value.problem == (
         f"{start_s:g} s is not before the scenario's duration_s 45 s: the obstacle would never move"
     )
+
+
+def test_a_fault_of_zero_seconds_is_refused(tmp_path: Path) -> None:
+    # Active from start_s until start_s: it never happens, and the trial would pass having broken nothing.
+    fault = '\n[[faults]]\ntarget = "gps"\nkind = "off"\nstart_s = 5.0\nduration_s = 0.0\n'
+    with pytest.raises(ConfigError) as caught:
+        load_scenario(_write(tmp_path, SCENARIO.read_text() + fault))
+    assert caught.value.key == "faults[0].duration_s"
+    assert "a fault of 0 s never happens" in caught.value.problem
