@@ -159,7 +159,7 @@ _ROVER_CONFIG_TABLES = (
 
 
 def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
-    _refuse_a_rover_config(root)
+    refuse_a_rover_config(root)
     name = root.text("name")
     root.text("description", "")
     duration_s = root.number("duration_s", 120.0, lo=1.0, hi=24 * 3600.0)
@@ -260,7 +260,7 @@ def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
     )
 
 
-def _refuse_a_rover_config(root: Table) -> None:
+def refuse_a_rover_config(root: Table) -> None:
     """A rover config where the scenario goes: say so, rather than "name: required key is missing"."""
     present = set(root.keys())
     found = [key for key in _ROVER_CONFIG_TABLES if key in present]

@@ -13,12 +13,13 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from logs.settings import ConfigError
+from logs.settings import ConfigError, load_toml
 from navigator.astar import HEURISTICS
 from navigator.config import HEURISTIC_WEIGHT_RANGE, PlannerConfig, load_rover_config
 from navigator.errors import NavigatorError
 from navigator.plan_tools import Point, draw_png, export_costs, load_map, plan_once, scenario_endpoints
 from navigator.planner import COST_MODES, FOOTPRINT_INFLATIONS, Planner
+from navigator.terrain import TerrainMap
 from navigator.vehicle import VehicleParams
 from rover_cli.arg_types import bounded_float
 
@@ -137,10 +138,24 @@ def _settings(args: argparse.Namespace) -> tuple[VehicleParams, PlannerConfig]:
     return vehicle, dataclasses.replace(planner, **{k: v for k, v in given.items() if v is not None})
 
 
+def _rovers_map(args: argparse.Namespace) -> TerrainMap:
+    """The map to plan on: for a scenario with ``[[obstacles]]``, the rover's map of it as a trial's rover
+    plans on it (the terrain with the obstacles it knows, ``known = true``, the default); else the map file.
+    A rover config given as the map is named as one."""
+    if args.map.suffix.lower() == ".toml" and args.resolution_m is None:
+        from hil.scenario import load_scenario, refuse_a_rover_config
+
+        root = load_toml(args.map)
+        refuse_a_rover_config(root)
+        if root.has("obstacles"):
+            return load_scenario(args.map).believed_terrain
+    return load_map(args.map, args.resolution_m)
+
+
 def run_plan(args: argparse.Namespace) -> int:
     try:
         vehicle, settings = _settings(args)
-        terrain = load_map(args.map, args.resolution_m)
+        terrain = _rovers_map(args)
         start, goal = _endpoints(args)
         # As guidance builds it, but without the goal's cost-to-go field: that pays off over replans, and
         # one plan built on it would report a full Dijkstra's expansions and time.

@@ -167,3 +167,32 @@ def test_plan_refuses_a_weight_the_config_would_refuse(
     low, high = HEURISTIC_WEIGHT_RANGE
     assert "argument --weight: " in (err := capsys.readouterr().err) and f"{low:g} to {high:g}" in err
     assert main(["plan", str(SCENARIO), "--start", "3,12", "--goal", "25,5", "--weight", f"{high:g}"]) == 0
+
+
+def test_plan_on_a_scenario_plans_on_the_rovers_map_with_its_known_obstacles(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """As a trial's rover plans: the scenario's known obstacles are on its map from the start (they used to
+    be left out, and `rover plan scenarios/default.toml --goal 9,7` planned into boulder-1)."""
+    from hil.scenario import load_scenario
+
+    default = SCENARIO.with_name("default.toml")
+    assert main(["plan", str(default), "--goal", "9,7"]) == 2
+    assert "goal cell" in capsys.readouterr().err
+    assert main(["plan", str(default), "--json"]) == 0
+    path = np.array(json.loads(capsys.readouterr().out)["path"])
+    obstacles = load_scenario(default).obstacles
+    assert obstacles and all(o.known for o in obstacles)
+    for obstacle in obstacles:
+        clearance = np.min(np.linalg.norm(path - (obstacle.x, obstacle.y), axis=1)) - obstacle.radius_m
+        assert clearance > 0.0, obstacle.id
+    # An obstacle the rover does not know (known = false) is not on its map: it finds it on the drive.
+    unknown = tmp_path / "unknown.toml"
+    unknown.write_text(default.read_text().replace("radius_m = 1.0\n", "radius_m = 1.0\nknown = false\n", 1))
+    assert main(["plan", str(unknown), "--goal", "9,7"]) == 0
+
+
+def test_plan_names_a_rover_config_given_as_the_map(capsys: pytest.CaptureFixture[str]) -> None:
+    config = SCENARIO.parents[1] / "configs" / "rover.example-hardware.toml"
+    assert main(["plan", str(config)]) == 2
+    assert "this is a rover config" in capsys.readouterr().err
