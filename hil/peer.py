@@ -61,6 +61,7 @@ PHYSICS_DT_NS = 10_000_000  # 100 Hz rover body, as in lockstep
 # beyond them is dropped, and counted as a stall (``hil.peer_stalls``).
 MAX_SUBSTEPS = 5
 STATUS_PERIOD_NS = 50_000_000  # the status file is rewritten at 20 Hz
+TRUTH_MCAP = "truth.mcap"  # the ground truth, in the peer's --out
 
 
 @dataclass(frozen=True)
@@ -283,7 +284,7 @@ def run_peer(
     """
     seed = scenario.seed if seed is None else seed
     out_dir.mkdir(parents=True, exist_ok=True)
-    mcap_path = out_dir / "truth.mcap"
+    mcap_path = out_dir / TRUTH_MCAP
     with McapRecorder(mcap_path) as recorder:
         # Names this run in truth.mcap and in the rover config it writes, so the rover's recording names it
         # too: a report pairs each rover recording with its own truth even when runs overlap in time.
