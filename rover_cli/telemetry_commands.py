@@ -83,11 +83,19 @@ def register(families: Any) -> None:
 
 
 def _session(args: argparse.Namespace) -> Any:
+    """The station's Zenoh session; ``TelemetrySetupError`` (exit 2) for a bad ``--rover-id``,
+    ``--config`` or ``--connect``."""
     import dataclasses
 
     from logs.errors import TelemetrySetupError
-    from logs.telemetry import ZenohSettings, endpoint_problem, open_session
+    from logs.telemetry import ZenohSettings, endpoint_problem, key_prefix, open_session
 
+    try:
+        # Checked before anything opens: the subscription refused it only after the session was open
+        # (and `record`'s file made), in a traceback.
+        key_prefix(args.rover_id)
+    except TelemetrySetupError as err:
+        raise TelemetrySetupError(f"--rover-id: {err}") from err
     settings = ZenohSettings(enabled=True)
     if args.config is not None:
         settings = _station_config(args.config).zenoh

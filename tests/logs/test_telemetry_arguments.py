@@ -9,13 +9,8 @@ import pytest
 
 from rover_cli.main import main
 
-
-def _out(capsys: pytest.CaptureFixture[str]) -> str:
-    captured = capsys.readouterr()
-    return " ".join((captured.out + captured.err).split())
-
-
-@pytest.mark.parametrize(
+# Each station command, run briefly (`record` into station.mcap in the current folder).
+EACH_COMMAND = pytest.mark.parametrize(
     "command",
     [
         ["watch", "--duration-s", "0.1"],
@@ -24,6 +19,14 @@ def _out(capsys: pytest.CaptureFixture[str]) -> str:
     ],
     ids=lambda c: c[0],
 )
+
+
+def _out(capsys: pytest.CaptureFixture[str]) -> str:
+    captured = capsys.readouterr()
+    return " ".join((captured.out + captured.err).split())
+
+
+@EACH_COMMAND
 @pytest.mark.parametrize(
     ("config_text", "said"),
     [(None, "file not found"), ("rover_id = 5\n", "rover_id: expected a string")],
@@ -66,3 +69,22 @@ def test_a_station_with_nothing_to_connect_to_says_to_give_connect(
     out = _out(capsys)
     assert code == 1, out
     assert "connected to no Zenoh peer or router" in out and "no --connect given" in out, out
+
+
+@EACH_COMMAND
+@pytest.mark.parametrize("rover_id", ["a/b", "rover*", ""])
+def test_a_rover_id_that_cannot_name_a_key_is_exit_2_naming_it(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+    command: list[str],
+    rover_id: str,
+) -> None:
+    # `watch` and `record` had ended in a TelemetrySetupError traceback from the subscription, and `record`
+    # had left station.mcap behind, created before the subscription failed.
+    monkeypatch.chdir(tmp_path)
+    code = main(["telemetry", *command, "--rover-id", rover_id, "--connect", "tcp/127.0.0.1:9"])
+    out = _out(capsys)
+    assert code == 2, out
+    assert f"--rover-id: rover_id {rover_id!r} cannot name a Zenoh key" in out, out
+    assert not (tmp_path / "station.mcap").exists()
