@@ -21,7 +21,9 @@ DEFAULT_RUNS_DIR = Path("logs/trials")
 def register(families: Any) -> None:
     run = families.add_parser("run", help="run the onboard stack in real time (the rover's process)")
     run.add_argument("--config", type=Path, required=True, help="rover config TOML (with a [map] table)")
-    run.add_argument("--goal", type=_point, default=None, help="drive to X,Y (local ENU metres)")
+    run.add_argument(
+        "--goal", type=_point, default=None, help="drive to X,Y (local ENU metres; negative X: --goal=-5,3)"
+    )
     run.add_argument(
         "--out", type=Path, default=None, help="recording directory (default: logs/trials/run-<t>)"
     )
