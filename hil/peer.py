@@ -270,6 +270,7 @@ def run_peer(
     spin_ns: int = DEFAULT_SPIN_NS,
     start_on_command: bool = False,
     start_timeout_ns: int | None = None,
+    mavlink_host: str = "127.0.0.1",
 ) -> PeerResult:
     """Run the simulated rover in real time on opened wires until ``stop`` or ``duration_ns``.
 
@@ -280,6 +281,7 @@ def run_peer(
     command (``hil.peer_start``), for at most ``start_timeout_ns`` (None: no limit) from the peer being
     ready (after its warm-up), then stop.
     ``duration_ns`` counts from the peer's start either way.
+    ``mavlink_host`` and ``mavlink_port``: where ``mavlink`` listens, written into the rover's config.
     The wires are the caller's; they are not closed here.
     """
     seed = scenario.seed if seed is None else seed
@@ -308,7 +310,7 @@ def run_peer(
             peer = RealtimePeer(world, step_clock, recorder, status_path, start=start, stop=stop)
             if status_path is not None:
                 peer.write_status()
-            rover_config = write_peer_files(out_dir, scenario, config, mavlink_port, peer_run)
+            rover_config = write_peer_files(out_dir, scenario, config, mavlink_port, peer_run, mavlink_host)
             if port_file is not None:
                 _write_atomically(port_file, f"{mavlink_port}\n")
             if on_ready is not None:

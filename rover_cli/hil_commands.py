@@ -388,13 +388,14 @@ def run_peer_command(args: argparse.Namespace) -> int:
 
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
-    port = transport.local_address[1]
+    # The address the autopilot listens on, as bound (a loopback address --mavlink named, the OS's port).
+    host, port = transport.local_address
     if args.fifo:
         console.print(f"scheduling: {raise_to_fifo(os.getpid(), args.fifo)}")
 
     def on_ready(rover_config: Path) -> None:
         # stdout is for whoever started us: the port to dial, then the config that dials it.
-        print(f"mavlink: udpout:127.0.0.1:{port}", flush=True)
+        print(f"mavlink: udpout:{host}:{port}", flush=True)
         print(f"rover config: {rover_config}", flush=True)
 
     try:
@@ -406,6 +407,7 @@ def run_peer_command(args: argparse.Namespace) -> int:
             can_bus=bus,
             mavlink=transport,
             mavlink_port=port,
+            mavlink_host=host,
             wait=time.sleep,
             stop=stop,
             seed=seed,
