@@ -8,6 +8,9 @@ import sys
 
 import pytest
 
+from logs.settings import parse_toml
+from navigator.config import rover_config_from_table
+from navigator.rover_process import loop_phrase
 from rover_cli import run_commands
 
 
@@ -30,3 +33,19 @@ def test_a_stdout_reader_gone_stops_the_lines_not_the_run(
         said = " ".join(caplog.text.split())
         assert "stdout's reader went away" in said and "the run goes on" in said
         assert caplog.text.count("reader went away") == 1  # said once, not per line
+
+
+@pytest.mark.parametrize(
+    ("settings", "phrase"),
+    [
+        ("", "phase-locked 0.3 ms after imu"),
+        ('control_loop = "sensor-paced"', "paced by imu"),
+        ('pacing_sensor = "none"', "fixed-rate, no pacing sensor"),
+        ('pacing_sensor = "none"\ncontrol_loop = "sensor-paced"', "fixed-rate, no pacing sensor"),
+    ],
+)
+def test_the_warm_up_line_names_the_loop_that_runs(settings: str, phrase: str) -> None:
+    # `pacing_sensor = "none"` printed "running at 25 Hz, phase-locked 0.3 ms after none": no sensor paces
+    # that loop, which runs on its own fixed-rate grid (docs/runtime.md).
+    config = rover_config_from_table(parse_toml(settings, "<test>"))
+    assert loop_phrase(config) == phrase
