@@ -221,6 +221,14 @@ def record_command(args: argparse.Namespace) -> int:
     from logs.telemetry_station import StreamRecorder
 
     console = Console()
+    if args.out.is_file():
+        # The recorder opens its file for writing: an earlier recording there would be emptied.
+        print_error(
+            console,
+            f"{args.out} already exists (an earlier recording; it is left as it is): "
+            "give another file name, or move that file away",
+        )
+        return 2
     try:
         session = _session(args)
         recorder = McapRecorder(args.out)

@@ -88,3 +88,17 @@ def test_a_rover_id_that_cannot_name_a_key_is_exit_2_naming_it(
     assert code == 2, out
     assert f"--rover-id: rover_id {rover_id!r} cannot name a Zenoh key" in out, out
     assert not (tmp_path / "station.mcap").exists()
+
+
+def test_record_leaves_an_earlier_recording_as_it_is(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # `rover telemetry record station.mcap` run twice had emptied the first station recording (the
+    # recorder opens its file for writing), with exit 0.
+    earlier = tmp_path / "station.mcap"
+    earlier.write_bytes(b"an earlier station recording")
+    code = main(["telemetry", "record", str(earlier), "--connect", "tcp/127.0.0.1:9", "--duration-s", "0.1"])
+    out = _out(capsys)
+    assert code == 2, out
+    assert f"{earlier} already exists" in out, out
+    assert earlier.read_bytes() == b"an earlier station recording"
