@@ -12,6 +12,7 @@ from typing import Any
 
 from rich.console import Console
 from rich.live import Live
+from rich.markup import escape
 from rich.table import Table as RichTable
 
 from logs.errors import LogsError
@@ -149,6 +150,12 @@ def _wait(duration_s: float | None, tick: Any = None) -> None:
         signal.signal(signal.SIGTERM, previous)
 
 
+def _say(console: Console, label: str, text: str) -> None:
+    """``label`` (rich markup, e.g. a coloured verdict) then ``text`` as written: paths, ids, the rover's
+    details and hints hold brackets (``[zenoh]``) that rich would read as markup and drop."""
+    console.print(f"{label} {escape(text)}" if label else escape(text), highlight=False)
+
+
 def _unreached_hint(args: argparse.Namespace) -> str:
     """What to check when the station reached no Zenoh peer or router at all."""
     if args.connect:
@@ -207,11 +214,11 @@ def watch_command(args: argparse.Namespace) -> int:
     hint = _unreached_hint(args)
     if peers + routers:
         hint = f"is {args.rover_id!r} the rover's id (--rover-id)?"
-    console.print(
-        f"[red]heard nothing:[/red] no message from rover {args.rover_id} in "
-        f"{time.monotonic() - started:.1f} s; this station is connected to {reached}"
-        + (f"; {hint}" if hint else ""),
-        highlight=False,
+    _say(
+        console,
+        "[red]heard nothing:[/red]",
+        f"no message from rover {args.rover_id} in {time.monotonic() - started:.1f} s; "
+        f"this station is connected to {reached}" + (f"; {hint}" if hint else ""),
     )
     return 1
 
@@ -243,9 +250,11 @@ def record_command(args: argparse.Namespace) -> int:
         stream.close()
         recorder.close()
         session.close()
-    console.print(
+    _say(
+        console,
+        "",
         f"{args.out}: {stream.recorded} messages on {len(stream.topics)} topics; "
-        f"{stream.rejected} samples rejected, {stream.failed} not recorded"
+        f"{stream.rejected} samples rejected, {stream.failed} not recorded",
     )
     return 0
 
@@ -293,22 +302,18 @@ def send_command_line(args: argparse.Namespace) -> int:
         session.close()
     if args.no_wait:
         console.print(
-            f"sent {what} to rover {args.rover_id} [yellow]UNCONFIRMED[/yellow] "
+            f"sent {escape(what)} to rover {escape(args.rover_id)} [yellow]UNCONFIRMED[/yellow] "
             "(--no-wait: nothing checked that a rover heard it)",
             highlight=False,
         )
         return 0
     if outcome.confirmed:
-        console.print(
-            f"[green]confirmed:[/green] rover {args.rover_id} {what}: {outcome.detail}", highlight=False
-        )
+        _say(console, "[green]confirmed:[/green]", f"rover {args.rover_id} {what}: {outcome.detail}")
         return 0
     hint = ""
     if outcome.verdict is Verdict.NO_LISTENER and outcome.connections == 0:
         hint = f"; {_unreached_hint(args)}"
     elif outcome.verdict is Verdict.NO_LISTENER and outcome.connections:
         hint = f"; is {args.rover_id!r} the rover's id (--rover-id)?"
-    console.print(
-        f"[red]NOT confirmed:[/red] rover {args.rover_id} {what}: {outcome.detail}{hint}", highlight=False
-    )
+    _say(console, "[red]NOT confirmed:[/red]", f"rover {args.rover_id} {what}: {outcome.detail}{hint}")
     return 1

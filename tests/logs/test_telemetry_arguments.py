@@ -102,3 +102,19 @@ def test_record_leaves_an_earlier_recording_as_it_is(
     assert code == 2, out
     assert f"{earlier} already exists" in out, out
     assert earlier.read_bytes() == b"an earlier station recording"
+
+
+@pytest.mark.parametrize(
+    "command", [["watch", "--duration-s", "0.2"], ["send", "estop", "--timeout-s", "0.2"]], ids=lambda c: c[0]
+)
+def test_the_hint_for_a_station_that_reached_nothing_is_printed_as_written(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], command: list[str]
+) -> None:
+    # "does --config X's [zenoh] connect name the rover" had come out as "does --config X's  connect name
+    # the rover": rich read "[zenoh]" as markup and dropped it, and with it the table the user must edit.
+    config = tmp_path / "station[1].toml"
+    config.write_text('rover_id = "rover1"\n', encoding="utf-8")
+    code = main(["telemetry", *command, "--config", str(config)])
+    out = _out(capsys)
+    assert code == 1, out
+    assert f"does --config {config}'s [zenoh] connect name the rover" in out, out
