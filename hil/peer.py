@@ -61,6 +61,7 @@ PHYSICS_DT_NS = 10_000_000  # 100 Hz rover body, as in lockstep
 # beyond them is dropped, and counted as a stall (``hil.peer_stalls``).
 MAX_SUBSTEPS = 5
 STATUS_PERIOD_NS = 50_000_000  # the status file is rewritten at 20 Hz
+TRUTH_MCAP = "truth.mcap"  # the ground truth, in the peer's --out
 
 
 @dataclass(frozen=True)
@@ -269,6 +270,7 @@ def run_peer(
     spin_ns: int = DEFAULT_SPIN_NS,
     start_on_command: bool = False,
     start_timeout_ns: int | None = None,
+    mavlink_host: str = "127.0.0.1",
 ) -> PeerResult:
     """Run the simulated rover in real time on opened wires until ``stop`` or ``duration_ns``.
 
@@ -279,17 +281,23 @@ def run_peer(
     command (``hil.peer_start``), for at most ``start_timeout_ns`` (None: no limit) from the peer being
     ready (after its warm-up), then stop.
     ``duration_ns`` counts from the peer's start either way.
+    ``mavlink_host`` and ``mavlink_port``: where ``mavlink`` listens, written into the rover's config.
     The wires are the caller's; they are not closed here.
     """
     seed = scenario.seed if seed is None else seed
     out_dir.mkdir(parents=True, exist_ok=True)
-    mcap_path = out_dir / "truth.mcap"
+    mcap_path = out_dir / TRUTH_MCAP
     with McapRecorder(mcap_path) as recorder:
         # Names this run in truth.mcap and in the rover config it writes, so the rover's recording names it
         # too: a report pairs each rover recording with its own truth even when runs overlap in time.
         peer_run = secrets.token_hex(8)
         start_on = ON_FIRST_COMMAND if start_on_command else ON_PEER_START
         write_peer_header(recorder, scenario, config, seed, peer_run, start_on)
+        unseen = unseen_by_the_rover(scenario)
+        if unseen is not None:
+            _log.warning("HIL peer: %s", unseen)
+            now = clock.now_ns()
+            recorder.publish(topics.LOG, now, topics.log_message(now, topics.LOG_WARNING, "hil.peer", unseen))
         codec = VescCodec.for_profile(config.vesc)
         step_clock = StepClock(clock.now_ns())
         with SimWorld(scenario, config.vehicle, codec, step_clock, can_bus, mavlink, recorder, seed) as world:
@@ -307,7 +315,7 @@ def run_peer(
             peer = RealtimePeer(world, step_clock, recorder, status_path, start=start, stop=stop)
             if status_path is not None:
                 peer.write_status()
-            rover_config = write_peer_files(out_dir, scenario, config, mavlink_port, peer_run)
+            rover_config = write_peer_files(out_dir, scenario, config, mavlink_port, peer_run, mavlink_host)
             if port_file is not None:
                 _write_atomically(port_file, f"{mavlink_port}\n")
             if on_ready is not None:
@@ -340,6 +348,24 @@ def run_peer(
         peer.stalls,
         start,
         bus_off,
+    )
+
+
+def unseen_by_the_rover(scenario: Scenario) -> str | None:
+    """What of ``scenario`` the rover in another process cannot see, in words (None: nothing).
+
+    ``rover run`` has no perception input: in lockstep ``hil.trial`` hands the stack the simulated
+    perception's observations, here nothing carries them over the wires, and the map the peer writes holds
+    the known obstacles only. Hidden and moving obstacles are still in the world and in the truth.
+    """
+    unseen = [f"hidden obstacle {o.id!r} (known = false)" for o in scenario.obstacles if not o.known]
+    unseen += [f"moving obstacle {m.id!r}" for m in scenario.moving_obstacles]
+    if not unseen:
+        return None
+    return (
+        f"the rover cannot see {', '.join(unseen)}: `rover run` has no perception input (only lockstep "
+        "trials, `rover hil trial`, feed it the simulated perception), so it plans on the map the peer wrote "
+        "and may drive into them; collisions count in the truth"
     )
 
 

@@ -3,9 +3,10 @@
 The onboard stack must plan on what the rover *believes* (the scenario's terrain with its known obstacles,
 as in lockstep) and georeference GPS on the scenario's datum; ``rover run`` gets both only through its
 config. So the peer writes ``map/{elevation,classes,obstacles}.npy`` and ``rover-hil.toml``: the CAN bus
-the peer is on, ``udpout:127.0.0.1:PORT`` to its autopilot, the datum, the map, Zenoh off, and the
-``[vesc]`` table its simulated controllers speak (ids, drivetrain, and a swapped-in DBC as an absolute
-path, so it reads the same from the peer's folder or wherever the file is copied). Every other table is
+the peer is on, ``udpout:HOST:PORT`` to its autopilot (the loopback address it listens on), the datum,
+the map, Zenoh off, and the ``[vesc]`` table its simulated controllers speak (ids, drivetrain, and a
+swapped-in DBC as an absolute path, so it reads the same from the peer's folder or wherever the file is
+copied). Every other table is
 left at the built-in defaults (the ones the peer simulates when it has no ``--config``); with a custom
 vehicle, add its tables to the file.
 """
@@ -25,10 +26,16 @@ MAP_DIR = "map"
 
 
 def write_peer_files(
-    out_dir: Path, scenario: Scenario, config: RoverConfig, mavlink_port: int, peer_run: str | None = None
+    out_dir: Path,
+    scenario: Scenario,
+    config: RoverConfig,
+    mavlink_port: int,
+    peer_run: str | None = None,
+    mavlink_host: str = "127.0.0.1",
 ) -> Path:
     """Write the map layers and ``rover-hil.toml`` into ``out_dir``; returns the config's path.
-    ``peer_run``: this peer run's id, which ``rover run`` records beside the peer's own (``hil_peer_run``)."""
+    ``peer_run``: this peer run's id, which ``rover run`` records beside the peer's own (``hil_peer_run``).
+    ``mavlink_host``: the loopback address the peer's autopilot listens on (``rover run`` dials it)."""
     terrain = scenario.believed_terrain
     map_dir = out_dir / MAP_DIR
     map_dir.mkdir(parents=True, exist_ok=True)
@@ -53,7 +60,7 @@ def write_peer_files(
         "",
         *_vesc_lines(config),
         "[mavlink]",
-        f'connection = "udpout:127.0.0.1:{mavlink_port}"',
+        f'connection = "udpout:{mavlink_host}:{mavlink_port}"',
         "",
         "[zenoh]",
         "enabled = false",

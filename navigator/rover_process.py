@@ -253,17 +253,24 @@ def _warm_up_and_run(
         poll=input_poller(links.pacing_sources) if wait is None else None,
         observe=observe,
     )
-    announce(
-        f"warm-up done in {(clock.now_ns() - warm_up_start_ns) / 1e9:.1f} s; rover {config.rover_id} "
-        f"running at {config.control_rate_hz:.0f} Hz, {_loop_phrase(config)}; driving waits for "
-        "the start-up checks (next line; safety/events: startup_checks)"
-    )
+    warm_up_s = (clock.now_ns() - warm_up_start_ns) / 1e9
+    if stop.is_set():  # SIGINT/SIGTERM during the warm-up (a cold numba cache takes tens of seconds)
+        announce(f"warm-up done in {warm_up_s:.1f} s; stopping: a stop was asked during the warm-up")
+    else:
+        announce(
+            f"warm-up done in {warm_up_s:.1f} s; rover {config.rover_id} "
+            f"running at {config.control_rate_hz:.0f} Hz, {loop_phrase(config)}; driving waits for "
+            "the start-up checks (next line; safety/events: startup_checks)"
+        )
     freeze_start_up_heap()
     with realtime_switch_interval():
         return scheduler.run(duration_ns)
 
 
-def _loop_phrase(config: RoverConfig) -> str:
+def loop_phrase(config: RoverConfig) -> str:
+    """The control loop as the warm-up line names it: what starts its ticks."""
+    if config.pacing_sensor == "none":  # either loop then runs on its own grid (docs/runtime.md)
+        return "fixed-rate, no pacing sensor"
     if config.control_loop == "phase-locked":
         return f"phase-locked {config.phase_offset_ms:g} ms after {config.pacing_sensor}"
     return f"paced by {config.pacing_sensor}"

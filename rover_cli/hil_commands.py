@@ -132,6 +132,35 @@ def _usable_out_dir(path: Path) -> str | None:
     return None
 
 
+def _peer_paths_problem(out_dir: Path, port_file: Path | None, status_file: Path | None) -> str | None:
+    """What keeps the peer from writing its files, found before it runs (exit 2), else None.
+
+    An earlier run's ``truth.mcap`` in ``--out`` is refused, as ``rover run`` refuses its ``rover.mcap``: the
+    recorder would empty it, and that run's rover recording is reported against it.
+    """
+    from hil.peer import TRUTH_MCAP
+
+    problem = _usable_out_dir(out_dir)
+    if problem is not None:
+        return problem
+    truth = out_dir / TRUTH_MCAP
+    if truth.exists():
+        return (
+            f"--out {out_dir}: {truth} already exists (an earlier run's ground truth; it is left as it is): "
+            "give --out a new folder, or move that file away"
+        )
+    for option, path in (("--port-file", port_file), ("--status-file", status_file)):
+        if path is None:
+            continue
+        if path.is_dir():
+            return f"{option} {path}: is a directory; give a file's path"
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            return f"{option} {path}: cannot create its folder: {err.strerror or err}"
+    return None
+
+
 def run_trial_command(args: argparse.Namespace) -> int:
     """Exit 0: the scenario's success criteria held; 1: they failed (each reason printed); 2: bad input."""
     from firmware_bridge.errors import BridgeSetupError
@@ -344,6 +373,12 @@ def run_peer_command(args: argparse.Namespace) -> int:
         return 2
     seed = scenario.seed if args.seed is None else args.seed
     out_dir = args.out or _unique_run_dir(DEFAULT_TRIALS_DIR, f"{scenario.name}-seed{seed}-peer")
+    problem = _peer_paths_problem(out_dir, args.port_file, args.status_file)
+    if problem is not None:
+        transport.close()
+        bus.shutdown()
+        print_error(console, problem)
+        return 2
     stop = threading.Event()
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
@@ -353,13 +388,14 @@ def run_peer_command(args: argparse.Namespace) -> int:
 
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
-    port = transport.local_address[1]
+    # The address the autopilot listens on, as bound (a loopback address --mavlink named, the OS's port).
+    host, port = transport.local_address
     if args.fifo:
         console.print(f"scheduling: {raise_to_fifo(os.getpid(), args.fifo)}")
 
     def on_ready(rover_config: Path) -> None:
         # stdout is for whoever started us: the port to dial, then the config that dials it.
-        print(f"mavlink: udpout:127.0.0.1:{port}", flush=True)
+        print(f"mavlink: udpout:{host}:{port}", flush=True)
         print(f"rover config: {rover_config}", flush=True)
 
     try:
@@ -371,6 +407,7 @@ def run_peer_command(args: argparse.Namespace) -> int:
             can_bus=bus,
             mavlink=transport,
             mavlink_port=port,
+            mavlink_host=host,
             wait=time.sleep,
             stop=stop,
             seed=seed,

@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 import logging
 import math
+import os
 import signal
+import sys
 import threading
 import time
 from pathlib import Path
@@ -21,7 +23,9 @@ DEFAULT_RUNS_DIR = Path("logs/trials")
 def register(families: Any) -> None:
     run = families.add_parser("run", help="run the onboard stack in real time (the rover's process)")
     run.add_argument("--config", type=Path, required=True, help="rover config TOML (with a [map] table)")
-    run.add_argument("--goal", type=_point, default=None, help="drive to X,Y (local ENU metres)")
+    run.add_argument(
+        "--goal", type=_point, default=None, help="drive to X,Y (local ENU metres; negative X: --goal=-5,3)"
+    )
     run.add_argument(
         "--out", type=Path, default=None, help="recording directory (default: logs/trials/run-<t>)"
     )
@@ -75,14 +79,25 @@ def run_command(args: argparse.Namespace) -> int:
         return 2
     finally:
         _ignore_signals_from_now_on()
-    print(f"recording: {result.mcap_path}")
-    print(f"timing: {result.timing.describe()}")
+    _announce(f"recording: {result.mcap_path}")
+    _announce(f"timing: {result.timing.describe()}")
     return 0
 
 
 def _announce(line: str) -> None:
-    """A start-up milestone, on the console whatever the log level (an operator or journald reads it)."""
-    print(line, flush=True)
+    """A start-up milestone, on the console whatever the log level (an operator or journald reads it).
+
+    Some are printed from inside the control loop (the start-up checks' events). A reader of stdout that
+    went away (``rover run ... | head -2``, a log pipe closed) must not stop the rover there: the lines
+    are on ``safety/events`` too, so from then on stdout goes to /dev/null, said once on stderr.
+    """
+    try:
+        print(line, flush=True)
+    except BrokenPipeError:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+        _log.warning("stdout's reader went away: its lines are no longer printed; the run goes on")
 
 
 def _stop_on_signals(stop: threading.Event) -> None:

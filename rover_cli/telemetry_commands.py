@@ -12,6 +12,7 @@ from typing import Any
 
 from rich.console import Console
 from rich.live import Live
+from rich.markup import escape
 from rich.table import Table as RichTable
 
 from logs.errors import LogsError
@@ -83,11 +84,19 @@ def register(families: Any) -> None:
 
 
 def _session(args: argparse.Namespace) -> Any:
+    """The station's Zenoh session; ``TelemetrySetupError`` (exit 2) for a bad ``--rover-id``,
+    ``--config`` or ``--connect``."""
     import dataclasses
 
     from logs.errors import TelemetrySetupError
-    from logs.telemetry import ZenohSettings, endpoint_problem, open_session
+    from logs.telemetry import ZenohSettings, endpoint_problem, key_prefix, open_session
 
+    try:
+        # Checked before anything opens: the subscription refused it only after the session was open
+        # (and `record`'s file made), in a traceback.
+        key_prefix(args.rover_id)
+    except TelemetrySetupError as err:
+        raise TelemetrySetupError(f"--rover-id: {err}") from err
     settings = ZenohSettings(enabled=True)
     if args.config is not None:
         settings = _station_config(args.config).zenoh
@@ -139,6 +148,12 @@ def _wait(duration_s: float | None, tick: Any = None) -> None:
         pass
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+def _say(console: Console, label: str, text: str) -> None:
+    """``label`` (rich markup, e.g. a coloured verdict) then ``text`` as written: paths, ids, the rover's
+    details and hints hold brackets (``[zenoh]``) that rich would read as markup and drop."""
+    console.print(f"{label} {escape(text)}" if label else escape(text), highlight=False)
 
 
 def _unreached_hint(args: argparse.Namespace) -> str:
@@ -199,11 +214,11 @@ def watch_command(args: argparse.Namespace) -> int:
     hint = _unreached_hint(args)
     if peers + routers:
         hint = f"is {args.rover_id!r} the rover's id (--rover-id)?"
-    console.print(
-        f"[red]heard nothing:[/red] no message from rover {args.rover_id} in "
-        f"{time.monotonic() - started:.1f} s; this station is connected to {reached}"
-        + (f"; {hint}" if hint else ""),
-        highlight=False,
+    _say(
+        console,
+        "[red]heard nothing:[/red]",
+        f"no message from rover {args.rover_id} in {time.monotonic() - started:.1f} s; "
+        f"this station is connected to {reached}" + (f"; {hint}" if hint else ""),
     )
     return 1
 
@@ -213,6 +228,14 @@ def record_command(args: argparse.Namespace) -> int:
     from logs.telemetry_station import StreamRecorder
 
     console = Console()
+    if args.out.is_file():
+        # The recorder opens its file for writing: an earlier recording there would be emptied.
+        print_error(
+            console,
+            f"{args.out} already exists (an earlier recording; it is left as it is): "
+            "give another file name, or move that file away",
+        )
+        return 2
     try:
         session = _session(args)
         recorder = McapRecorder(args.out)
@@ -227,9 +250,11 @@ def record_command(args: argparse.Namespace) -> int:
         stream.close()
         recorder.close()
         session.close()
-    console.print(
+    _say(
+        console,
+        "",
         f"{args.out}: {stream.recorded} messages on {len(stream.topics)} topics; "
-        f"{stream.rejected} samples rejected, {stream.failed} not recorded"
+        f"{stream.rejected} samples rejected, {stream.failed} not recorded",
     )
     return 0
 
@@ -277,22 +302,18 @@ def send_command_line(args: argparse.Namespace) -> int:
         session.close()
     if args.no_wait:
         console.print(
-            f"sent {what} to rover {args.rover_id} [yellow]UNCONFIRMED[/yellow] "
+            f"sent {escape(what)} to rover {escape(args.rover_id)} [yellow]UNCONFIRMED[/yellow] "
             "(--no-wait: nothing checked that a rover heard it)",
             highlight=False,
         )
         return 0
     if outcome.confirmed:
-        console.print(
-            f"[green]confirmed:[/green] rover {args.rover_id} {what}: {outcome.detail}", highlight=False
-        )
+        _say(console, "[green]confirmed:[/green]", f"rover {args.rover_id} {what}: {outcome.detail}")
         return 0
     hint = ""
     if outcome.verdict is Verdict.NO_LISTENER and outcome.connections == 0:
         hint = f"; {_unreached_hint(args)}"
     elif outcome.verdict is Verdict.NO_LISTENER and outcome.connections:
         hint = f"; is {args.rover_id!r} the rover's id (--rover-id)?"
-    console.print(
-        f"[red]NOT confirmed:[/red] rover {args.rover_id} {what}: {outcome.detail}{hint}", highlight=False
-    )
+    _say(console, "[red]NOT confirmed:[/red]", f"rover {args.rover_id} {what}: {outcome.detail}{hint}")
     return 1
