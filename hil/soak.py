@@ -79,6 +79,14 @@ def run_soak(settings: SoakSettings) -> SoakReport:
         except BridgeSetupError as err:
             raise SoakSetupError(str(err)) from err
     out = settings.out_dir
+    earlier = [path for path in (out / "peer" / "truth.mcap", out / "rover" / "rover.mcap") if path.exists()]
+    if earlier:
+        # The peer and the rover each refuse to write over a recording; say so here, before anything runs,
+        # rather than fail after starting the peer.
+        raise SoakSetupError(
+            f"{out} holds an earlier soak's recordings ({', '.join(str(p) for p in earlier)}); give another "
+            "--out, or remove them"
+        )
     out.mkdir(parents=True, exist_ok=True)
     plan = fault_plan(settings.seed, settings.seconds, settings.warmup_s, settings.gap_s)
     scenario = out / "soak-scenario.toml"

@@ -14,4 +14,5 @@ def print_error(console: Console, err: object, context: str = "") -> None:
     """``error: [context: ]err`` in red, with ``err`` printed literally."""
     where = f"{escape(context)}: " if context else ""
     # soft_wrap: one line however long, so a path or key in it is never broken across lines.
-    console.print(f"[red]error:[/red] {where}{escape(str(err))}", soft_wrap=True)
+    # emoji=False: rich reads ":x:" in "virtual:x: ..." as an emoji code, and printed "virtual❌".
+    console.print(f"[red]error:[/red] {where}{escape(str(err))}", soft_wrap=True, emoji=False)

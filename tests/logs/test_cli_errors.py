@@ -18,6 +18,13 @@ def test_brackets_in_an_error_are_printed() -> None:
     assert out.getvalue().strip() == "error: faults[0].offset_m: expected [x, y] with two numbers"
 
 
+def test_emoji_codes_in_an_error_are_printed_as_written() -> None:
+    # A CAN channel named x on the virtual interface: "virtual:x:" once came out as "virtual❌".
+    out = io.StringIO()
+    print_error(Console(file=out, width=200), ValueError("bus virtual:x: python-can's virtual bus refused"))
+    assert out.getvalue().strip() == "error: bus virtual:x: python-can's virtual bus refused"
+
+
 def test_the_logs_doctor_names_a_missing_file_with_brackets_in_its_name(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -70,6 +70,15 @@ def test_a_process_that_exits_before_the_rovers_first_command_stops_the_soak(
         _wait(status, _Process(peer), _Process(rover))
 
 
+def test_an_out_holding_an_earlier_soaks_recordings_is_refused_before_anything_runs(tmp_path: Path) -> None:
+    (tmp_path / "peer").mkdir()
+    (tmp_path / "peer" / "truth.mcap").write_bytes(b"an earlier soak's truth")
+    with pytest.raises(SoakSetupError, match="holds an earlier soak's recordings"):
+        run_soak(SoakSettings(seconds=60.0, seed=1, out_dir=tmp_path, can_interface="virtual"))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["peer"]  # nothing written: no scenario, no logs
+    assert (tmp_path / "peer" / "truth.mcap").read_bytes() == b"an earlier soak's truth"
+
+
 @needs_netns
 def test_a_short_soak_injects_sees_and_recovers_every_fault(tmp_path: Path) -> None:
     # Seed 3 in 32 s: a controller reboot, an e-stop over Zenoh, a silent IMU (the pacing sensor), a CAN
