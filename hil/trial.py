@@ -20,7 +20,6 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from importlib import metadata as package_metadata
 from pathlib import Path
 from typing import Any
 
@@ -32,7 +31,6 @@ from firmware_bridge.mavlink_link import MavlinkLink
 from firmware_bridge.mavlink_transport import Transport
 from firmware_bridge.vesc import VescCodec
 from hil.campaign_place import CampaignPlace
-from hil.config_record import effective_config, flattened
 from hil.fault_coverage import park_until_ns, unexercised_faults
 from hil.lockstep import CanBackend, lockstep_wires
 from hil.scenario import Scenario
@@ -46,6 +44,7 @@ from logs.metrics import TrialMetrics, compute_metrics
 from logs.recorder import McapRecorder
 from logs.sink import FanoutSink, MessageSink
 from navigator.config import RoverConfig
+from navigator.config_record import record_config, software_version
 from navigator.onboard import Mode, OnboardStack
 from navigator.terrain_classes import TERRAIN_CLASSES
 from navigator.warm_up import warm_up
@@ -79,13 +78,6 @@ class TrialResult:
 # Called once the components exist (name -> object), before the first tick: ``rover bench hil`` uses it to
 # time each component. Nothing in a normal trial needs it.
 ComponentHook = Callable[[dict[str, Any]], None]
-
-
-def software_version() -> str:
-    try:
-        return package_metadata.version("rover-stack")
-    except package_metadata.PackageNotFoundError:
-        return "unknown"
 
 
 def run_trial(
@@ -352,21 +344,9 @@ def write_header(
     if campaign is not None:
         trial.update(campaign.metadata())
     recorder.add_metadata("trial", trial)
-    effective = effective_config(config)
-    recorder.add_metadata("config", flattened(effective))
+    record_config(recorder, config)
     recorder.add_attachment("scenario.toml", "application/toml", scenario.text.encode("utf-8"), 0)
     recorder.add_attachment("map.npz", "application/x-npz", _map_archive(scenario), 0)
-    recorder.add_attachment(
-        "config.effective.json",
-        "application/json",
-        json.dumps(effective, indent=2, sort_keys=True).encode("utf-8"),
-        0,
-    )
-    config_path = Path(config.source)
-    # The file as written, unless it holds the MAVLink signing key: recordings get shared, the key must
-    # not travel with them (config.effective.json has every other value, the key redacted).
-    if config_path.is_file() and not config.mavlink.signing_key:
-        recorder.add_attachment("config.toml", "application/toml", config_path.read_bytes(), 0)
     attach_vesc_dbc(recorder, config.vesc)
 
 

@@ -42,6 +42,7 @@ from logs.telemetry import ZenohTelemetry, open_session
 from logs.telemetry_station import rate_limited
 from logs.wall_clock import WALL_CLOCK_METADATA, take_anchor
 from navigator.config import RoverConfig
+from navigator.config_record import record_config, software_version
 from navigator.deferred_sink import DeferredSink, deferred_sink
 from navigator.errors import NavigatorError
 from navigator.input_wait import input_poller, input_waiter
@@ -209,6 +210,7 @@ def _open_recording(
         "mode": "rover-run",
         "rover_id": config.rover_id,
         "config": config.source,
+        "software_version": software_version(),
         "can_bitrate": str(config.can.bitrate),
     }
     if config.vesc.dbc_path is not None:  # a swapped-in controller DBC: which protocol the frames are in
@@ -216,6 +218,9 @@ def _open_recording(
     if config.hil_peer_run is not None:  # the HIL peer run this rover ran against: its truth names it too
         trial["hil_peer_run"] = config.hil_peer_run
     recorder.add_metadata("trial", trial)
+    # The effective config, as a lockstep trial records it: a report comparing this run with a simulated
+    # one lists the parameters that differed.
+    record_config(recorder, config)
     attach_vesc_dbc(recorder, config.vesc)
     # The date of log time 0 is otherwise unknown (the clock is monotonic): .asc/.trc exports need it.
     recorder.add_metadata(WALL_CLOCK_METADATA, take_anchor(clock, wall_ns).as_metadata())

@@ -6,7 +6,7 @@ import dataclasses
 import json
 
 from hil.campaign import campaign_config
-from hil.config_record import REDACTED, effective_config, flattened
+from navigator.config_record import REDACTED, effective_config, flattened
 
 KEY = "ab" * 32  # a well-formed 32-byte MAVLink signing key
 

@@ -17,6 +17,7 @@ from firmware_bridge.can_export import export_can_log
 from logs.clock import MonotonicClock
 from logs.reader import read_messages, read_metadata
 from logs.wall_clock import WALL_CLOCK_METADATA, WallClockAnchor
+from navigator.config_record import software_version
 from navigator.runtime import FixedRateScheduler, RingStats
 from tests.runtime.run_config import rover_run_config
 
@@ -120,6 +121,9 @@ def test_rover_run_stops_wheels_and_closes_recording_on_signal(tmp_path: Path, s
     mcap = out / "rover.mcap"
     metadata = read_metadata(mcap)
     assert metadata["trial"]["can_bitrate"] == "1000000"  # the config's default, for the report's bus load
+    # The effective config, as a lockstep trial records it: a sim-vs-real report lists what differed.
+    assert metadata["trial"]["software_version"] == software_version()
+    assert metadata["config"]["rover_id"] == "runtest" and metadata["config"]["can.interface"] == "virtual"
     timing = json.loads(metadata["runtime"]["timing_json"])
     assert timing["ticks"] >= 20
     # No autopilot, so no IMU: every tick ran on the fixed-rate fallback deadline.

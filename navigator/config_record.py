@@ -1,9 +1,10 @@
-"""The effective rover config of a trial, as a recording keeps it.
+"""The effective rover config of a run, as a recording keeps it (a lockstep trial's and ``rover run``'s).
 
 A campaign variant is the base config with overrides merged in, so the config *file* alone does not say
 what ran. The recording gets the effective values twice: as a JSON attachment (the whole config, nested,
 for people and tools) and flattened into the ``config`` metadata record (``planner.cost_mode`` ->
-``classical``), which ``rover logs report`` already compares key by key between two runs.
+``classical``), which ``rover logs report`` compares key by key between two runs: a simulated trial
+against a real run shows which parameters differed.
 """
 
 from __future__ import annotations
@@ -11,8 +12,11 @@ from __future__ import annotations
 import dataclasses
 import enum
 import json
+from importlib import metadata as package_metadata
+from pathlib import Path
 from typing import Any
 
+from logs.recorder import McapRecorder
 from navigator.config import RoverConfig
 
 REDACTED = "<redacted>"
@@ -20,6 +24,30 @@ REDACTED = "<redacted>"
 _SECRET_FIELDS = frozenset({"signing_key"})
 # Not configuration: where it came from is in the trial metadata; the map is attached on its own.
 _LEFT_OUT = frozenset({"source", "terrain"})
+
+
+def software_version() -> str:
+    try:
+        return package_metadata.version("rover-stack")
+    except package_metadata.PackageNotFoundError:
+        return "unknown"
+
+
+def record_config(recorder: McapRecorder, config: RoverConfig) -> None:
+    """The ``config`` metadata record (flattened), ``config.effective.json``, and the config file as
+    written (``config.toml``) unless it holds the MAVLink signing key: recordings get shared, the key must
+    not travel with them (the JSON has every other value, the key redacted)."""
+    effective = effective_config(config)
+    recorder.add_metadata("config", flattened(effective))
+    recorder.add_attachment(
+        "config.effective.json",
+        "application/json",
+        json.dumps(effective, indent=2, sort_keys=True).encode("utf-8"),
+        0,
+    )
+    config_path = Path(config.source)
+    if config_path.is_file() and not config.mavlink.signing_key:
+        recorder.add_attachment("config.toml", "application/toml", config_path.read_bytes(), 0)
 
 
 def effective_config(config: RoverConfig) -> dict[str, Any]:
