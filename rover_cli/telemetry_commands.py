@@ -195,32 +195,35 @@ def watch_command(args: argparse.Namespace) -> int:
             rendered.add_row(name, value, style="bold red" if name == LAST_HEARD and stale else None)
         return rendered
 
+    nothing = ""
     try:
         with Live(table(), console=console, refresh_per_second=4) as live:
             _wait(args.duration_s, lambda: live.update(table()))
         if view.samples == 0:
-            info = session.info
-            peers, routers = len(info.peers_zid()), len(info.routers_zid())
+            nothing = _heard_nothing(args, session, time.monotonic() - started)
     finally:
         subscription.close()
         session.close()
-    if view.samples:
+    if not nothing:
         return 0
+    _say(console, "[red]heard nothing:[/red]", nothing)
+    return 1
+
+
+def _heard_nothing(args: argparse.Namespace, session: Any, waited_s: float) -> str:
+    """Why a station heard no message from the rover: whom it reached, and what to check."""
+    info = session.info
+    peers, routers = len(info.peers_zid()), len(info.routers_zid())
     reached = (
         "no Zenoh peer or router"
         if peers + routers == 0
         else f"{peers} Zenoh peer(s) and {routers} router(s), none publishing rover/{args.rover_id}/**"
     )
-    hint = _unreached_hint(args)
-    if peers + routers:
-        hint = f"is {args.rover_id!r} the rover's id (--rover-id)?"
-    _say(
-        console,
-        "[red]heard nothing:[/red]",
-        f"no message from rover {args.rover_id} in {time.monotonic() - started:.1f} s; "
-        f"this station is connected to {reached}" + (f"; {hint}" if hint else ""),
+    hint = f"is {args.rover_id!r} the rover's id (--rover-id)?" if peers + routers else _unreached_hint(args)
+    return (
+        f"no message from rover {args.rover_id} in {waited_s:.1f} s; this station is connected to {reached}"
+        + (f"; {hint}" if hint else "")
     )
-    return 1
 
 
 def record_command(args: argparse.Namespace) -> int:
@@ -243,9 +246,13 @@ def record_command(args: argparse.Namespace) -> int:
         print_error(console, err)
         return 2
     stream = StreamRecorder(session, args.rover_id, recorder)
+    started = time.monotonic()
+    nothing = ""
     try:
         with console.status(f"recording rover/{args.rover_id}/** into {args.out} ..."):
             _wait(args.duration_s)
+        if stream.recorded == 0:
+            nothing = _heard_nothing(args, session, time.monotonic() - started)
     finally:
         stream.close()
         recorder.close()
@@ -256,6 +263,9 @@ def record_command(args: argparse.Namespace) -> int:
         f"{args.out}: {stream.recorded} messages on {len(stream.topics)} topics; "
         f"{stream.rejected} samples rejected, {stream.failed} not recorded",
     )
+    if nothing:  # as watch: a script notices a recording of nothing
+        _say(console, "[red]heard nothing:[/red]", nothing)
+        return 1
     return 0
 
 

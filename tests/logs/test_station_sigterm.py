@@ -32,6 +32,7 @@ def test_sigterm_leaves_a_complete_recording(tmp_path: Path) -> None:
         output, _ = station.communicate(timeout=30)
     finally:
         station.kill()
-    assert station.returncode == 0, output
+    # Nobody published (exit 1, "heard nothing", as watch says it), but the recording is whole all the same.
+    assert station.returncode == 1 and "heard nothing" in output, output
     report = diagnose(out)
     assert report.healthy and report.footer_present, report

@@ -11,6 +11,7 @@ import socket
 import threading
 import time
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -308,3 +309,24 @@ def test_zenoh_config_names_the_endpoint_zenoh_refuses() -> None:
     message = str(caught.value)
     assert "connect endpoints ['nonsense']" in message and "shipped" not in message
     assert ".rs:" not in message  # zenoh's Rust source location is noise to an operator
+
+
+def test_record_says_it_heard_nothing_and_exits_non_zero_as_watch_does(
+    endpoint: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "station.mcap"
+    args = ["telemetry", "record", str(out), "--rover-id", "r1", "--connect", endpoint]
+    assert main([*args, "--duration-s", str(SHORT_TIMEOUT_S)]) == 1
+    printed = " ".join(capsys.readouterr().out.split())
+    assert "0 messages on 0 topics" in printed and "heard nothing: no message from rover r1" in printed
+    assert out.is_file()  # the (empty) recording is still closed properly
+
+
+def test_record_of_a_rover_it_hears_exits_zero(
+    rover: FakeRover, endpoint: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "station.mcap"
+    args = ["telemetry", "record", str(out), "--rover-id", "r1", "--connect", endpoint]
+    assert main([*args, "--duration-s", str(SHORT_TIMEOUT_S)]) == 0
+    printed = " ".join(capsys.readouterr().out.split())
+    assert "heard nothing" not in printed and "0 messages" not in printed, printed
