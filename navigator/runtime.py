@@ -83,11 +83,12 @@ class RingStats:
     def values(self) -> np.ndarray:
         return self._data[: min(self._count, len(self._data))]
 
-    def summary_ms(self) -> dict[str, float]:
-        """p50, p99 and max in milliseconds (NaN when empty)."""
+    def summary_ms(self) -> dict[str, float | None]:
+        """p50, p99 and max in milliseconds; None when empty (JSON null, as the ``runtime/timing`` topic has
+        it: a NaN made the recording's ``runtime`` metadata JSON that strict readers such as jq refuse)."""
         values = self.values()
         if values.size == 0:
-            return {"p50_ms": float("nan"), "p99_ms": float("nan"), "max_ms": float("nan")}
+            return {"p50_ms": None, "p99_ms": None, "max_ms": None}
         p50, p99 = np.percentile(values, [50, 99])
         return {"p50_ms": float(p50) / 1e6, "p99_ms": float(p99) / 1e6, "max_ms": float(values.max()) / 1e6}
 

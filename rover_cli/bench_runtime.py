@@ -457,6 +457,8 @@ def _trace_table(trace: dict[str, Any]) -> Any:
 
 
 def _triple(summary: Any) -> str:
+    if summary["p50_ms"] is None:  # no samples
+        return "none"
     return f"{summary['p50_ms']:.3f} / {summary['p99_ms']:.3f} / {summary['max_ms']:.3f}"
 
 

@@ -60,6 +60,7 @@ def test_imu_samples_are_20ms_apart_by_their_time_stamps_when_steps_wake_late(tm
         )
         stamps = imu_stamps_ms(wires.onboard_mavlink.read())
     # The clock did wake late: the steps started off their deadlines by up to 3 ms.
-    assert result.timing.jitter_ns.summary_ms()["max_ms"] > 1.5
+    worst = result.timing.jitter_ns.summary_ms()["max_ms"]
+    assert worst is not None and worst > 1.5
     assert len(stamps) >= RUN_NS // (20 * MS) - 2
     assert set(np.diff(stamps).tolist()) == {20}

@@ -18,7 +18,7 @@ from logs.clock import MonotonicClock
 from logs.reader import read_messages, read_metadata
 from logs.wall_clock import WALL_CLOCK_METADATA, WallClockAnchor
 from navigator.config_record import software_version
-from navigator.runtime import FixedRateScheduler, RingStats
+from navigator.runtime import FixedRateScheduler, RingStats, TimingStats
 from tests.runtime.run_config import rover_run_config
 
 
@@ -88,6 +88,13 @@ def test_ring_stats_are_bounded() -> None:
         ring.add(value * 1_000_000)
     assert ring.count == 10 and list(ring.values()) == [8e6, 9e6, 6e6, 7e6]
     assert ring.summary_ms()["max_ms"] == 9.0
+
+
+def test_timing_of_nothing_is_json_null_not_nan() -> None:
+    # The recording's runtime metadata: "NaN" is not JSON, and strict readers (jq) refuse the record.
+    empty = json.dumps(TimingStats.empty().summary(), allow_nan=False)
+    assert json.loads(empty)["latency"] == {"p50_ms": None, "p99_ms": None, "max_ms": None}
+    assert "latency none" in TimingStats.empty().describe()
 
 
 @pytest.mark.parametrize("stop_signal", [signal.SIGTERM, signal.SIGINT])
