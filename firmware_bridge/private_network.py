@@ -26,6 +26,7 @@ def require_loopback_only(what: str) -> None:
     if others:
         raise BridgeSetupError(
             f"{what} runs only inside a private network namespace whose one interface is loopback "
-            f"(scripts/in-private-netns); this one also has {', '.join(others)}; use socketcan on vcan0 "
-            "or the virtual bus instead"
+            f"(scripts/in-private-netns); this one also has {', '.join(others)}: run it under "
+            "scripts/in-private-netns, or use socketcan on vcan0 (python-can's virtual bus joins one process "
+            "only, not a peer and a rover)"
         )
