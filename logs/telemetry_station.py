@@ -233,8 +233,9 @@ class LiveView:
             p = message["pose"]["position"]
             label = "pose (estimate)" if topic == ESTIMATOR_POSE else "pose (truth)"
             heading = math.degrees(yaw_of(message["pose"]))
-            self._values[label] = f"x {float(p['x']):.2f} m, y {float(p['y']):.2f} m, yaw {heading:.0f} deg"
-            self._values["speed (m/s)"] = f"{float(message['speed_mps']):.2f}"
+            x, y = float(p["x"]), float(p["y"])  # "z": a value that rounds to zero reads 0.00, not -0.00
+            self._values[label] = f"x {x:z.2f} m, y {y:z.2f} m, yaw {heading:z.0f} deg"
+            self._values["speed (m/s)"] = f"{float(message['speed_mps']):z.2f}"
             if topic == ESTIMATOR_POSE:
                 self._values["estimator"] = "healthy" if message.get("healthy") else "NOT healthy"
         elif topic == NAVIGATOR_STATE:

@@ -71,6 +71,15 @@ def _state(**fields: object) -> dict[str, object]:
     return state
 
 
+def test_live_view_shows_a_rover_at_rest_without_minus_signs() -> None:
+    # An estimate's speed of -0.001 m/s while standing still read "-0.00".
+    view = LiveView(SimClock())
+    pose = {"pose": planar_pose(-0.001, 2.0, 0.0), "speed_mps": -0.001, "healthy": True}
+    view.update(TelemetrySample(ESTIMATOR_POSE, 1_000, pose))
+    rows = dict(view.rows())
+    assert rows["speed (m/s)"] == "0.00" and rows["pose (estimate)"].startswith("x 0.00 m, y 2.00 m")
+
+
 def test_live_view_shows_the_supervisors_hold_next_to_guidances_driving() -> None:
     view = LiveView(SimClock())
     view.update(TelemetrySample(NAVIGATOR_STATE, 1, _state(speed_limit_mps=1 / 3)))
