@@ -22,8 +22,9 @@ from navigator.config import RoverConfig
 REDACTED = "<redacted>"
 # Secrets stay out of recordings that get shared; the record still says whether one was set.
 _SECRET_FIELDS = frozenset({"signing_key"})
-# Not configuration: where it came from is in the trial metadata; the map is attached on its own.
-_LEFT_OUT = frozenset({"source", "terrain"})
+# Not configuration: where it came from is in the trial metadata; the map is attached on its own; the HIL
+# peer run a rover ran against is an id, different every run (the trial record has it as hil_peer_run).
+_LEFT_OUT = frozenset({"source", "terrain", "hil_peer_run"})
 
 
 def software_version() -> str:

@@ -36,3 +36,14 @@ def test_the_signing_key_is_redacted_but_its_presence_is_kept():
     assert KEY not in json.dumps(effective)
     unsigned = dataclasses.replace(config, mavlink=dataclasses.replace(config.mavlink, signing_key=""))
     assert effective_config(unsigned)["mavlink"]["signing_key"] == ""
+
+
+def test_the_hil_peer_run_id_is_no_parameter_two_runs_differ_in():
+    # Each real-time HIL run has its own id: in the config record a report listed it as a differing parameter.
+    base = campaign_config(None, {}, "t")
+    run_a, run_b = (dataclasses.replace(base, hil_peer_run=run) for run in ("run-a", "run-b"))
+    assert (
+        flattened(effective_config(run_a))
+        == flattened(effective_config(run_b))
+        == flattened(effective_config(base))
+    )
