@@ -23,6 +23,7 @@ import zenoh
 
 from logs.clock import Clock
 from logs.errors import TelemetryError, TelemetrySetupError
+from logs.json_text import loads_json
 from logs.telemetry import key_prefix, undeclare_quietly
 
 logger = logging.getLogger(__name__)
@@ -64,11 +65,9 @@ def parse_command(kind: str, payload: bytes, received_ns: int) -> RoverCommand:
     if kind not in COMMAND_KINDS:
         raise ValueError(f"unknown command {kind!r}; expected one of {', '.join(COMMAND_KINDS)}")
     try:
-        body = json.loads(payload)
-    except (ValueError, UnicodeDecodeError) as err:
+        body = loads_json(payload)
+    except ValueError as err:
         raise ValueError(f"{kind} payload is not JSON: {err}") from err
-    except RecursionError as err:  # arrays or objects nested thousands deep
-        raise ValueError(f"{kind} payload is JSON nested too deep to read") from err
     if not isinstance(body, dict):
         raise ValueError(f"{kind} payload is a JSON {type(body).__name__}, not an object")
     if kind != "goal":

@@ -14,7 +14,6 @@ JSON object is skipped and counted in ``ReadStats``, never raised.
 
 from __future__ import annotations
 
-import json
 import logging
 import struct
 import threading
@@ -25,7 +24,6 @@ from io import BytesIO
 from pathlib import Path
 from typing import Any, BinaryIO, TypeVar
 
-import orjson
 import zstandard
 from fastcrc import crc32
 from mcap.data_stream import ReadDataStream
@@ -36,6 +34,7 @@ from mcap.records import Attachment, Channel, Chunk, McapRecord, Message, Metada
 from logs.chunk_kernel import LAYOUT_CUT_BODY, LAYOUT_CUT_HEAD, chunk_layout, skip_mask
 from logs.errors import LogReadError, RecordingDamaged
 from logs.frames import MAX_RECORD_BYTES, MCAP_MAGIC, magic_complete, oversized_record
+from logs.json_text import loads_json
 from logs.read_stop import CUT, DAMAGED, ReadStop
 
 logger = logging.getLogger(__name__)
@@ -301,7 +300,7 @@ def _decode(
         stats.messages += 1
         return _entry(RecordedRaw, _RAW_SLOTS, channel.topic, log_time, data)
     try:
-        message = _loads(data)
+        message = loads_json(data)
     except (ValueError, UnicodeDecodeError) as err:
         message = err
     if not isinstance(message, dict):
@@ -323,22 +322,10 @@ def decode_json_object(data: bytes) -> dict[str, Any] | None:
     """A ``RecordedRaw`` payload decoded as ``read_entries`` decodes messages; None when it is not a JSON
     object (which ``read_entries`` would have skipped and counted as malformed)."""
     try:
-        message = _loads(data)
+        message = loads_json(data)
     except (ValueError, UnicodeDecodeError):
         return None
     return message if isinstance(message, dict) else None
-
-
-def _loads(data: bytes) -> Any:
-    """JSON text to Python: orjson (several times the standard library's speed, the hot path of every
-    analysis), and the standard library for what only it reads (``NaN`` / ``Infinity`` literals from
-    other writers), so no payload Python can read is called malformed. (orjson reads an integer beyond
-    64 bits as a float; our recordings hold none.)"""
-    try:
-        return orjson.loads(data)
-    except orjson.JSONDecodeError:
-        # str input skips json's byte-encoding detection
-        return json.loads(data.decode("utf-8"))
 
 
 def _warn(stats: ReadStats, fmt: str, *args: object) -> None:

@@ -28,6 +28,7 @@ import zenoh
 
 from logs.encoding import encode_message
 from logs.errors import TelemetryError, TelemetrySetupError
+from logs.json_text import loads_json
 from logs.settings import Table
 from logs.sink import Message
 from logs.topics import CAN_FRAMES, CAN_STATS, ESTIMATOR_INNOVATIONS, TOPICS
@@ -402,7 +403,7 @@ class TelemetrySubscription:
         if attachment is None:
             raise ValueError("no log-time attachment")
         (log_time_ns,) = _LOG_TIME.unpack(attachment.to_bytes())
-        message = json.loads(sample.payload.to_bytes())
+        message = loads_json(sample.payload.to_bytes())
         if not isinstance(message, dict):
             raise ValueError(f"payload is a JSON {type(message).__name__}, not an object")
         return TelemetrySample(key[len(self._prefix) :], log_time_ns, message)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import socket
 import threading
+import time
 from collections.abc import Iterator
 
 import pytest
@@ -177,6 +178,22 @@ def test_station_rejects_samples_without_log_time(sessions: tuple[zenoh.Session,
             collector.wait_for(lambda samples: False, 0.05)
         assert rejected.is_set()
         assert collector.samples == []
+    finally:
+        subscription.close()
+
+
+def test_station_rejects_and_counts_json_nested_past_any_parsers_depth(
+    sessions: tuple[zenoh.Session, zenoh.Session],
+) -> None:
+    # It raised RecursionError out of zenoh's callback: neither counted nor logged.
+    rover, station = sessions
+    subscription = subscribe(station, "r3", _Collector())
+    try:
+        deadline = time.monotonic() + WAIT_S
+        while subscription.rejected == 0 and time.monotonic() < deadline:
+            rover.put("rover/r3/log", b"[" * 100_000 + b"]" * 100_000, attachment=(8).to_bytes(8, "little"))
+            time.sleep(0.05)
+        assert subscription.rejected >= 1 and subscription.received == 0
     finally:
         subscription.close()
 
