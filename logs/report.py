@@ -380,7 +380,9 @@ def _significant(value: float, digits: int = 4) -> str:
     (``f"{v:.4g}"`` gave "0.025" beside "0.0249", and "9.7e-05" for their difference)."""
     if value == 0:
         return "0.000"
-    decimals = max(0, digits - 1 - math.floor(math.log10(abs(value))))
+    # The exponent of the value as rounded: 0.099996 rounds up to 0.1000, not to "0.10000".
+    rounded = float(f"{value:.{digits - 1}e}")
+    decimals = max(0, digits - 1 - math.floor(math.log10(abs(rounded))))
     return f"{value:.{decimals}f}"
 
 

@@ -129,7 +129,6 @@ def print_figures(console: Console, figures: dict[str, Any], scenario_name: str,
     )
     peers.add_column("peer / baseline", ratio=1, min_width=20)
     # Short headers, the caption spells them out: at 80 columns long ones squeezed the figures.
-    # Short headers, the caption spells them out: at 80 columns long ones squeezed the figures.
     peers.caption = "x real time: simulated s / wall s; CPU x: / CPU s; runs: fastest-slowest, s"
     for header in ("wall s", "x real time", "CPU x", "of goal", "runs"):
         peers.add_column(header, justify="right", no_wrap=True)

@@ -196,3 +196,5 @@ def test_energy_per_metre_keeps_its_4_significant_digits() -> None:
     assert _fmt(-2e-05, "energy_wh_per_m") == "-0.00002000"
     assert _fmt(0.0, "energy_wh_per_m") == "0.000"
     assert _fmt(1.23456, "energy_wh_per_m") == "1.235"
+    # A value that rounds up past a power of ten keeps 4 digits, not 5.
+    assert _fmt(0.099996, "energy_wh_per_m") == "0.1000" and _fmt(9.99996, "energy_wh_per_m") == "10.00"
