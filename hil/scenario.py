@@ -19,6 +19,7 @@ from hil.moving_obstacles import MovingObstacle
 from hil.scenario_placement import check_clear_of_obstacles
 from logs.metrics import DEFAULT_ENCOUNTER_MARGIN_M
 from logs.settings import MAX_SEED, ConfigError, Table, finite_float, load_toml, shown
+from navigator.config import ROVER_CONFIG_TABLES
 from navigator.map_config import terrain_from_table
 from navigator.terrain import TerrainMap, disc_mask
 
@@ -144,20 +145,6 @@ def load_scenario(path: str | Path) -> Scenario:
     return scenario_from_table(root, text, base_dir=Path(path).parent)
 
 
-# Tables of a rover config (navigator.config) that no scenario has.
-_ROVER_CONFIG_TABLES = (
-    "vehicle",
-    "vesc",
-    "can",
-    "mavlink",
-    "zenoh",
-    "estimator",
-    "planner",
-    "follower",
-    "safety",
-)
-
-
 def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
     refuse_a_rover_config(root)
     name = root.text("name")
@@ -263,7 +250,7 @@ def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
 def refuse_a_rover_config(root: Table) -> None:
     """A rover config where the scenario goes: say so, rather than "name: required key is missing"."""
     present = set(root.keys())
-    found = [key for key in _ROVER_CONFIG_TABLES if key in present]
+    found = [key for key in ROVER_CONFIG_TABLES if key in present]
     if found and "terrain" not in present:
         tables = ", ".join(f"[{key}]" for key in found)
         raise ConfigError(

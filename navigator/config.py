@@ -38,6 +38,19 @@ HEURISTIC_WEIGHT_RANGE = (1.0, 10.0)
 PACING_SENSORS = ("imu", "gps", "wheels", "none")
 # The tables every scenario file has (hil.scenario) and no rover config does.
 _SCENARIO_TABLES = ("terrain", "start", "goals")
+# The tables of a rover config, none of which a scenario has (hil.scenario names a config given as one).
+ROVER_CONFIG_TABLES = (
+    "vehicle",
+    "vesc",
+    "can",
+    "mavlink",
+    "zenoh",
+    "estimator",
+    "planner",
+    "follower",
+    "safety",
+    "map",
+)
 # Skid-steer kinematics the estimator shares with the vehicle: single-sourced from [vehicle].
 _VEHICLE_KINEMATICS = ("track_m", "skid_factor")
 # Busy-poll the pacing link this long before (and at most after) each expected sample (navigator.paced_loop):

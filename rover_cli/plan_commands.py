@@ -140,12 +140,17 @@ def _settings(args: argparse.Namespace) -> tuple[VehicleParams, PlannerConfig]:
 
 def _rovers_map(args: argparse.Namespace) -> TerrainMap:
     """The map to plan on: for a scenario with ``[[obstacles]]``, the rover's map of it as a trial's rover
-    plans on it (the terrain with the obstacles it knows, ``known = true``, the default); else the map file.
-    A rover config given as the map is named as one."""
+    plans on it (the terrain with the obstacles it knows, ``known = true``, the default); for a rover config
+    with a ``[map]``, that map, as ``rover run`` plans on it; else the map file. A rover config without a
+    ``[map]`` is named as a config."""
     if args.map.suffix.lower() == ".toml" and args.resolution_m is None:
         from hil.scenario import load_scenario, refuse_a_rover_config
 
         root = load_toml(args.map)
+        if root.has("map") and not root.has("terrain"):
+            terrain = load_rover_config(args.map).terrain
+            assert terrain is not None  # a config with [map] has its map
+            return terrain
         refuse_a_rover_config(root)
         if root.has("obstacles"):
             return load_scenario(args.map).believed_terrain

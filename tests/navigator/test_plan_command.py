@@ -192,7 +192,19 @@ def test_plan_on_a_scenario_plans_on_the_rovers_map_with_its_known_obstacles(
     assert main(["plan", str(unknown), "--goal", "9,7"]) == 0
 
 
-def test_plan_names_a_rover_config_given_as_the_map(capsys: pytest.CaptureFixture[str]) -> None:
-    config = SCENARIO.parents[1] / "configs" / "rover.example-hardware.toml"
+def test_plan_names_a_rover_config_without_a_map_given_as_the_map(capsys: pytest.CaptureFixture[str]) -> None:
+    config = SCENARIO.parents[1] / "configs" / "rover.toml"  # no [map]: a trial's rover gets the scenario's
     assert main(["plan", str(config)]) == 2
     assert "this is a rover config" in capsys.readouterr().err
+
+
+def test_plan_on_a_rover_config_plans_on_its_map_as_rover_run_does(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = tmp_path / "rover.toml"
+    config.write_text('[map]\nkind = "procedural"\nsize_m = [10.0, 10.0]\nresolution_m = 0.5\n')
+    assert main(["plan", str(config), "--start", "1,1", "--goal", "8,8", "--json"]) == 0
+    path = np.array(json.loads(capsys.readouterr().out)["path"])
+    assert np.linalg.norm(path[-1] - (8.0, 8.0)) < 0.5
+    assert main(["plan", str(config), "--start", "1,1"]) == 2  # a config names no goal
+    assert "no --goal given" in capsys.readouterr().err

@@ -38,3 +38,12 @@ def test_a_rover_config_given_as_the_scenario_is_named_as_one(config: str) -> No
         "), not a scenario: a scenario (scenarios/default.toml, docs/hil.md) goes here, "
         "the rover config after --config"
     ), caught.value.problem
+
+
+def test_a_rover_config_of_its_map_alone_is_named_as_one(tmp_path: Path) -> None:
+    # [map] is a rover config's table too; a config holding only it read as "name: required key is missing".
+    config = tmp_path / "map-only.toml"
+    config.write_text('[map]\nkind = "procedural"\nsize_m = [10.0, 10.0]\nresolution_m = 0.5\n')
+    with pytest.raises(ConfigError) as caught:
+        load_scenario(config)
+    assert caught.value.problem.startswith("this is a rover config (it has [map])"), caught.value.problem
