@@ -34,6 +34,7 @@ import numpy as np
 
 from firmware_bridge.mavlink_transport import Transport
 from navigator.paced_loop import TickSample
+from navigator.runtime import percentiles_ms
 
 SCALED_IMU_MSGID = 26
 _MAVLINK2_MAGIC = 0xFD
@@ -107,13 +108,6 @@ class RoverTrace:
         self.ticks.append((self.last_wake_ns, sample))
 
 
-def _summary(values: np.ndarray) -> dict[str, Any]:
-    if values.size == 0:
-        return {"p50_ms": None, "p99_ms": None, "max_ms": None}
-    p50, p99 = np.percentile(values, [50, 99])
-    return {"p50_ms": float(p50) / 1e6, "p99_ms": float(p99) / 1e6, "max_ms": float(values.max()) / 1e6}
-
-
 def breakdown(imu: np.ndarray, rover: RoverTrace, nominal_period_ns: int) -> dict[str, Any]:
     """Split each sensor tick's way from the IMU's due time to the wheel command (see the module doc).
 
@@ -148,11 +142,11 @@ def breakdown(imu: np.ndarray, rover: RoverTrace, nominal_period_ns: int) -> dic
     result: dict[str, Any] = {
         "matched_ticks": len(rows),
         "imu_frames": int(sent.size),
-        "imu_period_jitter": _summary(np.abs(np.diff(sent) - nominal_period_ns)),
-        "tick_period_jitter": _summary(np.abs(period - nominal_period_ns)),
-        "parts": {name: _summary(values) for name, values in parts.items()},
+        "imu_period_jitter": percentiles_ms(np.abs(np.diff(sent) - nominal_period_ns)),
+        "tick_period_jitter": percentiles_ms(np.abs(period - nominal_period_ns)),
+        "parts": {name: percentiles_ms(values) for name, values in parts.items()},
         "parts_jitter": {
-            name: _summary(np.abs(np.diff(values)[consecutive]))
+            name: percentiles_ms(np.abs(np.diff(values)[consecutive]))
             for name, values in parts.items()
             if name != "compute"
         },

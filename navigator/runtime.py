@@ -19,7 +19,7 @@ import gc
 import logging
 import sys
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 
@@ -65,6 +65,16 @@ def freeze_start_up_heap() -> None:
     gc.freeze()
 
 
+def percentiles_ms(values_ns: np.ndarray | Sequence[int]) -> dict[str, float | None]:
+    """p50, p99 and max of nanosecond samples, in milliseconds; None when there are none (JSON null: a NaN
+    made the recording's ``runtime`` metadata JSON that strict readers such as jq refuse)."""
+    values = np.asarray(values_ns, dtype=np.float64)
+    if values.size == 0:
+        return {"p50_ms": None, "p99_ms": None, "max_ms": None}
+    p50, p99 = np.percentile(values, [50, 99])
+    return {"p50_ms": float(p50) / 1e6, "p99_ms": float(p99) / 1e6, "max_ms": float(values.max()) / 1e6}
+
+
 class RingStats:
     """The last ``capacity`` int samples, in a preallocated array (no growth in a long run)."""
 
@@ -84,13 +94,8 @@ class RingStats:
         return self._data[: min(self._count, len(self._data))]
 
     def summary_ms(self) -> dict[str, float | None]:
-        """p50, p99 and max in milliseconds; None when empty (JSON null, as the ``runtime/timing`` topic has
-        it: a NaN made the recording's ``runtime`` metadata JSON that strict readers such as jq refuse)."""
-        values = self.values()
-        if values.size == 0:
-            return {"p50_ms": None, "p99_ms": None, "max_ms": None}
-        p50, p99 = np.percentile(values, [50, 99])
-        return {"p50_ms": float(p50) / 1e6, "p99_ms": float(p99) / 1e6, "max_ms": float(values.max()) / 1e6}
+        """p50, p99 and max in milliseconds (``percentiles_ms``)."""
+        return percentiles_ms(self.values())
 
 
 @dataclass

@@ -11,28 +11,18 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
-
 from logs import topics
 from logs.clock import NS_PER_S, Clock
 from logs.sink import MessageSink
 from navigator.paced_loop import TickSample
+from navigator.runtime import percentiles_ms
 
 WINDOW_NS = NS_PER_S
 
 
-def percentiles_ms(values: list[int]) -> dict[str, Any]:
-    """p50 / p99 / max in milliseconds and the sample count (values None when there are no samples)."""
-    if not values:
-        return {"p50_ms": None, "p99_ms": None, "max_ms": None, "samples": 0}
-    array = np.asarray(values, dtype=np.float64)
-    p50, p99 = np.percentile(array, [50, 99])
-    return {
-        "p50_ms": float(p50) / 1e6,
-        "p99_ms": float(p99) / 1e6,
-        "max_ms": float(array.max()) / 1e6,
-        "samples": len(values),
-    }
+def _window_percentiles(values: list[int]) -> dict[str, Any]:
+    """p50 / p99 / max in milliseconds (None when there are no samples) and the sample count."""
+    return {**percentiles_ms(values), "samples": len(values)}
 
 
 class TimingPublisher:
@@ -81,9 +71,9 @@ class TimingPublisher:
                 "sensor_ticks": self._counts.get("sensor", 0),
                 "deadline_ticks": self._counts.get("deadline", 0),
                 "overruns": self._overruns,
-                "jitter": percentiles_ms(self._jitter),
-                "latency": percentiles_ms(self._latency),
-                "tick_time": percentiles_ms(self._tick),
+                "jitter": _window_percentiles(self._jitter),
+                "latency": _window_percentiles(self._latency),
+                "tick_time": _window_percentiles(self._tick),
                 "last_tick_ms": self._tick[-1] / 1e6 if self._tick else None,
                 "ticks_total": self.ticks_total,
                 "overruns_total": self.overruns_total,
