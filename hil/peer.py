@@ -287,7 +287,7 @@ def run_peer(
     seed = scenario.seed if seed is None else seed
     out_dir.mkdir(parents=True, exist_ok=True)
     mcap_path = out_dir / TRUTH_MCAP
-    with McapRecorder(mcap_path) as recorder:
+    with McapRecorder(mcap_path, exclusive=True) as recorder:
         # Names this run in truth.mcap and in the rover config it writes, so the rover's recording names it
         # too: a report pairs each rover recording with its own truth even when runs overlap in time.
         peer_run = secrets.token_hex(8)

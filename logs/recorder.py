@@ -97,9 +97,10 @@ class _Output:
 class McapRecorder(ClosesOnExit):
     """Writes published messages to an MCAP file (a path or a binary stream).
 
-    A path's parent folders are created; the recorder owns and closes that file. A stream given by the
-    caller is flushed on ``close()`` but left open. ``close()`` is safe to call twice; the recorder is also
-    a context manager.
+    A path's parent folders are created; the recorder owns and closes that file. ``exclusive``: a path that
+    exists already is a ``RecordingError``, not emptied (``rover run``, the HIL peer and the ground station
+    never write over a recording). A stream given by the caller is flushed on ``close()`` but left open.
+    ``close()`` is safe to call twice; the recorder is also a context manager.
 
     A chunk closes when it holds ``chunk_size`` uncompressed bytes or spans ``chunk_duration_ns`` of log
     time (``None``: size only), whichever comes first; each time-closed chunk is flushed to the OS. A file
@@ -115,6 +116,7 @@ class McapRecorder(ClosesOnExit):
         compression: str = "zstd",
         profile: str = "",
         chunk_duration_ns: int | None = DEFAULT_CHUNK_DURATION_NS,
+        exclusive: bool = False,
     ) -> None:
         if chunk_size <= 0:
             raise RecordingError(f"chunk_size must be > 0 bytes, got {chunk_size}")
@@ -140,7 +142,14 @@ class McapRecorder(ClosesOnExit):
             self.name = str(path)
             try:
                 path.parent.mkdir(parents=True, exist_ok=True)
-                self._owned_file = path.open("wb")
+                # Exclusive: created here or not at all, never an earlier recording emptied (even one
+                # another process made after the caller looked).
+                self._owned_file = path.open("xb" if exclusive else "wb")
+            except FileExistsError as err:
+                raise RecordingError(
+                    f"recording {path} already exists (an earlier run's, left as it is): give another "
+                    "file or folder, or move it away"
+                ) from err
             except OSError as err:
                 raise RecordingError(f"cannot create recording {path}: {err}; check the folder") from err
             stream: BinaryIO = self._owned_file

@@ -202,7 +202,7 @@ def _open_recording(
     """The run's recording, with its trial metadata and the date of its clock's zero (``wall_clock``);
     ``RoverSetupError`` if the file cannot be made."""
     try:
-        recorder = McapRecorder(mcap_path)
+        recorder = McapRecorder(mcap_path, exclusive=True)
     except RecordingError as err:
         raise RoverSetupError(f"{err} (--out)") from err
     # can_bitrate: the report's bus load for frames counted from the recording (as hil.trial writes it)

@@ -241,7 +241,7 @@ def record_command(args: argparse.Namespace) -> int:
         return 2
     try:
         session = _session(args)
-        recorder = McapRecorder(args.out)
+        recorder = McapRecorder(args.out, exclusive=True)
     except LogsError as err:
         print_error(console, err)
         return 2

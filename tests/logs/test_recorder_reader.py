@@ -444,3 +444,14 @@ def test_recording_opens_no_socket(tmp_path: Path) -> None:
     before = _sockets_open()
     _record(tmp_path / "r.mcap", _expected(200))
     assert _sockets_open() - before == set()
+
+
+def test_an_exclusive_recorder_never_empties_an_earlier_recording(tmp_path: Path) -> None:
+    earlier = tmp_path / "rover.mcap"
+    earlier.write_bytes(b"an earlier run's recording")
+    with pytest.raises(RecordingError, match="already exists"):
+        McapRecorder(earlier, exclusive=True)
+    assert earlier.read_bytes() == b"an earlier run's recording"
+    with McapRecorder(tmp_path / "new.mcap", exclusive=True) as recorder:  # a new file: made as usual
+        recorder.publish("log", 1, {"message": "x"})
+    assert (tmp_path / "new.mcap").stat().st_size > 0
