@@ -17,7 +17,7 @@ from logs.clock import NS_PER_S
 from logs.reader import read_messages
 from logs.settings import parse_toml
 from navigator.config import rover_config_from_table
-from tests.hil.world_harness import run_peer_on_test_clock, scenario_with
+from tests.hil.world_harness import StepClock, run_peer_on_test_clock, scenario_with
 
 HIDDEN_ROCK = """
 [[obstacles]]
@@ -35,22 +35,11 @@ waypoints = [[8.0, 8.5], [12.0, 8.5]]
 """
 
 
-class _Clock:
-    def __init__(self) -> None:
-        self.t = 1_000 * NS_PER_S
-
-    def now_ns(self) -> int:
-        return self.t
-
-    def wait(self, seconds: float) -> None:
-        self.t += round(seconds * NS_PER_S)
-
-
 def _peer_warnings(scenario: Scenario, out: Path, caplog: pytest.LogCaptureFixture) -> tuple[str, list[str]]:
     config = rover_config_from_table(parse_toml("", "<defaults>"))
     with lockstep_wires(config.can) as wires:
         run_peer_on_test_clock(
-            scenario, config, out, _Clock(), wires.sim_bus, wires.sim_mavlink, duration_ns=NS_PER_S // 10
+            scenario, config, out, StepClock(), wires.sim_bus, wires.sim_mavlink, duration_ns=NS_PER_S // 10
         )
     logged = " ".join(r.getMessage() for r in caplog.records if r.name == "hil.peer")
     recorded = [

@@ -98,6 +98,19 @@ class SteppedClock(Protocol):
     def wait(self, seconds: float) -> None: ...
 
 
+class StepClock:
+    """The plainest ``SteppedClock``: 1000 s at the start, each wait moves it on by what was asked."""
+
+    def __init__(self) -> None:
+        self.t = 1_000_000_000_000
+
+    def now_ns(self) -> int:
+        return self.t
+
+    def wait(self, seconds: float) -> None:
+        self.t += round(seconds * 1e9)
+
+
 def run_peer_on_test_clock(
     scenario: Scenario,
     config: RoverConfig,
