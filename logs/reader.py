@@ -301,7 +301,7 @@ def _decode(
         return _entry(RecordedRaw, _RAW_SLOTS, channel.topic, log_time, data)
     try:
         message = loads_json(data)
-    except (ValueError, UnicodeDecodeError) as err:
+    except ValueError as err:  # loads_json raises nothing else (UnicodeDecodeError is one)
         message = err
     if not isinstance(message, dict):
         stats.malformed += 1
@@ -323,7 +323,7 @@ def decode_json_object(data: bytes) -> dict[str, Any] | None:
     object (which ``read_entries`` would have skipped and counted as malformed)."""
     try:
         message = loads_json(data)
-    except (ValueError, UnicodeDecodeError):
+    except ValueError:
         return None
     return message if isinstance(message, dict) else None
 
