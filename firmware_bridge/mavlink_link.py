@@ -34,6 +34,7 @@ from firmware_bridge.mavlink_commands import (
 from firmware_bridge.mavlink_frames import V2_FRAME_OVERHEAD, decode_unsigned_v2
 from firmware_bridge.mavlink_health import MavlinkCounters, MavlinkHealth
 from firmware_bridge.mavlink_transport import DatagramTransport, Transport, check_connection
+from firmware_bridge.obstacle_scan import ObstacleScan, ScanRejected, read_scan
 from logs.clock import Clock, to_ns
 from logs.closing import ClosesOnExit
 from logs.encoding import bytes_only_sink
@@ -160,7 +161,9 @@ class BatteryState:
     source: str
 
 
-Reading = GpsFix | ImuSample | AttitudeSample | BatteryState | GoalRequest | StopRequest
+Reading = GpsFix | ImuSample | AttitudeSample | BatteryState | ObstacleScan | GoalRequest | StopRequest
+
+_LOG_REJECTED_SCAN_EVERY = 100  # the first refused OBSTACLE_DISTANCE is logged, then every 100th
 
 
 class _TransportFile:
@@ -250,6 +253,7 @@ class MavlinkLink(ClosesOnExit):
         self.autopilot_link_ok = True
         self._statustext_id = 0
         self._closed = False
+        self.scans_rejected = 0  # OBSTACLE_DISTANCE messages that could not be read as a scan (_convert_scan)
         self._converters = self._new_converters()
 
     def _new_mavlink(self) -> mavlink2.MAVLink:
@@ -594,7 +598,18 @@ class MavlinkLink(ClosesOnExit):
             "BATTERY_STATUS": _battery_status,
             "ATTITUDE": _attitude,
             "HEARTBEAT": self._convert_heartbeat,
+            "OBSTACLE_DISTANCE": self._convert_scan,
         }
+
+    def _convert_scan(self, msg: Any, t_ns: int) -> ObstacleScan | None:
+        try:
+            return read_scan(msg, t_ns)
+        except ScanRejected as error:
+            # Counted and logged, never raised: a lidar driver's bad message must not stop the rover loop.
+            self.scans_rejected += 1
+            if self.scans_rejected == 1 or self.scans_rejected % _LOG_REJECTED_SCAN_EVERY == 0:
+                logger.warning("OBSTACLE_DISTANCE refused (%d so far): %s", self.scans_rejected, error)
+            return None
 
     def _convert_gps(self, msg: Any, t_ns: int) -> GpsFix:
         fix = _gps_fix(msg, t_ns)

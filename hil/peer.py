@@ -26,6 +26,7 @@ its times count from the rover's start however long ``rover run`` took to come u
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import os
@@ -292,12 +293,9 @@ def run_peer(
         # too: a report pairs each rover recording with its own truth even when runs overlap in time.
         peer_run = secrets.token_hex(8)
         start_on = ON_FIRST_COMMAND if start_on_command else ON_PEER_START
+        # The rover in the other process perceives only what the wires carry: the simulated lidar's scans.
+        scenario = seen_through_lidar(scenario)
         write_peer_header(recorder, scenario, config, seed, peer_run, start_on)
-        unseen = unseen_by_the_rover(scenario)
-        if unseen is not None:
-            _log.warning("HIL peer: %s", unseen)
-            now = clock.now_ns()
-            recorder.publish(topics.LOG, now, topics.log_message(now, topics.LOG_WARNING, "hil.peer", unseen))
         codec = VescCodec.for_profile(config.vesc)
         step_clock = StepClock(clock.now_ns())
         with SimWorld(scenario, config.vehicle, codec, step_clock, can_bus, mavlink, recorder, seed) as world:
@@ -351,22 +349,13 @@ def run_peer(
     )
 
 
-def unseen_by_the_rover(scenario: Scenario) -> str | None:
-    """What of ``scenario`` the rover in another process cannot see, in words (None: nothing).
-
-    ``rover run`` has no perception input: in lockstep ``hil.trial`` hands the stack the simulated
-    perception's observations, here nothing carries them over the wires, and the map the peer writes holds
-    the known obstacles only. Hidden and moving obstacles are still in the world and in the truth.
-    """
-    unseen = [f"hidden obstacle {o.id!r} (known = false)" for o in scenario.obstacles if not o.known]
-    unseen += [f"moving obstacle {m.id!r}" for m in scenario.moving_obstacles]
-    if not unseen:
-        return None
-    return (
-        f"the rover cannot see {', '.join(unseen)}: `rover run` has no perception input (only lockstep "
-        "trials, `rover hil trial`, feed it the simulated perception), so it plans on the map the peer wrote "
-        "and may drive into them; collisions count in the truth"
-    )
+def seen_through_lidar(scenario: Scenario) -> Scenario:
+    """``scenario`` with the rover perceiving through the simulated lidar (``[sensors] perception =
+    "scan"``): ``rover run`` gets no obstacle objects, only what comes over MAVLink (OBSTACLE_DISTANCE),
+    so a hidden or moving obstacle is seen as on the rover, through its own scan tracker."""
+    if scenario.sensors.perception == "scan":
+        return scenario
+    return dataclasses.replace(scenario, sensors=dataclasses.replace(scenario.sensors, perception="scan"))
 
 
 def write_peer_header(

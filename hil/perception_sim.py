@@ -60,15 +60,19 @@ class PerceptionSim:
         t_s = seconds(t_ns - self.epoch_ns)
         return [(m, m.state_at(t_s)) for m in self._moving]
 
+    def obstacles_at(self, t_ns: int) -> list[tuple[str, float, float, float, float, float]]:
+        """Every obstacle, static then moving, as (id, x, y, radius, vx, vy) at the clock reading ``t_ns``."""
+        return self._static_candidates + [
+            (m.id, x, y, m.radius_m, vx, vy) for m, (x, y, vx, vy) in self.moving_states(t_ns)
+        ]
+
     def poll(self) -> list[ObstacleObservation]:
         now = self._clock.now_ns()
         if now < self._next_ns:
             return []
         self._next_ns = max(self._next_ns + self._period_ns, now + 1)
         rx, ry = self._rover_xy()
-        candidates = self._static_candidates + [
-            (m.id, x, y, m.radius_m, vx, vy) for m, (x, y, vx, vy) in self.moving_states(now)
-        ]
+        candidates = self.obstacles_at(now)
         # One draw pair per candidate, seen or not: the noise stream does not depend on the path. All pairs
         # in one call: the generator fills them in order, so the same numbers as a call per pair.
         noise = (self._rng.normal(0.0, 1.0, (len(candidates), 2)) * self._noise_m).tolist()

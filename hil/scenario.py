@@ -40,6 +40,9 @@ class Goal:
     tolerance_m: float
 
 
+PERCEPTION_MODELS = ("objects", "scan")
+
+
 @dataclass(frozen=True)
 class SensorSettings:
     gps_rate_hz: float = 5.0
@@ -55,6 +58,11 @@ class SensorSettings:
     perception_range_m: float = 8.0
     perception_rate_hz: float = 10.0
     perception_noise_m: float = 0.0
+    # How the rover perceives obstacles (PERCEPTION_MODELS): "objects" hands the onboard stack each obstacle
+    # within range as it is (id, disc, velocity); "scan" sends a simulated lidar's scans over MAVLink
+    # (hil.lidar_sim) and the stack tracks obstacles from them, as `rover run` does on the rover.
+    perception: str = "objects"
+    perception_fov_deg: float = 360.0  # the simulated lidar's field of view, centred on the front
 
     @classmethod
     def from_table(cls, table: Table) -> SensorSettings:
@@ -76,6 +84,8 @@ class SensorSettings:
             perception_range_m=table.number("perception_range_m", cls.perception_range_m, lo=0.1, hi=500.0),
             perception_rate_hz=table.number("perception_rate_hz", cls.perception_rate_hz, lo=0.1, hi=100.0),
             perception_noise_m=table.number("perception_noise_m", cls.perception_noise_m, lo=0.0, hi=10.0),
+            perception=table.text("perception", cls.perception, choices=PERCEPTION_MODELS),
+            perception_fov_deg=table.number("perception_fov_deg", cls.perception_fov_deg, lo=1.0, hi=360.0),
         )
         table.finish()
         return settings

@@ -135,7 +135,8 @@ def run_trial(
                     mavlink,
                     sink,
                     scenario.believed_terrain,
-                    obstacles=world.perception,
+                    # "scan": the stack tracks obstacles from the simulated lidar's MAVLink scans.
+                    obstacles=None if world.lidar is not None else world.perception,
                     commands=commands,
                     ground_station=None
                     if ground_station is None

@@ -22,6 +22,7 @@ from hil.bus_off import BusOffAnnouncer, BusOffRoverEnd
 from hil.dynamics import DynamicsStep, RoverDynamics
 from hil.fault_links import FaultyCanBus, FaultyTransport
 from hil.faults import FaultSchedule
+from hil.lidar_sim import SimLidar
 from hil.perception_sim import PerceptionSim
 from hil.scenario import Scenario
 from hil.sensors import GpsModel, ImuModel
@@ -132,6 +133,22 @@ class SimWorld:
             rate_hz=sensors.perception_rate_hz,
             noise_m=sensors.perception_noise_m,
             epoch_ns=self.epoch_ns,
+        )
+        # The lidar, when the rover perceives through scans ("scan"), on the autopilot's (fault-wrapped)
+        # MAVLink wire; its own noise stream, so turning it on shifts no other.
+        self.lidar = (
+            SimLidar(
+                mavlink,
+                clock,
+                self.perception.obstacles_at,
+                np.random.default_rng([seed, 3]),
+                range_m=sensors.perception_range_m,
+                rate_hz=sensors.perception_rate_hz,
+                noise_m=sensors.perception_noise_m,
+                fov_deg=sensors.perception_fov_deg,
+            )
+            if sensors.perception == "scan"
+            else None
         )
         self._tick = 0
         self._has_faults = bool(scenario.faults)
@@ -255,6 +272,9 @@ class SimWorld:
             )
             autopilot.step(truth)
         autopilot.poll()
+        lidar = self.lidar
+        if lidar is not None and now >= lidar.next_ns:
+            lidar.step(step.x, step.y, step.yaw)
         # Ground truth is recorded every TRUTH_DIVIDER-th tick; between those, the recorder has something
         # to do only while a contact may begin or end (TruthRecorder.on_step), so it is not called at all.
         truth_recorder = self.truth

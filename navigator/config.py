@@ -25,6 +25,7 @@ from navigator.map_config import terrain_from_table
 from navigator.phase_locked_loop import DEFAULT_LATE_WAIT_NS, DEFAULT_OFFSET_NS
 from navigator.planner import COST_MODES, FOOTPRINT_INFLATIONS
 from navigator.safety_config import SafetyConfig
+from navigator.scan_tracker import ScanTrackerConfig
 from navigator.terrain import TerrainMap
 from navigator.vehicle import VehicleParams
 from navigator.yielding import YIELD_MARGIN_M, YIELD_MAX_M, YIELD_MAX_S, YIELD_SPEED_MPS
@@ -49,6 +50,7 @@ ROVER_CONFIG_TABLES = (
     "planner",
     "follower",
     "safety",
+    "perception",
     "map",
 )
 # Skid-steer kinematics the estimator shares with the vehicle: single-sourced from [vehicle].
@@ -129,6 +131,7 @@ class RoverConfig:
     follower: FollowerConfig
     source: str = "<defaults>"
     safety: SafetyConfig = dataclasses.field(default_factory=SafetyConfig)
+    perception: ScanTrackerConfig = dataclasses.field(default_factory=ScanTrackerConfig)
     pacing_sensor: str = "imu"
     busy_poll_ms: float = DEFAULT_BUSY_POLL_MS
     control_loop: str = DEFAULT_CONTROL_LOOP
@@ -207,6 +210,7 @@ def rover_config_from_table(root: Table, base_dir: Path | None = None) -> RoverC
         planner=PlannerConfig.from_table(root.table("planner", optional=True)),
         follower=FollowerConfig.from_table(root.table("follower", optional=True)),
         safety=SafetyConfig.from_table(root.table("safety", optional=True)),
+        perception=ScanTrackerConfig.from_table(root.table("perception", optional=True)),
         pacing_sensor=pacing_sensor,
         busy_poll_ms=busy_poll_ms,
         control_loop=control_loop,

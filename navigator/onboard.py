@@ -32,6 +32,7 @@ from firmware_bridge.can_health import CanLinkState
 from firmware_bridge.can_link import CanLink, WheelStatus
 from firmware_bridge.mavlink_commands import GoalRequest, StopRequest
 from firmware_bridge.mavlink_link import AttitudeSample, GpsFix, ImuSample, MavlinkLink
+from firmware_bridge.obstacle_scan import ObstacleScan
 from logs import topics
 from logs.clock import NS_PER_S, Clock
 from logs.commands import CommandSource
@@ -45,6 +46,7 @@ from navigator.mixing import mix_skid_steer
 from navigator.perception import ObstacleObservation, ObstacleSource
 from navigator.planner import Path, Planner
 from navigator.safety import EventSink, SafetyInputs, SafetyMode, SafetySupervisor
+from navigator.scan_tracker import ScanTracker
 from navigator.terrain import TerrainMap
 
 _log = logging.getLogger(__name__)
@@ -281,6 +283,10 @@ class OnboardStack:
         self._sink = sink
         self._commands = commands
         self._obstacles = obstacles
+        # Obstacles from a range sensor's OBSTACLE_DISTANCE scans on the MAVLink link (a lidar driver on the
+        # rover, the HIL peer's simulated lidar): tracked here, read like ``obstacles``.
+        self.scan_tracker = ScanTracker(config.perception)
+        self._scans_in = False  # a scan arrived since the tracker was last read
         self._ground_station = ground_station
         self._wheels = _WheelSnapshot.of(can_link.wheel_status())
         self._terrain = terrain
@@ -408,7 +414,10 @@ class OnboardStack:
             if self._commands is not None:
                 self._read_commands()
             if self._obstacles is not None:
-                self._read_obstacles(now)
+                self._read_obstacles(now, self._obstacles)
+            if self._scans_in:
+                self._scans_in = False
+                self._read_obstacles(now, self.scan_tracker)
 
             pose = self.estimator.pose()
             ready = self._ready(now, pose)
@@ -620,10 +629,8 @@ class OnboardStack:
             elif command.x is not None and command.y is not None:
                 self.set_goal(command.x, command.y)
 
-    def _read_obstacles(self, now: int) -> None:
-        if self._obstacles is None:
-            return
-        seen = self._obstacles.poll()
+    def _read_obstacles(self, now: int, source: ObstacleSource) -> None:
+        seen = source.poll()
         if not seen:
             return
         self.guidance.observe(seen)
@@ -700,12 +707,23 @@ class OnboardStack:
                 self._goal_from_ground_station(reading)
             elif isinstance(reading, StopRequest):
                 self.estop(f"MAVLink {reading.source} from system {reading.sysid}")
+            elif isinstance(reading, ObstacleScan):
+                self._take_scan(reading)
             elif isinstance(reading, AttitudeSample):
                 if math.isfinite(reading.roll_rad) and math.isfinite(reading.pitch_rad):
                     self._attitude = reading
                 else:
                     self._reject_tilt(reading)
                 self.estimator.on_attitude(reading.t_ns, reading.yaw_rad, AHRS_HEADING_STD_RAD)
+
+    def _take_scan(self, scan: ObstacleScan) -> None:
+        """A range scan to the tracker, placed on the map from the pose estimate as it stands now; before the
+        rover knows where it is, and for a scan in the body frame which way it faces, the tracker only
+        counts it (``scans_without_pose``)."""
+        pose = self.estimator.pose()
+        known = pose is not None and pose.healthy and (pose.heading_known or not scan.body_frame)
+        self.scan_tracker.add(scan, (pose.x, pose.y, pose.yaw) if known and pose is not None else None)
+        self._scans_in = True
 
     def _reject_tilt(self, reading: AttitudeSample) -> None:
         """An AHRS attitude without a usable roll or pitch (NaN, inf): the tip-over check would read no

@@ -9,6 +9,7 @@ against the peer's truth, within 0.3 m RMS of lockstep's.
 
 from __future__ import annotations
 
+import math
 import signal
 import subprocess
 from pathlib import Path
@@ -19,8 +20,9 @@ from hil.realtime_metrics import realtime_metrics
 from hil.scenario import Scenario
 from hil.trial import TrialResult
 from logs.analysis import analyse
-from logs.reader import read_metadata
+from logs.reader import read_messages, read_metadata
 from logs.report import write_report
+from logs.topics import PERCEPTION_OBSTACLES
 from tests.system.conftest import DATA
 from tests.system.realtime_rig import (
     START_TIMEOUT_S,
@@ -122,3 +124,25 @@ def _compare_with_lockstep(tmp_path: Path, small_trial: TrialResult, control_loo
     assert isinstance(error, float) and isinstance(lockstep_error, float)
     assert abs(error - lockstep_error) <= ESTIMATOR_ERROR_SLACK_M, (error, lockstep_error)
     assert dict(run.sources)["estimator error"].startswith(f"rover: {rover_mcap}")
+
+
+@needs_netns
+def test_rover_run_drives_around_a_rock_it_sees_only_through_the_peers_lidar(tmp_path: Path) -> None:
+    # hidden_rock.toml: a rock missing from the rover's map, on the straight line to the goal. The peer
+    # sends its simulated lidar's scans over MAVLink; `rover run` tracks the rock from them and plans round.
+    scenario_file = DATA / "hidden_rock.toml"
+    channel = fresh_multicast_group()
+    with (
+        running_peer(scenario_file, tmp_path / "peer", "udp_multicast", channel) as peer,
+        running_rover(peer.rover_config, (12.0, 5.0), tmp_path / "rover") as rover,
+    ):
+        _drive_to_the_goal(peer, rover, tmp_path)
+    rover_mcap, truth_mcap = tmp_path / "rover" / "rover.mcap", tmp_path / "peer" / "truth.mcap"
+    realtime = realtime_metrics(rover_mcap, truth_mcap)
+    assert realtime.goal_reached and realtime.collisions == 0, realtime
+    seen = [
+        obstacle
+        for message in read_messages(rover_mcap, topics={PERCEPTION_OBSTACLES})
+        for obstacle in message.message["obstacles"]
+    ]
+    assert any(math.hypot(o["x"] - 7.0, o["y"] - 5.0) < 0.5 for o in seen), seen[-3:]

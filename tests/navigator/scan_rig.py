@@ -1,0 +1,36 @@
+"""Scans of known discs for the scan-perception tests: the simulated lidar's rays, through the wire format."""
+
+from __future__ import annotations
+
+import numpy as np
+from pymavlink.dialects.v20 import common as mavlink2
+
+from firmware_bridge.mavlink_transport import memory_pipe_pair
+from firmware_bridge.obstacle_scan import ObstacleScan, read_scan, scan_message
+from hil.lidar_sim import MIN_RANGE_M, SimLidar
+from logs.clock import SimClock
+
+Disc = tuple[str, float, float, float, float, float]  # id, x, y, radius, vx, vy
+
+
+def scan_of(
+    discs: list[Disc], pose: tuple[float, float, float], t_ns: int, *, noise_m: float = 0.0, seed: int = 0
+) -> ObstacleScan:
+    """What a 360-degree, 72-sector lidar at ``pose`` (x, y, yaw) sees of ``discs`` at ``t_ns``, as read
+    off an OBSTACLE_DISTANCE message."""
+    lidar = SimLidar(
+        memory_pipe_pair()[0], SimClock(t_ns), lambda _t: discs, np.random.default_rng(seed), noise_m=noise_m
+    )
+    mav = mavlink2.MAVLink(None, 1, 1)
+    msg = scan_message(
+        mav,
+        t_ns // 1000,
+        lidar.ranges(t_ns, *pose),
+        increment_deg=lidar.increment_deg,
+        angle_offset_deg=lidar.angle_offset_deg,
+        min_range_m=MIN_RANGE_M,
+        max_range_m=8.0,
+    )
+    # Through the bytes, as the link would decode them.
+    decoded = mavlink2.MAVLink(None).decode(bytearray(msg.pack(mav)))
+    return read_scan(decoded, t_ns)

@@ -1,0 +1,102 @@
+"""From lidar scans to tracked obstacles: discs where obstacles are, one id each, velocities for movers."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import pytest
+
+from logs.settings import ConfigError, parse_toml
+from navigator.config import rover_config_from_table
+from navigator.scan_clusters import ClusterSettings, detections
+from navigator.scan_tracker import ScanTracker, ScanTrackerConfig
+from tests.navigator.scan_rig import Disc, scan_of
+
+SCAN_NS = 100_000_000  # 10 Hz
+
+
+def _centres(discs: list[Disc], pose: tuple[float, float, float]) -> list[tuple[float, float, float]]:
+    found = detections(scan_of(discs, pose, 0), *pose, ClusterSettings())
+    return [(*d.centre(d.radius_m), d.radius_m) for d in found]
+
+
+@pytest.mark.parametrize("yaw", [0.0, 0.7, -2.5])
+def test_a_disc_is_found_where_it_is_whichever_way_the_rover_faces(yaw: float) -> None:
+    ((x, y, radius),) = _centres([("rock", 5.0, 2.0, 0.6, 0.0, 0.0)], (1.0, 1.0, yaw))
+    assert math.hypot(x - 5.0, y - 2.0) < 0.4
+    assert 0.3 < radius < 1.0
+
+
+def test_a_disc_straight_ahead_across_the_first_and_last_sector_is_one() -> None:
+    # Straight ahead the disc fills sectors 71, 0 and 1: the run across the circle's seam is one object.
+    found = _centres([("ahead", 4.0, 0.0, 0.5, 0.0, 0.0)], (0.0, 0.0, 0.0))
+    assert len(found) == 1
+    assert math.hypot(found[0][0] - 4.0, found[0][1]) < 0.3
+
+
+def test_two_discs_apart_are_two_and_a_wall_is_a_row_of_pieces() -> None:
+    apart = _centres([("a", 4.0, 3.0, 0.4, 0.0, 0.0), ("b", 4.0, -3.0, 0.4, 0.0, 0.0)], (0.0, 0.0, 0.0))
+    assert len(apart) == 2
+    wall = [(f"w{i}", 3.0, -2.0 + 0.2 * i, 0.15, 0.0, 0.0) for i in range(21)]  # 4 m of wall, 3 m ahead
+    pieces = _centres(wall, (0.0, 0.0, 0.0))
+    assert len(pieces) >= 3  # pieces of at most 1.5 m, not one disc 4 m wide
+    assert all(radius <= 1.5 for _, _, radius in pieces)
+
+
+def _track(
+    discs_at: Callable[[float], list[Disc]],
+    poses: list[tuple[float, float, float]],
+    config: ScanTrackerConfig | None = None,
+) -> ScanTracker:
+    tracker = ScanTracker(config)
+    for i, pose in enumerate(poses):
+        t_ns = i * SCAN_NS
+        tracker.add(scan_of(discs_at(t_ns * 1e-9), pose, t_ns, noise_m=0.02, seed=i), pose)
+    return tracker
+
+
+def test_a_static_obstacle_seen_from_a_driving_rover_is_one_static_track() -> None:
+    poses = [(0.1 * i, 0.0, 0.0) for i in range(30)]  # 1 m/s along x for 3 s
+    tracker = ScanTracker()
+    reported = []
+    for i, pose in enumerate(poses):
+        t_ns = i * SCAN_NS
+        tracker.add(scan_of([("rock", 6.0, 1.0, 0.6, 0.0, 0.0)], pose, t_ns, noise_m=0.02, seed=i), pose)
+        reported += tracker.poll()
+    assert {o.obstacle_id for o in reported} == {"scan-1"}
+    assert not any(o.moving for o in reported)
+    last = reported[-1]
+    assert math.hypot(last.x - 6.0, last.y - 1.0) < 0.4
+    assert len(reported) == len(poses) - 2  # reported from its third scan on (confirm_scans = 3)
+
+
+def test_a_crossing_cart_is_tracked_as_moving_with_its_velocity() -> None:
+    def cart(t_s: float) -> list[Disc]:
+        return [("cart", 5.0, -3.0 + 0.8 * t_s, 0.5, 0.0, 0.8)]
+
+    tracker = _track(cart, [(0.0, 0.0, 0.0)] * 25)
+    (seen,) = tracker.poll()
+    assert seen.moving
+    assert seen.vy == pytest.approx(0.8, abs=0.2) and abs(seen.vx) < 0.2
+    assert math.hypot(seen.x - 5.0, seen.y - (-3.0 + 0.8 * 2.4)) < 0.4
+
+
+def test_a_track_out_of_sight_is_forgotten_and_a_scan_without_a_pose_only_counted() -> None:
+    config = ScanTrackerConfig(forget_s=0.5)
+    tracker = _track(lambda _t: [("rock", 3.0, 0.0, 0.4, 0.0, 0.0)], [(0.0, 0.0, 0.0)] * 5, config)
+    assert tracker.track_count == 1
+    empty = scan_of([], (0.0, 0.0, 0.0), 20 * SCAN_NS)
+    tracker.add(empty, (0.0, 0.0, 0.0))
+    assert tracker.track_count == 0
+    tracker.add(empty, None)
+    assert tracker.scans_without_pose == 1
+
+
+def test_the_perception_table_is_read_and_a_bad_value_named() -> None:
+    config = rover_config_from_table(parse_toml("[perception]\ngate_m = 2.5\nconfirm_scans = 2\n", "<t>"))
+    assert config.perception.gate_m == 2.5 and config.perception.confirm_scans == 2
+    with pytest.raises(ConfigError, match="moving_speed_mps"):
+        rover_config_from_table(parse_toml("[perception]\nmoving_speed_mps = -1.0\n", "<t>"))
+    with pytest.raises(ConfigError, match="gate"):
+        rover_config_from_table(parse_toml("[perception]\ngate = 1.0\n", "<t>"))  # unknown key
