@@ -54,5 +54,6 @@ def test_the_noise_is_the_seeds_and_the_field_of_view_is_centred_on_the_front() 
     ("setting", "value"), [("range_m", 0.0), ("rate_hz", 0.0), ("fov_deg", 400.0), ("noise_m", -1.0)]
 )
 def test_settings_out_of_range_are_refused(setting: str, value: float) -> None:
+    settings: dict[str, Any] = {setting: value}
     with pytest.raises(ValueError, match=setting):
-        _lidar([], **{setting: value})
+        _lidar([], **settings)
