@@ -43,6 +43,7 @@ from navigator.fence_shape import inside_polygon
 from navigator.guidance import Guidance, GuidanceOutput
 from navigator.map_message import grid_message
 from navigator.mixing import mix_skid_steer
+from navigator.odometry_frame import OdometryFrame
 from navigator.perception import ObstacleObservation, ObstacleSource
 from navigator.planner import Path, Planner
 from navigator.safety import EventSink, SafetyInputs, SafetyMode, SafetySupervisor
@@ -286,6 +287,7 @@ class OnboardStack:
         # Obstacles from a range sensor's OBSTACLE_DISTANCE scans on the MAVLink link (a lidar driver on the
         # rover, the HIL peer's simulated lidar): tracked here, read like ``obstacles``.
         self.scan_tracker = ScanTracker(config.perception)
+        self._odometry_frame = OdometryFrame()
         self._scans_in = False  # a scan arrived since the tracker was last read
         self._ground_station = ground_station
         self._wheels = _WheelSnapshot.of(can_link.wheel_status())
@@ -721,9 +723,14 @@ class OnboardStack:
         rover knows where it is, and for a scan in the body frame which way it faces, the tracker only
         counts it (``scans_without_pose``)."""
         pose = self.estimator.pose()
-        known = pose is not None and pose.healthy and (pose.heading_known or not scan.body_frame)
-        self.scan_tracker.add(scan, (pose.x, pose.y, pose.yaw) if known and pose is not None else None)
         self._scans_in = True
+        if pose is None or not pose.healthy or not (pose.heading_known or not scan.body_frame):
+            self.scan_tracker.add(scan, None)
+            return
+        # Tracked in the dead-reckoned frame (navigator.odometry_frame), reported on the map.
+        frame = self._odometry_frame
+        frame.advance(scan.t_ns, pose.speed, pose.yaw, (pose.x, pose.y))
+        self.scan_tracker.add(scan, (frame.x, frame.y, pose.yaw), frame.offset())
 
     def _reject_tilt(self, reading: AttitudeSample) -> None:
         """An AHRS attitude without a usable roll or pitch (NaN, inf): the tip-over check would read no

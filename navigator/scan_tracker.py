@@ -130,12 +130,15 @@ class _Track:
         self.x = mean_x - self.vx * mean_t  # the fit's value at the newest detection (t = 0)
         self.y = mean_y - self.vy * mean_t
 
-    def observation(self) -> ObstacleObservation:
+    def observation(self, dx: float, dy: float) -> ObstacleObservation:
+        """As an observation on the map: the tracking frame's position moved by (``dx``, ``dy``)."""
         t_ns = self.seen[-1].t_ns
         if self.moving:
-            return ObstacleObservation(t_ns, self.track_id, self.x, self.y, self.radius_m, self.vx, self.vy)
+            x, y = self.x + dx, self.y + dy
+            return ObstacleObservation(t_ns, self.track_id, x, y, self.radius_m, self.vx, self.vy)
         # Static: where the window's centres cluster, without a velocity the noise made up.
-        return ObstacleObservation(t_ns, self.track_id, self.mean_xy[0], self.mean_xy[1], self.radius_m)
+        mean_x, mean_y = self.mean_xy
+        return ObstacleObservation(t_ns, self.track_id, mean_x + dx, mean_y + dy, self.radius_m)
 
 
 class ScanTracker:
@@ -148,6 +151,7 @@ class ScanTracker:
         self._tracks: list[_Track] = []
         self._updated: dict[str, _Track] = {}
         self._next_id = 1
+        self._offset = (0.0, 0.0)  # map minus the tracking frame, as of the last scan (add)
         self.scans = 0
         self.scans_without_pose = (
             0  # scans that came before the rover knew where it was and which way it faced
@@ -157,11 +161,21 @@ class ScanTracker:
     def track_count(self) -> int:
         return len(self._tracks)
 
-    def add(self, scan: ObstacleScan, pose: tuple[float, float, float] | None) -> None:
-        """Take in ``scan`` seen from ``pose`` (x, y ENU m, yaw rad from east; None: not known yet)."""
+    def add(
+        self,
+        scan: ObstacleScan,
+        pose: tuple[float, float, float] | None,
+        offset: tuple[float, float] = (0.0, 0.0),
+    ) -> None:
+        """Take in ``scan`` seen from ``pose`` (x, y ENU m, yaw rad from east; None: not known yet).
+
+        ``pose`` may be in a frame of its own, parallel to the map (the onboard stack's dead-reckoned one,
+        ``navigator.odometry_frame``): tracks are kept in it, and ``offset`` (map minus frame, as of this
+        scan) places them on the map when they are reported."""
         if pose is None:
             self.scans_without_pose += 1
             return
+        self._offset = offset
         self.scans += 1
         config = self.config
         found = detections(scan, pose[0], pose[1], pose[2], self._clusters)
@@ -201,4 +215,5 @@ class ScanTracker:
 
     def poll(self) -> list[ObstacleObservation]:
         updated, self._updated = self._updated, {}
-        return [track.observation() for track in updated.values()]
+        dx, dy = self._offset
+        return [track.observation(dx, dy) for track in updated.values()]

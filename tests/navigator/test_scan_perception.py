@@ -5,10 +5,14 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+import numpy as np
 import pytest
 
+from logs.clock import NS_PER_S
 from logs.settings import ConfigError, parse_toml
 from navigator.config import rover_config_from_table
+from navigator.odometry_frame import OdometryFrame
+from navigator.perception import ObstacleObservation
 from navigator.scan_clusters import ClusterSettings, detections
 from navigator.scan_tracker import ScanTracker, ScanTrackerConfig
 from tests.navigator.scan_rig import Disc, scan_of
@@ -100,3 +104,47 @@ def test_the_perception_table_is_read_and_a_bad_value_named() -> None:
         rover_config_from_table(parse_toml("[perception]\nmoving_speed_mps = -1.0\n", "<t>"))
     with pytest.raises(ConfigError, match="gate"):
         rover_config_from_table(parse_toml("[perception]\ngate = 1.0\n", "<t>"))  # unknown key
+
+
+def test_the_odometry_frame_dead_reckons_and_carries_the_fixes_in_its_offset() -> None:
+    frame = OdometryFrame()
+    frame.advance(0, 1.0, 0.0, (5.0, 2.0))
+    assert (frame.x, frame.y) == (5.0, 2.0) and frame.offset() == (0.0, 0.0)
+    frame.advance(NS_PER_S, 1.0, math.pi / 2, (6.3, 2.4))  # a fix 0.3 m ahead of where it drove
+    # Half a turn on average: 1 m along 45 degrees.
+    assert frame.x == pytest.approx(5.0 + math.sqrt(0.5)) and frame.y == pytest.approx(2.0 + math.sqrt(0.5))
+    assert frame.offset() == pytest.approx((6.3 - frame.x, 2.4 - frame.y))
+    frame.advance(2 * NS_PER_S, 0.0, math.pi - 0.01, (6.3, 2.4))
+    frame.advance(3 * NS_PER_S, 0.0, -math.pi + 0.01, (6.3, 2.4))  # through the wrap at +-pi, standing
+    assert frame.offset() == pytest.approx((6.3 - frame.x, 2.4 - frame.y))
+
+
+def _static_rock_track(jumpy_fixes: bool, dead_reckoned: bool) -> list[ObstacleObservation]:
+    """A rock 6 m ahead seen from a rover driving at 0.5 m/s whose fused position jumps by up to 0.3 m
+    every fifth scan, as with GPS corrections; tracked on the fused pose or in the odometry frame."""
+    tracker, frame, reported = ScanTracker(), OdometryFrame(), []
+    rng = np.random.default_rng(7)
+    jump = (0.0, 0.0)
+    for i in range(40):
+        t_ns = i * SCAN_NS
+        true_pose = (0.05 * i, 0.0, 0.0)
+        if jumpy_fixes and i % 5 == 0:
+            jump = (float(rng.uniform(-0.3, 0.3)), float(rng.uniform(-0.3, 0.3)))
+        fused = (true_pose[0] + jump[0], true_pose[1] + jump[1])
+        scan = scan_of([("rock", 6.0, 0.5, 0.6, 0.0, 0.0)], true_pose, t_ns, noise_m=0.02, seed=i)
+        if dead_reckoned:
+            frame.advance(t_ns, 0.5, 0.0, fused)
+            tracker.add(scan, (frame.x, frame.y, 0.0), frame.offset())
+        else:
+            tracker.add(scan, (*fused, 0.0))
+        reported += tracker.poll()
+    return reported
+
+
+def test_a_static_rock_stays_static_when_tracked_in_the_odometry_frame() -> None:
+    # On the jumpy fused pose it seems to move (the failure this frame mends) ...
+    assert any(o.moving for o in _static_rock_track(jumpy_fixes=True, dead_reckoned=False))
+    # ... dead-reckoned it does not, and it is reported on the map (the offset moves it there).
+    reported = _static_rock_track(jumpy_fixes=True, dead_reckoned=True)
+    assert reported and not any(o.moving for o in reported)
+    assert math.hypot(reported[-1].x - 6.0, reported[-1].y - 0.5) < 0.5
