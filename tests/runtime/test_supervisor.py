@@ -28,6 +28,7 @@ def inputs(now_ns: int, position: tuple[float, float]) -> SafetyInputs:
         sent_at_ns=now_ns,
         measured_speed_mps=0.0,
         roll_pitch_rad=(0.0, 0.0),
+        last_attitude_ns=now_ns,
         lateral_accel_mps2=0.0,
         position_xy=position,
         battery_v=24.0,
