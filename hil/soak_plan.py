@@ -61,16 +61,17 @@ CATALOG: tuple[tuple[str, str, float, str, str], ...] = (
 
 
 # The failsafes each fault of the catalog may raise on the rover, during it or within the report's slack
-# after it: its own evidence, and what the loss takes with it. GPS and IMU come over MAVLink, so a MAVLink
-# loss is also a GPS loss; without fixes (or without the IMU) the estimate's uncertainty grows until it
-# may be judged unhealthy. A CAN bus-off also silences the controllers (no frame reaches the rover), so
-# their STATUS goes stale 0.25 s in, as on the vehicle. Any other failsafe during a soak is unexplained
-# and makes it NOT OK.
+# after it: its own evidence, and what the loss takes with it. GPS, IMU and the AHRS attitude come over
+# MAVLink, so a MAVLink loss is also a GPS loss and an attitude loss (attitude_lost 1 s in, before the
+# heartbeat's 3 s, which stays the evidence: both fire within the 4.5 s loss); without fixes (or without
+# the IMU) the estimate's uncertainty grows until it may be judged unhealthy. A CAN bus-off also silences
+# the controllers (no frame reaches the rover), so their STATUS goes stale 0.25 s in, as on the vehicle.
+# Any other failsafe during a soak is unexplained and makes it NOT OK.
 RAISES: dict[str, tuple[str, ...]] = {
     "gps/off": ("gps_lost", "estimator_unhealthy"),
     "can/off": ("can_bus_off", "wheel_silent"),
     "vesc/off": ("wheel_silent",),
-    "mavlink/off": ("heartbeat_lost", "gps_lost", "estimator_unhealthy"),
+    "mavlink/off": ("heartbeat_lost", "attitude_lost", "gps_lost", "estimator_unhealthy"),
     "imu/off": ("estimator_unhealthy",),
     "estop/command": ("estop",),
 }

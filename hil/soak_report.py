@@ -46,7 +46,8 @@ LEAD_SLACK_S = 0.1  # a failsafe this long before its fault's recorded start sti
 PEER_STALL_LIMIT_MS = DEFAULT_COMMAND_TIMEOUT_S * 1000.0
 STALL_HINT_S = 1.0  # a peer stall this long before an unexplained failsafe is named beside it
 # A peer stall shorter than PEER_STALL_LIMIT_MS is the machine's and accepted; what it silences is too. Of
-# the rover's failsafes only wheel_silent has a budget that short (docs/safety.md: GPS and heartbeat 3 s).
+# the rover's failsafes only wheel_silent has a budget that short (docs/safety.md: GPS and heartbeat 3 s,
+# the AHRS attitude 1 s: a stall of 0.5 s and one 0.1 s attitude period fall well short of it).
 WHEEL_SILENT_S = SafetyConfig().wheel_silent_s  # the soak's rover keeps the default
 STATUS_PERIOD_S = 0.02  # the simulated controllers' STATUS period (hil.vesc_sim: 50 Hz)
 # After a stall the rover hears status again within this: the catch-up step's send, the UDP hop, one tick.

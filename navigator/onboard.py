@@ -519,9 +519,9 @@ class OnboardStack:
 
     # --- internals ------------------------------------------------------------------------------------
     def _start_watches(self, now: int) -> None:
-        """Start every silence budget (the supervisor's GPS, heartbeat, wheel and ground-link watches, the
-        links' own) now, at the loop's first read: what happens between building the stack and running
-        it (the warm-up: ~15 s of compiling on a cold numba cache, while a peer waits for our first
+        """Start every silence budget (the supervisor's GPS, heartbeat, attitude, wheel and ground-link
+        watches, the links' own) now, at the loop's first read: what happens between building the stack and
+        running it (the warm-up: ~15 s of compiling on a cold numba cache, while a peer waits for our first
         heartbeat) must not fail safe. A link silent from here on still does, on its budget."""
         self._watching = True
         self.safety.start(now)
@@ -588,8 +588,8 @@ class OnboardStack:
         last_tick = self._last_tick_ns
         # Positional, in SafetyInputs' field order (keywords cost a dict per tick): now, tick gap, wheel
         # status times, bus off, send failing since, estimator healthy, last GPS, last heartbeat, last
-        # ground contact, sent speed, sent at, measured speed, roll/pitch, lateral accel, position,
-        # battery, then per wheel: commands, speeds, currents.
+        # ground contact, sent speed, sent at, measured speed, roll/pitch and when it arrived, lateral
+        # accel, position, battery, then per wheel: commands, speeds, currents.
         return SafetyInputs(
             now,
             None if last_tick is None else now - last_tick,
@@ -604,6 +604,7 @@ class OnboardStack:
             self._sent_at_ns,
             None if pose is None else pose.speed,
             None if attitude is None else (attitude.roll_rad, attitude.pitch_rad),
+            None if attitude is None else attitude.t_ns,
             0.0 if pose is None else pose.speed * pose.yaw_rate,
             None if pose is None else (pose.x, pose.y),
             wheels.battery_v,
@@ -735,8 +736,9 @@ class OnboardStack:
     def _reject_tilt(self, reading: AttitudeSample) -> None:
         """An AHRS attitude without a usable roll or pitch (NaN, inf): the tip-over check would read no
         margin at all from it (NaN: never trips, so one such sample hid a tipped rover) or an infinite tilt
-        (a false trip). It is counted and logged, and the last usable attitude stands; its yaw still goes
-        to the estimator, which judges that on its own."""
+        (a false trip). It is counted and logged, and the last usable attitude stands, for
+        ``[safety] attitude_timeout_s`` from its arrival: then ``attitude_lost`` holds the rover. Its yaw
+        still goes to the estimator, which judges that on its own."""
         self.attitude_rejected += 1
         count = self.attitude_rejected
         if count == 1 or count % _LOG_EVERY == 0:

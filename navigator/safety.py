@@ -33,6 +33,7 @@ CAN_BUS_OFF = "can_bus_off"
 ESTIMATOR_UNHEALTHY = "estimator_unhealthy"
 GPS_LOST = "gps_lost"
 HEARTBEAT_LOST = "heartbeat_lost"
+ATTITUDE_LOST = "attitude_lost"  # no AHRS attitude the tip-over check can use
 GROUND_LINK_LOST = "ground_link_lost"
 STUCK = "stuck"
 WHEEL_STALLED = "wheel_stalled"
@@ -60,7 +61,7 @@ class SafetyMode(enum.StrEnum):
     ESTOP = "ESTOP"  # emergency stop: wheels at zero until an explicit resume
 
 
-# A NamedTuple, immutable like a frozen dataclass but cheaper to build (once per control tick, nineteen
+# A NamedTuple, immutable like a frozen dataclass but cheaper to build (once per control tick, twenty
 # fields: the dataclass's __init__, an object.__setattr__ per field, was about half of building them).
 class SafetyInputs(NamedTuple):
     """What the supervisor judges, all measured at ``now_ns`` (clock ns). ``None`` means never seen.
@@ -79,6 +80,7 @@ class SafetyInputs(NamedTuple):
     sent_at_ns: int  # when that command was sent
     measured_speed_mps: float | None  # estimated body speed
     roll_pitch_rad: tuple[float, float] | None  # from the autopilot's AHRS
+    last_attitude_ns: int | None  # when that roll and pitch arrived: the last with both finite
     lateral_accel_mps2: float
     position_xy: tuple[float, float] | None  # estimated, local ENU
     battery_v: float | None  # pack voltage as the motor controllers see it
@@ -126,6 +128,7 @@ class SafetySupervisor:
         self._unhealthy_ns = to_ns(c.estimator_unhealthy_s)
         self._gps_ns = to_ns(c.gps_budget_s)
         self._heartbeat_ns = to_ns(c.heartbeat_timeout_s)
+        self._attitude_ns = to_ns(c.attitude_timeout_s)
         self._ground_ns = to_ns(c.ground_link_timeout_s)
         self._stuck_ns = to_ns(c.stuck_time_s)
         self._wheel_stall_ns = to_ns(c.wheel_stall_s)
@@ -145,9 +148,9 @@ class SafetySupervisor:
         return tuple(sorted(self._active))
 
     def start(self, now_ns: int) -> None:
-        """Count the silence of links never heard (GPS, heartbeat, wheels, ground station) from ``now_ns``:
-        the loop's first tick. Time before it (a warm-up compiling kernels for seconds on a cold cache,
-        while a peer waits for our first heartbeat) is nobody's silence and must not fail safe."""
+        """Count the silence of links never heard (GPS, heartbeat, AHRS attitude, wheels, ground station)
+        from ``now_ns``: the loop's first tick. Time before it (a warm-up compiling kernels for seconds on a
+        cold cache, while a peer waits for our first heartbeat) is nobody's silence and must not fail safe."""
         self._start_ns = now_ns
 
     # --- commands -------------------------------------------------------------------------------
@@ -275,6 +278,17 @@ class SafetySupervisor:
                 f"commanded {i.sent_speed_mps:.2f} m/s but moving < {c.stuck_max_speed_mps} m/s "
                 f"for {_ms(pushed)}",
             )
+        # The tip-over check's input has an age like any link's: an AHRS gone quiet, or sending only NaN
+        # or inf tilts, would leave it judging the last usable tilt forever, blind to a rover tipping now.
+        # Never seen counts from the start, as for GPS and heartbeat: an autopilot that never streams
+        # ATTITUDE leaves the check blind from the first tick, and the rover must not drive so.
+        self._timeout(
+            ATTITUDE_LOST,
+            "no AHRS attitude with a finite roll and pitch",
+            i.now_ns,
+            i.last_attitude_ns,
+            self._attitude_ns,
+        )
         if i.roll_pitch_rad is not None:
             roll, pitch = i.roll_pitch_rad
             margin = min(stability_margins(self._vehicle, roll, pitch, i.lateral_accel_mps2))

@@ -25,6 +25,10 @@ class SafetyConfig:
     estimator_unhealthy_s: float = 0.5
     gps_budget_s: float = 3.0
     heartbeat_timeout_s: float = 3.0
+    # Judged on the last ATTITUDE with a finite roll and pitch: past this the tip-over check would judge a
+    # tilt that old. The simulated AHRS sends 10 a second (hil.autopilot_sim), so 1 s is ten missed in a
+    # row; ArduPilot streams ATTITUDE in its EXTRA1 group (SRn_EXTRA1, Hz), which must be a few Hz.
+    attitude_timeout_s: float = 1.0
     ground_link_timeout_s: float = 0.0  # off: a rover working alone must not stop when the GCS drops
     stuck_time_s: float = 2.0
     stuck_min_command_mps: float = 0.2
@@ -73,6 +77,7 @@ class SafetyConfig:
             estimator_unhealthy_s=seconds("estimator_unhealthy_s", d.estimator_unhealthy_s),
             gps_budget_s=seconds("gps_budget_s", d.gps_budget_s),
             heartbeat_timeout_s=seconds("heartbeat_timeout_s", d.heartbeat_timeout_s),
+            attitude_timeout_s=seconds("attitude_timeout_s", d.attitude_timeout_s),
             ground_link_timeout_s=seconds("ground_link_timeout_s", d.ground_link_timeout_s),
             stuck_time_s=seconds("stuck_time_s", d.stuck_time_s),
             stuck_min_command_mps=table.number("stuck_min_command_mps", d.stuck_min_command_mps, lo=0.0),

@@ -11,6 +11,7 @@ import pytest
 
 from logs.commands import RoverCommand
 from tests.runtime.rig import (
+    MSG_ATTITUDE,
     MSG_GPS_RAW_INT,
     MSG_HEARTBEAT,
     TICK_NS,
@@ -135,6 +136,57 @@ def test_gps_lost_beyond_budget() -> None:
         rig.wire.dropped = set()
         assert_driving_again(rig)
         assert rig.first_event_ns("cleared.gps_lost") is not None
+    finally:
+        rig.close()
+
+
+def _attitude_received(rig: Rig, before_ns: int) -> int:
+    """When the rover last read an ATTITUDE at or before ``before_ns``."""
+    return rig.last_rx_ns(
+        "mavlink/raw", lambda m: m["direction"] == "rx" and m["name"] == "ATTITUDE", before_ns
+    )
+
+
+def test_attitude_lost_when_the_ahrs_goes_quiet_while_driving(rig: Rig) -> None:
+    rig.drive()
+    rig.wire.dropped = {MSG_ATTITUDE}
+    rig.run_for(1.3)
+    fired = rig.first_event_ns("failsafe.attitude_lost")
+    assert_fired_in_window(fired, _attitude_received(rig, rig.now_ns), 1.0)
+    assert fired is not None
+    assert_wheels_stopped(rig, fired)
+    assert rig.stack.safety_mode.value == "HOLD"
+    # Read and fired on the 20 ms control grid: the first tick past the limit is 1020 ms after the last one.
+    detail = rig.events("failsafe.attitude_lost")[0][1]["detail"]
+    assert detail == "no AHRS attitude with a finite roll and pitch for 1020 ms (limit 1000 ms)", detail
+    rig.wire.dropped = set()
+    assert_driving_again(rig, within_s=1.5)
+    assert rig.first_event_ns("cleared.attitude_lost") is not None
+
+
+@pytest.mark.parametrize("tilt", [math.nan, math.inf])
+def test_attitude_lost_when_every_attitude_has_no_usable_roll(tilt: float) -> None:
+    """ATTITUDE keeps arriving, each one refused (``_reject_tilt``): the last usable tilt must not stand
+    for ever, or a rover tipping now would never be stopped by the tip-over check."""
+    rig = Rig(rig_config())
+    try:
+        rig.drive()
+        last_usable = _attitude_received(rig, rig.now_ns)
+        rejected_before = rig.stack.attitude_rejected
+        rig.roll_override = tilt  # every ATTITUDE from the next physics tick on
+        rig.run_for(1.3)
+        fired = rig.first_event_ns("failsafe.attitude_lost")
+        assert_fired_in_window(fired, last_usable, 1.0)
+        assert fired is not None
+        # Not a quiet AHRS: its messages kept coming (10 Hz) and each was refused for its roll.
+        assert _attitude_received(rig, fired) > last_usable
+        assert rig.stack.attitude_rejected - rejected_before >= 10
+        assert_wheels_stopped(rig, fired)
+        assert rig.stack.safety_mode.value == "HOLD"
+        rig.roll_override = None  # usable attitudes again
+        assert_driving_again(rig, within_s=1.5)
+        assert rig.first_event_ns("cleared.attitude_lost") is not None
+        assert rig.first_event_ns("failsafe.tip_over") is None
     finally:
         rig.close()
 

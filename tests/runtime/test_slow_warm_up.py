@@ -15,7 +15,7 @@ import pytest
 
 from logs.clock import to_ns
 from navigator.warm_up import warm_up
-from tests.runtime.rig import MSG_GPS_RAW_INT, MSG_HEARTBEAT, Rig, rig_config
+from tests.runtime.rig import MSG_ATTITUDE, MSG_GPS_RAW_INT, MSG_HEARTBEAT, Rig, rig_config
 from tests.runtime.test_failsafes import assert_fired_in_window
 
 COLD_CACHE_WARM_UP_S = 15.0
@@ -49,7 +49,13 @@ def test_a_long_warm_up_raises_no_failsafe(rig: Rig) -> None:
 
 @pytest.mark.parametrize(
     ("silenced", "failsafe", "budget_s"),
-    [(MSG_HEARTBEAT, "heartbeat_lost", 3.0), (MSG_GPS_RAW_INT, "gps_lost", 3.0)],
+    [
+        (MSG_HEARTBEAT, "heartbeat_lost", 3.0),
+        (MSG_GPS_RAW_INT, "gps_lost", 3.0),
+        # Never seen counts from the first tick too: an autopilot that never streams ATTITUDE leaves the
+        # tip-over check blind from the start.
+        (MSG_ATTITUDE, "attitude_lost", 1.0),
+    ],
 )
 def test_a_link_silent_from_the_start_still_fails_safe_counted_from_the_first_tick(
     rig: Rig, silenced: int, failsafe: str, budget_s: float

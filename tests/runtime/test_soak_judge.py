@@ -82,6 +82,12 @@ def test_a_failsafe_of_a_planned_fault_and_what_the_fault_takes_with_it_are_expl
         ),
         (int(33.0 * S), "failsafe.heartbeat_lost", "no autopilot heartbeat for 3010 ms"),
         (int(33.0 * S), "failsafe.gps_lost", "no 3D GPS fix for 3010 ms"),  # GPS comes over MAVLink
+        # So does the AHRS attitude: lost 1 s in, before the heartbeat (the fault's evidence).
+        (
+            int(31.02 * S),
+            "failsafe.attitude_lost",
+            "no AHRS attitude with a finite roll and pitch for 1020 ms (limit 1000 ms)",
+        ),
         # A bus-off: the peer's error frame puts the link bus-off, and the controllers go quiet with it.
         (int(50.02 * S), "failsafe.can_bus_off", "the CAN link reports bus-off"),
         (int(50.3 * S), "failsafe.wheel_silent", ALL_SIX),

@@ -28,6 +28,7 @@ def inputs(now_ns: int, position: tuple[float, float]) -> SafetyInputs:
         sent_at_ns=now_ns,
         measured_speed_mps=0.0,
         roll_pitch_rad=(0.0, 0.0),
+        last_attitude_ns=now_ns,
         lateral_accel_mps2=0.0,
         position_xy=position,
         battery_v=24.0,
@@ -74,6 +75,32 @@ def test_bad_safety_config_names_the_key(text: str, key: str) -> None:
     table = parse_toml(f"[safety]\n{text}\n", "rover.toml").table("safety")
     with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
         SafetyConfig.from_table(table)
+
+
+def test_attitude_timeout_loads_and_defaults_to_one_second() -> None:
+    assert SafetyConfig().attitude_timeout_s == 1.0
+    table = parse_toml("[safety]\nattitude_timeout_s = 0.5\n", "rover.toml").table("safety")
+    assert SafetyConfig.from_table(table).attitude_timeout_s == 0.5
+    off = parse_toml("[safety]\nattitude_timeout_s = 0\n", "rover.toml").table("safety")
+    assert SafetyConfig.from_table(off).attitude_timeout_s == 0.0  # 0 turns it off, as every timeout
+
+
+@pytest.mark.parametrize(
+    ("value", "problem"),
+    [
+        ("-0.5", "must be >= 0.0, got -0.5"),
+        ("3601.0", "must be <= 3600.0, got 3601.0"),
+        ("nan", "expected a finite number, got nan"),
+        ("'1 s'", "expected a number, got str '1 s'"),
+        ("true", "expected a number, got bool True"),
+    ],
+)
+def test_a_bad_attitude_timeout_is_refused_naming_the_key(value: str, problem: str) -> None:
+    table = parse_toml(f"[safety]\nattitude_timeout_s = {value}\n", "rover.toml").table("safety")
+    with pytest.raises(ConfigError) as refused:
+        SafetyConfig.from_table(table)
+    assert (refused.value.source, refused.value.key) == ("rover.toml", "safety.attitude_timeout_s")
+    assert refused.value.problem == problem
 
 
 @pytest.mark.parametrize(("measured_mps", "stuck"), [(-0.5, False), (0.0, True)])
