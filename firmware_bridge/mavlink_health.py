@@ -39,6 +39,10 @@ class MavlinkCounters:
     stops_accepted: int = 0  # emergency stops (disarm / flight termination) taken and acknowledged
     commands_rejected: int = 0  # addressed to us but not a goal we can take (answered with the reason)
     signature_rejected: int = 0  # unsigned, replayed or wrongly signed commands (signing on)
+    scans: int = (
+        0  # OBSTACLE_DISTANCE messages read as range scans (a lidar's, firmware_bridge.obstacle_scan)
+    )
+    scans_rejected: int = 0  # OBSTACLE_DISTANCE messages that could not be read as a scan (counted, logged)
 
     def as_dict(self) -> dict[str, int]:
         return asdict(self)
@@ -55,6 +59,8 @@ _WINDOWED = (
     "truncated",
     "signature_rejected",
     "dropped_bytes",
+    "scans",
+    "scans_rejected",
 )
 _TOTALS = ("rx_frames", "bad_frames", "bad_bytes", "dropped_bytes")
 _REASONS = (

@@ -253,7 +253,6 @@ class MavlinkLink(ClosesOnExit):
         self.autopilot_link_ok = True
         self._statustext_id = 0
         self._closed = False
-        self.scans_rejected = 0  # OBSTACLE_DISTANCE messages that could not be read as a scan (_convert_scan)
         self._converters = self._new_converters()
 
     def _new_mavlink(self) -> mavlink2.MAVLink:
@@ -602,14 +601,17 @@ class MavlinkLink(ClosesOnExit):
         }
 
     def _convert_scan(self, msg: Any, t_ns: int) -> ObstacleScan | None:
+        counters = self.counters
         try:
-            return read_scan(msg, t_ns)
+            scan = read_scan(msg, t_ns)
         except ScanRejected as error:
             # Counted and logged, never raised: a lidar driver's bad message must not stop the rover loop.
-            self.scans_rejected += 1
-            if self.scans_rejected == 1 or self.scans_rejected % _LOG_REJECTED_SCAN_EVERY == 0:
-                logger.warning("OBSTACLE_DISTANCE refused (%d so far): %s", self.scans_rejected, error)
+            counters.scans_rejected += 1
+            if counters.scans_rejected == 1 or counters.scans_rejected % _LOG_REJECTED_SCAN_EVERY == 0:
+                logger.warning("OBSTACLE_DISTANCE refused (%d so far): %s", counters.scans_rejected, error)
             return None
+        counters.scans += 1
+        return scan
 
     def _convert_gps(self, msg: Any, t_ns: int) -> GpsFix:
         fix = _gps_fix(msg, t_ns)

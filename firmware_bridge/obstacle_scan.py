@@ -3,7 +3,8 @@
 The message carries 72 ranges in centimetres, ``increment`` degrees apart (``increment_f`` when non-zero),
 the first at ``angle_offset`` degrees, angles clockwise. ``frame`` says from what: MAV_FRAME_BODY_FRD from
 the vehicle's front (a body-mounted lidar), MAV_FRAME_GLOBAL or MAV_FRAME_LOCAL_NED from north. A range of
-``max_distance + 1`` means nothing there; UINT16_MAX means that sector is not measured. A lidar driver on the
+``max_distance + 1`` means nothing there; UINT16_MAX means that sector is not measured; 0 means an obstacle
+practically touching the sensor. A lidar driver on the
 companion computer or the autopilot sends it (PX4 streams it, ArduPilot reads it); the HIL peer's simulated
 lidar (``hil.lidar_sim``) does too.
 
@@ -76,12 +77,18 @@ def read_scan(msg: Any, t_ns: int) -> ObstacleScan:
         raise ScanRejected(f"{len(distances)} distances, not {SECTORS}")
     rays: list[tuple[float, float | None]] = []
     nothing_from_cm = msg.max_distance + 1
+    nearest_m = msg.min_distance / 100.0
     for index, cm in enumerate(distances):
-        if cm == UNMEASURED_CM or cm < msg.min_distance:
-            continue  # not measured, or closer than the sensor can tell: no reading either way
+        if cm == UNMEASURED_CM:
+            continue
         clockwise_deg = offset_deg + index * increment_deg
         angle = -math.radians(clockwise_deg) if body else math.radians(90.0 - clockwise_deg)
-        rays.append((angle, None if cm >= nothing_from_cm else cm / 100.0))
+        if cm >= nothing_from_cm:
+            rays.append((angle, None))
+        else:
+            # 0 (the spec: "practically touching the sensor") and anything nearer than the sensor can tell
+            # are an obstacle at its nearest range, not nothing: the nearest obstacle must not vanish.
+            rays.append((angle, max(cm / 100.0, nearest_m)))
     return ObstacleScan(
         t_ns,
         body,

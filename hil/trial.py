@@ -332,6 +332,18 @@ def write_header(
             "start_json": json.dumps({"x": scenario.start_xy[0], "y": scenario.start_xy[1]}),
             "goal_json": json.dumps({"x": goal.x, "y": goal.y, "tolerance_m": goal.tolerance_m}),
             "terrain_class": _dominant_class(scenario),
+            # How the rover perceived obstacles ([sensors] perception): the real-time peer always through
+            # its lidar, whatever the attached scenario file says (hil.peer.seen_through_lidar).
+            "perception": scenario.sensors.perception,
+            "perception_json": json.dumps(
+                {
+                    "range_m": scenario.sensors.perception_range_m,
+                    "rate_hz": scenario.sensors.perception_rate_hz,
+                    "noise_m": scenario.sensors.perception_noise_m,
+                    "fov_deg": scenario.sensors.perception_fov_deg,
+                },
+                separators=(",", ":"),
+            ),
         },
     )
     trial = {

@@ -90,12 +90,14 @@ REPORT_TOPICS = frozenset(METRIC_TOPICS) | {
     SAFETY_EVENTS,
     TRUTH_STABILITY,
 }
-# mavlink/stats window counters -> report figures: the link's garbage, its receive-budget drops and the
-# commands its signing check refused (firmware_bridge.mavlink_health).
+# mavlink/stats window counters -> report figures: the link's garbage, its receive-budget drops, the
+# commands its signing check refused and the OBSTACLE_DISTANCE scans it could not read
+# (firmware_bridge.mavlink_health).
 MAVLINK_FIGURES = {
     "bad_frames": "mavlink_bad_frames",
     "dropped_bytes": "mavlink_dropped_bytes",
     "signature_rejected": "mavlink_commands_refused",
+    "scans_rejected": "mavlink_scans_refused",
 }
 EXPECTED_TOPICS = (ESTIMATOR_POSE, NAVIGATOR_PATH, NAVIGATOR_STATE, WHEELS_STATUS, CAN_FRAMES)
 
@@ -311,7 +313,8 @@ class _Collector:
         elif topic == CAN_STATS:
             self._can_stats(message)
         elif topic == MAVLINK_STATS:
-            grown = Counter({key: int(message[key]) for key in MAVLINK_FIGURES})
+            # .get: recordings from before a counter existed (scans_rejected) lack it; none happened then.
+            grown = Counter({key: int(message.get(key, 0)) for key in MAVLINK_FIGURES})
             self.mavlink = grown if self.mavlink is None else self.mavlink + grown
         elif topic == TRUTH_CONTACTS:
             contact = Contact(

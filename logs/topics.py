@@ -168,6 +168,8 @@ _SPECS = [
                 "truncated": _INT,
                 "signature_rejected": _INT,
                 "dropped_bytes": _INT,
+                "scans": _INT,
+                "scans_rejected": _INT,
                 "rx_frames_total": _INT,
                 "bad_frames_total": _INT,
                 "bad_bytes_total": _INT,
@@ -177,7 +179,7 @@ _SPECS = [
         "The MAVLink link's own count over the last window (~1 s): frames decoded (of them, ids this "
         "dialect does not decode), bad frames by reason (bad CRC, bad header, cut short), bytes skipped "
         "(of them, noise between frames), signed-only commands refused, bytes dropped unread over the "
-        "receive budget; running totals.",
+        "receive budget, OBSTACLE_DISTANCE scans read and refused; running totals.",
     ),
     TopicSpec(
         SENSORS_GPS,

@@ -25,7 +25,7 @@ from navigator.map_config import terrain_from_table
 from navigator.phase_locked_loop import DEFAULT_LATE_WAIT_NS, DEFAULT_OFFSET_NS
 from navigator.planner import COST_MODES, FOOTPRINT_INFLATIONS
 from navigator.safety_config import SafetyConfig
-from navigator.scan_tracker import ScanTrackerConfig
+from navigator.scan_tracker_config import ScanTrackerConfig
 from navigator.terrain import TerrainMap
 from navigator.vehicle import VehicleParams
 from navigator.yielding import YIELD_MARGIN_M, YIELD_MAX_M, YIELD_MAX_S, YIELD_SPEED_MPS
@@ -86,6 +86,9 @@ class PlannerConfig:
     # A BLOCKED rover drives on only once the way has stayed clear this long (s of the guidance clock): a
     # prediction that clears for a few ticks (a turning cart, a jumpy estimate) does not start it.
     moving_clear_s: float = 0.5
+    # A moving obstacle not seen for this long is no longer predicted: out of view, or a lidar track that
+    # was forgotten and came back under a new id (navigator.scan_tracker). 0: kept until seen again.
+    moving_forget_s: float = 2.0
     # Stopped in a moving obstacle's predicted track, the rover backs off (navigator.yielding): at this
     # speed (0: never, it holds), until the track clears the footprint by inflation_m + yield_margin_m,
     # at most yield_max_m from where it began and for yield_max_s.
@@ -108,6 +111,7 @@ class PlannerConfig:
             sensing_range_m=table.number("sensing_range_m", cls.sensing_range_m, lo=0.0, hi=1000.0),
             moving_horizon_s=table.number("moving_horizon_s", cls.moving_horizon_s, lo=0.0, hi=60.0),
             moving_clear_s=table.number("moving_clear_s", cls.moving_clear_s, lo=0.0, hi=60.0),
+            moving_forget_s=table.number("moving_forget_s", cls.moving_forget_s, lo=0.0, hi=3600.0),
             yield_speed_mps=table.number("yield_speed_mps", cls.yield_speed_mps, lo=0.0, hi=5.0),
             yield_margin_m=table.number("yield_margin_m", cls.yield_margin_m, lo=0.0, hi=5.0),
             yield_max_m=table.number("yield_max_m", cls.yield_max_m, lo=0.0, hi=50.0),

@@ -151,6 +151,7 @@ class Guidance:
         # once clear for 0.34 s, the rover started, and it was BLOCKED again for 0.24 s.
         self._clear_since_ns: int | None = None
         self._clear_hold_ns = round(planner_config.moving_clear_s * 1e9)
+        self._moving_forget_ns = round(planner_config.moving_forget_s * 1e9)
         # Stopped in a moving obstacle's way is not safe: the back-off of the current wait.
         self._back_off = BackOff(
             Footprint.of(params),
@@ -257,6 +258,8 @@ class Guidance:
         if command.arrived:
             self._mode = ARRIVED
             return self._stopped(ARRIVED, detail or "goal reached", path_changed, arrived=True)
+        if self._moving and self._moving_forget_ns:
+            self._forget_unseen_movers(t_ns)
         judged_speed = max(abs(speed), self._blocked_at_speed) if self._blocker is not None else abs(speed)
         blocker = self._blocking_obstacle(t_ns, x, y, judged_speed) if self._moving else None
         if blocker is not None:
@@ -342,6 +345,15 @@ class Guidance:
         if self._clear_since_ns is None:
             self._clear_since_ns = t_ns
         return t_ns - self._clear_since_ns >= self._clear_hold_ns
+
+    def _forget_unseen_movers(self, t_ns: int) -> None:
+        """Drop the moving obstacles last seen more than ``moving_forget_s`` ago: one predicted on from an
+        old sighting for ever would hold the rover for a cart long gone (a lidar track's id, once
+        forgotten, never comes back)."""
+        oldest_ns = t_ns - self._moving_forget_ns
+        stale = [key for key, obs in self._moving.items() if obs.t_ns < oldest_ns]
+        for key in stale:
+            del self._moving[key]
 
     def _blocking_obstacle(self, t_ns: int, x: float, y: float, speed: float) -> str | None:
         if not self._moving or self._path is None:

@@ -14,6 +14,11 @@ from __future__ import annotations
 
 import math
 
+# Samples further apart than this (the scans stopped, or came while the estimate was unusable) are not
+# dead-reckoned across: the speed and heading at the two ends say little about the path between. The
+# frame moves as the fused position did instead, so the offset holds and the tracks stay put on the map.
+MAX_GAP_S = 0.5
+
 
 class OdometryFrame:
     """Dead reckoning on the samples given to ``advance`` (speed m/s along heading rad from east)."""
@@ -28,11 +33,13 @@ class OdometryFrame:
         """Move to ``t_ns`` (trapezoidal in speed and heading from the previous sample) and note the fused
         position of that moment; the first sample puts the frame's origin where the fused position is."""
         last = self._last
+        dt_s = 0.0 if last is None else max(0.0, (t_ns - last[0]) * 1e-9)
         if last is None:
             self.x, self.y = fused_xy
+        elif dt_s > MAX_GAP_S:
+            self.x, self.y = fused_xy[0] - self._offset[0], fused_xy[1] - self._offset[1]
         else:
-            last_ns, last_speed, last_yaw = last
-            dt_s = max(0.0, (t_ns - last_ns) * 1e-9)
+            _, last_speed, last_yaw = last
             # The mean heading through the wrap at +-pi, not the mean of the two numbers.
             yaw = last_yaw + 0.5 * math.remainder(yaw_rad - last_yaw, math.tau)
             step = 0.5 * (last_speed + speed_mps) * dt_s

@@ -48,6 +48,7 @@ from navigator.perception import ObstacleObservation, ObstacleSource
 from navigator.planner import Path, Planner
 from navigator.safety import EventSink, SafetyInputs, SafetyMode, SafetySupervisor
 from navigator.scan_tracker import ScanTracker
+from navigator.scan_watch import ScanWatch
 from navigator.terrain import TerrainMap
 
 _log = logging.getLogger(__name__)
@@ -294,6 +295,7 @@ class OnboardStack:
         self._terrain = terrain
         self._map_published = False
         self._event = _EventFn(clock, sink)
+        self._scan_watch = ScanWatch(self._event)
         self.estimator = Estimator(config.estimator, clock, sink)
         self.guidance = RouteGuidance(config, terrain, sink, self._event, planning)
         self.safety = SafetySupervisor(
@@ -420,6 +422,8 @@ class OnboardStack:
             if self._scans_in:
                 self._scans_in = False
                 self._read_obstacles(now, self.scan_tracker)
+            elif self._scan_watch.last_ns is not None:
+                self._scan_watch.check(now)
 
             pose = self.estimator.pose()
             ready = self._ready(now, pose)
@@ -720,12 +724,13 @@ class OnboardStack:
                 self.estimator.on_attitude(reading.t_ns, reading.yaw_rad, AHRS_HEADING_STD_RAD)
 
     def _take_scan(self, scan: ObstacleScan) -> None:
-        """A range scan to the tracker, placed on the map from the pose estimate as it stands now; before the
-        rover knows where it is, and for a scan in the body frame which way it faces, the tracker only
-        counts it (``scans_without_pose``)."""
+        """A range scan to the tracker, placed from the pose estimate as it stands now; before the rover
+        knows where it is and which way it faces, the tracker only counts it (``scans_without_pose``)."""
         pose = self.estimator.pose()
         self._scans_in = True
-        if pose is None or not pose.healthy or not (pose.heading_known or not scan.body_frame):
+        self._scan_watch.scan(scan.t_ns)
+        # The heading is needed in either frame: the dead-reckoned frame integrates speed along it.
+        if pose is None or not pose.healthy or not pose.heading_known:
             self.scan_tracker.add(scan, None)
             return
         # Tracked in the dead-reckoned frame (navigator.odometry_frame), reported on the map.

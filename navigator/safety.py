@@ -35,6 +35,13 @@ GPS_LOST = "gps_lost"
 HEARTBEAT_LOST = "heartbeat_lost"
 ATTITUDE_LOST = "attitude_lost"  # no AHRS attitude the tip-over check can use
 GROUND_LINK_LOST = "ground_link_lost"
+_NO_ATTITUDE = "no AHRS attitude with a finite roll and pitch"
+# Never any: most likely the autopilot does not stream ATTITUDE (the stack does not ask for it). Say where
+# that is set on the autopilot rovers run most.
+_NEVER_ATTITUDE = (
+    "no AHRS attitude with a finite roll and pitch since the start (does the autopilot stream ATTITUDE? "
+    "ArduPilot: SRn_EXTRA1, in Hz)"
+)
 STUCK = "stuck"
 WHEEL_STALLED = "wheel_stalled"
 # A wheel that stalls this many times within the window is seized, not snagged: held until an operator acts.
@@ -284,7 +291,7 @@ class SafetySupervisor:
         # ATTITUDE leaves the check blind from the first tick, and the rover must not drive so.
         self._timeout(
             ATTITUDE_LOST,
-            "no AHRS attitude with a finite roll and pitch",
+            _NO_ATTITUDE if i.last_attitude_ns is not None else _NEVER_ATTITUDE,
             i.now_ns,
             i.last_attitude_ns,
             self._attitude_ns,

@@ -61,14 +61,16 @@ def test_a_north_aligned_scan_counts_from_east() -> None:
     assert angle == pytest.approx(math.pi / 2) and distance == 3.0
 
 
-def test_unmeasured_and_too_near_sectors_are_left_out() -> None:
+def test_unmeasured_sectors_are_left_out_and_too_near_ones_touch() -> None:
     distances = _nothing()
     distances[3] = UNMEASURED_CM
-    distances[4] = 5  # below min_distance (10 cm)
+    distances[4] = 5  # below min_distance (10 cm): an obstacle at the sensor's nearest, not nothing
+    distances[5] = 0  # the spec's "practically touching the sensor"
     scan = read_scan(_message(distances, increment_f=2.5, angle_offset=-90.0), 0)
-    assert len(scan.rays) == SECTORS - 2
+    assert len(scan.rays) == SECTORS - 1
     assert not scan.full_circle  # 72 x 2.5 deg: the front half only
     assert scan.rays[0][0] == pytest.approx(math.pi / 2)  # -90 deg clockwise: the left
+    assert [r for _, r in scan.rays if r is not None] == [0.1, 0.1]
 
 
 @pytest.mark.parametrize(
@@ -101,7 +103,7 @@ def test_the_link_delivers_scans_and_counts_refused_ones_without_raising() -> No
     sender.send(_message(_nothing(), increment_f=0.0))
     readings = link.poll()
     scans = [r for r in readings if isinstance(r, ObstacleScan)]
-    assert len(scans) == 1 and link.scans_rejected == 1
+    assert len(scans) == 1 and link.counters.scans_rejected == 1 and link.counters.scans == 1
     assert [r for r in scans[0].rays if r[1] is not None] == [(0.0, 4.0)]
 
 

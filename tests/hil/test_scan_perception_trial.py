@@ -9,6 +9,7 @@ other channel to ``rover run``.
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from pathlib import Path
 
@@ -21,7 +22,7 @@ from hil.scenario import load_scenario
 from hil.trial import run_trial
 from logs import topics
 from logs.clock import NS_PER_S
-from logs.reader import read_messages
+from logs.reader import read_messages, read_metadata
 from logs.settings import parse_toml
 from navigator.config import rover_config_from_table
 from tests.hil.world_harness import StepClock, run_peer_on_test_clock
@@ -65,6 +66,29 @@ def test_a_lockstep_trial_finds_the_hidden_rock_through_scans_alone(tmp_path: Pa
         if m.message["direction"] == "rx" and m.message["msgid"] == mavlink2.MAVLINK_MSG_ID_OBSTACLE_DISTANCE
     ]
     assert len(scans) >= 10 * 15  # 10 Hz over a drive of more than 15 s, each recorded as it came
+    scenario_record = read_metadata(result.mcap_path)["scenario"]
+    assert scenario_record["perception"] == "scan"
+    assert json.loads(scenario_record["perception_json"])["fov_deg"] == 360.0
+
+
+def test_a_scan_trial_is_deterministic_and_noise_shows_in_the_scans(tmp_path: Path) -> None:
+    scenario = load_scenario(DATA / "hidden_rock.toml")
+    noisy = dataclasses.replace(
+        scenario, sensors=dataclasses.replace(scenario.sensors, perception_noise_m=0.05)
+    )
+    runs = [run_trial(noisy, _config(), tmp_path / name) for name in ("a", "b")]
+    first, second = ([(m.topic, m.log_time_ns, m.message) for m in read_messages(r.mcap_path)] for r in runs)
+    assert first == second
+    quiet = run_trial(scenario, _config(), tmp_path / "quiet")
+
+    def scan_bytes(path: Path) -> list[str]:
+        return [
+            m.message["data"]
+            for m in read_messages(path, topics={topics.MAVLINK_RAW})
+            if m.message["msgid"] == mavlink2.MAVLINK_MSG_ID_OBSTACLE_DISTANCE
+        ][:20]
+
+    assert scan_bytes(runs[0].mcap_path) != scan_bytes(quiet.mcap_path)  # the noise reaches the wire
 
 
 def test_the_peer_sends_scans_whatever_its_scenario_says(tmp_path: Path) -> None:
@@ -80,6 +104,8 @@ def test_the_peer_sends_scans_whatever_its_scenario_says(tmp_path: Path) -> None
             duration_ns=NS_PER_S // 2,
         )  # fmt: skip
         received = wires.onboard_mavlink.read()
+    # The truth says how the rover perceived, not what the scenario file asked for.
+    assert read_metadata(tmp_path / "peer" / "truth.mcap")["scenario"]["perception"] == "scan"
     messages = mavlink2.MAVLink(None).parse_buffer(received) or []
     scans = [m for m in messages if m.get_type() == "OBSTACLE_DISTANCE"]
     assert len(scans) >= 4  # 10 Hz for half a second

@@ -173,6 +173,31 @@ def test_moving_clear_s_zero_leaves_blocked_on_the_first_clear_tick() -> None:
     assert guidance.update(40_000_000, 2.0, 10.0, 0.0, 0.0).mode == DRIVING
 
 
+@pytest.mark.parametrize(("forget_s", "blocked_at_4s"), [(2.0, False), (0.0, True)])
+def test_a_moving_obstacle_unseen_for_moving_forget_s_is_no_longer_predicted(
+    forget_s: float, blocked_at_4s: bool
+) -> None:
+    guidance = Guidance(_flat(), PARAMS, PlannerConfig(moving_forget_s=forget_s), FollowerConfig())
+    guidance.set_goal(27.0, 10.0)
+    guidance.update(0, 2.0, 10.0, 0.0, 0.0)
+    # Seen once, standing across the path, then never again (out of view, or a lidar track forgotten).
+    guidance.observe([ObstacleObservation(0, "cart", 5.0, 10.0, 0.5, vx=0.0, vy=-0.01)])
+    modes = {t_s: guidance.update(round(t_s * 1e9), 2.0, 10.0, 0.0, 0.0).mode for t_s in (0.02, 1.9)}
+    assert modes == {0.02: BLOCKED, 1.9: BLOCKED}
+    later = [guidance.update(round((2.0 + 0.02 * i) * 1e9), 2.0, 10.0, 0.0, 0.0).mode for i in range(100)]
+    assert (later[-1] == BLOCKED) is blocked_at_4s
+    if not blocked_at_4s:
+        # Forgotten after 2 s, then the way must stay clear for moving_clear_s before it drives on.
+        assert later.index(DRIVING) * 0.02 == pytest.approx(PlannerConfig().moving_clear_s, abs=0.03)
+
+
+def test_moving_forget_s_is_read_and_checked() -> None:
+    config = rover_config_from_table(parse_toml("[planner]\nmoving_forget_s = 5.0\n", "<t>"))
+    assert config.planner.moving_forget_s == 5.0
+    with pytest.raises(ConfigError, match="moving_forget_s"):
+        rover_config_from_table(parse_toml("[planner]\nmoving_forget_s = -1.0\n", "<t>"))
+
+
 def _drive(
     follower: PurePursuit, path: np.ndarray, pose: tuple[float, float, float], steps: int
 ) -> list[float]:

@@ -7,14 +7,20 @@ from collections.abc import Callable
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from pymavlink.dialects.v20 import common as mavlink2
 
+from firmware_bridge.obstacle_scan import SECTORS, read_scan
 from logs.clock import NS_PER_S
 from logs.settings import ConfigError, parse_toml
 from navigator.config import rover_config_from_table
 from navigator.odometry_frame import OdometryFrame
 from navigator.perception import ObstacleObservation
 from navigator.scan_clusters import ClusterSettings, detections
-from navigator.scan_tracker import ScanTracker, ScanTrackerConfig
+from navigator.scan_tracker import ScanTracker
+from navigator.scan_tracker_config import ScanTrackerConfig
+from navigator.scan_watch import ScanWatch
 from tests.navigator.scan_rig import Disc, scan_of
 
 SCAN_NS = 100_000_000  # 10 Hz
@@ -110,13 +116,21 @@ def test_the_odometry_frame_dead_reckons_and_carries_the_fixes_in_its_offset() -
     frame = OdometryFrame()
     frame.advance(0, 1.0, 0.0, (5.0, 2.0))
     assert (frame.x, frame.y) == (5.0, 2.0) and frame.offset() == (0.0, 0.0)
-    frame.advance(NS_PER_S, 1.0, math.pi / 2, (6.3, 2.4))  # a fix 0.3 m ahead of where it drove
-    # Half a turn on average: 1 m along 45 degrees.
-    assert frame.x == pytest.approx(5.0 + math.sqrt(0.5)) and frame.y == pytest.approx(2.0 + math.sqrt(0.5))
-    assert frame.offset() == pytest.approx((6.3 - frame.x, 2.4 - frame.y))
-    frame.advance(2 * NS_PER_S, 0.0, math.pi - 0.01, (6.3, 2.4))
-    frame.advance(3 * NS_PER_S, 0.0, -math.pi + 0.01, (6.3, 2.4))  # through the wrap at +-pi, standing
-    assert frame.offset() == pytest.approx((6.3 - frame.x, 2.4 - frame.y))
+    step_ns = 400_000_000
+    frame.advance(step_ns, 1.0, math.pi / 2, (5.6, 2.4))  # a fix 0.3 m off where it drove
+    # Half a turn on average: 0.4 m along 45 degrees.
+    along = 0.4 * math.sqrt(0.5)
+    assert frame.x == pytest.approx(5.0 + along) and frame.y == pytest.approx(2.0 + along)
+    assert frame.offset() == pytest.approx((5.6 - frame.x, 2.4 - frame.y))
+    # A gap (scans stopped): not dead-reckoned across; the frame moves as the fixes did, the offset holds.
+    offset = frame.offset()
+    frame.advance(step_ns + 700_000_000, 1.0, 0.0, (9.0, 2.4))
+    assert frame.offset() == pytest.approx(offset) and frame.x == pytest.approx(9.0 - offset[0])
+    # Heading west through the wrap at +-pi: 0.1 m west, not east (the mean of the two numbers is 0).
+    frame.advance(step_ns + 800_000_000, 1.0, math.pi - 0.01, (9.0, 2.4))
+    x, y = frame.x, frame.y
+    frame.advance(step_ns + 900_000_000, 1.0, -math.pi + 0.01, (9.0, 2.4))
+    assert frame.x == pytest.approx(x - 0.1) and frame.y == pytest.approx(y, abs=1e-9)
 
 
 def _static_rock_track(jumpy_fixes: bool, dead_reckoned: bool) -> list[ObstacleObservation]:
@@ -148,3 +162,52 @@ def test_a_static_rock_stays_static_when_tracked_in_the_odometry_frame() -> None
     reported = _static_rock_track(jumpy_fixes=True, dead_reckoned=True)
     assert reported and not any(o.moving for o in reported)
     assert math.hypot(reported[-1].x - 6.0, reported[-1].y - 0.5) < 0.5
+
+
+def test_a_lidar_gone_quiet_is_said_once_and_its_return_too() -> None:
+    events: list[tuple[str, str, str]] = []
+    watch = ScanWatch(lambda kind, severity, detail: events.append((kind, severity, detail)))
+    watch.check(10 * NS_PER_S)  # no scan yet: nothing to miss (a rover without a lidar)
+    for i in range(10):
+        watch.scan(i * SCAN_NS)
+    watch.check(9 * SCAN_NS + NS_PER_S)  # exactly 1 s: not yet
+    assert events == []
+    for t_ns in (9 * SCAN_NS + NS_PER_S + 1, 5 * NS_PER_S):
+        watch.check(t_ns)
+    ((kind, severity, detail),) = events
+    assert (kind, severity) == ("perception_lost", "warning") and "every 0.10 s" in detail
+    watch.scan(6 * NS_PER_S)
+    assert events[-1][:2] == ("perception_back", "info") and "after 5.1 s" in events[-1][2]
+
+
+def test_a_slow_lidar_is_given_three_of_its_periods() -> None:
+    events: list[str] = []
+    watch = ScanWatch(lambda kind, _severity, _detail: events.append(kind))
+    for i in range(4):
+        watch.scan(i * 2 * NS_PER_S)  # 0.5 Hz
+    watch.check(6 * NS_PER_S + 5 * NS_PER_S)  # 5 s after the last: within 3 x 2 s
+    assert events == []
+    watch.check(6 * NS_PER_S + 7 * NS_PER_S)
+    assert events == ["perception_lost"]
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    sweeps=st.lists(
+        st.lists(st.integers(0, 65535), min_size=SECTORS, max_size=SECTORS), min_size=1, max_size=6
+    ),
+    increment=st.sampled_from([1.0, 2.5, 5.0]),
+    yaw=st.floats(-math.pi, math.pi),
+)
+def test_any_scans_give_finite_discs_and_no_exception(
+    sweeps: list[list[int]], increment: float, yaw: float
+) -> None:
+    tracker = ScanTracker()
+    for i, distances in enumerate(sweeps):
+        msg = mavlink2.MAVLink_obstacle_distance_message(
+            0, 0, distances, 0, 10, 800, increment, -90.0, mavlink2.MAV_FRAME_BODY_FRD
+        )
+        tracker.add(read_scan(msg, i * SCAN_NS), (1.0, 2.0, yaw), (0.5, -0.5))
+        for seen in tracker.poll():
+            values = (seen.x, seen.y, seen.radius_m, seen.vx, seen.vy)
+            assert all(map(math.isfinite, values)) and seen.radius_m > 0.0

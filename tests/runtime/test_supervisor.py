@@ -154,3 +154,20 @@ def test_a_wheel_stall_timer_restarts_after_a_tick_without_the_stall() -> None:
         decision = supervisor.update(judged(k, True)._replace(sent_at_ns=start * tick), True)
         k += 1
     assert decision.faults == ("wheel_stalled",)
+
+
+@pytest.mark.parametrize(("timeout_s", "trips"), [(1.0, True), (0.0, False)])
+def test_an_attitude_never_seen_trips_after_the_timeout_and_names_the_stream_unless_off(
+    timeout_s: float, trips: bool
+) -> None:
+    events: list[tuple[str, str, str]] = []
+    config = SafetyConfig(attitude_timeout_s=timeout_s)
+    supervisor = SafetySupervisor(config, VehicleParams(), 0, lambda *e: events.append(e))
+    supervisor.start(0)
+    never = inputs(1_020_000_000, (5.0, 5.0))._replace(roll_pitch_rad=None, last_attitude_ns=None)
+    decision = supervisor.update(never, True)
+    assert (decision.faults == ("attitude_lost",)) is trips
+    assert (decision.mode.value == "HOLD") is trips
+    if trips:
+        (detail,) = [e[2] for e in events if e[0] == "failsafe.attitude_lost"]
+        assert "since the start" in detail and "SRn_EXTRA1" in detail

@@ -1,0 +1,47 @@
+"""``[perception]`` in the rover config: how a range sensor's scans become tracked obstacles."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from logs.settings import Table
+from navigator.scan_clusters import ClusterSettings
+
+
+@dataclass(frozen=True)
+class ScanTrackerConfig:
+    """``[perception]`` in the rover config: how scans become tracked obstacles (docs/planning.md
+    "Perception from scans"). The first four say how returns become discs (``ClusterSettings``)."""
+
+    cluster_gap_m: float = 0.3
+    cluster_gap_ratio: float = 0.1
+    max_piece_m: float = 1.5
+    min_radius_m: float = 0.1
+    gate_m: float = 1.0
+    window_s: float = 1.0
+    confirm_scans: int = 3
+    forget_s: float = 1.0
+    moving_speed_mps: float = 0.3
+
+    @property
+    def clusters(self) -> ClusterSettings:
+        return ClusterSettings(
+            self.cluster_gap_m, self.cluster_gap_ratio, self.max_piece_m, self.min_radius_m
+        )
+
+    @classmethod
+    def from_table(cls, table: Table) -> ScanTrackerConfig:
+        d = cls()
+        config = cls(
+            cluster_gap_m=table.number("cluster_gap_m", d.cluster_gap_m, lo=0.01, hi=10.0),
+            cluster_gap_ratio=table.number("cluster_gap_ratio", d.cluster_gap_ratio, lo=0.0, hi=1.0),
+            max_piece_m=table.number("max_piece_m", d.max_piece_m, lo=0.1, hi=20.0),
+            min_radius_m=table.number("min_radius_m", d.min_radius_m, lo=0.01, hi=5.0),
+            gate_m=table.number("gate_m", d.gate_m, lo=0.05, hi=20.0),
+            window_s=table.number("window_s", d.window_s, lo=0.1, hi=10.0),
+            confirm_scans=table.integer("confirm_scans", d.confirm_scans, lo=1, hi=100),
+            forget_s=table.number("forget_s", d.forget_s, lo=0.05, hi=60.0),
+            moving_speed_mps=table.number("moving_speed_mps", d.moving_speed_mps, lo=0.01, hi=50.0),
+        )
+        table.finish()
+        return config
