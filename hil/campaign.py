@@ -13,6 +13,7 @@ A campaign is TOML::
 
     [[variants]]
     name = "terrain-aware"
+    perception = "scan"                 # optional: each scenario's [sensors] perception, for this variant
     [variants.overrides]                # rover-config keys, merged over the base config
     planner.cost_mode = "terrain"
 
@@ -31,7 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from hil.campaign_workers import MAX_WORKERS, resolved_workers
-from hil.scenario import Scenario, load_scenario
+from hil.scenario import PERCEPTION_MODELS, Scenario, load_scenario
 from hil.start_clearance import check_start_clear
 from logs.settings import MAX_SEED, ConfigError, Table, load_toml
 from navigator.config import RoverConfig, rover_config_from_table
@@ -41,6 +42,9 @@ from navigator.config import RoverConfig, rover_config_from_table
 class Variant:
     name: str
     overrides: dict[str, Any]
+    # How the rover perceives obstacles in this variant's trials (hil.scenario PERCEPTION_MODELS), in place
+    # of each scenario's own [sensors] perception; None: as each scenario says.
+    perception: str | None = None
 
 
 @dataclass(frozen=True)
@@ -56,6 +60,7 @@ class TrialSpec:
     out_dir: Path
     terrain_index: int = 0  # positions in the campaign file, recorded so reports keep its order
     variant_index: int = 0
+    perception: str | None = None  # the variant's perception model (None: the scenario's)
 
     @property
     def label(self) -> str:
@@ -85,6 +90,7 @@ class Campaign:
                 out_dir / terrain / variant.name / f"seed{seed}",
                 terrain_index,
                 variant_index,
+                variant.perception,
             )
             for terrain_index, (terrain, scenario) in enumerate(self.terrains)
             for variant_index, variant in enumerate(self.variants)
@@ -145,10 +151,11 @@ def load_campaign(path: str | Path) -> Campaign:
         overrides = table.raw("overrides", {})
         if not isinstance(overrides, dict):
             raise table.error("overrides", f"must be a table of rover-config keys, got {overrides!r}")
+        perception = table.text("perception", "", choices=("", *PERCEPTION_MODELS)) or None
         table.finish()
         if any(variant_name == v.name for v in variants):
             raise table.error("name", f"duplicate variant name {variant_name!r}")
-        variant = Variant(variant_name, overrides)
+        variant = Variant(variant_name, overrides, perception)
         try:
             config = campaign_config(
                 config_path, variant.overrides, f"{root.source} variant {variant_name!r}"

@@ -24,7 +24,7 @@ from typing import Any
 from hil.campaign import Campaign, TrialSpec, campaign_config
 from hil.campaign_place import CampaignPlace
 from hil.campaign_summary import others_sentence, write_summary
-from hil.scenario import load_scenario
+from hil.scenario import load_scenario, with_perception
 from hil.trial_log_label import trial_log_label
 
 logger = logging.getLogger(__name__)
@@ -50,7 +50,7 @@ def run_one(spec: TrialSpec) -> TrialOutcome:
     started = time.perf_counter()
     try:
         with trial_log_label(spec.label):
-            scenario = load_scenario(spec.scenario_path)
+            scenario = with_perception(load_scenario(spec.scenario_path), spec.perception)
             config = campaign_config(spec.config_path, spec.overrides, spec.label)
             place = CampaignPlace(spec.terrain, spec.variant, spec.terrain_index, spec.variant_index)
             result = run_trial(scenario, config, spec.out_dir, seed=spec.seed, campaign=place)

@@ -26,7 +26,6 @@ its times count from the rover's start however long ``rover run`` took to come u
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import logging
 import os
@@ -45,7 +44,7 @@ from firmware_bridge.vesc import VescCodec
 from hil.peer_files import write_peer_files
 from hil.peer_stalls import PeerStalls, stall_message
 from hil.peer_start import ON_FIRST_COMMAND, ON_PEER_START, ScenarioStart
-from hil.scenario import Scenario
+from hil.scenario import Scenario, with_perception
 from hil.step_clock import StepClock
 from hil.world import SimWorld
 from logs import topics
@@ -353,9 +352,7 @@ def seen_through_lidar(scenario: Scenario) -> Scenario:
     """``scenario`` with the rover perceiving through the simulated lidar (``[sensors] perception =
     "scan"``): ``rover run`` gets no obstacle objects, only what comes over MAVLink (OBSTACLE_DISTANCE),
     so a hidden or moving obstacle is seen as on the rover, through its own scan tracker."""
-    if scenario.sensors.perception == "scan":
-        return scenario
-    return dataclasses.replace(scenario, sensors=dataclasses.replace(scenario.sensors, perception="scan"))
+    return with_perception(scenario, "scan")
 
 
 def write_peer_header(

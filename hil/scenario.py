@@ -8,6 +8,7 @@ is procedural from a seed. See docs/hil.md for every key.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -303,3 +304,13 @@ def _waypoints(table: Table, terrain: TerrainMap) -> tuple[tuple[float, float], 
 def _check_inside(terrain: TerrainMap, xy: tuple[float, float], table: Table, key: str) -> None:
     if not terrain.contains(*xy):
         raise table.error(key, f"point {xy} lies outside the terrain map")
+
+
+def with_perception(scenario: Scenario, perception: str | None) -> Scenario:
+    """``scenario`` with its rover perceiving obstacles as ``perception`` says (``PERCEPTION_MODELS``; None:
+    unchanged): a campaign variant's choice, or the real-time peer's, which has only its lidar."""
+    if perception is None or perception == scenario.sensors.perception:
+        return scenario
+    if perception not in PERCEPTION_MODELS:
+        raise ValueError(f"perception must be one of {PERCEPTION_MODELS}, got {perception!r}")
+    return dataclasses.replace(scenario, sensors=dataclasses.replace(scenario.sensors, perception=perception))
