@@ -18,7 +18,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from hil.lockstep import lockstep_wires
 from hil.peer import seen_through_lidar
-from hil.scenario import load_scenario
+from hil.scenario import load_scenario, with_perception
 from hil.trial import run_trial
 from logs import topics
 from logs.clock import NS_PER_S
@@ -92,10 +92,7 @@ def test_a_scan_trial_is_deterministic_and_noise_shows_in_the_scans(tmp_path: Pa
 
 
 def test_the_peer_sends_scans_whatever_its_scenario_says(tmp_path: Path) -> None:
-    scenario = load_scenario(DATA / "hidden_rock.toml")
-    scenario = dataclasses.replace(
-        scenario, sensors=dataclasses.replace(scenario.sensors, perception="objects")
-    )
+    scenario = with_perception(load_scenario(DATA / "hidden_rock.toml"), "objects")
     assert seen_through_lidar(scenario).sensors.perception == "scan"
     config = _config()
     with lockstep_wires(config.can) as wires:
