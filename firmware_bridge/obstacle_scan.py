@@ -4,12 +4,16 @@ The message carries 72 ranges in centimetres, ``increment`` degrees apart (``inc
 the first at ``angle_offset`` degrees, angles clockwise. ``frame`` says from what: MAV_FRAME_BODY_FRD from
 the vehicle's front (a body-mounted lidar), MAV_FRAME_GLOBAL or MAV_FRAME_LOCAL_NED from north. A range of
 ``max_distance + 1`` means nothing there; UINT16_MAX means that sector is not measured; 0 means an obstacle
-practically touching the sensor. A lidar driver on the
-companion computer or the autopilot sends it (PX4 streams it, ArduPilot reads it); the HIL peer's simulated
-lidar (``hil.lidar_sim``) does too.
+practically touching the sensor. A lidar driver on the companion computer or the autopilot sends it (PX4
+streams it, ArduPilot reads it); the HIL peer's simulated lidar (``hil.lidar_sim``) does too.
+
+The ranges count from the sensor, wherever it sits, and a body-frame scan's angles from the sensor's own
+forward direction (what a driver that knows nothing of the mount reports): the rover config's
+``[perception]`` mount moves and turns them onto the rover (``navigator.sensor_mount``, applied where
+returns become map points, in ``navigator.scan_clusters``).
 
 ``read_scan`` turns one message into an ``ObstacleScan`` in our conventions (angles counter-clockwise, in
-radians, from the body's forward axis or from east), or refuses it with ``ScanRejected`` naming what was
+radians, from the sensor's forward axis or from east), or refuses it with ``ScanRejected`` naming what was
 wrong; the link counts and logs each refusal.
 """
 
@@ -35,7 +39,8 @@ class ScanRejected(ValueError):
 class ObstacleScan:
     """One OBSTACLE_DISTANCE: the sectors that saw something, in ray order.
 
-    ``body_frame``: angles count counter-clockwise from the rover's forward axis (else from east, ENU).
+    ``body_frame``: angles count counter-clockwise from the sensor's forward axis (else from east, ENU);
+    ranges count from the sensor either way.
     ``rays``: ``(angle_rad, range_m)`` for every measured sector, with ``range_m`` None where the sector saw
     nothing within ``max_range_m``; unmeasured sectors are left out, so two neighbours in ``rays`` are
     neighbours on the sensor only if their angles are one ``increment_rad`` apart.
@@ -111,7 +116,8 @@ def scan_message(
     max_range_m: float,
 ) -> Any:
     """An OBSTACLE_DISTANCE in the body frame from 72 ranges (None: nothing within ``max_range_m``),
-    the first at ``angle_offset_deg`` clockwise from forward, each ``increment_deg`` further clockwise."""
+    the first at ``angle_offset_deg`` clockwise from the sensor's forward direction, each ``increment_deg``
+    further clockwise."""
     if len(ranges_m) != SECTORS:
         raise ValueError(f"an OBSTACLE_DISTANCE holds {SECTORS} ranges, got {len(ranges_m)}")
     max_cm = round(max_range_m * 100.0)

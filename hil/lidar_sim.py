@@ -4,10 +4,12 @@ The rover in another process (``rover run``) has no other way to perceive what i
 hidden obstacles and the moving ones. This is how a real one would: a lidar driver, a MAVLink component of
 the rover's system (MAV_COMP_ID_OBSTACLE_AVOIDANCE), sends each scan; the onboard stack tracks obstacles
 from them (``navigator.scan_tracker``). 72 rays, one per OBSTACLE_DISTANCE sector, spread over
-``fov_deg`` centred on the rover's front, are cast from the rover's centre against the true obstacles
-(discs) at ``rate_hz``; each ray reports the nearest edge it meets within ``range_m``, plus Gaussian noise
-of ``noise_m`` from its own generator (72 draws per scan, hit or not: the noise does not depend on the
-path).
+``fov_deg`` centred on the sensor's forward direction, are cast from where the sensor sits on the rover
+(``mount``, ``navigator.sensor_mount``: the rover's centre and its front by default) against the true
+obstacles (discs) at ``rate_hz``; each ray reports the nearest edge it meets within ``range_m``, plus
+Gaussian noise of ``noise_m`` from its own generator (72 draws per scan, hit or not: the noise does not
+depend on the path). Like a driver that knows nothing of the mount, it counts the angles from the
+sensor's forward direction: the rover must be told where its lidar sits (``[perception]`` ``mount_*``).
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from firmware_bridge.mavlink_frames import send_unsigned_v2
 from firmware_bridge.mavlink_transport import Transport
 from firmware_bridge.obstacle_scan import SECTORS, scan_message
 from logs.clock import Clock, to_ns
+from navigator.sensor_mount import AT_CENTRE, SensorMount
 
 logger = logging.getLogger(__name__)
 
@@ -46,6 +49,7 @@ class SimLidar:
         rate_hz: float = 10.0,
         noise_m: float = 0.0,
         fov_deg: float = 360.0,
+        mount: SensorMount = AT_CENTRE,
         system_id: int = 1,
         component_id: int = mavlink2.MAV_COMP_ID_OBSTACLE_AVOIDANCE,
     ) -> None:
@@ -57,18 +61,21 @@ class SimLidar:
             raise ValueError(f"lidar fov_deg must be in (0, 360], got {fov_deg}")
         if not (math.isfinite(noise_m) and noise_m >= 0.0):
             raise ValueError(f"lidar noise_m must be >= 0, got {noise_m}")
+        if not all(map(math.isfinite, (mount.forward_m, mount.left_m, mount.yaw_rad))):
+            raise ValueError(f"lidar mount must be finite, got {mount}")
         self._clock = clock
         self._obstacles = obstacles
         self._rng = rng
         self._range_m = range_m
         self._noise_m = noise_m
+        self._mount = mount
         self._period_ns = to_ns(1.0 / rate_hz)
         self.increment_deg = fov_deg / SECTORS
-        # Sector i's ray, clockwise from the front: a full circle starts straight ahead, a narrower view
-        # is centred on it.
+        # Sector i's ray, clockwise from the sensor's front: a full circle starts straight ahead, a
+        # narrower view is centred on it.
         self.angle_offset_deg = 0.0 if fov_deg >= 360.0 else -fov_deg / 2.0 + self.increment_deg / 2.0
         clockwise = np.radians(self.angle_offset_deg + self.increment_deg * np.arange(SECTORS))
-        self._body_angles = -clockwise  # counter-clockwise from the front, as our yaw counts
+        self._sensor_angles = -clockwise  # counter-clockwise from the sensor's front, as our yaw counts
         # pymavlink writes each packed frame to its "file": the transport takes them as they are.
         self._mav = mavlink2.MAVLink(transport, system_id, component_id)
         self.next_ns = clock.now_ns()
@@ -76,19 +83,20 @@ class SimLidar:
         self.send_errors = 0
 
     def ranges(self, t_ns: int, x: float, y: float, yaw: float) -> list[float | None]:
-        """Each ray's range to the nearest obstacle edge from pose (x, y, yaw) at ``t_ns`` (None: nothing
-        within range), noise included."""
+        """Each ray's range from the sensor to the nearest obstacle edge, the rover's reference point at
+        pose (x, y, yaw), at ``t_ns`` (None: nothing within range), noise included."""
         noise = self._rng.normal(0.0, 1.0, SECTORS) * self._noise_m
         nearest = np.full(SECTORS, np.inf)
-        headings = self._body_angles + yaw
+        sx, sy = self._mount.origin(x, y, yaw)
+        headings = self._sensor_angles + self._mount.facing(yaw)
         dx, dy = np.cos(headings), np.sin(headings)
         for _id, ox, oy, radius, _vx, _vy in self._obstacles(t_ns):
-            cx, cy = ox - x, oy - y
+            cx, cy = ox - sx, oy - sy
             centre = math.hypot(cx, cy)
             if centre - radius > self._range_m:
                 continue
             if centre <= radius:
-                nearest[:] = 0.0  # inside it: every ray starts in the obstacle
+                nearest[:] = 0.0  # the sensor inside it: every ray starts in the obstacle
                 continue
             along = dx * cx + dy * cy  # distance along each ray to its point nearest the centre
             miss_sq = centre * centre - along * along

@@ -18,6 +18,7 @@ import math
 from dataclasses import dataclass
 
 from firmware_bridge.obstacle_scan import ObstacleScan
+from navigator.sensor_mount import AT_CENTRE, SensorMount
 
 _FIT_STEPS = 4
 
@@ -32,7 +33,7 @@ class ClusterSettings:
 
 @dataclass(frozen=True)
 class Detection:
-    """One disc from one scan, in local ENU metres: the point of its edge nearest the rover (``edge_x``,
+    """One disc from one scan, in local ENU metres: the point of its edge nearest the sensor (``edge_x``,
     ``edge_y``), the unit vector from there to its centre (``ux``, ``uy``), its radius, and the scan's
     receive time. The centre is ``radius_m`` along the vector; a tracker that knows the object's size
     better (``navigator.scan_tracker``) places it with that instead."""
@@ -68,7 +69,7 @@ class Detection:
                 bx += jx * residual
                 by += jy * residual
             determinant = sxx * syy - sxy * sxy
-            if determinant < 1e-9:  # the returns in a line with the rover: no lateral fix to make
+            if determinant < 1e-9:  # the returns in a line with the sensor: no lateral fix to make
                 break
             cx -= (syy * bx - sxy * by) / determinant
             cy -= (sxx * by - sxy * bx) / determinant
@@ -155,11 +156,23 @@ def _disc(
 
 
 def detections(
-    scan: ObstacleScan, x: float, y: float, yaw: float, settings: ClusterSettings
+    scan: ObstacleScan,
+    x: float,
+    y: float,
+    yaw: float,
+    settings: ClusterSettings,
+    mount: SensorMount = AT_CENTRE,
 ) -> list[Detection]:
     """The discs ``scan`` saw, placed on the map from the rover's pose (``x``, ``y`` ENU m, ``yaw`` rad from
-    east; the sensor at the rover's centre). A north-aligned scan ignores ``yaw``."""
-    turn = yaw if scan.body_frame else 0.0
+    east) and where the sensor sits on it (``mount``).
+
+    The discs are found in the scan's own polar coordinates, about the sensor (a disc's half-angle is as
+    the sensor saw it); only the rays' origin and direction move onto the map. The origin is the sensor's
+    position in either frame. A body-frame scan counts from the sensor's forward direction, so it turns
+    by the rover's yaw and the mount's; a north-aligned one is on the map's axes already and turns by
+    neither (the rover's heading still places the sensor, when it sits off the reference point)."""
+    x, y = mount.origin(x, y, yaw)
+    turn = mount.facing(yaw) if scan.body_frame else 0.0
     found: list[Detection] = []
     for run in _clusters(scan, settings):
         for piece in _pieces(run, settings.max_piece_m):

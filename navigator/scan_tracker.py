@@ -38,6 +38,7 @@ class ScanTracker:
     def __init__(self, config: ScanTrackerConfig | None = None) -> None:
         self.config = config or ScanTrackerConfig()
         self._clusters = self.config.clusters
+        self._mount = self.config.mount
         self._tracks: list[ScanTrack] = []
         self._updated: dict[str, ScanTrack] = {}
         self._landmarks: OrderedDict[str, tuple[float, float]] = OrderedDict()
@@ -63,7 +64,8 @@ class ScanTracker:
         pose: tuple[float, float, float] | None,
         offset: tuple[float, float] = (0.0, 0.0),
     ) -> None:
-        """Take in ``scan`` seen from ``pose`` (x, y ENU m, yaw rad from east; None: not known yet).
+        """Take in ``scan`` seen from ``pose`` (x, y ENU m, yaw rad from east, of the rover's reference point;
+        the sensor sits where ``[perception]`` says; None: not known yet).
 
         ``pose`` may be in a frame of its own, parallel to the map (the onboard stack's dead-reckoned one,
         ``navigator.odometry_frame``): tracks are kept in it, and ``offset`` (map minus frame, as of this
@@ -83,7 +85,7 @@ class ScanTracker:
             self._period_ns = max(0, t_ns - self._last_scan_ns)
         self._last_scan_ns = t_ns
         self._forget(t_ns, forget_ns)
-        found = detections(scan, pose[0], pose[1], pose[2], self._clusters)
+        found = detections(scan, pose[0], pose[1], pose[2], self._clusters, self._mount)
         for detection, track in self._associate(found, t_ns):
             if track is None:
                 track = ScanTrack(self._new_id(detection), detection)

@@ -2,16 +2,23 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from logs.settings import Table
 from navigator.scan_clusters import ClusterSettings
+from navigator.sensor_mount import SensorMount
+
+# How far from the reference point a sensor may sit (m), either way: a mast on the rover, not a typo.
+MAX_MOUNT_OFFSET_M = 5.0
 
 
 @dataclass(frozen=True)
 class ScanTrackerConfig:
     """``[perception]`` in the rover config: how scans become tracked obstacles (docs/planning.md
-    "Perception from scans"). The first four say how returns become discs (``ClusterSettings``)."""
+    "Perception from scans"). The first four say how returns become discs (``ClusterSettings``); the
+    ``mount_*`` keys where the sensor sits (``SensorMount``: forward and left of the estimator's reference
+    point, and its forward direction from the rover's, degrees counter-clockwise)."""
 
     cluster_gap_m: float = 0.3
     cluster_gap_ratio: float = 0.1
@@ -22,6 +29,13 @@ class ScanTrackerConfig:
     confirm_scans: int = 3
     forget_s: float = 1.0
     moving_speed_mps: float = 0.3
+    mount_forward_m: float = 0.0
+    mount_left_m: float = 0.0
+    mount_yaw_deg: float = 0.0
+
+    @property
+    def mount(self) -> SensorMount:
+        return SensorMount(self.mount_forward_m, self.mount_left_m, math.radians(self.mount_yaw_deg))
 
     @property
     def clusters(self) -> ClusterSettings:
@@ -42,6 +56,13 @@ class ScanTrackerConfig:
             confirm_scans=table.integer("confirm_scans", d.confirm_scans, lo=1, hi=100),
             forget_s=table.number("forget_s", d.forget_s, lo=0.05, hi=60.0),
             moving_speed_mps=table.number("moving_speed_mps", d.moving_speed_mps, lo=0.01, hi=50.0),
+            mount_forward_m=table.number(
+                "mount_forward_m", d.mount_forward_m, lo=-MAX_MOUNT_OFFSET_M, hi=MAX_MOUNT_OFFSET_M
+            ),
+            mount_left_m=table.number(
+                "mount_left_m", d.mount_left_m, lo=-MAX_MOUNT_OFFSET_M, hi=MAX_MOUNT_OFFSET_M
+            ),
+            mount_yaw_deg=table.number("mount_yaw_deg", d.mount_yaw_deg, lo=-180.0, hi=180.0),
         )
         table.finish()
         return config

@@ -11,6 +11,7 @@ import pytest
 from firmware_bridge.mavlink_transport import memory_pipe_pair
 from hil.lidar_sim import SimLidar
 from logs.clock import SimClock
+from navigator.sensor_mount import SensorMount
 
 ROCK = ("rock", 4.0, 0.0, 0.5, 0.0, 0.0)
 
@@ -50,8 +51,34 @@ def test_the_noise_is_the_seeds_and_the_field_of_view_is_centred_on_the_front() 
     assert narrow.increment_deg == 2.5 and narrow.angle_offset_deg == pytest.approx(-88.75)
 
 
+def test_a_mounted_lidar_casts_from_where_it_sits_and_counts_from_its_own_front() -> None:
+    # 0.4 m forward: the rock's near edge 3.5 m from the rover's centre is 3.1 m from the sensor.
+    assert _lidar([ROCK], mount=SensorMount(forward_m=0.4)).ranges(0, 0.0, 0.0, 0.0)[0] == pytest.approx(3.1)
+    # 0.5 m forward and turned to the left: the sensor at (0.5, 0) faces north. A rock 4 m north of it is
+    # straight ahead of the sensor (sector 0); the one ahead of the rover is 3.5 m to the sensor's right,
+    # 90 deg clockwise (sector 18), its near edge 3 m away.
+    turned = SensorMount(forward_m=0.5, yaw_rad=math.pi / 2)
+    left = ("left", 0.5, 4.0, 0.5, 0.0, 0.0)
+    ranges = _lidar([ROCK, left], mount=turned).ranges(0, 0.0, 0.0, 0.0)
+    assert ranges[0] == pytest.approx(3.5) and ranges[18] == pytest.approx(3.0)
+    # The same rover facing north (yaw 90 deg) at (1, 2): the sensor at (1, 2.5) faces west.
+    west = ("west", -3.0, 2.5, 0.5, 0.0, 0.0)
+    assert _lidar([west], mount=turned).ranges(0, 1.0, 2.0, math.pi / 2)[0] == pytest.approx(3.5)
+    # A narrow view is centred on the sensor's front: the rock on the left, not the one ahead of the rover.
+    narrow = _lidar([ROCK, left], mount=turned, fov_deg=90.0).ranges(0, 0.0, 0.0, 0.0)
+    seen = [r for r in narrow if r is not None]
+    assert seen and min(seen) == pytest.approx(3.5, abs=0.05)  # 3.0 would be the rock ahead of the rover
+
+
 @pytest.mark.parametrize(
-    ("setting", "value"), [("range_m", 0.0), ("rate_hz", 0.0), ("fov_deg", 400.0), ("noise_m", -1.0)]
+    ("setting", "value"),
+    [
+        ("range_m", 0.0),
+        ("rate_hz", 0.0),
+        ("fov_deg", 400.0),
+        ("noise_m", -1.0),
+        ("mount", SensorMount(forward_m=math.nan)),
+    ],
 )
 def test_settings_out_of_range_are_refused(setting: str, value: float) -> None:
     settings: dict[str, Any] = {setting: value}

@@ -9,17 +9,29 @@ from firmware_bridge.mavlink_transport import memory_pipe_pair
 from firmware_bridge.obstacle_scan import ObstacleScan, read_scan, scan_message
 from hil.lidar_sim import MIN_RANGE_M, SimLidar
 from logs.clock import SimClock
+from navigator.sensor_mount import AT_CENTRE, SensorMount
 
 Disc = tuple[str, float, float, float, float, float]  # id, x, y, radius, vx, vy
 
 
 def scan_of(
-    discs: list[Disc], pose: tuple[float, float, float], t_ns: int, *, noise_m: float = 0.0, seed: int = 0
+    discs: list[Disc],
+    pose: tuple[float, float, float],
+    t_ns: int,
+    *,
+    noise_m: float = 0.0,
+    seed: int = 0,
+    mount: SensorMount = AT_CENTRE,
 ) -> ObstacleScan:
-    """What a 360-degree, 72-sector lidar at ``pose`` (x, y, yaw) sees of ``discs`` at ``t_ns``, as read
-    off an OBSTACLE_DISTANCE message."""
+    """What a 360-degree, 72-sector lidar mounted at ``mount`` on a rover at ``pose`` (x, y, yaw) sees of
+    ``discs`` at ``t_ns``, as read off an OBSTACLE_DISTANCE message."""
     lidar = SimLidar(
-        memory_pipe_pair()[0], SimClock(t_ns), lambda _t: discs, np.random.default_rng(seed), noise_m=noise_m
+        memory_pipe_pair()[0],
+        SimClock(t_ns),
+        lambda _t: discs,
+        np.random.default_rng(seed),
+        noise_m=noise_m,
+        mount=mount,
     )
     mav = mavlink2.MAVLink(None, 1, 1)
     msg = scan_message(
