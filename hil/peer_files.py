@@ -4,9 +4,10 @@ The onboard stack must plan on what the rover *believes* (the scenario's terrain
 as in lockstep) and georeference GPS on the scenario's datum; ``rover run`` gets both only through its
 config. So the peer writes ``map/{elevation,classes,obstacles}.npy`` and ``rover-hil.toml``: the CAN bus
 the peer is on, ``udpout:HOST:PORT`` to its autopilot (the loopback address it listens on), the datum,
-the map, Zenoh off, and the ``[vesc]`` table its simulated controllers speak (ids, drivetrain, and a
+the map, Zenoh off, the ``[vesc]`` table its simulated controllers speak (ids, drivetrain, and a
 swapped-in DBC as an absolute path, so it reads the same from the peer's folder or wherever the file is
-copied). Every other table is
+copied), and where its simulated lidar sits when that is off the centre (``[perception]`` ``mount_*``,
+from the scenario's ``[sensors] perception_mount_*``). Every other table is
 left at the built-in defaults (the ones the peer simulates when it has no ``--config``); with a custom
 vehicle, add its tables to the file.
 """
@@ -20,6 +21,7 @@ import numpy as np
 
 from hil.scenario import Scenario
 from navigator.config import RoverConfig
+from navigator.sensor_mount import AT_CENTRE
 
 ROVER_CONFIG_NAME = "rover-hil.toml"
 MAP_DIR = "map"
@@ -70,6 +72,7 @@ def write_peer_files(
         f"datum_lon_deg = {lon!r}",
         f"datum_alt_m = {alt!r}",
         "",
+        *_perception_lines(scenario),
         "[map]",
         'kind = "npy"',
         f'elevation = "{MAP_DIR}/elevation.npy"',
@@ -97,3 +100,18 @@ def _vesc_lines(config: RoverConfig) -> list[str]:
     if vesc.dbc_path is not None:
         lines.append(f"dbc = {json.dumps(str(vesc.dbc_path.absolute()))}")
     return [*lines, ""]
+
+
+def _perception_lines(scenario: Scenario) -> list[str]:
+    """``[perception]`` saying where the simulated lidar sits, so ``rover run`` places its returns from
+    there; nothing when it sits at the centre facing forward (the default, the file as it always was)."""
+    sensors = scenario.sensors
+    if sensors.lidar_mount == AT_CENTRE:
+        return []
+    return [
+        "[perception]",
+        f"mount_forward_m = {sensors.perception_mount_forward_m!r}",
+        f"mount_left_m = {sensors.perception_mount_left_m!r}",
+        f"mount_yaw_deg = {sensors.perception_mount_yaw_deg!r}",
+        "",
+    ]

@@ -22,6 +22,8 @@ from logs.metrics import DEFAULT_ENCOUNTER_MARGIN_M
 from logs.settings import MAX_SEED, ConfigError, Table, finite_float, load_toml, shown
 from navigator.config import ROVER_CONFIG_TABLES
 from navigator.map_config import terrain_from_table
+from navigator.scan_tracker_config import MAX_MOUNT_OFFSET_M
+from navigator.sensor_mount import SensorMount
 from navigator.terrain import TerrainMap, disc_mask
 
 
@@ -63,7 +65,22 @@ class SensorSettings:
     # within range as it is (id, disc, velocity); "scan" sends a simulated lidar's scans over MAVLink
     # (hil.lidar_sim) and the stack tracks obstacles from them, as `rover run` does on the rover.
     perception: str = "objects"
-    perception_fov_deg: float = 360.0  # the simulated lidar's field of view, centred on the front
+    perception_fov_deg: float = 360.0  # the simulated lidar's field of view, centred on its front
+    # Where the simulated lidar sits on the rover ("scan" only): forward and left of the body's reference
+    # point (m), and its front from the rover's (deg, counter-clockwise). The stack is told separately, in
+    # the rover config's [perception] mount_* keys, as a real rover's would be (a lockstep trial's
+    # --config; the real-time peer writes them into the rover-hil.toml it leaves for `rover run`).
+    perception_mount_forward_m: float = 0.0
+    perception_mount_left_m: float = 0.0
+    perception_mount_yaw_deg: float = 0.0
+
+    @property
+    def lidar_mount(self) -> SensorMount:
+        return SensorMount(
+            self.perception_mount_forward_m,
+            self.perception_mount_left_m,
+            math.radians(self.perception_mount_yaw_deg),
+        )
 
     @classmethod
     def from_table(cls, table: Table) -> SensorSettings:
@@ -87,6 +104,21 @@ class SensorSettings:
             perception_noise_m=table.number("perception_noise_m", cls.perception_noise_m, lo=0.0, hi=10.0),
             perception=table.text("perception", cls.perception, choices=PERCEPTION_MODELS),
             perception_fov_deg=table.number("perception_fov_deg", cls.perception_fov_deg, lo=1.0, hi=360.0),
+            perception_mount_forward_m=table.number(
+                "perception_mount_forward_m",
+                cls.perception_mount_forward_m,
+                lo=-MAX_MOUNT_OFFSET_M,
+                hi=MAX_MOUNT_OFFSET_M,
+            ),
+            perception_mount_left_m=table.number(
+                "perception_mount_left_m",
+                cls.perception_mount_left_m,
+                lo=-MAX_MOUNT_OFFSET_M,
+                hi=MAX_MOUNT_OFFSET_M,
+            ),
+            perception_mount_yaw_deg=table.number(
+                "perception_mount_yaw_deg", cls.perception_mount_yaw_deg, lo=-180.0, hi=180.0
+            ),
         )
         table.finish()
         return settings

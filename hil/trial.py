@@ -341,6 +341,10 @@ def write_header(
                     "rate_hz": scenario.sensors.perception_rate_hz,
                     "noise_m": scenario.sensors.perception_noise_m,
                     "fov_deg": scenario.sensors.perception_fov_deg,
+                    # Where the simulated lidar sat; the rover's belief is the config's [perception].
+                    "mount_forward_m": scenario.sensors.perception_mount_forward_m,
+                    "mount_left_m": scenario.sensors.perception_mount_left_m,
+                    "mount_yaw_deg": scenario.sensors.perception_mount_yaw_deg,
                 },
                 separators=(",", ":"),
             ),

@@ -146,6 +146,7 @@ class SimWorld:
                 rate_hz=sensors.perception_rate_hz,
                 noise_m=sensors.perception_noise_m,
                 fov_deg=sensors.perception_fov_deg,
+                mount=sensors.lidar_mount,
             )
             if sensors.perception == "scan"
             else None
