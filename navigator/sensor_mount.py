@@ -1,11 +1,11 @@
 """Where a range sensor sits on the rover: its offset from the pose's reference point, and which way it faces.
 
 The estimator's pose is of the rover's reference point (``x``, ``y`` ENU m, ``yaw`` rad from east); a lidar
-sits on a mast somewhere else, usually at the front, sometimes turned. Its rays start where it is, and
-a body-frame scan counts its angles from the sensor's own forward direction (a driver reports what the
-sensor measures; ArduPilot's proximity ``YAW_CORR`` is the same correction): both must be known to put a
-return on the map. ``navigator.scan_clusters`` applies it to the stack's scans, ``hil.lidar_sim`` to the
-simulated lidar's rays.
+sits on a mast somewhere else, usually at the front, sometimes turned. Its rays start where it is, and a
+body-frame scan counts its angles from the sensor's own forward direction (a driver reports what the
+sensor measures; ArduPilot adds its ``PRXn_YAW_CORR`` to OBSTACLE_DISTANCE angles the same way, counted
+clockwise): both must be known to put a return on the map. ``navigator.scan_clusters`` applies the mount
+to the stack's scans, ``hil.lidar_sim`` to the simulated lidar's rays.
 """
 
 from __future__ import annotations
