@@ -32,9 +32,11 @@ _POSITIVE = (
     "stuck_min_distance_m",
     "odom_transient_accel_mps2",
     "odom_settle_s",
+    "long_slip_window_s",
+    "long_slip_max_s",
 )
 # Settings that may be zero but not negative.
-_NON_NEGATIVE = ("gps_latency_s", "odom_yaw_rate_relative_noise")
+_NON_NEGATIVE = ("gps_latency_s", "odom_yaw_rate_relative_noise", "long_slip_threshold_mps")
 
 
 @dataclass(frozen=True)
@@ -97,6 +99,13 @@ class EstimatorConfig:
         While the mean wheel speed changes faster than this (m/s^2), and for ``odom_settle_s`` after, the
         wheels lead or lag the body (transient slip): the odometry scale is not learnt
         (``estimator.transient``).
+    long_slip_threshold_mps, long_slip_window_s, long_slip_max_s : float
+        Wheels slipping along their travel (a braking skid, launch spin; ``estimator.longitudinal_slip``):
+        when, over ``long_slip_window_s``, the wheel speed changed by more than ``long_slip_threshold_mps``
+        (m/s) more or less than the body did by the IMU (its longitudinal specific force less gravity along
+        the AHRS pitch), the speed is carried by the IMU's acceleration and the wheels' speed left out, until
+        the wheels agree with the estimate again within the threshold, for at most ``long_slip_max_s``.
+        Needs AHRS attitudes (the pitch); 0 for the threshold turns it off.
     datum_lat_deg, datum_lon_deg, datum_alt_m : float | None
         ENU origin; if absent the first good GPS fix sets it.
     """
@@ -125,6 +134,9 @@ class EstimatorConfig:
     stuck_min_distance_m: float = 1.0
     odom_transient_accel_mps2: float = 1.0
     odom_settle_s: float = 1.0
+    long_slip_threshold_mps: float = 0.15
+    long_slip_window_s: float = 0.25
+    long_slip_max_s: float = 1.5
     datum_lat_deg: float | None = None
     datum_lon_deg: float | None = None
     datum_alt_m: float | None = None

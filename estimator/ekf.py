@@ -10,8 +10,9 @@ State ``x`` (shape (7,)), in order (``STATE_NAMES``)::
     odom_scale        wheel surface speed / speed over ground (1 on firm ground, > 1 when the wheels slip)
 
 Motion model: constant speed and yaw rate over ``dt``, position advanced along the mid-interval heading
-(second-order accurate; dt is at most a few tens of ms between sensor samples). Speed, yaw rate, gyro bias
-and odometry scale are random walks (intensities from ``EstimatorConfig``).
+(second-order accurate; dt is at most a few tens of ms between sensor samples); while the front end sets
+an ``acceleration`` input (the IMU's, when the wheels slip along their travel), the speed changes at it.
+Speed, yaw rate, gyro bias and odometry scale are random walks (intensities from ``EstimatorConfig``).
 
 Measurement models: GPS ``z = (x, y)``; gyro ``z = yaw_rate + bias``; wheel odometry
 ``z = (odom_scale * speed, yaw_rate)`` (or the yaw-rate row alone when the speed is known to be bad);
@@ -108,6 +109,7 @@ class Snapshot:
     t_ns: int
     x: Array
     p: Array
+    acceleration: float = 0.0
 
 
 class RoverEkf:
@@ -141,6 +143,10 @@ class RoverEkf:
         self._gate = {dim: chi_square_quantile(config.gate_probability, dim) for dim in (1, 2)}
         self._r_gyro: Array = np.array([[config.gyro_noise_rps**2]])
         self._scale_learning = True
+        # The measured body acceleration (m/s^2) every predict applies to the speed; 0 (the usual case): the
+        # constant-speed model. The front end sets it while the wheels' speed cannot be trusted to follow
+        # the body's (``estimator.longitudinal_slip``).
+        self.acceleration = 0.0
         self._h_odometry: Array = _rows(SPEED, YAW_RATE)  # reused; its speed row depends on the state
         # Residual and noise buffers, filled in place per update: building small arrays anew cost more
         # than the update's arithmetic. The kernel reads them only during the call (``_update``).
@@ -193,13 +199,14 @@ class RoverEkf:
         return position_std_m(self._p)
 
     def snapshot(self) -> Snapshot:
-        return Snapshot(self._require_time(), self._x.copy(), self._p.copy())
+        return Snapshot(self._require_time(), self._x.copy(), self._p.copy(), self.acceleration)
 
     def restore(self, snapshot: Snapshot) -> None:
         """Go back to a snapshot taken earlier (the buffer-and-re-fuse path for delayed measurements)."""
         self._x = snapshot.x.copy()
         self._p = snapshot.p.copy()
         self._t_ns = snapshot.t_ns
+        self.acceleration = snapshot.acceleration
         self._revision += 1
 
     # --- set-up --------------------------------------------------------------------------------
@@ -246,6 +253,18 @@ class RoverEkf:
         self._p[X, X] = self._p[Y, Y] = position_std_m**2
         self._revision += 1
 
+    def reset_speed(self, speed_mps: float, speed_std_mps: float) -> None:
+        """Replace the speed by an independent estimate (the IMU's, through a wheel skid), dropping its
+        correlations with the rest."""
+        self._require_time()
+        _check_finite("reset_speed", speed_mps=speed_mps)
+        _check_std("reset_speed", speed_std_mps=speed_std_mps)
+        self._x[SPEED] = speed_mps
+        self._p[SPEED, :] = 0.0
+        self._p[:, SPEED] = 0.0
+        self._p[SPEED, SPEED] = speed_std_mps**2
+        self._revision += 1
+
     @property
     def scale_learning(self) -> bool:
         return self._scale_learning
@@ -274,7 +293,7 @@ class RoverEkf:
         dt_ns = t_ns - (self._t_ns if self._t_ns is not None else self._require_time())
         if dt_ns <= 0:
             return
-        predict_kernel(self._x, self._p, dt_ns * 1e-9, self._q_rate)
+        predict_kernel(self._x, self._p, dt_ns * 1e-9, self._q_rate, self.acceleration)
         self._t_ns = t_ns
         self._revision += 1
 
@@ -330,7 +349,7 @@ class RoverEkf:
         dt = self._seconds_to(t_ns)
         y = self._y1
         nis, accepted = gyro_kernel(
-            self._x, self._p, dt, self._q_rate, z_rps, y, self._r_gyro,
+            self._x, self._p, dt, self._q_rate, self.acceleration, z_rps, y, self._r_gyro,
             self._gate[1], -1 if self._scale_learning else SCALE,
         )  # fmt: skip
         self._revision += 1
@@ -363,7 +382,7 @@ class RoverEkf:
         else:
             y, h, r = self._y1, _H_ODOMETRY_YAW_RATE, self._r1
         nis, accepted = odometry_kernel(
-            self._x, self._p, dt, self._q_rate, speed_mps, yaw_rate_rps, speed_std_mps**2,
+            self._x, self._p, dt, self._q_rate, self.acceleration, speed_mps, yaw_rate_rps, speed_std_mps**2,
             yaw_rate_std_rps**2, y, h, r, self._gate[len(y)], -1 if self._scale_learning else SCALE,
             _SCALE_MIN, _SCALE_MAX,
         )  # fmt: skip

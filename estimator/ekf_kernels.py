@@ -57,15 +57,23 @@ def _product(a: Array, b: Array) -> Array:
 
 
 @numba.njit(cache=True)
-def predict_kernel(x: Array, p: Array, dt: float, q_rate: Array) -> None:
-    """Constant speed and yaw rate over ``dt`` (s), mid-interval heading; P = F P F^T + Q dt, in place."""
+def predict_kernel(x: Array, p: Array, dt: float, q_rate: Array, accel: float) -> None:
+    """Constant yaw rate over ``dt`` (s), mid-interval heading; the speed constant too, or changing at the
+    measured body acceleration ``accel`` (m/s^2) when it is not 0; P = F P F^T + Q dt, in place.
+
+    ``accel`` is an input, not a state: F is the same either way (the speed's own uncertainty still grows
+    by its random walk, which covers the acceleration's error too)."""
     n = x.shape[0]
     v = x[_SPEED]
     w = x[_YAW_RATE]
     heading = x[_YAW] + 0.5 * w * dt
     cos_h = math.cos(heading)
     sin_h = math.sin(heading)
-    step = v * dt
+    if accel != 0.0:  # a branch, not a zero term: without an input the floats are exactly as before
+        step = (v + 0.5 * accel * dt) * dt
+        x[_SPEED] = v + accel * dt
+    else:
+        step = v * dt
     x[_X] += step * cos_h
     x[_Y] += step * sin_h
     x[_YAW] = _wrap(x[_YAW] + w * dt)
@@ -170,18 +178,20 @@ def gyro_kernel(
     p: Array,
     dt: float,
     q_rate: Array,
+    accel: float,
     z_rps: float,
     y: Array,
     r: Array,
     gate: float,
     schmidt_state: int,
 ) -> tuple[float, bool]:
-    """Predict over ``dt`` (s; none when ``dt`` <= 0), then the gated gyro update ``z = yaw_rate + bias``.
+    """Predict over ``dt`` (s; none when ``dt`` <= 0; ``accel`` as in ``predict_kernel``), then the gated gyro
+    update ``z = yaw_rate + bias``.
 
     ``y`` (shape (1,)) receives the residual; ``r`` is the gyro's noise (its model is ``H_GYRO``).
     """
     if dt > 0.0:
-        predict_kernel(x, p, dt, q_rate)
+        predict_kernel(x, p, dt, q_rate, accel)
     y[0] = z_rps - x[_YAW_RATE] - x[_BIAS]
     return update_kernel(x, p, y, H_GYRO, r, gate, True, schmidt_state)
 
@@ -192,6 +202,7 @@ def odometry_kernel(
     p: Array,
     dt: float,
     q_rate: Array,
+    accel: float,
     speed_mps: float,
     yaw_rate_rps: float,
     speed_variance: float,
@@ -204,7 +215,8 @@ def odometry_kernel(
     scale_min: float,
     scale_max: float,
 ) -> tuple[float, bool]:
-    """Predict over ``dt`` (s; none when ``dt`` <= 0), then the gated odometry update.
+    """Predict over ``dt`` (s; none when ``dt`` <= 0; ``accel`` as in ``predict_kernel``), then the gated
+    odometry update.
 
     With ``y`` of shape (2,): ``z = (scale * speed, yaw_rate)``, ``h`` (2, 7) gets its state-dependent
     speed row, ``r`` (2, 2) the two variances on its diagonal, and the scale is clamped to
@@ -212,7 +224,7 @@ def odometry_kernel(
     constant row, ``r`` (1, 1) gets ``yaw_rate_variance``; ``speed_*`` unused).
     """
     if dt > 0.0:
-        predict_kernel(x, p, dt, q_rate)
+        predict_kernel(x, p, dt, q_rate, accel)
     if y.shape[0] == 1:
         y[0] = yaw_rate_rps - x[_YAW_RATE]
         r[0, 0] = yaw_rate_variance

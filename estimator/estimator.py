@@ -35,6 +35,7 @@ from estimator.geodesy import Datum, to_enu
 from estimator.heading_bootstrap import HeadingBootstrap
 from estimator.health import EstimatorHealth
 from estimator.history import FusionHistory, GyroSample, OdometrySample, Sample
+from estimator.longitudinal_slip import LongitudinalSlip
 from estimator.pose import PoseEstimate, pose_message
 from estimator.stuck import StuckDetector
 from estimator.transient import WheelTransient
@@ -66,6 +67,9 @@ _MAX_SAMPLE_LAG_NS = 100_000_000
 _STILL_SIGMAS = 3.0
 # How far back the fusion history reaches beyond the configured GPS latency (jitter of the link).
 _HISTORY_MARGIN_NS = 300_000_000
+# An AHRS pitch older than this no longer takes gravity out of the IMU's acceleration (a 5-50 Hz stream).
+_PITCH_FRESH_NS = 500_000_000
+_GRAVITY_MPS2 = 9.80665
 # The counter of each sensor's accepted updates, named once rather than formatted per update.
 _ACCEPTED_KEYS = {sensor: f"{sensor}_accepted" for sensor in ("gyro", "odometry", "heading")}
 
@@ -102,6 +106,14 @@ class Estimator:
         self._last_gyro: tuple[int, float] | None = None  # (t_ns, raw gyro z rad/s)
         self._last_wheels_ns: int | None = None
         self._stuck = StuckDetector(config.stuck_window_s, config.stuck_min_distance_m)
+        self._long_slip = (
+            LongitudinalSlip(
+                config.long_slip_window_s, config.long_slip_threshold_mps, config.long_slip_max_s
+            )
+            if config.long_slip_threshold_mps > 0.0
+            else None
+        )
+        self._pitch: tuple[int, float] | None = None  # (t_ns, AHRS pitch rad, nose up positive)
         self._latency_ns = round(config.gps_latency_s * 1e9)
         # Kept only when fixes can be late: every IMU / wheel update then costs a state copy.
         self._history = FusionHistory(self._latency_ns + _HISTORY_MARGIN_NS) if self._latency_ns else None
@@ -143,12 +155,16 @@ class Estimator:
             self._initial_heading = (wrap_angle(yaw_rad), std_rad)
         self._heading_known = True
 
-    def on_attitude(self, t_ns: int, yaw_rad: float, std_rad: float) -> None:
+    def on_attitude(self, t_ns: int, yaw_rad: float, std_rad: float, pitch_rad: float | None = None) -> None:
         """An absolute heading (AHRS / compass yaw, rad CCW from east, std rad), fused as a measurement.
 
         The first one (before any heading is known) initialises the heading; later ones are gated updates,
-        so one noisy AHRS sample does not fix the heading for the whole run.
+        so one noisy AHRS sample does not fix the heading for the whole run. ``pitch_rad`` (nose up
+        positive), when finite, takes gravity out of the IMU's longitudinal acceleration
+        (``estimator.longitudinal_slip``); a non-finite one is ignored.
         """
+        if pitch_rad is not None and math.isfinite(pitch_rad):
+            self._pitch = (t_ns, pitch_rad)
         if not (math.isfinite(yaw_rad) and math.isfinite(std_rad)) or std_rad <= 0.0:
             self._reject("attitude_not_finite", f"yaw={yaw_rad}, std={std_rad}")
             return
@@ -223,8 +239,9 @@ class Estimator:
     def on_imu(self, t_ns: int, gyro_z_rps: float, accel_x: float, accel_y: float) -> None:
         """Body-frame IMU sample: gyro z (rad/s, CCW positive), accelerations (m/s^2, x forward, y left).
 
-        The accelerations are range-checked but not fused: on slopes they are dominated by the projection
-        of gravity, and this planar filter has no roll and pitch to take it out.
+        The accelerations are range-checked. They are not fused as measurements: this planar filter has no
+        acceleration state. The longitudinal one, less gravity along the AHRS pitch, tells when the wheels
+        slip along their travel, and then carries the speed (``estimator.longitudinal_slip``).
         """
         if not (math.isfinite(gyro_z_rps) and math.isfinite(accel_x) and math.isfinite(accel_y)):
             self._reject("imu_not_finite", f"gyro_z_rps={gyro_z_rps}, accel=({accel_x}, {accel_y})")
@@ -232,6 +249,8 @@ class Estimator:
         if abs(gyro_z_rps) > _MAX_GYRO_RPS or math.hypot(accel_x, accel_y) > _MAX_ACCEL_MPS2:
             self._reject("imu_out_of_range", f"gyro_z_rps={gyro_z_rps}, accel=({accel_x}, {accel_y})")
             return
+        if self._long_slip is not None:
+            self._take_acceleration(t_ns, accel_x)
         ekf = self._ekf
         if not ekf.initialised:
             self._last_gyro = (t_ns, gyro_z_rps)
@@ -246,7 +265,7 @@ class Estimator:
             self._feed_bootstrap(t_ns)
         innovation = ekf.update_gyro(gyro_z_rps, t_ns=t_ns)  # the predict to t_ns in the same call
         if before is not None:
-            self._remember(before, GyroSample(t_ns, gyro_z_rps))
+            self._remember(before, GyroSample(t_ns, gyro_z_rps, ekf.acceleration))
         self._report(t_ns, innovation, "gyro")
 
     def on_wheels(self, t_ns: int, left_speed_mps: float, right_speed_mps: float) -> None:
@@ -431,9 +450,15 @@ class Estimator:
         self._transient.add(t_ns, motion.speed_mps)
         speed_std, yaw_rate_std = self._odometry_noise(t_ns, motion)
         use_speed = not self._stuck.spinning
+        before = ekf.snapshot() if self._history is not None else None
+        speed_reset = None
+        if self._long_slip is not None:
+            slipping, speed_reset = self._judge_long_slip(t_ns, motion.speed_mps)
+            if slipping:
+                self._counters["odometry_long_slip"] += 1
+                use_speed = False
         if not use_speed:
             self._counters["odometry_speed_left_out"] += 1
-        before = ekf.snapshot() if self._history is not None else None
         if not self._heading_known:
             self._feed_bootstrap(t_ns)
         ekf.learn_scale(self._scale_observable(t_ns))
@@ -443,11 +468,57 @@ class Estimator:
         )
         if before is not None:
             sample = OdometrySample(
-                t_ns, motion.speed_mps, motion.yaw_rate_rps, speed_std, yaw_rate_std, use_speed
+                t_ns,
+                motion.speed_mps,
+                motion.yaw_rate_rps,
+                speed_std,
+                yaw_rate_std,
+                use_speed,
+                ekf.acceleration,
+                speed_reset,
             )
             self._remember(before, sample)
         self._odometry_seen = True
         self._report(t_ns, innovation, "odometry")
+
+    def _take_acceleration(self, t_ns: int, accel_x: float) -> None:
+        """The IMU's longitudinal specific force as the body's acceleration, gravity along the slope taken
+        out with the AHRS pitch; while the wheels slip, the EKF's speed follows it."""
+        assert self._long_slip is not None
+        pitch = self._pitch
+        if pitch is None or abs(t_ns - pitch[0]) > _PITCH_FRESH_NS:
+            # Without the pitch, a 5 deg slope reads as 0.85 m/s^2: no acceleration is better than that.
+            if self._long_slip.slipping:
+                self._counters["odometry_long_slip_no_pitch"] += 1
+            self._long_slip.body_unknown()
+            self._ekf.acceleration = 0.0
+            return
+        body = accel_x - _GRAVITY_MPS2 * math.sin(pitch[1])
+        self._long_slip.add_body_acceleration(t_ns, body)
+        if self._long_slip.slipping:
+            self._ekf.acceleration = body
+
+    def _judge_long_slip(self, t_ns: int, wheel_speed_mps: float) -> tuple[bool, tuple[float, float] | None]:
+        """Whether this odometry sample's wheels slip along their travel (``estimator.longitudinal_slip``),
+        and the speed reset made as a slip begins, if one did; sets the EKF's acceleration input to match.
+
+        A slip is told a few samples into it, which the filter took from the wheels: its speed is put back
+        to the body's, as the IMU says it changed over the window."""
+        slip = self._long_slip
+        assert slip is not None
+        ekf = self._ekf
+        was = slip.slipping
+        scale = ekf.state(SCALE)
+        slipping = slip.judge(t_ns, wheel_speed_mps, scale * ekf.state(SPEED))
+        ekf.acceleration = slip.body_acceleration if slipping else 0.0
+        if slipping == was:
+            return slipping, None
+        self._counters["odometry_long_slip_on" if slipping else "odometry_long_slip_off"] += 1
+        if not slipping:
+            return False, None
+        reset = (slip.body_speed_at_start_mps / scale, 0.5 * self._config.long_slip_threshold_mps)
+        ekf.reset_speed(*reset)
+        return True, reset
 
     def _on_spinning_changed(self) -> None:
         spinning = self._stuck.spinning

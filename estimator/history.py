@@ -19,6 +19,7 @@ from estimator.ekf import RoverEkf, Snapshot
 class GyroSample:
     t_ns: int
     gyro_z_rps: float
+    acceleration: float = 0.0  # the EKF's acceleration input its predict ran with (RoverEkf.acceleration)
 
 
 @dataclass(frozen=True)
@@ -31,6 +32,8 @@ class OdometrySample:
     speed_std_mps: float
     yaw_rate_std_rps: float
     use_speed: bool
+    acceleration: float = 0.0
+    speed_reset: tuple[float, float] | None = None  # (speed m/s, std m/s) put in before it (reset_speed)
 
 
 Sample = GyroSample | OdometrySample
@@ -38,9 +41,12 @@ Sample = GyroSample | OdometrySample
 
 def apply(ekf: RoverEkf, sample: Sample) -> None:
     """Predict to the sample's time and fuse it (the filter arithmetic only)."""
+    ekf.acceleration = sample.acceleration
     if isinstance(sample, GyroSample):
         ekf.update_gyro(sample.gyro_z_rps, t_ns=sample.t_ns)
     else:
+        if sample.speed_reset is not None:
+            ekf.reset_speed(*sample.speed_reset)
         ekf.update_odometry(
             sample.speed_mps,
             sample.yaw_rate_rps,

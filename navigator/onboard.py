@@ -721,7 +721,9 @@ class OnboardStack:
                     self._attitude = reading
                 else:
                     self._reject_tilt(reading)
-                self.estimator.on_attitude(reading.t_ns, reading.yaw_rad, AHRS_HEADING_STD_RAD)
+                self.estimator.on_attitude(
+                    reading.t_ns, reading.yaw_rad, AHRS_HEADING_STD_RAD, pitch_rad=reading.pitch_rad
+                )
 
     def _take_scan(self, scan: ObstacleScan) -> None:
         """A range scan to the tracker, placed from the pose estimate as it stands now; before the rover

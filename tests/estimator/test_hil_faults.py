@@ -54,8 +54,8 @@ def test_hil_gps_dropout_health_flag_turns_unhealthy_at_its_threshold(tmp_path):
     assert result.std_before_unhealthy_m is not None and result.std_when_unhealthy_m is not None
     # The flag flips on the first published pose whose position std is past the threshold, not before.
     assert result.std_before_unhealthy_m <= HEALTH_THRESHOLD_M < result.std_when_unhealthy_m
-    # Dead reckoning holds to 3 % of the distance travelled in the dropout (seeds 5-16 measured 0.24-1.56 %
-    # with `python -m tests.estimator.dropout_drift 5 6 ... 16`; this seed 0.24 %).
+    # Dead reckoning holds to 3 % of the distance travelled in the dropout (seeds 5-16 measured 0.22-1.51 %
+    # with `python -m tests.estimator.dropout_drift 5 6 ... 16`; this seed 1.51 %).
     assert result.drift_pct <= 3.0
 
 
@@ -73,7 +73,8 @@ def test_hil_rejected_glitch_is_no_evidence_of_spinning_wheels(tmp_path):
     counters = stack.estimator.counters
     assert counters["gps_gated"] > 0  # the glitches did reach the gate
     assert "odometry_spinning_on" not in counters
-    assert "odometry_speed_left_out" not in counters
+    # Speed left out only while braking or launching skids (the IMU carried it), never as "spinning".
+    assert counters["odometry_speed_left_out"] == counters["odometry_long_slip"]
     errors = pose_errors(result.mcap_path)
     assert errors.position_m[errors.t_s >= 2.0].max() < 0.4
     assert result.end_reason == "arrived"
