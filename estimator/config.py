@@ -103,9 +103,13 @@ class EstimatorConfig:
         Wheels slipping along their travel (a braking skid, launch spin; ``estimator.longitudinal_slip``):
         when, over ``long_slip_window_s``, the wheel speed changed by more than ``long_slip_threshold_mps``
         (m/s) more or less than the body did by the IMU (its longitudinal specific force less gravity along
-        the AHRS pitch), the speed is carried by the IMU's acceleration and the wheels' speed left out, until
-        the wheels agree with the estimate again within the threshold, for at most ``long_slip_max_s``.
-        Needs AHRS attitudes (the pitch); 0 for the threshold turns it off.
+        the AHRS pitch), and the wheels' own change was larger than the threshold too, on two samples in a
+        row, the speed is carried by the IMU's acceleration and the wheels' speed left out, until the wheels
+        agree with the estimate again within half the threshold, for at most ``long_slip_max_s``. Needs AHRS
+        attitudes (the pitch); 0 for the threshold turns it off. Counters: ``odometry_long_slip_on`` /
+        ``_off`` (slips begun and ended), ``odometry_long_slip`` (odometry samples in one),
+        ``odometry_long_slip_no_pitch`` (ended for want of a pitch), ``imu_accel_knock`` (IMU samples beyond
+        1 g left out).
     datum_lat_deg, datum_lon_deg, datum_alt_m : float | None
         ENU origin; if absent the first good GPS fix sets it.
     """
@@ -136,7 +140,7 @@ class EstimatorConfig:
     odom_settle_s: float = 1.0
     long_slip_threshold_mps: float = 0.15
     long_slip_window_s: float = 0.25
-    long_slip_max_s: float = 1.5
+    long_slip_max_s: float = 1.0
     datum_lat_deg: float | None = None
     datum_lon_deg: float | None = None
     datum_alt_m: float | None = None
@@ -150,6 +154,11 @@ class EstimatorConfig:
             value = getattr(self, name)
             if not math.isfinite(value) or value < 0.0:
                 raise EstimatorSetupError(name, f"must be a finite number >= 0, got {value}")
+        for name in ("long_slip_window_s", "long_slip_max_s"):
+            if getattr(self, name) > 5.0:
+                raise EstimatorSetupError(
+                    name, f"must be at most 5 s (a skid lasts tenths), got {getattr(self, name)}"
+                )
         if not 0.5 <= self.gate_probability < 1.0:
             raise EstimatorSetupError(
                 "gate_probability", f"must be in [0.5, 1) (e.g. 0.9995), got {self.gate_probability}"

@@ -35,7 +35,7 @@ from estimator.geodesy import Datum, to_enu
 from estimator.heading_bootstrap import HeadingBootstrap
 from estimator.health import EstimatorHealth
 from estimator.history import FusionHistory, GyroSample, OdometrySample, Sample
-from estimator.longitudinal_slip import LongitudinalSlip
+from estimator.longitudinal_slip import MAX_BODY_ACCEL_MPS2, LongitudinalSlip
 from estimator.pose import PoseEstimate, pose_message
 from estimator.stuck import StuckDetector
 from estimator.transient import WheelTransient
@@ -163,7 +163,11 @@ class Estimator:
         positive), when finite, takes gravity out of the IMU's longitudinal acceleration
         (``estimator.longitudinal_slip``); a non-finite one is ignored.
         """
-        if pitch_rad is not None and math.isfinite(pitch_rad):
+        if (
+            pitch_rad is not None
+            and math.isfinite(pitch_rad)
+            and (self._pitch is None or t_ns > self._pitch[0])
+        ):
             self._pitch = (t_ns, pitch_rad)
         if not (math.isfinite(yaw_rad) and math.isfinite(std_rad)) or std_rad <= 0.0:
             self._reject("attitude_not_finite", f"yaw={yaw_rad}, std={std_rad}")
@@ -249,8 +253,6 @@ class Estimator:
         if abs(gyro_z_rps) > _MAX_GYRO_RPS or math.hypot(accel_x, accel_y) > _MAX_ACCEL_MPS2:
             self._reject("imu_out_of_range", f"gyro_z_rps={gyro_z_rps}, accel=({accel_x}, {accel_y})")
             return
-        if self._long_slip is not None:
-            self._take_acceleration(t_ns, accel_x)
         ekf = self._ekf
         if not ekf.initialised:
             self._last_gyro = (t_ns, gyro_z_rps)
@@ -259,13 +261,15 @@ class Estimator:
         if t_ns < ekf.t_ns - _MAX_SAMPLE_LAG_NS:
             self._reject("imu_stale", f"sample at {t_ns} ns, filter already at {ekf.t_ns} ns")
             return
+        if self._long_slip is not None:
+            self._take_acceleration(t_ns, accel_x)
         self._last_gyro = (t_ns, gyro_z_rps)
         before = ekf.snapshot() if self._history is not None else None
         if not self._heading_known:
             self._feed_bootstrap(t_ns)
         innovation = ekf.update_gyro(gyro_z_rps, t_ns=t_ns)  # the predict to t_ns in the same call
         if before is not None:
-            self._remember(before, GyroSample(t_ns, gyro_z_rps, ekf.acceleration))
+            self._remember(before, GyroSample(t_ns, gyro_z_rps, ekf.acceleration, ekf.scale_learning))
         self._report(t_ns, innovation, "gyro")
 
     def on_wheels(self, t_ns: int, left_speed_mps: float, right_speed_mps: float) -> None:
@@ -476,6 +480,7 @@ class Estimator:
                 use_speed,
                 ekf.acceleration,
                 speed_reset,
+                ekf.scale_learning,
             )
             self._remember(before, sample)
         self._odometry_seen = True
@@ -488,13 +493,16 @@ class Estimator:
         pitch = self._pitch
         if pitch is None or abs(t_ns - pitch[0]) > _PITCH_FRESH_NS:
             # Without the pitch, a 5 deg slope reads as 0.85 m/s^2: no acceleration is better than that.
-            if self._long_slip.slipping:
+            if self._long_slip.body_unknown():
                 self._counters["odometry_long_slip_no_pitch"] += 1
-            self._long_slip.body_unknown()
+                self._counters["odometry_long_slip_off"] += 1
             self._ekf.acceleration = 0.0
             return
         body = accel_x - _GRAVITY_MPS2 * math.sin(pitch[1])
-        self._long_slip.add_body_acceleration(t_ns, body)
+        if not self._long_slip.add_body_acceleration(t_ns, body):
+            if abs(body) > MAX_BODY_ACCEL_MPS2:
+                self._counters["imu_accel_knock"] += 1
+            return
         if self._long_slip.slipping:
             self._ekf.acceleration = body
 

@@ -20,6 +20,7 @@ class GyroSample:
     t_ns: int
     gyro_z_rps: float
     acceleration: float = 0.0  # the EKF's acceleration input its predict ran with (RoverEkf.acceleration)
+    learn_scale: bool = True  # whether the update could change the odometry scale (RoverEkf.learn_scale)
 
 
 @dataclass(frozen=True)
@@ -34,6 +35,7 @@ class OdometrySample:
     use_speed: bool
     acceleration: float = 0.0
     speed_reset: tuple[float, float] | None = None  # (speed m/s, std m/s) put in before it (reset_speed)
+    learn_scale: bool = True
 
 
 Sample = GyroSample | OdometrySample
@@ -42,6 +44,7 @@ Sample = GyroSample | OdometrySample
 def apply(ekf: RoverEkf, sample: Sample) -> None:
     """Predict to the sample's time and fuse it (the filter arithmetic only)."""
     ekf.acceleration = sample.acceleration
+    ekf.learn_scale(sample.learn_scale)
     if isinstance(sample, GyroSample):
         ekf.update_gyro(sample.gyro_z_rps, t_ns=sample.t_ns)
     else:

@@ -74,7 +74,7 @@ def test_hil_rejected_glitch_is_no_evidence_of_spinning_wheels(tmp_path):
     assert counters["gps_gated"] > 0  # the glitches did reach the gate
     assert "odometry_spinning_on" not in counters
     # Speed left out only while braking or launching skids (the IMU carried it), never as "spinning".
-    assert counters["odometry_speed_left_out"] == counters["odometry_long_slip"]
+    assert counters.get("odometry_speed_left_out", 0) == counters.get("odometry_long_slip", 0)
     errors = pose_errors(result.mcap_path)
     assert errors.position_m[errors.t_s >= 2.0].max() < 0.4
     assert result.end_reason == "arrived"
