@@ -48,7 +48,19 @@ class ScanTrack:
         age_s = (t_ns - self.seen[-1].t_ns) * 1e-9
         return self.x + self.vx * age_s, self.y + self.vy * age_s
 
-    def add(self, detection: Detection, window_ns: int, confirm_scans: int, moving_speed_mps: float) -> None:
+    def add(
+        self,
+        detection: Detection,
+        window_ns: int,
+        confirm_scans: int,
+        moving_speed_mps: float,
+        judge_motion: bool = True,
+    ) -> None:
+        """Add ``detection`` to the window and fit again; with ``judge_motion`` (a lidar's scan), let the
+        fit's speed move the track towards moving or static. A rangefinder's beam does not (``judge_motion``
+        False): it places its disc on the beam's axis wherever in the cone the echo came from, and a rock
+        swept by a turning rover's cone seemed to move with the cone (docs/planning.md "Perception from
+        rangefinders")."""
         seen, centres = self.seen, self._centres
         seen.append(detection)
         self.hits += 1
@@ -65,6 +77,8 @@ class ScanTrack:
             centres.append(detection.centre(radius))
         span_s = (seen[-1].t_ns - seen[0].t_ns) * 1e-9
         self._fit()
+        if not judge_motion:
+            return
         speed = math.hypot(self.vx, self.vy)
         self.fast = speed > moving_speed_mps
         # To start moving, over half a window at least: two or three scans' fit says little about a speed.

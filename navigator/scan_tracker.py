@@ -10,6 +10,14 @@ scan periods, and fits over three (a 1 Hz lidar would otherwise start a new trac
 track forgotten (out of view, behind another) leaves a landmark: the next disc there takes its id again, so
 guidance does not put the same rock in its map twice under two names.
 
+Rangefinders' beams (``add_beams``) become discs of their own (``navigator.beam_detections``), matched
+to the same tracks. The beams of one read of the link come as one partial scan: a sensor is heard on its
+own period, and only the discs it saw touch any track. A scan, or a batch of beams, that does not see a
+track leaves it alone: tracks age out by time since they were last seen, never because one sensor looked
+the other way, so a forward rangefinder cannot make a lidar's track behind the rover look lost, nor
+moving. The sensors' periods are kept apart (a lidar's at 1 Hz and rangefinders' at 10 Hz together are no
+10 Hz sensor): the slowest sets how long tracks are remembered.
+
 ``ScanTracker`` is an ``ObstacleSource``: the onboard stack hands it each scan with its pose (in a frame of
 its choosing, ``navigator.odometry_frame``) and polls the observations like those of any other perception.
 """
@@ -18,8 +26,11 @@ from __future__ import annotations
 
 import math
 from collections import OrderedDict
+from collections.abc import Sequence
 
+from firmware_bridge.distance_sensor import RangeBeam
 from firmware_bridge.obstacle_scan import ObstacleScan
+from navigator.beam_detections import BeamPlacer
 from navigator.perception import ObstacleObservation
 from navigator.scan_clusters import Detection, detections
 from navigator.scan_track import ScanTrack
@@ -44,11 +55,15 @@ class ScanTracker:
         self._landmarks: OrderedDict[str, tuple[float, float]] = OrderedDict()
         self._next_id = 1
         self._offset = (0.0, 0.0)  # map minus the tracking frame, as of the last scan (add)
-        self._last_scan_ns: int | None = None
-        self._period_ns = 0  # the gap between the last two scans taken in
+        self._beams = BeamPlacer(self.config.rangefinders)
+        # Per kind of sensor ("scan", "beams"): the last one's time, and the gap between the last two.
+        self._last_ns: dict[str, int] = {}
+        self._periods_ns: dict[str, int] = {}
         self.scans = 0
-        # Scans that came before the rover knew where it was (and, in the body frame, which way it faced).
+        self.beam_batches = 0
+        # Scans (beam batches) that came before the rover knew where it was (and which way it faced).
         self.scans_without_pose = 0
+        self.beams_without_pose = 0
 
     @property
     def track_count(self) -> int:
@@ -73,25 +88,52 @@ class ScanTracker:
         if pose is None:
             self.scans_without_pose += 1
             return
-        self._offset = offset
         self.scans += 1
-        t_ns = scan.t_ns
-        config = self.config
-        # The sensor's period as the scans before this one showed it: a gap before this scan (the sensor
-        # paused) is a reason to forget, not to remember longer.
-        window_ns = max(round(config.window_s * 1e9), 3 * self._period_ns)
-        forget_ns = max(round(config.forget_s * 1e9), 5 * self._period_ns // 2)
-        if self._last_scan_ns is not None:
-            self._period_ns = max(0, t_ns - self._last_scan_ns)
-        self._last_scan_ns = t_ns
-        self._forget(t_ns, forget_ns)
         found = detections(scan, pose[0], pose[1], pose[2], self._clusters, self._mount)
+        self._take(found, scan.t_ns, "scan", offset)
+
+    def add_beams(
+        self,
+        beams: Sequence[RangeBeam],
+        pose: tuple[float, float, float] | None,
+        offset: tuple[float, float] = (0.0, 0.0),
+    ) -> None:
+        """Take in ``beams``, the rangefinder readings of one read of the link (one receive time), seen
+        from ``pose``, as ``add`` takes a scan; each sensor sits where ``[perception] rangefinders`` says."""
+        if not beams:
+            return
+        if pose is None:
+            self.beams_without_pose += 1
+            return
+        self.beam_batches += 1
+        found = self._beams.detections(beams, pose[0], pose[1], pose[2], self._clusters.min_radius_m)
+        self._take(found, beams[-1].t_ns, "beams", offset)
+
+    @property
+    def unmounted_rangefinders(self) -> set[int]:
+        """Rangefinder ids heard that ``[perception] rangefinders`` does not place."""
+        return self._beams.unmounted
+
+    def _take(self, found: list[Detection], t_ns: int, kind: str, offset: tuple[float, float]) -> None:
+        """The discs one sensor saw at ``t_ns`` into the tracks (``kind``: which sensor, for its period)."""
+        self._offset = offset
+        config = self.config
+        # The slowest sensor's period as its readings before this one showed it: a gap before this one (the
+        # sensor paused) is a reason to forget, not to remember longer.
+        period_ns = max(self._periods_ns.values(), default=0)
+        window_ns = max(round(config.window_s * 1e9), 3 * period_ns)
+        forget_ns = max(round(config.forget_s * 1e9), 5 * period_ns // 2)
+        last_ns = self._last_ns.get(kind)
+        if last_ns is not None:
+            self._periods_ns[kind] = max(0, t_ns - last_ns)
+        self._last_ns[kind] = t_ns
+        self._forget(t_ns, forget_ns)
         for detection, track in self._associate(found, t_ns):
             if track is None:
                 track = ScanTrack(self._new_id(detection), detection)
                 self._tracks.append(track)
             else:
-                track.add(detection, window_ns, config.confirm_scans, config.moving_speed_mps)
+                track.add(detection, window_ns, config.confirm_scans, config.moving_speed_mps, kind == "scan")
             if track.reportable(config.confirm_scans):
                 self._updated[track.track_id] = track
 
