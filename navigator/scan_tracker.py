@@ -52,7 +52,8 @@ class ScanTracker:
         self._mount = self.config.mount
         self._tracks: list[ScanTrack] = []
         self._updated: dict[str, ScanTrack] = {}
-        self._landmarks: OrderedDict[str, tuple[float, float]] = OrderedDict()
+        # Forgotten static tracks: where they were reported, and their radius.
+        self._landmarks: OrderedDict[str, tuple[float, float, float]] = OrderedDict()
         self._next_id = 1
         self._offset = (0.0, 0.0)  # map minus the tracking frame, as of the last scan (add)
         self._beams = BeamPlacer(self.config.rangefinders)
@@ -128,12 +129,15 @@ class ScanTracker:
             self._periods_ns[kind] = max(0, t_ns - last_ns)
         self._last_ns[kind] = t_ns
         self._forget(t_ns, forget_ns)
-        for detection, track in self._associate(found, t_ns):
+        from_scan = kind == "scan"
+        for detection, track in self._associate(found, t_ns, from_scan):
             if track is None:
-                track = ScanTrack(self._new_id(detection), detection)
+                track = ScanTrack(self._new_id(detection, from_scan), detection, from_scan)
                 self._tracks.append(track)
+            elif from_scan or track.scanned or not track.reportable(config.confirm_scans):
+                track.add(detection, window_ns, config.confirm_scans, config.moving_speed_mps, from_scan)
             else:
-                track.add(detection, window_ns, config.confirm_scans, config.moving_speed_mps, kind == "scan")
+                track.hold(detection)  # mapped where it was reported: more of it is another track
             if track.reportable(config.confirm_scans):
                 self._updated[track.track_id] = track
 
@@ -148,19 +152,23 @@ class ScanTracker:
             if t_ns - track.last_ns <= forget_ns:
                 kept.append(track)
             elif not track.moving and track.reportable(self.config.confirm_scans):
-                self._landmarks[track.track_id] = track.mean_xy
+                self._landmarks[track.track_id] = (*track.mean_xy, track.radius_m)
                 self._landmarks.move_to_end(track.track_id)
                 if len(self._landmarks) > MAX_LANDMARKS:
                     self._landmarks.popitem(last=False)
         self._tracks = kept
 
-    def _new_id(self, detection: Detection) -> str:
-        """A landmark's id when ``detection`` lies within the gate of one (the nearest), else a new one."""
+    def _new_id(self, detection: Detection, from_scan: bool = True) -> str:
+        """A landmark's id when ``detection`` lies within the gate of one (the nearest), else a new one. A
+        beam's disc (not ``from_scan``) takes a landmark's id only where the two overlap, as it continues a
+        track (``_associate``): a piece of a wall further along is not the piece mapped before, and under
+        its id guidance, which has that one mapped, would not map it."""
         cx, cy = detection.centre(detection.radius_m)
-        nearest, nearest_gap = None, self.config.gate_m
-        for landmark_id, (lx, ly) in self._landmarks.items():
+        gate = self.config.gate_m
+        nearest, nearest_gap = None, gate
+        for landmark_id, (lx, ly, radius) in self._landmarks.items():
             gap = math.hypot(cx - lx, cy - ly)
-            if gap <= nearest_gap:
+            if gap <= nearest_gap and (from_scan or gap <= radius + detection.radius_m):
                 nearest, nearest_gap = landmark_id, gap
         if nearest is not None:
             del self._landmarks[nearest]
@@ -169,9 +177,13 @@ class ScanTracker:
         self._next_id += 1
         return track_id
 
-    def _associate(self, found: list[Detection], t_ns: int) -> list[tuple[Detection, ScanTrack | None]]:
+    def _associate(
+        self, found: list[Detection], t_ns: int, from_scan: bool = True
+    ) -> list[tuple[Detection, ScanTrack | None]]:
         """Each detection with the track it continues (None: a new one): nearest pairs first, one detection
-        per track, within the gate around each track's predicted position."""
+        per track, within the gate around each track's predicted position. A beam's disc (not
+        ``from_scan``) continues a track only where it overlaps the track's disc: beams sweeping a long
+        boulder's side otherwise dragged one track along it (``ScanTrack.hold``)."""
         gate = self.config.gate_m
         predicted = [track.predicted(t_ns) for track in self._tracks]
         pairs = []
@@ -182,9 +194,16 @@ class ScanTracker:
                 reach = gate + abs(track.radius_m - detection.radius_m) + _PAIR_SLACK_M
                 if abs(own_x - px) > reach or abs(own_y - py) > reach:
                     continue
-                cx, cy = detection.centre(track.radius_m)
-                gap = math.hypot(cx - px, cy - py)
-                if gap <= gate:
+                if from_scan:
+                    cx, cy = detection.centre(track.radius_m)
+                    gap = math.hypot(cx - px, cy - py)
+                    if gap <= gate:
+                        pairs.append((gap, i, j))
+                    continue
+                # Where it is reported (a beam-only track's fitted velocity is no motion: not judged).
+                tx, ty = (px, py) if track.scanned else track.mean_xy
+                gap = math.hypot(own_x - tx, own_y - ty)
+                if gap <= min(gate, track.radius_m + detection.radius_m):
                     pairs.append((gap, i, j))
         pairs.sort()
         taken_detections: dict[int, ScanTrack] = {}

@@ -3,6 +3,7 @@ tracked with the lidar's tracks without disturbing them; each rangefinder watche
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
 
@@ -107,6 +108,28 @@ def test_a_rock_swept_by_the_cones_of_a_passing_rover_stays_static() -> None:
     assert reported and not any(o.moving for o in reported)
     # Each report's disc touches the rock (to 5 cm) or overlaps it: the near side seen from the rover.
     assert all(math.hypot(o.x - 6.0, o.y - 1.5) < 0.6 + o.radius_m + 0.05 for o in reported)
+
+
+@pytest.mark.parametrize("step_m", [0.05, 0.1])
+def test_a_beam_sweeping_a_wall_maps_it_piece_by_piece_instead_of_dragging_one_track(step_m: float) -> None:
+    # The rover drives sideways past a wall 3 m ahead, its front rangefinder (a narrow beam) reading it
+    # every 0.1 s, ``step_m`` further along each time. Guidance maps a static obstacle where it is first
+    # reported; a track the beam dragged along the wall left the rest of it unmapped (on
+    # scenarios/hidden-boulders.toml seed 5 the rover drove into a boulder's front so). A beam continues
+    # a track only where their discs overlap, and one that saw a mapped track again holds it where it is:
+    # the wall is a row of tracks, each reported where it was first.
+    tracker = ScanTracker(ScanTrackerConfig(rangefinders=RING))
+    reported: list[ObstacleObservation] = []
+    for i in range(round(3.0 / step_m) + 1):
+        tracker.add_beams([RangeBeam(i * READ_NS, 0, 0.0, 3.0, 0.2, 7.0, None)], (0.0, step_m * i, 0.0))
+        reported += tracker.poll()
+    first: dict[str, ObstacleObservation] = {}
+    for o in reported:
+        first.setdefault(o.obstacle_id, o)
+        assert math.hypot(o.x - first[o.obstacle_id].x, o.y - first[o.obstacle_id].y) < 0.1
+    mapped_y = sorted(o.y for o in first.values())
+    assert len(mapped_y) >= 5 and mapped_y[0] < 0.5 and mapped_y[-1] > 2.5
+    assert max(b - a for a, b in itertools.pairwise(mapped_y)) < 0.6
 
 
 def test_rangefinders_do_not_make_a_slow_lidars_track_look_lost() -> None:
