@@ -43,6 +43,14 @@ class MavlinkCounters:
         0  # OBSTACLE_DISTANCE messages read as range scans (a lidar's, firmware_bridge.obstacle_scan)
     )
     scans_rejected: int = 0  # OBSTACLE_DISTANCE messages that could not be read as a scan (counted, logged)
+    beams: int = 0  # DISTANCE_SENSOR readings of obstacle rangefinders (firmware_bridge.distance_sensor)
+    beams_rejected: int = 0  # DISTANCE_SENSOR messages that could not be read (counted, logged)
+    beams_unused: int = 0  # DISTANCE_SENSOR of sensors looking up or down: not obstacle sensors
+
+    @property
+    def rangefinders_heard(self) -> bool:
+        """Any DISTANCE_SENSOR has come, read or not."""
+        return self.beams + self.beams_rejected + self.beams_unused > 0
 
     def as_dict(self) -> dict[str, int]:
         return asdict(self)
@@ -62,6 +70,9 @@ _WINDOWED = (
     "scans",
     "scans_rejected",
 )
+# Windowed too, but in mavlink/stats only once a DISTANCE_SENSOR has come: a link without rangefinders
+# records what it did before they were read.
+_RANGEFINDER_WINDOWED = ("beams", "beams_rejected", "beams_unused")
 _TOTALS = ("rx_frames", "bad_frames", "bad_bytes", "dropped_bytes")
 _REASONS = (
     ("bad_crc", "bad CRC"),
@@ -79,14 +90,14 @@ class _Window:
 
     def close(self, now_ns: int, counters: MavlinkCounters) -> dict[str, int]:
         now = _snapshot(counters)
-        growth = {name: now[name] - self._base[name] for name in _WINDOWED}
+        growth = {name: now[name] - self._base[name] for name in now}
         self.start_ns = now_ns
         self._base = now
         return growth
 
 
 def _snapshot(counters: MavlinkCounters) -> dict[str, int]:
-    return {name: int(getattr(counters, name)) for name in _WINDOWED}
+    return {name: int(getattr(counters, name)) for name in _WINDOWED + _RANGEFINDER_WINDOWED}
 
 
 def describe_garbage(growth: dict[str, int], window_s: float, link: str = "autopilot") -> str | None:
@@ -163,6 +174,9 @@ class MavlinkHealth:
         if now_ns - self._stats.start_ns >= self._stats_window_ns:
             window_s = (now_ns - self._stats.start_ns) / NS_PER_S
             growth = self._stats.close(now_ns, counters)
+            if not counters.rangefinders_heard:
+                for name in _RANGEFINDER_WINDOWED:
+                    del growth[name]
             stats = {"timestamp": stamp(now_ns), "link": self._link, "window_s": window_s, **growth}
             stats.update({f"{name}_total": int(getattr(counters, name)) for name in _TOTALS})
         warning = None

@@ -16,6 +16,7 @@ from typing import Any, NamedTuple
 
 from pymavlink.dialects.v20 import common as mavlink2
 
+from firmware_bridge.distance_sensor import BeamRejected, RangeBeam, read_beam
 from firmware_bridge.errors import BridgeOperationError, BridgeSetupError
 from firmware_bridge.mavlink_budget import (
     DEFAULT_RATE_BYTES_PER_S,
@@ -161,9 +162,12 @@ class BatteryState:
     source: str
 
 
-Reading = GpsFix | ImuSample | AttitudeSample | BatteryState | ObstacleScan | GoalRequest | StopRequest
+Reading = (
+    GpsFix | ImuSample | AttitudeSample | BatteryState | ObstacleScan | RangeBeam | GoalRequest | StopRequest
+)
 
-_LOG_REJECTED_SCAN_EVERY = 100  # the first refused OBSTACLE_DISTANCE is logged, then every 100th
+# The first refused OBSTACLE_DISTANCE (DISTANCE_SENSOR) is logged, then every 100th.
+_LOG_REJECTED_SCAN_EVERY = 100
 
 
 class _TransportFile:
@@ -598,6 +602,7 @@ class MavlinkLink(ClosesOnExit):
             "ATTITUDE": _attitude,
             "HEARTBEAT": self._convert_heartbeat,
             "OBSTACLE_DISTANCE": self._convert_scan,
+            "DISTANCE_SENSOR": self._convert_beam,
         }
 
     def _convert_scan(self, msg: Any, t_ns: int) -> ObstacleScan | None:
@@ -612,6 +617,22 @@ class MavlinkLink(ClosesOnExit):
             return None
         counters.scans += 1
         return scan
+
+    def _convert_beam(self, msg: Any, t_ns: int) -> RangeBeam | None:
+        counters = self.counters
+        try:
+            beam = read_beam(msg, t_ns)
+        except BeamRejected as error:
+            # As a refused scan: counted and logged, never raised into the rover loop.
+            counters.beams_rejected += 1
+            if counters.beams_rejected == 1 or counters.beams_rejected % _LOG_REJECTED_SCAN_EVERY == 0:
+                logger.warning("DISTANCE_SENSOR refused (%d so far): %s", counters.beams_rejected, error)
+            return None
+        if beam is None:
+            counters.beams_unused += 1  # looking up or down: not an obstacle sensor
+            return None
+        counters.beams += 1
+        return beam
 
     def _convert_gps(self, msg: Any, t_ns: int) -> GpsFix:
         fix = _gps_fix(msg, t_ns)

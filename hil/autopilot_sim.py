@@ -213,6 +213,14 @@ class SimAutopilot:
         # A GPS that looks back remembers every tick's truth: it wants the next tick's too (now is before it).
         self.next_truth_ns = now if gps.looks_back else self._next_any_ns
 
+    def send_sensor(self, msg: Any) -> None:
+        """Send ``msg`` for a sensor the autopilot reads on its own schedule (its rangefinders'
+        DISTANCE_SENSOR, ``hil.rangefinder_sim``): from its system and component, in its sequence, counted
+        under the message's name in ``sent``."""
+        stream = msg.get_type()
+        self.sent.setdefault(stream, 0)
+        self._send(stream, msg)
+
     def _take_turn(self, stream: str, now: int) -> None:
         """Schedule ``stream``'s next send after the one due now."""
         following = self._next_ns[stream] + self._periods_ns[stream]

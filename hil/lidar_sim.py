@@ -6,17 +6,17 @@ the rover's system (MAV_COMP_ID_OBSTACLE_AVOIDANCE), sends each scan; the onboar
 from them (``navigator.scan_tracker``). 72 rays, one per OBSTACLE_DISTANCE sector, spread over
 ``fov_deg`` centred on the sensor's forward direction, are cast from where the sensor sits on the rover
 (``mount``, ``navigator.sensor_mount``: the rover's centre and its front by default) against the true
-obstacles (discs) at ``rate_hz``; each ray reports the nearest edge it meets within ``range_m``, plus
-Gaussian noise of ``noise_m`` from its own generator (72 draws per scan, hit or not: the noise does not
-depend on the path). Like a driver that knows nothing of the mount, it counts the angles from the
-sensor's forward direction: the rover must be told where its lidar sits (``[perception]`` ``mount_*``).
+obstacles (discs; ``hil.ray_cast``) at ``rate_hz``; each ray reports the nearest edge it meets within
+``range_m``, plus Gaussian noise of ``noise_m`` from its own generator (72 draws per scan, hit or not:
+the noise does not depend on the path). Like a driver that knows nothing of the mount, it counts the
+angles from the sensor's forward direction: the rover must be told where its lidar sits (``[perception]``
+``mount_*``).
 """
 
 from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable
 
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink2
@@ -25,14 +25,13 @@ from firmware_bridge.errors import BridgeOperationError
 from firmware_bridge.mavlink_frames import send_unsigned_v2
 from firmware_bridge.mavlink_transport import Transport
 from firmware_bridge.obstacle_scan import SECTORS, scan_message
+from hil.ray_cast import ObstacleTruth, nearest_hits
 from logs.clock import Clock, to_ns
 from navigator.sensor_mount import AT_CENTRE, SensorMount
 
 logger = logging.getLogger(__name__)
 
 MIN_RANGE_M = 0.05
-# (id, x, y, radius, vx, vy) of every obstacle at a clock reading: hil.perception_sim's obstacles_at.
-ObstacleTruth = Callable[[int], list[tuple[str, float, float, float, float, float]]]
 
 
 class SimLidar:
@@ -86,24 +85,11 @@ class SimLidar:
         """Each ray's range from the sensor to the nearest obstacle edge, the rover's reference point at
         pose (x, y, yaw), at ``t_ns`` (None: nothing within range), noise included."""
         noise = self._rng.normal(0.0, 1.0, SECTORS) * self._noise_m
-        nearest = np.full(SECTORS, np.inf)
         sx, sy = self._mount.origin(x, y, yaw)
         headings = self._sensor_angles + self._mount.facing(yaw)
-        dx, dy = np.cos(headings), np.sin(headings)
-        for _id, ox, oy, radius, _vx, _vy in self._obstacles(t_ns):
-            cx, cy = ox - sx, oy - sy
-            centre = math.hypot(cx, cy)
-            if centre - radius > self._range_m:
-                continue
-            if centre <= radius:
-                nearest[:] = 0.0  # the sensor inside it: every ray starts in the obstacle
-                continue
-            along = dx * cx + dy * cy  # distance along each ray to its point nearest the centre
-            miss_sq = centre * centre - along * along
-            inside = radius * radius - miss_sq
-            hit = (along > 0.0) & (inside >= 0.0)
-            distance = np.where(hit, along - np.sqrt(np.where(hit, inside, 0.0)), np.inf)
-            np.minimum(nearest, distance, out=nearest)
+        nearest = nearest_hits(
+            sx, sy, np.cos(headings), np.sin(headings), self._obstacles(t_ns), self._range_m
+        )
         measured = np.maximum(nearest + noise, MIN_RANGE_M)
         return [
             float(r) if math.isfinite(n) and r <= self._range_m else None

@@ -44,7 +44,7 @@ from firmware_bridge.vesc import VescCodec
 from hil.peer_files import write_peer_files
 from hil.peer_stalls import PeerStalls, stall_message
 from hil.peer_start import ON_FIRST_COMMAND, ON_PEER_START, ScenarioStart
-from hil.scenario import Scenario, with_perception
+from hil.scenario import MAVLINK_PERCEPTION, Scenario, with_perception
 from hil.step_clock import StepClock
 from hil.world import SimWorld
 from logs import topics
@@ -292,7 +292,8 @@ def run_peer(
         # too: a report pairs each rover recording with its own truth even when runs overlap in time.
         peer_run = secrets.token_hex(8)
         start_on = ON_FIRST_COMMAND if start_on_command else ON_PEER_START
-        # The rover in the other process perceives only what the wires carry: the simulated lidar's scans.
+        # The rover in the other process perceives only what the wires carry: the simulated lidar's scans
+        # (or the scenario's rangefinders' readings).
         scenario = seen_through_lidar(scenario)
         write_peer_header(recorder, scenario, config, seed, peer_run, start_on)
         codec = VescCodec.for_profile(config.vesc)
@@ -349,9 +350,12 @@ def run_peer(
 
 
 def seen_through_lidar(scenario: Scenario) -> Scenario:
-    """``scenario`` with the rover perceiving through the simulated lidar (``[sensors] perception =
-    "scan"``): ``rover run`` gets no obstacle objects, only what comes over MAVLink (OBSTACLE_DISTANCE),
-    so a hidden or moving obstacle is seen as on the rover, through its own scan tracker."""
+    """``scenario`` with the rover perceiving through what MAVLink carries: its rangefinders when it asks
+    for them (``[sensors] perception = "rangefinders"``, DISTANCE_SENSOR), else the simulated lidar
+    (``"scan"``, OBSTACLE_DISTANCE). ``rover run`` gets no obstacle objects, so a hidden or moving obstacle
+    is seen as on the rover, through its own scan tracker."""
+    if scenario.sensors.perception in MAVLINK_PERCEPTION:
+        return scenario
     return with_perception(scenario, "scan")
 
 

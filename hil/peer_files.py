@@ -7,7 +7,9 @@ the peer is on, ``udpout:HOST:PORT`` to its autopilot (the loopback address it l
 the map, Zenoh off, the ``[vesc]`` table its simulated controllers speak (ids, drivetrain, and a
 swapped-in DBC as an absolute path, so it reads the same from the peer's folder or wherever the file is
 copied), and where its simulated lidar sits when that is off the centre (``[perception]`` ``mount_*``,
-from the scenario's ``[sensors] perception_mount_*``). Every other table is
+from the scenario's ``[sensors] perception_mount_*``), or where each simulated rangefinder sits
+(``[perception] rangefinders``, by id, for a scenario with ``perception = "rangefinders"``). Every other
+table is
 left at the built-in defaults (the ones the peer simulates when it has no ``--config``); with a custom
 vehicle, add its tables to the file.
 """
@@ -104,8 +106,17 @@ def _vesc_lines(config: RoverConfig) -> list[str]:
 
 def _perception_lines(scenario: Scenario) -> list[str]:
     """``[perception]`` saying where the simulated lidar sits, so ``rover run`` places its returns from
-    there; nothing when it sits at the centre facing forward (the default, the file as it always was)."""
+    there; nothing when it sits at the centre facing forward (the default, the file as it always was). For
+    rangefinders, where each sits (their messages say their field of view and direction)."""
     sensors = scenario.sensors
+    if sensors.perception == "rangefinders":
+        # Every id, even at the centre: an id the config does not place is warned about.
+        forward, left = sensors.perception_mount_forward_m, sensors.perception_mount_left_m
+        ring = ", ".join(
+            f"{{id = {i}, forward_m = {forward!r}, left_m = {left!r}}}"
+            for i in range(len(sensors.rangefinder_yaw_deg))
+        )
+        return ["[perception]", f"rangefinders = [{ring}]", ""]
     if sensors.lidar_mount == AT_CENTRE:
         return []
     return [

@@ -17,6 +17,7 @@ import numpy as np
 
 from hil.faults import Fault, faults_from_tables
 from hil.moving_obstacles import MovingObstacle
+from hil.rangefinder_sim import DEFAULT_YAWS_DEG
 from hil.scenario_placement import check_clear_of_obstacles
 from logs.metrics import DEFAULT_ENCOUNTER_MARGIN_M
 from logs.settings import MAX_SEED, ConfigError, Table, finite_float, load_toml, shown
@@ -43,7 +44,9 @@ class Goal:
     tolerance_m: float
 
 
-PERCEPTION_MODELS = ("objects", "scan")
+PERCEPTION_MODELS = ("objects", "scan", "rangefinders")
+# Perception that reaches the onboard stack as MAVLink messages (the rest: objects handed over in process).
+MAVLINK_PERCEPTION = ("scan", "rangefinders")
 
 
 @dataclass(frozen=True)
@@ -63,7 +66,9 @@ class SensorSettings:
     perception_noise_m: float = 0.0
     # How the rover perceives obstacles (PERCEPTION_MODELS): "objects" hands the onboard stack each obstacle
     # within range as it is (id, disc, velocity); "scan" sends a simulated lidar's scans over MAVLink
-    # (hil.lidar_sim) and the stack tracks obstacles from them, as `rover run` does on the rover.
+    # (hil.lidar_sim) and the stack tracks obstacles from them, as `rover run` does on the rover;
+    # "rangefinders" has the autopilot send a ring of single-beam rangefinders' DISTANCE_SENSOR readings
+    # (hil.rangefinder_sim), tracked the same way.
     perception: str = "objects"
     perception_fov_deg: float = 360.0  # the simulated lidar's field of view, centred on its front
     # Where the simulated lidar sits on the rover ("scan" only): forward and left of the body's reference
@@ -73,6 +78,11 @@ class SensorSettings:
     perception_mount_forward_m: float = 0.0
     perception_mount_left_m: float = 0.0
     perception_mount_yaw_deg: float = 0.0
+    # The ring ("rangefinders" only): each sensor's direction, degrees clockwise from the rover's front as
+    # MAV_SENSOR_ROTATION_YAW_<n> names it (its id is its place in the list), and the cone's width. They
+    # sit at perception_mount_forward_m / _left_m; range, rate and noise are the perception_* ones.
+    rangefinder_yaw_deg: tuple[int, ...] = DEFAULT_YAWS_DEG
+    rangefinder_fov_deg: float = 15.0
 
     @property
     def lidar_mount(self) -> SensorMount:
@@ -119,9 +129,28 @@ class SensorSettings:
             perception_mount_yaw_deg=table.number(
                 "perception_mount_yaw_deg", cls.perception_mount_yaw_deg, lo=-180.0, hi=180.0
             ),
+            rangefinder_yaw_deg=_rangefinder_yaws(table),
+            rangefinder_fov_deg=table.number("rangefinder_fov_deg", cls.rangefinder_fov_deg, lo=0.0, hi=90.0),
         )
+        if settings.perception == "rangefinders" and settings.perception_mount_yaw_deg != 0.0:
+            raise table.error(
+                "perception_mount_yaw_deg",
+                "turns the lidar; a rangefinder faces where its rangefinder_yaw_deg entry says",
+            )
         table.finish()
         return settings
+
+
+def _rangefinder_yaws(table: Table) -> tuple[int, ...]:
+    yaws = table.integers("rangefinder_yaw_deg", list(DEFAULT_YAWS_DEG))
+    if not 1 <= len(yaws) <= 8 or any(yaw % 45 or not 0 <= yaw < 360 for yaw in yaws):
+        raise table.error(
+            "rangefinder_yaw_deg",
+            f"1 to 8 directions, each a multiple of 45 in [0, 315] (clockwise), got {yaws}",
+        )
+    if len(set(yaws)) != len(yaws):
+        raise table.error("rangefinder_yaw_deg", f"a direction is listed twice: {yaws}")
+    return tuple(yaws)
 
 
 @dataclass(frozen=True)

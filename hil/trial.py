@@ -33,7 +33,7 @@ from firmware_bridge.vesc import VescCodec
 from hil.campaign_place import CampaignPlace
 from hil.fault_coverage import park_until_ns, unexercised_faults
 from hil.lockstep import CanBackend, lockstep_wires
-from hil.scenario import Scenario
+from hil.scenario import MAVLINK_PERCEPTION, Scenario
 from hil.success import judge
 from hil.world import SimWorld
 from logs import topics
@@ -135,8 +135,9 @@ def run_trial(
                     mavlink,
                     sink,
                     scenario.believed_terrain,
-                    # "scan": the stack tracks obstacles from the simulated lidar's MAVLink scans.
-                    obstacles=None if world.lidar is not None else world.perception,
+                    # "scan", "rangefinders": the stack tracks obstacles from the simulated lidar's
+                    # scans or the rangefinders' readings, on the MAVLink link.
+                    obstacles=None if scenario.sensors.perception in MAVLINK_PERCEPTION else world.perception,
                     commands=commands,
                     ground_station=None
                     if ground_station is None
@@ -332,22 +333,10 @@ def write_header(
             "start_json": json.dumps({"x": scenario.start_xy[0], "y": scenario.start_xy[1]}),
             "goal_json": json.dumps({"x": goal.x, "y": goal.y, "tolerance_m": goal.tolerance_m}),
             "terrain_class": _dominant_class(scenario),
-            # How the rover perceived obstacles ([sensors] perception): the real-time peer always through
-            # its lidar, whatever the attached scenario file says (hil.peer.seen_through_lidar).
+            # How the rover perceived obstacles ([sensors] perception): the real-time peer always over
+            # MAVLink, whatever the attached scenario file says (hil.peer.seen_through_lidar).
             "perception": scenario.sensors.perception,
-            "perception_json": json.dumps(
-                {
-                    "range_m": scenario.sensors.perception_range_m,
-                    "rate_hz": scenario.sensors.perception_rate_hz,
-                    "noise_m": scenario.sensors.perception_noise_m,
-                    "fov_deg": scenario.sensors.perception_fov_deg,
-                    # Where the simulated lidar sat; the rover's belief is the config's [perception].
-                    "mount_forward_m": scenario.sensors.perception_mount_forward_m,
-                    "mount_left_m": scenario.sensors.perception_mount_left_m,
-                    "mount_yaw_deg": scenario.sensors.perception_mount_yaw_deg,
-                },
-                separators=(",", ":"),
-            ),
+            "perception_json": json.dumps(_perception_record(scenario), separators=(",", ":")),
         },
     )
     trial = {
@@ -380,6 +369,26 @@ def _map_archive(scenario: Scenario) -> bytes:
         origin_xy=np.asarray(terrain.origin_xy, dtype=np.float64),
     )
     return buffer.getvalue()
+
+
+def _perception_record(scenario: Scenario) -> dict[str, object]:
+    """The simulated perception's settings, as the scenario metadata's ``perception_json`` keeps them."""
+    sensors = scenario.sensors
+    record: dict[str, object] = {
+        "range_m": sensors.perception_range_m,
+        "rate_hz": sensors.perception_rate_hz,
+        "noise_m": sensors.perception_noise_m,
+        "fov_deg": sensors.perception_fov_deg,
+        # Where the simulated lidar sat; the rover's belief is the config's [perception].
+        "mount_forward_m": sensors.perception_mount_forward_m,
+        "mount_left_m": sensors.perception_mount_left_m,
+        "mount_yaw_deg": sensors.perception_mount_yaw_deg,
+    }
+    if sensors.perception == "rangefinders":
+        # Only then: the record of every other trial stays as it was.
+        record["rangefinder_yaw_deg"] = list(sensors.rangefinder_yaw_deg)
+        record["rangefinder_fov_deg"] = sensors.rangefinder_fov_deg
+    return record
 
 
 def _dominant_class(scenario: Scenario) -> str:

@@ -24,6 +24,7 @@ from hil.fault_links import FaultyCanBus, FaultyTransport
 from hil.faults import FaultSchedule
 from hil.lidar_sim import SimLidar
 from hil.perception_sim import PerceptionSim
+from hil.rangefinder_sim import SimRangefinders
 from hil.scenario import Scenario
 from hil.sensors import GpsModel, ImuModel
 from hil.truth import TruthRecorder
@@ -151,6 +152,24 @@ class SimWorld:
             if sensors.perception == "scan"
             else None
         )
+        # The ring of rangefinders ("rangefinders"), read out by the autopilot and sent from it as
+        # DISTANCE_SENSOR; its own noise stream too.
+        self.rangefinders = (
+            SimRangefinders(
+                self.autopilot.send_sensor,
+                clock,
+                self.perception.obstacles_at,
+                np.random.default_rng([seed, 4]),
+                yaw_deg=sensors.rangefinder_yaw_deg,
+                fov_deg=sensors.rangefinder_fov_deg,
+                range_m=sensors.perception_range_m,
+                rate_hz=sensors.perception_rate_hz,
+                noise_m=sensors.perception_noise_m,
+                mount=sensors.lidar_mount,
+            )
+            if sensors.perception == "rangefinders"
+            else None
+        )
         self._tick = 0
         self._has_faults = bool(scenario.faults)
         self._next_fault_change_ns: float = self.epoch_ns  # the first tick applies the faults (_apply_faults)
@@ -276,6 +295,9 @@ class SimWorld:
         lidar = self.lidar
         if lidar is not None and now >= lidar.next_ns:
             lidar.step(step.x, step.y, step.yaw)
+        rangefinders = self.rangefinders
+        if rangefinders is not None and now >= rangefinders.next_ns:
+            rangefinders.step(step.x, step.y, step.yaw)
         # Ground truth is recorded every TRUTH_DIVIDER-th tick; between those, the recorder has something
         # to do only while a contact may begin or end (TruthRecorder.on_step), so it is not called at all.
         truth_recorder = self.truth

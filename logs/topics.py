@@ -174,12 +174,38 @@ _SPECS = [
                 "bad_frames_total": _INT,
                 "bad_bytes_total": _INT,
                 "dropped_bytes_total": _INT,
-            }
+                # Only once a DISTANCE_SENSOR came (firmware_bridge.mavlink_health): not required.
+                "beams": _INT,
+                "beams_rejected": _INT,
+                "beams_unused": _INT,
+            },
+            required=[
+                "timestamp",
+                "link",
+                "window_s",
+                "rx_frames",
+                "unknown_frames",
+                "bad_frames",
+                "bad_bytes",
+                "bad_crc",
+                "bad_header",
+                "noise_bytes",
+                "truncated",
+                "signature_rejected",
+                "dropped_bytes",
+                "scans",
+                "scans_rejected",
+                "rx_frames_total",
+                "bad_frames_total",
+                "bad_bytes_total",
+                "dropped_bytes_total",
+            ],
         ),
         "The MAVLink link's own count over the last window (~1 s): frames decoded (of them, ids this "
         "dialect does not decode), bad frames by reason (bad CRC, bad header, cut short), bytes skipped "
         "(of them, noise between frames), signed-only commands refused, bytes dropped unread over the "
-        "receive budget, OBSTACLE_DISTANCE scans read and refused; running totals.",
+        "receive budget, OBSTACLE_DISTANCE scans read and refused, DISTANCE_SENSOR readings read, refused "
+        "and not used (looking up or down; these three once any came); running totals.",
     ),
     TopicSpec(
         SENSORS_GPS,

@@ -30,6 +30,7 @@ from estimator.geodesy import to_enu
 from estimator.pose import PoseEstimate
 from firmware_bridge.can_health import CanLinkState
 from firmware_bridge.can_link import CanLink, WheelStatus
+from firmware_bridge.distance_sensor import RangeBeam
 from firmware_bridge.mavlink_commands import GoalRequest, StopRequest
 from firmware_bridge.mavlink_link import AttitudeSample, GpsFix, ImuSample, MavlinkLink
 from firmware_bridge.obstacle_scan import ObstacleScan
@@ -48,7 +49,7 @@ from navigator.perception import ObstacleObservation, ObstacleSource
 from navigator.planner import Path, Planner
 from navigator.safety import EventSink, SafetyInputs, SafetyMode, SafetySupervisor
 from navigator.scan_tracker import ScanTracker
-from navigator.scan_watch import ScanWatch
+from navigator.scan_watch import RangefinderWatch, ScanWatch
 from navigator.terrain import TerrainMap
 
 _log = logging.getLogger(__name__)
@@ -286,7 +287,8 @@ class OnboardStack:
         self._commands = commands
         self._obstacles = obstacles
         # Obstacles from a range sensor's OBSTACLE_DISTANCE scans on the MAVLink link (a lidar driver on the
-        # rover, the HIL peer's simulated lidar): tracked here, read like ``obstacles``.
+        # rover, the HIL peer's simulated lidar) and from rangefinders' DISTANCE_SENSOR readings: tracked
+        # here, read like ``obstacles``.
         self.scan_tracker = ScanTracker(config.perception)
         self._odometry_frame = OdometryFrame()
         self._scans_in = False  # a scan arrived since the tracker was last read
@@ -296,6 +298,7 @@ class OnboardStack:
         self._map_published = False
         self._event = _EventFn(clock, sink)
         self._scan_watch = ScanWatch(self._event)
+        self._rangefinder_watch = RangefinderWatch(self._event)
         self.estimator = Estimator(config.estimator, clock, sink)
         self.guidance = RouteGuidance(config, terrain, sink, self._event, planning)
         self.safety = SafetySupervisor(
@@ -424,6 +427,9 @@ class OnboardStack:
                 self._read_obstacles(now, self.scan_tracker)
             elif self._scan_watch.last_ns is not None:
                 self._scan_watch.check(now)
+            if self._rangefinder_watch.watches:
+                # Every tick: each rangefinder is watched on its own, whatever else came.
+                self._rangefinder_watch.check(now)
 
             pose = self.estimator.pose()
             ready = self._ready(now, pose)
@@ -685,6 +691,7 @@ class OnboardStack:
 
     def _read_mavlink(self, now: int) -> None:
         del now  # each reading carries its own receive time
+        beams: list[RangeBeam] = []
         for reading in self._mavlink.poll():
             # Most frequent first: an IMU sample every tick, attitude and GPS a few times a second.
             if isinstance(reading, ImuSample):
@@ -716,6 +723,8 @@ class OnboardStack:
                 self.estop(f"MAVLink {reading.source} from system {reading.sysid}")
             elif isinstance(reading, ObstacleScan):
                 self._take_scan(reading)
+            elif isinstance(reading, RangeBeam):
+                beams.append(reading)
             elif isinstance(reading, AttitudeSample):
                 if math.isfinite(reading.roll_rad) and math.isfinite(reading.pitch_rad):
                     self._attitude = reading
@@ -724,6 +733,8 @@ class OnboardStack:
                 self.estimator.on_attitude(
                     reading.t_ns, reading.yaw_rad, AHRS_HEADING_STD_RAD, pitch_rad=reading.pitch_rad
                 )
+        if beams:
+            self._take_beams(beams)
 
     def _take_scan(self, scan: ObstacleScan) -> None:
         """A range scan to the tracker, placed from the pose estimate as it stands now; before the rover
@@ -739,6 +750,20 @@ class OnboardStack:
         frame = self._odometry_frame
         frame.advance(scan.t_ns, pose.speed, pose.yaw, (pose.x, pose.y))
         self.scan_tracker.add(scan, (frame.x, frame.y, pose.yaw), frame.offset())
+
+    def _take_beams(self, beams: list[RangeBeam]) -> None:
+        """One read's rangefinder readings to the tracker as one partial scan (``ScanTracker.add_beams``),
+        placed from the pose estimate as it stands now, as a scan is."""
+        for beam in beams:
+            self._rangefinder_watch.heard(beam.sensor_id, beam.t_ns)
+        pose = self.estimator.pose()
+        self._scans_in = True
+        if pose is None or not pose.healthy or not pose.heading_known:
+            self.scan_tracker.add_beams(beams, None)
+            return
+        frame = self._odometry_frame
+        frame.advance(beams[-1].t_ns, pose.speed, pose.yaw, (pose.x, pose.y))
+        self.scan_tracker.add_beams(beams, (frame.x, frame.y, pose.yaw), frame.offset())
 
     def _reject_tilt(self, reading: AttitudeSample) -> None:
         """An AHRS attitude without a usable roll or pitch (NaN, inf): the tip-over check would read no

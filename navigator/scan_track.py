@@ -26,9 +26,12 @@ RADIUS_STEP_M = 0.05
 class ScanTrack:
     """The detections of one obstacle within the window, and what they say about it."""
 
-    def __init__(self, track_id: str, first: Detection) -> None:
+    def __init__(self, track_id: str, first: Detection, from_scan: bool = True) -> None:
         self.track_id = track_id
         self.seen: deque[Detection] = deque([first])
+        # Seen in a lidar's scan at least once; else by rangefinders' beams alone (add, hold).
+        self.scanned = from_scan
+        self.last_ns = first.t_ns  # when last seen (``hold`` sees it without adding to the window)
         self._centres: deque[tuple[float, float]] = deque()
         self.hits = 1
         self.moving = False
@@ -40,15 +43,24 @@ class ScanTrack:
         self.vx = self.vy = 0.0
         self.mean_xy = (self.x, self.y)
 
-    @property
-    def last_ns(self) -> int:
-        return self.seen[-1].t_ns
-
     def predicted(self, t_ns: int) -> tuple[float, float]:
         age_s = (t_ns - self.seen[-1].t_ns) * 1e-9
         return self.x + self.vx * age_s, self.y + self.vy * age_s
 
-    def add(self, detection: Detection, window_ns: int, confirm_scans: int, moving_speed_mps: float) -> None:
+    def add(
+        self,
+        detection: Detection,
+        window_ns: int,
+        confirm_scans: int,
+        moving_speed_mps: float,
+        from_scan: bool = True,
+    ) -> None:
+        """Add ``detection`` to the window and fit again. Only a lidar's scan (``from_scan``) lets the fit's
+        speed move the track towards moving or static; a rangefinder's beam does not: it places its disc
+        on the beam's axis wherever in the cone the echo came from, and a rock swept by a turning rover's
+        cone seemed to move with the cone (docs/planning.md "Perception from rangefinders")."""
+        self.last_ns = detection.t_ns
+        self.scanned = self.scanned or from_scan
         seen, centres = self.seen, self._centres
         seen.append(detection)
         self.hits += 1
@@ -65,6 +77,8 @@ class ScanTrack:
             centres.append(detection.centre(radius))
         span_s = (seen[-1].t_ns - seen[0].t_ns) * 1e-9
         self._fit()
+        if not from_scan:
+            return
         speed = math.hypot(self.vx, self.vy)
         self.fast = speed > moving_speed_mps
         # To start moving, over half a window at least: two or three scans' fit says little about a speed.
@@ -74,6 +88,14 @@ class ScanTrack:
         if self._streak >= confirm_scans:
             self.moving = not self.moving
             self._streak = 0
+
+    def hold(self, detection: Detection) -> None:
+        """Seen again where it stands (a rangefinder's beam on a track it alone has mapped): alive and
+        counted, but not moved. Guidance maps a static obstacle where it was first reported and keeps it
+        there; a track that slid on with the beams sweeping a long boulder's side left the boulder's
+        front unmapped, and the rover drove into it (``scenarios/hidden-boulders.toml`` seed 5)."""
+        self.last_ns = detection.t_ns
+        self.hits += 1
 
     def reportable(self, confirm_scans: int) -> bool:
         """Seen often enough, and not a static track that seems to be starting to move."""

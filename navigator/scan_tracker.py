@@ -10,6 +10,14 @@ scan periods, and fits over three (a 1 Hz lidar would otherwise start a new trac
 track forgotten (out of view, behind another) leaves a landmark: the next disc there takes its id again, so
 guidance does not put the same rock in its map twice under two names.
 
+Rangefinders' beams (``add_beams``) become discs of their own (``navigator.beam_detections``), matched
+to the same tracks. The beams of one read of the link come as one partial scan: a sensor is heard on its
+own period, and only the discs it saw touch any track. A scan, or a batch of beams, that does not see a
+track leaves it alone: tracks age out by time since they were last seen, never because one sensor looked
+the other way, so a forward rangefinder cannot make a lidar's track behind the rover look lost, nor
+moving. The sensors' periods are kept apart (a lidar's at 1 Hz and rangefinders' at 10 Hz together are no
+10 Hz sensor): the slowest sets how long tracks are remembered.
+
 ``ScanTracker`` is an ``ObstacleSource``: the onboard stack hands it each scan with its pose (in a frame of
 its choosing, ``navigator.odometry_frame``) and polls the observations like those of any other perception.
 """
@@ -18,8 +26,11 @@ from __future__ import annotations
 
 import math
 from collections import OrderedDict
+from collections.abc import Sequence
 
+from firmware_bridge.distance_sensor import RangeBeam
 from firmware_bridge.obstacle_scan import ObstacleScan
+from navigator.beam_detections import BeamPlacer
 from navigator.perception import ObstacleObservation
 from navigator.scan_clusters import Detection, detections
 from navigator.scan_track import ScanTrack
@@ -41,14 +52,19 @@ class ScanTracker:
         self._mount = self.config.mount
         self._tracks: list[ScanTrack] = []
         self._updated: dict[str, ScanTrack] = {}
-        self._landmarks: OrderedDict[str, tuple[float, float]] = OrderedDict()
+        # Forgotten static tracks: where they were reported, and their radius.
+        self._landmarks: OrderedDict[str, tuple[float, float, float]] = OrderedDict()
         self._next_id = 1
         self._offset = (0.0, 0.0)  # map minus the tracking frame, as of the last scan (add)
-        self._last_scan_ns: int | None = None
-        self._period_ns = 0  # the gap between the last two scans taken in
+        self._beams = BeamPlacer(self.config.rangefinders)
+        # Per kind of sensor ("scan", "beams"): the last one's time, and the gap between the last two.
+        self._last_ns: dict[str, int] = {}
+        self._periods_ns: dict[str, int] = {}
         self.scans = 0
-        # Scans that came before the rover knew where it was (and, in the body frame, which way it faced).
+        self.beam_batches = 0
+        # Scans (beam batches) that came before the rover knew where it was (and which way it faced).
         self.scans_without_pose = 0
+        self.beams_without_pose = 0
 
     @property
     def track_count(self) -> int:
@@ -73,25 +89,55 @@ class ScanTracker:
         if pose is None:
             self.scans_without_pose += 1
             return
-        self._offset = offset
         self.scans += 1
-        t_ns = scan.t_ns
-        config = self.config
-        # The sensor's period as the scans before this one showed it: a gap before this scan (the sensor
-        # paused) is a reason to forget, not to remember longer.
-        window_ns = max(round(config.window_s * 1e9), 3 * self._period_ns)
-        forget_ns = max(round(config.forget_s * 1e9), 5 * self._period_ns // 2)
-        if self._last_scan_ns is not None:
-            self._period_ns = max(0, t_ns - self._last_scan_ns)
-        self._last_scan_ns = t_ns
-        self._forget(t_ns, forget_ns)
         found = detections(scan, pose[0], pose[1], pose[2], self._clusters, self._mount)
-        for detection, track in self._associate(found, t_ns):
+        self._take(found, scan.t_ns, "scan", offset)
+
+    def add_beams(
+        self,
+        beams: Sequence[RangeBeam],
+        pose: tuple[float, float, float] | None,
+        offset: tuple[float, float] = (0.0, 0.0),
+    ) -> None:
+        """Take in ``beams``, the rangefinder readings of one read of the link (one receive time), seen
+        from ``pose``, as ``add`` takes a scan; each sensor sits where ``[perception] rangefinders`` says."""
+        if not beams:
+            return
+        if pose is None:
+            self.beams_without_pose += 1
+            return
+        self.beam_batches += 1
+        found = self._beams.detections(beams, pose[0], pose[1], pose[2], self._clusters.min_radius_m)
+        self._take(found, beams[-1].t_ns, "beams", offset)
+
+    @property
+    def unmounted_rangefinders(self) -> set[int]:
+        """Rangefinder ids heard that ``[perception] rangefinders`` does not place."""
+        return self._beams.unmounted
+
+    def _take(self, found: list[Detection], t_ns: int, kind: str, offset: tuple[float, float]) -> None:
+        """The discs one sensor saw at ``t_ns`` into the tracks (``kind``: which sensor, for its period)."""
+        self._offset = offset
+        config = self.config
+        # The slowest sensor's period as its readings before this one showed it: a gap before this one (the
+        # sensor paused) is a reason to forget, not to remember longer.
+        period_ns = max(self._periods_ns.values(), default=0)
+        window_ns = max(round(config.window_s * 1e9), 3 * period_ns)
+        forget_ns = max(round(config.forget_s * 1e9), 5 * period_ns // 2)
+        last_ns = self._last_ns.get(kind)
+        if last_ns is not None:
+            self._periods_ns[kind] = max(0, t_ns - last_ns)
+        self._last_ns[kind] = t_ns
+        self._forget(t_ns, forget_ns)
+        from_scan = kind == "scan"
+        for detection, track in self._associate(found, t_ns, from_scan):
             if track is None:
-                track = ScanTrack(self._new_id(detection), detection)
+                track = ScanTrack(self._new_id(detection, from_scan), detection, from_scan)
                 self._tracks.append(track)
+            elif from_scan or track.scanned or not track.reportable(config.confirm_scans):
+                track.add(detection, window_ns, config.confirm_scans, config.moving_speed_mps, from_scan)
             else:
-                track.add(detection, window_ns, config.confirm_scans, config.moving_speed_mps)
+                track.hold(detection)  # mapped where it was reported: more of it is another track
             if track.reportable(config.confirm_scans):
                 self._updated[track.track_id] = track
 
@@ -106,19 +152,23 @@ class ScanTracker:
             if t_ns - track.last_ns <= forget_ns:
                 kept.append(track)
             elif not track.moving and track.reportable(self.config.confirm_scans):
-                self._landmarks[track.track_id] = track.mean_xy
+                self._landmarks[track.track_id] = (*track.mean_xy, track.radius_m)
                 self._landmarks.move_to_end(track.track_id)
                 if len(self._landmarks) > MAX_LANDMARKS:
                     self._landmarks.popitem(last=False)
         self._tracks = kept
 
-    def _new_id(self, detection: Detection) -> str:
-        """A landmark's id when ``detection`` lies within the gate of one (the nearest), else a new one."""
+    def _new_id(self, detection: Detection, from_scan: bool = True) -> str:
+        """A landmark's id when ``detection`` lies within the gate of one (the nearest), else a new one. A
+        beam's disc (not ``from_scan``) takes a landmark's id only where the two overlap, as it continues a
+        track (``_associate``): a piece of a wall further along is not the piece mapped before, and under
+        its id guidance, which has that one mapped, would not map it."""
         cx, cy = detection.centre(detection.radius_m)
-        nearest, nearest_gap = None, self.config.gate_m
-        for landmark_id, (lx, ly) in self._landmarks.items():
+        gate = self.config.gate_m
+        nearest, nearest_gap = None, gate
+        for landmark_id, (lx, ly, radius) in self._landmarks.items():
             gap = math.hypot(cx - lx, cy - ly)
-            if gap <= nearest_gap:
+            if gap <= nearest_gap and (from_scan or gap <= radius + detection.radius_m):
                 nearest, nearest_gap = landmark_id, gap
         if nearest is not None:
             del self._landmarks[nearest]
@@ -127,9 +177,13 @@ class ScanTracker:
         self._next_id += 1
         return track_id
 
-    def _associate(self, found: list[Detection], t_ns: int) -> list[tuple[Detection, ScanTrack | None]]:
+    def _associate(
+        self, found: list[Detection], t_ns: int, from_scan: bool = True
+    ) -> list[tuple[Detection, ScanTrack | None]]:
         """Each detection with the track it continues (None: a new one): nearest pairs first, one detection
-        per track, within the gate around each track's predicted position."""
+        per track, within the gate around each track's predicted position. A beam's disc (not
+        ``from_scan``) continues a track only where it overlaps the track's disc: beams sweeping a long
+        boulder's side otherwise dragged one track along it (``ScanTrack.hold``)."""
         gate = self.config.gate_m
         predicted = [track.predicted(t_ns) for track in self._tracks]
         pairs = []
@@ -140,9 +194,16 @@ class ScanTracker:
                 reach = gate + abs(track.radius_m - detection.radius_m) + _PAIR_SLACK_M
                 if abs(own_x - px) > reach or abs(own_y - py) > reach:
                     continue
-                cx, cy = detection.centre(track.radius_m)
-                gap = math.hypot(cx - px, cy - py)
-                if gap <= gate:
+                if from_scan:
+                    cx, cy = detection.centre(track.radius_m)
+                    gap = math.hypot(cx - px, cy - py)
+                    if gap <= gate:
+                        pairs.append((gap, i, j))
+                    continue
+                # Where it is reported (a beam-only track's fitted velocity is no motion: not judged).
+                tx, ty = (px, py) if track.scanned else track.mean_xy
+                gap = math.hypot(own_x - tx, own_y - ty)
+                if gap <= min(gate, track.radius_m + detection.radius_m):
                     pairs.append((gap, i, j))
         pairs.sort()
         taken_detections: dict[int, ScanTrack] = {}

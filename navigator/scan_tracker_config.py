@@ -1,4 +1,5 @@
-"""``[perception]`` in the rover config: how a range sensor's scans become tracked obstacles."""
+"""``[perception]`` in the rover config: how a range sensor's scans (and rangefinders' beams) become tracked
+obstacles."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import math
 from dataclasses import dataclass
 
 from logs.settings import Table
+from navigator.beam_detections import MAX_FOV_DEG, RangefinderMount
 from navigator.scan_clusters import ClusterSettings
 from navigator.sensor_mount import SensorMount
 
@@ -18,7 +20,9 @@ class ScanTrackerConfig:
     """``[perception]`` in the rover config: how scans become tracked obstacles (docs/planning.md
     "Perception from scans"). The first four say how returns become discs (``ClusterSettings``); the
     ``mount_*`` keys where the sensor sits (``SensorMount``: forward and left of the estimator's reference
-    point, and its forward direction from the rover's, degrees counter-clockwise)."""
+    point, and its forward direction from the rover's, degrees counter-clockwise); ``rangefinders`` where
+    each single-beam rangefinder sits, by its DISTANCE_SENSOR id (docs/planning.md "Perception from
+    rangefinders")."""
 
     cluster_gap_m: float = 0.3
     cluster_gap_ratio: float = 0.1
@@ -32,6 +36,7 @@ class ScanTrackerConfig:
     mount_forward_m: float = 0.0
     mount_left_m: float = 0.0
     mount_yaw_deg: float = 0.0
+    rangefinders: tuple[RangefinderMount, ...] = ()
 
     @property
     def mount(self) -> SensorMount:
@@ -63,6 +68,29 @@ class ScanTrackerConfig:
                 "mount_left_m", d.mount_left_m, lo=-MAX_MOUNT_OFFSET_M, hi=MAX_MOUNT_OFFSET_M
             ),
             mount_yaw_deg=table.number("mount_yaw_deg", d.mount_yaw_deg, lo=-180.0, hi=180.0),
+            rangefinders=_rangefinders(table),
         )
         table.finish()
         return config
+
+
+def _rangefinders(table: Table) -> tuple[RangefinderMount, ...]:
+    """``rangefinders = [{id = 0, forward_m = 0.3, left_m = 0.1, fov_deg = 20.0}, ...]``: ids 0-255, each
+    once; the offsets within ``MAX_MOUNT_OFFSET_M``; ``fov_deg`` 0-90 (default 0, a narrow beam)."""
+    mounts: list[RangefinderMount] = []
+    seen: set[int] = set()
+    for entry in table.tables("rangefinders"):
+        sensor_id = entry.integer("id", lo=0, hi=255)
+        if sensor_id in seen:
+            raise entry.error("id", f"rangefinder {sensor_id} is placed twice")
+        seen.add(sensor_id)
+        mounts.append(
+            RangefinderMount(
+                sensor_id,
+                entry.number("forward_m", 0.0, lo=-MAX_MOUNT_OFFSET_M, hi=MAX_MOUNT_OFFSET_M),
+                entry.number("left_m", 0.0, lo=-MAX_MOUNT_OFFSET_M, hi=MAX_MOUNT_OFFSET_M),
+                entry.number("fov_deg", 0.0, lo=0.0, hi=MAX_FOV_DEG),
+            )
+        )
+        entry.finish()
+    return tuple(mounts)

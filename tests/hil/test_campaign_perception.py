@@ -1,5 +1,6 @@
 """A campaign variant may set how the rover perceives obstacles (``perception``), in place of each scenario's
-``[sensors] perception``: the simulator's objects against a lidar's scans, side by side in Tables 1 and 2."""
+``[sensors] perception``: the simulator's objects against a lidar's scans and a ring of rangefinders, side by
+side in Tables 1 and 2."""
 
 from __future__ import annotations
 
@@ -30,17 +31,19 @@ def test_each_variant_runs_with_its_perception_and_the_recording_says_so(tmp_pat
         _campaign(
             tmp_path,
             '[[variants]]\nname = "objects"\nperception = "objects"\n'
-            '[[variants]]\nname = "as-the-scenario"\n',
+            '[[variants]]\nname = "as-the-scenario"\n'
+            '[[variants]]\nname = "ring"\nperception = "rangefinders"\n'
+            "[variants.overrides]\nperception.rangefinders = [{ id = 0 }, { id = 1 }, { id = 2 }]\n",
         )
     )
     specs = campaign.trials(tmp_path / "out")
-    assert [s.perception for s in specs] == ["objects", None]
+    assert [s.perception for s in specs] == ["objects", None, "rangefinders"]
     recorded = []
     for spec in specs:
         outcome = run_one(spec)
         assert outcome.success, outcome
         recorded.append(read_metadata(spec.out_dir / "trial.mcap")["scenario"]["perception"])
-    assert recorded == ["objects", "scan"]  # hidden_rock.toml itself says "scan"
+    assert recorded == ["objects", "scan", "rangefinders"]  # hidden_rock.toml itself says "scan"
 
 
 def test_a_perception_no_model_has_is_named_under_the_variant(tmp_path: Path) -> None:
@@ -50,10 +53,11 @@ def test_a_perception_no_model_has_is_named_under_the_variant(tmp_path: Path) ->
     assert caught.value.key == "variants[0].perception" and "must be one of" in caught.value.problem
 
 
-def test_the_shipped_perception_campaign_loads_both_models() -> None:
+def test_the_shipped_perception_campaign_loads_every_model() -> None:
     campaign = load_campaign(REPO / "campaigns" / "perception.toml")
     assert [(v.name, v.perception) for v in campaign.variants] == [
         ("objects", "objects"),
         ("lidar-scans", "scan"),
+        ("rangefinders", "rangefinders"),
     ]
     assert [t for t, _ in campaign.terrains] == ["hidden-boulders", "carts"]
