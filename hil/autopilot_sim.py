@@ -143,8 +143,12 @@ class SimAutopilot:
             "attitude": to_ns(1.0 / attitude_rate_hz),
         }
         now = clock.now_ns()
+        # Every stream's cadence counts from here; its first sample is due now (see _start for a first step
+        # that comes later).
         self._next_ns = dict.fromkeys(self._periods_ns, now)
         self._next_any_ns = now  # the earliest of _next_ns: before it, a step has nothing to send
+        self._started = False
+        self._withheld: frozenset[str] = frozenset()  # streams whose sample this step takes but not sends
         # Before this clock reading a step would neither send nor remember anything (step's docstring).
         self.next_truth_ns = now
         self.sent: dict[str, int] = dict.fromkeys(self._periods_ns, 0)
@@ -172,6 +176,8 @@ class SimAutopilot:
         A caller may leave out the steps at clock readings before ``next_truth_ns``: they would send
         nothing and remember nothing (a GPS that looks back keeps it at or before every later tick)."""
         now = self._clock.now_ns()
+        if not self._started:
+            self._start(now)  # which first samples this step takes without sending
         gps = self._gps
         if gps.looks_back:
             self._record(now, truth)
@@ -210,6 +216,7 @@ class SimAutopilot:
                 ),
             )
         self._next_any_ns = min(due.values())
+        self._withheld = frozenset()  # only the first step withholds
         # A GPS that looks back remembers every tick's truth: it wants the next tick's too (now is before it).
         self.next_truth_ns = now if gps.looks_back else self._next_any_ns
 
@@ -221,6 +228,26 @@ class SimAutopilot:
         self.sent.setdefault(stream, 0)
         self._send(stream, msg)
 
+    def _start(self, now: int) -> None:
+        """At the first step: a stream whose first sample that step would send half a period late or more,
+        but less than a whole one, takes it (its noise drawn) without sending it; its next, on its cadence
+        from the start, is its first sent.
+
+        ``SimWorld`` makes the autopilot at its epoch and first steps it one physics tick (10 ms) later.
+        Sent then, a 50 Hz stream's first sample (the IMU; a GPS at ``gps_rate_hz = 50``) was followed
+        10 ms later by its second, on the cadence: the rover's 50 Hz loop took both in its first read and
+        recorded two first fixes at the same time. Taken and not sent, as a lost GPS fix still draws its
+        noise (``GpsModel.fix``), it leaves every later sample's noise as it was. A slower stream (the 5 Hz
+        GPS, heartbeat, status) still sends at the first step, 10 ms late of a period of 100 ms or more:
+        what starts the rover. A first step a whole period late or more (the real-time peer's, after its
+        warm-up) sends every stream there and resumes from it, as ``_take_turn`` does after a long pause."""
+        self._started = True
+        self._withheld = frozenset(
+            stream
+            for stream, due in self._next_ns.items()
+            if due + self._periods_ns[stream] > now and 2 * (now - due) >= self._periods_ns[stream]
+        )
+
     def _take_turn(self, stream: str, now: int) -> None:
         """Schedule ``stream``'s next send after the one due now."""
         following = self._next_ns[stream] + self._periods_ns[stream]
@@ -228,6 +255,8 @@ class SimAutopilot:
         self._next_ns[stream] = following if following > now else now + self._periods_ns[stream]
 
     def _send(self, stream: str, msg: Any) -> None:
+        if stream in self._withheld:
+            return  # a first sample a step too late (_start)
         try:
             # mav.send's bytes without its per-frame work for the plain messages all streams send
             # (firmware_bridge.mavlink_frames); the message is not stamped with its frame: nothing reads it.

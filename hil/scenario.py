@@ -20,7 +20,7 @@ from hil.moving_obstacles import MovingObstacle
 from hil.rangefinder_sim import DEFAULT_YAWS_DEG
 from hil.scenario_placement import check_clear_of_obstacles
 from logs.metrics import DEFAULT_ENCOUNTER_MARGIN_M
-from logs.settings import MAX_SEED, ConfigError, Table, finite_float, load_toml, shown
+from logs.settings import MAX_SEED, ConfigError, Table, finite_float, parse_toml, read_settings_text, shown
 from navigator.config import ROVER_CONFIG_TABLES
 from navigator.map_config import terrain_from_table
 from navigator.scan_tracker_config import MAX_MOUNT_OFFSET_M
@@ -212,9 +212,8 @@ class Scenario:
 
 def load_scenario(path: str | Path) -> Scenario:
     """Read and validate a scenario file; raises ``ConfigError`` naming the file and the key."""
-    root = load_toml(path)
-    text = Path(path).read_text(encoding="utf-8")
-    return scenario_from_table(root, text, base_dir=Path(path).parent)
+    text = read_settings_text(path)  # read once: the table and the recorded text are the same bytes
+    return scenario_from_table(parse_toml(text, str(path)), text, base_dir=Path(path).parent)
 
 
 def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:

@@ -20,7 +20,7 @@ rover's.
 from __future__ import annotations
 
 import heapq
-from collections.abc import Collection, Iterable, Iterator, Sequence
+from collections.abc import Collection, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -97,11 +97,9 @@ def read_paired(
     wanted_rover = [topic for topic in topics if topic not in TRUTH_TOPICS]
     ticks = list(read_entries(rover, topics=[NAVIGATOR_STATE]))
     window = drive_window(ticks)
-    rover_has_scenario = any(isinstance(e, RecordedMetadata) and e.name == SCENARIO_METADATA for e in ticks)
-    rover_mode = _trial_mode(ticks)
-    rover_run = _metadata_value(ticks, TRIAL_METADATA, "hil_peer_run")
-    truth_mode: str | None = None
-    truth_run = ""
+    rover_records = _records_by_name(ticks)
+    rover_has_scenario = SCENARIO_METADATA in rover_records
+    truth_records: dict[str, dict[str, str]] = {}
     result = PairedRead(rover, truth, iter(()), ReadStats(), rover_stats, truth_stats, window)
     kept: list[Entry] = []
     truth_metadata: list[Entry] = []
@@ -120,8 +118,7 @@ def read_paired(
                 else:
                     result.truth_dropped += 1
             elif isinstance(entry, RecordedMetadata):
-                truth_mode = _trial_mode([entry]) or truth_mode
-                truth_run = _metadata_value([entry], PEER_METADATA, "run") or truth_run
+                truth_records[entry.name] = entry.data  # a later record of a name replaces an earlier one
                 keep_name = entry.name == WORLD_METADATA or (
                     entry.name == SCENARIO_METADATA and not rover_has_scenario
                 )
@@ -141,8 +138,8 @@ def read_paired(
     kept.sort(key=_log_time)  # stable
     refused = (
         unreadable
-        or _lockstep_refusal(rover, rover_mode, truth, truth_mode)
-        or _other_run_refusal(rover, rover_run, truth, truth_run)
+        or _lockstep_refusal(rover, _trial_mode(rover_records), truth, _trial_mode(truth_records))
+        or _other_run_refusal(rover, _peer_run(rover_records), truth, _peer_run(truth_records))
     )
     if refused is not None:
         result.problems.append(refused)
@@ -167,26 +164,36 @@ def read_paired(
     return result
 
 
-def _trial_mode(entries: Iterable[Entry]) -> str | None:
-    """``trial.mode`` among ``entries``' metadata (``rover-run``, ``sim-lockstep`` ...), if recorded."""
-    for entry in entries:
-        if isinstance(entry, RecordedMetadata) and entry.name == TRIAL_METADATA:
-            return entry.data.get("mode")
-    return None
+def _records_by_name(entries: Iterable[Entry]) -> dict[str, dict[str, str]]:
+    """``entries``' metadata by record name, a later record of a name replacing an earlier one: what
+    ``read_outline`` gives as ``metadata``, so a pair is judged the same from either."""
+    return {entry.name: entry.data for entry in entries if isinstance(entry, RecordedMetadata)}
 
 
-def _metadata_value(entries: Iterable[Entry], record: str, key: str) -> str:
-    """``record.key`` among ``entries``' metadata; "" when not recorded."""
-    for entry in entries:
-        if isinstance(entry, RecordedMetadata) and entry.name == record:
-            return entry.data.get(key) or ""
-    return ""
+def _trial_mode(records: Mapping[str, Mapping[str, str]]) -> str | None:
+    """``trial.mode`` (``rover-run``, ``sim-lockstep`` ...), if recorded."""
+    return records.get(TRIAL_METADATA, {}).get("mode")
+
+
+def _peer_run(records: Mapping[str, Mapping[str, str]]) -> str:
+    """The HIL peer run a recording belongs to, from its metadata by record name: a truth's own (``peer``
+    ``run``), a rover recording's (``trial`` ``hil_peer_run``, from the rover-hil.toml the peer wrote); ""
+    for older recordings. Whichever of the two files a recording is given as: a rover recording given as
+    the truth, or a truth as the rover's, still names its run."""
+    own = records.get(PEER_METADATA, {}).get("run")
+    return own or records.get(TRIAL_METADATA, {}).get("hil_peer_run", "")
+
+
+def _different_runs(run: str, other_run: str) -> bool:
+    """Whether two recordings' peer runs (``_peer_run``) say they are of different runs: both recorded and
+    not the same. Two runs at the same time overlap in log time: only the ids tell them apart."""
+    return bool(run) and bool(other_run) and run != other_run
 
 
 def _other_run_refusal(rover: Path, rover_run: str, truth: Path, truth_run: str) -> str | None:
     """Why a truth recorded by another HIL peer run than the one the rover ran against must not be merged
     (two runs at the same time overlap in log time); None when the ids agree or either is not recorded."""
-    if not rover_run or not truth_run or rover_run == truth_run:
+    if not _different_runs(rover_run, truth_run):
         return None
     return (
         f"{truth}: not merged: recorded by HIL peer run {truth_run}, and {rover} ran against peer run "
@@ -287,10 +294,10 @@ def misplaced_truths(pairs: Sequence[tuple[Path, Path]]) -> list[str]:
     drive."""
     outlines = _outlines({path for pair in pairs for path in pair})
     spans = {path: _real_time_span(outline) for path, outline in outlines.items()}
-    runs = {path: _peer_run(outline) for path, outline in outlines.items()}
+    runs = {path: _peer_run(outline.metadata) for path, outline in outlines.items()}
     problems = []
     for number, (rover, truth) in enumerate(pairs, start=1):
-        if runs.get(rover) and runs.get(truth) and runs[rover] != runs[truth]:
+        if _different_runs(runs.get(rover, ""), runs.get(truth, "")):
             problems.append(_other_peer_run(number, rover, truth, runs, pairs))
             continue
         if rover not in spans or truth not in spans or _overlap(spans[truth], spans[rover]):
@@ -321,16 +328,8 @@ def _outlines(paths: Iterable[Path]) -> dict[Path, RecordingOutline]:
 
 def _real_time_span(outline: RecordingOutline) -> tuple[int, int] | None:
     """The file's log-time span; ``None`` for a lockstep trial or a file without messages."""
-    lockstep = outline.metadata.get(TRIAL_METADATA, {}).get("mode") == LOCKSTEP_MODE
+    lockstep = _trial_mode(outline.metadata) == LOCKSTEP_MODE
     return None if lockstep else outline.span_ns
-
-
-def _peer_run(outline: RecordingOutline) -> str:
-    """The HIL peer run a recording belongs to: a truth's own (``peer`` ``run``), a rover recording's
-    (``trial`` ``hil_peer_run``, from the rover-hil.toml the peer wrote); "" for older recordings."""
-    return outline.metadata.get(PEER_METADATA, {}).get("run") or outline.metadata.get(TRIAL_METADATA, {}).get(
-        "hil_peer_run", ""
-    )
 
 
 def _other_peer_run(

@@ -35,14 +35,19 @@ class ConfigError(ValueError):
 
 def load_toml(path: str | Path) -> Table:
     """Read a TOML file into a root ``Table``; raises ``ConfigError`` naming the file on any failure."""
+    return parse_toml(read_settings_text(path), str(path))
+
+
+def read_settings_text(path: str | Path) -> str:
+    """A settings file's text, for a caller that keeps it as well as parsing it (a scenario is recorded as
+    written); raises ``ConfigError`` naming the file when it cannot be read."""
     source = str(path)
     try:
-        text = Path(path).read_text(encoding="utf-8")
+        return Path(path).read_text(encoding="utf-8")
     except FileNotFoundError:
         raise ConfigError(source, "", "file not found") from None
     except (OSError, UnicodeDecodeError) as err:
         raise ConfigError(source, "", f"cannot read file: {err}") from err
-    return parse_toml(text, source)
 
 
 def parse_toml(text: str, source: str) -> Table:

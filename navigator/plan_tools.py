@@ -14,7 +14,7 @@ from pathlib import Path as FilePath
 
 import numpy as np
 
-from logs.settings import load_toml
+from logs.settings import Table, load_toml
 from navigator.astar import SQRT2, astar
 from navigator.astar_kernel import MOVES
 from navigator.errors import TerrainError
@@ -41,7 +41,17 @@ class PlanReport:
     cells: list[tuple[int, int]]
 
 
-def load_map(path: FilePath, resolution_m: float | None) -> TerrainMap:
+@dataclass(frozen=True)
+class PlanMap:
+    """What ``rover plan`` plans on, from one read of its map file: the terrain, and the start (``[start]
+    xy``) and first goal (``[[goals]] xy``) the file names, each ``None`` where it names none."""
+
+    terrain: TerrainMap
+    start: Point | None = None
+    goal: Point | None = None
+
+
+def load_map(path: FilePath, resolution_m: float | None) -> PlanMap:
     """A TOML file with a ``[terrain]`` table (a scenario qualifies), an ``.npy`` elevation layer, or a
     ``.png`` obstacle image (dark = obstacle, image top = north; the form a drawn maze takes)."""
     suffix = path.suffix.lower()
@@ -49,28 +59,23 @@ def load_map(path: FilePath, resolution_m: float | None) -> TerrainMap:
         if resolution_m is None:
             raise TerrainError(f"a {suffix} map needs its resolution (--resolution-m)")
         if suffix == ".png":
-            return load_png_layers(obstacles=path, resolution_m=resolution_m)
-        return load_npy_layers(elevation=path, resolution_m=resolution_m)
+            return PlanMap(load_png_layers(obstacles=path, resolution_m=resolution_m))
+        return PlanMap(load_npy_layers(elevation=path, resolution_m=resolution_m))
     if resolution_m is not None:
         # A TOML map sets its own cell size; ignoring the option would plan at a resolution not asked for.
         raise TerrainError(f"--resolution-m is for a .npy / .png map; {path} sets resolution_m in [terrain]")
-    root = load_toml(path)
-    terrain, _ = terrain_from_table(root.table("terrain"), path.parent)
-    return terrain
+    return map_from_table(load_toml(path), path.parent)
 
 
-def scenario_endpoints(path: FilePath) -> tuple[Point | None, Point | None]:
-    """The start (``[start] xy``) and first goal (``[[goals]] xy``) a scenario TOML names, each ``None``
-    where the file has none (an ``.npy`` / ``.png`` map, a bare ``[terrain]`` file); a malformed one is a
-    ``ConfigError`` naming the key."""
-    if path.suffix.lower() in (".npy", ".png"):
-        return None, None
-    root = load_toml(path)
+def map_from_table(root: Table, base_dir: FilePath) -> PlanMap:
+    """The ``[terrain]`` of a parsed TOML file (layer files read relative to ``base_dir``) and the
+    endpoints it names; a malformed one is a ``ConfigError`` naming the key."""
+    terrain, _ = terrain_from_table(root.table("terrain"), base_dir)
     start_table = root.table("start", optional=True)
     start = start_table.point("xy") if start_table.has("xy") else None
     goals = root.tables("goals")
     goal = goals[0].point("xy") if goals and goals[0].has("xy") else None
-    return start, goal
+    return PlanMap(terrain, start, goal)
 
 
 def plan_once(planner: Planner, start_xy: Point, goal_xy: Point) -> PlanReport:

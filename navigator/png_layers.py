@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from navigator.errors import TerrainError
+from navigator.layer_checks import Layer, check_one_grid
 from navigator.terrain import TerrainMap, check_map_cells
 from navigator.terrain_classes import TERRAIN_CLASSES
 
@@ -174,11 +175,10 @@ def load_png_layers(
     }
     if not images:
         raise TerrainError("load_png_layers needs at least one layer file to know the map's shape")
-    shapes = {name: image.channels.shape[:2] for name, image in images.items()}
-    if len(set(shapes.values())) > 1:
-        listed = ", ".join(f"{name} {rows}x{cols}" for name, (rows, cols) in shapes.items())
-        raise TerrainError(f"PNG layers must share one size (rows x cols), got {listed}")
-    shape = next(iter(shapes.values()))
+    check_one_grid(
+        [(Layer.file(name, image.path), image.channels.shape[:2]) for name, image in images.items()]
+    )
+    shape = next(iter(images.values())).channels.shape[:2]
 
     elevation_m = np.zeros(shape)
     if "elevation" in images:

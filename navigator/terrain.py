@@ -16,6 +16,7 @@ import numpy as np
 
 from navigator.errors import TerrainError
 from navigator.ground_kernel import GroundUnder, ground_at_kernel
+from navigator.layer_checks import Layer, check_one_grid, checked_layer
 from navigator.terrain_classes import TERRAIN_CLASSES
 
 MAZE_WALL = 1
@@ -71,46 +72,19 @@ class TerrainMap:
             raise TerrainError(f"terrain resolution_m must be a finite number > 0, got {self.resolution_m!r}")
         if len(self.origin_xy) != 2 or not all(math.isfinite(float(v)) for v in self.origin_xy):
             raise TerrainError(f"terrain origin_xy must be two finite numbers, got {self.origin_xy!r}")
-        raw_elevation = np.asarray(self.elevation_m)
-        if not (
-            np.issubdtype(raw_elevation.dtype, np.integer) or np.issubdtype(raw_elevation.dtype, np.floating)
-        ):
-            # numpy would turn text such as "1.5" into numbers without a word: refuse anything not numeric.
-            raise TerrainError(
-                f"elevation layer must hold real numbers (metres), got dtype {raw_elevation.dtype}"
-            )
-        elevation = raw_elevation.astype(np.float64)
-        if elevation.ndim != 2 or elevation.size == 0:
-            raise TerrainError(f"elevation layer must be a non-empty 2-D array, got shape {elevation.shape}")
-        if not np.all(np.isfinite(elevation)):
-            row, col = np.argwhere(~np.isfinite(elevation))[0]
-            raise TerrainError(f"elevation layer holds a non-finite value at cell (row {row}, col {col})")
-        classes = np.asarray(self.terrain_class)
-        obstacles = np.asarray(self.obstacles)
-        for name, layer in (("terrain_class", classes), ("obstacles", obstacles)):
-            if layer.shape != elevation.shape:
-                raise TerrainError(
-                    f"{name} layer has shape {layer.shape} but the elevation layer has {elevation.shape}; "
-                    "all layers must share one grid"
-                )
-        if not np.issubdtype(classes.dtype, np.integer):
-            raise TerrainError(f"terrain_class layer must hold integer class ids, got dtype {classes.dtype}")
-        unknown = ~np.isin(classes, list(TERRAIN_CLASSES))
-        if np.any(unknown):
-            row, col = np.argwhere(unknown)[0]
-            raise TerrainError(
-                f"unknown terrain class {int(classes[row, col])} at cell (row {row}, col {col}); "
-                f"known ids: {sorted(TERRAIN_CLASSES)}"
-            )
-        if obstacles.dtype != np.bool_:
-            if not np.all(np.isin(obstacles, (0, 1))):
-                raise TerrainError("obstacles layer must be boolean (or 0/1)")
-            obstacles = obstacles.astype(bool)
+        # The same check as the layer files get (navigator.layer_checks), naming the field instead of a file.
+        layers = [
+            (Layer.array("elevation", "elevation"), np.asarray(self.elevation_m)),
+            (Layer.array("classes", "terrain_class"), np.asarray(self.terrain_class)),
+            (Layer.array("obstacles", "obstacles"), np.asarray(self.obstacles)),
+        ]
+        elevation, classes, obstacles = (checked_layer(values, layer) for layer, values in layers)
+        check_one_grid([(layer, values.shape) for layer, values in layers])
         set_ = object.__setattr__  # frozen dataclass: normalise the layers once, here
         set_(self, "resolution_m", float(self.resolution_m))
         set_(self, "origin_xy", (float(self.origin_xy[0]), float(self.origin_xy[1])))
         set_(self, "elevation_m", _frozen(elevation))
-        set_(self, "terrain_class", _frozen(classes.astype(np.uint8)))
+        set_(self, "terrain_class", _frozen(classes))
         set_(self, "obstacles", _frozen(obstacles))
         grad_y, grad_x = _gradient(elevation, self.resolution_m)
         set_(self, "_grad_x", _frozen(grad_x))
@@ -321,65 +295,10 @@ def _load_layer(path: str | Path, name: str) -> np.ndarray:
         raise TerrainError(
             f"{name} layer file {str(path)!r} is not a readable .npy array: {err}", key=name
         ) from err
-    if not isinstance(layer, np.ndarray) or layer.ndim != 2:
+    if not isinstance(layer, np.ndarray):
         raise TerrainError(f"{name} layer file {str(path)!r} must hold one 2-D array", key=name)
-    _check_layer_values(layer, path, name)
-    return layer
-
-
-# The dtypes each layer may hold; anything else (text, objects, complex, dates) is a file mistake, even
-# where numpy would convert it without a word ("1.5" as text becomes 1.5 m of elevation).
-_LAYER_KINDS = {
-    "elevation": (np.integer, np.floating),  # metres
-    "classes": (np.integer, np.floating),  # class ids; floats must be whole (checked in load_npy_layers)
-    "obstacles": (np.bool_, np.integer, np.floating),  # 0/1 (checked by TerrainMap)
-}
-
-
-_DTYPE_WORDS = {"U": "text", "S": "bytes", "O": "Python objects", "b": "booleans", "c": "complex numbers"}
-
-
-def _check_layer_values(layer: np.ndarray, path: str | Path, name: str) -> None:
-    if not any(np.issubdtype(layer.dtype, kind) for kind in _LAYER_KINDS[name]):
-        what = _DTYPE_WORDS.get(layer.dtype.kind, "values")
-        wanted = "booleans or 0/1" if name == "obstacles" else "numbers"
-        raise TerrainError(
-            f"{name} layer file {str(path)!r} holds {what} (dtype {layer.dtype.str}), not {wanted}", key=name
-        )
-    if layer.size == 0:
-        raise TerrainError(
-            f"{name} layer file {str(path)!r} holds an empty array (shape {layer.shape})", key=name
-        )
-    if np.issubdtype(layer.dtype, np.floating) and not np.all(np.isfinite(layer)):
-        row, col = np.argwhere(~np.isfinite(layer))[0]
-        raise TerrainError(
-            f"{name} layer file {str(path)!r} holds a non-finite value ({layer[row, col]}) at cell "
-            f"(row {row}, col {col})",
-            key=name,
-        )
-    # What TerrainMap would refuse too, said here with the layer's key and file, and the first bad cell.
-    if name == "classes":
-        _refuse_cells(layer, path, name, layer != np.round(layer), "a whole-number class id")
-        _refuse_cells(layer, path, name, ~np.isin(layer, list(TERRAIN_CLASSES)), "a terrain class id")
-    elif name == "obstacles" and layer.dtype != np.bool_:
-        _refuse_cells(layer, path, name, ~np.isin(layer, (0, 1)), "0 or 1")
-
-
-def _refuse_cells(layer: np.ndarray, path: str | Path, name: str, bad: np.ndarray, wanted: str) -> None:
-    """TerrainError naming the first cell of ``layer`` where ``bad`` is set, and what it should hold."""
-    if np.any(bad):
-        row, col = np.argwhere(bad)[0]
-        value = layer[row, col].item()
-        known = f" (known ids: {sorted(TERRAIN_CLASSES)})" if wanted == "a terrain class id" else ""
-        raise TerrainError(
-            f"{name} layer file {str(path)!r} holds {value:g} at cell (row {row}, col {col}), "
-            f"not {wanted}{known}",
-            key=name,
-        )
-
-
-def _cells(shape: tuple[int, ...]) -> str:
-    return " x ".join(str(n) for n in shape)
+    # Checked here, not left to TerrainMap, so the error names the layer's key and its file.
+    return checked_layer(layer, Layer.file(name, path))
 
 
 def load_npy_layers(
@@ -392,28 +311,15 @@ def load_npy_layers(
     base_class: int = 0,
 ) -> TerrainMap:
     """A map from ``.npy`` layers; a missing layer is flat / ``base_class`` / obstacle-free."""
-    loaded = {
-        name: _load_layer(path, name)
-        for name, path in (("elevation", elevation), ("classes", classes), ("obstacles", obstacles))
-        if path is not None
-    }
+    paths = {"elevation": elevation, "classes": classes, "obstacles": obstacles}
+    loaded = {name: _load_layer(path, name) for name, path in paths.items() if path is not None}
     if not loaded:
         raise TerrainError("load_npy_layers needs at least one layer file to know the map's shape")
-    paths = {"elevation": elevation, "classes": classes, "obstacles": obstacles}
-    (first, shape), *others = [(name, layer.shape) for name, layer in loaded.items()]
-    for name, other in others:
-        if other != shape:
-            raise TerrainError(
-                f"{name} layer file {str(paths[name])!r} is {_cells(other)} cells but {first} layer file "
-                f"{str(paths[first])!r} is {_cells(shape)}: all layers must share one grid",
-                key=name,
-            )
-    class_layer = loaded.get("classes", np.full(shape, base_class, dtype=np.int64))
-    if "classes" in loaded and np.issubdtype(class_layer.dtype, np.floating):
-        class_layer = class_layer.astype(np.int64)  # whole numbers (_check_layer_values)
+    check_one_grid([(Layer.file(name, str(paths[name])), layer.shape) for name, layer in loaded.items()])
+    shape = next(iter(loaded.values())).shape
     return TerrainMap(
         elevation_m=loaded.get("elevation", np.zeros(shape)),
-        terrain_class=class_layer,
+        terrain_class=loaded.get("classes", np.full(shape, base_class, dtype=np.int64)),
         obstacles=loaded.get("obstacles", np.zeros(shape, dtype=bool)),
         resolution_m=resolution_m,
         origin_xy=origin,

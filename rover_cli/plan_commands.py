@@ -13,13 +13,12 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from logs.settings import ConfigError, load_toml
+from logs.settings import ConfigError, parse_toml, read_settings_text
 from navigator.astar import HEURISTICS
-from navigator.config import HEURISTIC_WEIGHT_RANGE, PlannerConfig, load_rover_config
+from navigator.config import HEURISTIC_WEIGHT_RANGE, PlannerConfig, load_rover_config, rover_config_from_table
 from navigator.errors import NavigatorError
-from navigator.plan_tools import Point, draw_png, export_costs, load_map, plan_once, scenario_endpoints
+from navigator.plan_tools import PlanMap, Point, draw_png, export_costs, load_map, map_from_table, plan_once
 from navigator.planner import COST_MODES, FOOTPRINT_INFLATIONS, Planner
-from navigator.terrain import TerrainMap
 from navigator.vehicle import VehicleParams
 from rover_cli.arg_types import bounded_float
 
@@ -108,12 +107,11 @@ def register(families: Any) -> None:
     plan.set_defaults(handler=run_plan)
 
 
-def _endpoints(args: argparse.Namespace) -> tuple[Point, Point]:
-    """``--start`` / ``--goal`` as given, else the scenario's; a ``ConfigError`` when neither says."""
-    named_start, named_goal = scenario_endpoints(args.map)
+def _endpoints(args: argparse.Namespace, plan_map: PlanMap) -> tuple[Point, Point]:
+    """``--start`` / ``--goal`` as given, else the map file's; a ``ConfigError`` when neither says."""
     return (
-        _given_or_named(args.map, "--start", args.start, named_start, "[start] xy"),
-        _given_or_named(args.map, "--goal", args.goal, named_goal, "[[goals]] xy"),
+        _given_or_named(args.map, "--start", args.start, plan_map.start, "[start] xy"),
+        _given_or_named(args.map, "--goal", args.goal, plan_map.goal, "[[goals]] xy"),
     )
 
 
@@ -138,33 +136,37 @@ def _settings(args: argparse.Namespace) -> tuple[VehicleParams, PlannerConfig]:
     return vehicle, dataclasses.replace(planner, **{k: v for k, v in given.items() if v is not None})
 
 
-def _rovers_map(args: argparse.Namespace) -> TerrainMap:
-    """The map to plan on: for a scenario with ``[[obstacles]]``, the rover's map of it as a trial's rover
-    plans on it (the terrain with the obstacles it knows, ``known = true``, the default); for a rover config
-    with a ``[map]``, that map, as ``rover run`` plans on it; else the map file. A rover config without a
-    ``[map]`` is named as a config."""
-    if args.map.suffix.lower() == ".toml" and args.resolution_m is None:
-        from hil.scenario import load_scenario, refuse_a_rover_config
+def _rovers_map(args: argparse.Namespace) -> PlanMap:
+    """The map to plan on, from one read of the file: for a scenario with ``[[obstacles]]``, the rover's map
+    of it as a trial's rover plans on it (the terrain with the obstacles it knows, ``known = true``, the
+    default); for a rover config with a ``[map]``, that map, as ``rover run`` plans on it; else the map file.
+    A rover config without a ``[map]`` is named as a config."""
+    if args.map.suffix.lower() != ".toml" or args.resolution_m is not None:
+        return load_map(args.map, args.resolution_m)  # an image or a layer, or the --resolution-m refusal
+    from hil.scenario import refuse_a_rover_config, scenario_from_table
 
-        root = load_toml(args.map)
-        if root.has("map") and not root.has("terrain"):
-            terrain = load_rover_config(args.map).terrain
-            assert terrain is not None  # a config with [map] has its map
-            return terrain
-        refuse_a_rover_config(root)
-        if root.has("obstacles"):
-            return load_scenario(args.map).believed_terrain
-    return load_map(args.map, args.resolution_m)
+    text = read_settings_text(args.map)
+    root = parse_toml(text, str(args.map))
+    if root.has("map") and not root.has("terrain"):
+        terrain = rover_config_from_table(root).terrain
+        assert terrain is not None  # a config with [map] has its map
+        return PlanMap(terrain)  # a rover config names no start nor goal
+    refuse_a_rover_config(root)
+    if root.has("obstacles"):
+        scenario = scenario_from_table(root, text, base_dir=args.map.parent)
+        goal = scenario.goals[0]
+        return PlanMap(scenario.believed_terrain, scenario.start_xy, (goal.x, goal.y))
+    return map_from_table(root, args.map.parent)
 
 
 def run_plan(args: argparse.Namespace) -> int:
     try:
         vehicle, settings = _settings(args)
-        terrain = _rovers_map(args)
-        start, goal = _endpoints(args)
+        plan_map = _rovers_map(args)
+        start, goal = _endpoints(args, plan_map)
         # As guidance builds it, but without the goal's cost-to-go field: that pays off over replans, and
         # one plan built on it would report a full Dijkstra's expansions and time.
-        planner = Planner.from_config(terrain, vehicle, settings)
+        planner = Planner.from_config(plan_map.terrain, vehicle, settings)
         report = plan_once(planner, start, goal)
     except (NavigatorError, ConfigError) as err:
         print(f"rover plan: {err}", file=sys.stderr)  # stdout stays the figures (or JSON) only

@@ -120,7 +120,7 @@ def test_plan_takes_the_vehicle_and_planner_settings_from_a_config_and_options_o
         "[vehicle]\nfootprint_width_m = 0.8\n"
         '[planner]\ncost_mode = "classical"\nheuristic_weight = 2.0\ninflation_m = 0.3\n'
     )
-    terrain = load_map(SCENARIO, None)
+    terrain = load_map(SCENARIO, None).terrain
     wide = VehicleParams(footprint_width_m=0.8)
     built_in = _json_plan(capsys)
     from_config = _json_plan(capsys, "--config", str(config))

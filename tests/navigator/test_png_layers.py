@@ -98,7 +98,9 @@ def test_typed_errors(tmp_path: Path) -> None:
     with pytest.raises(TerrainError, match=r"greyscale.*image row 0, col 0"):
         load_png_layers(elevation=colour, resolution_m=1.0)
     other = _grey(tmp_path / "other.png", np.zeros((3, 3)))
-    with pytest.raises(TerrainError, match="share one size"):
+    with pytest.raises(
+        TerrainError, match=r"obstacles layer file .*other\.png' is 3 x 3 cells but elevation"
+    ):
         load_png_layers(elevation=grey, obstacles=other, resolution_m=1.0)
     with pytest.raises(TerrainError, match=r"grey level 128 .* no entry in class_values"):
         load_png_layers(

@@ -36,13 +36,15 @@ def test_cell_geometry():
 
 def test_validation_errors():
     good = np.zeros((3, 3))
-    with pytest.raises(TerrainError, match="shape"):
+    with pytest.raises(TerrainError, match="terrain_class layer is 3 x 2 cells but elevation layer is 3 x 3"):
         TerrainMap(good, np.zeros((3, 2), np.uint8), np.zeros((3, 3), bool), 1.0)
     nan = good.copy()
     nan[1, 2] = np.nan
     with pytest.raises(TerrainError, match=r"row 1, col 2"):
         TerrainMap(nan, np.zeros((3, 3), np.uint8), np.zeros((3, 3), bool), 1.0)
-    with pytest.raises(TerrainError, match="unknown terrain class 9"):
+    with pytest.raises(
+        TerrainError, match=r"terrain_class layer holds 9 at cell \(row 0, col 0\), not a terrain class id"
+    ):
         TerrainMap(good, np.full((3, 3), 9, np.uint8), np.zeros((3, 3), bool), 1.0)
     with pytest.raises(TerrainError, match="resolution"):
         TerrainMap(good, np.zeros((3, 3), np.uint8), np.zeros((3, 3), bool), 0.0)
