@@ -20,6 +20,7 @@ from firmware_bridge.errors import BridgeOperationError
 from firmware_bridge.mavlink_frames import send_unsigned_v2
 from firmware_bridge.mavlink_transport import Transport
 from hil.faults import FaultSchedule
+from hil.first_sample import first_sample_withheld
 from hil.sensors import GpsModel, GpsSample, ImuModel, course_bearing_deg
 from logs.clock import Clock, to_ns
 
@@ -231,7 +232,7 @@ class SimAutopilot:
     def _start(self, now: int) -> None:
         """At the first step: a stream whose first sample that step would send half a period late or more,
         but less than a whole one, takes it (its noise drawn) without sending it; its next, on its cadence
-        from the start, is its first sent.
+        from the start, is its first sent (``hil.first_sample``, the VESCs' rule too).
 
         ``SimWorld`` makes the autopilot at its epoch and first steps it one physics tick (10 ms) later.
         Sent then, a 50 Hz stream's first sample (the IMU; a GPS at ``gps_rate_hz = 50``) was followed
@@ -245,7 +246,7 @@ class SimAutopilot:
         self._withheld = frozenset(
             stream
             for stream, due in self._next_ns.items()
-            if due + self._periods_ns[stream] > now and 2 * (now - due) >= self._periods_ns[stream]
+            if first_sample_withheld(due, self._periods_ns[stream], now)
         )
 
     def _take_turn(self, stream: str, now: int) -> None:

@@ -17,6 +17,7 @@ from firmware_bridge.can_bus import BatchBus
 from firmware_bridge.errors import BridgeError, FrameError
 from firmware_bridge.vesc import WHEEL_COUNT, FieldEncoder, VescCodec, VescFrame
 from firmware_bridge.wheel_names import wheel_label
+from hil.first_sample import first_sample_withheld
 from logs.clock import Clock, to_ns
 
 logger = logging.getLogger(__name__)
@@ -76,6 +77,7 @@ class SimVescBank:
         now = clock.now_ns()
         self._next_status_ns = now
         self._next_slow_ns = now
+        self._status_sent = False  # before the first status: hil.first_sample decides what it sends
         self._targets = [0.0] * WHEEL_COUNT
         self._erpm = [0.0] * WHEEL_COUNT
         self._tacho_erev = [0.0] * WHEEL_COUNT
@@ -301,11 +303,19 @@ class SimVescBank:
     def _send_due_status(self, now: int) -> None:
         fast_due = now >= self._next_status_ns
         slow_due = now >= self._next_slow_ns
+        send_fast = fast_due
+        if not self._status_sent and (fast_due or slow_due):
+            # The first status round, a step after the epoch: a fast status that late is not sent, or the
+            # rover's first poll would take it and the next, 10 ms apart (hil.first_sample).
+            self._status_sent = True
+            send_fast = fast_due and not first_sample_withheld(
+                self._next_status_ns, self._status_period_ns, now
+            )
         if fast_due:
             self._next_status_ns = _next_due(self._next_status_ns, self._status_period_ns, now)
         if slow_due:
             self._next_slow_ns = _next_due(self._next_slow_ns, self._slow_period_ns, now)
-        if not (fast_due or slow_due):
+        if not (send_fast or slow_due):
             return
         self._take_loads()
         # Every value is clamped into its field's range before it gets here (ERPM, currents, duty,
@@ -313,7 +323,7 @@ class SimVescBank:
         # firmware's schedule as before: every controller's STATUS, then each one's STATUS_4 and STATUS_5.
         # Each frame's values in its encoder's order (FieldEncoder): numbers, no dict per frame.
         frames: list[tuple[FieldEncoder, tuple[float, ...]]] = []
-        if fast_due:
+        if send_fast:
             # Every 20 ms, six wheels: their lists walked together rather than indexed (hot path).
             for status, rebooting, motor_erpm, current, duty in zip(
                 self._status_of_wheel,

@@ -111,3 +111,24 @@ def test_a_trial_at_gps_rate_50_records_one_fix_per_control_tick(tmp_path: Path)
         repeated = [t for t, count in Counter(times).items() if count > 1]
         assert repeated == [], f"{topic}: several samples at {repeated} ns"
         assert times[:3] == [20 * MS, 40 * MS, 60 * MS], topic
+
+
+def test_a_trial_records_each_motor_status_once_per_period_from_the_first(tmp_path: Path) -> None:
+    """The simulated VESCs start their 50 Hz status as the autopilot does (``hil.first_sample``): each
+    controller's first two fast statuses used to reach the rover's first poll together, at 20 ms."""
+    text = DEFAULT.read_text(encoding="utf-8").replace("duration_s = 120.0", "duration_s = 1.0")
+    scenario = scenario_from_table(parse_toml(text, "short.toml"), text, DEFAULT.parent)
+    config = rover_config_from_table(parse_toml("", "<defaults>"))
+    result = run_trial(scenario, config, tmp_path)
+    received = Counter(
+        (m.message["id"], m.log_time_ns)
+        for m in read_messages(result.mcap_path, [topics.CAN_FRAMES])
+        if m.message["direction"] == "rx"
+    )
+    assert received, "no status frame was recorded"
+    assert [key for key, count in received.items() if count > 1] == []
+    fast_status = {ident for ident, _ in received if ident >> 8 == 0x09}  # VESC STATUS (command 9)
+    assert len(fast_status) == 6
+    for ident in fast_status:
+        times = sorted(t for i, t in received if i == ident)
+        assert times[:3] == [20 * MS, 40 * MS, 60 * MS], hex(ident)
