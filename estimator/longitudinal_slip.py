@@ -117,17 +117,14 @@ class LongitudinalSlip:
                 while len(wheels) > 1:
                     wheels.popleft()
             return self.slipping
-        body_change = self._body_change(t_ns)
         _, start_wheels, start_estimate = wheels[0]
         wheel_change = wheel_speed_mps - start_wheels
         threshold = self._threshold
         # A skid or a spin is the wheels' transient: their own change must be large too. (An IMU knock or a
-        # lagging pitch with the wheels steady changes the body's "change" alone, and is no slip.)
-        if (
-            body_change is None
-            or abs(wheel_change) <= threshold
-            or abs(wheel_change - body_change) <= threshold
-        ):
+        # lagging pitch with the wheels steady changes the body's "change" alone, and is no slip.) Tested
+        # first: the body's change, a sum over the window, is wanted only then (every control tick).
+        body_change = None if abs(wheel_change) <= threshold else self._body_change(t_ns)
+        if body_change is None or abs(wheel_change - body_change) <= threshold:
             self._suspect = 0
             return False
         self._suspect += 1
