@@ -35,7 +35,7 @@ from estimator.geodesy import Datum, to_enu
 from estimator.heading_bootstrap import HeadingBootstrap
 from estimator.health import EstimatorHealth
 from estimator.history import FusionHistory, GyroSample, OdometrySample, Sample
-from estimator.longitudinal_slip import MAX_BODY_ACCEL_MPS2, LongitudinalSlip
+from estimator.longitudinal_slip import MAX_BODY_ACCEL_MPS2, STANDARD_GRAVITY_MPS2, LongitudinalSlip
 from estimator.pose import PoseEstimate, pose_message
 from estimator.stuck import StuckDetector
 from estimator.transient import WheelTransient
@@ -58,7 +58,7 @@ _LOG_EVERY = 100
 # Physically impossible readings (a sign or unit error, a corrupted frame): MEMS gyros saturate near
 # 35 rad/s (2000 deg/s), accelerometers at 16 g; a rover wheel surface beyond 20 m/s is a decoding error.
 _MAX_GYRO_RPS = 35.0
-_MAX_ACCEL_MPS2 = 16.0 * 9.80665
+_MAX_ACCEL_MPS2 = 16.0 * STANDARD_GRAVITY_MPS2
 _MAX_WHEEL_SPEED_MPS = 20.0
 # IMU / wheel samples may arrive this much behind the filter (two sources, one loop); older ones are stale.
 _MAX_SAMPLE_LAG_NS = 100_000_000
@@ -69,7 +69,6 @@ _STILL_SIGMAS = 3.0
 _HISTORY_MARGIN_NS = 300_000_000
 # An AHRS pitch older than this no longer takes gravity out of the IMU's acceleration (a 5-50 Hz stream).
 _PITCH_FRESH_NS = 500_000_000
-_GRAVITY_MPS2 = 9.80665
 # The counter of each sensor's accepted updates, named once rather than formatted per update.
 _ACCEPTED_KEYS = {sensor: f"{sensor}_accepted" for sensor in ("gyro", "odometry", "heading")}
 
@@ -498,7 +497,7 @@ class Estimator:
                 self._counters["odometry_long_slip_off"] += 1
             self._ekf.acceleration = 0.0
             return
-        body = accel_x - _GRAVITY_MPS2 * math.sin(pitch[1])
+        body = accel_x - STANDARD_GRAVITY_MPS2 * math.sin(pitch[1])
         if not self._long_slip.add_body_acceleration(t_ns, body):
             if abs(body) > MAX_BODY_ACCEL_MPS2:
                 self._counters["imu_accel_knock"] += 1

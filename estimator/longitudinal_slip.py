@@ -35,7 +35,8 @@ _END_SHARE = 0.5
 _CONFIRM_SAMPLES = 2
 # A body acceleration beyond 1 g is no ground vehicle's travel (friction-limited, mu <= 1): a bump or a knock
 # on the IMU, left out.
-MAX_BODY_ACCEL_MPS2 = 9.80665
+STANDARD_GRAVITY_MPS2 = 9.80665
+MAX_BODY_ACCEL_MPS2 = STANDARD_GRAVITY_MPS2
 
 
 class LongitudinalSlip:

@@ -167,7 +167,7 @@ Reading = (
 )
 
 # The first refused OBSTACLE_DISTANCE (DISTANCE_SENSOR) is logged, then every 100th.
-_LOG_REJECTED_SCAN_EVERY = 100
+_LOG_REJECTED_RANGE_EVERY = 100
 
 
 class _TransportFile:
@@ -606,16 +606,12 @@ class MavlinkLink(ClosesOnExit):
         }
 
     def _convert_scan(self, msg: Any, t_ns: int) -> ObstacleScan | None:
-        counters = self.counters
         try:
             scan = read_scan(msg, t_ns)
         except ScanRejected as error:
-            # Counted and logged, never raised: a lidar driver's bad message must not stop the rover loop.
-            counters.scans_rejected += 1
-            if counters.scans_rejected == 1 or counters.scans_rejected % _LOG_REJECTED_SCAN_EVERY == 0:
-                logger.warning("OBSTACLE_DISTANCE refused (%d so far): %s", counters.scans_rejected, error)
+            self._refuse_range_reading("OBSTACLE_DISTANCE", "scans_rejected", error)
             return None
-        counters.scans += 1
+        self.counters.scans += 1
         return scan
 
     def _convert_beam(self, msg: Any, t_ns: int) -> RangeBeam | None:
@@ -623,16 +619,21 @@ class MavlinkLink(ClosesOnExit):
         try:
             beam = read_beam(msg, t_ns)
         except BeamRejected as error:
-            # As a refused scan: counted and logged, never raised into the rover loop.
-            counters.beams_rejected += 1
-            if counters.beams_rejected == 1 or counters.beams_rejected % _LOG_REJECTED_SCAN_EVERY == 0:
-                logger.warning("DISTANCE_SENSOR refused (%d so far): %s", counters.beams_rejected, error)
+            self._refuse_range_reading("DISTANCE_SENSOR", "beams_rejected", error)
             return None
         if beam is None:
             counters.beams_unused += 1  # looking up or down: not an obstacle sensor
             return None
         counters.beams += 1
         return beam
+
+    def _refuse_range_reading(self, name: str, counter: str, error: ValueError) -> None:
+        """A range sensor's message that cannot be read: counted under ``counter`` and logged (the first,
+        then every 100th), never raised: a driver's bad message must not stop the rover loop."""
+        refused = getattr(self.counters, counter) + 1
+        setattr(self.counters, counter, refused)
+        if refused == 1 or refused % _LOG_REJECTED_RANGE_EVERY == 0:
+            logger.warning("%s refused (%d so far): %s", name, refused, error)
 
     def _convert_gps(self, msg: Any, t_ns: int) -> GpsFix:
         fix = _gps_fix(msg, t_ns)
