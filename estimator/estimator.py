@@ -34,7 +34,7 @@ from estimator.errors import EstimatorSetupError
 from estimator.geodesy import Datum, to_enu
 from estimator.heading_bootstrap import HeadingBootstrap
 from estimator.health import EstimatorHealth
-from estimator.history import FusionHistory, GyroSample, OdometrySample, Sample
+from estimator.history import FusionHistory, GyroSample, HeadingSample, OdometrySample, Sample
 from estimator.longitudinal_slip import MAX_BODY_ACCEL_MPS2, STANDARD_GRAVITY_MPS2, LongitudinalSlip
 from estimator.pose import PoseEstimate, pose_message
 from estimator.stuck import StuckDetector
@@ -150,6 +150,7 @@ class Estimator:
             )
         if self._ekf.initialised:
             self._ekf.reset_heading(yaw_rad, std_rad)
+            self._cut_history()
         else:
             self._initial_heading = (wrap_angle(yaw_rad), std_rad)
         self._heading_known = True
@@ -177,8 +178,15 @@ class Estimator:
         if t_ns < self._ekf.t_ns - _MAX_SAMPLE_LAG_NS:
             self._reject("attitude_stale", f"sample at {t_ns} ns, filter already at {self._ekf.t_ns} ns")
             return
+        ekf = self._ekf
+        before = ekf.snapshot() if self._history is not None else None
         self._advance(t_ns)
-        innovation = self._ekf.update_heading(yaw_rad, std_rad)
+        innovation = ekf.update_heading(yaw_rad, std_rad)
+        if before is not None:
+            # At the filter's time (a sample a little older than it is fused there): the history's order.
+            self._remember(
+                before, HeadingSample(ekf.t_ns, yaw_rad, std_rad, ekf.acceleration, ekf.scale_learning)
+            )
         self._report(t_ns, innovation, "heading")
 
     # --- sensors -------------------------------------------------------------------------------
@@ -431,6 +439,15 @@ class Estimator:
         """Rewind to the fix's time, fuse it there, and re-fuse the IMU / wheel samples since."""
         history = self._history
         if history is None or not history.covers(t_fix):
+            if (
+                history is not None
+                and history.cut_after(t_fix)
+                and self._ekf.t_ns - t_fix <= history.horizon_ns
+            ):
+                # Taken before the heading was given or learnt: fused on arrival, as while it was unknown.
+                self._counters["gps_fused_on_arrival"] += 1
+                self._fuse_gps(self._ekf.t_ns, east, north, std)
+                return
             self._reject("gps_too_late", f"fix time {t_fix} ns is older than the fusion history")
             return
         later = history.rewind(self._ekf, t_fix)
@@ -550,6 +567,10 @@ class Estimator:
         steady = not self._transient.unsettled(t_ns)
         return gps_recent and self._heading_known and steady and not self._stuck.spinning
 
+    def _cut_history(self) -> None:
+        if self._history is not None:
+            self._history.cut(self._ekf.t_ns)
+
     def _remember(self, before: Snapshot, sample: Sample) -> None:
         if self._history is not None:
             self._history.record(before, sample)
@@ -598,6 +619,8 @@ class Estimator:
         if guess is None:
             return
         self._heading_known = True
+        # Late fixes were fused on arrival until now, so the history's states are not at their times.
+        self._cut_history()
         # GPS updates have been teaching the filter its heading all along (through the position/yaw
         # covariance). If that estimate is already tighter than the chord and agrees with it, keep it: the
         # chord check only guards against the filter having settled on a wrong linearisation.

@@ -1,10 +1,10 @@
 """Buffer-and-re-fuse for late GPS fixes: the filter states and samples of the last fraction of a second.
 
 A fix that reached us ``latency`` after it was taken belongs at its own time. We keep, for every IMU and
-wheel sample fused recently, the filter state just before it and the update it made. A late fix rewinds to
-the last state before its time, is fused there, and the samples after it are fused again on top. Only the
-filter arithmetic is replayed: counters, innovations messages and the heading bootstrap saw those samples
-once already.
+wheel sample and every absolute heading (AHRS / compass) fused recently, the filter state just before it and
+the update it made. A late fix rewinds to the last state before its time, is fused there, and the samples
+after it are fused again on top. Only the filter arithmetic is replayed: counters, innovations messages and
+the heading bootstrap saw those samples once already.
 """
 
 from __future__ import annotations
@@ -38,7 +38,22 @@ class OdometrySample:
     learn_scale: bool = True
 
 
-Sample = GyroSample | OdometrySample
+@dataclass(frozen=True)
+class HeadingSample:
+    """An absolute heading update (``Estimator.on_attitude``), at the filter time it was fused at.
+
+    Without it a late fix's rewind undid every heading update since the fix was taken (a fifth of a second
+    of AHRS corrections at 0.2 s latency), and only the next AHRS sample put the heading back.
+    """
+
+    t_ns: int
+    yaw_rad: float
+    std_rad: float
+    acceleration: float = 0.0
+    learn_scale: bool = True
+
+
+Sample = GyroSample | OdometrySample | HeadingSample
 
 
 def apply(ekf: RoverEkf, sample: Sample) -> None:
@@ -47,6 +62,10 @@ def apply(ekf: RoverEkf, sample: Sample) -> None:
     ekf.learn_scale(sample.learn_scale)
     if isinstance(sample, GyroSample):
         ekf.update_gyro(sample.gyro_z_rps, t_ns=sample.t_ns)
+    elif isinstance(sample, HeadingSample):
+        ekf.predict(sample.t_ns)
+        # Gated again on the replayed prior, as a first pass at this state would have been.
+        ekf.update_heading(sample.yaw_rad, sample.std_rad)
     else:
         if sample.speed_reset is not None:
             ekf.reset_speed(*sample.speed_reset)
@@ -66,6 +85,21 @@ class FusionHistory:
     def __init__(self, horizon_ns: int) -> None:
         self._horizon_ns = horizon_ns
         self._entries: deque[tuple[Snapshot, Sample]] = deque()
+        self._cut_ns: int | None = None
+
+    @property
+    def horizon_ns(self) -> int:
+        return self._horizon_ns
+
+    def cut(self, t_ns: int) -> None:
+        """The filter was changed at ``t_ns`` by something not kept here (a heading given or learnt, with the
+        fixes fused on arrival before it): no state before it may be restored, so everything is dropped."""
+        self._entries.clear()
+        self._cut_ns = t_ns
+
+    def cut_after(self, t_ns: int) -> bool:
+        """Whether the history was cut after ``t_ns`` (so a fix taken then cannot be put at its time)."""
+        return self._cut_ns is not None and t_ns < self._cut_ns
 
     def __len__(self) -> int:
         return len(self._entries)
