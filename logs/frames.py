@@ -14,11 +14,11 @@ from dataclasses import dataclass
 from io import BytesIO
 from typing import BinaryIO
 
-import zstandard
 from mcap.data_stream import ReadDataStream
 from mcap.opcode import Opcode
 from mcap.records import Chunk
 
+from logs.chunk_codec import decompress
 from logs.errors import LogReadError, NotARecording, RecordingDamaged
 from logs.read_stop import CUT, DAMAGED, ReadStop
 
@@ -131,19 +131,7 @@ def chunk_of(frame: Frame) -> Chunk:
 
 def chunk_payload(chunk: Chunk) -> bytes:
     """The chunk's records, decompressed; ``ValueError`` naming the problem (compression, size, CRC)."""
-    if chunk.compression == "zstd":
-        try:
-            data = zstandard.ZstdDecompressor().decompress(
-                chunk.data, max_output_size=chunk.uncompressed_size
-            )
-        except zstandard.ZstdError as err:
-            raise ValueError(f"zstd data does not decompress: {err}") from err
-    elif chunk.compression == "":
-        data = chunk.data
-    else:
-        raise ValueError(f"compression {chunk.compression!r} is not supported (zstd or none)")
-    if len(data) != chunk.uncompressed_size:
-        raise ValueError(f"decompressed to {len(data)} bytes, the chunk says {chunk.uncompressed_size}")
+    data = decompress(chunk)
     if chunk.uncompressed_crc != 0 and zlib.crc32(data) != chunk.uncompressed_crc:
         raise ValueError("CRC mismatch")
     return data

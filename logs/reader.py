@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import logging
 import struct
-import threading
 from collections.abc import Callable, Collection, Iterator
 from contextlib import ExitStack
 from dataclasses import dataclass, field
@@ -24,13 +23,13 @@ from io import BytesIO
 from pathlib import Path
 from typing import Any, BinaryIO, TypeVar
 
-import zstandard
 from fastcrc import crc32
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.records import Attachment, Channel, Chunk, McapRecord, Message, Metadata
 
+from logs.chunk_codec import UnsupportedCompression, decompress
 from logs.chunk_kernel import LAYOUT_CUT_BODY, LAYOUT_CUT_HEAD, chunk_layout, skip_mask
 from logs.errors import LogReadError, RecordingDamaged
 from logs.frames import MAX_RECORD_BYTES, MCAP_MAGIC, magic_complete, oversized_record
@@ -456,32 +455,15 @@ def _parse(
         return [_PLAIN_RECORDS[opcode].read(data)]
     except LogReadError:
         raise
-    except (McapError, struct.error, UnicodeDecodeError, ValueError, zstandard.ZstdError) as err:
+    except (McapError, struct.error, UnicodeDecodeError, ValueError) as err:
         raise RecordingDamaged(name, ReadStop(DAMAGED, offset, f"opcode {opcode:#x}: {err}")) from err
 
 
-_THREAD_STATE = threading.local()
-
-
-def _decompressor() -> zstandard.ZstdDecompressor:
-    """This thread's zstd decompressor, made once and reused for every chunk: a new one per chunk cost
-    ~8 % of the decompression (a trial's ~84 chunks). One per thread, as zstandard requires."""
-    decompressor: zstandard.ZstdDecompressor | None = getattr(_THREAD_STATE, "zstd", None)
-    if decompressor is None:
-        decompressor = _THREAD_STATE.zstd = zstandard.ZstdDecompressor()
-    return decompressor
-
-
 def _chunk_records(chunk: Chunk, name: str, offset: int, skip_channels: Collection[int]) -> list[RawRecord]:
-    if chunk.compression == "zstd":
-        data = _decompressor().decompress(chunk.data, max_output_size=chunk.uncompressed_size)
-    elif chunk.compression == "":
-        data = chunk.data
-    else:
-        raise LogReadError(
-            f"{name}: chunk at byte {offset} uses {chunk.compression!r} compression; "
-            "only zstd and uncompressed recordings are supported"
-        )
+    try:
+        data = decompress(chunk)
+    except UnsupportedCompression as err:
+        raise LogReadError(f"{name}: chunk at byte {offset}: {err}") from err
     # fastcrc's CRC-32 (ISO-HDLC: zlib's, the one MCAP uses) runs ~7x zlib's here: zlib's took a tenth
     # of the metrics pass every trial ends with (~17 MB of chunks).
     if chunk.uncompressed_crc != 0 and crc32.iso_hdlc(data) != chunk.uncompressed_crc:

@@ -1,0 +1,114 @@
+"""Recordings whose chunks another tool compressed with lz4 (rosbag2's MCAP storage, ``mcap convert``):
+read, diagnosed and recovered as our own zstd ones; damaged lz4 data and unknown compressions are named."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import lz4.frame
+import pytest
+from mcap.reader import make_reader
+from mcap.records import Chunk
+from mcap.writer import CompressionType, Writer
+
+from logs.chunk_codec import UnsupportedCompression, decompress
+from logs.doctor import diagnose
+from logs.errors import LogReadError
+from logs.metrics import compute_metrics
+from logs.reader import read_messages
+from logs.recorder import McapRecorder
+from logs.recover import recover
+from logs.synthetic import synthetic_metadata, synthetic_trial
+
+DURATION_S = 6
+
+
+def _converted(source: Path, target: Path, compression: CompressionType) -> None:
+    """``source`` written again by the mcap library's own writer, with ``compression`` chunks."""
+    with source.open("rb") as stream_in, target.open("wb") as stream_out:
+        reader = make_reader(stream_in)
+        writer = Writer(stream_out, compression=compression, chunk_size=64 * 1024)
+        writer.start(profile="", library="another tool")
+        schema_ids: dict[int, int] = {}
+        channel_ids: dict[int, int] = {}
+        for schema, channel, message in reader.iter_messages(log_time_order=False):
+            if schema is not None and schema.id not in schema_ids:
+                schema_ids[schema.id] = writer.register_schema(schema.name, schema.encoding, schema.data)
+            if channel.id not in channel_ids:
+                channel_ids[channel.id] = writer.register_channel(
+                    channel.topic, channel.message_encoding, schema_ids.get(channel.schema_id, 0)
+                )
+            writer.add_message(channel_ids[channel.id], message.log_time, message.data, message.publish_time)
+        for metadata in reader.iter_metadata():
+            writer.add_metadata(metadata.name, metadata.metadata)
+        writer.finish()
+
+
+@pytest.fixture(scope="module")
+def recordings(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """(our zstd recording of a synthetic trial, the same converted to lz4 chunks)."""
+    folder = tmp_path_factory.mktemp("lz4")
+    ours = folder / "zstd.mcap"
+    with McapRecorder(ours) as recorder:
+        recorder.add_metadata("scenario", synthetic_metadata(DURATION_S, "rocky"))
+        for topic, t, message in synthetic_trial(DURATION_S, wobble_m=0.3, terrain="rocky"):
+            recorder.publish(topic, t, message)
+    converted = folder / "lz4.mcap"
+    _converted(ours, converted, CompressionType.LZ4)
+    return ours, converted
+
+
+def test_lz4_chunks_read_as_the_same_messages(recordings: tuple[Path, Path]) -> None:
+    ours, converted = recordings
+    original = [(m.topic, m.log_time_ns, m.message) for m in read_messages(ours)]
+    assert len(original) > 1000
+    assert [(m.topic, m.log_time_ns, m.message) for m in read_messages(converted)] == original
+
+
+def test_doctor_and_metrics_on_lz4_chunks(recordings: tuple[Path, Path]) -> None:
+    ours, converted = recordings
+    findings = diagnose(converted)
+    assert findings.healthy, findings.problems
+    assert set(findings.chunk_compression) == {"lz4"} and findings.chunks > 1
+    assert findings.messages == diagnose(ours).messages
+    assert compute_metrics(converted) == compute_metrics(ours)
+
+
+def test_a_damaged_lz4_chunk_is_named_and_recover_keeps_the_others(
+    recordings: tuple[Path, Path], tmp_path: Path
+) -> None:
+    data = bytearray(recordings[1].read_bytes())
+    frame = data.index(b"\x04\x22\x4d\x18", len(data) // 2)  # an lz4 frame's magic, past the middle
+    data[frame + 16 : frame + 80] = bytes(64)
+    damaged = tmp_path / "damaged.mcap"
+    damaged.write_bytes(bytes(data))
+    with pytest.raises(LogReadError, match="damaged"):
+        list(read_messages(damaged))
+    findings = diagnose(damaged)
+    assert findings.chunks_damaged == 1
+    result = recover(damaged, tmp_path / "fixed.mcap")
+    assert result.chunks_dropped == 1 and result.chunks_kept == findings.chunks - 1
+    assert diagnose(tmp_path / "fixed.mcap").healthy
+
+
+def _chunk(compression: str, data: bytes, uncompressed_size: int) -> Chunk:
+    return Chunk(
+        compression=compression,
+        data=data,
+        message_start_time=0,
+        message_end_time=0,
+        uncompressed_crc=0,
+        uncompressed_size=uncompressed_size,
+    )
+
+
+def test_decompress_names_an_unknown_compression_and_a_wrong_size() -> None:
+    records = b"\x01" * 100
+    assert decompress(_chunk("lz4", lz4.frame.compress(records), 100)) == records
+    assert decompress(_chunk("", records, 100)) == records
+    with pytest.raises(UnsupportedCompression, match="'brotli'"):
+        decompress(_chunk("brotli", records, 100))
+    with pytest.raises(ValueError, match="decompressed to 100 bytes, the chunk says 99"):
+        decompress(_chunk("lz4", lz4.frame.compress(records), 99))
+    with pytest.raises(ValueError, match="lz4 data do not decompress"):
+        decompress(_chunk("lz4", b"not an lz4 frame", 100))
