@@ -7,9 +7,8 @@ from pathlib import Path
 
 import lz4.frame
 import pytest
-from mcap.reader import make_reader
 from mcap.records import Chunk
-from mcap.writer import CompressionType, Writer
+from mcap.writer import CompressionType
 
 from logs.chunk_codec import UnsupportedCompression, decompress
 from logs.doctor import diagnose
@@ -19,29 +18,9 @@ from logs.reader import read_messages
 from logs.recorder import McapRecorder
 from logs.recover import recover
 from logs.synthetic import synthetic_metadata, synthetic_trial
+from tests.mcap_rewrite import rewrite
 
 DURATION_S = 6
-
-
-def _converted(source: Path, target: Path, compression: CompressionType) -> None:
-    """``source`` written again by the mcap library's own writer, with ``compression`` chunks."""
-    with source.open("rb") as stream_in, target.open("wb") as stream_out:
-        reader = make_reader(stream_in)
-        writer = Writer(stream_out, compression=compression, chunk_size=64 * 1024)
-        writer.start(profile="", library="another tool")
-        schema_ids: dict[int, int] = {}
-        channel_ids: dict[int, int] = {}
-        for schema, channel, message in reader.iter_messages(log_time_order=False):
-            if schema is not None and schema.id not in schema_ids:
-                schema_ids[schema.id] = writer.register_schema(schema.name, schema.encoding, schema.data)
-            if channel.id not in channel_ids:
-                channel_ids[channel.id] = writer.register_channel(
-                    channel.topic, channel.message_encoding, schema_ids.get(channel.schema_id, 0)
-                )
-            writer.add_message(channel_ids[channel.id], message.log_time, message.data, message.publish_time)
-        for metadata in reader.iter_metadata():
-            writer.add_metadata(metadata.name, metadata.metadata)
-        writer.finish()
 
 
 @pytest.fixture(scope="module")
@@ -54,7 +33,7 @@ def recordings(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
         for topic, t, message in synthetic_trial(DURATION_S, wobble_m=0.3, terrain="rocky"):
             recorder.publish(topic, t, message)
     converted = folder / "lz4.mcap"
-    _converted(ours, converted, CompressionType.LZ4)
+    rewrite(ours, converted, compression=CompressionType.LZ4)
     return ours, converted
 
 

@@ -6,8 +6,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from mcap.reader import make_reader
-from mcap.writer import Writer
 
 from hil.scenario import Scenario
 from hil.trial import TrialResult, run_trial
@@ -15,34 +13,13 @@ from logs.analysis import analyse
 from logs.compare import compare_runs
 from logs.metrics import compute_metrics
 from navigator.config import RoverConfig
+from tests.mcap_rewrite import rewrite
 
 
 def copy_without_truth(source: Path, target: Path) -> Path:
-    """``source`` as a ``rover run`` recording looks: every message, metadata and attachment but the
-    simulator's ``truth/*`` topics."""
-    with source.open("rb") as inp, target.open("wb") as out:
-        reader = make_reader(inp)
-        writer = Writer(out)
-        writer.start()
-        schemas: dict[int, int] = {}
-        channels: dict[int, int] = {}
-        for schema, channel, message in reader.iter_messages(log_time_order=False):
-            if channel.topic.startswith("truth/"):
-                continue
-            if schema is not None and schema.id not in schemas:
-                schemas[schema.id] = writer.register_schema(schema.name, schema.encoding, schema.data)
-            if channel.id not in channels:
-                schema_id = schemas.get(channel.schema_id, 0)
-                channels[channel.id] = writer.register_channel(
-                    channel.topic, channel.message_encoding, schema_id, dict(channel.metadata)
-                )
-            writer.add_message(
-                channels[channel.id], message.log_time, message.data, message.publish_time, message.sequence
-            )
-        for record in reader.iter_metadata():
-            writer.add_metadata(record.name, dict(record.metadata))
-        writer.finish()
-    return target
+    """``source`` as a ``rover run`` recording looks: every message and metadata record but the simulator's
+    ``truth/*`` topics."""
+    return rewrite(source, target, keep=lambda topic: not topic.startswith("truth/"))
 
 
 @pytest.fixture(scope="module")
