@@ -91,13 +91,14 @@ REPORT_TOPICS = frozenset(METRIC_TOPICS) | {
     TRUTH_STABILITY,
 }
 # mavlink/stats window counters -> report figures: the link's garbage, its receive-budget drops, the
-# commands its signing check refused and the OBSTACLE_DISTANCE scans it could not read
-# (firmware_bridge.mavlink_health).
+# commands its signing check refused, the OBSTACLE_DISTANCE scans and the DISTANCE_SENSOR readings it could
+# not read (firmware_bridge.mavlink_health).
 MAVLINK_FIGURES = {
     "bad_frames": "mavlink_bad_frames",
     "dropped_bytes": "mavlink_dropped_bytes",
     "signature_rejected": "mavlink_commands_refused",
     "scans_rejected": "mavlink_scans_refused",
+    "beams_rejected": "mavlink_beams_refused",
 }
 EXPECTED_TOPICS = (ESTIMATOR_POSE, NAVIGATOR_PATH, NAVIGATOR_STATE, WHEELS_STATUS, CAN_FRAMES)
 
@@ -313,7 +314,8 @@ class _Collector:
         elif topic == CAN_STATS:
             self._can_stats(message)
         elif topic == MAVLINK_STATS:
-            # .get: recordings from before a counter existed (scans_rejected) lack it; none happened then.
+            # .get: recordings from before a counter existed (scans_rejected), and links that never had a
+            # rangefinder (beams_rejected is reported only after one), lack it; none happened then.
             grown = Counter({key: int(message.get(key, 0)) for key in MAVLINK_FIGURES})
             self.mavlink = grown if self.mavlink is None else self.mavlink + grown
         elif topic == TRUTH_CONTACTS:

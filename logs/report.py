@@ -64,6 +64,8 @@ FIGURE_LABELS = {
     "mavlink_bad_frames": "MAVLink bad frames (bad CRC, header, truncated)",
     "mavlink_dropped_bytes": "MAVLink bytes dropped over the receive budget",
     "mavlink_commands_refused": "MAVLink commands refused by the signing check",
+    "mavlink_scans_refused": "MAVLink OBSTACLE_DISTANCE scans refused (unreadable)",
+    "mavlink_beams_refused": "MAVLink DISTANCE_SENSOR readings refused (unreadable)",
     "innovations_rejected": "estimator innovations rejected",
     "safety_warnings": "safety warnings",
     "safety_errors": "safety errors",

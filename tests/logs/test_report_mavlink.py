@@ -27,6 +27,10 @@ def _recording(path: Path, with_stats: bool) -> Path:
                     counters.bad_frames += 7
                     counters.dropped_bytes += 1000
                 counters.signature_rejected += second == 4
+                counters.scans_rejected += 2 * (second == 3)
+                if second >= 3:  # a rangefinder speaks from the 3rd second: its counters appear then
+                    counters.beams += 10
+                    counters.beams_rejected += 3
                 stats = health.report(second * S, counters).stats
                 assert stats is not None
                 recorder.publish("mavlink/stats", second * S, stats)
@@ -38,8 +42,12 @@ def test_report_figures_sum_the_links_windows(tmp_path: Path) -> None:
     assert run.figures["mavlink_bad_frames"] == 14
     assert run.figures["mavlink_dropped_bytes"] == 2000
     assert run.figures["mavlink_commands_refused"] == 1
+    assert run.figures["mavlink_scans_refused"] == 2
+    assert run.figures["mavlink_beams_refused"] == 6
     result = write_report([tmp_path / "a.mcap"], tmp_path / "out", plots=False)
-    assert "| MAVLink bad frames (bad CRC, header, truncated) | 14 |" in result.markdown.read_text("utf-8")
+    markdown = result.markdown.read_text("utf-8")
+    assert "| MAVLink bad frames (bad CRC, header, truncated) | 14 |" in markdown
+    assert "| MAVLink DISTANCE_SENSOR readings refused (unreadable) | 6 |" in markdown
 
 
 def test_without_mavlink_stats_the_figures_are_unknown_not_zero(tmp_path: Path) -> None:
