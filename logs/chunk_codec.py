@@ -13,8 +13,6 @@ import lz4.frame
 import zstandard
 from mcap.records import Chunk
 
-SUPPORTED = ("zstd", "lz4", "")  # "": stored uncompressed
-
 _THREAD_STATE = threading.local()
 
 
@@ -23,17 +21,25 @@ class UnsupportedCompression(ValueError):
 
 
 def decompress(chunk: Chunk) -> bytes:
-    """The chunk's record bytes. ``UnsupportedCompression`` for a compression not in ``SUPPORTED``;
-    ``ValueError`` naming the problem when the data do not decompress to the chunk's stated size."""
+    """The chunk's record bytes. ``UnsupportedCompression`` for a compression other than zstd, lz4 or none
+    (""); ``ValueError`` naming the problem when the data do not decompress to the chunk's stated size.
+    Neither decompression is let past that size (plus a byte, to tell a longer one): a damaged or hostile
+    chunk cannot make the reader allocate more than its header admits."""
     compression = chunk.compression
     if compression == "zstd":
         try:
+            # A frame that states its size is decompressed to that size whatever the limit: check it first.
+            stated = zstandard.frame_content_size(chunk.data)
+            if stated >= 0 and stated != chunk.uncompressed_size:
+                raise ValueError(f"zstd frame holds {stated} bytes, the chunk says {chunk.uncompressed_size}")
             data = _zstd().decompress(chunk.data, max_output_size=chunk.uncompressed_size)
         except zstandard.ZstdError as err:
             raise ValueError(f"zstd data do not decompress: {err}") from err
     elif compression == "lz4":
         try:
-            data = lz4.frame.decompress(chunk.data)
+            data = lz4.frame.LZ4FrameDecompressor().decompress(
+                chunk.data, max_length=chunk.uncompressed_size + 1
+            )
         except RuntimeError as err:  # what lz4.frame raises on a damaged or cut frame
             raise ValueError(f"lz4 data do not decompress: {err}") from err
     elif compression == "":

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import lz4.frame
 import pytest
+import zstandard
 from mcap.records import Chunk
 from mcap.writer import CompressionType
 
@@ -89,5 +90,10 @@ def test_decompress_names_an_unknown_compression_and_a_wrong_size() -> None:
         decompress(_chunk("brotli", records, 100))
     with pytest.raises(ValueError, match="decompressed to 100 bytes, the chunk says 99"):
         decompress(_chunk("lz4", lz4.frame.compress(records), 99))
+    # A chunk whose data hold far more than its header says is refused without inflating all of it.
+    with pytest.raises(ValueError, match="decompressed to 101 bytes, the chunk says 100"):
+        decompress(_chunk("lz4", lz4.frame.compress(b"\x00" * 10_000_000), 100))
+    with pytest.raises(ValueError, match="zstd frame holds 10000000 bytes, the chunk says 100"):
+        decompress(_chunk("zstd", zstandard.ZstdCompressor().compress(b"\x00" * 10_000_000), 100))
     with pytest.raises(ValueError, match="lz4 data do not decompress"):
         decompress(_chunk("lz4", b"not an lz4 frame", 100))
