@@ -571,13 +571,13 @@ def test_malformed_mission_traffic_never_raises_and_only_a_whole_valid_upload_ch
         for item in rig.server.items:
             assert item.frame in GLOBAL_FRAMES and -90 <= item.lat_deg <= FENCE_LAT
             assert -180 <= item.lon_deg <= 180
-    # After the garbage and the timeouts, a clean upload still gets through: a transfer left under way is
-    # abandoned within 6 timeouts (one per tick past each deadline), and a stray start marker the parser
-    # holds (a byte stream) is flushed by the traffic after it, here zeros.
+    # After the garbage and the timeouts, a clean upload still gets through: a stray start marker the
+    # parser holds (a byte stream) is flushed by the traffic after it, here zeros (what it held is then
+    # read), and a transfer left under way is abandoned within 6 timeouts (one per tick past a deadline).
+    rig.gcs.end.write(bytes(300))
+    rig.step()
     for _ in range(MAX_RETRIES + 2):
         rig.step(OPERATION_TIMEOUT_NS + TICK_NS)
     assert not rig.server.transfer_under_way
-    rig.gcs.end.write(bytes(300))
-    rig.step()
     assert rig.upload(items()).type == mavlink2.MAV_MISSION_ACCEPTED
     assert [(i.x, i.y) for i in rig.server.items] == [(m.x, m.y) for m in items()]
