@@ -18,8 +18,9 @@ logged naming what was wrong):
   estimator's datum, inside the geofence; else ``MAV_MISSION_DENIED`` naming why). Altitude, hold time,
   acceptance radius, yaw and ``autocontinue`` are kept for a download and not used. The legacy float
   MISSION_ITEM is refused (``MAV_MISSION_UNSUPPORTED``): we ask with MISSION_REQUEST_INT.
-* Item 0 is the first waypoint, as the spec numbers items (PX4, QGroundControl with a generic vehicle).
-  ArduPilot's convention of home as item 0 is not taken: such an upload would drive to home first.
+* Item 0 is the first waypoint, as the spec numbers items (as PX4 does). ArduPilot's convention of home as
+  item 0 is not taken: nothing in an upload says which one it follows, and taking item 0 as home would
+  drop every other ground station's first waypoint; an ArduPilot-style upload drives to home first.
 * At most ``MAX_MISSION_ITEMS`` items (``MAV_MISSION_NO_SPACE``). A count of 0 clears.
 * One transfer at a time. A new operation (MISSION_COUNT, MISSION_REQUEST_LIST, MISSION_CLEAR_ALL) from
   the partner of the transfer under way replaces it (a ground station that started over); from anyone else
@@ -529,7 +530,7 @@ class MissionServer:
                 compid,
                 mavlink2.MAV_MISSION_DENIED,
                 f"{name} from {sysid}/{compid} while a {transfer.what} is under way",
-                getattr(msg, "mission_type", _MISSION),
+                msg.mission_type,
             )
             return False
         logger.info("%s given up: the partner sent %s", transfer.what, name)
