@@ -46,6 +46,20 @@ class MavlinkCounters:
     beams: int = 0  # DISTANCE_SENSOR readings of obstacle rangefinders (firmware_bridge.distance_sensor)
     beams_rejected: int = 0  # DISTANCE_SENSOR messages that could not be read (counted, logged)
     beams_unused: int = 0  # DISTANCE_SENSOR of sensors looking up or down: not obstacle sensors
+    # The mission protocol (firmware_bridge.mavlink_mission), on the link the ground station used:
+    mission_messages: int = 0  # mission messages addressed to us
+    missions_accepted: int = 0  # uploads completed (MISSION_ACK ACCEPTED after the last item)
+    missions_cleared: int = 0  # MISSION_CLEAR_ALL and empty uploads taken
+    mission_downloads: int = 0  # downloads completed
+    mission_refused: int = 0  # refusals answered (MISSION_ACK error or STATUSTEXT), each logged with why
+    mission_out_of_sequence: int = 0  # upload items out of sequence: dropped, the expected one asked again
+    mission_resends: int = 0  # requests (download: counts or items) sent again, after a timeout or above
+    mission_timeouts: int = 0  # transfers abandoned when their retries ran out (the mission unchanged)
+
+    @property
+    def missions_heard(self) -> bool:
+        """Any mission message addressed to us has come."""
+        return self.mission_messages > 0
 
     @property
     def rangefinders_heard(self) -> bool:
@@ -73,6 +87,17 @@ _WINDOWED = (
 # Windowed too, but in mavlink/stats only once a DISTANCE_SENSOR has come: a link without rangefinders
 # records what it did before they were read.
 _RANGEFINDER_WINDOWED = ("beams", "beams_rejected", "beams_unused")
+# Likewise once a mission message has come: a link no ground station sent a mission records as before.
+_MISSION_WINDOWED = (
+    "mission_messages",
+    "missions_accepted",
+    "missions_cleared",
+    "mission_downloads",
+    "mission_refused",
+    "mission_out_of_sequence",
+    "mission_resends",
+    "mission_timeouts",
+)
 _TOTALS = ("rx_frames", "bad_frames", "bad_bytes", "dropped_bytes")
 _REASONS = (
     ("bad_crc", "bad CRC"),
@@ -97,7 +122,9 @@ class _Window:
 
 
 def _snapshot(counters: MavlinkCounters) -> dict[str, int]:
-    return {name: int(getattr(counters, name)) for name in _WINDOWED + _RANGEFINDER_WINDOWED}
+    return {
+        name: int(getattr(counters, name)) for name in _WINDOWED + _RANGEFINDER_WINDOWED + _MISSION_WINDOWED
+    }
 
 
 def describe_garbage(growth: dict[str, int], window_s: float, link: str = "autopilot") -> str | None:
@@ -176,6 +203,9 @@ class MavlinkHealth:
             growth = self._stats.close(now_ns, counters)
             if not counters.rangefinders_heard:
                 for name in _RANGEFINDER_WINDOWED:
+                    del growth[name]
+            if not counters.missions_heard:
+                for name in _MISSION_WINDOWED:
                     del growth[name]
             stats = {"timestamp": stamp(now_ns), "link": self._link, "window_s": window_s, **growth}
             stats.update({f"{name}_total": int(getattr(counters, name)) for name in _TOTALS})

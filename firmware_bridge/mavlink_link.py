@@ -34,6 +34,12 @@ from firmware_bridge.mavlink_commands import (
 )
 from firmware_bridge.mavlink_frames import V2_FRAME_OVERHEAD, decode_unsigned_v2
 from firmware_bridge.mavlink_health import MavlinkCounters, MavlinkHealth
+from firmware_bridge.mavlink_mission import (
+    MISSION_MESSAGE_IDS,
+    MISSION_MESSAGES,
+    MissionMessage,
+    mission_addressed,
+)
 from firmware_bridge.mavlink_transport import DatagramTransport, Transport, check_connection
 from firmware_bridge.obstacle_scan import ObstacleScan, ScanRejected, read_scan
 from logs.clock import Clock, to_ns
@@ -163,7 +169,15 @@ class BatteryState:
 
 
 Reading = (
-    GpsFix | ImuSample | AttitudeSample | BatteryState | ObstacleScan | RangeBeam | GoalRequest | StopRequest
+    GpsFix
+    | ImuSample
+    | AttitudeSample
+    | BatteryState
+    | ObstacleScan
+    | RangeBeam
+    | GoalRequest
+    | StopRequest
+    | MissionMessage
 )
 
 # The first refused OBSTACLE_DISTANCE (DISTANCE_SENSOR) is logged, then every 100th.
@@ -331,7 +345,7 @@ class MavlinkLink(ClosesOnExit):
     # --- receiving -----------------------------------------------------------------------------
     def poll(self) -> list[Reading]:
         """Read and parse what arrived (within the receive budget); return readings (sensors, battery,
-        goals, stops) in arrival order.
+        goals, stops, mission messages addressed to us) in arrival order.
 
         Goals and stops addressed to us are answered here (COMMAND_ACK or the target echo) before they are
         returned; a ``StopRequest`` is also recorded on ``safety/events`` (kind ``mavlink_stop_request``).
@@ -392,6 +406,12 @@ class MavlinkLink(ClosesOnExit):
             request = self._answer_command(msg, t_ns)
             if request is not None:
                 readings.append(request)
+            return
+        if kind in MISSION_MESSAGES:
+            # From any system, as commands are (a ground station's); answered by the onboard stack's
+            # mission server (firmware_bridge.mavlink_mission), which owns the mission in force.
+            if mission_addressed(msg, self.system_id, self.component_id):
+                readings.append(MissionMessage(msg, t_ns))
             return
         if self._autopilot_system_id is not None and sysid != self._autopilot_system_id:
             return
@@ -749,6 +769,7 @@ _SIGNED_ONLY = frozenset(
         mavlink2.MAVLINK_MSG_ID_COMMAND_INT,
         mavlink2.MAVLINK_MSG_ID_COMMAND_LONG,
         mavlink2.MAVLINK_MSG_ID_SET_POSITION_TARGET_GLOBAL_INT,
+        *MISSION_MESSAGE_IDS,  # firmware_bridge.mavlink_mission: why
     }
 )
 

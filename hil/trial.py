@@ -5,9 +5,12 @@ moves the rover body on the true terrain, answers with status frames and autopil
 truth, and every ``CONTROL_DIVIDER``-th tick runs one onboard control step. Nothing reads wall time, so the
 same scenario and seed give the same recording, message for message.
 
-After the rover reports ARRIVED at its last goal the trial goes on, the rover parked, while a scenario
-fault has yet to run its course (``hil.fault_coverage``); a fault the trial did not run in full is a
-failed criterion, named in ``TrialResult.failures`` and on the ``log`` topic.
+The scenario's goals are the onboard stack's mission (``OnboardStack.start_mission``): the stack drives
+them in order, as it drives a mission a ground station uploads, and the trial only watches for the end.
+After the rover reports ARRIVED with no mission left to drive (the last goal reached, or a goal a ground
+station or Zenoh gave in its place) the trial goes on, the rover parked, while a scenario fault has yet
+to run its course (``hil.fault_coverage``); a fault the trial did not run in full is a failed criterion,
+named in ``TrialResult.failures`` and on the ``log`` topic.
 """
 
 from __future__ import annotations
@@ -45,6 +48,7 @@ from logs.recorder import McapRecorder
 from logs.sink import FanoutSink, MessageSink
 from navigator.config import RoverConfig
 from navigator.config_record import record_config, software_version
+from navigator.mission import MissionState
 from navigator.onboard import Mode, OnboardStack
 from navigator.terrain_classes import TERRAIN_CLASSES
 from navigator.warm_up import warm_up
@@ -239,9 +243,8 @@ def _run_loop(
     """Step until the trial ends; returns why it ended and when the rover arrived at its last goal."""
     dt_s = seconds(PHYSICS_DT_NS)
     end_ns = stop_ns = to_ns(scenario.duration_s)
-    goals = list(scenario.goals)
-    stack.set_goal(goals[0].x, goals[0].y)
-    goal_index = 0
+    stack.start_mission([(goal.x, goal.y) for goal in scenario.goals], f"scenario {scenario.name}")
+    mission = stack.mission
     arrived_ns: int | None = None
     tick = 0
     next_progress_ns = 0
@@ -253,22 +256,19 @@ def _run_loop(
             stack.step()
             if arrived_ns is not None:
                 pass  # parked: ARRIVED holds until a new goal, none is given
-            elif stack.mode is Mode.ARRIVED:
-                goal_index += 1
-                if goal_index == len(goals):
-                    arrived_ns = now
-                    stop_ns = park_until_ns(scenario.faults, now, end_ns)
-                    if stop_ns <= now:
-                        continue  # nothing left to run: stop once the rover has come to rest
-                    _log_record(
-                        sink,
-                        now,
-                        topics.LOG_INFO,
-                        f"ARRIVED at {seconds(now):.1f} s; parked until {seconds(stop_ns):.1f} s "
-                        "for the scenario's faults still to run",
-                    )
-                else:
-                    stack.set_goal(goals[goal_index].x, goals[goal_index].y)
+            elif stack.mode is Mode.ARRIVED and mission.state is not MissionState.ACTIVE:
+                # The step has already made the next waypoint the goal, had there been one.
+                arrived_ns = now
+                stop_ns = park_until_ns(scenario.faults, now, end_ns)
+                if stop_ns <= now:
+                    continue  # nothing left to run: stop once the rover has come to rest
+                _log_record(
+                    sink,
+                    now,
+                    topics.LOG_INFO,
+                    f"ARRIVED at {seconds(now):.1f} s; parked until {seconds(stop_ns):.1f} s "
+                    "for the scenario's faults still to run",
+                )
             elif stack.mode is Mode.NO_PATH:
                 return "no_path", None
         if world.rolled_over:

@@ -178,6 +178,15 @@ _SPECS = [
                 "beams": _INT,
                 "beams_rejected": _INT,
                 "beams_unused": _INT,
+                # Only once a mission message came (firmware_bridge.mavlink_mission): not required.
+                "mission_messages": _INT,
+                "missions_accepted": _INT,
+                "missions_cleared": _INT,
+                "mission_downloads": _INT,
+                "mission_refused": _INT,
+                "mission_out_of_sequence": _INT,
+                "mission_resends": _INT,
+                "mission_timeouts": _INT,
             },
             required=[
                 "timestamp",
@@ -347,6 +356,9 @@ _SPECS = [
                 "target_yaw_rate_rps": _NUM,
                 "safety_mode": _STR,
                 "failsafes": _array(_STR),
+                # Only while the rover has a mission (navigator.mission): its state (ACTIVE, PAUSED,
+                # COMPLETE), the current item (numbered from 0) and how many there are.
+                "mission": _obj({"state": _STR, "current": _INT, "count": _INT}),
             },
             # Recordings made before the supervisor's mode and failsafes were added still read.
             required=[
@@ -362,7 +374,7 @@ _SPECS = [
         ),
         "Guidance's mode (what it is trying to do) and the safety supervisor's (what reaches the wheels: "
         "IDLE, DRIVING, HOLD, ESTOP) with its active failsafes, goal, cross-track error, speed limit and "
-        "the reason for it.",
+        "the reason for it; with a mission, which of its waypoints the goal is.",
     ),
     TopicSpec(
         PERCEPTION_OBSTACLES,

@@ -13,6 +13,12 @@ the critical path are held back until then when the stack is given a ``DeferredS
 Guidance (plan on a new goal, repair the plan as obstacles are perceived, follow the path) is
 ``navigator.guidance.Guidance`` behind a start-up gate (``RouteGuidance``); the safety supervisor
 (``navigator.safety``) decides how much of guidance's command reaches the wheels.
+
+Goals come one at a time (``set_goal``: Zenoh, a ground station's MAVLink goal, ``rover run --goal``) or as
+a mission, waypoints driven in order (``navigator.mission``): uploaded by a ground station with the MAVLink
+mission protocol (``firmware_bridge.mavlink_mission``, served here for every MAVLink link) or handed over
+by the trial runner (``start_mission``). The next waypoint becomes the goal at the end of the tick in
+which guidance reports ARRIVED; a single goal pauses the mission.
 """
 
 from __future__ import annotations
@@ -20,19 +26,27 @@ from __future__ import annotations
 import enum
 import logging
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass
 from typing import NamedTuple
 
 from estimator.estimator import Estimator
-from estimator.geodesy import to_enu
+from estimator.geodesy import to_enu, to_geodetic
 from estimator.pose import PoseEstimate
 from firmware_bridge.can_health import CanLinkState
 from firmware_bridge.can_link import CanLink, WheelStatus
 from firmware_bridge.distance_sensor import RangeBeam
 from firmware_bridge.mavlink_commands import GoalRequest, StopRequest
 from firmware_bridge.mavlink_link import AttitudeSample, GpsFix, ImuSample, MavlinkLink
+from firmware_bridge.mavlink_mission import (
+    CurrentRequested,
+    MissionAccepted,
+    MissionCleared,
+    MissionItemRefused,
+    MissionMessage,
+    MissionServer,
+)
 from firmware_bridge.obstacle_scan import ObstacleScan
 from logs import topics
 from logs.clock import NS_PER_S, Clock
@@ -40,9 +54,11 @@ from logs.commands import CommandSource
 from logs.sink import MessageSink
 from navigator.config import RoverConfig
 from navigator.deferred_sink import DeferredSink
+from navigator.errors import ParameterError
 from navigator.fence_shape import inside_polygon
 from navigator.guidance import Guidance, GuidanceOutput
 from navigator.map_message import grid_message
+from navigator.mission import Mission, MissionState
 from navigator.mixing import mix_skid_steer
 from navigator.odometry_frame import OdometryFrame
 from navigator.perception import ObstacleObservation, ObstacleSource
@@ -170,11 +186,16 @@ class RouteGuidance:
 
     @property
     def path(self) -> Path | None:
-        return self.core.path if self.mode is not Mode.WAITING_ESTIMATE else None
+        return self.core.path if self.mode is not Mode.WAITING_ESTIMATE and self.goal is not None else None
 
     def set_goal(self, x: float, y: float) -> None:
         self.goal = Goal(x, y)
         self.mode = Mode.WAITING_ESTIMATE
+
+    def clear_goal(self) -> None:
+        """No goal: the rover holds (IDLE) until the next one."""
+        self.goal = None
+        self.mode = Mode.IDLE
 
     def observe(self, observations: list[ObstacleObservation]) -> None:
         self.core.observe(observations)
@@ -260,6 +281,9 @@ class OnboardStack:
     plans inline, inside the tick (lockstep: deterministic). The caller owns it and shuts it down.
     ``start_up_report`` (optional) also gets each ``startup_checks`` event as one line (``rover run``
     prints them: an operator at the console sees what the rover waits for, e.g. the autopilot's heartbeat).
+
+    ``mission`` is the mission in force and its progress (``navigator.mission.Mission``; read it, change it
+    through ``start_mission``, ``set_goal`` or the MAVLink mission protocol).
     """
 
     def __init__(
@@ -301,6 +325,8 @@ class OnboardStack:
         self._rangefinder_watch = RangefinderWatch(self._event)
         self.estimator = Estimator(config.estimator, clock, sink)
         self.guidance = RouteGuidance(config, terrain, sink, self._event, planning)
+        self.mission = Mission()
+        self._mission_server = MissionServer(clock, self._place_waypoint)
         self.safety = SafetySupervisor(
             config.safety,
             config.vehicle,
@@ -360,18 +386,122 @@ class OnboardStack:
     def safety_mode(self) -> SafetyMode:
         return self.safety.mode
 
+    @property
+    def mission_server(self) -> MissionServer:
+        """The MAVLink mission protocol's server (the mission as uploaded, the transfer under way)."""
+        return self._mission_server
+
     # --- commands from outside (ground station, trial runner, operator) --------------------------------
     def set_goal(self, x: float, y: float) -> None:
+        """A single goal: driven at once, in place of the mission being driven (which is paused: setting
+        a current item drives it again). One outside the geofence is refused (``goal_rejected``)."""
         fence = self._config.safety.fence
         if fence and not inside_polygon(x, y, fence):
             self._event("goal_rejected", "warning", f"goal ({x:.2f}, {y:.2f}) is outside the geofence")
             return
+        mission = self.mission
+        if mission.pause():
+            self._event(
+                "mission_paused",
+                "info",
+                f"a single goal replaced the mission at item {mission.current} of {mission.count}",
+            )
+        self._drive_to(x, y)
+
+    def start_mission(self, waypoints: Sequence[tuple[float, float]], source: str) -> bool:
+        """Drive ``waypoints`` (local ENU metres) in order, in place of any goal or mission; ``source``
+        names who gave them in the events. Refused whole, the mission in force kept (a ``mission_rejected``
+        event), when one is outside the geofence, as ``set_goal`` refuses a goal; True if started.
+
+        A ground station downloads it as waypoints in MAV_FRAME_GLOBAL_INT (through the estimator's datum;
+        with no datum yet, as no mission)."""
+        fence = self._config.safety.fence
+        for index, (x, y) in enumerate(waypoints):
+            if fence and not inside_polygon(x, y, fence):
+                self._event(
+                    "mission_rejected",
+                    "warning",
+                    f"mission from {source}: waypoint {index} ({x:.2f}, {y:.2f}) is outside the geofence",
+                )
+                return False
+        self._run_mission(waypoints, source)  # ParameterError before anything changes: no waypoint, NaN
+        datum = self.estimator.datum
+        if datum is None:
+            self._mission_server.replace(())
+        else:
+            geodetic = [to_geodetic(datum, x, y, 0.0) for x, y in self.mission.waypoints]
+            self._mission_server.replace([(lat, lon) for lat, lon, _ in geodetic])
+        return True
+
+    def estop(self, source: str) -> None:
+        self.safety.estop(source)
+
+    # --- missions --------------------------------------------------------------------------------------
+    def _run_mission(self, waypoints: Sequence[tuple[float, float]], source: str) -> None:
+        first = self.mission.load(waypoints)
+        count = self.mission.count
+        listed = ", ".join(f"({x:.2f}, {y:.2f})" for x, y in self.mission.waypoints)
+        noun = "waypoint" if count == 1 else "waypoints"
+        self._event("mission", "info", f"mission of {count} {noun} from {source}: {listed}")
+        self._drive_to(*first)
+
+    def _drive_to(self, x: float, y: float) -> None:
+        """Guidance's new goal (a single goal or a mission's waypoint)."""
         self.guidance.set_goal(x, y)
         self.safety.new_goal()
         self._event("goal", "info", f"new goal ({x:.2f}, {y:.2f})")
 
-    def estop(self, source: str) -> None:
-        self.safety.estop(source)
+    def _place_waypoint(self, lat_deg: float, lon_deg: float) -> tuple[float, float]:
+        """An uploaded waypoint in local ENU metres, through the estimator's datum as a MAVLink goal is;
+        ``MissionItemRefused`` before the datum is known or outside the geofence (the upload is refused)."""
+        datum = self.estimator.datum
+        if datum is None:
+            raise MissionItemRefused("no ENU datum yet (no GPS fix): waypoints cannot be placed")
+        x, y, _ = to_enu(datum, lat_deg, lon_deg, datum.alt_m)
+        fence = self._config.safety.fence
+        if fence and not inside_polygon(x, y, fence):
+            raise MissionItemRefused(f"waypoint ({x:.2f}, {y:.2f}) is outside the geofence")
+        return x, y
+
+    def _take_mission_message(self, link: MavlinkLink, reading: MissionMessage) -> None:
+        """A ground station's mission message: the server answers it; what it changes is driven here."""
+        change = self._mission_server.take(link, reading.msg)
+        if change is None:
+            return
+        who = f"{change.sysid}/{change.compid}"
+        if isinstance(change, MissionAccepted):
+            self._run_mission(change.waypoints, f"MAVLink upload by {who} on the {link.name} link")
+        elif isinstance(change, MissionCleared):
+            if self.mission.clear():
+                self.guidance.clear_goal()
+                self._event("mission_cleared", "info", f"mission cleared by {who}: the rover holds")
+            else:
+                self._event("mission_cleared", "info", f"mission cleared by {who}")
+        elif isinstance(change, CurrentRequested):
+            try:
+                waypoint = self.mission.set_current(change.seq)
+            except ParameterError as err:
+                # The server asks only for an item it holds, and holds the mission driven; should the two
+                # ever differ, a ground station's message must still not stop the loop.
+                _log.warning("MISSION_SET_CURRENT from %s not taken: %s", who, err)
+                return
+            self._event(
+                "mission_current", "info", f"item {change.seq} of {self.mission.count} made current by {who}"
+            )
+            self._drive_to(*waypoint)
+
+    def _mission_item_reached(self) -> None:
+        """Guidance reports ARRIVED at the mission's current waypoint: on to the next, or the end."""
+        mission = self.mission
+        seq, count = mission.current, mission.count
+        x, y = mission.waypoints[seq]
+        self._event("mission_item_reached", "info", f"item {seq} of {count} ({x:.2f}, {y:.2f}) reached")
+        self._mission_server.item_reached(seq)
+        following = mission.reached()
+        if following is None:
+            self._event("mission_complete", "info", f"mission complete: its {count} waypoint(s) reached")
+        else:
+            self._drive_to(*following)
 
     def resume(self, source: str) -> None:
         self.safety.resume(source)
@@ -473,6 +603,7 @@ class OnboardStack:
             if self._ground_station is not None:
                 self._ground_station.send_heartbeat()
             self._last_heartbeat_sent_ns = now
+        mission = self.mission
         sink = self._sink
         sink.publish(
             topics.WHEELS_COMMAND,
@@ -488,25 +619,35 @@ class OnboardStack:
         self.estimator.publish_pose(now)
         goal = route.goal
         safety_mode = decision.mode
-        sink.publish(
-            topics.NAVIGATOR_STATE,
-            now,
-            {
-                "timestamp": topics.stamp(now),
-                # _value_: the plain attribute behind .value (an enum property: a Python-level call).
-                "mode": route.mode._value_,
-                "goal": {"x": goal.x, "y": goal.y} if goal else {"x": math.nan, "y": math.nan},
-                "cross_track_error_m": guidance.cross_track_error_m,
-                "speed_limit_mps": guidance.speed_limit_mps * decision.speed_scale,
-                "speed_limit_reason": _limit_reason(guidance, safety_mode, decision.speed_scale),
-                "target_speed_mps": speed,
-                "target_yaw_rate_rps": yaw_rate,
-                # The supervisor's word next to guidance's, so the topic never shows DRIVING alone while
-                # the wheels are held.
-                "safety_mode": safety_mode._value_,
-                "failsafes": list(decision.faults),
-            },
-        )
+        state: dict[str, object] = {
+            "timestamp": topics.stamp(now),
+            # _value_: the plain attribute behind .value (an enum property: a Python-level call).
+            "mode": route.mode._value_,
+            "goal": {"x": goal.x, "y": goal.y} if goal else {"x": math.nan, "y": math.nan},
+            "cross_track_error_m": guidance.cross_track_error_m,
+            "speed_limit_mps": guidance.speed_limit_mps * decision.speed_scale,
+            "speed_limit_reason": _limit_reason(guidance, safety_mode, decision.speed_scale),
+            "target_speed_mps": speed,
+            "target_yaw_rate_rps": yaw_rate,
+            # The supervisor's word next to guidance's, so the topic never shows DRIVING alone while
+            # the wheels are held.
+            "safety_mode": safety_mode._value_,
+            "failsafes": list(decision.faults),
+        }
+        mission_state = mission.state
+        if mission_state is not MissionState.NONE:
+            # Which item guidance's goal is (a recording without missions keeps its messages as they were).
+            state["mission"] = {
+                "state": mission_state._value_,
+                "current": mission.current,
+                "count": mission.count,
+            }
+        sink.publish(topics.NAVIGATOR_STATE, now, state)
+        if mission_state is MissionState.ACTIVE and route.mode is Mode.ARRIVED:
+            # After this tick's records, as the trial runner once set the next goal between ticks.
+            self._mission_item_reached()
+            mission_state = mission.state
+        self._mission_server.tick(mission.current, mission_state._value_)
 
     def close(self) -> None:
         """Stop the wheels (zero commands) and release the links; safe to call twice."""
@@ -668,13 +809,16 @@ class OnboardStack:
         self.set_goal(x, y)
 
     def _read_ground_station(self) -> None:
-        if self._ground_station is None:
+        link = self._ground_station
+        if link is None:
             return
-        for reading in self._ground_station.poll():
+        for reading in link.poll():
             if isinstance(reading, GoalRequest):
                 self._goal_from_ground_station(reading)
             elif isinstance(reading, StopRequest):
                 self.estop(f"MAVLink {reading.source} from system {reading.sysid}")
+            elif isinstance(reading, MissionMessage):
+                self._take_mission_message(link, reading)
 
     def _read_links(self, now: int, *, stop_at_pacing: bool = False) -> None:
         """Read and fuse every link, the pacing sensor's link first; with ``stop_at_pacing``, return as
@@ -733,6 +877,8 @@ class OnboardStack:
                 self.estimator.on_attitude(
                     reading.t_ns, reading.yaw_rad, AHRS_HEADING_STD_RAD, pitch_rad=reading.pitch_rad
                 )
+            elif isinstance(reading, MissionMessage):
+                self._take_mission_message(self._mavlink, reading)
         if beams:
             self._take_beams(beams)
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from firmware_bridge.can_link import CanLink, open_bus
 from firmware_bridge.mavlink_link import MavlinkLink
-from firmware_bridge.mavlink_transport import PipeEnd, memory_pipe_pair
+from firmware_bridge.mavlink_transport import PipeEnd, Transport, memory_pipe_pair
 from firmware_bridge.vesc import VescCodec
 from hil.autopilot_sim import AutopilotTruth, SimAutopilot
 from hil.battery import Battery
@@ -131,8 +131,10 @@ class Rig:
         commands: CommandSource | None = None,
         seed: int = 0,
         deferred: bool = False,
+        ground_station: Transport | None = None,
     ) -> None:
-        """``deferred``: the links and the stack record through a ``DeferredSink`` (as ``rover run``)."""
+        """``deferred``: the links and the stack record through a ``DeferredSink`` (as ``rover run``).
+        ``ground_station``: the transport of a second MAVLink link, straight to a ground station."""
         self.clock = SimClock()
         self.sink = MemorySink()
         self.deferred = DeferredSink(self.sink) if deferred else None
@@ -155,6 +157,11 @@ class Rig:
             self.terrain,
             commands=commands,
             deferred=self.deferred,
+            ground_station=None
+            if ground_station is None
+            else MavlinkLink(
+                ground_station, self.clock, onboard_sink, link_timeout_s=None, name="ground_station"
+            ),
         )
         self.vescs = SimVescBank(self._sim_bus, codec, self.clock)
         self.autopilot = SimAutopilot(

@@ -1,0 +1,686 @@
+"""The MAVLink mission protocol with the companion as mission server: a ground station uploads, downloads
+and clears a mission and sets its current item (https://mavlink.io/en/services/mission.html).
+
+The server speaks the protocol and keeps the mission in force as uploaded (what a download returns); it
+does not drive. What a transfer changes comes back from ``take`` as a ``MissionChange`` for the onboard
+stack (``navigator.onboard``), which drives the waypoints (``navigator.mission``) and reports progress back
+(``tick``: MISSION_CURRENT; ``item_reached``: MISSION_ITEM_REACHED).
+
+What is accepted, and the answer to everything else (each refusal a MISSION_ACK with the protocol's
+result, or a STATUSTEXT where the protocol has no ACK, counted in the link's ``mission_refused`` and
+logged naming what was wrong):
+
+* Only ``MAV_MISSION_TYPE_MISSION`` (fence and rally: ``MAV_MISSION_UNSUPPORTED``); a clear of
+  ``MAV_MISSION_TYPE_ALL`` clears the mission.
+* Items ``MAV_CMD_NAV_WAYPOINT`` (else ``MAV_MISSION_UNSUPPORTED``) in a global frame the goal commands
+  take (``GLOBAL_FRAMES``; else ``MAV_MISSION_UNSUPPORTED_FRAME``), latitude and longitude degrees x 1e7 in
+  range (``MAV_MISSION_INVALID_PARAM5_X`` / ``_PARAM6_Y``), placed by the rover (``place``: ENU through the
+  estimator's datum, inside the geofence; else ``MAV_MISSION_DENIED`` naming why). Altitude, hold time,
+  acceptance radius, yaw and ``autocontinue`` are kept for a download and not used. The legacy float
+  MISSION_ITEM is refused (``MAV_MISSION_UNSUPPORTED``): we ask with MISSION_REQUEST_INT.
+* Item 0 is the first waypoint, as the spec numbers items (as PX4 does). ArduPilot's convention of home as
+  item 0 is not taken: nothing in an upload says which one it follows, and taking item 0 as home would
+  drop every other ground station's first waypoint; an ArduPilot-style upload drives to home first.
+* At most ``MAX_MISSION_ITEMS`` items (``MAV_MISSION_NO_SPACE``). A count of 0 clears.
+* One transfer at a time. A new operation (MISSION_COUNT, MISSION_REQUEST_LIST, MISSION_CLEAR_ALL) from
+  the partner of the transfer under way replaces it (a ground station that started over); from anyone else
+  it is refused (``MAV_MISSION_DENIED``, the transfer goes on).
+* An item out of sequence is dropped and the expected one asked for again (the spec's recovery); each such
+  request, like each request resent after a timeout (250 ms for an item, 1.5 s otherwise, the spec's
+  values), uses one of 5 retries, which a good item renews. An item beyond the announced count, or with no
+  upload of its sender under way: ``MAV_MISSION_INVALID_SEQUENCE``.
+* A transfer whose retries run out is abandoned (``MAV_MISSION_OPERATION_CANCELLED`` to the partner,
+  counted in ``mission_timeouts``). An upload replaces the mission in force only when its last item is
+  accepted: a partial, refused, cancelled or timed-out upload leaves it as it was.
+
+Mission messages count only when addressed to our system (or broadcast) and to our component by its id:
+a component-broadcast mission (0) on the autopilot's link is the autopilot's, and two servers answering
+one ground station would break its transfer.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any, NamedTuple, Protocol
+
+from pymavlink.dialects.v20 import common as mavlink2
+
+from firmware_bridge.errors import BridgeOperationError
+from firmware_bridge.mavlink_commands import GLOBAL_FRAMES
+from firmware_bridge.mavlink_health import MavlinkCounters
+from logs.clock import NS_PER_S, Clock
+
+logger = logging.getLogger(__name__)
+
+MISSION_MESSAGES = frozenset(
+    {
+        "MISSION_COUNT",
+        "MISSION_ITEM_INT",
+        "MISSION_ITEM",
+        "MISSION_REQUEST_LIST",
+        "MISSION_REQUEST_INT",
+        "MISSION_REQUEST",
+        "MISSION_ACK",
+        "MISSION_CLEAR_ALL",
+        "MISSION_SET_CURRENT",
+    }
+)
+# Taken only signed when signing is on, like commands: an upload, clear or current item drives the rover
+# as a goal does, and an unsigned download request would hold the one transfer slot from a signed upload.
+MISSION_MESSAGE_IDS = frozenset(
+    msgid for msgid, message in mavlink2.mavlink_map.items() if message.msgname in MISSION_MESSAGES
+)
+# A bound on what a partner can make us hold and on an upload's length (one round trip per item): well
+# above a rover's survey pattern; a larger mission is refused with MAV_MISSION_NO_SPACE.
+MAX_MISSION_ITEMS = 256
+# The spec's recommended timeouts and retries (mission.html, "Timeouts and Retries").
+ITEM_TIMEOUT_NS = 250_000_000  # waiting for a MISSION_ITEM_INT we asked for
+OPERATION_TIMEOUT_NS = 1_500_000_000  # waiting for a download's next request or its ACK
+MAX_RETRIES = 5
+CURRENT_PERIOD_NS = NS_PER_S  # MISSION_CURRENT while a ground station follows the mission (and on change)
+_NO_MISSION_TOTAL = 65535  # MISSION_CURRENT.total: UINT16_MAX, "no mission on the vehicle"
+_DEGREES_E7 = 1e-7
+_MISSION = mavlink2.MAV_MISSION_TYPE_MISSION
+# navigator.mission.MissionState's names -> (MISSION_STATE, MISSION_CURRENT.mission_mode: 1 in mission
+# mode, 2 suspended, 0 unknown).
+_STATES = {
+    "NONE": (mavlink2.MISSION_STATE_NO_MISSION, 0),
+    "ACTIVE": (mavlink2.MISSION_STATE_ACTIVE, 1),
+    "PAUSED": (mavlink2.MISSION_STATE_PAUSED, 2),
+    "COMPLETE": (mavlink2.MISSION_STATE_COMPLETE, 1),
+}
+
+
+class MissionItemRefused(BridgeOperationError):
+    """The rover cannot take a waypoint (no datum yet, outside the geofence): raised by a ``Placer``, the
+    upload is refused with MAV_MISSION_DENIED and this message."""
+
+
+# (latitude, longitude) in degrees -> local ENU (x, y) metres, or MissionItemRefused naming why not.
+Placer = Callable[[float, float], tuple[float, float]]
+
+
+class MissionLink(Protocol):
+    """What the server needs of a MAVLink link (``firmware_bridge.mavlink_link.MavlinkLink``)."""
+
+    name: str
+    counters: MavlinkCounters
+
+    def send(self, msg: Any) -> None: ...
+
+    def send_status_text(self, text: str, severity: int = ...) -> None: ...
+
+
+class MissionMessage(NamedTuple):
+    """A mission protocol message addressed to us, as the link read it (for ``MissionServer.take``)."""
+
+    msg: Any
+    t_ns: int
+
+
+def mission_addressed(msg: Any, system_id: int, component_id: int) -> bool:
+    """Our system (or broadcast) and our component by its id (see the module's note)."""
+    return msg.target_system in (0, system_id) and msg.target_component == component_id
+
+
+@dataclass(frozen=True)
+class MissionItem:
+    """One waypoint as uploaded: what a download gives back, field for field."""
+
+    seq: int
+    frame: int
+    x: int  # latitude, degrees x 1e7
+    y: int  # longitude, degrees x 1e7
+    z: float
+    params: tuple[float, float, float, float]
+    autocontinue: int
+
+    @property
+    def lat_deg(self) -> float:
+        return self.x * _DEGREES_E7
+
+    @property
+    def lon_deg(self) -> float:
+        return self.y * _DEGREES_E7
+
+
+@dataclass(frozen=True)
+class MissionAccepted:
+    """An upload completed: its items and their ENU waypoints; from whom."""
+
+    items: tuple[MissionItem, ...]
+    waypoints: tuple[tuple[float, float], ...]
+    sysid: int
+    compid: int
+
+
+@dataclass(frozen=True)
+class MissionCleared:
+    sysid: int
+    compid: int
+
+
+@dataclass(frozen=True)
+class CurrentRequested:
+    """MISSION_SET_CURRENT for an item the mission has."""
+
+    seq: int
+    sysid: int
+    compid: int
+
+
+MissionChange = MissionAccepted | MissionCleared | CurrentRequested
+
+
+class MissionProgress(NamedTuple):
+    """What the rover does with the mission: the current item and ``navigator.mission.MissionState``'s
+    name (NONE, ACTIVE, PAUSED, COMPLETE)."""
+
+    current: int
+    state: str
+
+
+@dataclass
+class _Transfer:
+    """An upload or a download under way with one partner (system, component, on one link)."""
+
+    upload: bool
+    link: MissionLink
+    sysid: int
+    compid: int
+    count: int
+    resend: Any  # our last message waiting for an answer: sent again at a timeout
+    deadline_ns: int
+    retries: int = 0
+    next_seq: int = 0  # upload: the item asked for
+    items: list[MissionItem] = field(default_factory=list)  # upload: received; download: the snapshot
+    waypoints: list[tuple[float, float]] = field(default_factory=list)  # upload: the items placed
+
+    def is_with(self, link: MissionLink, sysid: int, compid: int) -> bool:
+        return self.link is link and self.sysid == sysid and self.compid == compid
+
+    @property
+    def what(self) -> str:
+        kind = "upload from" if self.upload else "download to"
+        return f"mission {kind} {self.sysid}/{self.compid} on the {self.link.name} link"
+
+
+class MissionServer:
+    """The mission protocol for every MAVLink link of the rover: one mission in force, one transfer at a
+    time (see the module's notes for what is accepted and refused).
+
+    ``place`` turns a waypoint's latitude and longitude into local ENU metres, or raises
+    ``MissionItemRefused``. Times are the ``clock``'s; the caller calls ``tick`` every control tick.
+    """
+
+    def __init__(
+        self,
+        clock: Clock,
+        place: Placer,
+        *,
+        max_items: int = MAX_MISSION_ITEMS,
+        item_timeout_ns: int = ITEM_TIMEOUT_NS,
+        operation_timeout_ns: int = OPERATION_TIMEOUT_NS,
+        max_retries: int = MAX_RETRIES,
+    ) -> None:
+        self._clock = clock
+        self._place = place
+        self.max_items = max_items
+        self._item_timeout_ns = item_timeout_ns
+        self._operation_timeout_ns = operation_timeout_ns
+        self._max_retries = max_retries
+        self.items: tuple[MissionItem, ...] = ()  # the mission in force, as uploaded
+        self._transfer: _Transfer | None = None
+        # The links a mission partner has talked to us on: MISSION_CURRENT and MISSION_ITEM_REACHED go
+        # there (none until then: a rover no ground station asked about a mission sends neither).
+        self._links: list[MissionLink] = []
+        self._reported: tuple[int, int, int] | None = None
+        self._next_current_ns = 0
+        self._progress = MissionProgress(0, "NONE")
+        self._handlers: dict[str, Callable[[MissionLink, Any, int, int], MissionChange | None]] = {
+            "MISSION_COUNT": self._on_count,
+            "MISSION_ITEM_INT": self._on_item_int,
+            "MISSION_ITEM": self._on_float_item,
+            "MISSION_REQUEST_LIST": self._on_request_list,
+            "MISSION_REQUEST_INT": self._on_request,
+            # Deprecated: answered with MISSION_ITEM_INT, as the spec says.
+            "MISSION_REQUEST": self._on_request,
+            "MISSION_ACK": self._on_ack,
+            "MISSION_CLEAR_ALL": self._on_clear_all,
+            "MISSION_SET_CURRENT": self._on_set_current,
+        }
+
+    @property
+    def transfer_under_way(self) -> bool:
+        return self._transfer is not None
+
+    # --- from the rover -----------------------------------------------------------------------------
+    def replace(self, positions: Sequence[tuple[float, float]]) -> None:
+        """The rover started a mission of its own (a scenario's goals): ``positions`` (latitude, longitude
+        in degrees) become the mission in force, as waypoints in MAV_FRAME_GLOBAL_INT, so a ground station
+        downloads what is driven."""
+        self.items = tuple(
+            MissionItem(
+                seq,
+                mavlink2.MAV_FRAME_GLOBAL_INT,
+                round(lat / _DEGREES_E7),
+                round(lon / _DEGREES_E7),
+                0.0,
+                (0.0, 0.0, 0.0, 0.0),
+                1,
+            )
+            for seq, (lat, lon) in enumerate(positions)
+        )
+
+    def tick(self, current: int, state: str) -> None:
+        """Every control tick, with the rover's progress (the current item, and
+        ``navigator.mission.MissionState``'s name: NONE, ACTIVE, PAUSED, COMPLETE): timeouts of the transfer
+        under way, and MISSION_CURRENT to the links a ground station follows the mission on (at once when
+        the progress changes, else once a second)."""
+        progress = self._progress
+        if progress.current != current or progress.state != state:
+            self._progress = progress = MissionProgress(current, state)
+        if self._transfer is None and not self._links:
+            return
+        now = self._clock.now_ns()
+        transfer = self._transfer
+        if transfer is not None and now >= transfer.deadline_ns:
+            self._ask_again(transfer, now)
+        if self._links:
+            self._report_current(now, progress)
+
+    def item_reached(self, seq: int) -> None:
+        """MISSION_ITEM_REACHED to the links a ground station follows the mission on."""
+        for link in self._links:
+            link.send(mavlink2.MAVLink_mission_item_reached_message(seq))
+
+    # --- from a ground station ------------------------------------------------------------------------
+    def take(self, link: MissionLink, msg: Any) -> MissionChange | None:
+        """One mission message addressed to us (``mission_addressed``), read on ``link``: answered there;
+        returns what it changed for the rover to act on, if anything."""
+        link.counters.mission_messages += 1
+        if not any(known is link for known in self._links):
+            self._links.append(link)
+        handler = self._handlers[msg.get_type()]
+        return handler(link, msg, msg.get_srcSystem(), msg.get_srcComponent())
+
+    def _on_count(self, link: MissionLink, msg: Any, sysid: int, compid: int) -> MissionChange | None:
+        if not self._may_start(link, msg, sysid, compid, "MISSION_COUNT"):
+            return None
+        if msg.mission_type != _MISSION:
+            self._refuse_type(link, msg, sysid, compid, "upload")
+            return None
+        count = msg.count
+        if count > self.max_items:
+            self._refuse(
+                link,
+                sysid,
+                compid,
+                mavlink2.MAV_MISSION_NO_SPACE,
+                f"a mission of {count} items: at most {self.max_items} are taken",
+            )
+            return None
+        if count == 0:  # the spec: an empty upload clears
+            return self._clear(link, sysid, compid, _MISSION)
+        now = self._clock.now_ns()
+        request = self._request(sysid, compid, 0)
+        self._transfer = _Transfer(True, link, sysid, compid, count, request, now + self._item_timeout_ns)
+        logger.info("mission upload of %d items from %d/%d on the %s link", count, sysid, compid, link.name)
+        link.send(request)
+        return None
+
+    def _on_item_int(self, link: MissionLink, msg: Any, sysid: int, compid: int) -> MissionChange | None:
+        transfer = self._transfer
+        seq = msg.seq
+        if transfer is None or not transfer.upload or not transfer.is_with(link, sysid, compid):
+            # A transfer of someone else's goes on; an upload of ours that timed out is told so here.
+            self._refuse(
+                link,
+                sysid,
+                compid,
+                mavlink2.MAV_MISSION_INVALID_SEQUENCE,
+                f"MISSION_ITEM_INT {seq} from {sysid}/{compid}, which has no upload under way",
+            )
+            return None
+        if msg.mission_type != _MISSION:
+            self._transfer = None
+            self._refuse_type(link, msg, sysid, compid, "upload")
+            return None
+        if seq >= transfer.count:
+            self._transfer = None
+            self._refuse(
+                link,
+                sysid,
+                compid,
+                mavlink2.MAV_MISSION_INVALID_SEQUENCE,
+                f"item {seq} of a mission of {transfer.count} items (0..{transfer.count - 1})",
+            )
+            return None
+        if seq != transfer.next_seq:
+            # The spec: drop it and ask again for the expected one (a retry: a partner that keeps sending
+            # the wrong one cannot hold the transfer open for ever).
+            link.counters.mission_out_of_sequence += 1
+            logger.info("%s: item %d out of sequence, %d asked again", transfer.what, seq, transfer.next_seq)
+            self._ask_again(transfer, self._clock.now_ns())
+            return None
+        refusal = _judge_item(msg)
+        if refusal is None:
+            try:
+                waypoint = self._place(msg.x * _DEGREES_E7, msg.y * _DEGREES_E7)
+            except MissionItemRefused as err:
+                refusal = (mavlink2.MAV_MISSION_DENIED, f"item {seq}: {err}")
+        if refusal is not None:
+            self._transfer = None
+            self._refuse(link, sysid, compid, *refusal)
+            return None
+        transfer.items.append(
+            MissionItem(
+                seq,
+                msg.frame,
+                msg.x,
+                msg.y,
+                msg.z,
+                (msg.param1, msg.param2, msg.param3, msg.param4),
+                msg.autocontinue,
+            )
+        )
+        transfer.waypoints.append(waypoint)
+        transfer.retries = 0
+        if seq + 1 < transfer.count:
+            transfer.next_seq = seq + 1
+            transfer.resend = self._request(sysid, compid, seq + 1)
+            transfer.deadline_ns = self._clock.now_ns() + self._item_timeout_ns
+            link.send(transfer.resend)
+            return None
+        # The last item: only now does the upload replace the mission in force.
+        self._transfer = None
+        self.items = tuple(transfer.items)
+        link.counters.missions_accepted += 1
+        logger.info("%s: %d items accepted", transfer.what, transfer.count)
+        link.send(_ack(sysid, compid, mavlink2.MAV_MISSION_ACCEPTED, _MISSION))
+        return MissionAccepted(self.items, tuple(transfer.waypoints), sysid, compid)
+
+    def _on_float_item(self, link: MissionLink, msg: Any, sysid: int, compid: int) -> MissionChange | None:
+        transfer = self._transfer
+        if transfer is not None and transfer.is_with(link, sysid, compid):
+            self._transfer = None
+        self._refuse(
+            link,
+            sysid,
+            compid,
+            mavlink2.MAV_MISSION_UNSUPPORTED,
+            f"MISSION_ITEM {msg.seq}: the float MISSION_ITEM is not taken, send MISSION_ITEM_INT",
+        )
+        return None
+
+    def _on_request_list(self, link: MissionLink, msg: Any, sysid: int, compid: int) -> MissionChange | None:
+        if not self._may_start(link, msg, sysid, compid, "MISSION_REQUEST_LIST"):
+            return None
+        if msg.mission_type != _MISSION:
+            self._refuse_type(link, msg, sysid, compid, "download")
+            return None
+        count = mavlink2.MAVLink_mission_count_message(sysid, compid, len(self.items), _MISSION)
+        if self.items:
+            self._transfer = _Transfer(
+                False,
+                link,
+                sysid,
+                compid,
+                len(self.items),
+                count,
+                self._clock.now_ns() + self._operation_timeout_ns,
+                items=list(self.items),
+            )
+        else:
+            link.counters.mission_downloads += 1  # nothing to ask for: done with the count
+        link.send(count)
+        return None
+
+    def _on_request(self, link: MissionLink, msg: Any, sysid: int, compid: int) -> MissionChange | None:
+        transfer = self._transfer
+        seq = msg.seq
+        if transfer is None or transfer.upload or not transfer.is_with(link, sysid, compid):
+            self._refuse(
+                link,
+                sysid,
+                compid,
+                mavlink2.MAV_MISSION_INVALID_SEQUENCE,
+                f"{msg.get_type()} {seq} from {sysid}/{compid}, which has no download under way",
+            )
+            return None
+        if msg.mission_type != _MISSION:
+            self._transfer = None
+            self._refuse_type(link, msg, sysid, compid, "download")
+            return None
+        if seq >= transfer.count:
+            self._transfer = None
+            self._refuse(
+                link,
+                sysid,
+                compid,
+                mavlink2.MAV_MISSION_INVALID_SEQUENCE,
+                f"item {seq} asked of a mission of {transfer.count} items (0..{transfer.count - 1})",
+            )
+            return None
+        transfer.resend = self._item_message(sysid, compid, transfer.items[seq])
+        transfer.retries = 0
+        transfer.deadline_ns = self._clock.now_ns() + self._operation_timeout_ns
+        link.send(transfer.resend)
+        return None
+
+    def _on_ack(self, link: MissionLink, msg: Any, sysid: int, compid: int) -> MissionChange | None:
+        # Never answered (an ACK for an ACK could loop between two servers); it only ends a transfer.
+        transfer = self._transfer
+        if transfer is None or not transfer.is_with(link, sysid, compid):
+            return None
+        self._transfer = None
+        if not transfer.upload and msg.type == mavlink2.MAV_MISSION_ACCEPTED:
+            link.counters.mission_downloads += 1
+            logger.info("%s: complete", transfer.what)
+        else:
+            logger.warning(
+                "%s ended by the partner's MISSION_ACK %s; the mission in force is unchanged",
+                transfer.what,
+                _result_name(msg.type),
+            )
+        return None
+
+    def _on_clear_all(self, link: MissionLink, msg: Any, sysid: int, compid: int) -> MissionChange | None:
+        if not self._may_start(link, msg, sysid, compid, "MISSION_CLEAR_ALL"):
+            return None
+        if msg.mission_type not in (_MISSION, mavlink2.MAV_MISSION_TYPE_ALL):
+            self._refuse_type(link, msg, sysid, compid, "clear")
+            return None
+        return self._clear(link, sysid, compid, msg.mission_type)
+
+    def _on_set_current(self, link: MissionLink, msg: Any, sysid: int, compid: int) -> MissionChange | None:
+        seq = msg.seq
+        if seq < len(self.items):
+            # The rover makes it current; the next tick's MISSION_CURRENT says so (the spec's answer).
+            return CurrentRequested(seq, sysid, compid)
+        reason = (
+            "there is no mission" if not self.items else f"the mission has items 0..{len(self.items) - 1}"
+        )
+        # The spec's answer to a refused MISSION_SET_CURRENT is a STATUSTEXT, not an ACK.
+        link.counters.mission_refused += 1
+        logger.warning(
+            "MISSION_SET_CURRENT %d from %d/%d on the %s link refused: %s",
+            seq,
+            sysid,
+            compid,
+            link.name,
+            reason,
+        )
+        link.send_status_text(f"mission item {seq} not set: {reason}", mavlink2.MAV_SEVERITY_WARNING)
+        return None
+
+    # --- internals --------------------------------------------------------------------------------
+    def _may_start(self, link: MissionLink, msg: Any, sysid: int, compid: int, name: str) -> bool:
+        """Whether ``sysid/compid`` may start an operation now: refused while another partner's transfer
+        is under way; its own transfer under way is given up (it started over)."""
+        transfer = self._transfer
+        if transfer is None:
+            return True
+        if not transfer.is_with(link, sysid, compid):
+            self._refuse(
+                link,
+                sysid,
+                compid,
+                mavlink2.MAV_MISSION_DENIED,
+                f"{name} from {sysid}/{compid} while a {transfer.what} is under way",
+                msg.mission_type,
+            )
+            return False
+        logger.info("%s given up: the partner sent %s", transfer.what, name)
+        self._transfer = None
+        return True
+
+    def _clear(self, link: MissionLink, sysid: int, compid: int, mission_type: int) -> MissionCleared:
+        self.items = ()
+        link.counters.missions_cleared += 1
+        logger.info("mission cleared by %d/%d on the %s link", sysid, compid, link.name)
+        link.send(_ack(sysid, compid, mavlink2.MAV_MISSION_ACCEPTED, mission_type))
+        return MissionCleared(sysid, compid)
+
+    def _ask_again(self, transfer: _Transfer, now: int) -> None:
+        """Send the request (or, in a download, the count or item) waiting for an answer again, while
+        retries last; then abandon the transfer."""
+        if transfer.retries >= self._max_retries:
+            self._abandon(transfer)
+            return
+        transfer.retries += 1
+        transfer.link.counters.mission_resends += 1
+        timeout = self._item_timeout_ns if transfer.upload else self._operation_timeout_ns
+        transfer.deadline_ns = now + timeout
+        transfer.link.send(transfer.resend)
+
+    def _abandon(self, transfer: _Transfer) -> None:
+        self._transfer = None
+        link = transfer.link
+        link.counters.mission_timeouts += 1
+        if transfer.upload:
+            logger.warning(
+                "%s abandoned: item %d of %d not received after %d requests; the mission in force is "
+                "unchanged",
+                transfer.what,
+                transfer.next_seq,
+                transfer.count,
+                self._max_retries + 1,
+            )
+        else:
+            logger.warning(
+                "%s abandoned: no request or ACK after %d tries", transfer.what, self._max_retries + 1
+            )
+        link.send(_ack(transfer.sysid, transfer.compid, mavlink2.MAV_MISSION_OPERATION_CANCELLED, _MISSION))
+
+    def _refuse_type(self, link: MissionLink, msg: Any, sysid: int, compid: int, operation: str) -> None:
+        mission_type = msg.mission_type
+        self._refuse(
+            link,
+            sysid,
+            compid,
+            mavlink2.MAV_MISSION_UNSUPPORTED,
+            f"{operation} of mission type {mission_type} ({_type_name(mission_type)}): only "
+            "MAV_MISSION_TYPE_MISSION is supported",
+            mission_type,
+        )
+
+    def _refuse(
+        self,
+        link: MissionLink,
+        sysid: int,
+        compid: int,
+        result: int,
+        reason: str,
+        mission_type: int = _MISSION,
+    ) -> None:
+        """A MISSION_ACK with ``result`` and a STATUSTEXT naming ``reason``; counted and logged."""
+        link.counters.mission_refused += 1
+        logger.warning(
+            "mission refused (%s) to %d/%d on the %s link: %s",
+            _result_name(result),
+            sysid,
+            compid,
+            link.name,
+            reason,
+        )
+        link.send(_ack(sysid, compid, result, mission_type))
+        link.send_status_text(f"mission refused: {reason}", mavlink2.MAV_SEVERITY_WARNING)
+
+    def _report_current(self, now: int, progress: MissionProgress) -> None:
+        total = len(self.items)
+        state, mode = _STATES.get(progress.state, (mavlink2.MISSION_STATE_UNKNOWN, 0))
+        # A complete mission reports the item after its last ("on last item, sequence == total").
+        seq = total if progress.state == "COMPLETE" else progress.current
+        key = (seq, total, state)
+        if key == self._reported and now < self._next_current_ns:
+            return
+        self._reported = key
+        self._next_current_ns = now + CURRENT_PERIOD_NS
+        message = mavlink2.MAVLink_mission_current_message(
+            seq, total if total else _NO_MISSION_TOTAL, state, mode
+        )
+        for link in self._links:
+            link.send(message)
+
+    def _request(self, sysid: int, compid: int, seq: int) -> Any:
+        return mavlink2.MAVLink_mission_request_int_message(sysid, compid, seq, _MISSION)
+
+    def _item_message(self, sysid: int, compid: int, item: MissionItem) -> Any:
+        progress = self._progress
+        current = int(progress.state == "ACTIVE" and progress.current == item.seq)
+        return mavlink2.MAVLink_mission_item_int_message(
+            sysid,
+            compid,
+            item.seq,
+            item.frame,
+            mavlink2.MAV_CMD_NAV_WAYPOINT,
+            current,
+            item.autocontinue,
+            *item.params,
+            item.x,
+            item.y,
+            item.z,
+            _MISSION,
+        )
+
+
+def _judge_item(msg: Any) -> tuple[int, str] | None:
+    """Why a MISSION_ITEM_INT cannot be a waypoint of ours (result and reason), or None."""
+    seq = msg.seq
+    if msg.command != mavlink2.MAV_CMD_NAV_WAYPOINT:
+        name = _enum_name("MAV_CMD", msg.command)
+        return (
+            mavlink2.MAV_MISSION_UNSUPPORTED,
+            f"item {seq}: command {msg.command} ({name}) is not supported: only MAV_CMD_NAV_WAYPOINT",
+        )
+    if msg.frame not in GLOBAL_FRAMES:
+        name = _enum_name("MAV_FRAME", msg.frame)
+        return (
+            mavlink2.MAV_MISSION_UNSUPPORTED_FRAME,
+            f"item {seq}: frame {msg.frame} ({name}) is not global (latitude, longitude)",
+        )
+    if not -90.0 <= msg.x * _DEGREES_E7 <= 90.0:
+        return mavlink2.MAV_MISSION_INVALID_PARAM5_X, f"item {seq}: latitude {msg.x} x 1e-7 is out of range"
+    if not -180.0 <= msg.y * _DEGREES_E7 <= 180.0:
+        return mavlink2.MAV_MISSION_INVALID_PARAM6_Y, f"item {seq}: longitude {msg.y} x 1e-7 is out of range"
+    return None
+
+
+def _ack(sysid: int, compid: int, result: int, mission_type: int) -> Any:
+    return mavlink2.MAVLink_mission_ack_message(sysid, compid, result, mission_type)
+
+
+def _enum_name(enum: str, value: int) -> str:
+    entry = mavlink2.enums[enum].get(value)
+    return "unknown" if entry is None else str(entry.name)
+
+
+def _type_name(mission_type: int) -> str:
+    return _enum_name("MAV_MISSION_TYPE", mission_type)
+
+
+def _result_name(result: int) -> str:
+    return _enum_name("MAV_MISSION_RESULT", result)

@@ -1,0 +1,101 @@
+"""A lockstep trial in which a ground station uploads a 3-waypoint mission over MAVLink (the rover's
+ground-station link): the onboard stack drives it in order to the end, in place of the scenario's own
+goals, and the recording says what was uploaded and reached."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pymap3d
+import pytest
+from pymavlink.dialects.v20 import common as mavlink2
+
+from hil.scenario import load_scenario
+from hil.trial import run_trial
+from logs import topics
+from logs.reader import read_messages
+from logs.settings import parse_toml
+from navigator.config import rover_config_from_table
+from tests.firmware_bridge.ground_station import ScriptedGroundStation, waypoint
+
+DATA = Path(__file__).resolve().parents[1] / "data"
+# ENU metres on small_rocky's map (14 x 10 m, the rock at (6.5, 4.5)): not the scenario's own goals.
+UPLOADED = [(3.0, 8.0), (9.0, 8.0), (12.0, 3.0)]
+
+
+def test_a_mission_uploaded_over_mavlink_is_driven_in_order_to_the_end(tmp_path: Path) -> None:
+    scenario = load_scenario(DATA / "small_rocky_waypoints.toml")
+    assert [(g.x, g.y) for g in scenario.goals] != UPLOADED
+    items = [
+        waypoint(seq, *pymap3d.enu2geodetic(x, y, 0.0, *scenario.datum)[:2])
+        for seq, (x, y) in enumerate(UPLOADED)
+    ]
+    station = ScriptedGroundStation(items)
+    config = rover_config_from_table(parse_toml("", "<defaults>"))
+    result = run_trial(scenario, config, tmp_path / "trial", ground_station=station)
+
+    assert result.end_reason == "arrived", result
+    (ack,) = station.station.of_type("MISSION_ACK")
+    assert ack.type == mavlink2.MAV_MISSION_ACCEPTED
+    assert [m.seq for m in station.station.of_type("MISSION_ITEM_REACHED")] == [0, 1, 2]
+
+    events = [m.message for m in read_messages(result.mcap_path, topics=[topics.SAFETY_EVENTS])]
+    kinds = [e["kind"] for e in events]
+    missions = [e["detail"] for e in events if e["kind"] == "mission"]
+    assert missions[0].startswith("mission of 3 waypoints from scenario small-rocky-waypoints")
+    assert missions[1].startswith(
+        "mission of 3 waypoints from MAVLink upload by 255/190 on the ground_station"
+    )
+    reached = [e["detail"] for e in events if e["kind"] == "mission_item_reached"]
+    assert [r.split(" (")[0] for r in reached] == ["item 0 of 3", "item 1 of 3", "item 2 of 3"]
+    # The uploaded mission replaced the scenario's before the rover moved: none of its items was reached.
+    assert kinds.index("mission_item_reached") > kinds.index("mission", kinds.index("mission") + 1)
+    assert kinds[-1] == "mission_complete"
+
+    # The ground-station link's own count of the upload.
+    stats = [
+        m.message
+        for m in read_messages(result.mcap_path, topics=[topics.MAVLINK_STATS])
+        if m.message["link"] == "ground_station"
+    ]
+    assert sum(s.get("missions_accepted", 0) for s in stats) == 1
+    assert sum(s.get("mission_refused", 0) for s in stats) == 0
+
+    # Where the rover stopped: the last uploaded waypoint, by the truth.
+    final = [
+        m.message["pose"]["position"] for m in read_messages(result.mcap_path, topics=[topics.TRUTH_POSE])
+    ][-1]
+    assert math.hypot(final["x"] - UPLOADED[-1][0], final["y"] - UPLOADED[-1][1]) < 0.6
+    # ... having passed the others in order.
+    poses = [
+        (m.message["pose"]["position"]["x"], m.message["pose"]["position"]["y"])
+        for m in read_messages(result.mcap_path, topics=[topics.TRUTH_POSE])
+    ]
+    closest = [nearest(poses, w) for w in UPLOADED]
+    assert closest == sorted(closest)
+    assert all(math.dist(poses[i], w) < 0.6 for i, w in zip(closest, UPLOADED, strict=True))
+
+
+def nearest(poses: list[tuple[float, float]], point: tuple[float, float]) -> int:
+    return min(range(len(poses)), key=lambda i: math.dist(poses[i], point))
+
+
+@pytest.mark.parametrize("scenario_file", ["small_rocky.toml", "small_rocky_waypoints.toml"])
+def test_the_scenarios_goals_are_the_onboard_mission(scenario_file: str, tmp_path: Path) -> None:
+    scenario = load_scenario(DATA / scenario_file)
+    config = rover_config_from_table(parse_toml("", "<defaults>"))
+    result = run_trial(scenario, config, tmp_path / "trial")
+    assert result.end_reason == "arrived"
+    events = [m.message for m in read_messages(result.mcap_path, topics=[topics.SAFETY_EVENTS])]
+    assert [e["kind"] for e in events if e["kind"].startswith("mission")] == [
+        "mission",
+        *["mission_item_reached"] * len(scenario.goals),
+        "mission_complete",
+    ]
+    states = [m.message for m in read_messages(result.mcap_path, topics=[topics.NAVIGATOR_STATE])]
+    assert states[-1]["mission"] == {
+        "state": "COMPLETE",
+        "current": len(scenario.goals) - 1,
+        "count": len(scenario.goals),
+    }

@@ -1,0 +1,77 @@
+"""The mission's own bookkeeping: waypoints in order, the current item, its states."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from navigator.errors import ParameterError
+from navigator.mission import Mission, MissionState, Waypoint
+
+THREE = [(1.0, 2.0), (3.0, 4.0), (5.0, 6.0)]
+
+
+def test_waypoints_are_driven_in_order_then_the_mission_is_complete() -> None:
+    mission = Mission()
+    assert mission.state is MissionState.NONE and mission.count == 0
+    assert mission.load(THREE) == Waypoint(1.0, 2.0)
+    assert (mission.state, mission.current, mission.count) == (MissionState.ACTIVE, 0, 3)
+    assert mission.reached() == Waypoint(3.0, 4.0) and mission.current == 1
+    assert mission.reached() == Waypoint(5.0, 6.0) and mission.current == 2
+    assert mission.reached() is None
+    assert (mission.state, mission.current) == (MissionState.COMPLETE, 2)
+    with pytest.raises(ParameterError, match="COMPLETE"):
+        mission.reached()
+
+
+def test_a_single_goal_pauses_it_and_setting_an_item_drives_it_again() -> None:
+    mission = Mission()
+    assert not mission.pause()  # nothing to pause
+    mission.load(THREE)
+    mission.reached()
+    assert mission.pause() and mission.state is MissionState.PAUSED and mission.current == 1
+    assert not mission.pause()  # once
+    with pytest.raises(ParameterError):
+        mission.reached()  # a paused mission does not advance on the single goal's arrival
+    assert mission.set_current(0) == Waypoint(1.0, 2.0)
+    assert (mission.state, mission.current) == (MissionState.ACTIVE, 0)
+
+
+def test_a_complete_mission_runs_again_from_the_item_set() -> None:
+    mission = Mission()
+    mission.load(THREE[:1])
+    assert mission.reached() is None and mission.state is MissionState.COMPLETE
+    assert mission.set_current(0) == Waypoint(1.0, 2.0) and mission.state is MissionState.ACTIVE
+
+
+def test_clear_says_whether_it_was_being_driven() -> None:
+    mission = Mission()
+    mission.load(THREE)
+    assert mission.clear()
+    assert (mission.state, mission.count, mission.current) == (MissionState.NONE, 0, 0)
+    assert not mission.clear()
+    mission.load(THREE)
+    mission.pause()
+    assert not mission.clear()
+
+
+@pytest.mark.parametrize("seq", [-1, 3, 70000])
+def test_an_item_it_does_not_have_cannot_be_made_current(seq: int) -> None:
+    mission = Mission()
+    with pytest.raises(ParameterError, match="no mission"):
+        mission.set_current(0)
+    mission.load(THREE)
+    mission.reached()
+    with pytest.raises(ParameterError, match=r"items 0\.\.2"):
+        mission.set_current(seq)
+    assert (mission.state, mission.current) == (MissionState.ACTIVE, 1)  # unchanged
+
+
+@pytest.mark.parametrize("waypoints", [[], [(1.0, 2.0), (math.nan, 0.0)], [(math.inf, 1.0)]])
+def test_a_bad_mission_is_refused_and_the_one_in_force_kept(waypoints: list[tuple[float, float]]) -> None:
+    mission = Mission()
+    mission.load(THREE)
+    with pytest.raises(ParameterError):
+        mission.load(waypoints)
+    assert mission.waypoints == tuple(Waypoint(*w) for w in THREE) and mission.state is MissionState.ACTIVE
