@@ -14,6 +14,9 @@ import zstandard
 from mcap.records import Chunk
 
 _THREAD_STATE = threading.local()
+# The most a chunk may say it holds (as logs.frames bounds a record's length): the size comes from the file,
+# and a damaged one near 2^64 made the decompressors raise OverflowError / MemoryError past every handler.
+MAX_UNCOMPRESSED_BYTES = 1 << 30
 
 
 class UnsupportedCompression(ValueError):
@@ -24,8 +27,14 @@ def decompress(chunk: Chunk) -> bytes:
     """The chunk's record bytes. ``UnsupportedCompression`` for a compression other than zstd, lz4 or none
     (""); ``ValueError`` naming the problem when the data do not decompress to the chunk's stated size.
     Neither decompression is let past that size (plus a byte, to tell a longer one): a damaged or hostile
-    chunk cannot make the reader allocate more than its header admits."""
+    chunk cannot make the reader allocate more than its header admits, and a header
+    may not admit more than ``MAX_UNCOMPRESSED_BYTES``."""
     compression = chunk.compression
+    if not 0 <= chunk.uncompressed_size <= MAX_UNCOMPRESSED_BYTES:
+        raise ValueError(
+            f"the chunk says it holds {chunk.uncompressed_size} bytes, more than {MAX_UNCOMPRESSED_BYTES} "
+            "(a damaged size)"
+        )
     if compression == "zstd":
         try:
             # A frame that states its size is decompressed to that size whatever the limit: check it first.

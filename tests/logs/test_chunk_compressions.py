@@ -11,7 +11,7 @@ import zstandard
 from mcap.records import Chunk
 from mcap.writer import CompressionType
 
-from logs.chunk_codec import UnsupportedCompression, decompress
+from logs.chunk_codec import MAX_UNCOMPRESSED_BYTES, UnsupportedCompression, decompress
 from logs.doctor import diagnose
 from logs.errors import LogReadError
 from logs.metrics import compute_metrics
@@ -80,6 +80,31 @@ def _chunk(compression: str, data: bytes, uncompressed_size: int) -> Chunk:
         uncompressed_crc=0,
         uncompressed_size=uncompressed_size,
     )
+
+
+def test_a_damaged_chunk_size_is_damage_not_a_crash(recordings: tuple[Path, Path], tmp_path: Path) -> None:
+    """A chunk whose uncompressed size reads near 2^64 (a damaged header) made the decompressors raise
+    OverflowError past the reader's, the doctor's and recover's handlers."""
+    for compression, records in (
+        ("lz4", lz4.frame.compress(b"x" * 100)),
+        ("zstd", zstandard.compress(b"x" * 100)),
+    ):
+        for size in (2**64 - 1, 2**62, MAX_UNCOMPRESSED_BYTES + 1):
+            with pytest.raises(ValueError, match="more than"):
+                decompress(_chunk(compression, records, size))
+    # The same in a file: the size field of the first chunk (after its opcode, length and two times) set high.
+    data = bytearray(recordings[1].read_bytes())
+    chunk = 8  # past the magic: walk the records (opcode, u64 length, body) to the first chunk (opcode 6)
+    while data[chunk] != 0x06:
+        chunk += 9 + int.from_bytes(data[chunk + 1 : chunk + 9], "little")
+    size_at = chunk + 9 + 8 + 8  # its body: message start time, message end time, uncompressed size
+    data[size_at : size_at + 8] = (2**64 - 1).to_bytes(8, "little")
+    damaged = tmp_path / "big.mcap"
+    damaged.write_bytes(bytes(data))
+    with pytest.raises(LogReadError, match="damaged"):
+        list(read_messages(damaged))
+    assert diagnose(damaged).chunks_damaged == 1
+    assert recover(damaged, tmp_path / "fixed.mcap").chunks_dropped == 1
 
 
 def test_decompress_names_an_unknown_compression_and_a_wrong_size() -> None:
