@@ -25,10 +25,13 @@ logged naming what was wrong):
 * One transfer at a time. A new operation (MISSION_COUNT, MISSION_REQUEST_LIST, MISSION_CLEAR_ALL) from
   the partner of the transfer under way replaces it (a ground station that started over); from anyone else
   it is refused (``MAV_MISSION_DENIED``, the transfer goes on).
-* An item out of sequence is dropped and the expected one asked for again (the spec's recovery); each such
-  request, like each request resent after a timeout (250 ms for an item, 1.5 s otherwise, the spec's
-  values), uses one of 5 retries, which a good item renews. An item beyond the announced count, or with no
-  upload of its sender under way: ``MAV_MISSION_INVALID_SEQUENCE``.
+* A duplicate item (one already received: the late answer to a request sent again) is dropped silently, as
+  PX4 and mavros do. An item after a gap (one lost) is dropped and the expected one asked for again (the
+  spec's recovery); each such request, like each request resent after a timeout (250 ms for an item,
+  1.5 s otherwise, the spec's values), uses one of 5 retries, which a good item renews. An item beyond the
+  announced count, or with no upload of its sender under way: ``MAV_MISSION_INVALID_SEQUENCE``; except
+  that for one operation timeout after an upload completed, its partner's last item again (our ACK was
+  lost) is answered ACCEPTED again, and not applied again.
 * A transfer whose retries run out is abandoned (``MAV_MISSION_OPERATION_CANCELLED`` to the partner,
   counted in ``mission_timeouts``). An upload replaces the mission in force only when its last item is
   accepted: a partial, refused, cancelled or timed-out upload leaves it as it was.
@@ -207,6 +210,20 @@ class _Transfer:
         return f"mission {kind} {self.sysid}/{self.compid} on the {self.link.name} link"
 
 
+@dataclass(frozen=True)
+class _Finished:
+    """An upload completed at ``t_ns``: its partner may resend its last item if our ACK was lost."""
+
+    link: MissionLink
+    sysid: int
+    compid: int
+    count: int
+    t_ns: int
+
+    def is_with(self, link: MissionLink, sysid: int, compid: int) -> bool:
+        return self.link is link and self.sysid == sysid and self.compid == compid
+
+
 class MissionServer:
     """The mission protocol for every MAVLink link of the rover: one mission in force, one transfer at a
     time (see the module's notes for what is accepted and refused).
@@ -233,6 +250,7 @@ class MissionServer:
         self._max_retries = max_retries
         self.items: tuple[MissionItem, ...] = ()  # the mission in force, as uploaded
         self._transfer: _Transfer | None = None
+        self._finished: _Finished | None = None  # the last upload completed (``_repeat_of_finished``)
         # The links a mission partner has talked to us on: MISSION_CURRENT and MISSION_ITEM_REACHED go
         # there (none until then: a rover no ground station asked about a mission sends neither).
         self._links: list[MissionLink] = []
@@ -335,6 +353,8 @@ class MissionServer:
         transfer = self._transfer
         seq = msg.seq
         if transfer is None or not transfer.upload or not transfer.is_with(link, sysid, compid):
+            if self._repeat_of_finished(link, msg, sysid, compid):
+                return None
             # A transfer of someone else's goes on; an upload of ours that timed out is told so here.
             self._refuse(
                 link,
@@ -358,9 +378,17 @@ class MissionServer:
                 f"item {seq} of a mission of {transfer.count} items (0..{transfer.count - 1})",
             )
             return None
-        if seq != transfer.next_seq:
-            # The spec: drop it and ask again for the expected one (a retry: a partner that keeps sending
-            # the wrong one cannot hold the transfer open for ever).
+        if seq < transfer.next_seq:
+            # A duplicate: the late answer to a request we sent again after a timeout (or the partner's
+            # own resend). Dropped silently, as PX4 and mavros do: asking again for the expected item here
+            # would have the partner answer that request as well as the one already out, and from then on
+            # every item would be asked for and sent twice.
+            link.counters.mission_out_of_sequence += 1
+            logger.debug("%s: item %d again (a duplicate), dropped", transfer.what, seq)
+            return None
+        if seq > transfer.next_seq:
+            # An item skipped (lost on the way): the spec's recovery is to drop this one and ask again for
+            # the expected one (a retry: a partner that keeps skipping cannot hold the transfer open).
             link.counters.mission_out_of_sequence += 1
             logger.info("%s: item %d out of sequence, %d asked again", transfer.what, seq, transfer.next_seq)
             self._ask_again(transfer, self._clock.now_ns())
@@ -396,6 +424,7 @@ class MissionServer:
             return None
         # The last item: only now does the upload replace the mission in force.
         self._transfer = None
+        self._finished = _Finished(link, sysid, compid, transfer.count, self._clock.now_ns())
         self.items = tuple(transfer.items)
         link.counters.missions_accepted += 1
         logger.info("%s: %d items accepted", transfer.what, transfer.count)
@@ -517,6 +546,26 @@ class MissionServer:
         return None
 
     # --- internals --------------------------------------------------------------------------------
+    def _repeat_of_finished(self, link: MissionLink, msg: Any, sysid: int, compid: int) -> bool:
+        """Whether ``msg`` (a MISSION_ITEM_INT with no upload of its sender under way) belongs to the
+        upload that partner finished within the last operation timeout, and is answered as such: its last
+        item again means our MISSION_ACK ACCEPTED was lost (the partner resends until it hears one), so
+        the ACK is sent again, neither counted as a refusal nor applied again."""
+        finished = self._finished
+        if finished is None or not finished.is_with(link, sysid, compid) or msg.seq != finished.count - 1:
+            return False
+        if self._clock.now_ns() - finished.t_ns > self._operation_timeout_ns:
+            self._finished = None
+            return False
+        logger.info(
+            "mission upload from %d/%d on the %s link: last item again (our ACK lost), accepted again",
+            sysid,
+            compid,
+            link.name,
+        )
+        link.send(_ack(sysid, compid, mavlink2.MAV_MISSION_ACCEPTED, _MISSION))
+        return True
+
     def _may_start(self, link: MissionLink, msg: Any, sysid: int, compid: int, name: str) -> bool:
         """Whether ``sysid/compid`` may start an operation now: refused while another partner's transfer
         is under way; its own transfer under way is given up (it started over)."""
@@ -539,6 +588,7 @@ class MissionServer:
 
     def _clear(self, link: MissionLink, sysid: int, compid: int, mission_type: int) -> MissionCleared:
         self.items = ()
+        self._finished = None  # its last item again must not look accepted now
         link.counters.missions_cleared += 1
         logger.info("mission cleared by %d/%d on the %s link", sysid, compid, link.name)
         link.send(_ack(sysid, compid, mavlink2.MAV_MISSION_ACCEPTED, mission_type))

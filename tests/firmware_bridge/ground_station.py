@@ -1,5 +1,5 @@
 """A pymavlink ground station for mission tests: it packs and sends what a GCS sends (its own ids), reads
-what the rover answered, and answers the rover's item requests from a list, as QGroundControl does.
+what the rover answered, and answers the rover's item requests from a list, as a ground station does.
 
 It works over any byte transport end (``memory_pipe_pair``'s, or ``ScriptedGroundStation`` below, which
 puts it inside the rover's transport for a lockstep trial).

@@ -299,15 +299,65 @@ def test_an_item_out_of_sequence_is_dropped_and_the_expected_one_asked_again() -
     assert answer.type == mavlink2.MAV_MISSION_ACCEPTED and len(rig.server.items) == 3
 
 
-def test_a_duplicated_item_is_dropped_without_harm() -> None:
+def test_a_duplicated_item_is_dropped_silently() -> None:
     rig = Rig()
     plan = items()
     rig.exchange(count(3))
     rig.exchange(plan[0])
-    assert [m.seq for m in rig.exchange(plan[0])] == [1]  # again the one wanted
+    # Not asked again: the request for item 1 is already out, and the partner answers it.
+    assert rig.exchange(plan[0]) == []
     rig.exchange(plan[1])
     rig.exchange(plan[2])
     assert len(rig.server.items) == 3 and rig.link.counters.missions_accepted == 1
+    assert rig.link.counters.mission_resends == 0
+
+
+def test_a_late_answer_costs_its_resend_not_a_doubled_upload() -> None:
+    """A ground station that answers every request, the resent ones too, and is once slower than the
+    item timeout: one resend and one duplicate, no more."""
+    rig = Rig()
+    plan = items([(47.0 + seq * 1e-5, 8.0) for seq in range(20)])
+    late_ticks = round(ITEM_TIMEOUT_NS / TICK_NS) + 3  # item 5's first request answered after 310 ms
+    answers: list[tuple[int, int]] = []  # (due tick, seq), answered in that order
+    received = rig.exchange(count(20))
+    acks: list[Any] = []
+    for tick in range(400):
+        for msg in received:
+            if msg.get_type() == "MISSION_REQUEST_INT":
+                late = msg.seq == 5 and not any(seq == 5 for _, seq in answers)
+                answers.append((tick + (late_ticks if late else 1), msg.seq))
+        acks += [m for m in received if m.get_type() == "MISSION_ACK"]
+        if acks:
+            break
+        for due, seq in sorted(answers):
+            if due == tick:
+                rig.gcs.send(plan[seq])
+        received = rig.step()
+    assert [a.type for a in acks] == [mavlink2.MAV_MISSION_ACCEPTED]
+    requests = [m.seq for m in rig.gcs.of_type("MISSION_REQUEST_INT")]
+    assert rig.link.counters.mission_resends == 1
+    assert len(requests) == 20 + 1 and sorted(set(requests)) == list(range(20))
+    assert rig.link.counters.mission_refused == 0 and len(rig.server.items) == 20
+
+
+def test_the_last_item_again_after_the_upload_is_accepted_again_not_refused() -> None:
+    """Our MISSION_ACK ACCEPTED lost: the ground station resends the last item until it hears one."""
+    rig = Rig()
+    plan = items()
+    accepted(rig)
+    rig.step()
+    (again,) = rig.exchange(plan[2])
+    assert again.get_type() == "MISSION_ACK" and again.type == mavlink2.MAV_MISSION_ACCEPTED
+    counters = rig.link.counters
+    assert counters.mission_refused == 0 and counters.missions_accepted == 1 and len(rig.changes) == 1
+    # Another ground station's item is no repeat of this upload, nor an earlier item, nor the last item
+    # after the operation timeout.
+    rig.other.send(plan[2])
+    assert rig.refusal(rig.step())[0] == mavlink2.MAV_MISSION_INVALID_SEQUENCE
+    assert rig.refusal(rig.exchange(plan[1]))[0] == mavlink2.MAV_MISSION_INVALID_SEQUENCE
+    rig.step(OPERATION_TIMEOUT_NS)
+    assert rig.refusal(rig.exchange(plan[2]))[0] == mavlink2.MAV_MISSION_INVALID_SEQUENCE
+    assert counters.mission_refused == 3 and len(rig.changes) == 1
 
 
 def test_a_second_ground_station_is_refused_while_an_upload_is_under_way() -> None:
