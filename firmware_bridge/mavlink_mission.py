@@ -4,7 +4,9 @@ and clears a mission and sets its current item (https://mavlink.io/en/services/m
 The server speaks the protocol and keeps the mission in force as uploaded (what a download returns); it
 does not drive. What a transfer changes comes back from ``take`` as a ``MissionChange`` for the onboard
 stack (``navigator.onboard``), which drives the waypoints (``navigator.mission``) and reports progress back
-(``tick``: MISSION_CURRENT; ``item_reached``: MISSION_ITEM_REACHED).
+(``tick``: MISSION_CURRENT; ``item_reached``: MISSION_ITEM_REACHED). It also judges and answers
+MAV_CMD_MISSION_START (COMMAND_LONG or COMMAND_INT, which the link hands over as mission messages), as
+``firmware_bridge.mavlink_commands.judge_mission_start`` rules, with COMMAND_ACK.
 
 What is accepted, and the answer to everything else (each refusal a MISSION_ACK with the protocol's
 result, or a STATUSTEXT where the protocol has no ACK, counted in the link's ``mission_refused`` and
@@ -51,8 +53,9 @@ from typing import Any, NamedTuple, Protocol
 from pymavlink.dialects.v20 import common as mavlink2
 
 from firmware_bridge.errors import BridgeOperationError
-from firmware_bridge.mavlink_commands import GLOBAL_FRAMES
+from firmware_bridge.mavlink_commands import GLOBAL_FRAMES, judge_mission_start
 from firmware_bridge.mavlink_health import MavlinkCounters
+from firmware_bridge.mission_state import MissionState
 from logs.clock import NS_PER_S, Clock
 
 logger = logging.getLogger(__name__)
@@ -86,13 +89,14 @@ CURRENT_PERIOD_NS = NS_PER_S  # MISSION_CURRENT while a ground station follows t
 _NO_MISSION_TOTAL = 65535  # MISSION_CURRENT.total: UINT16_MAX, "no mission on the vehicle"
 _DEGREES_E7 = 1e-7
 _MISSION = mavlink2.MAV_MISSION_TYPE_MISSION
-# navigator.mission.MissionState's names -> (MISSION_STATE, MISSION_CURRENT.mission_mode: 1 in mission
-# mode, 2 suspended, 0 unknown).
+# MissionState -> (MISSION_STATE, MISSION_CURRENT.mission_mode: 1 in mission mode, 2 suspended (not in
+# mission mode), 0 unknown).
 _STATES = {
-    "NONE": (mavlink2.MISSION_STATE_NO_MISSION, 0),
-    "ACTIVE": (mavlink2.MISSION_STATE_ACTIVE, 1),
-    "PAUSED": (mavlink2.MISSION_STATE_PAUSED, 2),
-    "COMPLETE": (mavlink2.MISSION_STATE_COMPLETE, 1),
+    MissionState.NONE: (mavlink2.MISSION_STATE_NO_MISSION, 0),
+    MissionState.NOT_STARTED: (mavlink2.MISSION_STATE_NOT_STARTED, 2),
+    MissionState.ACTIVE: (mavlink2.MISSION_STATE_ACTIVE, 1),
+    MissionState.PAUSED: (mavlink2.MISSION_STATE_PAUSED, 2),
+    MissionState.COMPLETE: (mavlink2.MISSION_STATE_COMPLETE, 1),
 }
 
 
@@ -174,15 +178,23 @@ class CurrentRequested:
     compid: int
 
 
-MissionChange = MissionAccepted | MissionCleared | CurrentRequested
+@dataclass(frozen=True)
+class StartRequested:
+    """MAV_CMD_MISSION_START accepted (and acknowledged): drive the mission from item ``first``."""
+
+    first: int
+    sysid: int
+    compid: int
+
+
+MissionChange = MissionAccepted | MissionCleared | CurrentRequested | StartRequested
 
 
 class MissionProgress(NamedTuple):
-    """What the rover does with the mission: the current item and ``navigator.mission.MissionState``'s
-    name (NONE, ACTIVE, PAUSED, COMPLETE)."""
+    """What the rover does with the mission: the current item and its state."""
 
     current: int
-    state: str
+    state: MissionState
 
 
 @dataclass
@@ -256,7 +268,7 @@ class MissionServer:
         self._links: list[MissionLink] = []
         self._reported: tuple[int, int, int] | None = None
         self._next_current_ns = 0
-        self._progress = MissionProgress(0, "NONE")
+        self._progress = MissionProgress(0, MissionState.NONE)
         self._handlers: dict[str, Callable[[MissionLink, Any, int, int], MissionChange | None]] = {
             "MISSION_COUNT": self._on_count,
             "MISSION_ITEM_INT": self._on_item_int,
@@ -268,6 +280,8 @@ class MissionServer:
             "MISSION_ACK": self._on_ack,
             "MISSION_CLEAR_ALL": self._on_clear_all,
             "MISSION_SET_CURRENT": self._on_set_current,
+            "COMMAND_LONG": self._on_mission_start,  # MAV_CMD_MISSION_START only (the link's routing)
+            "COMMAND_INT": self._on_mission_start,
         }
 
     @property
@@ -292,11 +306,10 @@ class MissionServer:
             for seq, (lat, lon) in enumerate(positions)
         )
 
-    def tick(self, current: int, state: str) -> None:
-        """Every control tick, with the rover's progress (the current item, and
-        ``navigator.mission.MissionState``'s name: NONE, ACTIVE, PAUSED, COMPLETE): timeouts of the transfer
-        under way, and MISSION_CURRENT to the links a ground station follows the mission on (at once when
-        the progress changes, else once a second)."""
+    def tick(self, current: int, state: MissionState) -> None:
+        """Every control tick, with the rover's progress (the current item and the mission's state):
+        timeouts of the transfer under way, and MISSION_CURRENT to the links a ground station follows the
+        mission on (at once when the progress changes, else once a second)."""
         progress = self._progress
         if progress.current != current or progress.state != state:
             self._progress = progress = MissionProgress(current, state)
@@ -545,6 +558,19 @@ class MissionServer:
         link.send_status_text(f"mission item {seq} not set: {reason}", mavlink2.MAV_SEVERITY_WARNING)
         return None
 
+    def _on_mission_start(self, link: MissionLink, msg: Any, sysid: int, compid: int) -> MissionChange | None:
+        """MAV_CMD_MISSION_START, judged against the mission in force and answered with COMMAND_ACK as the
+        link answers the other commands (a refusal also with a STATUSTEXT, counted in
+        ``commands_rejected``)."""
+        verdict = judge_mission_start(msg, self._clock.now_ns(), len(self.items))
+        link.send(mavlink2.MAVLink_command_ack_message(msg.command, verdict.result, 0, 0, sysid, compid))
+        if verdict.start is None:
+            link.counters.commands_rejected += 1
+            logger.warning("refused %s from %d/%d: %s", msg.get_type(), sysid, compid, verdict.reason)
+            link.send_status_text(f"refused: {verdict.reason}", mavlink2.MAV_SEVERITY_WARNING)
+            return None
+        return StartRequested(verdict.start.first, sysid, compid)
+
     # --- internals --------------------------------------------------------------------------------
     def _repeat_of_finished(self, link: MissionLink, msg: Any, sysid: int, compid: int) -> bool:
         """Whether ``msg`` (a MISSION_ITEM_INT with no upload of its sender under way) belongs to the
@@ -661,9 +687,9 @@ class MissionServer:
 
     def _report_current(self, now: int, progress: MissionProgress) -> None:
         total = len(self.items)
-        state, mode = _STATES.get(progress.state, (mavlink2.MISSION_STATE_UNKNOWN, 0))
+        state, mode = _STATES[progress.state]
         # A complete mission reports the item after its last ("on last item, sequence == total").
-        seq = total if progress.state == "COMPLETE" else progress.current
+        seq = total if progress.state is MissionState.COMPLETE else progress.current
         key = (seq, total, state)
         if key == self._reported and now < self._next_current_ns:
             return
@@ -680,7 +706,7 @@ class MissionServer:
 
     def _item_message(self, sysid: int, compid: int, item: MissionItem) -> Any:
         progress = self._progress
-        current = int(progress.state == "ACTIVE" and progress.current == item.seq)
+        current = int(progress.state is MissionState.ACTIVE and progress.current == item.seq)
         return mavlink2.MAVLink_mission_item_int_message(
             sysid,
             compid,

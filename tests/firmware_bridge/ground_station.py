@@ -34,6 +34,17 @@ def waypoint(
     )  # fmt: skip
 
 
+def mission_start(first: float, last: float, *, kind: str = "COMMAND_LONG", target: Any = ROVER) -> Any:
+    """MAV_CMD_MISSION_START (param1 the first item, param2 the last) as COMMAND_LONG or COMMAND_INT."""
+    if kind == "COMMAND_INT":
+        return mavlink2.MAVLink_command_int_message(
+            *target, 0, mavlink2.MAV_CMD_MISSION_START, 0, 0, first, last, 0, 0, 0, 0, 0.0
+        )
+    return mavlink2.MAVLink_command_long_message(
+        *target, mavlink2.MAV_CMD_MISSION_START, 0, first, last, 0, 0, 0, 0, 0
+    )
+
+
 class GroundStation:
     """One end of a MAVLink byte stream, speaking as system ``sysid`` / component ``compid``."""
 

@@ -4,6 +4,7 @@ lockstep trials use: upload, download, clear, set current, and the defined answe
 from __future__ import annotations
 
 import logging
+import math
 from typing import Any
 
 import pytest
@@ -24,12 +25,14 @@ from firmware_bridge.mavlink_mission import (
     MissionItemRefused,
     MissionMessage,
     MissionServer,
+    StartRequested,
 )
 from firmware_bridge.mavlink_transport import memory_pipe_pair
+from firmware_bridge.mission_state import MissionState
 from logs.clock import SimClock
 from logs.sink import MemorySink
 from logs.topics import MAVLINK_STATS
-from tests.firmware_bridge.ground_station import MISSION, ROVER, GroundStation, waypoint
+from tests.firmware_bridge.ground_station import MISSION, ROVER, GroundStation, mission_start, waypoint
 
 TICK_NS = 20_000_000  # the onboard loop's 50 Hz
 FENCE_LAT = 47.001  # north of it the test's placer refuses: the rover's geofence stands in
@@ -69,7 +72,7 @@ class Rig:
         # A second ground station on the same wire (what the rover sends, ``gcs`` reads).
         self.other = GroundStation(station_end, sysid=254, compid=190)
         self.changes: list[MissionChange] = []
-        self.progress = (0, "NONE")
+        self.progress: tuple[int, MissionState] = (0, MissionState.NONE)
 
     def step(self, dt_ns: int = TICK_NS) -> list[Any]:
         """One control tick: the link read, mission messages to the server, its tick; what the rover sent
@@ -460,7 +463,7 @@ def test_set_current_is_passed_on_for_an_item_the_mission_has_and_refused_otherw
 
 def test_progress_goes_out_on_change_and_once_a_second_only_to_a_link_that_asked() -> None:
     rig = Rig()
-    rig.progress = (0, "ACTIVE")
+    rig.progress = (0, MissionState.ACTIVE)
     for _ in range(60):
         assert rig.step() == []  # no ground station has talked missions: nothing is streamed
     accepted(rig)
@@ -472,14 +475,14 @@ def test_progress_goes_out_on_change_and_once_a_second_only_to_a_link_that_asked
         (0, 3, mavlink2.MISSION_STATE_ACTIVE)
     }
     rig.gcs.heard.clear()
-    rig.progress = (1, "ACTIVE")
+    rig.progress = (1, MissionState.ACTIVE)
     rig.server.item_reached(0)
     rig.step()
     assert [(m.get_type(), m.seq) for m in rig.gcs.heard] == [
         ("MISSION_ITEM_REACHED", 0),
         ("MISSION_CURRENT", 1),
     ]
-    rig.progress = (2, "COMPLETE")
+    rig.progress = (2, MissionState.COMPLETE)
     rig.step()
     current = rig.gcs.heard[-1]
     assert (current.seq, current.total, current.mission_state) == (3, 3, mavlink2.MISSION_STATE_COMPLETE)
@@ -631,3 +634,55 @@ def test_malformed_mission_traffic_never_raises_and_only_a_whole_valid_upload_ch
     assert not rig.server.transfer_under_way
     assert rig.upload(items()).type == mavlink2.MAV_MISSION_ACCEPTED
     assert [(i.x, i.y) for i in rig.server.items] == [(m.x, m.y) for m in items()]
+
+
+@pytest.mark.parametrize("kind", ["COMMAND_LONG", "COMMAND_INT"])
+@pytest.mark.parametrize(("first", "last"), [(0, 0), (1, 0), (1, 2), (2, 2)])
+def test_mission_start_from_an_item_to_the_end_is_acknowledged_and_passed_on(
+    kind: str, first: int, last: int
+) -> None:
+    rig = Rig()
+    accepted(rig)
+    (answer,) = rig.exchange(mission_start(first, last, kind=kind))
+    assert answer.get_type() == "COMMAND_ACK"
+    assert (answer.command, answer.result) == (mavlink2.MAV_CMD_MISSION_START, mavlink2.MAV_RESULT_ACCEPTED)
+    assert (answer.target_system, answer.target_component) == (255, 190)
+    assert rig.changes[-1] == StartRequested(first, 255, 190)
+
+
+@pytest.mark.parametrize(
+    ("first", "last", "result", "reason"),
+    [
+        (3, 0, mavlink2.MAV_RESULT_DENIED, "mission start: first item 3.0 not in items 0..2"),
+        (0.5, 0, mavlink2.MAV_RESULT_DENIED, "first item 0.5 not in items 0..2"),
+        (math.nan, 0, mavlink2.MAV_RESULT_DENIED, "first item nan not in items 0..2"),
+        (0, 1, mavlink2.MAV_RESULT_UNSUPPORTED, "last item 1.0: only 0 or 2 (to the end) is supported"),
+        (0, -1, mavlink2.MAV_RESULT_UNSUPPORTED, "last item -1.0"),
+    ],
+)
+def test_a_mission_start_the_mission_cannot_take_is_refused_naming_why(
+    first: float, last: float, result: int, reason: str
+) -> None:
+    rig = Rig()
+    accepted(rig)
+    received = rig.exchange(mission_start(first, last))
+    (answer,) = [m for m in received if m.get_type() == "COMMAND_ACK"]
+    assert answer.result == result
+    text = "".join(m.text for m in received if m.get_type() == "STATUSTEXT")
+    assert text.startswith("refused: ") and reason in text
+    assert rig.link.counters.commands_rejected == 1 and len(rig.changes) == 1  # the upload only
+
+
+def test_mission_start_without_a_mission_is_denied_and_one_for_another_component_left_alone() -> None:
+    rig = Rig()
+    received = rig.exchange(mission_start(0, 0))
+    (answer,) = [m for m in received if m.get_type() == "COMMAND_ACK"]
+    assert answer.result == mavlink2.MAV_RESULT_DENIED
+    assert "mission start: there is no mission" in "".join(
+        m.text for m in received if m.get_type() == "STATUSTEXT"
+    )
+    accepted(rig)
+    # Component broadcast: the autopilot's mission (as for mission messages), not ours to answer.
+    for target in ((1, 0), (1, 1)):
+        assert rig.exchange(mission_start(0, 0, target=target)) == []
+    assert not any(isinstance(change, StartRequested) for change in rig.changes)
