@@ -8,6 +8,11 @@ An emergency stop comes as ``COMMAND_LONG`` or ``COMMAND_INT`` carrying ``MAV_CM
 with param1 = 0 (disarm; param2 = 21196 forces it, and is taken the same way) or
 ``MAV_CMD_DO_FLIGHTTERMINATION`` with param1 = 1; it is answered with ``COMMAND_ACK`` (ACCEPTED).
 A stop is never refused for a reason the sender could not fix (a refused stop is the unsafe answer).
+
+A mission start comes as ``COMMAND_LONG`` or ``COMMAND_INT`` carrying ``MAV_CMD_MISSION_START`` (param1 the
+first item, param2 the last): it belongs to the mission, so the link hands it to the mission server
+(``firmware_bridge.mavlink_mission``), which judges it here against the mission it holds
+(``judge_mission_start``) and answers with ``COMMAND_ACK``.
 """
 
 from __future__ import annotations
@@ -60,13 +65,30 @@ class StopRequest:
 
 
 @dataclass(frozen=True)
+class StartRequest:
+    """MAV_CMD_MISSION_START from a ground station: drive the mission from item ``first`` to its end."""
+
+    t_ns: int
+    first: int
+    sysid: int
+    compid: int
+
+
+@dataclass(frozen=True)
 class Verdict:
-    """What to do with one command message: a goal, a stop, or why not, and the MAV_RESULT to answer with."""
+    """What to do with one command message: a goal, a stop, a mission start, or why not, and the MAV_RESULT
+    to answer with."""
 
     goal: GoalRequest | None
     result: int
     reason: str
     stop: StopRequest | None = None
+    start: StartRequest | None = None
+
+
+def is_mission_start(msg: Any) -> bool:
+    """A COMMAND_LONG / COMMAND_INT carrying MAV_CMD_MISSION_START (the mission server's, not a goal)."""
+    return getattr(msg, "command", None) == mavlink2.MAV_CMD_MISSION_START
 
 
 def addressed_to(msg: Any, system_id: int, component_id: int) -> bool:
@@ -136,6 +158,26 @@ def _judge_stop(msg: Any, t_ns: int) -> Verdict:
         reason = "flight termination: emergency stop"
     stop = StopRequest(t_ns, name, msg.get_srcSystem(), msg.get_srcComponent())
     return Verdict(None, mavlink2.MAV_RESULT_ACCEPTED, reason, stop=stop)
+
+
+def judge_mission_start(msg: Any, t_ns: int, item_count: int) -> Verdict:
+    """MAV_CMD_MISSION_START against a mission of ``item_count`` items: param1, the first item, any the
+    mission has; param2, the last item, 0 or the mission's last index (driven to its end: stopping at an
+    earlier item is not supported)."""
+    first, last = msg.param1, msg.param2
+    if item_count == 0:
+        return Verdict(None, mavlink2.MAV_RESULT_DENIED, "mission start: there is no mission")
+    items = f"items 0..{item_count - 1}"
+    if not (math.isfinite(first) and first == int(first) and 0 <= first < item_count):
+        return Verdict(None, mavlink2.MAV_RESULT_DENIED, f"mission start: first item {first} not in {items}")
+    if not (last == 0 or last == item_count - 1):
+        return Verdict(
+            None,
+            mavlink2.MAV_RESULT_UNSUPPORTED,
+            f"mission start: last item {last}: only 0 or {item_count - 1} (to the end) is supported",
+        )
+    start = StartRequest(t_ns, int(first), msg.get_srcSystem(), msg.get_srcComponent())
+    return Verdict(None, mavlink2.MAV_RESULT_ACCEPTED, f"mission started at item {int(first)}", start=start)
 
 
 def statustext_chunks(text: str) -> list[bytes]:

@@ -52,7 +52,7 @@ class MavlinkCounters:
     missions_cleared: int = 0  # MISSION_CLEAR_ALL and empty uploads taken
     mission_downloads: int = 0  # downloads completed
     mission_refused: int = 0  # refusals answered (MISSION_ACK error or STATUSTEXT), each logged with why
-    mission_out_of_sequence: int = 0  # upload items out of sequence: dropped, the expected one asked again
+    mission_out_of_sequence: int = 0  # upload items dropped: duplicates, items after a gap (re-asked)
     mission_resends: int = 0  # requests (download: counts or items) sent again, after a timeout or above
     mission_timeouts: int = 0  # transfers abandoned when their retries ran out (the mission unchanged)
 

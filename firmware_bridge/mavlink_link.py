@@ -29,6 +29,7 @@ from firmware_bridge.mavlink_commands import (
     GoalRequest,
     StopRequest,
     addressed_to,
+    is_mission_start,
     judge_command,
     statustext_chunks,
 )
@@ -403,6 +404,12 @@ class MavlinkLink(ClosesOnExit):
         self.counters.rx_frames += 1
         self._publish_raw(t_ns, "rx", frame, msgid, kind, sysid, compid)
         if kind in COMMAND_MESSAGES:
+            if is_mission_start(msg):
+                # The mission server's (it holds the mission the start is judged against), addressed as
+                # mission messages are: a component-broadcast start on the autopilot's link is its own.
+                if mission_addressed(msg, self.system_id, self.component_id):
+                    readings.append(MissionMessage(msg, t_ns))
+                return
             request = self._answer_command(msg, t_ns)
             if request is not None:
                 readings.append(request)

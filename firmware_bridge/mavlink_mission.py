@@ -4,7 +4,9 @@ and clears a mission and sets its current item (https://mavlink.io/en/services/m
 The server speaks the protocol and keeps the mission in force as uploaded (what a download returns); it
 does not drive. What a transfer changes comes back from ``take`` as a ``MissionChange`` for the onboard
 stack (``navigator.onboard``), which drives the waypoints (``navigator.mission``) and reports progress back
-(``tick``: MISSION_CURRENT; ``item_reached``: MISSION_ITEM_REACHED).
+(``tick``: MISSION_CURRENT; ``item_reached``: MISSION_ITEM_REACHED). It also judges and answers
+MAV_CMD_MISSION_START (COMMAND_LONG or COMMAND_INT, which the link hands over as mission messages), as
+``firmware_bridge.mavlink_commands.judge_mission_start`` rules, with COMMAND_ACK.
 
 What is accepted, and the answer to everything else (each refusal a MISSION_ACK with the protocol's
 result, or a STATUSTEXT where the protocol has no ACK, counted in the link's ``mission_refused`` and
@@ -25,10 +27,13 @@ logged naming what was wrong):
 * One transfer at a time. A new operation (MISSION_COUNT, MISSION_REQUEST_LIST, MISSION_CLEAR_ALL) from
   the partner of the transfer under way replaces it (a ground station that started over); from anyone else
   it is refused (``MAV_MISSION_DENIED``, the transfer goes on).
-* An item out of sequence is dropped and the expected one asked for again (the spec's recovery); each such
-  request, like each request resent after a timeout (250 ms for an item, 1.5 s otherwise, the spec's
-  values), uses one of 5 retries, which a good item renews. An item beyond the announced count, or with no
-  upload of its sender under way: ``MAV_MISSION_INVALID_SEQUENCE``.
+* A duplicate item (one already received: the late answer to a request sent again) is dropped silently, as
+  PX4 and mavros do. An item after a gap (one lost) is dropped and the expected one asked for again (the
+  spec's recovery); each such request, like each request resent after a timeout (250 ms for an item,
+  1.5 s otherwise, the spec's values), uses one of 5 retries, which a good item renews. An item beyond the
+  announced count, or with no upload of its sender under way: ``MAV_MISSION_INVALID_SEQUENCE``; except
+  that for one operation timeout after an upload completed, its partner's last item again (our ACK was
+  lost) is answered ACCEPTED again, and not applied again.
 * A transfer whose retries run out is abandoned (``MAV_MISSION_OPERATION_CANCELLED`` to the partner,
   counted in ``mission_timeouts``). An upload replaces the mission in force only when its last item is
   accepted: a partial, refused, cancelled or timed-out upload leaves it as it was.
@@ -48,8 +53,9 @@ from typing import Any, NamedTuple, Protocol
 from pymavlink.dialects.v20 import common as mavlink2
 
 from firmware_bridge.errors import BridgeOperationError
-from firmware_bridge.mavlink_commands import GLOBAL_FRAMES
+from firmware_bridge.mavlink_commands import GLOBAL_FRAMES, judge_mission_start
 from firmware_bridge.mavlink_health import MavlinkCounters
+from firmware_bridge.mission_state import MissionState
 from logs.clock import NS_PER_S, Clock
 
 logger = logging.getLogger(__name__)
@@ -83,13 +89,14 @@ CURRENT_PERIOD_NS = NS_PER_S  # MISSION_CURRENT while a ground station follows t
 _NO_MISSION_TOTAL = 65535  # MISSION_CURRENT.total: UINT16_MAX, "no mission on the vehicle"
 _DEGREES_E7 = 1e-7
 _MISSION = mavlink2.MAV_MISSION_TYPE_MISSION
-# navigator.mission.MissionState's names -> (MISSION_STATE, MISSION_CURRENT.mission_mode: 1 in mission
-# mode, 2 suspended, 0 unknown).
+# MissionState -> (MISSION_STATE, MISSION_CURRENT.mission_mode: 1 in mission mode, 2 suspended (not in
+# mission mode), 0 unknown).
 _STATES = {
-    "NONE": (mavlink2.MISSION_STATE_NO_MISSION, 0),
-    "ACTIVE": (mavlink2.MISSION_STATE_ACTIVE, 1),
-    "PAUSED": (mavlink2.MISSION_STATE_PAUSED, 2),
-    "COMPLETE": (mavlink2.MISSION_STATE_COMPLETE, 1),
+    MissionState.NONE: (mavlink2.MISSION_STATE_NO_MISSION, 0),
+    MissionState.NOT_STARTED: (mavlink2.MISSION_STATE_NOT_STARTED, 2),
+    MissionState.ACTIVE: (mavlink2.MISSION_STATE_ACTIVE, 1),
+    MissionState.PAUSED: (mavlink2.MISSION_STATE_PAUSED, 2),
+    MissionState.COMPLETE: (mavlink2.MISSION_STATE_COMPLETE, 1),
 }
 
 
@@ -171,15 +178,23 @@ class CurrentRequested:
     compid: int
 
 
-MissionChange = MissionAccepted | MissionCleared | CurrentRequested
+@dataclass(frozen=True)
+class StartRequested:
+    """MAV_CMD_MISSION_START accepted (and acknowledged): drive the mission from item ``first``."""
+
+    first: int
+    sysid: int
+    compid: int
+
+
+MissionChange = MissionAccepted | MissionCleared | CurrentRequested | StartRequested
 
 
 class MissionProgress(NamedTuple):
-    """What the rover does with the mission: the current item and ``navigator.mission.MissionState``'s
-    name (NONE, ACTIVE, PAUSED, COMPLETE)."""
+    """What the rover does with the mission: the current item and its state."""
 
     current: int
-    state: str
+    state: MissionState
 
 
 @dataclass
@@ -205,6 +220,20 @@ class _Transfer:
     def what(self) -> str:
         kind = "upload from" if self.upload else "download to"
         return f"mission {kind} {self.sysid}/{self.compid} on the {self.link.name} link"
+
+
+@dataclass(frozen=True)
+class _Finished:
+    """An upload completed at ``t_ns``: its partner may resend its last item if our ACK was lost."""
+
+    link: MissionLink
+    sysid: int
+    compid: int
+    count: int
+    t_ns: int
+
+    def is_with(self, link: MissionLink, sysid: int, compid: int) -> bool:
+        return self.link is link and self.sysid == sysid and self.compid == compid
 
 
 class MissionServer:
@@ -233,12 +262,13 @@ class MissionServer:
         self._max_retries = max_retries
         self.items: tuple[MissionItem, ...] = ()  # the mission in force, as uploaded
         self._transfer: _Transfer | None = None
+        self._finished: _Finished | None = None  # the last upload completed (``_repeat_of_finished``)
         # The links a mission partner has talked to us on: MISSION_CURRENT and MISSION_ITEM_REACHED go
         # there (none until then: a rover no ground station asked about a mission sends neither).
         self._links: list[MissionLink] = []
         self._reported: tuple[int, int, int] | None = None
         self._next_current_ns = 0
-        self._progress = MissionProgress(0, "NONE")
+        self._progress = MissionProgress(0, MissionState.NONE)
         self._handlers: dict[str, Callable[[MissionLink, Any, int, int], MissionChange | None]] = {
             "MISSION_COUNT": self._on_count,
             "MISSION_ITEM_INT": self._on_item_int,
@@ -250,6 +280,8 @@ class MissionServer:
             "MISSION_ACK": self._on_ack,
             "MISSION_CLEAR_ALL": self._on_clear_all,
             "MISSION_SET_CURRENT": self._on_set_current,
+            "COMMAND_LONG": self._on_mission_start,  # MAV_CMD_MISSION_START only (the link's routing)
+            "COMMAND_INT": self._on_mission_start,
         }
 
     @property
@@ -274,11 +306,10 @@ class MissionServer:
             for seq, (lat, lon) in enumerate(positions)
         )
 
-    def tick(self, current: int, state: str) -> None:
-        """Every control tick, with the rover's progress (the current item, and
-        ``navigator.mission.MissionState``'s name: NONE, ACTIVE, PAUSED, COMPLETE): timeouts of the transfer
-        under way, and MISSION_CURRENT to the links a ground station follows the mission on (at once when
-        the progress changes, else once a second)."""
+    def tick(self, current: int, state: MissionState) -> None:
+        """Every control tick, with the rover's progress (the current item and the mission's state):
+        timeouts of the transfer under way, and MISSION_CURRENT to the links a ground station follows the
+        mission on (at once when the progress changes, else once a second)."""
         progress = self._progress
         if progress.current != current or progress.state != state:
             self._progress = progress = MissionProgress(current, state)
@@ -335,6 +366,8 @@ class MissionServer:
         transfer = self._transfer
         seq = msg.seq
         if transfer is None or not transfer.upload or not transfer.is_with(link, sysid, compid):
+            if self._repeat_of_finished(link, msg, sysid, compid):
+                return None
             # A transfer of someone else's goes on; an upload of ours that timed out is told so here.
             self._refuse(
                 link,
@@ -358,9 +391,17 @@ class MissionServer:
                 f"item {seq} of a mission of {transfer.count} items (0..{transfer.count - 1})",
             )
             return None
-        if seq != transfer.next_seq:
-            # The spec: drop it and ask again for the expected one (a retry: a partner that keeps sending
-            # the wrong one cannot hold the transfer open for ever).
+        if seq < transfer.next_seq:
+            # A duplicate: the late answer to a request we sent again after a timeout (or the partner's
+            # own resend). Dropped silently, as PX4 and mavros do: asking again for the expected item here
+            # would have the partner answer that request as well as the one already out, and from then on
+            # every item would be asked for and sent twice.
+            link.counters.mission_out_of_sequence += 1
+            logger.debug("%s: item %d again (a duplicate), dropped", transfer.what, seq)
+            return None
+        if seq > transfer.next_seq:
+            # An item skipped (lost on the way): the spec's recovery is to drop this one and ask again for
+            # the expected one (a retry: a partner that keeps skipping cannot hold the transfer open).
             link.counters.mission_out_of_sequence += 1
             logger.info("%s: item %d out of sequence, %d asked again", transfer.what, seq, transfer.next_seq)
             self._ask_again(transfer, self._clock.now_ns())
@@ -396,6 +437,7 @@ class MissionServer:
             return None
         # The last item: only now does the upload replace the mission in force.
         self._transfer = None
+        self._finished = _Finished(link, sysid, compid, transfer.count, self._clock.now_ns())
         self.items = tuple(transfer.items)
         link.counters.missions_accepted += 1
         logger.info("%s: %d items accepted", transfer.what, transfer.count)
@@ -516,7 +558,40 @@ class MissionServer:
         link.send_status_text(f"mission item {seq} not set: {reason}", mavlink2.MAV_SEVERITY_WARNING)
         return None
 
+    def _on_mission_start(self, link: MissionLink, msg: Any, sysid: int, compid: int) -> MissionChange | None:
+        """MAV_CMD_MISSION_START, judged against the mission in force and answered with COMMAND_ACK as the
+        link answers the other commands (a refusal also with a STATUSTEXT, counted in
+        ``commands_rejected``)."""
+        verdict = judge_mission_start(msg, self._clock.now_ns(), len(self.items))
+        link.send(mavlink2.MAVLink_command_ack_message(msg.command, verdict.result, 0, 0, sysid, compid))
+        if verdict.start is None:
+            link.counters.commands_rejected += 1
+            logger.warning("refused %s from %d/%d: %s", msg.get_type(), sysid, compid, verdict.reason)
+            link.send_status_text(f"refused: {verdict.reason}", mavlink2.MAV_SEVERITY_WARNING)
+            return None
+        return StartRequested(verdict.start.first, sysid, compid)
+
     # --- internals --------------------------------------------------------------------------------
+    def _repeat_of_finished(self, link: MissionLink, msg: Any, sysid: int, compid: int) -> bool:
+        """Whether ``msg`` (a MISSION_ITEM_INT with no upload of its sender under way) belongs to the
+        upload that partner finished within the last operation timeout, and is answered as such: its last
+        item again means our MISSION_ACK ACCEPTED was lost (the partner resends until it hears one), so
+        the ACK is sent again, neither counted as a refusal nor applied again."""
+        finished = self._finished
+        if finished is None or not finished.is_with(link, sysid, compid) or msg.seq != finished.count - 1:
+            return False
+        if self._clock.now_ns() - finished.t_ns > self._operation_timeout_ns:
+            self._finished = None
+            return False
+        logger.info(
+            "mission upload from %d/%d on the %s link: last item again (our ACK lost), accepted again",
+            sysid,
+            compid,
+            link.name,
+        )
+        link.send(_ack(sysid, compid, mavlink2.MAV_MISSION_ACCEPTED, _MISSION))
+        return True
+
     def _may_start(self, link: MissionLink, msg: Any, sysid: int, compid: int, name: str) -> bool:
         """Whether ``sysid/compid`` may start an operation now: refused while another partner's transfer
         is under way; its own transfer under way is given up (it started over)."""
@@ -539,6 +614,7 @@ class MissionServer:
 
     def _clear(self, link: MissionLink, sysid: int, compid: int, mission_type: int) -> MissionCleared:
         self.items = ()
+        self._finished = None  # its last item again must not look accepted now
         link.counters.missions_cleared += 1
         logger.info("mission cleared by %d/%d on the %s link", sysid, compid, link.name)
         link.send(_ack(sysid, compid, mavlink2.MAV_MISSION_ACCEPTED, mission_type))
@@ -611,9 +687,9 @@ class MissionServer:
 
     def _report_current(self, now: int, progress: MissionProgress) -> None:
         total = len(self.items)
-        state, mode = _STATES.get(progress.state, (mavlink2.MISSION_STATE_UNKNOWN, 0))
+        state, mode = _STATES[progress.state]
         # A complete mission reports the item after its last ("on last item, sequence == total").
-        seq = total if progress.state == "COMPLETE" else progress.current
+        seq = total if progress.state is MissionState.COMPLETE else progress.current
         key = (seq, total, state)
         if key == self._reported and now < self._next_current_ns:
             return
@@ -630,7 +706,7 @@ class MissionServer:
 
     def _item_message(self, sysid: int, compid: int, item: MissionItem) -> Any:
         progress = self._progress
-        current = int(progress.state == "ACTIVE" and progress.current == item.seq)
+        current = int(progress.state is MissionState.ACTIVE and progress.current == item.seq)
         return mavlink2.MAVLink_mission_item_int_message(
             sysid,
             compid,

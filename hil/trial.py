@@ -10,7 +10,9 @@ them in order, as it drives a mission a ground station uploads, and the trial on
 After the rover reports ARRIVED with no mission left to drive (the last goal reached, or a goal a ground
 station or Zenoh gave in its place) the trial goes on, the rover parked, while a scenario fault has yet
 to run its course (``hil.fault_coverage``); a fault the trial did not run in full is a failed criterion,
-named in ``TrialResult.failures`` and on the ``log`` topic.
+named in ``TrialResult.failures`` and on the ``log`` topic. A mission the stack refuses (a goal outside
+the geofence: a ``mission_rejected`` event) ends the trial at once, failed: ``end_reason``
+"mission_rejected", named in ``failures`` and on the ``log`` topic.
 """
 
 from __future__ import annotations
@@ -54,6 +56,7 @@ from navigator.terrain_classes import TERRAIN_CLASSES
 from navigator.warm_up import warm_up
 
 PHYSICS_DT_NS = 10_000_000  # 100 Hz rover body
+MISSION_REJECTED = "mission_rejected"  # TrialResult.end_reason: the stack refused the scenario's goals
 CONTROL_DIVIDER = 2  # onboard control at 50 Hz
 # After the final ARRIVED: the rover counts as stopped below this body speed; the wait for it is bounded.
 AT_REST_MPS = 0.02
@@ -174,6 +177,13 @@ def run_trial(
                 fault_failures = unexercised_faults(
                     scenario.faults, clock.now_ns(), to_ns(scenario.duration_s), end_reason, arrived_ns
                 )
+                if end_reason == MISSION_REJECTED:
+                    # The rover never drove: whatever the criteria, the trial tested nothing.
+                    fault_failures = [
+                        "mission rejected: the onboard stack refused the scenario's goals "
+                        "(its mission_rejected event says why)",
+                        *fault_failures,
+                    ]
                 for failure in fault_failures:
                     _log_record(sink, clock.now_ns(), topics.LOG_WARNING, failure)
                 stack.close()
@@ -243,7 +253,8 @@ def _run_loop(
     """Step until the trial ends; returns why it ended and when the rover arrived at its last goal."""
     dt_s = seconds(PHYSICS_DT_NS)
     end_ns = stop_ns = to_ns(scenario.duration_s)
-    stack.start_mission([(goal.x, goal.y) for goal in scenario.goals], f"scenario {scenario.name}")
+    if not stack.start_mission([(goal.x, goal.y) for goal in scenario.goals], f"scenario {scenario.name}"):
+        return MISSION_REJECTED, None  # idling to the timeout would only hide it
     mission = stack.mission
     arrived_ns: int | None = None
     tick = 0

@@ -99,6 +99,8 @@ MAVLINK_FIGURES = {
     "signature_rejected": "mavlink_commands_refused",
     "scans_rejected": "mavlink_scans_refused",
     "beams_rejected": "mavlink_beams_refused",
+    "mission_refused": "mavlink_mission_refused",
+    "mission_timeouts": "mavlink_mission_timeouts",
 }
 EXPECTED_TOPICS = (ESTIMATOR_POSE, NAVIGATOR_PATH, NAVIGATOR_STATE, WHEELS_STATUS, CAN_FRAMES)
 

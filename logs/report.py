@@ -66,6 +66,8 @@ FIGURE_LABELS = {
     "mavlink_commands_refused": "MAVLink commands refused by the signing check",
     "mavlink_scans_refused": "MAVLink OBSTACLE_DISTANCE scans refused (unreadable)",
     "mavlink_beams_refused": "MAVLink DISTANCE_SENSOR readings refused (unreadable)",
+    "mavlink_mission_refused": "MAVLink mission operations refused",
+    "mavlink_mission_timeouts": "MAVLink mission transfers abandoned (retries ran out)",
     "innovations_rejected": "estimator innovations rejected",
     "safety_warnings": "safety warnings",
     "safety_errors": "safety errors",

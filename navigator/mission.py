@@ -8,19 +8,14 @@ from 0, as MAVLink numbers them.
 
 from __future__ import annotations
 
-import enum
 import math
 from collections.abc import Sequence
 from typing import NamedTuple
 
+from firmware_bridge.mission_state import MissionState
 from navigator.errors import ParameterError
 
-
-class MissionState(enum.StrEnum):
-    NONE = "NONE"  # no mission
-    ACTIVE = "ACTIVE"  # driving to the current waypoint
-    PAUSED = "PAUSED"  # a single goal replaced it; setting a current item drives it again
-    COMPLETE = "COMPLETE"  # the last waypoint was reached
+__all__ = ["Mission", "MissionState", "Waypoint"]
 
 
 class Waypoint(NamedTuple):
@@ -33,7 +28,7 @@ class Mission:
 
     ``state`` and ``current`` are plain attributes (the control tick reads ``state`` every tick); change
     them only through the methods. ``current`` is the item being driven to (ACTIVE), the one a single goal
-    interrupted (PAUSED), or the last one (COMPLETE).
+    interrupted (PAUSED), the last one (COMPLETE), or 0 (NOT_STARTED: loaded, not driven yet).
     """
 
     def __init__(self) -> None:
@@ -45,8 +40,8 @@ class Mission:
     def count(self) -> int:
         return len(self.waypoints)
 
-    def load(self, waypoints: Sequence[tuple[float, float]]) -> Waypoint:
-        """Replace the mission with ``waypoints`` and start it: returns the first to drive to.
+    def load(self, waypoints: Sequence[tuple[float, float]]) -> None:
+        """Replace the mission with ``waypoints``, NOT_STARTED: ``set_current`` drives it.
 
         ``ParameterError`` (the mission in force kept) for an empty list or a coordinate that is not a
         finite number."""
@@ -59,8 +54,7 @@ class Mission:
             loaded.append(Waypoint(float(x), float(y)))
         self.waypoints = tuple(loaded)
         self.current = 0
-        self.state = MissionState.ACTIVE
-        return self.waypoints[0]
+        self.state = MissionState.NOT_STARTED
 
     def clear(self) -> bool:
         """Forget the mission; True if it was being driven."""

@@ -17,8 +17,10 @@ Guidance (plan on a new goal, repair the plan as obstacles are perceived, follow
 Goals come one at a time (``set_goal``: Zenoh, a ground station's MAVLink goal, ``rover run --goal``) or as
 a mission, waypoints driven in order (``navigator.mission``): uploaded by a ground station with the MAVLink
 mission protocol (``firmware_bridge.mavlink_mission``, served here for every MAVLink link) or handed over
-by the trial runner (``start_mission``). The next waypoint becomes the goal at the end of the tick in
-which guidance reports ARRIVED; a single goal pauses the mission.
+by the trial runner (``start_mission``, driven at once). An upload replaces the mission; it is driven at
+once only in place of a mission being driven, else it waits for MISSION_START or MISSION_SET_CURRENT. The
+next waypoint becomes the goal at the end of the tick in which guidance reports ARRIVED; a single goal
+pauses the mission.
 """
 
 from __future__ import annotations
@@ -46,6 +48,7 @@ from firmware_bridge.mavlink_mission import (
     MissionItemRefused,
     MissionMessage,
     MissionServer,
+    StartRequested,
 )
 from firmware_bridge.obstacle_scan import ObstacleScan
 from logs import topics
@@ -395,8 +398,7 @@ class OnboardStack:
     def set_goal(self, x: float, y: float) -> None:
         """A single goal: driven at once, in place of the mission being driven (which is paused: setting
         a current item drives it again). One outside the geofence is refused (``goal_rejected``)."""
-        fence = self._config.safety.fence
-        if fence and not inside_polygon(x, y, fence):
+        if self._outside_fence(x, y):
             self._event("goal_rejected", "warning", f"goal ({x:.2f}, {y:.2f}) is outside the geofence")
             return
         mission = self.mission
@@ -406,62 +408,82 @@ class OnboardStack:
                 "info",
                 f"a single goal replaced the mission at item {mission.current} of {mission.count}",
             )
-        self._drive_to(x, y)
+        self._drive_to(x, y, given=True)
 
     def start_mission(self, waypoints: Sequence[tuple[float, float]], source: str) -> bool:
-        """Drive ``waypoints`` (local ENU metres) in order, in place of any goal or mission; ``source``
-        names who gave them in the events. Refused whole, the mission in force kept (a ``mission_rejected``
-        event), when one is outside the geofence, as ``set_goal`` refuses a goal; True if started.
-
-        A ground station downloads it as waypoints in MAV_FRAME_GLOBAL_INT (through the estimator's datum;
-        with no datum yet, as no mission)."""
-        fence = self._config.safety.fence
+        """Drive ``waypoints`` (local ENU metres) in order, at once, in place of any goal or mission;
+        ``source`` names who gave them in the events. True if started; refused whole, the mission in force
+        kept (a ``mission_rejected`` event), when one is outside the geofence, as ``set_goal`` refuses a
+        goal, or before the estimator has a datum: a ground station, which sees the mission as waypoints
+        in MAV_FRAME_GLOBAL_INT through the datum, would be told there is none while the rover drives one.
+        ``ParameterError`` (nothing changed) for no waypoint or one not finite."""
         for index, (x, y) in enumerate(waypoints):
-            if fence and not inside_polygon(x, y, fence):
+            if self._outside_fence(x, y):
                 self._event(
                     "mission_rejected",
                     "warning",
                     f"mission from {source}: waypoint {index} ({x:.2f}, {y:.2f}) is outside the geofence",
                 )
                 return False
-        self._run_mission(waypoints, source)  # ParameterError before anything changes: no waypoint, NaN
         datum = self.estimator.datum
         if datum is None:
-            self._mission_server.replace(())
-        else:
-            geodetic = [to_geodetic(datum, x, y, 0.0) for x, y in self.mission.waypoints]
-            self._mission_server.replace([(lat, lon) for lat, lon, _ in geodetic])
+            self._event(
+                "mission_rejected",
+                "warning",
+                f"mission from {source}: no ENU datum yet (no GPS fix), a ground station could not follow it",
+            )
+            return False
+        self._load_mission(waypoints, source)  # ParameterError before anything changes: no waypoint, NaN
+        geodetic = [to_geodetic(datum, x, y, 0.0) for x, y in self.mission.waypoints]
+        self._mission_server.replace([(lat, lon) for lat, lon, _ in geodetic])
+        self._drive_to(*self.mission.set_current(0), given=True)
         return True
 
     def estop(self, source: str) -> None:
         self.safety.estop(source)
 
     # --- missions --------------------------------------------------------------------------------------
-    def _run_mission(self, waypoints: Sequence[tuple[float, float]], source: str) -> None:
-        first = self.mission.load(waypoints)
+    def _load_mission(self, waypoints: Sequence[tuple[float, float]], source: str, note: str = "") -> None:
+        """The mission in force replaced (not driven yet: ``Mission.set_current`` starts it)."""
+        self.mission.load(waypoints)
         count = self.mission.count
         listed = ", ".join(f"({x:.2f}, {y:.2f})" for x, y in self.mission.waypoints)
         noun = "waypoint" if count == 1 else "waypoints"
-        self._event("mission", "info", f"mission of {count} {noun} from {source}: {listed}")
-        self._drive_to(*first)
+        self._event("mission", "info", f"mission of {count} {noun} from {source}: {listed}{note}")
 
-    def _drive_to(self, x: float, y: float) -> None:
-        """Guidance's new goal (a single goal or a mission's waypoint)."""
+    def _drive_to(self, x: float, y: float, *, given: bool) -> None:
+        """Guidance's new goal: a single goal or a mission's waypoint. ``given``: chosen from outside (a
+        goal, a mission started, an item made current), which clears the stuck and stall latches (the
+        operator chose where to go next); a mission advancing by itself to its next waypoint does not: a
+        rover stuck at one waypoint is as stuck on the way to the next."""
         self.guidance.set_goal(x, y)
-        self.safety.new_goal()
+        if given:
+            self.safety.new_goal()
         self._event("goal", "info", f"new goal ({x:.2f}, {y:.2f})")
 
-    def _place_waypoint(self, lat_deg: float, lon_deg: float) -> tuple[float, float]:
-        """An uploaded waypoint in local ENU metres, through the estimator's datum as a MAVLink goal is;
-        ``MissionItemRefused`` before the datum is known or outside the geofence (the upload is refused)."""
+    def _outside_fence(self, x: float, y: float) -> bool:
+        """Whether (x, y), local ENU metres, is outside ``[safety] fence`` (none: never)."""
+        fence = self._config.safety.fence
+        return bool(fence) and not inside_polygon(x, y, fence)
+
+    def _placed(self, lat_deg: float, lon_deg: float) -> tuple[float, float] | None:
+        """A latitude and longitude in local ENU metres through the estimator's datum (the rover's
+        altitude: a rover ignores it); None before the datum is known."""
         datum = self.estimator.datum
         if datum is None:
-            raise MissionItemRefused("no ENU datum yet (no GPS fix): waypoints cannot be placed")
+            return None
         x, y, _ = to_enu(datum, lat_deg, lon_deg, datum.alt_m)
-        fence = self._config.safety.fence
-        if fence and not inside_polygon(x, y, fence):
-            raise MissionItemRefused(f"waypoint ({x:.2f}, {y:.2f}) is outside the geofence")
         return x, y
+
+    def _place_waypoint(self, lat_deg: float, lon_deg: float) -> tuple[float, float]:
+        """An uploaded waypoint in local ENU metres, as a MAVLink goal is placed; ``MissionItemRefused``
+        before the datum is known or outside the geofence (the upload is refused)."""
+        placed = self._placed(lat_deg, lon_deg)
+        if placed is None:
+            raise MissionItemRefused("no ENU datum yet (no GPS fix): waypoints cannot be placed")
+        if self._outside_fence(*placed):
+            raise MissionItemRefused(f"waypoint ({placed[0]:.2f}, {placed[1]:.2f}) is outside the geofence")
+        return placed
 
     def _take_mission_message(self, link: MavlinkLink, reading: MissionMessage) -> None:
         """A ground station's mission message: the server answers it; what it changes is driven here."""
@@ -470,7 +492,9 @@ class OnboardStack:
             return
         who = f"{change.sysid}/{change.compid}"
         if isinstance(change, MissionAccepted):
-            self._run_mission(change.waypoints, f"MAVLink upload by {who} on the {link.name} link")
+            self._take_upload(change, f"MAVLink upload by {who} on the {link.name} link")
+        elif isinstance(change, StartRequested):
+            self._start_at(change.first, "mission_started", f"mission started at item {change.first}", who)
         elif isinstance(change, MissionCleared):
             if self.mission.clear():
                 self.guidance.clear_goal()
@@ -478,17 +502,34 @@ class OnboardStack:
             else:
                 self._event("mission_cleared", "info", f"mission cleared by {who}")
         elif isinstance(change, CurrentRequested):
-            try:
-                waypoint = self.mission.set_current(change.seq)
-            except ParameterError as err:
-                # The server asks only for an item it holds, and holds the mission driven; should the two
-                # ever differ, a ground station's message must still not stop the loop.
-                _log.warning("MISSION_SET_CURRENT from %s not taken: %s", who, err)
-                return
-            self._event(
-                "mission_current", "info", f"item {change.seq} of {self.mission.count} made current by {who}"
-            )
-            self._drive_to(*waypoint)
+            self._start_at(change.seq, "mission_current", f"item {change.seq}", who, " made current")
+
+    def _take_upload(self, change: MissionAccepted, source: str) -> None:
+        """An upload replaces the mission; it is driven at once, from item 0, only in place of a mission
+        being driven (as ArduPilot and PX4 go on in their mission modes). Otherwise, parked, a mission
+        complete or paused for a single goal, it waits for MISSION_START or MISSION_SET_CURRENT: ground
+        stations treat an upload as editing the plan, and a separate command as starting it."""
+        driving = self.mission.state is MissionState.ACTIVE
+        note = (
+            "; driven from item 0 in place of the mission being driven"
+            if driving
+            else "; not started: MISSION_START or MISSION_SET_CURRENT drives it"
+        )
+        self._load_mission(change.waypoints, source, note)
+        if driving:
+            self._drive_to(*self.mission.set_current(0), given=True)
+
+    def _start_at(self, seq: int, kind: str, what: str, who: str, verb: str = "") -> None:
+        """A ground station made item ``seq`` current or started the mission there: it is driven from it."""
+        try:
+            waypoint = self.mission.set_current(seq)
+        except ParameterError as err:
+            # The server asks only for an item it holds, and holds the mission driven; should the two
+            # ever differ, a ground station's message must still not stop the loop.
+            _log.warning("%s from %s not taken: %s", kind, who, err)
+            return
+        self._event(kind, "info", f"{what} of {self.mission.count}{verb} by {who}")
+        self._drive_to(*waypoint, given=True)
 
     def _mission_item_reached(self) -> None:
         """Guidance reports ARRIVED at the mission's current waypoint: on to the next, or the end."""
@@ -501,7 +542,7 @@ class OnboardStack:
         if following is None:
             self._event("mission_complete", "info", f"mission complete: its {count} waypoint(s) reached")
         else:
-            self._drive_to(*following)
+            self._drive_to(*following, given=False)  # the mission's own step: the latches stand
 
     def resume(self, source: str) -> None:
         self.safety.resume(source)
@@ -647,7 +688,7 @@ class OnboardStack:
             # After this tick's records, as the trial runner once set the next goal between ticks.
             self._mission_item_reached()
             mission_state = mission.state
-        self._mission_server.tick(mission.current, mission_state._value_)
+        self._mission_server.tick(mission.current, mission_state)
 
     def close(self) -> None:
         """Stop the wheels (zero commands) and release the links; safe to call twice."""
@@ -801,12 +842,11 @@ class OnboardStack:
         )
 
     def _goal_from_ground_station(self, request: GoalRequest) -> None:
-        datum = self.estimator.datum
-        if datum is None:
+        placed = self._placed(request.lat_deg, request.lon_deg)
+        if placed is None:
             self._event("goal_rejected", "warning", "MAVLink goal before the first GPS fix: no datum yet")
             return
-        x, y, _ = to_enu(datum, request.lat_deg, request.lon_deg, datum.alt_m)
-        self.set_goal(x, y)
+        self.set_goal(*placed)
 
     def _read_ground_station(self) -> None:
         link = self._ground_station

@@ -1,5 +1,5 @@
 """A pymavlink ground station for mission tests: it packs and sends what a GCS sends (its own ids), reads
-what the rover answered, and answers the rover's item requests from a list, as QGroundControl does.
+what the rover answered, and answers the rover's item requests from a list, as a ground station does.
 
 It works over any byte transport end (``memory_pipe_pair``'s, or ``ScriptedGroundStation`` below, which
 puts it inside the rover's transport for a lockstep trial).
@@ -32,6 +32,17 @@ def waypoint(
         *target, seq, frame, command, 0, 1, 0.0, 0.5, 0.0, float("nan"), round(lat * 1e7), round(lon * 1e7),
         2.0, mission_type,
     )  # fmt: skip
+
+
+def mission_start(first: float, last: float, *, kind: str = "COMMAND_LONG", target: Any = ROVER) -> Any:
+    """MAV_CMD_MISSION_START (param1 the first item, param2 the last) as COMMAND_LONG or COMMAND_INT."""
+    if kind == "COMMAND_INT":
+        return mavlink2.MAVLink_command_int_message(
+            *target, 0, mavlink2.MAV_CMD_MISSION_START, 0, 0, first, last, 0, 0, 0, 0, 0.0
+        )
+    return mavlink2.MAVLink_command_long_message(
+        *target, mavlink2.MAV_CMD_MISSION_START, 0, first, last, 0, 0, 0, 0, 0
+    )
 
 
 class GroundStation:

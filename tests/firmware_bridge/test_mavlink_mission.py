@@ -4,6 +4,7 @@ lockstep trials use: upload, download, clear, set current, and the defined answe
 from __future__ import annotations
 
 import logging
+import math
 from typing import Any
 
 import pytest
@@ -24,12 +25,14 @@ from firmware_bridge.mavlink_mission import (
     MissionItemRefused,
     MissionMessage,
     MissionServer,
+    StartRequested,
 )
 from firmware_bridge.mavlink_transport import memory_pipe_pair
+from firmware_bridge.mission_state import MissionState
 from logs.clock import SimClock
 from logs.sink import MemorySink
 from logs.topics import MAVLINK_STATS
-from tests.firmware_bridge.ground_station import MISSION, ROVER, GroundStation, waypoint
+from tests.firmware_bridge.ground_station import MISSION, ROVER, GroundStation, mission_start, waypoint
 
 TICK_NS = 20_000_000  # the onboard loop's 50 Hz
 FENCE_LAT = 47.001  # north of it the test's placer refuses: the rover's geofence stands in
@@ -69,7 +72,7 @@ class Rig:
         # A second ground station on the same wire (what the rover sends, ``gcs`` reads).
         self.other = GroundStation(station_end, sysid=254, compid=190)
         self.changes: list[MissionChange] = []
-        self.progress = (0, "NONE")
+        self.progress: tuple[int, MissionState] = (0, MissionState.NONE)
 
     def step(self, dt_ns: int = TICK_NS) -> list[Any]:
         """One control tick: the link read, mission messages to the server, its tick; what the rover sent
@@ -299,15 +302,65 @@ def test_an_item_out_of_sequence_is_dropped_and_the_expected_one_asked_again() -
     assert answer.type == mavlink2.MAV_MISSION_ACCEPTED and len(rig.server.items) == 3
 
 
-def test_a_duplicated_item_is_dropped_without_harm() -> None:
+def test_a_duplicated_item_is_dropped_silently() -> None:
     rig = Rig()
     plan = items()
     rig.exchange(count(3))
     rig.exchange(plan[0])
-    assert [m.seq for m in rig.exchange(plan[0])] == [1]  # again the one wanted
+    # Not asked again: the request for item 1 is already out, and the partner answers it.
+    assert rig.exchange(plan[0]) == []
     rig.exchange(plan[1])
     rig.exchange(plan[2])
     assert len(rig.server.items) == 3 and rig.link.counters.missions_accepted == 1
+    assert rig.link.counters.mission_resends == 0
+
+
+def test_a_late_answer_costs_its_resend_not_a_doubled_upload() -> None:
+    """A ground station that answers every request, the resent ones too, and is once slower than the
+    item timeout: one resend and one duplicate, no more."""
+    rig = Rig()
+    plan = items([(47.0 + seq * 1e-5, 8.0) for seq in range(20)])
+    late_ticks = round(ITEM_TIMEOUT_NS / TICK_NS) + 3  # item 5's first request answered after 310 ms
+    answers: list[tuple[int, int]] = []  # (due tick, seq), answered in that order
+    received = rig.exchange(count(20))
+    acks: list[Any] = []
+    for tick in range(400):
+        for msg in received:
+            if msg.get_type() == "MISSION_REQUEST_INT":
+                late = msg.seq == 5 and not any(seq == 5 for _, seq in answers)
+                answers.append((tick + (late_ticks if late else 1), msg.seq))
+        acks += [m for m in received if m.get_type() == "MISSION_ACK"]
+        if acks:
+            break
+        for due, seq in sorted(answers):
+            if due == tick:
+                rig.gcs.send(plan[seq])
+        received = rig.step()
+    assert [a.type for a in acks] == [mavlink2.MAV_MISSION_ACCEPTED]
+    requests = [m.seq for m in rig.gcs.of_type("MISSION_REQUEST_INT")]
+    assert rig.link.counters.mission_resends == 1
+    assert len(requests) == 20 + 1 and sorted(set(requests)) == list(range(20))
+    assert rig.link.counters.mission_refused == 0 and len(rig.server.items) == 20
+
+
+def test_the_last_item_again_after_the_upload_is_accepted_again_not_refused() -> None:
+    """Our MISSION_ACK ACCEPTED lost: the ground station resends the last item until it hears one."""
+    rig = Rig()
+    plan = items()
+    accepted(rig)
+    rig.step()
+    (again,) = rig.exchange(plan[2])
+    assert again.get_type() == "MISSION_ACK" and again.type == mavlink2.MAV_MISSION_ACCEPTED
+    counters = rig.link.counters
+    assert counters.mission_refused == 0 and counters.missions_accepted == 1 and len(rig.changes) == 1
+    # Another ground station's item is no repeat of this upload, nor an earlier item, nor the last item
+    # after the operation timeout.
+    rig.other.send(plan[2])
+    assert rig.refusal(rig.step())[0] == mavlink2.MAV_MISSION_INVALID_SEQUENCE
+    assert rig.refusal(rig.exchange(plan[1]))[0] == mavlink2.MAV_MISSION_INVALID_SEQUENCE
+    rig.step(OPERATION_TIMEOUT_NS)
+    assert rig.refusal(rig.exchange(plan[2]))[0] == mavlink2.MAV_MISSION_INVALID_SEQUENCE
+    assert counters.mission_refused == 3 and len(rig.changes) == 1
 
 
 def test_a_second_ground_station_is_refused_while_an_upload_is_under_way() -> None:
@@ -410,7 +463,7 @@ def test_set_current_is_passed_on_for_an_item_the_mission_has_and_refused_otherw
 
 def test_progress_goes_out_on_change_and_once_a_second_only_to_a_link_that_asked() -> None:
     rig = Rig()
-    rig.progress = (0, "ACTIVE")
+    rig.progress = (0, MissionState.ACTIVE)
     for _ in range(60):
         assert rig.step() == []  # no ground station has talked missions: nothing is streamed
     accepted(rig)
@@ -422,14 +475,14 @@ def test_progress_goes_out_on_change_and_once_a_second_only_to_a_link_that_asked
         (0, 3, mavlink2.MISSION_STATE_ACTIVE)
     }
     rig.gcs.heard.clear()
-    rig.progress = (1, "ACTIVE")
+    rig.progress = (1, MissionState.ACTIVE)
     rig.server.item_reached(0)
     rig.step()
     assert [(m.get_type(), m.seq) for m in rig.gcs.heard] == [
         ("MISSION_ITEM_REACHED", 0),
         ("MISSION_CURRENT", 1),
     ]
-    rig.progress = (2, "COMPLETE")
+    rig.progress = (2, MissionState.COMPLETE)
     rig.step()
     current = rig.gcs.heard[-1]
     assert (current.seq, current.total, current.mission_state) == (3, 3, mavlink2.MISSION_STATE_COMPLETE)
@@ -581,3 +634,55 @@ def test_malformed_mission_traffic_never_raises_and_only_a_whole_valid_upload_ch
     assert not rig.server.transfer_under_way
     assert rig.upload(items()).type == mavlink2.MAV_MISSION_ACCEPTED
     assert [(i.x, i.y) for i in rig.server.items] == [(m.x, m.y) for m in items()]
+
+
+@pytest.mark.parametrize("kind", ["COMMAND_LONG", "COMMAND_INT"])
+@pytest.mark.parametrize(("first", "last"), [(0, 0), (1, 0), (1, 2), (2, 2)])
+def test_mission_start_from_an_item_to_the_end_is_acknowledged_and_passed_on(
+    kind: str, first: int, last: int
+) -> None:
+    rig = Rig()
+    accepted(rig)
+    (answer,) = rig.exchange(mission_start(first, last, kind=kind))
+    assert answer.get_type() == "COMMAND_ACK"
+    assert (answer.command, answer.result) == (mavlink2.MAV_CMD_MISSION_START, mavlink2.MAV_RESULT_ACCEPTED)
+    assert (answer.target_system, answer.target_component) == (255, 190)
+    assert rig.changes[-1] == StartRequested(first, 255, 190)
+
+
+@pytest.mark.parametrize(
+    ("first", "last", "result", "reason"),
+    [
+        (3, 0, mavlink2.MAV_RESULT_DENIED, "mission start: first item 3.0 not in items 0..2"),
+        (0.5, 0, mavlink2.MAV_RESULT_DENIED, "first item 0.5 not in items 0..2"),
+        (math.nan, 0, mavlink2.MAV_RESULT_DENIED, "first item nan not in items 0..2"),
+        (0, 1, mavlink2.MAV_RESULT_UNSUPPORTED, "last item 1.0: only 0 or 2 (to the end) is supported"),
+        (0, -1, mavlink2.MAV_RESULT_UNSUPPORTED, "last item -1.0"),
+    ],
+)
+def test_a_mission_start_the_mission_cannot_take_is_refused_naming_why(
+    first: float, last: float, result: int, reason: str
+) -> None:
+    rig = Rig()
+    accepted(rig)
+    received = rig.exchange(mission_start(first, last))
+    (answer,) = [m for m in received if m.get_type() == "COMMAND_ACK"]
+    assert answer.result == result
+    text = "".join(m.text for m in received if m.get_type() == "STATUSTEXT")
+    assert text.startswith("refused: ") and reason in text
+    assert rig.link.counters.commands_rejected == 1 and len(rig.changes) == 1  # the upload only
+
+
+def test_mission_start_without_a_mission_is_denied_and_one_for_another_component_left_alone() -> None:
+    rig = Rig()
+    received = rig.exchange(mission_start(0, 0))
+    (answer,) = [m for m in received if m.get_type() == "COMMAND_ACK"]
+    assert answer.result == mavlink2.MAV_RESULT_DENIED
+    assert "mission start: there is no mission" in "".join(
+        m.text for m in received if m.get_type() == "STATUSTEXT"
+    )
+    accepted(rig)
+    # Component broadcast: the autopilot's mission (as for mission messages), not ours to answer.
+    for target in ((1, 0), (1, 1)):
+        assert rig.exchange(mission_start(0, 0, target=target)) == []
+    assert not any(isinstance(change, StartRequested) for change in rig.changes)

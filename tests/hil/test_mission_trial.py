@@ -99,3 +99,23 @@ def test_the_scenarios_goals_are_the_onboard_mission(scenario_file: str, tmp_pat
         "current": len(scenario.goals) - 1,
         "count": len(scenario.goals),
     }
+
+
+def test_a_scenario_goal_the_stack_refuses_ends_the_trial_failed_at_once(tmp_path: Path) -> None:
+    """A goal outside the geofence: the onboard stack refuses the mission (``mission_rejected``); the trial
+    ends there, failed, naming why, instead of idling to its timeout."""
+    scenario = load_scenario(DATA / "small_rocky.toml")  # start (2, 2), goal (11.5, 7.5)
+    fence = "[safety]\nfence = [[0.0, 0.0], [8.0, 0.0], [8.0, 10.0], [0.0, 10.0]]\n"
+    config = rover_config_from_table(parse_toml(fence, "<fence>"))
+    result = run_trial(scenario, config, tmp_path / "trial")
+    assert result.end_reason == "mission_rejected" and not result.success
+    assert any(
+        f.startswith("mission rejected: the onboard stack refused the scenario's") for f in result.failures
+    )
+    assert result.simulated_s == 0.0
+    events = [m.message for m in read_messages(result.mcap_path, topics=[topics.SAFETY_EVENTS])]
+    assert [e["detail"] for e in events if e["kind"] == "mission_rejected"] == [
+        "mission from scenario small-rocky: waypoint 0 (11.50, 7.50) is outside the geofence"
+    ]
+    logged = [m.message["message"] for m in read_messages(result.mcap_path, topics=[topics.LOG])]
+    assert any(line.startswith("mission rejected:") for line in logged)

@@ -31,6 +31,10 @@ def _recording(path: Path, with_stats: bool) -> Path:
                 if second >= 3:  # a rangefinder speaks from the 3rd second: its counters appear then
                     counters.beams += 10
                     counters.beams_rejected += 3
+                if second >= 2:  # a ground station talks missions from the 2nd second
+                    counters.mission_messages += 4
+                    counters.mission_refused += 1
+                    counters.mission_timeouts += second == 4
                 stats = health.report(second * S, counters).stats
                 assert stats is not None
                 recorder.publish("mavlink/stats", second * S, stats)
@@ -44,12 +48,17 @@ def test_report_figures_sum_the_links_windows(tmp_path: Path) -> None:
     assert run.figures["mavlink_commands_refused"] == 1
     assert run.figures["mavlink_scans_refused"] == 2
     assert run.figures["mavlink_beams_refused"] == 6
+    assert run.figures["mavlink_mission_refused"] == 3
+    assert run.figures["mavlink_mission_timeouts"] == 1
     result = write_report([tmp_path / "a.mcap"], tmp_path / "out", plots=False)
     markdown = result.markdown.read_text("utf-8")
     assert "| MAVLink bad frames (bad CRC, header, truncated) | 14 |" in markdown
     assert "| MAVLink DISTANCE_SENSOR readings refused (unreadable) | 6 |" in markdown
+    assert "| MAVLink mission operations refused | 3 |" in markdown
+    assert "| MAVLink mission transfers abandoned (retries ran out) | 1 |" in markdown
 
 
 def test_without_mavlink_stats_the_figures_are_unknown_not_zero(tmp_path: Path) -> None:
     run = analyse(_recording(tmp_path / "old.mcap", with_stats=False))
     assert run.figures["mavlink_bad_frames"] is None and run.figures["mavlink_dropped_bytes"] is None
+    assert run.figures["mavlink_mission_refused"] is None and run.figures["mavlink_mission_timeouts"] is None

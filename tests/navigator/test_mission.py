@@ -15,8 +15,12 @@ THREE = [(1.0, 2.0), (3.0, 4.0), (5.0, 6.0)]
 def test_waypoints_are_driven_in_order_then_the_mission_is_complete() -> None:
     mission = Mission()
     assert mission.state is MissionState.NONE and mission.count == 0
-    assert mission.load(THREE) == Waypoint(1.0, 2.0)
-    assert (mission.state, mission.current, mission.count) == (MissionState.ACTIVE, 0, 3)
+    mission.load(THREE)
+    assert (mission.state, mission.current, mission.count) == (MissionState.NOT_STARTED, 0, 3)
+    with pytest.raises(ParameterError, match="NOT_STARTED"):
+        mission.reached()  # loaded is not driven: no arrival advances it
+    assert mission.set_current(0) == Waypoint(1.0, 2.0)
+    assert (mission.state, mission.current) == (MissionState.ACTIVE, 0)
     assert mission.reached() == Waypoint(3.0, 4.0) and mission.current == 1
     assert mission.reached() == Waypoint(5.0, 6.0) and mission.current == 2
     assert mission.reached() is None
@@ -29,6 +33,8 @@ def test_a_single_goal_pauses_it_and_setting_an_item_drives_it_again() -> None:
     mission = Mission()
     assert not mission.pause()  # nothing to pause
     mission.load(THREE)
+    assert not mission.pause()  # not started: nothing to pause either
+    mission.set_current(0)
     mission.reached()
     assert mission.pause() and mission.state is MissionState.PAUSED and mission.current == 1
     assert not mission.pause()  # once
@@ -41,6 +47,7 @@ def test_a_single_goal_pauses_it_and_setting_an_item_drives_it_again() -> None:
 def test_a_complete_mission_runs_again_from_the_item_set() -> None:
     mission = Mission()
     mission.load(THREE[:1])
+    mission.set_current(0)
     assert mission.reached() is None and mission.state is MissionState.COMPLETE
     assert mission.set_current(0) == Waypoint(1.0, 2.0) and mission.state is MissionState.ACTIVE
 
@@ -48,10 +55,14 @@ def test_a_complete_mission_runs_again_from_the_item_set() -> None:
 def test_clear_says_whether_it_was_being_driven() -> None:
     mission = Mission()
     mission.load(THREE)
+    assert not mission.clear()  # loaded, not driven
+    mission.load(THREE)
+    mission.set_current(0)
     assert mission.clear()
     assert (mission.state, mission.count, mission.current) == (MissionState.NONE, 0, 0)
     assert not mission.clear()
     mission.load(THREE)
+    mission.set_current(0)
     mission.pause()
     assert not mission.clear()
 
@@ -62,6 +73,7 @@ def test_an_item_it_does_not_have_cannot_be_made_current(seq: int) -> None:
     with pytest.raises(ParameterError, match="no mission"):
         mission.set_current(0)
     mission.load(THREE)
+    mission.set_current(0)
     mission.reached()
     with pytest.raises(ParameterError, match=r"items 0\.\.2"):
         mission.set_current(seq)
@@ -72,6 +84,7 @@ def test_an_item_it_does_not_have_cannot_be_made_current(seq: int) -> None:
 def test_a_bad_mission_is_refused_and_the_one_in_force_kept(waypoints: list[tuple[float, float]]) -> None:
     mission = Mission()
     mission.load(THREE)
+    mission.set_current(0)
     with pytest.raises(ParameterError):
         mission.load(waypoints)
     assert mission.waypoints == tuple(Waypoint(*w) for w in THREE) and mission.state is MissionState.ACTIVE

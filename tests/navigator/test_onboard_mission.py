@@ -1,6 +1,7 @@
 """Missions in the onboard stack: uploaded by a ground station over MAVLink, driven waypoint by waypoint on
 the lockstep rig (the real stack against the simulated rover), replaced by a single goal, resumed, cleared,
-refused whole when a waypoint is outside the geofence or the rover has no datum yet."""
+refused whole when a waypoint is outside the geofence or the rover has no datum yet; an upload waits for
+MISSION_START unless it replaces a mission being driven."""
 
 from __future__ import annotations
 
@@ -15,7 +16,8 @@ from estimator.geodesy import Datum, to_geodetic
 from firmware_bridge.mavlink_transport import memory_pipe_pair
 from navigator.mission import MissionState
 from navigator.onboard import Mode
-from tests.firmware_bridge.ground_station import MISSION, ROVER, GroundStation, waypoint
+from navigator.safety import WHEEL_STALLED
+from tests.firmware_bridge.ground_station import MISSION, ROVER, GroundStation, mission_start, waypoint
 from tests.runtime.rig import DATUM, MSG_GPS_RAW_INT, Rig, rig_config
 
 # ENU metres on the rig's open 20 m x 20 m map; the rover starts at (3, 3).
@@ -57,10 +59,15 @@ class Station:
             self.gcs.answer(plan, received)
         raise AssertionError(f"no MISSION_ACK: {[m.get_type() for m in self.gcs.heard]}")
 
-    def send(self, msg: Any) -> None:
+    def send(self, msg: Any) -> list[Any]:
         self.gcs.send(msg)
         self.rig.control_tick()
-        self.gcs.receive()
+        return self.gcs.receive()
+
+    def start(self, first: int = 0) -> None:
+        """MAV_CMD_MISSION_START from item ``first``: acknowledged ACCEPTED."""
+        (ack,) = [m for m in self.send(mission_start(first, 0)) if m.get_type() == "COMMAND_ACK"]
+        assert ack.result == mavlink2.MAV_RESULT_ACCEPTED
 
     def details(self, kind: str) -> list[str]:
         return [m["detail"] for _, m in self.rig.events(kind)]
@@ -83,6 +90,9 @@ def test_an_uploaded_mission_is_driven_waypoint_by_waypoint_to_the_end(station: 
         "mission of 3 waypoints from MAVLink upload by 255/190 on the ground_station link: (6.00, 4.00)"
     )
     mission = rig.stack.mission
+    assert mission.state is MissionState.NOT_STARTED
+    station.start()
+    assert station.details("mission_started") == ["mission started at item 0 of 3 by 255/190"]
     rig.run_until(lambda: mission.state is MissionState.COMPLETE, 60.0, "the mission's end")
     assert rig.stack.mode is Mode.ARRIVED
     rig.control_tick()  # its navigator/state: the arrival's said ACTIVE, the mission advanced after it
@@ -109,6 +119,7 @@ def test_a_waypoint_outside_the_geofence_refuses_the_upload_and_keeps_the_missio
     station = Station(config=rig_config(fence=fence))
     try:
         assert station.upload(plan_items()).type == mavlink2.MAV_MISSION_ACCEPTED
+        station.start()
         outside = [PLAN[0], (15.0, 5.0), PLAN[2]]
         answer = station.upload(plan_items(outside))
         assert answer.type == mavlink2.MAV_MISSION_DENIED
@@ -148,6 +159,7 @@ def test_an_upload_before_the_rover_knows_its_datum_is_refused() -> None:
 def test_a_single_goal_pauses_the_mission_and_set_current_drives_it_again(station: Station) -> None:
     rig = station.rig
     station.upload(plan_items())
+    station.start()
     mission = rig.stack.mission
     rig.run_until(lambda: mission.current == 1, 40.0, "the first waypoint")
     rig.stack.set_goal(12.0, 12.0)  # Zenoh, a MAVLink DO_REPOSITION, or the operator
@@ -172,6 +184,7 @@ def test_a_single_goal_pauses_the_mission_and_set_current_drives_it_again(statio
 def test_clearing_the_mission_being_driven_holds_the_rover(station: Station) -> None:
     rig = station.rig
     station.upload(plan_items())
+    station.start()
     rig.drive()
     station.send(mavlink2.MAVLink_mission_clear_all_message(*ROVER, MISSION))
     assert station.details("mission_cleared") == ["mission cleared by 255/190: the rover holds"]
@@ -198,3 +211,99 @@ def test_a_mission_the_trial_hands_over_is_downloadable_as_global_waypoints(stat
         assert (item.seq, item.frame, item.command) == (seq, mavlink2.MAV_FRAME_GLOBAL_INT, 16)
         assert abs(item.x - expected[seq].x) <= 1 and abs(item.y - expected[seq].y) <= 1
     assert station.gcs.of_type("MISSION_ITEM_INT")[0].current == 1  # item 0 is being driven
+
+
+def test_an_upload_while_parked_waits_for_mission_start(station: Station) -> None:
+    rig = station.rig
+    rig.run_until(lambda: rig.stack.mode is Mode.ARRIVED, 20.0, "the rig's own goal, where it stands")
+    assert station.upload(plan_items()).type == mavlink2.MAV_MISSION_ACCEPTED
+    mission = rig.stack.mission
+    assert mission.state is MissionState.NOT_STARTED and station.details("mission")[-1].endswith(
+        "; not started: MISSION_START or MISSION_SET_CURRENT drives it"
+    )
+    rig.run_for(3.0)
+    assert rig.stack.mode is Mode.ARRIVED and rig.stack.goal is not None
+    assert (rig.stack.goal.x, rig.stack.goal.y) == (3.0, 3.0) and abs(rig.body.speed) < 0.05
+    station.gcs.receive()
+    waiting = station.gcs.of_type("MISSION_CURRENT")[-1]
+    assert (waiting.seq, waiting.total, waiting.mission_state) == (0, 3, mavlink2.MISSION_STATE_NOT_STARTED)
+    station.start(1)  # from item 1
+    assert mission.state is MissionState.ACTIVE and mission.current == 1
+    assert rig.stack.goal is not None
+    assert (rig.stack.goal.x, rig.stack.goal.y) == pytest.approx(PLAN[1], abs=0.02)
+
+
+def test_an_upload_while_a_single_goal_or_a_complete_mission_is_there_waits_too(station: Station) -> None:
+    rig = station.rig
+    rig.stack.set_goal(12.0, 12.0)
+    station.upload(plan_items())
+    assert rig.stack.goal is not None and (rig.stack.goal.x, rig.stack.goal.y) == (12.0, 12.0)
+    assert rig.stack.mission.state is MissionState.NOT_STARTED
+    # A mission driven to its end, then a new upload: parked at the end, not driven.
+    station.start(2)
+    rig.run_until(lambda: rig.stack.mission.state is MissionState.COMPLETE, 60.0, "the mission's end")
+    station.upload(plan_items(list(reversed(PLAN))))
+    assert rig.stack.mission.state is MissionState.NOT_STARTED and rig.stack.mode is Mode.ARRIVED
+
+
+def test_an_upload_while_a_mission_is_driven_replaces_it_and_is_driven_from_item_0(station: Station) -> None:
+    rig = station.rig
+    station.upload(plan_items())
+    station.start(2)
+    rig.run_for(1.0)
+    new_plan = [(8.0, 3.0), (9.0, 6.0)]
+    station.upload(plan_items(new_plan))
+    mission = rig.stack.mission
+    assert mission.state is MissionState.ACTIVE and mission.current == 0 and mission.count == 2
+    assert station.details("mission")[-1].endswith(
+        "; driven from item 0 in place of the mission being driven"
+    )
+    assert rig.stack.goal is not None
+    assert (rig.stack.goal.x, rig.stack.goal.y) == pytest.approx(new_plan[0], abs=0.02)
+
+
+def test_the_mission_advancing_by_itself_leaves_a_stall_latch_standing(station: Station) -> None:
+    """The stuck and stall latches clear on a goal or item given from outside, not when the mission goes
+    on to its next waypoint: a wheel latched stalled at item 0's arrival still holds the rover after."""
+    rig = station.rig
+    stack = rig.stack
+    safety = stack.safety
+    arrive = stack._mission_item_reached
+
+    def latched_at_arrival() -> None:
+        if stack.mission.current == 0:
+            # The supervisor's own latch, as a wheel's third stall in its window sets it.
+            safety._trip(WHEEL_STALLED, "error", "wheel 1 stalled (test): latched until a new goal or resume")
+            safety._stall_latched = True
+        arrive()
+
+    stack._mission_item_reached = latched_at_arrival  # type: ignore[method-assign]
+    station.upload(plan_items())
+    station.start()
+    rig.run_until(lambda: stack.mission.current == 1, 40.0, "the first waypoint")
+    rig.run_for(1.0)
+    assert rig.events("failsafe.wheel_stalled") and not rig.events("cleared.wheel_stalled")
+    assert stack.safety_mode.value == "HOLD" and abs(rig.body.speed) < 0.05
+    # Given from outside: MISSION_SET_CURRENT clears it, as a new goal does.
+    station.send(mavlink2.MAVLink_mission_set_current_message(*ROVER, 1))
+    assert [m["detail"] for _, m in rig.events("cleared.wheel_stalled")] == ["new goal"]
+
+
+def test_start_mission_before_the_datum_is_refused() -> None:
+    config = rig_config()
+    config = dataclasses.replace(
+        config,
+        estimator=dataclasses.replace(
+            config.estimator, datum_lat_deg=None, datum_lon_deg=None, datum_alt_m=None
+        ),
+    )
+    station = Station(config=config)
+    try:
+        station.rig.wire.dropped.add(MSG_GPS_RAW_INT)  # no fix: no datum
+        assert not station.rig.stack.start_mission(PLAN, "test")
+        assert station.details("mission_rejected") == [
+            "mission from test: no ENU datum yet (no GPS fix), a ground station could not follow it"
+        ]
+        assert station.rig.stack.mission.state is MissionState.NONE
+    finally:
+        station.close()

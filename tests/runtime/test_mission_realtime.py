@@ -1,5 +1,6 @@
 """Real time: a pymavlink ground station on UDP 127.0.0.1 uploads a mission to ``rover run``'s MAVLink link,
-downloads it back, and leaves an upload unfinished, which the rover abandons on its monotonic clock."""
+downloads it back, leaves an upload unfinished, which the rover abandons on its monotonic clock, and starts
+the mission with MAV_CMD_MISSION_START."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ from typing import Any
 from pymavlink.dialects.v20 import common as mavlink2
 
 from logs.reader import read_messages
-from tests.firmware_bridge.ground_station import MISSION, ROVER, waypoint
+from tests.firmware_bridge.ground_station import MISSION, ROVER, mission_start, waypoint
 from tests.runtime.run_config import rover_run_config
 from tests.runtime.test_rover_run import start_rover, wait_until_running
 
@@ -77,8 +78,8 @@ def test_rover_run_takes_a_mission_upload_and_abandons_a_partial_one_in_real_tim
             assert request.seq == seq
             station.send(items[seq])
         assert station.wait_for("MISSION_ACK").type == mavlink2.MAV_MISSION_ACCEPTED
-        current = station.wait_for("MISSION_CURRENT")
-        assert (current.total, current.mission_state) == (3, mavlink2.MISSION_STATE_ACTIVE)
+        current = station.wait_for("MISSION_CURRENT")  # a parked rover: uploaded, not driven
+        assert (current.total, current.mission_state) == (3, mavlink2.MISSION_STATE_NOT_STARTED)
 
         # An upload left unfinished: asked again every 250 ms, 5 times, then cancelled.
         station.send(mavlink2.MAVLink_mission_count_message(*ROVER, 2, MISSION))
@@ -97,6 +98,15 @@ def test_rover_run_takes_a_mission_upload_and_abandons_a_partial_one_in_real_tim
             item = station.wait_for("MISSION_ITEM_INT")
             assert (item.seq, item.x, item.y, item.frame) == (seq, sent.x, sent.y, sent.frame)
         station.send(mavlink2.MAVLink_mission_ack_message(*ROVER, mavlink2.MAV_MISSION_ACCEPTED, MISSION))
+
+        station.send(mission_start(0, 0))
+        started = station.wait_for("COMMAND_ACK")
+        assert (started.command, started.result) == (
+            mavlink2.MAV_CMD_MISSION_START,
+            mavlink2.MAV_RESULT_ACCEPTED,
+        )
+        current = station.wait_for("MISSION_CURRENT")
+        assert (current.seq, current.mission_state) == (0, mavlink2.MISSION_STATE_ACTIVE)
         time.sleep(1.5)  # a mavlink/stats window closes with the download in it
         process.send_signal(signal.SIGINT)
         process.communicate(timeout=20)
