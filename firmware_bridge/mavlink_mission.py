@@ -377,19 +377,7 @@ class MissionServer:
                 f"MISSION_ITEM_INT {seq} from {sysid}/{compid}, which has no upload under way",
             )
             return None
-        if msg.mission_type != _MISSION:
-            self._transfer = None
-            self._refuse_type(link, msg, sysid, compid, "upload")
-            return None
-        if seq >= transfer.count:
-            self._transfer = None
-            self._refuse(
-                link,
-                sysid,
-                compid,
-                mavlink2.MAV_MISSION_INVALID_SEQUENCE,
-                f"item {seq} of a mission of {transfer.count} items (0..{transfer.count - 1})",
-            )
+        if self._ends_transfer(transfer, link, msg, sysid, compid, f"item {seq} of"):
             return None
         if seq < transfer.next_seq:
             # A duplicate: the late answer to a request we sent again after a timeout (or the partner's
@@ -492,19 +480,7 @@ class MissionServer:
                 f"{msg.get_type()} {seq} from {sysid}/{compid}, which has no download under way",
             )
             return None
-        if msg.mission_type != _MISSION:
-            self._transfer = None
-            self._refuse_type(link, msg, sysid, compid, "download")
-            return None
-        if seq >= transfer.count:
-            self._transfer = None
-            self._refuse(
-                link,
-                sysid,
-                compid,
-                mavlink2.MAV_MISSION_INVALID_SEQUENCE,
-                f"item {seq} asked of a mission of {transfer.count} items (0..{transfer.count - 1})",
-            )
+        if self._ends_transfer(transfer, link, msg, sysid, compid, f"item {seq} asked of"):
             return None
         transfer.resend = self._item_message(sysid, compid, transfer.items[seq])
         transfer.retries = 0
@@ -650,6 +626,27 @@ class MissionServer:
                 "%s abandoned: no request or ACK after %d tries", transfer.what, self._max_retries + 1
             )
         link.send(_ack(transfer.sysid, transfer.compid, mavlink2.MAV_MISSION_OPERATION_CANCELLED, _MISSION))
+
+    def _ends_transfer(
+        self, transfer: _Transfer, link: MissionLink, msg: Any, sysid: int, compid: int, item: str
+    ) -> bool:
+        """A message of the transfer under way in the wrong mission type, or for an item beyond its count,
+        ends the transfer with the protocol's refusal: True then. ``item`` names the item in the refusal."""
+        if msg.mission_type != _MISSION:
+            self._transfer = None
+            self._refuse_type(link, msg, sysid, compid, "upload" if transfer.upload else "download")
+            return True
+        if msg.seq >= transfer.count:
+            self._transfer = None
+            self._refuse(
+                link,
+                sysid,
+                compid,
+                mavlink2.MAV_MISSION_INVALID_SEQUENCE,
+                f"{item} a mission of {transfer.count} items (0..{transfer.count - 1})",
+            )
+            return True
+        return False
 
     def _refuse_type(self, link: MissionLink, msg: Any, sysid: int, compid: int, operation: str) -> None:
         mission_type = msg.mission_type
