@@ -137,7 +137,8 @@ def test_a_waypoint_outside_the_geofence_refuses_the_upload_and_keeps_the_missio
         station.close()
 
 
-def test_an_upload_before_the_rover_knows_its_datum_is_refused() -> None:
+def _station_without_datum() -> Station:
+    """A rover with no configured datum whose GPS fixes are all dropped: it never has a datum."""
     config = rig_config()
     config = dataclasses.replace(
         config,
@@ -146,8 +147,13 @@ def test_an_upload_before_the_rover_knows_its_datum_is_refused() -> None:
         ),
     )
     station = Station(config=config)
+    station.rig.wire.dropped.add(MSG_GPS_RAW_INT)  # no fix: no datum
+    return station
+
+
+def test_an_upload_before_the_rover_knows_its_datum_is_refused() -> None:
+    station = _station_without_datum()
     try:
-        station.rig.wire.dropped.add(MSG_GPS_RAW_INT)  # no fix: no datum
         assert station.upload(plan_items()).type == mavlink2.MAV_MISSION_DENIED
         text = "".join(m.text for m in station.gcs.of_type("STATUSTEXT"))
         assert "item 0: no ENU datum yet (no GPS fix)" in text
@@ -290,16 +296,8 @@ def test_the_mission_advancing_by_itself_leaves_a_stall_latch_standing(station: 
 
 
 def test_start_mission_before_the_datum_is_refused() -> None:
-    config = rig_config()
-    config = dataclasses.replace(
-        config,
-        estimator=dataclasses.replace(
-            config.estimator, datum_lat_deg=None, datum_lon_deg=None, datum_alt_m=None
-        ),
-    )
-    station = Station(config=config)
+    station = _station_without_datum()
     try:
-        station.rig.wire.dropped.add(MSG_GPS_RAW_INT)  # no fix: no datum
         assert not station.rig.stack.start_mission(PLAN, "test")
         assert station.details("mission_rejected") == [
             "mission from test: no ENU datum yet (no GPS fix), a ground station could not follow it"
