@@ -16,10 +16,14 @@ from typing import Literal
 
 import can
 
-from firmware_bridge.can_link import CanConfig, open_bus
+from firmware_bridge.can_link import CanConfig, CanLink, open_bus
+from firmware_bridge.mavlink_link import MavlinkLink
 from firmware_bridge.mavlink_transport import PipeEnd, memory_pipe_pair
+from firmware_bridge.vesc import VescCodec
 from hil.lockstep_bus import lockstep_bus_pair
 from logs.clock import Clock
+from logs.sink import MessageSink
+from navigator.config import RoverConfig
 
 _channel_numbers = itertools.count()
 
@@ -57,3 +61,19 @@ def lockstep_wires(
     finally:
         onboard_bus.shutdown()
         sim_bus.shutdown()
+
+
+def onboard_links(
+    config: RoverConfig, can_bus: can.BusABC, mavlink: PipeEnd, clock: Clock, sink: MessageSink
+) -> tuple[CanLink, MavlinkLink]:
+    """The onboard stack's CAN and MAVLink links on the rover's ends of the wires, as ``rover run`` makes
+    them from the config (``can_bus``: ``LockstepWires.onboard_bus``, or what a fault made of it)."""
+    can_link = CanLink(can_bus, VescCodec.for_profile(config.vesc), clock, sink, config=config.can)
+    mavlink_link = MavlinkLink(
+        mavlink,
+        clock,
+        sink,
+        system_id=config.mavlink.system_id,
+        component_id=config.mavlink.component_id,
+    )
+    return can_link, mavlink_link

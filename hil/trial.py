@@ -30,14 +30,13 @@ from typing import Any
 
 import numpy as np
 
-from firmware_bridge.can_link import CanLink
 from firmware_bridge.dbc_attachment import attach_vesc_dbc
 from firmware_bridge.mavlink_link import MavlinkLink
 from firmware_bridge.mavlink_transport import Transport
 from firmware_bridge.vesc import VescCodec
 from hil.campaign_place import CampaignPlace
 from hil.fault_coverage import park_until_ns, unexercised_faults
-from hil.lockstep import CanBackend, lockstep_wires
+from hil.lockstep import CanBackend, lockstep_wires, onboard_links
 from hil.scenario import MAVLINK_PERCEPTION, Scenario
 from hil.success import judge
 from hil.world import SimWorld
@@ -127,14 +126,7 @@ def run_trial(
                 world.record_start(recorder)
                 # The rover's CAN end as the scenario's faults leave it (a bus-off refuses its sends).
                 onboard_bus = world.rover_can_end(wires.onboard_bus)
-                can_link = CanLink(onboard_bus, codec, clock, sink, config=config.can)
-                mavlink = MavlinkLink(
-                    wires.onboard_mavlink,
-                    clock,
-                    sink,
-                    system_id=config.mavlink.system_id,
-                    component_id=config.mavlink.component_id,
-                )
+                can_link, mavlink = onboard_links(config, onboard_bus, wires.onboard_mavlink, clock, sink)
                 stack = OnboardStack(
                     config,
                     clock,

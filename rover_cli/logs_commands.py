@@ -13,6 +13,7 @@ from rich.markup import escape
 from rich.table import Table as RichTable
 
 from logs.errors import LogsError
+from rover_cli import replay_commands
 from rover_cli.errors import print_error
 
 
@@ -57,6 +58,7 @@ def register(families: Any) -> None:
         "--topics", type=lambda text: [t for t in text.split(",") if t], help="comma-separated (default: all)"
     )
     export.set_defaults(handler=csv_command)
+    replay_commands.register(commands)
 
 
 def doctor_command(args: argparse.Namespace) -> int:

@@ -16,8 +16,13 @@ def rewrite(
     *,
     keep: Callable[[str], bool] = lambda topic: True,
     compression: CompressionType = CompressionType.ZSTD,
+    metadata: Callable[[str, dict[str, str]], dict[str, str]] = lambda name, data: data,
+    data: Callable[[str, int, bytes], bytes] = lambda topic, log_time_ns, payload: payload,
 ) -> Path:
-    """Every message of a kept topic (with its times and sequence), every metadata record; no attachment."""
+    """Every message of a kept topic (with its times and sequence), every metadata record; no attachment.
+
+    ``metadata`` and ``data`` may change what is written: a record's key/values by its name, a message's
+    payload by its topic and log time."""
     with source.open("rb") as inp, target.open("wb") as out:
         reader = make_reader(inp)
         writer = Writer(out, compression=compression)
@@ -35,9 +40,13 @@ def rewrite(
                     channel.topic, channel.message_encoding, schema_id, dict(channel.metadata)
                 )
             writer.add_message(
-                channels[channel.id], message.log_time, message.data, message.publish_time, message.sequence
+                channels[channel.id],
+                message.log_time,
+                data(channel.topic, message.log_time, message.data),
+                message.publish_time,
+                message.sequence,
             )
         for record in reader.iter_metadata():
-            writer.add_metadata(record.name, dict(record.metadata))
+            writer.add_metadata(record.name, metadata(record.name, dict(record.metadata)))
         writer.finish()
     return target

@@ -1,0 +1,74 @@
+"""Perceived obstacles read back from a recording, as an ``ObstacleSource`` for a replay (``hil.replay``).
+
+In a lockstep trial with "objects" perception the simulator hands the onboard stack its observations in
+process, and the stack records each batch on ``perception/obstacles`` at the tick that read it, every
+observation stamped with that tick's time. Those records are the stack's perception input, so a replay
+hands them back at the same ticks.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from typing import Any
+
+from navigator.perception import ObstacleObservation
+
+_log = logging.getLogger(__name__)
+
+
+class RecordedObstacles:
+    """Observations queued by the replay (``add``) until the stack's next ``poll``."""
+
+    def __init__(self) -> None:
+        self._pending: list[ObstacleObservation] = []
+        self.rejected = 0  # records or obstacles in them that were not observations (logged, skipped)
+
+    def add(self, t_ns: int, record: dict[str, Any]) -> None:
+        """One ``perception/obstacles`` record at log time ``t_ns``; a malformed entry is counted and
+        logged, the rest of the record kept."""
+        obstacles = record.get("obstacles")
+        if not isinstance(obstacles, list):
+            self._reject(t_ns, f"'obstacles' is {type(obstacles).__name__}, not a list")
+            return
+        for entry in obstacles:
+            observation = _observation(t_ns, entry)
+            if isinstance(observation, str):
+                self._reject(t_ns, observation)
+            else:
+                self._pending.append(observation)
+
+    def poll(self) -> list[ObstacleObservation]:
+        seen, self._pending = self._pending, []
+        return seen
+
+    def _reject(self, t_ns: int, why: str) -> None:
+        self.rejected += 1
+        _log.warning("perception/obstacles record at %d ns skipped: %s", t_ns, why)
+
+
+def _observation(t_ns: int, entry: object) -> ObstacleObservation | str:
+    """The observation an obstacle entry holds, or why it holds none."""
+    if not isinstance(entry, dict):
+        return f"an obstacle is {type(entry).__name__}, not an object"
+    obstacle_id = entry.get("id")
+    if not isinstance(obstacle_id, str):
+        return f"an obstacle's id is {obstacle_id!r}, not text"
+    numbers: dict[str, float] = {}
+    for key in ("x", "y", "radius_m", "vx", "vy"):
+        value = entry.get(key)
+        # bool is an int to Python, not a coordinate to us.
+        if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+            return f"obstacle {obstacle_id!r}: {key} is {value!r}, not a finite number"
+        numbers[key] = float(value)
+    if numbers["radius_m"] <= 0.0:
+        return f"obstacle {obstacle_id!r}: radius_m {numbers['radius_m']} is not positive"
+    return ObstacleObservation(
+        t_ns,
+        obstacle_id,
+        numbers["x"],
+        numbers["y"],
+        numbers["radius_m"],
+        vx=numbers["vx"],
+        vy=numbers["vy"],
+    )

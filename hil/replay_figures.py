@@ -1,0 +1,82 @@
+"""The figures that say what a replay changed: the estimator against the truth, and against the recording.
+
+``rover logs replay`` prints them beside the replay's own counts (``hil.replay.ReplayResult``). The error
+against the truth needs ``truth/*`` (a lockstep trial; the replay copies it); the shift from the recorded
+estimate is there for every recording, a real run's too: how far the new estimate moved from the old one,
+tick by tick.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from logs.analysis import TrialAnalysis, analyse
+from logs.reader import read_messages
+from logs.topics import ESTIMATOR_POSE
+
+# (figure key in logs.analysis, label)
+_ESTIMATOR_FIGURES = (
+    ("estimator_position_error_rms_m", "estimator position error RMS (m, vs truth)"),
+    ("estimator_position_error_max_m", "estimator position error max (m, vs truth)"),
+    ("estimator_yaw_error_rms_rad", "estimator yaw error RMS (rad, vs truth)"),
+)
+
+
+@dataclass(frozen=True)
+class ReplayFigure:
+    label: str
+    recorded: float | None  # the original recording's
+    replayed: float | None  # the replay's
+
+
+@dataclass(frozen=True)
+class ReplayFigures:
+    figures: tuple[ReplayFigure, ...]
+    # The replay's estimated position against the recording's at the same ticks (m); None: no tick in both.
+    estimate_shift_rms_m: float | None
+    estimate_shift_max_m: float | None
+
+
+def replay_figures(recording: Path, replay: Path) -> ReplayFigures:
+    """Both recordings analysed (``logs.analysis.analyse``) and set side by side."""
+    recorded, replayed = analyse(recording), analyse(replay)
+    figures = [
+        ReplayFigure(label, _figure(recorded, key), _figure(replayed, key))
+        for key, label in _ESTIMATOR_FIGURES
+    ]
+    shift_rms, shift_max = _estimate_shift(_positions(recording), _positions(replay))
+    return ReplayFigures(tuple(figures), shift_rms, shift_max)
+
+
+def _figure(run: TrialAnalysis, key: str) -> float | None:
+    value = run.figures.get(key)
+    return float(value) if value is not None and math.isfinite(value) else None
+
+
+def _positions(path: Path) -> dict[int, tuple[float, float]]:
+    """``estimator/pose`` positions by log time; a message without a finite position is left out."""
+    positions: dict[int, tuple[float, float]] = {}
+    for entry in read_messages(path, (ESTIMATOR_POSE,)):
+        try:
+            position = entry.message["pose"]["position"]
+            x, y = float(position["x"]), float(position["y"])
+        except (KeyError, TypeError, ValueError):
+            continue
+        if math.isfinite(x) and math.isfinite(y):
+            positions[entry.log_time_ns] = (x, y)
+    return positions
+
+
+def _estimate_shift(
+    recorded: dict[int, tuple[float, float]], replayed: dict[int, tuple[float, float]]
+) -> tuple[float | None, float | None]:
+    """RMS and max distance between the two estimates at the log times both have."""
+    both = [(recorded[t], xy) for t, xy in replayed.items() if t in recorded]
+    if not both:
+        return None, None
+    shift = np.asarray([math.hypot(new[0] - old[0], new[1] - old[1]) for old, new in both])
+    return float(np.sqrt(np.mean(shift**2))), float(shift.max())

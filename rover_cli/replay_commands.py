@@ -1,0 +1,135 @@
+"""``rover logs replay``: a recording's inputs through the onboard stack again, under a config.
+
+The replay itself is ``hil.replay``; the figures it prints, ``hil.replay_figures``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console
+from rich.markup import escape
+from rich.table import Table as RichTable
+
+from logs.errors import LogsError
+from logs.settings import ConfigError
+from rover_cli.errors import print_error
+
+
+def register(commands: Any) -> None:
+    replay = commands.add_parser(
+        "replay",
+        help="feed a recording's inputs to the onboard stack again under a config; write what it did",
+    )
+    replay.add_argument("file", type=Path, help="a lockstep trial's or `rover run`'s recording")
+    replay.add_argument("--config", type=Path, required=True, help="the rover config to replay under")
+    replay.add_argument(
+        "--scenario",
+        type=Path,
+        default=None,
+        help="a lockstep trial's scenario (default: the one attached to the recording)",
+    )
+    replay.add_argument("--out", type=Path, required=True, help="the new recording (must not exist)")
+    replay.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    replay.set_defaults(handler=replay_command)
+
+
+def replay_command(args: argparse.Namespace) -> int:
+    """Exit 0: replayed whole; 1: replayed, but the recording was cut short or some of its inputs could not
+    be fed (each named in the log); 2: bad input, nothing replayed."""
+    from hil.replay import replay_recording
+    from hil.replay_figures import replay_figures
+    from hil.scenario import load_scenario
+    from rover_cli.hil_commands import load_config
+
+    console = Console()
+    try:
+        config = load_config(args.config)
+        scenario = None if args.scenario is None else load_scenario(args.scenario)
+        with console.status(f"replaying {escape(str(args.file))} ...") as status:
+            result = replay_recording(
+                args.file,
+                config,
+                args.out,
+                scenario=scenario,
+                on_progress=lambda t_s: status.update(f"replaying {escape(str(args.file))}: {t_s:.0f} s"),
+            )
+            status.update("comparing the estimates ...")
+            figures = replay_figures(args.file, args.out)
+    except (ConfigError, LogsError) as err:
+        print_error(console, err)
+        return 2
+    partial = result.truncated or result.rejected_inputs > 0
+    if args.json:
+        document = {
+            "recording": str(args.file),
+            "replay": str(result.out_path),
+            "source_mode": result.source_mode,
+            "ticks": result.ticks,
+            "inputs": {
+                "mavlink_frames": result.mavlink_frames,
+                "can_frames": result.can_frames,
+                "obstacle_records": result.obstacle_records,
+                "rejected": result.rejected_inputs,
+            },
+            "truth_messages": result.truth_messages,
+            "commands_compared": result.commands_compared,
+            "commands_differing": result.commands_differing,
+            "first_difference_s": result.first_difference_s,
+            "truncated": result.truncated,
+            "config_changes": [
+                {"key": key, "recorded": old, "replayed": new} for key, old, new in result.config_changes
+            ],
+            "figures": {f.label: {"recorded": f.recorded, "replayed": f.replayed} for f in figures.figures},
+            "estimate_shift_rms_m": figures.estimate_shift_rms_m,
+            "estimate_shift_max_m": figures.estimate_shift_max_m,
+        }
+        console.print_json(json.dumps(document))
+        return 1 if partial else 0
+    console.print(
+        f"replayed {result.ticks} ticks of {escape(str(args.file))} ({result.source_mode}): "
+        f"{result.mavlink_frames} MAVLink frames, {result.can_frames} CAN frames, "
+        f"{result.obstacle_records} obstacle records fed; {result.truth_messages} truth messages copied",
+        soft_wrap=True,
+    )
+    if result.config_changes:
+        changes = RichTable(title="config: recorded -> replayed")
+        for column in ("key", "recorded", "replayed"):
+            changes.add_column(column, overflow="fold")
+        for key, old, new in result.config_changes:
+            changes.add_row(escape(key), escape(old), escape(new))
+        console.print(changes)
+    else:
+        console.print("config: the same values as the recording's")
+    table = RichTable(title="estimator")
+    for column in ("figure", "recorded", "replayed"):
+        table.add_column(column, justify="left" if column == "figure" else "right", overflow="fold")
+    for figure in figures.figures:
+        table.add_row(figure.label, _fmt(figure.recorded), _fmt(figure.replayed))
+    table.add_row(
+        "position shift from the recorded estimate (m, RMS / max)",
+        "",
+        f"{_fmt(figures.estimate_shift_rms_m)} / {_fmt(figures.estimate_shift_max_m)}",
+    )
+    console.print(table)
+    first = "" if result.first_difference_s is None else f", the first at {result.first_difference_s:.2f} s"
+    console.print(
+        f"wheel commands differing from the recording's: {result.commands_differing} of "
+        f"{result.commands_compared} ticks{first} (open loop: the recorded motion does not answer them)"
+    )
+    if result.truncated:
+        console.print("[yellow]the recording was cut short[/yellow]: replayed up to the cut")
+    if result.rejected_inputs:
+        console.print(
+            f"[yellow]{result.rejected_inputs} input records not fed[/yellow] "
+            "(malformed; each named in the log)"
+        )
+    console.print(f"replay: {escape(str(result.out_path))}")
+    return 1 if partial else 0
+
+
+def _fmt(value: float | None) -> str:
+    return "n/a" if value is None else f"{value:.4f}"

@@ -1,0 +1,297 @@
+"""``hil.replay``: a recording's inputs through the onboard stack again.
+
+Under the config the trial ran with, the replay must give every topic of the trial back byte for byte (the
+stack is deterministic and takes its clock and links as arguments, so fed the same bytes at the same clock
+readings it must do the same). Under another config it must say which values changed and what that did.
+Bad recordings get typed errors or counted rejections, never a crash.
+"""
+
+from __future__ import annotations
+
+import collections
+import hashlib
+import json
+from pathlib import Path
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from hil.recorded_obstacles import RecordedObstacles
+from hil.replay import ReplayError, replay_recording
+from hil.replay_figures import replay_figures
+from hil.scenario import load_scenario
+from hil.trial import run_trial
+from logs import topics
+from logs.errors import LogReadError, RecordingError
+from logs.reader import read_metadata
+from logs.settings import parse_toml
+from navigator.config import RoverConfig, rover_config_from_table
+from tests.mcap_rewrite import rewrite
+
+DATA = Path(__file__).resolve().parents[1] / "data"
+
+
+def _config(text: str = "") -> RoverConfig:
+    return rover_config_from_table(parse_toml(text, "<test config>"))
+
+
+def _digests(path: Path) -> dict[str, tuple[int, str]]:
+    """Per topic: message count and a hash of every message's log time and bytes, in file order."""
+    from mcap.reader import make_reader
+
+    hashes: dict[str, hashlib._Hash] = collections.defaultdict(hashlib.sha256)
+    counts: collections.Counter[str] = collections.Counter()
+    with path.open("rb") as stream:
+        for _schema, channel, message in make_reader(stream).iter_messages(log_time_order=False):
+            hashes[channel.topic].update(message.log_time.to_bytes(8, "little") + message.data)
+            counts[channel.topic] += 1
+    return {topic: (counts[topic], digest.hexdigest()) for topic, digest in hashes.items()}
+
+
+@pytest.fixture(scope="module")
+def trials(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """A trial perceiving obstacles as objects (small_rocky) and one through a lidar's scans (hidden_rock)."""
+    out = tmp_path_factory.mktemp("replay-trials")
+    return {
+        name: run_trial(load_scenario(DATA / f"{name}.toml"), _config(), out / name).mcap_path
+        for name in ("small_rocky", "hidden_rock")
+    }
+
+
+@pytest.mark.parametrize("name", ["small_rocky", "hidden_rock"])
+def test_replayed_under_its_own_config_a_trial_gives_every_topic_back(
+    trials: dict[str, Path], name: str, tmp_path: Path
+) -> None:
+    result = replay_recording(trials[name], _config(), tmp_path / "replay.mcap")
+    original, replayed = _digests(trials[name]), _digests(tmp_path / "replay.mcap")
+    assert replayed == original  # the stack's topics, can/frames and mavlink/raw both ways, the copied truth
+    assert result.ticks == original[topics.NAVIGATOR_STATE][0]
+    assert result.commands_compared == result.ticks and result.commands_differing == 0
+    assert result.first_difference_s is None and result.config_changes == ()
+    assert result.rejected_inputs == 0 and not result.truncated
+    if name == "small_rocky":  # objects perception: the recorded observations were the stack's input
+        assert result.obstacle_records == original[topics.PERCEPTION_OBSTACLES][0] > 0
+    else:  # scans arrive over MAVLink: perception/obstacles is the stack's output, not fed
+        assert result.obstacle_records == 0 and topics.PERCEPTION_OBSTACLES in original
+
+
+def test_another_config_is_named_and_changes_the_estimate_not_the_truth(
+    trials: dict[str, Path], tmp_path: Path
+) -> None:
+    out = tmp_path / "replay.mcap"
+    result = replay_recording(trials["small_rocky"], _config("[estimator]\ngps_noise_m = 2.0\n"), out)
+    assert result.config_changes == (("estimator.gps_noise_m", "0.5", "2.0"),)
+    original, replayed = _digests(trials["small_rocky"]), _digests(out)
+    assert replayed[topics.ESTIMATOR_POSE] != original[topics.ESTIMATOR_POSE]
+    for topic in (topics.TRUTH_POSE, topics.TRUTH_WHEELS, topics.TRUTH_STABILITY):
+        assert replayed[topic] == original[topic]
+    assert result.truth_messages == sum(original[t][0] for t in original if t.startswith("truth/"))
+    metadata = read_metadata(out)
+    assert metadata["replay"]["of"] == str(trials["small_rocky"])
+    assert metadata["config"]["estimator.gps_noise_m"] == "2.0"
+    assert metadata["scenario"] == read_metadata(trials["small_rocky"])["scenario"]
+    figures = replay_figures(trials["small_rocky"], out)
+    error_rms = figures.figures[0]
+    assert error_rms.recorded is not None and error_rms.replayed is not None
+    assert error_rms.recorded != error_rms.replayed
+    assert figures.estimate_shift_rms_m is not None and 0.0 < figures.estimate_shift_rms_m < 1.0
+
+
+def test_a_rover_run_recording_replays_on_the_configs_map(trials: dict[str, Path], tmp_path: Path) -> None:
+    """A `rover run` recording has no scenario: the map is the config's [map], the datum its [estimator]'s,
+    and no goal is given but what arrived on the links. The estimator sees the same inputs: the same poses."""
+    scenario = load_scenario(DATA / "small_rocky.toml")
+    run = rewrite(
+        trials["small_rocky"],
+        tmp_path / "run.mcap",
+        keep=lambda topic: not topic.startswith("truth/"),
+        metadata=lambda name, data: {**data, "mode": "rover-run"} if name == "trial" else data,
+    )
+    lat, lon, alt = scenario.datum
+    map_table = (DATA / "small_rocky.toml").read_text().split("[terrain]")[1].split("[start]")[0]
+    config = _config(
+        f"[estimator]\ndatum_lat_deg = {lat!r}\ndatum_lon_deg = {lon!r}\ndatum_alt_m = {alt!r}\n"
+        f"[map]{map_table}"
+    )
+    result = replay_recording(run, config, tmp_path / "replay.mcap")
+    assert result.source_mode == "rover-run" and result.truth_messages == 0
+    original, replayed = _digests(run), _digests(tmp_path / "replay.mcap")
+    assert result.ticks == original[topics.NAVIGATOR_STATE][0]
+    assert replayed[topics.ESTIMATOR_POSE] == original[topics.ESTIMATOR_POSE]
+    # No goal was given (the trial's came from its scenario): the replayed rover never drives.
+    assert result.commands_differing > 0
+
+
+def test_without_its_attached_scenario_a_trial_needs_one_given(
+    trials: dict[str, Path], tmp_path: Path
+) -> None:
+    bare = rewrite(trials["small_rocky"], tmp_path / "bare.mcap")  # the rewrite keeps no attachment
+    with pytest.raises(ReplayError, match=r"no scenario\.toml attached"):
+        replay_recording(bare, _config(), tmp_path / "replay.mcap")
+    assert not (tmp_path / "replay.mcap").exists()  # refused before anything was written
+    scenario = load_scenario(DATA / "small_rocky.toml")
+    result = replay_recording(bare, _config(), tmp_path / "given.mcap", scenario=scenario)
+    assert result.commands_differing == 0 and result.ticks > 0
+
+
+@pytest.mark.parametrize(
+    ("metadata", "message"),
+    [
+        ({"mode": "sim-realtime-peer"}, "trial.mode 'sim-realtime-peer'"),
+        (None, "no trial metadata"),
+    ],
+)
+def test_a_recording_of_no_onboard_stack_is_refused(
+    trials: dict[str, Path], tmp_path: Path, metadata: dict[str, str] | None, message: str
+) -> None:
+    def trial_record(name: str, data: dict[str, str]) -> dict[str, str]:
+        if name != "trial":
+            return data
+        return {"other": "x"} if metadata is None else {**data, **metadata}
+
+    other = rewrite(trials["small_rocky"], tmp_path / "other.mcap", metadata=trial_record)
+    with pytest.raises(ReplayError, match=message):
+        replay_recording(other, _config(), tmp_path / "replay.mcap")
+
+
+def test_a_rover_run_recording_without_a_map_in_the_config_is_refused(
+    trials: dict[str, Path], tmp_path: Path
+) -> None:
+    run = rewrite(
+        trials["small_rocky"],
+        tmp_path / "run.mcap",
+        metadata=lambda name, data: {**data, "mode": "rover-run"} if name == "trial" else data,
+    )
+    with pytest.raises(ReplayError, match=r"\[map\]"):
+        replay_recording(run, _config(), tmp_path / "replay.mcap")
+
+
+def test_an_existing_output_is_never_written_over(trials: dict[str, Path], tmp_path: Path) -> None:
+    out = tmp_path / "replay.mcap"
+    out.write_bytes(b"an earlier replay")
+    with pytest.raises(RecordingError, match="already exists"):
+        replay_recording(trials["small_rocky"], _config(), out)
+    assert out.read_bytes() == b"an earlier replay"
+
+
+def test_a_missing_or_foreign_file_is_a_read_error(tmp_path: Path) -> None:
+    with pytest.raises(LogReadError):
+        replay_recording(tmp_path / "nowhere.mcap", _config(), tmp_path / "replay.mcap")
+    (tmp_path / "text.mcap").write_text("not a recording")
+    with pytest.raises(LogReadError):
+        replay_recording(tmp_path / "text.mcap", _config(), tmp_path / "replay2.mcap")
+
+
+def test_malformed_input_records_are_counted_and_the_rest_replayed(
+    trials: dict[str, Path], tmp_path: Path
+) -> None:
+    """One CAN frame record with a bad id, one MAVLink record whose data is not base64, one obstacle record
+    whose radius is text: each is skipped and counted, the replay goes on."""
+    spoiled: collections.Counter[str] = collections.Counter()
+
+    def spoil(topic: str, log_time_ns: int, payload: bytes) -> bytes:
+        if log_time_ns < 5_000_000_000 or spoiled[topic]:
+            return payload
+        record = json.loads(payload)
+        if record.get("direction", "rx") != "rx":
+            return payload
+        if topic == topics.CAN_FRAMES:
+            record["id"] = -1
+        elif topic == topics.MAVLINK_RAW:
+            record["data"] = "*not base64*"
+        elif topic == topics.PERCEPTION_OBSTACLES and record["obstacles"]:
+            record["obstacles"][0]["radius_m"] = "big"
+        else:
+            return payload
+        spoiled[topic] += 1
+        return json.dumps(record).encode()
+
+    damaged = rewrite(trials["small_rocky"], tmp_path / "damaged.mcap", data=spoil)
+    scenario = load_scenario(DATA / "small_rocky.toml")
+    result = replay_recording(damaged, _config(), tmp_path / "replay.mcap", scenario=scenario)
+    assert sum(spoiled.values()) == 3
+    assert result.rejected_inputs == 3
+    assert result.ticks == _digests(damaged)[topics.NAVIGATOR_STATE][0]
+
+
+def test_a_cut_recording_replays_up_to_the_cut(trials: dict[str, Path], tmp_path: Path) -> None:
+    whole = trials["small_rocky"].read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(whole[: len(whole) // 2])
+    result = replay_recording(
+        cut, _config(), tmp_path / "replay.mcap", scenario=load_scenario(DATA / "small_rocky.toml")
+    )
+    assert result.truncated
+    total = _digests(trials["small_rocky"])[topics.NAVIGATOR_STATE][0]
+    assert 0 < result.ticks < total
+    assert result.commands_differing == 0  # what was there replays as it ran
+    assert read_metadata(tmp_path / "replay.mcap")["replay"]["truncated"] == "true"
+
+
+@given(
+    st.dictionaries(
+        st.sampled_from(["obstacles", "timestamp", "x"]),
+        st.one_of(
+            st.none(),
+            st.integers(),
+            st.text(max_size=5),
+            st.lists(
+                st.one_of(
+                    st.none(),
+                    st.integers(),
+                    st.dictionaries(
+                        st.sampled_from(["id", "x", "y", "radius_m", "vx", "vy"]),
+                        st.one_of(st.none(), st.booleans(), st.floats(), st.integers(), st.text(max_size=3)),
+                    ),
+                ),
+                max_size=4,
+            ),
+        ),
+    )
+)
+def test_recorded_obstacles_take_any_record_without_raising(record: dict[str, object]) -> None:
+    source = RecordedObstacles()
+    source.add(7, record)
+    seen = source.poll()
+    entries = record.get("obstacles")
+    offered = len(entries) if isinstance(entries, list) else 1
+    assert len(seen) + source.rejected == offered
+    for observation in seen:
+        assert observation.t_ns == 7 and observation.radius_m > 0.0
+    assert source.poll() == []
+
+
+def _replay_cli(recording: Path, config: Path, out: Path, *extra: str) -> int:
+    from rover_cli.main import main
+
+    return main(["logs", "replay", str(recording), "--config", str(config), "--out", str(out), *extra])
+
+
+def test_rover_logs_replay_prints_what_changed_and_exits_by_outcome(
+    trials: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = tmp_path / "noisy.toml"
+    config.write_text("[estimator]\ngps_noise_m = 2.0\n")
+    assert _replay_cli(trials["small_rocky"], config, tmp_path / "replay.mcap", "--json") == 0
+    document = json.loads(capsys.readouterr().out)
+    assert document["config_changes"] == [
+        {"key": "estimator.gps_noise_m", "recorded": "0.5", "replayed": "2.0"}
+    ]
+    assert document["ticks"] == document["commands_compared"] > document["commands_differing"] > 0
+    assert document["figures"]["estimator position error RMS (m, vs truth)"]["replayed"] > 0.0
+    # Bad input: nothing replayed, exit 2 naming it.
+    assert _replay_cli(tmp_path / "nowhere.mcap", config, tmp_path / "x.mcap") == 2
+    assert "nowhere.mcap" in capsys.readouterr().out
+    (tmp_path / "broken.toml").write_text("[estimator]\ngps_noise_m = -1\n")
+    assert _replay_cli(trials["small_rocky"], tmp_path / "broken.toml", tmp_path / "y.mcap") == 2
+    assert "gps_noise_m" in capsys.readouterr().out
+    # A cut recording: replayed up to the cut, exit 1 (not all of it).
+    whole = trials["small_rocky"].read_bytes()
+    (tmp_path / "cut.mcap").write_bytes(whole[: len(whole) // 2])
+    assert _replay_cli(tmp_path / "cut.mcap", config, tmp_path / "z.mcap") == 1
+    assert "cut short" in capsys.readouterr().out
+    # Printed as a table too.
+    assert _replay_cli(trials["small_rocky"], config, tmp_path / "table.mcap") == 0
+    printed = capsys.readouterr().out
+    assert "estimator.gps_noise_m" in printed and "wheel commands differing" in printed
