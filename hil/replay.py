@@ -7,22 +7,23 @@ what a team does with rosbag2 and robot_localization, but deterministic: replaye
 with, a lockstep trial gives its onboard topics back byte for byte (tests/hil/test_replay.py).
 
 Inputs, as the recording holds them: the MAVLink frames the rover received (``mavlink/raw``, "rx"), the CAN
-frames it received (``can/frames``, "rx"), and in a lockstep trial with "objects" perception the observations
-the simulator handed over (``perception/obstacles``); a lockstep trial's goals come from its scenario, as
-``rover hil trial`` gives them. Each onboard tick of the recording (a ``navigator/state`` message) is one
-tick of the replay at the same clock reading, after everything received up to then has been written to the
-stack's links. What the stack sends goes nowhere: the replay is open loop, the recorded motion does not
-answer a different command (``ReplayResult.commands_differing`` counts the ticks whose wheel commands
-differ from the recording's).
+frames it received (``can/frames``, "rx"), the ground station's commands over Zenoh (``ground/commands``,
+recorded by the stack as it takes them), and in a lockstep trial with "objects" perception the
+observations the simulator handed over (``perception/obstacles``); a lockstep trial's goals come from its
+scenario, as ``rover hil trial`` gives them. Each onboard tick of the recording (a ``navigator/state``
+message) is one tick of the replay at the same clock reading, after everything received up to then has been
+written to the stack's links. What the stack sends goes nowhere: the replay is open loop, the recorded
+motion does not answer a different command (``ReplayResult.commands_differing`` counts the ticks whose
+wheel commands differ from the recording's).
 
 The new recording holds the replayed stack's topics, the original's ``truth/*`` copied as they were (so
 ``rover logs report`` gives the estimator's error against the truth), the original's scenario, trial and
 world metadata and attachments, the replay's own config (``config`` metadata, ``config.effective.json``),
 and a ``replay`` metadata record naming the original.
 
-Not replayed: goals, stops and resumes given over Zenoh (the recording has the events they caused, not the
-commands), MAVLink bytes that did not parse as frames, CAN error frames and bus states (a bus-off fault's
-refused sends).
+Not replayed: MAVLink bytes that did not parse as frames, CAN error frames and bus states (a bus-off
+fault's refused sends), the ground station's malformed Zenoh samples (contact for the ground-link
+failsafe), and the commands of a recording made before ``ground/commands`` existed.
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ import can
 from firmware_bridge.can_export import record_to_message
 from firmware_bridge.errors import FrameError
 from hil.lockstep import LockstepWires, lockstep_wires, onboard_links
+from hil.recorded_commands import RecordedCommands
 from hil.recorded_obstacles import RecordedObstacles
 from hil.scenario import MAVLINK_PERCEPTION, Scenario, scenario_from_table
 from logs.clock import SimClock, seconds
@@ -57,7 +59,14 @@ from logs.reader import (
 from logs.recorder import McapRecorder
 from logs.scenario_record import SCENARIO_METADATA
 from logs.settings import ConfigError, parse_toml
-from logs.topics import CAN_FRAMES, MAVLINK_RAW, NAVIGATOR_STATE, PERCEPTION_OBSTACLES, WHEELS_COMMAND
+from logs.topics import (
+    CAN_FRAMES,
+    GROUND_COMMANDS,
+    MAVLINK_RAW,
+    NAVIGATOR_STATE,
+    PERCEPTION_OBSTACLES,
+    WHEELS_COMMAND,
+)
 from navigator.config import RoverConfig
 from navigator.config_record import effective_config, flattened, record_config
 from navigator.onboard import OnboardStack
@@ -72,7 +81,7 @@ REPLAY_METADATA = "replay"
 # of the original is copied as it was.
 _REPLACED_METADATA = frozenset({"config", REPLAY_METADATA})
 _REPLACED_ATTACHMENTS = frozenset({"config.effective.json", "config.toml"})
-_INPUT_TOPICS = (MAVLINK_RAW, CAN_FRAMES, PERCEPTION_OBSTACLES)
+_INPUT_TOPICS = (MAVLINK_RAW, CAN_FRAMES, PERCEPTION_OBSTACLES, GROUND_COMMANDS)
 
 
 class ReplayError(LogsError):
@@ -88,6 +97,7 @@ class ReplayResult:
     mavlink_frames: int  # received MAVLink frames fed to the link
     can_frames: int  # received CAN frames fed to the link
     obstacle_records: int  # perception/obstacles records handed to the stack as its perception
+    ground_commands: int  # ground/commands records handed to the stack as the ground station's commands
     rejected_inputs: int  # input records that could not be fed (malformed: each logged), skipped
     truth_messages: int  # truth/* messages copied
     commands_compared: int  # ticks with a wheels/command in both recordings
@@ -160,7 +170,8 @@ def replay_recording(
         mavlink_frames=replayer.mavlink_frames,
         can_frames=replayer.can_frames,
         obstacle_records=replayer.obstacle_records,
-        rejected_inputs=replayer.rejected + replayer.obstacles.rejected,
+        ground_commands=replayer.ground_commands,
+        rejected_inputs=replayer.rejected + replayer.obstacles.rejected + replayer.commands.rejected,
         truth_messages=replayer.truth_messages,
         commands_compared=compared,
         commands_differing=differing,
@@ -259,8 +270,9 @@ class _Replayer:
         self._on_progress = on_progress
         self.stats = ReadStats()
         self.obstacles = RecordedObstacles()
+        self.commands = RecordedCommands()
         self.recorded_commands: dict[int, bytes] = {}  # the original's wheels/command by log time
-        self.ticks = self.mavlink_frames = self.can_frames = self.obstacle_records = 0
+        self.ticks = self.mavlink_frames = self.can_frames = self.obstacle_records = self.ground_commands = 0
         self.rejected = self.truth_messages = self.out_of_order_ticks = 0
         self._mavlink_in: list[bytes] = []
         self._can_in: list[can.Message] = []
@@ -313,6 +325,7 @@ class _Replayer:
             recorder,
             self._setup.terrain,
             obstacles=self.obstacles if self._setup.obstacles_are_input else None,
+            commands=self.commands,
         )
 
     def _take(
@@ -347,6 +360,9 @@ class _Replayer:
                 self._can_in.append(record_to_message(message, t_ns, "replay"))
             except FrameError as err:
                 self._reject(recording, topic, t_ns, str(err))
+        elif topic == GROUND_COMMANDS:
+            self.commands.add(t_ns, message)
+            self.ground_commands += 1
         elif self._setup.obstacles_are_input:  # perception/obstacles
             self.obstacles.add(t_ns, message)
             self.obstacle_records += 1

@@ -17,7 +17,7 @@ import logging
 import math
 import threading
 from dataclasses import dataclass
-from typing import Literal, Protocol
+from typing import Any, Literal, Protocol
 
 import zenoh
 
@@ -25,6 +25,7 @@ from logs.clock import Clock
 from logs.errors import TelemetryError, TelemetrySetupError
 from logs.json_text import loads_json
 from logs.telemetry import key_prefix, undeclare_quietly
+from logs.topics import stamp, stamp_ns
 
 logger = logging.getLogger(__name__)
 
@@ -70,6 +71,39 @@ def parse_command(kind: str, payload: bytes, received_ns: int) -> RoverCommand:
         raise ValueError(f"{kind} payload is not JSON: {err}") from err
     if not isinstance(body, dict):
         raise ValueError(f"{kind} payload is a JSON {type(body).__name__}, not an object")
+    return _command_from_body(kind, body, received_ns)
+
+
+def command_record(t_ns: int, command: RoverCommand) -> dict[str, object]:
+    """The ``ground/commands`` message of a command the stack read at ``t_ns``."""
+    return {
+        "timestamp": stamp(t_ns),
+        "kind": command.kind,
+        "x": command.x,
+        "y": command.y,
+        "received": stamp(command.received_ns),
+    }
+
+
+def command_from_record(record: dict[str, Any]) -> RoverCommand:
+    """The command a ``ground/commands`` message holds; ``ValueError`` naming what is wrong, as
+    ``parse_command`` for a payload."""
+    kind = record.get("kind")
+    if not isinstance(kind, str) or kind not in COMMAND_KINDS:
+        raise ValueError(f"unknown command {kind!r}; expected one of {', '.join(COMMAND_KINDS)}")
+    received = record.get("received")
+    try:
+        if not isinstance(received, dict):
+            raise TypeError(type(received).__name__)
+        received_ns = stamp_ns(received)
+    except (KeyError, TypeError, ValueError) as err:
+        raise ValueError(f"{kind} record's received time is {received!r}: {err!r}") from err
+    if received_ns < 0:
+        raise ValueError(f"{kind} record's received time {received_ns} ns is negative")
+    return _command_from_body(kind, record, received_ns)
+
+
+def _command_from_body(kind: CommandKind, body: dict[str, Any], received_ns: int) -> RoverCommand:
     if kind != "goal":
         return RoverCommand(kind, received_ns)
     coordinates = []

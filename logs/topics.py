@@ -32,6 +32,7 @@ NAVIGATOR_PATH = "navigator/path"
 NAVIGATOR_STATE = "navigator/state"
 PERCEPTION_OBSTACLES = "perception/obstacles"
 SAFETY_EVENTS = "safety/events"
+GROUND_COMMANDS = "ground/commands"
 LOG = "log"
 RUNTIME_TIMING = "runtime/timing"
 TRUTH_POSE = "truth/pose"
@@ -394,6 +395,21 @@ _SPECS = [
         "rover.SafetyEvent",
         _obj({"timestamp": _TIME, "kind": _STR, "severity": _STR, "detail": _STR}),
         "Safety and link events (mode transitions, faults, recoveries) with their cause.",
+    ),
+    TopicSpec(
+        GROUND_COMMANDS,
+        "rover.GroundCommand",
+        _obj(
+            {
+                "timestamp": _TIME,
+                "kind": _STR,
+                "x": _NUM_OR_NULL,
+                "y": _NUM_OR_NULL,
+                "received": _TIME,
+            }
+        ),
+        "A command the onboard stack took from the ground station over Zenoh (goal, estop, resume), at the "
+        "tick that read it; received: when it arrived. The stack's input, so a replay can give it again.",
     ),
     TopicSpec(
         LOG,

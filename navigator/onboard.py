@@ -53,7 +53,7 @@ from firmware_bridge.mavlink_mission import (
 from firmware_bridge.obstacle_scan import ObstacleScan
 from logs import topics
 from logs.clock import NS_PER_S, Clock
-from logs.commands import CommandSource
+from logs.commands import CommandSource, command_record
 from logs.sink import MessageSink
 from navigator.config import RoverConfig
 from navigator.deferred_sink import DeferredSink
@@ -815,8 +815,14 @@ class OnboardStack:
     def _read_commands(self) -> None:
         if self._commands is None:
             return
-        for command in self._commands.poll():
+        commands = self._commands.poll()
+        if not commands:
+            return
+        now = self._clock.now_ns()
+        for command in commands:
             self._last_ground_ns = command.received_ns
+            # Recorded as taken, at this tick: the stack's input, which a replay (hil.replay) gives back.
+            self._sink.publish(topics.GROUND_COMMANDS, now, command_record(now, command))
             if command.kind == "estop":
                 self.estop("ground station")
             elif command.kind == "resume":

@@ -23,6 +23,7 @@ from hil.replay_figures import replay_figures
 from hil.scenario import load_scenario
 from hil.trial import run_trial
 from logs import topics
+from logs.commands import RoverCommand
 from logs.errors import LogReadError, RecordingError
 from logs.reader import read_metadata
 from logs.settings import parse_toml
@@ -121,6 +122,55 @@ def test_a_rover_run_recording_replays_on_the_configs_map(trials: dict[str, Path
     assert replayed[topics.ESTIMATOR_POSE] == original[topics.ESTIMATOR_POSE]
     # No goal was given (the trial's came from its scenario): the replayed rover never drives.
     assert result.commands_differing > 0
+
+
+class _GroundStation:
+    """A ``CommandSource`` giving each scripted command at the stack's tick of its time: the stack polls
+    once a tick, every 20 ms of a lockstep trial from 20 ms on."""
+
+    TICK_NS = 20_000_000
+
+    def __init__(self, script: list[RoverCommand]) -> None:
+        self._script = script
+        self._polls = 0
+        self.last_contact_ns: int | None = None
+
+    def poll(self) -> list[RoverCommand]:
+        self._polls += 1
+        now = self._polls * self.TICK_NS
+        due = [c for c in self._script if c.received_ns <= now]
+        self._script = [c for c in self._script if c.received_ns > now]
+        if due:
+            self.last_contact_ns = due[-1].received_ns
+        return due
+
+
+def test_ground_station_commands_are_recorded_and_replayed(tmp_path: Path) -> None:
+    """A goal, an e-stop and a resume over Zenoh, recorded on ground/commands as the stack takes them: the
+    trial they changed replays to itself byte for byte."""
+    script = [
+        RoverCommand("goal", 3_000_000_000, 12.0, 3.0),
+        RoverCommand("estop", 6_000_000_000),
+        RoverCommand("resume", 7_000_000_000),
+    ]
+    trial = run_trial(
+        load_scenario(DATA / "small_rocky.toml"),
+        _config(),
+        tmp_path / "trial",
+        commands=_GroundStation(script),
+    )
+    original = _digests(trial.mcap_path)
+    assert original[topics.GROUND_COMMANDS][0] == 3
+    result = replay_recording(trial.mcap_path, _config(), tmp_path / "replay.mcap")
+    assert result.ground_commands == 3
+    assert _digests(tmp_path / "replay.mcap") == original
+    assert result.commands_differing == 0
+    # Without them the replayed rover drives to the scenario's goal instead, never stopping.
+    without = rewrite(trial.mcap_path, tmp_path / "without.mcap", keep=lambda t: t != topics.GROUND_COMMANDS)
+    scenario = load_scenario(DATA / "small_rocky.toml")
+    blind = replay_recording(without, _config(), tmp_path / "blind.mcap", scenario=scenario)
+    assert blind.ground_commands == 0 and blind.commands_differing > 0
+    assert blind.first_difference_s == pytest.approx(3.0, abs=0.05)
 
 
 def test_without_its_attached_scenario_a_trial_needs_one_given(
