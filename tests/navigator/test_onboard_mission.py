@@ -15,7 +15,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 from estimator.geodesy import Datum, to_geodetic
 from firmware_bridge.mavlink_transport import memory_pipe_pair
 from navigator.mission import MissionState
-from navigator.onboard import Mode
+from navigator.route_guidance import Mode
 from navigator.safety import WHEEL_STALLED
 from tests.firmware_bridge.ground_station import MISSION, ROVER, GroundStation, mission_start, waypoint
 from tests.runtime.rig import DATUM, MSG_GPS_RAW_INT, Rig, rig_config
