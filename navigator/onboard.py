@@ -20,7 +20,7 @@ mission protocol (``firmware_bridge.mavlink_mission``, served here for every MAV
 by the trial runner (``start_mission``, driven at once). An upload replaces the mission; it is driven at
 once only in place of a mission being driven, else it waits for MISSION_START or MISSION_SET_CURRENT. The
 next waypoint becomes the goal at the end of the tick in which guidance reports ARRIVED; a single goal
-pauses the mission.
+pauses the mission. ``navigator.onboard_mission.MissionDriver`` does all this for the stack.
 """
 
 from __future__ import annotations
@@ -32,7 +32,6 @@ from concurrent.futures import Executor
 from typing import NamedTuple
 
 from estimator.estimator import Estimator
-from estimator.geodesy import to_enu, to_geodetic
 from estimator.pose import PoseEstimate
 from firmware_bridge.can_health import CanLinkState
 from firmware_bridge.can_link import CanLink, WheelStatus
@@ -40,13 +39,8 @@ from firmware_bridge.distance_sensor import RangeBeam
 from firmware_bridge.mavlink_commands import GoalRequest, StopRequest
 from firmware_bridge.mavlink_link import AttitudeSample, GpsFix, ImuSample, MavlinkLink
 from firmware_bridge.mavlink_mission import (
-    CurrentRequested,
-    MissionAccepted,
-    MissionCleared,
-    MissionItemRefused,
     MissionMessage,
     MissionServer,
-    StartRequested,
 )
 from firmware_bridge.obstacle_scan import ObstacleScan
 from logs import topics
@@ -55,13 +49,12 @@ from logs.commands import CommandSource
 from logs.sink import MessageSink
 from navigator.config import RoverConfig
 from navigator.deferred_sink import DeferredSink
-from navigator.errors import ParameterError
-from navigator.fence_shape import inside_polygon
 from navigator.guidance import GuidanceOutput
 from navigator.map_message import grid_message
 from navigator.mission import Mission, MissionState
 from navigator.mixing import mix_skid_steer
 from navigator.odometry_frame import OdometryFrame
+from navigator.onboard_mission import MissionDriver
 from navigator.perception import ObstacleSource
 from navigator.planner import Path, Planner
 from navigator.route_guidance import Goal, GuidanceCommand, Mode, RouteGuidance
@@ -163,7 +156,8 @@ class OnboardStack:
     prints them: an operator at the console sees what the rover waits for, e.g. the autopilot's heartbeat).
 
     ``mission`` is the mission in force and its progress (``navigator.mission.Mission``; read it, change it
-    through ``start_mission``, ``set_goal`` or the MAVLink mission protocol).
+    through ``start_mission``, ``set_goal`` or the MAVLink mission protocol); ``navigator.onboard_mission``
+    turns goals and missions into guidance's goal.
     """
 
     def __init__(
@@ -205,14 +199,15 @@ class OnboardStack:
         self._rangefinder_watch = RangefinderWatch(self._event)
         self.estimator = Estimator(config.estimator, clock, sink)
         self.guidance = RouteGuidance(config, terrain, sink, self._event, planning)
-        self.mission = Mission()
-        self._mission_server = MissionServer(clock, self._place_waypoint)
         self.safety = SafetySupervisor(
             config.safety,
             config.vehicle,
             clock.now_ns(),
             self._event,
             controller_ids=config.vesc.controller_ids,
+        )
+        self._mission_driver = MissionDriver(
+            clock, self.estimator, self.guidance, self.safety.new_goal, config.safety.fence, self._event
         )
         self._last_heartbeat_sent_ns: int | None = None
         self._healthy_since_ns: int | None = None
@@ -267,159 +262,28 @@ class OnboardStack:
         return self.safety.mode
 
     @property
+    def mission(self) -> Mission:
+        """The mission in force and its progress (read it; change it through ``start_mission``,
+        ``set_goal`` or the MAVLink mission protocol)."""
+        return self._mission_driver.mission
+
+    @property
     def mission_server(self) -> MissionServer:
         """The MAVLink mission protocol's server (the mission as uploaded, the transfer under way)."""
-        return self._mission_server
+        return self._mission_driver.server
 
     # --- commands from outside (ground station, trial runner, operator) --------------------------------
     def set_goal(self, x: float, y: float) -> None:
-        """A single goal: driven at once, in place of the mission being driven (which is paused: setting
-        a current item drives it again). One outside the geofence is refused (``goal_rejected``)."""
-        if self._outside_fence(x, y):
-            self._event("goal_rejected", "warning", f"goal ({x:.2f}, {y:.2f}) is outside the geofence")
-            return
-        mission = self.mission
-        if mission.pause():
-            self._event(
-                "mission_paused",
-                "info",
-                f"a single goal replaced the mission at item {mission.current} of {mission.count}",
-            )
-        self._drive_to(x, y, given=True)
+        """A single goal, driven at once in place of the mission (``MissionDriver.set_goal``)."""
+        self._mission_driver.set_goal(x, y)
 
     def start_mission(self, waypoints: Sequence[tuple[float, float]], source: str) -> bool:
-        """Drive ``waypoints`` (local ENU metres) in order, at once, in place of any goal or mission;
-        ``source`` names who gave them in the events. True if started; refused whole, the mission in force
-        kept (a ``mission_rejected`` event), when one is outside the geofence, as ``set_goal`` refuses a
-        goal, or before the estimator has a datum: a ground station, which sees the mission as waypoints
-        in MAV_FRAME_GLOBAL_INT through the datum, would be told there is none while the rover drives one.
-        ``ParameterError`` (nothing changed) for no waypoint or one not finite."""
-        for index, (x, y) in enumerate(waypoints):
-            if self._outside_fence(x, y):
-                self._event(
-                    "mission_rejected",
-                    "warning",
-                    f"mission from {source}: waypoint {index} ({x:.2f}, {y:.2f}) is outside the geofence",
-                )
-                return False
-        datum = self.estimator.datum
-        if datum is None:
-            self._event(
-                "mission_rejected",
-                "warning",
-                f"mission from {source}: no ENU datum yet (no GPS fix), a ground station could not follow it",
-            )
-            return False
-        self._load_mission(waypoints, source)  # ParameterError before anything changes: no waypoint, NaN
-        geodetic = [to_geodetic(datum, x, y, 0.0) for x, y in self.mission.waypoints]
-        self._mission_server.replace([(lat, lon) for lat, lon, _ in geodetic])
-        self._drive_to(*self.mission.set_current(0), given=True)
-        return True
+        """Drive ``waypoints`` (local ENU metres) in order, at once, in place of any goal or mission; True
+        if started, False if refused (``MissionDriver.start_mission``: why, and what is kept)."""
+        return self._mission_driver.start_mission(waypoints, source)
 
     def estop(self, source: str) -> None:
         self.safety.estop(source)
-
-    # --- missions --------------------------------------------------------------------------------------
-    def _load_mission(self, waypoints: Sequence[tuple[float, float]], source: str, note: str = "") -> None:
-        """The mission in force replaced (not driven yet: ``Mission.set_current`` starts it)."""
-        self.mission.load(waypoints)
-        count = self.mission.count
-        listed = ", ".join(f"({x:.2f}, {y:.2f})" for x, y in self.mission.waypoints)
-        noun = "waypoint" if count == 1 else "waypoints"
-        self._event("mission", "info", f"mission of {count} {noun} from {source}: {listed}{note}")
-
-    def _drive_to(self, x: float, y: float, *, given: bool) -> None:
-        """Guidance's new goal: a single goal or a mission's waypoint. ``given``: chosen from outside (a
-        goal, a mission started, an item made current), which clears the stuck and stall latches (the
-        operator chose where to go next); a mission advancing by itself to its next waypoint does not: a
-        rover stuck at one waypoint is as stuck on the way to the next."""
-        self.guidance.set_goal(x, y)
-        if given:
-            self.safety.new_goal()
-        self._event("goal", "info", f"new goal ({x:.2f}, {y:.2f})")
-
-    def _outside_fence(self, x: float, y: float) -> bool:
-        """Whether (x, y), local ENU metres, is outside ``[safety] fence`` (none: never)."""
-        fence = self._config.safety.fence
-        return bool(fence) and not inside_polygon(x, y, fence)
-
-    def _placed(self, lat_deg: float, lon_deg: float) -> tuple[float, float] | None:
-        """A latitude and longitude in local ENU metres through the estimator's datum (the rover's
-        altitude: a rover ignores it); None before the datum is known."""
-        datum = self.estimator.datum
-        if datum is None:
-            return None
-        x, y, _ = to_enu(datum, lat_deg, lon_deg, datum.alt_m)
-        return x, y
-
-    def _place_waypoint(self, lat_deg: float, lon_deg: float) -> tuple[float, float]:
-        """An uploaded waypoint in local ENU metres, as a MAVLink goal is placed; ``MissionItemRefused``
-        before the datum is known or outside the geofence (the upload is refused)."""
-        placed = self._placed(lat_deg, lon_deg)
-        if placed is None:
-            raise MissionItemRefused("no ENU datum yet (no GPS fix): waypoints cannot be placed")
-        if self._outside_fence(*placed):
-            raise MissionItemRefused(f"waypoint ({placed[0]:.2f}, {placed[1]:.2f}) is outside the geofence")
-        return placed
-
-    def _take_mission_message(self, link: MavlinkLink, reading: MissionMessage) -> None:
-        """A ground station's mission message: the server answers it; what it changes is driven here."""
-        change = self._mission_server.take(link, reading.msg)
-        if change is None:
-            return
-        who = f"{change.sysid}/{change.compid}"
-        if isinstance(change, MissionAccepted):
-            self._take_upload(change, f"MAVLink upload by {who} on the {link.name} link")
-        elif isinstance(change, StartRequested):
-            self._start_at(change.first, "mission_started", f"mission started at item {change.first}", who)
-        elif isinstance(change, MissionCleared):
-            if self.mission.clear():
-                self.guidance.clear_goal()
-                self._event("mission_cleared", "info", f"mission cleared by {who}: the rover holds")
-            else:
-                self._event("mission_cleared", "info", f"mission cleared by {who}")
-        elif isinstance(change, CurrentRequested):
-            self._start_at(change.seq, "mission_current", f"item {change.seq}", who, " made current")
-
-    def _take_upload(self, change: MissionAccepted, source: str) -> None:
-        """An upload replaces the mission; it is driven at once, from item 0, only in place of a mission
-        being driven (as ArduPilot and PX4 go on in their mission modes). Otherwise, parked, a mission
-        complete or paused for a single goal, it waits for MISSION_START or MISSION_SET_CURRENT: ground
-        stations treat an upload as editing the plan, and a separate command as starting it."""
-        driving = self.mission.state is MissionState.ACTIVE
-        note = (
-            "; driven from item 0 in place of the mission being driven"
-            if driving
-            else "; not started: MISSION_START or MISSION_SET_CURRENT drives it"
-        )
-        self._load_mission(change.waypoints, source, note)
-        if driving:
-            self._drive_to(*self.mission.set_current(0), given=True)
-
-    def _start_at(self, seq: int, kind: str, what: str, who: str, verb: str = "") -> None:
-        """A ground station made item ``seq`` current or started the mission there: it is driven from it."""
-        try:
-            waypoint = self.mission.set_current(seq)
-        except ParameterError as err:
-            # The server asks only for an item it holds, and holds the mission driven; should the two
-            # ever differ, a ground station's message must still not stop the loop.
-            _log.warning("%s from %s not taken: %s", kind, who, err)
-            return
-        self._event(kind, "info", f"{what} of {self.mission.count}{verb} by {who}")
-        self._drive_to(*waypoint, given=True)
-
-    def _mission_item_reached(self) -> None:
-        """Guidance reports ARRIVED at the mission's current waypoint: on to the next, or the end."""
-        mission = self.mission
-        seq, count = mission.current, mission.count
-        x, y = mission.waypoints[seq]
-        self._event("mission_item_reached", "info", f"item {seq} of {count} ({x:.2f}, {y:.2f}) reached")
-        self._mission_server.item_reached(seq)
-        following = mission.reached()
-        if following is None:
-            self._event("mission_complete", "info", f"mission complete: its {count} waypoint(s) reached")
-        else:
-            self._drive_to(*following, given=False)  # the mission's own step: the latches stand
 
     def resume(self, source: str) -> None:
         self.safety.resume(source)
@@ -521,7 +385,8 @@ class OnboardStack:
             if self._ground_station is not None:
                 self._ground_station.send_heartbeat()
             self._last_heartbeat_sent_ns = now
-        mission = self.mission
+        mission_driver = self._mission_driver
+        mission = mission_driver.mission
         sink = self._sink
         sink.publish(
             topics.WHEELS_COMMAND,
@@ -561,11 +426,7 @@ class OnboardStack:
                 "count": mission.count,
             }
         sink.publish(topics.NAVIGATOR_STATE, now, state)
-        if mission_state is MissionState.ACTIVE and route.mode is Mode.ARRIVED:
-            # After this tick's records, as the trial runner once set the next goal between ticks.
-            self._mission_item_reached()
-            mission_state = mission.state
-        self._mission_server.tick(mission.current, mission_state)
+        mission_driver.end_tick(route.mode is Mode.ARRIVED)
 
     def close(self) -> None:
         """Stop the wheels (zero commands) and release the links; safe to call twice."""
@@ -718,24 +579,17 @@ class OnboardStack:
             },
         )
 
-    def _goal_from_ground_station(self, request: GoalRequest) -> None:
-        placed = self._placed(request.lat_deg, request.lon_deg)
-        if placed is None:
-            self._event("goal_rejected", "warning", "MAVLink goal before the first GPS fix: no datum yet")
-            return
-        self.set_goal(*placed)
-
     def _read_ground_station(self) -> None:
         link = self._ground_station
         if link is None:
             return
         for reading in link.poll():
             if isinstance(reading, GoalRequest):
-                self._goal_from_ground_station(reading)
+                self._mission_driver.goal_from_ground_station(reading)
             elif isinstance(reading, StopRequest):
                 self.estop(f"MAVLink {reading.source} from system {reading.sysid}")
             elif isinstance(reading, MissionMessage):
-                self._take_mission_message(link, reading)
+                self._mission_driver.take_message(link, reading)
 
     def _read_links(self, now: int, *, stop_at_pacing: bool = False) -> None:
         """Read and fuse every link, the pacing sensor's link first; with ``stop_at_pacing``, return as
@@ -779,7 +633,7 @@ class OnboardStack:
                     reading.satellites,
                 )
             elif isinstance(reading, GoalRequest):
-                self._goal_from_ground_station(reading)
+                self._mission_driver.goal_from_ground_station(reading)
             elif isinstance(reading, StopRequest):
                 self.estop(f"MAVLink {reading.source} from system {reading.sysid}")
             elif isinstance(reading, ObstacleScan):
@@ -795,7 +649,7 @@ class OnboardStack:
                     reading.t_ns, reading.yaw_rad, AHRS_HEADING_STD_RAD, pitch_rad=reading.pitch_rad
                 )
             elif isinstance(reading, MissionMessage):
-                self._take_mission_message(self._mavlink, reading)
+                self._mission_driver.take_message(self._mavlink, reading)
         if beams:
             self._take_beams(beams)
 

@@ -274,7 +274,8 @@ def test_the_mission_advancing_by_itself_leaves_a_stall_latch_standing(station: 
     rig = station.rig
     stack = rig.stack
     safety = stack.safety
-    arrive = stack._mission_item_reached
+    driver = stack._mission_driver
+    arrive = driver._item_reached
 
     def latched_at_arrival() -> None:
         if stack.mission.current == 0:
@@ -283,7 +284,7 @@ def test_the_mission_advancing_by_itself_leaves_a_stall_latch_standing(station: 
             safety._stall_latched = True
         arrive()
 
-    stack._mission_item_reached = latched_at_arrival  # type: ignore[method-assign]
+    driver._item_reached = latched_at_arrival  # type: ignore[method-assign]
     station.upload(plan_items())
     station.start()
     rig.run_until(lambda: stack.mission.current == 1, 40.0, "the first waypoint")
