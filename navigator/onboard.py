@@ -61,6 +61,7 @@ from navigator.route_guidance import Goal, GuidanceCommand, Mode, RouteGuidance
 from navigator.safety import SafetyInputs, SafetyMode, SafetySupervisor
 from navigator.scan_tracker import ScanTracker
 from navigator.scan_watch import RangefinderWatch, ScanWatch
+from navigator.start_up_checks import StartUpChecks
 from navigator.terrain import TerrainMap
 
 _log = logging.getLogger(__name__)
@@ -68,9 +69,6 @@ _log = logging.getLogger(__name__)
 HEARTBEAT_PERIOD_NS = NS_PER_S
 # The autopilot's AHRS heading (compass-aided yaw, good to a few degrees) is fused as a measurement.
 AHRS_HEADING_STD_RAD = math.radians(5.0)
-# Readiness check before driving: the estimate must stay healthy this long (several GPS fixes averaged),
-# so the first plan does not start from one noisy fix.
-SETTLE_NS = 2 * NS_PER_S
 # MAVLink GPS_FIX_TYPE 3 = 3D fix; anything less does not count as "GPS present" for the GPS failsafe.
 MIN_GPS_FIX_TYPE = 3
 # A rejected input repeating every sample is logged on its first occurrence and then every this many.
@@ -79,8 +77,6 @@ _LOG_EVERY = 100
 
 # Guidance's modes in which the wheels are meant to turn (read every tick).
 _DRIVING_MODES = (Mode.DRIVING, Mode.YIELDING)
-# The last start-up check, worded once.
-_NOT_SETTLED = f"estimate healthy for < {SETTLE_NS / NS_PER_S:g} s"
 
 
 class _WheelSnapshot(NamedTuple):
@@ -177,7 +173,6 @@ class OnboardStack:
         start_up_report: Callable[[str], None] | None = None,
     ) -> None:
         self._config = config
-        self._start_up_report = start_up_report
         self._clock = clock
         self._can = can_link
         self._mavlink = mavlink
@@ -210,10 +205,7 @@ class OnboardStack:
             clock, self.estimator, self.guidance, self.safety.new_goal, config.safety.fence, self._event
         )
         self._last_heartbeat_sent_ns: int | None = None
-        self._healthy_since_ns: int | None = None
-        self._not_ready = "not yet judged"  # the start-up checks failing at the last _ready
-        self._start_up_reported: str | None = None  # the pending checks the last startup_checks event named
-        self._start_up_passed = False
+        self._start_up = StartUpChecks(self._event, start_up_report)
         self._last_tick_ns: int | None = None
         self._last_gps_ns: int | None = None
         self._last_ground_ns: int | None = None
@@ -344,9 +336,10 @@ class OnboardStack:
                 self._rangefinder_watch.check(now)
 
             pose = self.estimator.pose()
-            ready = self._ready(now, pose)
-            if not self._start_up_passed:
-                self._report_start_up(ready)
+            start_up = self._start_up
+            ready = start_up.judge(now, pose, self._mavlink.last_heartbeat_ns is not None, self._wheels.heard)
+            if not start_up.passed:
+                start_up.report(ready)
             route = self.guidance
             guidance = route.tick(now, pose, ready)
             # Backing off out of a moving obstacle's way is driving too: the supervisor must let the
@@ -355,7 +348,7 @@ class OnboardStack:
             decision = self.safety.update(
                 self._safety_inputs(now, pose),
                 driving,
-                "" if driving else route.why_stopped(self._not_ready),
+                "" if driving else route.why_stopped(start_up.not_ready),
             )
             speed = guidance.speed_mps * decision.speed_scale
             yaw_rate = guidance.yaw_rate_rps * decision.speed_scale
@@ -459,58 +452,6 @@ class OnboardStack:
         self._can.start_watch(now)
         if self._ground_station is not None:
             self._ground_station.start_watch(now)
-
-    def _ready(self, now: int, pose: PoseEstimate | None) -> bool:
-        """Start-up checks before driving: autopilot heard, every wheel controller heard, estimate settled."""
-        healthy = pose is not None and pose.healthy
-        if not healthy:
-            self._healthy_since_ns = None
-        elif self._healthy_since_ns is None:
-            self._healthy_since_ns = now
-        settled = self._healthy_since_ns is not None and now - self._healthy_since_ns >= SETTLE_NS
-        heartbeat_heard = self._mavlink.last_heartbeat_ns is not None
-        if settled and heartbeat_heard and self._wheels.heard:
-            # Every tick once driving: all checks pass (settled implies a healthy pose), no list to join.
-            self._not_ready = ""
-            return True
-        missing = []  # in this order
-        if not heartbeat_heard:
-            missing.append("no autopilot heartbeat")
-        if not self._wheels.heard:
-            missing.append("wheel controllers not all heard")
-        if pose is None:
-            missing.append("no estimate yet")
-        elif not healthy:
-            missing.append("estimate unhealthy")
-        elif not settled:
-            missing.append(_NOT_SETTLED)
-        self._not_ready = ", ".join(missing)
-        return not missing
-
-    def _report_start_up(self, ready: bool) -> None:
-        """Until the start-up checks first pass: a ``startup_checks`` event naming the pending ones on the
-        first tick and whenever they change, then one when all have passed. Without it nothing said why a
-        rover without a goal waited (the supervisor starts in IDLE: no mode change to report), nor when it
-        became ready; after that, a check failing again shows as guidance's WAITING_ESTIMATE cause. The tick
-        calls it only until they have passed."""
-        if ready:
-            self._start_up_passed = True
-            settle_s = SETTLE_NS / NS_PER_S
-            detail = (
-                f"passed: autopilot heard, all wheel controllers heard, estimate healthy for {settle_s:g} s"
-            )
-            self._event("startup_checks", "info", detail)
-            self._report_start_up_line(f"start-up checks {detail}; driving allowed")
-        elif self._not_ready != self._start_up_reported:
-            self._start_up_reported = self._not_ready
-            self._event("startup_checks", "info", f"pending: {self._not_ready}")
-            self._report_start_up_line(
-                f"start-up checks pending: {self._not_ready}; not driving until they pass"
-            )
-
-    def _report_start_up_line(self, line: str) -> None:
-        if self._start_up_report is not None:
-            self._start_up_report(line)
 
     def _safety_inputs(self, now: int, pose: PoseEstimate | None) -> SafetyInputs:
         wheels = self._wheels
