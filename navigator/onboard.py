@@ -29,12 +29,11 @@ import logging
 import math
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor
-from typing import NamedTuple
 
 from estimator.estimator import Estimator
 from estimator.pose import PoseEstimate
 from firmware_bridge.can_health import CanLinkState
-from firmware_bridge.can_link import CanLink, WheelStatus
+from firmware_bridge.can_link import CanLink
 from firmware_bridge.distance_sensor import RangeBeam
 from firmware_bridge.mavlink_commands import GoalRequest, StopRequest
 from firmware_bridge.mavlink_link import AttitudeSample, GpsFix, ImuSample, MavlinkLink
@@ -63,6 +62,7 @@ from navigator.scan_tracker import ScanTracker
 from navigator.scan_watch import RangefinderWatch, ScanWatch
 from navigator.start_up_checks import StartUpChecks
 from navigator.terrain import TerrainMap
+from navigator.wheel_snapshot import WheelSnapshot
 
 _log = logging.getLogger(__name__)
 
@@ -77,44 +77,6 @@ _LOG_EVERY = 100
 
 # Guidance's modes in which the wheels are meant to turn (read every tick).
 _DRIVING_MODES = (Mode.DRIVING, Mode.YIELDING)
-
-
-class _WheelSnapshot(NamedTuple):
-    """What the tick reads of one snapshot of the wheel controllers' readings, built once per snapshot
-    (the start-up checks, the estimator and the safety inputs all read it)."""
-
-    status_ns: tuple[int | None, ...]  # each controller's last STATUS time, None: never heard
-    heard: bool  # every controller heard
-    # For the stall check: a controller never heard has no speed or current to judge (wheel_silent covers
-    # it): 0.0, not stalled. With every controller heard (when the estimator reads them), the speeds as
-    # reported.
-    judged_speeds_mps: tuple[float, ...]
-    judged_currents_a: tuple[float, ...]
-    battery_v: float | None  # the lowest pack voltage reported (None: no controller reported one yet)
-
-    @classmethod
-    def of(cls, status: WheelStatus) -> _WheelSnapshot:
-        # The link's tuples taken as they are (CanLink.wheel_status builds them once per poll): nothing
-        # read wheel by wheel in the usual case.
-        status_ns = status.status_ns
-        heard = None not in status_ns
-        voltages = status.input_voltages_v
-        lowest_v = min(voltages) if voltages else None
-        if lowest_v is not None and not lowest_v > 0.0:
-            # Some controller reported no voltage (yet): the lowest of those that did.
-            reported = [v for v in voltages if v > 0.0]
-            lowest_v = min(reported) if reported else None
-        if heard:  # the usual case: the speeds and currents as reported
-            return cls(status_ns, heard, status.speeds_mps, status.motor_currents_a, lowest_v)
-        return cls(
-            status_ns,
-            heard,
-            tuple([v if t is not None else 0.0 for v, t in zip(status.speeds_mps, status_ns, strict=True)]),
-            tuple(
-                [a if t is not None else 0.0 for a, t in zip(status.motor_currents_a, status_ns, strict=True)]
-            ),
-            lowest_v,
-        )
 
 
 class _EventFn:
@@ -186,7 +148,7 @@ class OnboardStack:
         self._odometry_frame = OdometryFrame()
         self._scans_in = False  # a scan arrived since the tracker was last read
         self._ground_station = ground_station
-        self._wheels = _WheelSnapshot.of(can_link.wheel_status())
+        self._wheels = WheelSnapshot.of(can_link.wheel_status())
         self._terrain = terrain
         self._map_published = False
         self._event = _EventFn(clock, sink)
@@ -645,7 +607,7 @@ class OnboardStack:
         if self._can.poll():
             # One snapshot per poll: the readings change only when frames arrive, and the start-up checks
             # and the safety inputs of this tick read the same snapshot.
-            self._wheels = wheels = _WheelSnapshot.of(self._can.wheel_status())
+            self._wheels = wheels = WheelSnapshot.of(self._can.wheel_status())
             if wheels.heard:
                 if self._pacing == "wheels":
                     self._pacing_rx_ns = can_read_ns
