@@ -3,8 +3,8 @@ and clears a mission and sets its current item (https://mavlink.io/en/services/m
 
 The server speaks the protocol and keeps the mission in force as uploaded (what a download returns); it
 does not drive. What a transfer changes comes back from ``take`` as a ``MissionChange`` for the onboard
-stack (``navigator.onboard``), which drives the waypoints (``navigator.mission``) and reports progress back
-(``tick``: MISSION_CURRENT; ``item_reached``: MISSION_ITEM_REACHED). It also judges and answers
+stack (``navigator.onboard_mission``), which drives the waypoints (``navigator.mission``) and reports
+progress back (``tick``: MISSION_CURRENT; ``item_reached``: MISSION_ITEM_REACHED). It also judges and answers
 MAV_CMD_MISSION_START (COMMAND_LONG or COMMAND_INT, which the link hands over as mission messages), as
 ``firmware_bridge.mavlink_commands.judge_mission_start`` rules, with COMMAND_ACK.
 

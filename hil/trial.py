@@ -50,7 +50,8 @@ from logs.sink import FanoutSink, MessageSink
 from navigator.config import RoverConfig
 from navigator.config_record import record_config, software_version
 from navigator.mission import MissionState
-from navigator.onboard import Mode, OnboardStack
+from navigator.onboard import OnboardStack
+from navigator.route_guidance import Mode
 from navigator.terrain_classes import TERRAIN_CLASSES
 from navigator.warm_up import warm_up
 

@@ -42,8 +42,8 @@ ESTOP_CLEARED = "cleared.estop"
 MODE_EVENT = "mode"
 GOAL_REJECTED = "goal_rejected"
 GOAL_ACCEPTED = "goal"  # navigator.onboard.OnboardStack.set_goal: "new goal (X, Y)"
-NO_PATH_EVENT = "guidance.no_path"  # navigator.onboard.RouteGuidance.tick: the planner's reason
-# Guidance's modes (navigator.onboard.Mode) as navigator/state names them.
+NO_PATH_EVENT = "guidance.no_path"  # navigator.route_guidance.RouteGuidance.tick: the planner's reason
+# Guidance's modes (navigator.route_guidance.Mode) as navigator/state names them.
 GOAL_PENDING_MODES = frozenset({"WAITING_ESTIMATE", "PLANNING"})  # accepted, no plan outcome yet
 GOAL_PLANNED_MODES = frozenset({"DRIVING", "ARRIVED", "BLOCKED", "YIELDING"})  # a path to the goal exists
 NO_PATH_MODE = "NO_PATH"

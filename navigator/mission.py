@@ -1,9 +1,9 @@
 """A mission: waypoints driven in order, one at a time, the next one when guidance reports ARRIVED.
 
 Pure and clock-free: it holds the waypoints (local ENU metres) and which one is current, and says which
-one to drive to next. The onboard stack (``navigator.onboard``) hands guidance each waypoint as its goal,
-publishes the events and tells a ground station (``firmware_bridge.mavlink_mission``). Items are numbered
-from 0, as MAVLink numbers them.
+one to drive to next. The onboard stack (``navigator.onboard_mission``) hands guidance each waypoint as
+its goal, publishes the events and tells a ground station (``firmware_bridge.mavlink_mission``). Items are
+numbered from 0, as MAVLink numbers them.
 """
 
 from __future__ import annotations

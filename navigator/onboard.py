@@ -11,8 +11,8 @@ Everything else (heartbeat, the tick's own topics, the map) comes after the send
 the critical path are held back until then when the stack is given a ``DeferredSink``.
 
 Guidance (plan on a new goal, repair the plan as obstacles are perceived, follow the path) is
-``navigator.guidance.Guidance`` behind a start-up gate (``RouteGuidance``); the safety supervisor
-(``navigator.safety``) decides how much of guidance's command reaches the wheels.
+``navigator.guidance.Guidance`` behind a start-up gate (``navigator.route_guidance.RouteGuidance``); the
+safety supervisor (``navigator.safety``) decides how much of guidance's command reaches the wheels.
 
 Goals come one at a time (``set_goal``: Zenoh, a ground station's MAVLink goal, ``rover run --goal``) or as
 a mission, waypoints driven in order (``navigator.mission``): uploaded by a ground station with the MAVLink
@@ -20,35 +20,26 @@ mission protocol (``firmware_bridge.mavlink_mission``, served here for every MAV
 by the trial runner (``start_mission``, driven at once). An upload replaces the mission; it is driven at
 once only in place of a mission being driven, else it waits for MISSION_START or MISSION_SET_CURRENT. The
 next waypoint becomes the goal at the end of the tick in which guidance reports ARRIVED; a single goal
-pauses the mission.
+pauses the mission. ``navigator.onboard_mission.MissionDriver`` does all this for the stack.
 """
 
 from __future__ import annotations
 
-import enum
 import logging
 import math
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor
-from dataclasses import dataclass
-from typing import NamedTuple
 
 from estimator.estimator import Estimator
-from estimator.geodesy import to_enu, to_geodetic
 from estimator.pose import PoseEstimate
 from firmware_bridge.can_health import CanLinkState
-from firmware_bridge.can_link import CanLink, WheelStatus
+from firmware_bridge.can_link import CanLink
 from firmware_bridge.distance_sensor import RangeBeam
 from firmware_bridge.mavlink_commands import GoalRequest, StopRequest
 from firmware_bridge.mavlink_link import AttitudeSample, GpsFix, ImuSample, MavlinkLink
 from firmware_bridge.mavlink_mission import (
-    CurrentRequested,
-    MissionAccepted,
-    MissionCleared,
-    MissionItemRefused,
     MissionMessage,
     MissionServer,
-    StartRequested,
 )
 from firmware_bridge.obstacle_scan import ObstacleScan
 from logs import topics
@@ -57,198 +48,35 @@ from logs.commands import CommandSource, command_record
 from logs.sink import MessageSink
 from navigator.config import RoverConfig
 from navigator.deferred_sink import DeferredSink
-from navigator.errors import ParameterError
-from navigator.fence_shape import inside_polygon
-from navigator.guidance import Guidance, GuidanceOutput
+from navigator.guidance import GuidanceOutput
 from navigator.map_message import grid_message
 from navigator.mission import Mission, MissionState
 from navigator.mixing import mix_skid_steer
 from navigator.odometry_frame import OdometryFrame
-from navigator.perception import ObstacleObservation, ObstacleSource
+from navigator.onboard_mission import MissionDriver
+from navigator.perception import ObstacleSource
 from navigator.planner import Path, Planner
-from navigator.safety import EventSink, SafetyInputs, SafetyMode, SafetySupervisor
+from navigator.route_guidance import Goal, GuidanceCommand, Mode, RouteGuidance
+from navigator.safety import SafetyInputs, SafetyMode, SafetySupervisor
 from navigator.scan_tracker import ScanTracker
 from navigator.scan_watch import RangefinderWatch, ScanWatch
+from navigator.start_up_checks import StartUpChecks
 from navigator.terrain import TerrainMap
+from navigator.wheel_snapshot import WheelSnapshot
 
 _log = logging.getLogger(__name__)
 
 HEARTBEAT_PERIOD_NS = NS_PER_S
 # The autopilot's AHRS heading (compass-aided yaw, good to a few degrees) is fused as a measurement.
 AHRS_HEADING_STD_RAD = math.radians(5.0)
-# Readiness check before driving: the estimate must stay healthy this long (several GPS fixes averaged),
-# so the first plan does not start from one noisy fix.
-SETTLE_NS = 2 * NS_PER_S
 # MAVLink GPS_FIX_TYPE 3 = 3D fix; anything less does not count as "GPS present" for the GPS failsafe.
 MIN_GPS_FIX_TYPE = 3
 # A rejected input repeating every sample is logged on its first occurrence and then every this many.
 _LOG_EVERY = 100
 
 
-class Mode(enum.StrEnum):
-    """Guidance's mode (what it is trying to do); the safety supervisor's mode is ``SafetyMode``."""
-
-    IDLE = "IDLE"  # no goal
-    WAITING_ESTIMATE = "WAITING_ESTIMATE"  # goal set, start-up checks not yet passed
-    PLANNING = "PLANNING"  # the first plan to the goal is being made off the control thread (wheels held)
-    DRIVING = "DRIVING"
-    ARRIVED = "ARRIVED"
-    NO_PATH = "NO_PATH"  # the planner proved the goal unreachable
-    BLOCKED = "BLOCKED"  # stopped: a moving obstacle is predicted on the path
-    YIELDING = "YIELDING"  # backing off slowly: a moving obstacle is predicted to reach the rover itself
-
-
-# Guidance's mode names -> Mode, looked up every tick (a dict, not the enum's slower call).
-_MODE_OF = {mode.value: mode for mode in Mode}
 # Guidance's modes in which the wheels are meant to turn (read every tick).
 _DRIVING_MODES = (Mode.DRIVING, Mode.YIELDING)
-# The last start-up check, worded once.
-_NOT_SETTLED = f"estimate healthy for < {SETTLE_NS / NS_PER_S:g} s"
-
-
-class _WheelSnapshot(NamedTuple):
-    """What the tick reads of one snapshot of the wheel controllers' readings, built once per snapshot
-    (the start-up checks, the estimator and the safety inputs all read it)."""
-
-    status_ns: tuple[int | None, ...]  # each controller's last STATUS time, None: never heard
-    heard: bool  # every controller heard
-    # For the stall check: a controller never heard has no speed or current to judge (wheel_silent covers
-    # it): 0.0, not stalled. With every controller heard (when the estimator reads them), the speeds as
-    # reported.
-    judged_speeds_mps: tuple[float, ...]
-    judged_currents_a: tuple[float, ...]
-    battery_v: float | None  # the lowest pack voltage reported (None: no controller reported one yet)
-
-    @classmethod
-    def of(cls, status: WheelStatus) -> _WheelSnapshot:
-        # The link's tuples taken as they are (CanLink.wheel_status builds them once per poll): nothing
-        # read wheel by wheel in the usual case.
-        status_ns = status.status_ns
-        heard = None not in status_ns
-        voltages = status.input_voltages_v
-        lowest_v = min(voltages) if voltages else None
-        if lowest_v is not None and not lowest_v > 0.0:
-            # Some controller reported no voltage (yet): the lowest of those that did.
-            reported = [v for v in voltages if v > 0.0]
-            lowest_v = min(reported) if reported else None
-        if heard:  # the usual case: the speeds and currents as reported
-            return cls(status_ns, heard, status.speeds_mps, status.motor_currents_a, lowest_v)
-        return cls(
-            status_ns,
-            heard,
-            tuple([v if t is not None else 0.0 for v, t in zip(status.speeds_mps, status_ns, strict=True)]),
-            tuple(
-                [a if t is not None else 0.0 for a, t in zip(status.motor_currents_a, status_ns, strict=True)]
-            ),
-            lowest_v,
-        )
-
-
-@dataclass(frozen=True)
-class Goal:
-    x: float
-    y: float
-
-
-@dataclass(frozen=True)
-class GuidanceCommand:
-    speed_mps: float
-    yaw_rate_rps: float
-    cross_track_error_m: float = 0.0
-    speed_limit_mps: float = 0.0
-    speed_limit_reason: str = "stopped"
-
-
-STOPPED = GuidanceCommand(0.0, 0.0)
-
-
-class RouteGuidance:
-    """Holds a goal until the start-up checks pass, then lets ``Guidance`` plan, repair and follow.
-
-    The gate is the only thing added here: the first plan must start from a settled estimate, and
-    ``Guidance`` itself does not know about readiness.
-    """
-
-    def __init__(
-        self,
-        config: RoverConfig,
-        terrain: TerrainMap,
-        sink: MessageSink,
-        event: EventSink,
-        planning: Executor | None = None,
-    ) -> None:
-        self.core = Guidance(terrain, config.vehicle, config.planner, config.follower, executor=planning)
-        self._sink = sink
-        self._event = event
-        self.mode = Mode.IDLE
-        self.goal: Goal | None = None
-
-    @property
-    def planner(self) -> Planner:
-        return self.core.planner
-
-    @property
-    def path(self) -> Path | None:
-        return self.core.path if self.mode is not Mode.WAITING_ESTIMATE and self.goal is not None else None
-
-    def set_goal(self, x: float, y: float) -> None:
-        self.goal = Goal(x, y)
-        self.mode = Mode.WAITING_ESTIMATE
-
-    def clear_goal(self) -> None:
-        """No goal: the rover holds (IDLE) until the next one."""
-        self.goal = None
-        self.mode = Mode.IDLE
-
-    def observe(self, observations: list[ObstacleObservation]) -> None:
-        self.core.observe(observations)
-
-    def why_stopped(self, not_ready: str) -> str:
-        """Why guidance does not want to drive, in its own words: its mode, then the reason
-        (``not_ready``: the start-up checks still failing, for ``WAITING_ESTIMATE``)."""
-        blocker = self.core.blocker
-        reason = {
-            Mode.IDLE: "no goal",
-            Mode.WAITING_ESTIMATE: f"start-up checks not passed ({not_ready})",
-            Mode.PLANNING: "the first plan is being made",
-            Mode.ARRIVED: "goal reached",
-            Mode.NO_PATH: "no path to the goal",
-            Mode.BLOCKED: f"moving obstacle {blocker} on the path",
-            Mode.YIELDING: f"backing off from moving obstacle {blocker}",
-            Mode.DRIVING: "following the path",
-        }[self.mode]
-        return f"guidance {self.mode.value}: {reason}"
-
-    def tick(self, now: int, pose: PoseEstimate | None, ready: bool) -> GuidanceCommand | GuidanceOutput:
-        """The command for this tick: ``STOPPED`` until a goal and the start-up checks allow driving, then
-        guidance's own output (it carries the same command fields; not copied into another object)."""
-        if self.mode is Mode.IDLE or pose is None:
-            return STOPPED
-        if self.mode is Mode.WAITING_ESTIMATE:
-            if not ready or self.goal is None:
-                return STOPPED
-            self.core.set_goal(self.goal.x, self.goal.y)
-        out = self.core.update(now, pose.x, pose.y, pose.yaw, pose.speed)
-        self.mode = _MODE_OF.get(out.mode) or Mode(out.mode)  # Mode(): the enum's own error if unknown
-        if out.path_changed and out.path is not None:
-            self._publish_path(now, out.path)
-        if out.detail:
-            severity = "error" if self.mode is Mode.NO_PATH else "info"
-            self._event(f"guidance.{self.mode.value.lower()}", severity, out.detail)
-        return out
-
-    def _publish_path(self, now: int, path: Path) -> None:
-        self._sink.publish(
-            topics.NAVIGATOR_PATH,
-            now,
-            {
-                "timestamp": topics.stamp(now),
-                "frame_id": topics.ENU_FRAME,
-                "poses": [topics.planar_pose(float(px), float(py), 0.0) for px, py in path.points],
-                "cost": path.cost,
-                "length_m": path.length_m,
-            },
-        )
 
 
 class _EventFn:
@@ -286,7 +114,8 @@ class OnboardStack:
     prints them: an operator at the console sees what the rover waits for, e.g. the autopilot's heartbeat).
 
     ``mission`` is the mission in force and its progress (``navigator.mission.Mission``; read it, change it
-    through ``start_mission``, ``set_goal`` or the MAVLink mission protocol).
+    through ``start_mission``, ``set_goal`` or the MAVLink mission protocol); ``navigator.onboard_mission``
+    turns goals and missions into guidance's goal.
     """
 
     def __init__(
@@ -306,7 +135,6 @@ class OnboardStack:
         start_up_report: Callable[[str], None] | None = None,
     ) -> None:
         self._config = config
-        self._start_up_report = start_up_report
         self._clock = clock
         self._can = can_link
         self._mavlink = mavlink
@@ -320,7 +148,7 @@ class OnboardStack:
         self._odometry_frame = OdometryFrame()
         self._scans_in = False  # a scan arrived since the tracker was last read
         self._ground_station = ground_station
-        self._wheels = _WheelSnapshot.of(can_link.wheel_status())
+        self._wheels = WheelSnapshot.of(can_link.wheel_status())
         self._terrain = terrain
         self._map_published = False
         self._event = _EventFn(clock, sink)
@@ -328,8 +156,6 @@ class OnboardStack:
         self._rangefinder_watch = RangefinderWatch(self._event)
         self.estimator = Estimator(config.estimator, clock, sink)
         self.guidance = RouteGuidance(config, terrain, sink, self._event, planning)
-        self.mission = Mission()
-        self._mission_server = MissionServer(clock, self._place_waypoint)
         self.safety = SafetySupervisor(
             config.safety,
             config.vehicle,
@@ -337,11 +163,11 @@ class OnboardStack:
             self._event,
             controller_ids=config.vesc.controller_ids,
         )
+        self._mission_driver = MissionDriver(
+            clock, self.estimator, self.guidance, self.safety.new_goal, config.safety.fence, self._event
+        )
         self._last_heartbeat_sent_ns: int | None = None
-        self._healthy_since_ns: int | None = None
-        self._not_ready = "not yet judged"  # the start-up checks failing at the last _ready
-        self._start_up_reported: str | None = None  # the pending checks the last startup_checks event named
-        self._start_up_passed = False
+        self._start_up = StartUpChecks(self._event, start_up_report)
         self._last_tick_ns: int | None = None
         self._last_gps_ns: int | None = None
         self._last_ground_ns: int | None = None
@@ -390,159 +216,28 @@ class OnboardStack:
         return self.safety.mode
 
     @property
+    def mission(self) -> Mission:
+        """The mission in force and its progress (read it; change it through ``start_mission``,
+        ``set_goal`` or the MAVLink mission protocol)."""
+        return self._mission_driver.mission
+
+    @property
     def mission_server(self) -> MissionServer:
         """The MAVLink mission protocol's server (the mission as uploaded, the transfer under way)."""
-        return self._mission_server
+        return self._mission_driver.server
 
     # --- commands from outside (ground station, trial runner, operator) --------------------------------
     def set_goal(self, x: float, y: float) -> None:
-        """A single goal: driven at once, in place of the mission being driven (which is paused: setting
-        a current item drives it again). One outside the geofence is refused (``goal_rejected``)."""
-        if self._outside_fence(x, y):
-            self._event("goal_rejected", "warning", f"goal ({x:.2f}, {y:.2f}) is outside the geofence")
-            return
-        mission = self.mission
-        if mission.pause():
-            self._event(
-                "mission_paused",
-                "info",
-                f"a single goal replaced the mission at item {mission.current} of {mission.count}",
-            )
-        self._drive_to(x, y, given=True)
+        """A single goal, driven at once in place of the mission (``MissionDriver.set_goal``)."""
+        self._mission_driver.set_goal(x, y)
 
     def start_mission(self, waypoints: Sequence[tuple[float, float]], source: str) -> bool:
-        """Drive ``waypoints`` (local ENU metres) in order, at once, in place of any goal or mission;
-        ``source`` names who gave them in the events. True if started; refused whole, the mission in force
-        kept (a ``mission_rejected`` event), when one is outside the geofence, as ``set_goal`` refuses a
-        goal, or before the estimator has a datum: a ground station, which sees the mission as waypoints
-        in MAV_FRAME_GLOBAL_INT through the datum, would be told there is none while the rover drives one.
-        ``ParameterError`` (nothing changed) for no waypoint or one not finite."""
-        for index, (x, y) in enumerate(waypoints):
-            if self._outside_fence(x, y):
-                self._event(
-                    "mission_rejected",
-                    "warning",
-                    f"mission from {source}: waypoint {index} ({x:.2f}, {y:.2f}) is outside the geofence",
-                )
-                return False
-        datum = self.estimator.datum
-        if datum is None:
-            self._event(
-                "mission_rejected",
-                "warning",
-                f"mission from {source}: no ENU datum yet (no GPS fix), a ground station could not follow it",
-            )
-            return False
-        self._load_mission(waypoints, source)  # ParameterError before anything changes: no waypoint, NaN
-        geodetic = [to_geodetic(datum, x, y, 0.0) for x, y in self.mission.waypoints]
-        self._mission_server.replace([(lat, lon) for lat, lon, _ in geodetic])
-        self._drive_to(*self.mission.set_current(0), given=True)
-        return True
+        """Drive ``waypoints`` (local ENU metres) in order, at once, in place of any goal or mission; True
+        if started, False if refused (``MissionDriver.start_mission``: why, and what is kept)."""
+        return self._mission_driver.start_mission(waypoints, source)
 
     def estop(self, source: str) -> None:
         self.safety.estop(source)
-
-    # --- missions --------------------------------------------------------------------------------------
-    def _load_mission(self, waypoints: Sequence[tuple[float, float]], source: str, note: str = "") -> None:
-        """The mission in force replaced (not driven yet: ``Mission.set_current`` starts it)."""
-        self.mission.load(waypoints)
-        count = self.mission.count
-        listed = ", ".join(f"({x:.2f}, {y:.2f})" for x, y in self.mission.waypoints)
-        noun = "waypoint" if count == 1 else "waypoints"
-        self._event("mission", "info", f"mission of {count} {noun} from {source}: {listed}{note}")
-
-    def _drive_to(self, x: float, y: float, *, given: bool) -> None:
-        """Guidance's new goal: a single goal or a mission's waypoint. ``given``: chosen from outside (a
-        goal, a mission started, an item made current), which clears the stuck and stall latches (the
-        operator chose where to go next); a mission advancing by itself to its next waypoint does not: a
-        rover stuck at one waypoint is as stuck on the way to the next."""
-        self.guidance.set_goal(x, y)
-        if given:
-            self.safety.new_goal()
-        self._event("goal", "info", f"new goal ({x:.2f}, {y:.2f})")
-
-    def _outside_fence(self, x: float, y: float) -> bool:
-        """Whether (x, y), local ENU metres, is outside ``[safety] fence`` (none: never)."""
-        fence = self._config.safety.fence
-        return bool(fence) and not inside_polygon(x, y, fence)
-
-    def _placed(self, lat_deg: float, lon_deg: float) -> tuple[float, float] | None:
-        """A latitude and longitude in local ENU metres through the estimator's datum (the rover's
-        altitude: a rover ignores it); None before the datum is known."""
-        datum = self.estimator.datum
-        if datum is None:
-            return None
-        x, y, _ = to_enu(datum, lat_deg, lon_deg, datum.alt_m)
-        return x, y
-
-    def _place_waypoint(self, lat_deg: float, lon_deg: float) -> tuple[float, float]:
-        """An uploaded waypoint in local ENU metres, as a MAVLink goal is placed; ``MissionItemRefused``
-        before the datum is known or outside the geofence (the upload is refused)."""
-        placed = self._placed(lat_deg, lon_deg)
-        if placed is None:
-            raise MissionItemRefused("no ENU datum yet (no GPS fix): waypoints cannot be placed")
-        if self._outside_fence(*placed):
-            raise MissionItemRefused(f"waypoint ({placed[0]:.2f}, {placed[1]:.2f}) is outside the geofence")
-        return placed
-
-    def _take_mission_message(self, link: MavlinkLink, reading: MissionMessage) -> None:
-        """A ground station's mission message: the server answers it; what it changes is driven here."""
-        change = self._mission_server.take(link, reading.msg)
-        if change is None:
-            return
-        who = f"{change.sysid}/{change.compid}"
-        if isinstance(change, MissionAccepted):
-            self._take_upload(change, f"MAVLink upload by {who} on the {link.name} link")
-        elif isinstance(change, StartRequested):
-            self._start_at(change.first, "mission_started", f"mission started at item {change.first}", who)
-        elif isinstance(change, MissionCleared):
-            if self.mission.clear():
-                self.guidance.clear_goal()
-                self._event("mission_cleared", "info", f"mission cleared by {who}: the rover holds")
-            else:
-                self._event("mission_cleared", "info", f"mission cleared by {who}")
-        elif isinstance(change, CurrentRequested):
-            self._start_at(change.seq, "mission_current", f"item {change.seq}", who, " made current")
-
-    def _take_upload(self, change: MissionAccepted, source: str) -> None:
-        """An upload replaces the mission; it is driven at once, from item 0, only in place of a mission
-        being driven (as ArduPilot and PX4 go on in their mission modes). Otherwise, parked, a mission
-        complete or paused for a single goal, it waits for MISSION_START or MISSION_SET_CURRENT: ground
-        stations treat an upload as editing the plan, and a separate command as starting it."""
-        driving = self.mission.state is MissionState.ACTIVE
-        note = (
-            "; driven from item 0 in place of the mission being driven"
-            if driving
-            else "; not started: MISSION_START or MISSION_SET_CURRENT drives it"
-        )
-        self._load_mission(change.waypoints, source, note)
-        if driving:
-            self._drive_to(*self.mission.set_current(0), given=True)
-
-    def _start_at(self, seq: int, kind: str, what: str, who: str, verb: str = "") -> None:
-        """A ground station made item ``seq`` current or started the mission there: it is driven from it."""
-        try:
-            waypoint = self.mission.set_current(seq)
-        except ParameterError as err:
-            # The server asks only for an item it holds, and holds the mission driven; should the two
-            # ever differ, a ground station's message must still not stop the loop.
-            _log.warning("%s from %s not taken: %s", kind, who, err)
-            return
-        self._event(kind, "info", f"{what} of {self.mission.count}{verb} by {who}")
-        self._drive_to(*waypoint, given=True)
-
-    def _mission_item_reached(self) -> None:
-        """Guidance reports ARRIVED at the mission's current waypoint: on to the next, or the end."""
-        mission = self.mission
-        seq, count = mission.current, mission.count
-        x, y = mission.waypoints[seq]
-        self._event("mission_item_reached", "info", f"item {seq} of {count} ({x:.2f}, {y:.2f}) reached")
-        self._mission_server.item_reached(seq)
-        following = mission.reached()
-        if following is None:
-            self._event("mission_complete", "info", f"mission complete: its {count} waypoint(s) reached")
-        else:
-            self._drive_to(*following, given=False)  # the mission's own step: the latches stand
 
     def resume(self, source: str) -> None:
         self.safety.resume(source)
@@ -603,9 +298,10 @@ class OnboardStack:
                 self._rangefinder_watch.check(now)
 
             pose = self.estimator.pose()
-            ready = self._ready(now, pose)
-            if not self._start_up_passed:
-                self._report_start_up(ready)
+            start_up = self._start_up
+            ready = start_up.judge(now, pose, self._mavlink.last_heartbeat_ns is not None, self._wheels.heard)
+            if not start_up.passed:
+                start_up.report(ready)
             route = self.guidance
             guidance = route.tick(now, pose, ready)
             # Backing off out of a moving obstacle's way is driving too: the supervisor must let the
@@ -614,7 +310,7 @@ class OnboardStack:
             decision = self.safety.update(
                 self._safety_inputs(now, pose),
                 driving,
-                "" if driving else route.why_stopped(self._not_ready),
+                "" if driving else route.why_stopped(start_up.not_ready),
             )
             speed = guidance.speed_mps * decision.speed_scale
             yaw_rate = guidance.yaw_rate_rps * decision.speed_scale
@@ -644,7 +340,8 @@ class OnboardStack:
             if self._ground_station is not None:
                 self._ground_station.send_heartbeat()
             self._last_heartbeat_sent_ns = now
-        mission = self.mission
+        mission_driver = self._mission_driver
+        mission = mission_driver.mission
         sink = self._sink
         sink.publish(
             topics.WHEELS_COMMAND,
@@ -684,11 +381,7 @@ class OnboardStack:
                 "count": mission.count,
             }
         sink.publish(topics.NAVIGATOR_STATE, now, state)
-        if mission_state is MissionState.ACTIVE and route.mode is Mode.ARRIVED:
-            # After this tick's records, as the trial runner once set the next goal between ticks.
-            self._mission_item_reached()
-            mission_state = mission.state
-        self._mission_server.tick(mission.current, mission_state)
+        mission_driver.end_tick(route.mode is Mode.ARRIVED)
 
     def close(self) -> None:
         """Stop the wheels (zero commands) and release the links; safe to call twice."""
@@ -721,58 +414,6 @@ class OnboardStack:
         self._can.start_watch(now)
         if self._ground_station is not None:
             self._ground_station.start_watch(now)
-
-    def _ready(self, now: int, pose: PoseEstimate | None) -> bool:
-        """Start-up checks before driving: autopilot heard, every wheel controller heard, estimate settled."""
-        healthy = pose is not None and pose.healthy
-        if not healthy:
-            self._healthy_since_ns = None
-        elif self._healthy_since_ns is None:
-            self._healthy_since_ns = now
-        settled = self._healthy_since_ns is not None and now - self._healthy_since_ns >= SETTLE_NS
-        heartbeat_heard = self._mavlink.last_heartbeat_ns is not None
-        if settled and heartbeat_heard and self._wheels.heard:
-            # Every tick once driving: all checks pass (settled implies a healthy pose), no list to join.
-            self._not_ready = ""
-            return True
-        missing = []  # in this order
-        if not heartbeat_heard:
-            missing.append("no autopilot heartbeat")
-        if not self._wheels.heard:
-            missing.append("wheel controllers not all heard")
-        if pose is None:
-            missing.append("no estimate yet")
-        elif not healthy:
-            missing.append("estimate unhealthy")
-        elif not settled:
-            missing.append(_NOT_SETTLED)
-        self._not_ready = ", ".join(missing)
-        return not missing
-
-    def _report_start_up(self, ready: bool) -> None:
-        """Until the start-up checks first pass: a ``startup_checks`` event naming the pending ones on the
-        first tick and whenever they change, then one when all have passed. Without it nothing said why a
-        rover without a goal waited (the supervisor starts in IDLE: no mode change to report), nor when it
-        became ready; after that, a check failing again shows as guidance's WAITING_ESTIMATE cause. The tick
-        calls it only until they have passed."""
-        if ready:
-            self._start_up_passed = True
-            settle_s = SETTLE_NS / NS_PER_S
-            detail = (
-                f"passed: autopilot heard, all wheel controllers heard, estimate healthy for {settle_s:g} s"
-            )
-            self._event("startup_checks", "info", detail)
-            self._report_start_up_line(f"start-up checks {detail}; driving allowed")
-        elif self._not_ready != self._start_up_reported:
-            self._start_up_reported = self._not_ready
-            self._event("startup_checks", "info", f"pending: {self._not_ready}")
-            self._report_start_up_line(
-                f"start-up checks pending: {self._not_ready}; not driving until they pass"
-            )
-
-    def _report_start_up_line(self, line: str) -> None:
-        if self._start_up_report is not None:
-            self._start_up_report(line)
 
     def _safety_inputs(self, now: int, pose: PoseEstimate | None) -> SafetyInputs:
         wheels = self._wheels
@@ -847,24 +488,17 @@ class OnboardStack:
             },
         )
 
-    def _goal_from_ground_station(self, request: GoalRequest) -> None:
-        placed = self._placed(request.lat_deg, request.lon_deg)
-        if placed is None:
-            self._event("goal_rejected", "warning", "MAVLink goal before the first GPS fix: no datum yet")
-            return
-        self.set_goal(*placed)
-
     def _read_ground_station(self) -> None:
         link = self._ground_station
         if link is None:
             return
         for reading in link.poll():
             if isinstance(reading, GoalRequest):
-                self._goal_from_ground_station(reading)
+                self._mission_driver.goal_from_ground_station(reading)
             elif isinstance(reading, StopRequest):
                 self.estop(f"MAVLink {reading.source} from system {reading.sysid}")
             elif isinstance(reading, MissionMessage):
-                self._take_mission_message(link, reading)
+                self._mission_driver.take_message(link, reading)
 
     def _read_links(self, now: int, *, stop_at_pacing: bool = False) -> None:
         """Read and fuse every link, the pacing sensor's link first; with ``stop_at_pacing``, return as
@@ -908,7 +542,7 @@ class OnboardStack:
                     reading.satellites,
                 )
             elif isinstance(reading, GoalRequest):
-                self._goal_from_ground_station(reading)
+                self._mission_driver.goal_from_ground_station(reading)
             elif isinstance(reading, StopRequest):
                 self.estop(f"MAVLink {reading.source} from system {reading.sysid}")
             elif isinstance(reading, ObstacleScan):
@@ -924,7 +558,7 @@ class OnboardStack:
                     reading.t_ns, reading.yaw_rad, AHRS_HEADING_STD_RAD, pitch_rad=reading.pitch_rad
                 )
             elif isinstance(reading, MissionMessage):
-                self._take_mission_message(self._mavlink, reading)
+                self._mission_driver.take_message(self._mavlink, reading)
         if beams:
             self._take_beams(beams)
 
@@ -979,7 +613,7 @@ class OnboardStack:
         if self._can.poll():
             # One snapshot per poll: the readings change only when frames arrive, and the start-up checks
             # and the safety inputs of this tick read the same snapshot.
-            self._wheels = wheels = _WheelSnapshot.of(self._can.wheel_status())
+            self._wheels = wheels = WheelSnapshot.of(self._can.wheel_status())
             if wheels.heard:
                 if self._pacing == "wheels":
                     self._pacing_rx_ns = can_read_ns

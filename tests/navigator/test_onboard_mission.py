@@ -15,7 +15,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 from estimator.geodesy import Datum, to_geodetic
 from firmware_bridge.mavlink_transport import memory_pipe_pair
 from navigator.mission import MissionState
-from navigator.onboard import Mode
+from navigator.route_guidance import Mode
 from navigator.safety import WHEEL_STALLED
 from tests.firmware_bridge.ground_station import MISSION, ROVER, GroundStation, mission_start, waypoint
 from tests.runtime.rig import DATUM, MSG_GPS_RAW_INT, Rig, rig_config
@@ -274,7 +274,8 @@ def test_the_mission_advancing_by_itself_leaves_a_stall_latch_standing(station: 
     rig = station.rig
     stack = rig.stack
     safety = stack.safety
-    arrive = stack._mission_item_reached
+    driver = stack._mission_driver
+    arrive = driver._item_reached
 
     def latched_at_arrival() -> None:
         if stack.mission.current == 0:
@@ -283,7 +284,7 @@ def test_the_mission_advancing_by_itself_leaves_a_stall_latch_standing(station: 
             safety._stall_latched = True
         arrive()
 
-    stack._mission_item_reached = latched_at_arrival  # type: ignore[method-assign]
+    driver._item_reached = latched_at_arrival  # type: ignore[method-assign]
     station.upload(plan_items())
     station.start()
     rig.run_until(lambda: stack.mission.current == 1, 40.0, "the first waypoint")

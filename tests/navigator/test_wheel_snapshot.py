@@ -8,7 +8,7 @@ import math
 import pytest
 
 from firmware_bridge.can_link import WheelReading, WheelStatus
-from navigator.onboard import _WheelSnapshot
+from navigator.wheel_snapshot import WheelSnapshot
 
 
 def _reference(readings: list[WheelReading]) -> tuple[object, ...]:
@@ -62,9 +62,9 @@ ALL = [True] * 6
 )
 def test_snapshot_reads_the_fields_as_written(voltages: list[float], heard: list[bool]) -> None:
     readings = _readings(voltages, heard)
-    snapshot = _WheelSnapshot.of(_status(readings))
+    snapshot = WheelSnapshot.of(_status(readings))
     assert tuple(snapshot) == _reference(readings)
 
 
 def test_no_readings_is_an_empty_snapshot() -> None:
-    assert tuple(_WheelSnapshot.of(_status([]))) == ((), True, (), (), None)
+    assert tuple(WheelSnapshot.of(_status([]))) == ((), True, (), (), None)

@@ -1,0 +1,147 @@
+"""Guidance behind a start-up gate: a goal is held until the start-up checks pass, then planned and driven.
+
+``RouteGuidance`` wraps ``navigator.guidance.Guidance`` (plan on a new goal, repair the plan as obstacles are
+perceived, follow the path) for the onboard stack (``navigator.onboard``): the first plan must start from a
+settled estimate, and ``Guidance`` itself does not know about readiness. ``Mode`` is guidance's mode as the
+stack reports it (``navigator/state``'s ``mode``); ``GuidanceCommand`` the command while it does not drive.
+"""
+
+from __future__ import annotations
+
+import enum
+from concurrent.futures import Executor
+from dataclasses import dataclass
+
+from estimator.pose import PoseEstimate
+from logs import topics
+from logs.sink import MessageSink
+from navigator.config import RoverConfig
+from navigator.guidance import Guidance, GuidanceOutput
+from navigator.perception import ObstacleObservation
+from navigator.planner import Path, Planner
+from navigator.safety import EventSink
+from navigator.terrain import TerrainMap
+
+
+class Mode(enum.StrEnum):
+    """Guidance's mode (what it is trying to do); the safety supervisor's mode is ``SafetyMode``."""
+
+    IDLE = "IDLE"  # no goal
+    WAITING_ESTIMATE = "WAITING_ESTIMATE"  # goal set, start-up checks not yet passed
+    PLANNING = "PLANNING"  # the first plan to the goal is being made off the control thread (wheels held)
+    DRIVING = "DRIVING"
+    ARRIVED = "ARRIVED"
+    NO_PATH = "NO_PATH"  # the planner proved the goal unreachable
+    BLOCKED = "BLOCKED"  # stopped: a moving obstacle is predicted on the path
+    YIELDING = "YIELDING"  # backing off slowly: a moving obstacle is predicted to reach the rover itself
+
+
+# Guidance's mode names -> Mode, looked up every tick (a dict, not the enum's slower call).
+_MODE_OF = {mode.value: mode for mode in Mode}
+
+
+@dataclass(frozen=True)
+class Goal:
+    x: float
+    y: float
+
+
+@dataclass(frozen=True)
+class GuidanceCommand:
+    speed_mps: float
+    yaw_rate_rps: float
+    cross_track_error_m: float = 0.0
+    speed_limit_mps: float = 0.0
+    speed_limit_reason: str = "stopped"
+
+
+STOPPED = GuidanceCommand(0.0, 0.0)
+
+
+class RouteGuidance:
+    """Holds a goal until the start-up checks pass, then lets ``Guidance`` plan, repair and follow.
+
+    The gate is the only thing added here: the first plan must start from a settled estimate, and
+    ``Guidance`` itself does not know about readiness.
+    """
+
+    def __init__(
+        self,
+        config: RoverConfig,
+        terrain: TerrainMap,
+        sink: MessageSink,
+        event: EventSink,
+        planning: Executor | None = None,
+    ) -> None:
+        self.core = Guidance(terrain, config.vehicle, config.planner, config.follower, executor=planning)
+        self._sink = sink
+        self._event = event
+        self.mode = Mode.IDLE
+        self.goal: Goal | None = None
+
+    @property
+    def planner(self) -> Planner:
+        return self.core.planner
+
+    @property
+    def path(self) -> Path | None:
+        return self.core.path if self.mode is not Mode.WAITING_ESTIMATE and self.goal is not None else None
+
+    def set_goal(self, x: float, y: float) -> None:
+        self.goal = Goal(x, y)
+        self.mode = Mode.WAITING_ESTIMATE
+
+    def clear_goal(self) -> None:
+        """No goal: the rover holds (IDLE) until the next one."""
+        self.goal = None
+        self.mode = Mode.IDLE
+
+    def observe(self, observations: list[ObstacleObservation]) -> None:
+        self.core.observe(observations)
+
+    def why_stopped(self, not_ready: str) -> str:
+        """Why guidance does not want to drive, in its own words: its mode, then the reason
+        (``not_ready``: the start-up checks still failing, for ``WAITING_ESTIMATE``)."""
+        blocker = self.core.blocker
+        reason = {
+            Mode.IDLE: "no goal",
+            Mode.WAITING_ESTIMATE: f"start-up checks not passed ({not_ready})",
+            Mode.PLANNING: "the first plan is being made",
+            Mode.ARRIVED: "goal reached",
+            Mode.NO_PATH: "no path to the goal",
+            Mode.BLOCKED: f"moving obstacle {blocker} on the path",
+            Mode.YIELDING: f"backing off from moving obstacle {blocker}",
+            Mode.DRIVING: "following the path",
+        }[self.mode]
+        return f"guidance {self.mode.value}: {reason}"
+
+    def tick(self, now: int, pose: PoseEstimate | None, ready: bool) -> GuidanceCommand | GuidanceOutput:
+        """The command for this tick: ``STOPPED`` until a goal and the start-up checks allow driving, then
+        guidance's own output (it carries the same command fields; not copied into another object)."""
+        if self.mode is Mode.IDLE or pose is None:
+            return STOPPED
+        if self.mode is Mode.WAITING_ESTIMATE:
+            if not ready or self.goal is None:
+                return STOPPED
+            self.core.set_goal(self.goal.x, self.goal.y)
+        out = self.core.update(now, pose.x, pose.y, pose.yaw, pose.speed)
+        self.mode = _MODE_OF.get(out.mode) or Mode(out.mode)  # Mode(): the enum's own error if unknown
+        if out.path_changed and out.path is not None:
+            self._publish_path(now, out.path)
+        if out.detail:
+            severity = "error" if self.mode is Mode.NO_PATH else "info"
+            self._event(f"guidance.{self.mode.value.lower()}", severity, out.detail)
+        return out
+
+    def _publish_path(self, now: int, path: Path) -> None:
+        self._sink.publish(
+            topics.NAVIGATOR_PATH,
+            now,
+            {
+                "timestamp": topics.stamp(now),
+                "frame_id": topics.ENU_FRAME,
+                "poses": [topics.planar_pose(float(px), float(py), 0.0) for px, py in path.points],
+                "cost": path.cost,
+                "length_m": path.length_m,
+            },
+        )
