@@ -35,21 +35,28 @@ class ReplayFigure:
 
 @dataclass(frozen=True)
 class ReplayFigures:
-    figures: tuple[ReplayFigure, ...]
+    position_error_rms: ReplayFigure  # against the truth (m); None without one
+    position_error_max: ReplayFigure
+    yaw_error_rms: ReplayFigure  # (rad)
     # The replay's estimated position against the recording's at the same ticks (m); None: no tick in both.
     estimate_shift_rms_m: float | None
     estimate_shift_max_m: float | None
+
+    @property
+    def figures(self) -> tuple[ReplayFigure, ...]:
+        """The figures against the truth, in the order they are printed."""
+        return (self.position_error_rms, self.position_error_max, self.yaw_error_rms)
 
 
 def replay_figures(recording: Path, replay: Path) -> ReplayFigures:
     """Both recordings analysed (``logs.analysis.analyse``) and set side by side."""
     recorded, replayed = analyse(recording), analyse(replay)
-    figures = [
+    error_rms, error_max, yaw_rms = (
         ReplayFigure(label, _figure(recorded, key), _figure(replayed, key))
         for key, label in _ESTIMATOR_FIGURES
-    ]
+    )
     shift_rms, shift_max = _estimate_shift(_positions(recording), _positions(replay))
-    return ReplayFigures(tuple(figures), shift_rms, shift_max)
+    return ReplayFigures(error_rms, error_max, yaw_rms, shift_rms, shift_max)
 
 
 def _figure(run: TrialAnalysis, key: str) -> float | None:

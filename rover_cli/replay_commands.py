@@ -17,37 +17,59 @@ from rich.table import Table as RichTable
 from logs.errors import LogsError
 from logs.settings import ConfigError
 from rover_cli.errors import print_error
+from rover_cli.replay_sweep_command import fmt, sweep_command
 
 
 def register(commands: Any) -> None:
     replay = commands.add_parser(
         "replay",
-        help="feed a recording's inputs to the onboard stack again under a config; write what it did",
+        help="feed recordings' inputs to the onboard stack again under one or more configs; write what it "
+        "did and compare the configs",
     )
-    replay.add_argument("file", type=Path, help="a lockstep trial's or `rover run`'s recording")
-    replay.add_argument("--config", type=Path, required=True, help="the rover config to replay under")
+    replay.add_argument(
+        "inputs",
+        type=Path,
+        nargs="+",
+        help="a lockstep trial's or `rover run`'s recording; several, or folders of them (a campaign's)",
+    )
+    replay.add_argument(
+        "--config",
+        type=Path,
+        action="append",
+        required=True,
+        help="a rover config to replay under; give it again for each config to compare",
+    )
     replay.add_argument(
         "--scenario",
         type=Path,
         default=None,
-        help="a lockstep trial's scenario (default: the one attached to the recording)",
+        help="a lockstep trial's scenario (default: the one attached to each recording)",
     )
-    replay.add_argument("--out", type=Path, required=True, help="the new recording (must not exist)")
+    replay.add_argument(
+        "--out",
+        type=Path,
+        required=True,
+        help="the new recording (must not exist); with several recordings or configs, a folder for them",
+    )
     replay.add_argument("--json", action="store_true", help="print the result as one JSON object")
     replay.set_defaults(handler=replay_command)
 
 
 def replay_command(args: argparse.Namespace) -> int:
-    """Exit 0: replayed whole; 1: replayed, but the recording was cut short or some of its inputs could not
-    be fed (each named in the log); 2: bad input, nothing replayed."""
+    """One recording under one config. Exit 0: replayed whole; 1: replayed, but the recording was cut short
+    or some of its inputs could not be fed (each named in the log); 2: bad input, nothing replayed."""
     from hil.replay import replay_recording
     from hil.replay_figures import replay_figures
     from hil.scenario import load_scenario
     from rover_cli.hil_commands import load_config
 
+    single = len(args.inputs) == 1 and not args.inputs[0].is_dir() and len(args.config) == 1
+    if not single:
+        return sweep_command(args)
     console = Console()
+    args.file, config_path = args.inputs[0], args.config[0]
     try:
-        config = load_config(args.config)
+        config = load_config(config_path)
         scenario = None if args.scenario is None else load_scenario(args.scenario)
         with console.status(f"replaying {escape(str(args.file))} ...") as status:
             result = replay_recording(
@@ -108,11 +130,11 @@ def replay_command(args: argparse.Namespace) -> int:
     for column in ("figure", "recorded", "replayed"):
         table.add_column(column, justify="left" if column == "figure" else "right", overflow="fold")
     for figure in figures.figures:
-        table.add_row(figure.label, _fmt(figure.recorded), _fmt(figure.replayed))
+        table.add_row(figure.label, fmt(figure.recorded), fmt(figure.replayed))
     table.add_row(
         "position shift from the recorded estimate (m, RMS / max)",
         "",
-        f"{_fmt(figures.estimate_shift_rms_m)} / {_fmt(figures.estimate_shift_max_m)}",
+        f"{fmt(figures.estimate_shift_rms_m)} / {fmt(figures.estimate_shift_max_m)}",
     )
     console.print(table)
     first = "" if result.first_difference_s is None else f", the first at {result.first_difference_s:.2f} s"
@@ -129,7 +151,3 @@ def replay_command(args: argparse.Namespace) -> int:
         )
     console.print(f"replay: {escape(str(result.out_path))}")
     return 1 if partial else 0
-
-
-def _fmt(value: float | None) -> str:
-    return "n/a" if value is None else f"{value:.4f}"

@@ -9,7 +9,6 @@ Bad recordings get typed errors or counted rejections, never a crash.
 from __future__ import annotations
 
 import collections
-import hashlib
 import json
 from pathlib import Path
 
@@ -26,46 +25,18 @@ from logs import topics
 from logs.commands import RoverCommand
 from logs.errors import LogReadError, RecordingError
 from logs.reader import read_metadata
-from logs.settings import parse_toml
-from navigator.config import RoverConfig, rover_config_from_table
+from tests.hil.replay_trials import DATA, config_of, digests, trials
 from tests.mcap_rewrite import rewrite
 
-DATA = Path(__file__).resolve().parents[1] / "data"
-
-
-def _config(text: str = "") -> RoverConfig:
-    return rover_config_from_table(parse_toml(text, "<test config>"))
-
-
-def _digests(path: Path) -> dict[str, tuple[int, str]]:
-    """Per topic: message count and a hash of every message's log time and bytes, in file order."""
-    from mcap.reader import make_reader
-
-    hashes: dict[str, hashlib._Hash] = collections.defaultdict(hashlib.sha256)
-    counts: collections.Counter[str] = collections.Counter()
-    with path.open("rb") as stream:
-        for _schema, channel, message in make_reader(stream).iter_messages(log_time_order=False):
-            hashes[channel.topic].update(message.log_time.to_bytes(8, "little") + message.data)
-            counts[channel.topic] += 1
-    return {topic: (counts[topic], digest.hexdigest()) for topic, digest in hashes.items()}
-
-
-@pytest.fixture(scope="module")
-def trials(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """A trial perceiving obstacles as objects (small_rocky) and one through a lidar's scans (hidden_rock)."""
-    out = tmp_path_factory.mktemp("replay-trials")
-    return {
-        name: run_trial(load_scenario(DATA / f"{name}.toml"), _config(), out / name).mcap_path
-        for name in ("small_rocky", "hidden_rock")
-    }
+__all__ = ["trials"]  # the session fixture, imported for pytest
 
 
 @pytest.mark.parametrize("name", ["small_rocky", "hidden_rock"])
 def test_replayed_under_its_own_config_a_trial_gives_every_topic_back(
     trials: dict[str, Path], name: str, tmp_path: Path
 ) -> None:
-    result = replay_recording(trials[name], _config(), tmp_path / "replay.mcap")
-    original, replayed = _digests(trials[name]), _digests(tmp_path / "replay.mcap")
+    result = replay_recording(trials[name], config_of(), tmp_path / "replay.mcap")
+    original, replayed = digests(trials[name]), digests(tmp_path / "replay.mcap")
     assert replayed == original  # the stack's topics, can/frames and mavlink/raw both ways, the copied truth
     assert result.ticks == original[topics.NAVIGATOR_STATE][0]
     assert result.commands_compared == result.ticks and result.commands_differing == 0
@@ -81,9 +52,9 @@ def test_another_config_is_named_and_changes_the_estimate_not_the_truth(
     trials: dict[str, Path], tmp_path: Path
 ) -> None:
     out = tmp_path / "replay.mcap"
-    result = replay_recording(trials["small_rocky"], _config("[estimator]\ngps_noise_m = 2.0\n"), out)
+    result = replay_recording(trials["small_rocky"], config_of("[estimator]\ngps_noise_m = 2.0\n"), out)
     assert result.config_changes == (("estimator.gps_noise_m", "0.5", "2.0"),)
-    original, replayed = _digests(trials["small_rocky"]), _digests(out)
+    original, replayed = digests(trials["small_rocky"]), digests(out)
     assert replayed[topics.ESTIMATOR_POSE] != original[topics.ESTIMATOR_POSE]
     for topic in (topics.TRUTH_POSE, topics.TRUTH_WHEELS, topics.TRUTH_STABILITY):
         assert replayed[topic] == original[topic]
@@ -93,7 +64,7 @@ def test_another_config_is_named_and_changes_the_estimate_not_the_truth(
     assert metadata["config"]["estimator.gps_noise_m"] == "2.0"
     assert metadata["scenario"] == read_metadata(trials["small_rocky"])["scenario"]
     figures = replay_figures(trials["small_rocky"], out)
-    error_rms = figures.figures[0]
+    error_rms = figures.position_error_rms
     assert error_rms.recorded is not None and error_rms.replayed is not None
     assert error_rms.recorded != error_rms.replayed
     assert figures.estimate_shift_rms_m is not None and 0.0 < figures.estimate_shift_rms_m < 1.0
@@ -111,13 +82,13 @@ def test_a_rover_run_recording_replays_on_the_configs_map(trials: dict[str, Path
     )
     lat, lon, alt = scenario.datum
     map_table = (DATA / "small_rocky.toml").read_text().split("[terrain]")[1].split("[start]")[0]
-    config = _config(
+    config = config_of(
         f"[estimator]\ndatum_lat_deg = {lat!r}\ndatum_lon_deg = {lon!r}\ndatum_alt_m = {alt!r}\n"
         f"[map]{map_table}"
     )
     result = replay_recording(run, config, tmp_path / "replay.mcap")
     assert result.source_mode == "rover-run" and result.truth_messages == 0
-    original, replayed = _digests(run), _digests(tmp_path / "replay.mcap")
+    original, replayed = digests(run), digests(tmp_path / "replay.mcap")
     assert result.ticks == original[topics.NAVIGATOR_STATE][0]
     assert replayed[topics.ESTIMATOR_POSE] == original[topics.ESTIMATOR_POSE]
     # No goal was given (the trial's came from its scenario): the replayed rover never drives.
@@ -155,20 +126,20 @@ def test_ground_station_commands_are_recorded_and_replayed(tmp_path: Path) -> No
     ]
     trial = run_trial(
         load_scenario(DATA / "small_rocky.toml"),
-        _config(),
+        config_of(),
         tmp_path / "trial",
         commands=_GroundStation(script),
     )
-    original = _digests(trial.mcap_path)
+    original = digests(trial.mcap_path)
     assert original[topics.GROUND_COMMANDS][0] == 3
-    result = replay_recording(trial.mcap_path, _config(), tmp_path / "replay.mcap")
+    result = replay_recording(trial.mcap_path, config_of(), tmp_path / "replay.mcap")
     assert result.ground_commands == 3
-    assert _digests(tmp_path / "replay.mcap") == original
+    assert digests(tmp_path / "replay.mcap") == original
     assert result.commands_differing == 0
     # Without them the replayed rover drives to the scenario's goal instead, never stopping.
     without = rewrite(trial.mcap_path, tmp_path / "without.mcap", keep=lambda t: t != topics.GROUND_COMMANDS)
     scenario = load_scenario(DATA / "small_rocky.toml")
-    blind = replay_recording(without, _config(), tmp_path / "blind.mcap", scenario=scenario)
+    blind = replay_recording(without, config_of(), tmp_path / "blind.mcap", scenario=scenario)
     assert blind.ground_commands == 0 and blind.commands_differing > 0
     assert blind.first_difference_s == pytest.approx(3.0, abs=0.05)
 
@@ -178,10 +149,10 @@ def test_without_its_attached_scenario_a_trial_needs_one_given(
 ) -> None:
     bare = rewrite(trials["small_rocky"], tmp_path / "bare.mcap")  # the rewrite keeps no attachment
     with pytest.raises(ReplayError, match=r"no scenario\.toml attached"):
-        replay_recording(bare, _config(), tmp_path / "replay.mcap")
+        replay_recording(bare, config_of(), tmp_path / "replay.mcap")
     assert not (tmp_path / "replay.mcap").exists()  # refused before anything was written
     scenario = load_scenario(DATA / "small_rocky.toml")
-    result = replay_recording(bare, _config(), tmp_path / "given.mcap", scenario=scenario)
+    result = replay_recording(bare, config_of(), tmp_path / "given.mcap", scenario=scenario)
     assert result.commands_differing == 0 and result.ticks > 0
 
 
@@ -202,7 +173,7 @@ def test_a_recording_of_no_onboard_stack_is_refused(
 
     other = rewrite(trials["small_rocky"], tmp_path / "other.mcap", metadata=trial_record)
     with pytest.raises(ReplayError, match=message):
-        replay_recording(other, _config(), tmp_path / "replay.mcap")
+        replay_recording(other, config_of(), tmp_path / "replay.mcap")
 
 
 def test_a_rover_run_recording_without_a_map_in_the_config_is_refused(
@@ -214,23 +185,23 @@ def test_a_rover_run_recording_without_a_map_in_the_config_is_refused(
         metadata=lambda name, data: {**data, "mode": "rover-run"} if name == "trial" else data,
     )
     with pytest.raises(ReplayError, match=r"\[map\]"):
-        replay_recording(run, _config(), tmp_path / "replay.mcap")
+        replay_recording(run, config_of(), tmp_path / "replay.mcap")
 
 
 def test_an_existing_output_is_never_written_over(trials: dict[str, Path], tmp_path: Path) -> None:
     out = tmp_path / "replay.mcap"
     out.write_bytes(b"an earlier replay")
     with pytest.raises(RecordingError, match="already exists"):
-        replay_recording(trials["small_rocky"], _config(), out)
+        replay_recording(trials["small_rocky"], config_of(), out)
     assert out.read_bytes() == b"an earlier replay"
 
 
 def test_a_missing_or_foreign_file_is_a_read_error(tmp_path: Path) -> None:
     with pytest.raises(LogReadError):
-        replay_recording(tmp_path / "nowhere.mcap", _config(), tmp_path / "replay.mcap")
+        replay_recording(tmp_path / "nowhere.mcap", config_of(), tmp_path / "replay.mcap")
     (tmp_path / "text.mcap").write_text("not a recording")
     with pytest.raises(LogReadError):
-        replay_recording(tmp_path / "text.mcap", _config(), tmp_path / "replay2.mcap")
+        replay_recording(tmp_path / "text.mcap", config_of(), tmp_path / "replay2.mcap")
 
 
 def test_malformed_input_records_are_counted_and_the_rest_replayed(
@@ -259,10 +230,10 @@ def test_malformed_input_records_are_counted_and_the_rest_replayed(
 
     damaged = rewrite(trials["small_rocky"], tmp_path / "damaged.mcap", data=spoil)
     scenario = load_scenario(DATA / "small_rocky.toml")
-    result = replay_recording(damaged, _config(), tmp_path / "replay.mcap", scenario=scenario)
+    result = replay_recording(damaged, config_of(), tmp_path / "replay.mcap", scenario=scenario)
     assert sum(spoiled.values()) == 3
     assert result.rejected_inputs == 3
-    assert result.ticks == _digests(damaged)[topics.NAVIGATOR_STATE][0]
+    assert result.ticks == digests(damaged)[topics.NAVIGATOR_STATE][0]
 
 
 def test_a_cut_recording_replays_up_to_the_cut(trials: dict[str, Path], tmp_path: Path) -> None:
@@ -270,10 +241,10 @@ def test_a_cut_recording_replays_up_to_the_cut(trials: dict[str, Path], tmp_path
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(whole[: len(whole) // 2])
     result = replay_recording(
-        cut, _config(), tmp_path / "replay.mcap", scenario=load_scenario(DATA / "small_rocky.toml")
+        cut, config_of(), tmp_path / "replay.mcap", scenario=load_scenario(DATA / "small_rocky.toml")
     )
     assert result.truncated
-    total = _digests(trials["small_rocky"])[topics.NAVIGATOR_STATE][0]
+    total = digests(trials["small_rocky"])[topics.NAVIGATOR_STATE][0]
     assert 0 < result.ticks < total
     assert result.commands_differing == 0  # what was there replays as it ran
     assert read_metadata(tmp_path / "replay.mcap")["replay"]["truncated"] == "true"

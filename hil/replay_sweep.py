@@ -1,0 +1,135 @@
+"""Replay many recordings under several configs and set the configs side by side (``rover logs replay``
+with more than one recording or config).
+
+The tuning question is rarely about one run: "does a larger GPS noise help across the whole campaign, or
+only on sandy ground?" Each recording is replayed once per config (``hil.replay``), each replay analysed
+against its recording (``hil.replay_figures``), and each config gets one row: the estimator's error against
+the truth averaged over the recordings that have a truth, how far its estimate moved from the recorded one,
+and how many wheel commands differ. A recording that cannot be replayed is named with the reason and left
+out of every row, so the rows stay comparable.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from hil.replay import ReplayResult, replay_recording
+from hil.replay_figures import ReplayFigures, replay_figures
+from hil.scenario import Scenario
+from logs.errors import LogsError
+from navigator.config import RoverConfig
+
+
+@dataclass(frozen=True)
+class SweepConfig:
+    name: str  # unique among the sweep's configs: the file's stem, numbered when two share one
+    config: RoverConfig
+
+
+@dataclass(frozen=True)
+class SweepReplay:
+    recording: Path
+    config: str
+    result: ReplayResult
+    figures: ReplayFigures
+
+
+@dataclass(frozen=True)
+class SweepRow:
+    """One config over every recording replayed under all configs."""
+
+    config: str
+    source: str
+    recordings: int
+    with_truth: int  # recordings whose estimator error against the truth is known (lockstep trials)
+    error_rms_mean_m: float | None  # mean over those of the position error RMS
+    error_max_m: float | None  # the largest position error of any of them
+    yaw_error_rms_mean_rad: float | None
+    recorded_error_rms_mean_m: float | None  # the same recordings' own, for scale
+    shift_rms_mean_m: float | None  # mean over all recordings of the shift from the recorded estimate
+    commands_differing_pct: float  # of all ticks compared
+
+
+@dataclass
+class SweepResult:
+    rows: list[SweepRow] = field(default_factory=list)
+    replays: list[SweepReplay] = field(default_factory=list)
+    failed: dict[str, str] = field(default_factory=dict)  # recording -> why it was left out
+
+
+def sweep_names(paths: Sequence[Path]) -> list[str]:
+    """Each config's name in the sweep: its stem, with ``-2``, ``-3`` ... for a stem met again."""
+    names: list[str] = []
+    for path in paths:
+        name, number = path.stem, 2
+        while name in names:
+            name, number = f"{path.stem}-{number}", number + 1
+        names.append(name)
+    return names
+
+
+def replay_sweep(
+    recordings: Sequence[Path],
+    configs: Sequence[SweepConfig],
+    out_dir: Path,
+    *,
+    scenario: Scenario | None = None,
+    on_done: Callable[[Path, str], None] | None = None,
+) -> SweepResult:
+    """Replay every recording under every config into ``out_dir``; ``on_done(recording, config)`` after each.
+
+    Each replay goes to ``out_dir/<NNN>-<recording's folder>-<stem>/<config>.mcap``, NNN the recording's
+    place in the list (campaign recordings are all ``trial.mcap``)."""
+    result = SweepResult()
+    for index, recording in enumerate(recordings, start=1):
+        folder = out_dir / f"{index:03d}-{recording.parent.name or 'recording'}-{recording.stem}"
+        replays: list[SweepReplay] = []
+        try:
+            for entry in configs:
+                replayed = replay_recording(
+                    recording, entry.config, folder / f"{entry.name}.mcap", scenario=scenario
+                )
+                figures = replay_figures(recording, replayed.out_path)
+                replays.append(SweepReplay(recording, entry.name, replayed, figures))
+                if on_done is not None:
+                    on_done(recording, entry.name)
+        except LogsError as err:
+            # One config failing the recording leaves it out of every row, so each row has the same runs.
+            result.failed[str(recording)] = str(err)
+            continue
+        result.replays.extend(replays)
+    result.rows = [_row(entry, [r for r in result.replays if r.config == entry.name]) for entry in configs]
+    return result
+
+
+def _row(entry: SweepConfig, replays: list[SweepReplay]) -> SweepRow:
+    def known(values: list[float | None]) -> list[float]:
+        return [v for v in values if v is not None and math.isfinite(v)]
+
+    errors = known([r.figures.position_error_rms.replayed for r in replays])
+    recorded = known([r.figures.position_error_rms.recorded for r in replays])
+    maxima = known([r.figures.position_error_max.replayed for r in replays])
+    yaws = known([r.figures.yaw_error_rms.replayed for r in replays])
+    shifts = [r.figures.estimate_shift_rms_m for r in replays if r.figures.estimate_shift_rms_m is not None]
+    compared = sum(r.result.commands_compared for r in replays)
+    differing = sum(r.result.commands_differing for r in replays)
+    return SweepRow(
+        config=entry.name,
+        source=entry.config.source,
+        recordings=len(replays),
+        with_truth=len(errors),
+        error_rms_mean_m=_mean(errors),
+        error_max_m=max(maxima) if maxima else None,
+        yaw_error_rms_mean_rad=_mean(yaws),
+        recorded_error_rms_mean_m=_mean(recorded),
+        shift_rms_mean_m=_mean(shifts),
+        commands_differing_pct=100.0 * differing / compared if compared else 0.0,
+    )
+
+
+def _mean(values: list[float]) -> float | None:
+    return statistics.fmean(values) if values else None

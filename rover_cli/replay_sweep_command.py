@@ -1,0 +1,138 @@
+"""``rover logs replay`` with several recordings (or folders of them) or several configs: one table, a row
+a config (``hil.replay_sweep``)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from dataclasses import asdict
+from pathlib import Path
+
+from rich.console import Console
+from rich.markup import escape
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table as RichTable
+
+from logs.errors import LogsError
+from logs.settings import ConfigError
+from rover_cli.errors import print_error
+
+
+def sweep_command(args: argparse.Namespace) -> int:
+    """Exit 0: every recording replayed whole under every config; 1: some left out (each named) or
+    replayed only in part; 2: bad input (a config or the scenario does not load, no recording found)."""
+    from hil.replay_sweep import SweepConfig, replay_sweep, sweep_names
+    from hil.scenario import load_scenario
+    from rover_cli.hil_commands import load_config
+
+    console = Console()
+    try:
+        configs = [
+            SweepConfig(name, load_config(path))
+            for name, path in zip(sweep_names(args.config), args.config, strict=True)
+        ]
+        scenario = None if args.scenario is None else load_scenario(args.scenario)
+    except ConfigError as err:
+        print_error(console, err)
+        return 2
+    recordings = _recordings(args.inputs, args.out)
+    if not recordings:
+        print_error(console, f"no .mcap recording in {', '.join(str(p) for p in args.inputs)}")
+        return 2
+    if args.out.exists() and not args.out.is_dir():
+        print_error(console, f"--out {args.out}: with several recordings or configs it must be a folder")
+        return 2
+    if args.out.is_dir() and any(args.out.rglob("*.mcap")):
+        # Refused whole rather than every replay failing on a file it must not write over.
+        print_error(
+            console, f"--out {args.out} already holds recordings (an earlier sweep's?): give a new folder"
+        )
+        return 2
+    with Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=console,
+        transient=True,
+    ) as progress:
+        task = progress.add_task("replaying", total=len(recordings) * len(configs))
+        try:
+            result = replay_sweep(
+                recordings,
+                configs,
+                args.out,
+                scenario=scenario,
+                on_done=lambda _r, _c: progress.advance(task),
+            )
+        except LogsError as err:  # the output folder itself cannot be written
+            print_error(console, err)
+            return 2
+    partial = any(r.result.truncated or r.result.rejected_inputs for r in result.replays)
+    code = 1 if result.failed or partial else 0
+    if args.json:
+        document = {
+            "rows": [asdict(row) for row in result.rows],
+            "replays": [
+                {
+                    "recording": str(r.recording),
+                    "config": r.config,
+                    "replay": str(r.result.out_path),
+                    "position_error_rms_m": r.figures.position_error_rms.replayed,
+                    "recorded_position_error_rms_m": r.figures.position_error_rms.recorded,
+                    "estimate_shift_rms_m": r.figures.estimate_shift_rms_m,
+                    "commands_differing": r.result.commands_differing,
+                    "commands_compared": r.result.commands_compared,
+                }
+                for r in result.replays
+            ],
+            "failed": result.failed,
+        }
+        console.print_json(json.dumps(document))
+        return code
+    table = RichTable(
+        title=f"{len(recordings) - len(result.failed)} recordings replayed under each config",
+        caption="means over the runs; errors against the truth; shift: from the recorded estimate",
+    )
+    columns = (
+        "config",
+        "runs (truth)",
+        "position error RMS m (as recorded)",
+        "position error max m",
+        "yaw error RMS rad",
+        "estimate shift RMS m",
+        "commands differing",
+    )
+    for column in columns:
+        table.add_column(column, justify="left" if column == "config" else "right", overflow="fold")
+    for row in result.rows:
+        table.add_row(
+            escape(row.config),
+            f"{row.recordings} ({row.with_truth})",
+            f"{fmt(row.error_rms_mean_m)} ({fmt(row.recorded_error_rms_mean_m)})",
+            fmt(row.error_max_m),
+            fmt(row.yaw_error_rms_mean_rad),
+            fmt(row.shift_rms_mean_m),
+            f"{row.commands_differing_pct:.1f} %",
+        )
+    console.print(table)
+    for recording, why in result.failed.items():
+        console.print(f"[yellow]left out[/yellow] {escape(recording)}: {escape(why)}", soft_wrap=True)
+    if partial:
+        console.print("[yellow]some recordings were cut short or had inputs not fed[/yellow] (see the log)")
+    console.print(f"replays: {escape(str(args.out))}")
+    return code
+
+
+def fmt(value: float | None) -> str:
+    return "n/a" if value is None else f"{value:.4f}"
+
+
+def _recordings(inputs: list[Path], out_dir: Path) -> list[Path]:
+    """The files given, and every .mcap under each folder given (sorted), without the sweep's own output."""
+    found: list[Path] = []
+    out = out_dir.resolve()
+    for path in inputs:
+        candidates = sorted(path.rglob("*.mcap")) if path.is_dir() else [path]
+        found.extend(c for c in candidates if out not in c.resolve().parents)
+    return found
