@@ -284,10 +284,9 @@ def _fmt(value: object, pattern: str) -> str:
 
 
 def run_campaign_command(args: argparse.Namespace) -> int:
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
     from hil.campaign import load_campaign
     from hil.campaign_runner import run_campaign
+    from rover_cli.progress import job_progress
 
     console = Console()
     try:
@@ -301,13 +300,7 @@ def run_campaign_command(args: argparse.Namespace) -> int:
         print_error(console, problem)
         return 2
     total = len(campaign.terrains) * len(campaign.variants) * len(campaign.seeds)
-    with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=console,
-    ) as progress:
+    with job_progress(console) as progress:
         task = progress.add_task(f"campaign {campaign.name}", total=total)
 
         def on_done(outcome: TrialOutcome) -> None:

@@ -10,12 +10,12 @@ from pathlib import Path
 
 from rich.console import Console
 from rich.markup import escape
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table as RichTable
 
 from logs.errors import LogsError
 from logs.settings import ConfigError
 from rover_cli.errors import print_error
+from rover_cli.progress import job_progress
 
 
 def sweep_command(args: argparse.Namespace) -> int:
@@ -48,14 +48,7 @@ def sweep_command(args: argparse.Namespace) -> int:
             console, f"--out {args.out} already holds recordings (an earlier sweep's?): give a new folder"
         )
         return 2
-    with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=console,
-        transient=True,
-    ) as progress:
+    with job_progress(console, transient=True) as progress:
         task = progress.add_task("replaying", total=len(recordings) * len(configs))
         try:
             result = replay_sweep(
