@@ -48,14 +48,28 @@ class ReplayFigures:
         return (self.position_error_rms, self.position_error_max, self.yaw_error_rms)
 
 
-def replay_figures(recording: Path, replay: Path) -> ReplayFigures:
-    """Both recordings analysed (``logs.analysis.analyse``) and set side by side."""
-    recorded, replayed = analyse(recording), analyse(replay)
+@dataclass(frozen=True)
+class EstimateRecord:
+    """What the figures need of one recording: its estimator figures and its estimated positions."""
+
+    figures: dict[str, float | None]  # logs.analysis figure key -> value
+    positions: dict[int, tuple[float, float]]  # estimator/pose by log time
+
+    @classmethod
+    def of(cls, path: Path) -> EstimateRecord:
+        run = analyse(path)
+        return cls({key: _figure(run, key) for key, _ in _ESTIMATOR_FIGURES}, _positions(path))
+
+
+def replay_figures(recording: Path | EstimateRecord, replay: Path) -> ReplayFigures:
+    """The recording and its replay analysed (``logs.analysis.analyse``) and set side by side; a sweep
+    replaying one recording under several configs reads the recording once (``EstimateRecord.of``)."""
+    recorded = recording if isinstance(recording, EstimateRecord) else EstimateRecord.of(recording)
+    replayed = EstimateRecord.of(replay)
     error_rms, error_max, yaw_rms = (
-        ReplayFigure(label, _figure(recorded, key), _figure(replayed, key))
-        for key, label in _ESTIMATOR_FIGURES
+        ReplayFigure(label, recorded.figures[key], replayed.figures[key]) for key, label in _ESTIMATOR_FIGURES
     )
-    shift_rms, shift_max = _estimate_shift(_positions(recording), _positions(replay))
+    shift_rms, shift_max = _estimate_shift(recorded.positions, replayed.positions)
     return ReplayFigures(error_rms, error_max, yaw_rms, shift_rms, shift_max)
 
 

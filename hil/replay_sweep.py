@@ -11,17 +11,23 @@ out of every row, so the rows stay comparable.
 
 from __future__ import annotations
 
+import logging
 import math
+import multiprocessing
 import statistics
 from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from hil.replay import ReplayResult, replay_recording
-from hil.replay_figures import ReplayFigures, replay_figures
+from hil.replay_figures import EstimateRecord, ReplayFigures, replay_figures
 from hil.scenario import Scenario
 from logs.errors import LogsError
 from navigator.config import RoverConfig
+
+_log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -78,32 +84,93 @@ def replay_sweep(
     out_dir: Path,
     *,
     scenario: Scenario | None = None,
-    on_done: Callable[[Path, str], None] | None = None,
+    workers: int = 1,
+    on_done: Callable[[Path], None] | None = None,
 ) -> SweepResult:
-    """Replay every recording under every config into ``out_dir``; ``on_done(recording, config)`` after each.
+    """Replay every recording under every config into ``out_dir``; ``on_done(recording)`` after each
+    recording's replays.
 
     Each replay goes to ``out_dir/<NNN>-<recording's folder>-<stem>/<config>.mcap``, NNN the recording's
-    place in the list (campaign recordings are all ``trial.mcap``)."""
-    result = SweepResult()
-    for index, recording in enumerate(recordings, start=1):
-        folder = out_dir / f"{index:03d}-{recording.parent.name or 'recording'}-{recording.stem}"
-        replays: list[SweepReplay] = []
-        try:
-            for entry in configs:
-                replayed = replay_recording(
-                    recording, entry.config, folder / f"{entry.name}.mcap", scenario=scenario
-                )
-                figures = replay_figures(recording, replayed.out_path)
-                replays.append(SweepReplay(recording, entry.name, replayed, figures))
+    place in the list (campaign recordings are all ``trial.mcap``). ``workers`` > 1: recordings are replayed
+    in that many worker processes (``spawn``, as a campaign's trials); the result is the same, in the same
+    order."""
+    jobs = [
+        _Job(recording, configs, out_dir / _folder_name(index, recording), scenario)
+        for index, recording in enumerate(recordings, start=1)
+    ]
+    outcomes: dict[int, _Outcome] = {}
+    if workers <= 1 or len(jobs) <= 1:
+        for index, job in enumerate(jobs):
+            outcomes[index] = _replay_job(job)
+            if on_done is not None:
+                on_done(job.recording)
+    else:
+        context = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=context) as pool:
+            futures = {pool.submit(_replay_job, job): index for index, job in enumerate(jobs)}
+            for future in as_completed(futures):
+                index = futures[future]
+                try:
+                    outcomes[index] = future.result()
+                except BrokenProcessPool:
+                    outcomes[index] = _Outcome([], _LOST)
                 if on_done is not None:
-                    on_done(recording, entry.name)
-        except LogsError as err:
-            # One config failing the recording leaves it out of every row, so each row has the same runs.
-            result.failed[str(recording)] = str(err)
-            continue
-        result.replays.extend(replays)
+                    on_done(jobs[index].recording)
+    result = SweepResult()
+    for index, job in enumerate(jobs):
+        outcome = outcomes[index]
+        if outcome.error is not None:
+            result.failed[str(job.recording)] = outcome.error
+        else:
+            result.replays.extend(outcome.replays)
     result.rows = [_row(entry, [r for r in result.replays if r.config == entry.name]) for entry in configs]
     return result
+
+
+def _folder_name(index: int, recording: Path) -> str:
+    return f"{index:03d}-{recording.parent.name or 'recording'}-{recording.stem}"
+
+
+_LOST = (
+    "a worker process died (killed, out of memory, or a crash outside Python) before this recording was "
+    "replayed; the others still waiting were lost with it"
+)
+
+
+@dataclass(frozen=True)
+class _Job:
+    recording: Path
+    configs: Sequence[SweepConfig]
+    folder: Path
+    scenario: Scenario | None
+
+
+@dataclass(frozen=True)
+class _Outcome:
+    replays: list[SweepReplay]
+    error: str | None  # why the recording is left out of every row; None: replayed under every config
+
+
+def _replay_job(job: _Job) -> _Outcome:
+    """One recording under every config (in a worker, or inline); never raises: a failure is an outcome."""
+    replays: list[SweepReplay] = []
+    try:
+        recorded: EstimateRecord | None = None
+        for entry in job.configs:
+            replayed = replay_recording(
+                job.recording, entry.config, job.folder / f"{entry.name}.mcap", scenario=job.scenario
+            )
+            # Read once, after the first replay has found the file readable and replayable.
+            recorded = recorded or EstimateRecord.of(job.recording)
+            figures = replay_figures(recorded, replayed.out_path)
+            replays.append(SweepReplay(job.recording, entry.name, replayed, figures))
+    except LogsError as err:
+        # One config failing the recording leaves it out of every row, so each row has the same runs.
+        return _Outcome([], str(err))
+    except Exception as err:  # a bug must not take the other recordings down; it is logged and named
+        _log.exception("replay of %s failed", job.recording)
+        return _Outcome([], repr(err))
+    return _Outcome(replays, None)
 
 
 def _row(entry: SweepConfig, replays: list[SweepReplay]) -> SweepRow:

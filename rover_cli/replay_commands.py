@@ -14,8 +14,10 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table as RichTable
 
+from hil.campaign_workers import MAX_WORKERS
 from logs.errors import LogsError
 from logs.settings import ConfigError
+from rover_cli.arg_types import bounded_int
 from rover_cli.errors import print_error
 from rover_cli.replay_sweep_command import fmt, sweep_command
 
@@ -50,6 +52,12 @@ def register(commands: Any) -> None:
         type=Path,
         required=True,
         help="the new recording (must not exist); with several recordings or configs, a folder for them",
+    )
+    replay.add_argument(
+        "--workers",
+        type=bounded_int(0, MAX_WORKERS, "0: one per core"),
+        default=0,
+        help="with several recordings: worker processes, 0 (default) one per core",
     )
     replay.add_argument("--json", action="store_true", help="print the result as one JSON object")
     replay.set_defaults(handler=replay_command)

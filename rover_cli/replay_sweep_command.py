@@ -21,6 +21,7 @@ from rover_cli.progress import job_progress
 def sweep_command(args: argparse.Namespace) -> int:
     """Exit 0: every recording replayed whole under every config; 1: some left out (each named) or
     replayed only in part; 2: bad input (a config or the scenario does not load, no recording found)."""
+    from hil.campaign_workers import resolved_workers
     from hil.replay_sweep import SweepConfig, replay_sweep, sweep_names
     from hil.scenario import load_scenario
     from rover_cli.hil_commands import load_config
@@ -56,7 +57,8 @@ def sweep_command(args: argparse.Namespace) -> int:
                 configs,
                 args.out,
                 scenario=scenario,
-                on_done=lambda _r, _c: progress.advance(task),
+                workers=resolved_workers(args.workers),
+                on_done=lambda _recording: progress.advance(task, len(configs)),
             )
         except LogsError as err:  # the output folder itself cannot be written
             print_error(console, err)

@@ -45,6 +45,17 @@ def test_each_config_gets_a_row_over_every_recording(trials: dict[str, Path], tm
     ]
 
 
+def test_worker_processes_give_the_same_rows(trials: dict[str, Path], tmp_path: Path) -> None:
+    recordings = [trials["small_rocky"], trials["hidden_rock"]]
+    configs = [SweepConfig("noisy", config_of("[estimator]\ngps_noise_m = 2.0\n"))]
+    done: list[Path] = []
+    inline = replay_sweep(recordings, configs, tmp_path / "inline")
+    pooled = replay_sweep(recordings, configs, tmp_path / "pooled", workers=2, on_done=done.append)
+    assert pooled.rows == inline.rows and not pooled.failed
+    assert [r.recording for r in pooled.replays] == recordings  # in the order given, whatever finished first
+    assert sorted(done) == sorted(recordings)
+
+
 def test_a_folder_with_a_bad_file_is_replayed_without_it(
     trials: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
