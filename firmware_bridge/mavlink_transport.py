@@ -69,6 +69,11 @@ class PipeEnd:
             raise BridgeOperationError("write on a closed memory pipe end")
         self._outgoing.push(data)
 
+    @property
+    def waiting(self) -> int:
+        """Bytes written by the peer and not read yet."""
+        return len(self._incoming.pending)
+
     def read(self) -> bytes:
         incoming = self._incoming
         if self._closed or not incoming.pending:

@@ -12,7 +12,8 @@ recorded by the stack as it takes them), and in a lockstep trial with "objects" 
 observations the simulator handed over (``perception/obstacles``); a lockstep trial's goals come from its
 scenario, as ``rover hil trial`` gives them. Each onboard tick of the recording (a ``navigator/state``
 message) is one tick of the replay at the same clock reading, after everything received up to then has been
-written to the stack's links. What the stack sends goes nowhere: the replay is open loop, the recorded
+written to the stack's links; inputs read between ticks (``rover run``'s ``OnboardStack.ingest``) are read
+there again. What the stack sends goes nowhere: the replay is open loop, the recorded
 motion does not answer a different command (``ReplayResult.commands_differing`` counts the ticks whose
 wheel commands differ from the recording's).
 
@@ -40,7 +41,9 @@ import can
 
 from firmware_bridge.can_export import record_to_message
 from firmware_bridge.errors import FrameError
-from hil.lockstep import LockstepWires, lockstep_wires, onboard_links
+from firmware_bridge.mavlink_transport import memory_pipe_pair
+from hil.lockstep import onboard_links
+from hil.lockstep_bus import lockstep_bus_pair
 from hil.recorded_commands import RecordedCommands
 from hil.recorded_obstacles import RecordedObstacles
 from hil.scenario import MAVLINK_PERCEPTION, Scenario, scenario_from_table
@@ -104,6 +107,7 @@ class ReplayResult:
     commands_differing: int  # of those, ticks whose wheels/command differs byte for byte
     first_difference_s: float | None  # the first such tick's clock reading
     truncated: bool  # the original was cut short: replayed up to the cut
+    ingests: int = 0  # times the links were read between ticks (as `rover run`'s loop reads them)
     # (key, as recorded, as replayed) for each config value that differs, flattened ("estimator.gps_noise_m")
     config_changes: tuple[tuple[str, str, str], ...] = ()
 
@@ -177,6 +181,7 @@ def replay_recording(
         commands_differing=differing,
         first_difference_s=None if first is None else seconds(first),
         truncated=replayer.stats.truncated,
+        ingests=replayer.ingests,
         config_changes=_config_changes(metadata.get("config", {}), setup.config),
     )
 
@@ -260,7 +265,12 @@ def _attached_scenario(recording: Path, attachments: dict[str, RecordedAttachmen
 
 
 class _Replayer:
-    """Feeds one recording's inputs to one onboard stack, tick by recorded tick."""
+    """Feeds one recording's inputs to one onboard stack, tick by recorded tick.
+
+    What the stack received is written to its links at the log time it was recorded with, which is when
+    the stack read it: inside a tick (lockstep trials: every input) or between ticks, where ``rover run``'s
+    loop reads the links as samples arrive (``OnboardStack.ingest``) and the replay does the same.
+    """
 
     def __init__(
         self, setup: _Setup, recorder: McapRecorder, on_progress: Callable[[float], None] | None
@@ -273,9 +283,11 @@ class _Replayer:
         self.commands = RecordedCommands()
         self.recorded_commands: dict[int, bytes] = {}  # the original's wheels/command by log time
         self.ticks = self.mavlink_frames = self.can_frames = self.obstacle_records = self.ground_commands = 0
-        self.rejected = self.truth_messages = self.out_of_order_ticks = 0
+        self.rejected = self.truth_messages = self.out_of_order_ticks = self.ingests = 0
+        # Link inputs not written yet, all of one log time (_pending_ns): a later message moves it on.
         self._mavlink_in: list[bytes] = []
         self._can_in: list[can.Message] = []
+        self._pending_ns: int | None = None
         self._next_progress_ns = 0
         self._last_ns = 0  # the latest log time read
 
@@ -286,37 +298,40 @@ class _Replayer:
             raw_topics=(*TRUTH_TOPICS, NAVIGATOR_STATE, WHEELS_COMMAND),
             stats=self.stats,
         )
-        start_ns = self._setup.start_ns
+        self._recording = recording
         # Metadata and attachments come in file order too (read already, by _header).
         first = next((e for e in entries if isinstance(e, RecordedMessage | RecordedRaw)), None)
         if first is None:
             raise ReplayError(f"{recording} holds no messages to replay")
-        clock = SimClock(first.log_time_ns if start_ns is None else start_ns)
-        with (
-            recording_logs(self._recorder, clock),
-            lockstep_wires(self._setup.config.can, clock=clock) as wires,
-        ):
-            stack = self._stack(clock, wires)
+        start_ns = self._setup.start_ns
+        self._clock = clock = SimClock(first.log_time_ns if start_ns is None else start_ns)
+        # The stack's two wires, as a lockstep trial's, with the recording at the far ends.
+        self._rover_bus, self._sim_bus = lockstep_bus_pair("replay", clock)
+        self._rover_pipe, self._sim_pipe = memory_pipe_pair()
+        with recording_logs(self._recorder, clock):
+            self._stack = stack = self._build_stack()
             try:
                 if self._setup.goals and not stack.start_mission(self._setup.goals, self._setup.goal_source):
                     _log.warning("replay: the stack refused the scenario's goals, as the trial's did or not")
-                self._take(first, clock, stack, wires, recording)
+                self._take(first)
                 for entry in entries:
                     if isinstance(entry, RecordedMessage | RecordedRaw):
-                        self._take(entry, clock, stack, wires, recording)
+                        self._take(entry)
+                if self._pending_ns is not None:
+                    self._ingest()
                 # The run ended (the stack closed: zero commands sent) at its last recorded message.
-                if self._last_ns > clock.now_ns():
-                    clock.advance(self._last_ns - clock.now_ns())
+                self._advance_to(self._last_ns)
             finally:
                 stack.close()
-                _drain(wires)
+                self._drain()
+                self._rover_bus.shutdown()
+                self._sim_bus.shutdown()
         if self.ticks == 0:
             raise ReplayError(f"{recording} holds no onboard ticks (navigator/state): nothing was replayed")
 
-    def _stack(self, clock: SimClock, wires: LockstepWires) -> OnboardStack:
-        config = self._setup.config
-        recorder = self._recorder
-        can_link, mavlink = onboard_links(config, wires.onboard_bus, wires.onboard_mavlink, clock, recorder)
+    def _build_stack(self) -> OnboardStack:
+        config, clock, recorder = self._setup.config, self._clock, self._recorder
+        can_link, mavlink = onboard_links(config, self._rover_bus, self._rover_pipe, clock, recorder)
         return OnboardStack(
             config,
             clock,
@@ -328,19 +343,15 @@ class _Replayer:
             commands=self.commands,
         )
 
-    def _take(
-        self,
-        entry: RecordedMessage | RecordedRaw,
-        clock: SimClock,
-        stack: OnboardStack,
-        wires: LockstepWires,
-        recording: Path,
-    ) -> None:
+    def _take(self, entry: RecordedMessage | RecordedRaw) -> None:
         topic, t_ns = entry.topic, entry.log_time_ns
         self._last_ns = max(self._last_ns, t_ns)
+        if self._pending_ns is not None and t_ns > self._pending_ns:
+            # Read at a time with no tick: between ticks, as the real-time loop reads its links.
+            self._ingest()
         if isinstance(entry, RecordedRaw):
             if topic == NAVIGATOR_STATE:
-                self._tick(t_ns, clock, stack, wires)
+                self._tick(t_ns)
             elif topic == WHEELS_COMMAND:
                 self.recorded_commands[t_ns] = entry.data
             else:  # truth/*: the world's, not the stack's, so copied as it was
@@ -354,22 +365,26 @@ class _Replayer:
             try:
                 self._mavlink_in.append(base64.b64decode(message["data"], validate=True))
             except (KeyError, TypeError, ValueError, binascii.Error) as err:
-                self._reject(recording, topic, t_ns, f"its data is not a frame in base64: {err!r}")
+                self._reject(topic, t_ns, f"its data is not a frame in base64: {err!r}")
+                return
+            self._pending_ns = t_ns
         elif topic == CAN_FRAMES:
             try:
                 self._can_in.append(record_to_message(message, t_ns, "replay"))
             except FrameError as err:
-                self._reject(recording, topic, t_ns, str(err))
-        elif topic == GROUND_COMMANDS:
+                self._reject(topic, t_ns, str(err))
+                return
+            self._pending_ns = t_ns
+        elif topic == GROUND_COMMANDS:  # read inside a tick: handed over at the next one
             self.commands.add(t_ns, message)
             self.ground_commands += 1
-        elif self._setup.obstacles_are_input:  # perception/obstacles
+        elif self._setup.obstacles_are_input:  # perception/obstacles, likewise
             self.obstacles.add(t_ns, message)
             self.obstacle_records += 1
 
-    def _tick(self, t_ns: int, clock: SimClock, stack: OnboardStack, wires: LockstepWires) -> None:
-        """One recorded tick: the clock to its reading, what arrived before it into the links, one step."""
-        now = clock.now_ns()
+    def _tick(self, t_ns: int) -> None:
+        """One recorded tick: the clock to its reading, what arrived then into the links, one step."""
+        now = self._clock.now_ns()
         if t_ns < now:
             # A recording of ours never goes back in time; a rewritten one might. Its inputs wait for the
             # next tick rather than be fed at a time that already passed.
@@ -378,35 +393,51 @@ class _Replayer:
                 "replay: navigator/state at %d ns is before the replay's clock (%d ns): skipped", t_ns, now
             )
             return
-        if t_ns > now:
-            clock.advance(t_ns - now)
-        if self._mavlink_in:
-            for frame in self._mavlink_in:
-                wires.sim_mavlink.write(frame)
-            self.mavlink_frames += len(self._mavlink_in)
-            self._mavlink_in = []
-        if self._can_in:
-            for message in self._can_in:
-                wires.sim_bus.send(message)
-            self.can_frames += len(self._can_in)
-            self._can_in = []
-        stack.step()
-        _drain(wires)
+        self._advance_to(t_ns)
+        self._write_pending()
+        self._stack.step()
+        self._drain()
         self.ticks += 1
         if self._on_progress is not None and t_ns >= self._next_progress_ns:
             self._on_progress(seconds(t_ns))
             self._next_progress_ns = t_ns + 1_000_000_000
 
-    def _reject(self, recording: Path, topic: str, t_ns: int, why: str) -> None:
+    def _ingest(self) -> None:
+        """The pending inputs written at their log time and read there, as ``rover run``'s loop read them."""
+        assert self._pending_ns is not None
+        self._advance_to(self._pending_ns)
+        self._write_pending()
+        stack = self._stack
+        # An ingest stops at a pacing sample and leaves the other link for the next read: read again when
+        # something written at this time is still waiting there (the original read it at this time too).
+        while stack.ingest() is not None and (self._rover_bus.pending() or self._rover_pipe.waiting):
+            pass
+        self._drain()
+        self.ingests += 1
+
+    def _write_pending(self) -> None:
+        for frame in self._mavlink_in:
+            self._sim_pipe.write(frame)
+        for message in self._can_in:
+            self._sim_bus.send(message)
+        self.mavlink_frames += len(self._mavlink_in)
+        self.can_frames += len(self._can_in)
+        self._mavlink_in, self._can_in = [], []
+        self._pending_ns = None
+
+    def _drain(self) -> None:
+        """Drop what the stack sent: nobody answers it in a replay."""
+        self._sim_bus.recv_all()
+        self._sim_pipe.read()
+
+    def _advance_to(self, t_ns: int) -> None:
+        now = self._clock.now_ns()
+        if t_ns > now:
+            self._clock.advance(t_ns - now)
+
+    def _reject(self, topic: str, t_ns: int, why: str) -> None:
         self.rejected += 1
-        _log.warning("replay of %s: %s record at %d ns not fed: %s", recording, topic, t_ns, why)
-
-
-def _drain(wires: LockstepWires) -> None:
-    """Drop what the stack sent: nobody answers it in a replay."""
-    while wires.sim_bus.recv(timeout=0) is not None:
-        pass
-    wires.sim_mavlink.read()
+        _log.warning("replay of %s: %s record at %d ns not fed: %s", self._recording, topic, t_ns, why)
 
 
 def _compare_commands(recorded: dict[int, bytes], out: Path) -> tuple[int, int, int | None]:
