@@ -50,6 +50,7 @@ from hil.world import SimWorld
 from logs import topics
 from logs.clock import NS_PER_S, Clock, seconds
 from logs.recorder import McapRecorder
+from logs.run_modes import PEER_MODE
 from navigator.config import RoverConfig
 from navigator.precise_wait import DEFAULT_SPIN_NS
 from navigator.runtime import FixedRateScheduler, TimingStats, freeze_start_up_heap
@@ -368,11 +369,11 @@ def write_peer_header(
     # module and then say which kind of run this is (the later "trial" record wins for readers).
     from hil import trial
 
-    trial.write_header(recorder, scenario, config, seed, mode="sim-realtime-peer")
+    trial.write_header(recorder, scenario, config, seed, mode=PEER_MODE)
     recorder.add_metadata(
         "peer",
         {
-            "mode": "sim-realtime-peer",
+            "mode": PEER_MODE,
             "physics_dt_ns": str(PHYSICS_DT_NS),
             "run": peer_run,
             "start": start_on,  # what starts the scenario (hil.peer_start)

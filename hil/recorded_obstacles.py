@@ -15,6 +15,8 @@ from typing import Any
 from navigator.perception import ObstacleObservation
 
 _log = logging.getLogger(__name__)
+# Positions (m), radii (m) and speeds (m/s) beyond this are no obstacle of a rover's world: a unit mistake.
+MAX_OBSTACLE_VALUE = 1.0e6
 
 
 class RecordedObstacles:
@@ -57,9 +59,15 @@ def _observation(t_ns: int, entry: object) -> ObstacleObservation | str:
     numbers: dict[str, float] = {}
     for key in ("x", "y", "radius_m", "vx", "vy"):
         value = entry.get(key)
-        # bool is an int to Python, not a coordinate to us.
-        if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-            return f"obstacle {obstacle_id!r}: {key} is {value!r}, not a finite number"
+        # bool is an int to Python, not a coordinate to us. The bound first: an integer of hundreds of
+        # digits (JSON has them) is too large for math.isfinite's float.
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, int | float)
+            or abs(value) > MAX_OBSTACLE_VALUE
+            or not math.isfinite(value)
+        ):
+            return f"obstacle {obstacle_id!r}: {key} is {value!r}, not a finite number within 1000 km(/s)"
         numbers[key] = float(value)
     if numbers["radius_m"] <= 0.0:
         return f"obstacle {obstacle_id!r}: radius_m {numbers['radius_m']} is not positive"

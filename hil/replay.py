@@ -4,23 +4,23 @@ The analyst's loop for tuning: a trial or a run on the rover is recorded once; t
 follower or safety settings are changed; the same inputs go through the same ``OnboardStack`` code again,
 faster than real time, and the new recording says what the rover would have estimated and decided. This is
 what a team does with rosbag2 and robot_localization, but deterministic: replayed under the config it ran
-with, a lockstep trial gives its onboard topics back byte for byte (tests/hil/test_replay.py).
+with, a lockstep trial gives its recording back byte for byte (tests/hil/test_replay.py).
 
 Inputs, as the recording holds them: the MAVLink frames the rover received (``mavlink/raw``, "rx"), the CAN
-frames it received (``can/frames``, "rx"), the ground station's commands over Zenoh (``ground/commands``,
-recorded by the stack as it takes them), and in a lockstep trial with "objects" perception the
-observations the simulator handed over (``perception/obstacles``); a lockstep trial's goals come from its
-scenario, as ``rover hil trial`` gives them. Each onboard tick of the recording (a ``navigator/state``
-message) is one tick of the replay at the same clock reading, after everything received up to then has been
-written to the stack's links; inputs read between ticks (``rover run``'s ``OnboardStack.ingest``) are read
-there again. What the stack sends goes nowhere: the replay is open loop, the recorded
-motion does not answer a different command (``ReplayResult.commands_differing`` counts the ticks whose
-wheel commands differ from the recording's).
+frames it received (``can/frames``, "rx"), the ground station's commands (``ground/commands``, recorded by
+the stack as it takes them), and in a lockstep trial with "objects" perception the observations the
+simulator handed over (``perception/obstacles``); a lockstep trial's goals come from its scenario, as
+``rover hil trial`` gives them (``hil.replay_setup``). Each onboard tick of the recording (a
+``navigator/state`` message) is one tick of the replay at the same clock reading, after everything received
+up to then has been written to the stack's links; inputs read between ticks (``rover run``'s
+``OnboardStack.ingest``) are read there again. What the stack sends goes nowhere: the replay is open loop,
+the recorded motion does not answer a different command (``ReplayResult.wheel_commands_differing`` counts
+the ticks whose wheel commands differ from the recording's).
 
-The new recording holds the replayed stack's topics, the original's ``truth/*`` copied as they were (so
-``rover logs report`` gives the estimator's error against the truth), the original's scenario, trial and
-world metadata and attachments, the replay's own config (``config`` metadata, ``config.effective.json``),
-and a ``replay`` metadata record naming the original.
+The new recording holds the replayed stack's topics; what the rest of the run wrote, copied as it was: the
+truth (``truth/*``: so ``rover logs report`` gives the estimator's error against it) and the simulator's
+and trial runner's ``log`` lines; the original's metadata and attachments; the replay's own config
+(``config`` metadata, ``config.effective.json``); and a ``replay`` metadata record naming the original.
 
 Not replayed: MAVLink bytes that did not parse as frames, CAN error frames and bus states (a bus-off
 fault's refused sends), the ground station's malformed Zenoh samples (contact for the ground-link
@@ -31,11 +31,11 @@ from __future__ import annotations
 
 import base64
 import binascii
-import dataclasses
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import can
 
@@ -46,50 +46,40 @@ from hil.lockstep import onboard_links
 from hil.lockstep_bus import lockstep_bus_pair
 from hil.recorded_commands import RecordedCommands
 from hil.recorded_obstacles import RecordedObstacles
-from hil.scenario import MAVLINK_PERCEPTION, Scenario, scenario_from_table
+from hil.replay_setup import ReplayError, ReplaySetup, config_changes, read_header, replay_setup
+from hil.scenario import Scenario
 from logs.clock import SimClock, seconds
-from logs.errors import LogsError
-from logs.log_topic import recording_logs
-from logs.paired_run import LOCKSTEP_MODE, TRUTH_TOPICS
-from logs.reader import (
-    ReadStats,
-    RecordedAttachment,
-    RecordedMessage,
-    RecordedMetadata,
-    RecordedRaw,
-    read_entries,
-)
+from logs.commands import command_from_record
+from logs.json_text import loads_json
+from logs.log_topic import ONBOARD_LOGGERS, recording_logs
+from logs.paired_run import TRUTH_TOPICS
+from logs.reader import ReadStats, RecordedMessage, RecordedRaw, read_entries
 from logs.recorder import McapRecorder
-from logs.scenario_record import SCENARIO_METADATA
-from logs.settings import ConfigError, parse_toml
 from logs.topics import (
     CAN_FRAMES,
     GROUND_COMMANDS,
+    LOG,
     MAVLINK_RAW,
     NAVIGATOR_STATE,
     PERCEPTION_OBSTACLES,
     WHEELS_COMMAND,
 )
 from navigator.config import RoverConfig
-from navigator.config_record import effective_config, flattened, record_config
+from navigator.config_record import record_config
 from navigator.onboard import OnboardStack
-from navigator.terrain import TerrainMap
+
+__all__ = ["ReplayError", "ReplayResult", "replay_recording"]
 
 _log = logging.getLogger(__name__)
 
-ROVER_RUN_MODE = "rover-run"
-REPLAYABLE_MODES = (LOCKSTEP_MODE, ROVER_RUN_MODE)
 REPLAY_METADATA = "replay"
 # The replay's own config goes in as the recording's config; every other metadata record and attachment
 # of the original is copied as it was.
 _REPLACED_METADATA = frozenset({"config", REPLAY_METADATA})
 _REPLACED_ATTACHMENTS = frozenset({"config.effective.json", "config.toml"})
 _INPUT_TOPICS = (MAVLINK_RAW, CAN_FRAMES, PERCEPTION_OBSTACLES, GROUND_COMMANDS)
-
-
-class ReplayError(LogsError):
-    """A recording cannot be replayed: no onboard ticks in it, a mode the replay does not know, or what the
-    replay needs (the scenario, a map) missing."""
+# Read undecoded: the tick times, the recorded wheel commands, and what is copied as it was.
+_RAW_TOPICS = (*TRUTH_TOPICS, NAVIGATOR_STATE, WHEELS_COMMAND, LOG)
 
 
 @dataclass(frozen=True)
@@ -101,29 +91,22 @@ class ReplayResult:
     can_frames: int  # received CAN frames fed to the link
     obstacle_records: int  # perception/obstacles records handed to the stack as its perception
     ground_commands: int  # ground/commands records handed to the stack as the ground station's commands
-    rejected_inputs: int  # input records that could not be fed (malformed: each logged), skipped
-    truth_messages: int  # truth/* messages copied
-    commands_compared: int  # ticks with a wheels/command in both recordings
-    commands_differing: int  # of those, ticks whose wheels/command differs byte for byte
+    # Input records, or obstacles within one, that could not be read or fed (each logged, skipped).
+    rejected_inputs: int
+    ticks_skipped: int  # navigator/state records earlier than the one before them (a rewritten file)
+    copied_messages: int  # truth/* and the simulator's log lines, copied as they were
+    wheel_commands_compared: int  # ticks with a wheels/command in both recordings
+    wheel_commands_differing: int  # of those, ticks whose wheels/command differs byte for byte
     first_difference_s: float | None  # the first such tick's clock reading
-    truncated: bool  # the original was cut short: replayed up to the cut
+    truncated: bool  # the original was cut short or damaged: replayed up to there
     ingests: int = 0  # times the links were read between ticks (as `rover run`'s loop reads them)
     # (key, as recorded, as replayed) for each config value that differs, flattened ("estimator.gps_noise_m")
     config_changes: tuple[tuple[str, str, str], ...] = ()
 
-
-@dataclass(frozen=True)
-class _Setup:
-    """What the stack is built from, besides the inputs: the config as the run used it, its map, the goals
-    it was given at the start, and whether recorded obstacles are its perception."""
-
-    mode: str
-    config: RoverConfig
-    terrain: TerrainMap
-    goals: tuple[tuple[float, float], ...]
-    goal_source: str
-    obstacles_are_input: bool
-    start_ns: int | None  # the replay clock's start; None: the first input's log time
+    @property
+    def partial(self) -> bool:
+        """Not all of the recording went in: cut short, damaged, or some input or tick skipped."""
+        return self.truncated or self.rejected_inputs > 0 or self.ticks_skipped > 0
 
 
 def replay_recording(
@@ -139,34 +122,39 @@ def replay_recording(
 
     ``scenario``: a lockstep trial's scenario (its goals, datum and map); None: the one the recording has
     attached. ``on_progress`` gets the replayed clock's reading in seconds about once a simulated second.
-    Raises ``LogReadError`` for a file that is missing, not MCAP or damaged, ``ReplayError`` for one that
-    cannot be replayed (an attached scenario that does not load among them).
+    Raises ``LogReadError`` for a file that is missing or not MCAP, ``ReplayError`` for one that cannot be
+    replayed (an attached scenario that does not load among them); then nothing is left at ``out``. A file
+    cut short or damaged is replayed up to there (``ReplayResult.truncated``).
     """
-    metadata, attachments = _header(recording)
-    setup = _setup(recording, metadata, attachments, config, scenario)
-    with McapRecorder(out, exclusive=True) as recorder:
-        for name, data in metadata.items():
-            if name not in _REPLACED_METADATA:
-                recorder.add_metadata(name, data)
-        record_config(recorder, setup.config)
-        for attachment in attachments.values():
-            if attachment.name not in _REPLACED_ATTACHMENTS:
-                recorder.add_attachment(
-                    attachment.name, attachment.media_type, attachment.data, attachment.log_time_ns
-                )
-        replayer = _Replayer(setup, recorder, on_progress)
-        replayer.run(recording)
-        recorder.add_metadata(
-            REPLAY_METADATA,
-            {
-                "of": str(recording),
-                "of_mode": setup.mode,
-                "config": setup.config.source,
-                "ticks": str(replayer.ticks),
-                "truncated": "true" if replayer.stats.truncated else "false",
-            },
-        )
-    compared, differing, first = _compare_commands(replayer.recorded_commands, out)
+    header = read_header(recording)
+    setup = replay_setup(recording, header, config, scenario)
+    replayer = _Replayer(setup, on_progress)
+    try:
+        with McapRecorder(out, exclusive=True) as recorder:
+            for name, data in header.metadata.items():
+                if name not in _REPLACED_METADATA:
+                    recorder.add_metadata(name, data)
+            record_config(recorder, setup.config)
+            for attachment in header.attachments.values():
+                if attachment.name not in _REPLACED_ATTACHMENTS:
+                    recorder.add_attachment(
+                        attachment.name, attachment.media_type, attachment.data, attachment.log_time_ns
+                    )
+            replayer.run(recording, recorder)
+            recorder.add_metadata(
+                REPLAY_METADATA,
+                {
+                    "of": str(recording),
+                    "of_mode": setup.mode,
+                    "config": setup.config.source,
+                    "ticks": str(replayer.ticks),
+                    "truncated": "true" if replayer.truncated else "false",
+                },
+            )
+    except ReplayError:
+        out.unlink(missing_ok=True)  # ours (created exclusively), and it replays nothing
+        raise
+    compared, differing, first = _compare_wheel_commands(replayer.recorded_wheel_commands, out)
     return ReplayResult(
         out_path=out,
         source_mode=setup.mode,
@@ -175,93 +163,16 @@ def replay_recording(
         can_frames=replayer.can_frames,
         obstacle_records=replayer.obstacle_records,
         ground_commands=replayer.ground_commands,
-        rejected_inputs=replayer.rejected + replayer.obstacles.rejected + replayer.commands.rejected,
-        truth_messages=replayer.truth_messages,
-        commands_compared=compared,
-        commands_differing=differing,
+        rejected_inputs=replayer.rejected_inputs,
+        ticks_skipped=replayer.ticks_skipped,
+        copied_messages=replayer.copied_messages,
+        wheel_commands_compared=compared,
+        wheel_commands_differing=differing,
         first_difference_s=None if first is None else seconds(first),
-        truncated=replayer.stats.truncated,
+        truncated=replayer.truncated,
         ingests=replayer.ingests,
-        config_changes=_config_changes(metadata.get("config", {}), setup.config),
+        config_changes=config_changes(header.metadata.get("config", {}), setup.config),
     )
-
-
-def _config_changes(recorded: dict[str, str], config: RoverConfig) -> tuple[tuple[str, str, str], ...]:
-    """The config values the replay runs with that differ from the recording's ``config`` metadata (a key
-    only one of them has shows "-" on the other side)."""
-    replayed = flattened(effective_config(config))
-    return tuple(
-        (key, recorded.get(key, "-"), replayed.get(key, "-"))
-        for key in sorted(recorded.keys() | replayed.keys())
-        if recorded.get(key) != replayed.get(key)
-    )
-
-
-def _header(recording: Path) -> tuple[dict[str, dict[str, str]], dict[str, RecordedAttachment]]:
-    """Metadata and attachments, read without decompressing a chunk."""
-    metadata: dict[str, dict[str, str]] = {}
-    attachments: dict[str, RecordedAttachment] = {}
-    for entry in read_entries(recording, messages=False):
-        if isinstance(entry, RecordedMetadata):
-            metadata[entry.name] = entry.data
-        elif isinstance(entry, RecordedAttachment):
-            attachments[entry.name] = entry
-    return metadata, attachments
-
-
-def _setup(
-    recording: Path,
-    metadata: dict[str, dict[str, str]],
-    attachments: dict[str, RecordedAttachment],
-    config: RoverConfig,
-    scenario: Scenario | None,
-) -> _Setup:
-    mode = metadata.get("trial", {}).get("mode", "")
-    if mode not in REPLAYABLE_MODES:
-        what = f"trial.mode {mode!r}" if mode else "no trial metadata"
-        raise ReplayError(
-            f"{recording}: {what}; a replay needs a recording of the onboard stack, a lockstep trial's "
-            f"({LOCKSTEP_MODE}) or `rover run`'s ({ROVER_RUN_MODE}), not a HIL peer's truth file"
-        )
-    if mode == ROVER_RUN_MODE:
-        if config.terrain is None:
-            raise ReplayError(
-                f"{config.source}: replaying a `rover run` recording needs the config's [map] table "
-                "(the terrain the rover planned on), as `rover run` does"
-            )
-        return _Setup(mode, config, config.terrain, (), "", obstacles_are_input=False, start_ns=None)
-    if scenario is None:
-        scenario = _attached_scenario(recording, attachments)
-    # As `rover hil trial` ran it: the map's origin is the scenario's datum, the goals are the mission.
-    lat, lon, alt = scenario.datum
-    estimator = dataclasses.replace(config.estimator, datum_lat_deg=lat, datum_lon_deg=lon, datum_alt_m=alt)
-    # The perception the trial ran with (a campaign may have overridden the scenario file's).
-    perception = metadata.get(SCENARIO_METADATA, {}).get("perception", scenario.sensors.perception)
-    return _Setup(
-        mode,
-        dataclasses.replace(config, estimator=estimator),
-        scenario.believed_terrain,
-        tuple((goal.x, goal.y) for goal in scenario.goals),
-        f"scenario {scenario.name}",
-        obstacles_are_input=perception not in MAVLINK_PERCEPTION,
-        start_ns=0,
-    )
-
-
-def _attached_scenario(recording: Path, attachments: dict[str, RecordedAttachment]) -> Scenario:
-    attachment = attachments.get("scenario.toml")
-    if attachment is None:
-        raise ReplayError(f"{recording}: no scenario.toml attached; give the trial's scenario (--scenario)")
-    name = f"{recording} (attached scenario.toml)"
-    try:
-        text = attachment.data.decode("utf-8")
-    except UnicodeDecodeError as err:
-        raise ReplayError(f"{name} is not UTF-8 text: {err}; give the trial's scenario (--scenario)") from err
-    try:
-        # Terrain files named in it are looked for beside the recording.
-        return scenario_from_table(parse_toml(text, name), text, base_dir=recording.parent)
-    except ConfigError as err:
-        raise ReplayError(f"{err} (give the trial's scenario file with --scenario)") from err
 
 
 class _Replayer:
@@ -272,18 +183,15 @@ class _Replayer:
     loop reads the links as samples arrive (``OnboardStack.ingest``) and the replay does the same.
     """
 
-    def __init__(
-        self, setup: _Setup, recorder: McapRecorder, on_progress: Callable[[float], None] | None
-    ) -> None:
+    def __init__(self, setup: ReplaySetup, on_progress: Callable[[float], None] | None) -> None:
         self._setup = setup
-        self._recorder = recorder
         self._on_progress = on_progress
-        self.stats = ReadStats()
+        self._stats = ReadStats()
         self.obstacles = RecordedObstacles()
-        self.commands = RecordedCommands()
-        self.recorded_commands: dict[int, bytes] = {}  # the original's wheels/command by log time
+        self.ground_station = RecordedCommands()
+        self.recorded_wheel_commands: dict[int, bytes] = {}  # the original's wheels/command by log time
         self.ticks = self.mavlink_frames = self.can_frames = self.obstacle_records = self.ground_commands = 0
-        self.rejected = self.truth_messages = self.out_of_order_ticks = self.ingests = 0
+        self.copied_messages = self.ticks_skipped = self.ingests = self._rejected = 0
         # Link inputs not written yet, all of one log time (_pending_ns): a later message moves it on.
         self._mavlink_in: list[bytes] = []
         self._can_in: list[can.Message] = []
@@ -291,32 +199,40 @@ class _Replayer:
         self._next_progress_ns = 0
         self._last_ns = 0  # the latest log time read
 
-    def run(self, recording: Path) -> None:
+    @property
+    def truncated(self) -> bool:
+        return self._stats.truncated or self._stats.stop is not None
+
+    @property
+    def rejected_inputs(self) -> int:
+        # The reader's skipped messages (a payload that is not a JSON object) are inputs lost too.
+        return self._rejected + self._stats.skipped + self.obstacles.rejected + self.ground_station.rejected
+
+    def run(self, recording: Path, recorder: McapRecorder) -> None:
+        self._recording, self._recorder = recording, recorder
+        start_ns = self._setup.start_ns
         entries = read_entries(
-            recording,
-            topics=_INPUT_TOPICS,
-            raw_topics=(*TRUTH_TOPICS, NAVIGATOR_STATE, WHEELS_COMMAND),
-            stats=self.stats,
+            recording, topics=_INPUT_TOPICS, raw_topics=_RAW_TOPICS, stats=self._stats, stop_at_damage=True
         )
-        self._recording = recording
-        # Metadata and attachments come in file order too (read already, by _header).
-        first = next((e for e in entries if isinstance(e, RecordedMessage | RecordedRaw)), None)
+        messages = (e for e in entries if isinstance(e, RecordedMessage | RecordedRaw))
+        first = next(messages, None)  # a `rover run` clock starts where its recording does
         if first is None:
             raise ReplayError(f"{recording} holds no messages to replay")
-        start_ns = self._setup.start_ns
         self._clock = clock = SimClock(first.log_time_ns if start_ns is None else start_ns)
         # The stack's two wires, as a lockstep trial's, with the recording at the far ends.
         self._rover_bus, self._sim_bus = lockstep_bus_pair("replay", clock)
         self._rover_pipe, self._sim_pipe = memory_pipe_pair()
-        with recording_logs(self._recorder, clock):
+        with recording_logs(recorder, clock):
             self._stack = stack = self._build_stack()
             try:
-                if self._setup.goals and not stack.start_mission(self._setup.goals, self._setup.goal_source):
-                    _log.warning("replay: the stack refused the scenario's goals, as the trial's did or not")
+                goals = self._setup.goals
+                if goals and not stack.start_mission(goals, self._setup.goal_source):
+                    _log.warning(
+                        "replay: the stack refused the scenario's goals (its mission_rejected event)"
+                    )
                 self._take(first)
-                for entry in entries:
-                    if isinstance(entry, RecordedMessage | RecordedRaw):
-                        self._take(entry)
+                for entry in messages:
+                    self._take(entry)
                 if self._pending_ns is not None:
                     self._ingest()
                 # The run ended (the stack closed: zero commands sent) at its last recorded message.
@@ -340,7 +256,7 @@ class _Replayer:
             recorder,
             self._setup.terrain,
             obstacles=self.obstacles if self._setup.obstacles_are_input else None,
-            commands=self.commands,
+            commands=self.ground_station,
         )
 
     def _take(self, entry: RecordedMessage | RecordedRaw) -> None:
@@ -350,37 +266,65 @@ class _Replayer:
             # Read at a time with no tick: between ticks, as the real-time loop reads its links.
             self._ingest()
         if isinstance(entry, RecordedRaw):
-            if topic == NAVIGATOR_STATE:
-                self._tick(t_ns)
-            elif topic == WHEELS_COMMAND:
-                self.recorded_commands[t_ns] = entry.data
-            else:  # truth/*: the world's, not the stack's, so copied as it was
-                self._recorder.publish_bytes(topic, t_ns, entry.data)
-                self.truth_messages += 1
+            self._take_raw(topic, t_ns, entry.data)
             return
         message = entry.message
-        if message.get("direction", "rx") != "rx":
-            return  # what the rover sent: the replayed stack sends its own
+        if topic == GROUND_COMMANDS:
+            self._take_command(t_ns, message)
+        elif topic == PERCEPTION_OBSTACLES:
+            if self._setup.obstacles_are_input:  # else the stack's own output, from scans
+                self.obstacles.add(t_ns, message)
+                self.obstacle_records += 1
+        else:
+            self._take_frame(topic, t_ns, message)
+
+    def _take_command(self, t_ns: int, record: dict[str, Any]) -> None:
+        """A ground station's command was read inside a tick: it is handed over at the next one. One from
+        ``rover run --goal`` was given at once, before the loop: so it is again, at its time."""
+        self.ground_commands += 1
+        if record.get("origin") != "command line":
+            self.ground_station.add(t_ns, record)
+            return
+        try:
+            command = command_from_record(record)
+        except ValueError as err:
+            self._reject(GROUND_COMMANDS, t_ns, str(err))
+            return
+        self._advance_to(t_ns)
+        self._stack.take_command(command)
+
+    def _take_raw(self, topic: str, t_ns: int, data: bytes) -> None:
+        if topic == NAVIGATOR_STATE:
+            self._tick(t_ns)
+        elif topic == WHEELS_COMMAND:
+            self.recorded_wheel_commands[t_ns] = data
+        elif topic != LOG or not _onboard_line(data):
+            # The world's truth, the simulator's and the trial runner's lines: not the stack's, so copied.
+            self._recorder.publish_bytes(topic, t_ns, data)
+            self.copied_messages += 1
+
+    def _take_frame(self, topic: str, t_ns: int, record: dict[str, Any]) -> None:
+        """A mavlink/raw or can/frames record: a received frame waits for its read; a sent one is dropped
+        (the replayed stack sends its own)."""
+        direction = record.get("direction")
+        if direction == "tx":
+            return
+        if direction != "rx":
+            self._reject(topic, t_ns, f"direction {direction!r} is neither 'rx' nor 'tx'")
+            return
         if topic == MAVLINK_RAW:
             try:
-                self._mavlink_in.append(base64.b64decode(message["data"], validate=True))
+                self._mavlink_in.append(base64.b64decode(record["data"], validate=True))
             except (KeyError, TypeError, ValueError, binascii.Error) as err:
                 self._reject(topic, t_ns, f"its data is not a frame in base64: {err!r}")
                 return
-            self._pending_ns = t_ns
-        elif topic == CAN_FRAMES:
+        else:
             try:
-                self._can_in.append(record_to_message(message, t_ns, "replay"))
+                self._can_in.append(record_to_message(record, t_ns, "replay"))
             except FrameError as err:
                 self._reject(topic, t_ns, str(err))
                 return
-            self._pending_ns = t_ns
-        elif topic == GROUND_COMMANDS:  # read inside a tick: handed over at the next one
-            self.commands.add(t_ns, message)
-            self.ground_commands += 1
-        elif self._setup.obstacles_are_input:  # perception/obstacles, likewise
-            self.obstacles.add(t_ns, message)
-            self.obstacle_records += 1
+        self._pending_ns = t_ns
 
     def _tick(self, t_ns: int) -> None:
         """One recorded tick: the clock to its reading, what arrived then into the links, one step."""
@@ -388,7 +332,7 @@ class _Replayer:
         if t_ns < now:
             # A recording of ours never goes back in time; a rewritten one might. Its inputs wait for the
             # next tick rather than be fed at a time that already passed.
-            self.out_of_order_ticks += 1
+            self.ticks_skipped += 1
             _log.warning(
                 "replay: navigator/state at %d ns is before the replay's clock (%d ns): skipped", t_ns, now
             )
@@ -436,11 +380,20 @@ class _Replayer:
             self._clock.advance(t_ns - now)
 
     def _reject(self, topic: str, t_ns: int, why: str) -> None:
-        self.rejected += 1
+        self._rejected += 1
         _log.warning("replay of %s: %s record at %d ns not fed: %s", self._recording, topic, t_ns, why)
 
 
-def _compare_commands(recorded: dict[int, bytes], out: Path) -> tuple[int, int, int | None]:
+def _onboard_line(data: bytes) -> bool:
+    """Whether a ``log`` record is the onboard stack's own (the replayed stack writes its own again)."""
+    try:
+        name = loads_json(data).get("name", "")
+    except (ValueError, AttributeError):
+        return False  # not a record the stack wrote: copied as it was
+    return isinstance(name, str) and name.split(".", 1)[0] in ONBOARD_LOGGERS
+
+
+def _compare_wheel_commands(recorded: dict[int, bytes], out: Path) -> tuple[int, int, int | None]:
     """(ticks compared, ticks whose wheels/command differs, the first such tick's log time)."""
     compared = differing = 0
     first: int | None = None

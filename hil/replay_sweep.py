@@ -57,7 +57,7 @@ class SweepRow:
     yaw_error_rms_mean_rad: float | None
     recorded_error_rms_mean_m: float | None  # the same recordings' own, for scale
     shift_rms_mean_m: float | None  # mean over all recordings of the shift from the recorded estimate
-    commands_differing_pct: float  # of all ticks compared
+    wheel_commands_differing_pct: float  # of all ticks compared
 
 
 @dataclass
@@ -182,8 +182,8 @@ def _row(entry: SweepConfig, replays: list[SweepReplay]) -> SweepRow:
     maxima = known([r.figures.position_error_max.replayed for r in replays])
     yaws = known([r.figures.yaw_error_rms.replayed for r in replays])
     shifts = [r.figures.estimate_shift_rms_m for r in replays if r.figures.estimate_shift_rms_m is not None]
-    compared = sum(r.result.commands_compared for r in replays)
-    differing = sum(r.result.commands_differing for r in replays)
+    compared = sum(r.result.wheel_commands_compared for r in replays)
+    differing = sum(r.result.wheel_commands_differing for r in replays)
     return SweepRow(
         config=entry.name,
         source=entry.config.source,
@@ -194,7 +194,7 @@ def _row(entry: SweepConfig, replays: list[SweepReplay]) -> SweepRow:
         yaw_error_rms_mean_rad=_mean(yaws),
         recorded_error_rms_mean_m=_mean(recorded),
         shift_rms_mean_m=_mean(shifts),
-        commands_differing_pct=100.0 * differing / compared if compared else 0.0,
+        wheel_commands_differing_pct=100.0 * differing / compared if compared else 0.0,
     )
 
 

@@ -46,6 +46,7 @@ from logs.commands import CommandSource
 from logs.log_topic import recording_logs
 from logs.metrics import TrialMetrics, compute_metrics
 from logs.recorder import McapRecorder
+from logs.run_modes import LOCKSTEP_MODE
 from logs.sink import FanoutSink, MessageSink
 from navigator.config import RoverConfig
 from navigator.config_record import record_config, software_version
@@ -303,7 +304,7 @@ def write_header(
     config: RoverConfig,
     seed: int,
     *,
-    mode: str = "sim-lockstep",
+    mode: str = LOCKSTEP_MODE,
     campaign: CampaignPlace | None = None,
 ) -> None:
     """Metadata (scenario, trial, config) and attachments (scenario, map, config, a swapped-in VESC DBC)

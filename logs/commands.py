@@ -12,6 +12,7 @@ stays on its simulated time.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import math
@@ -37,6 +38,12 @@ _MAX_WARNINGS = 10
 MAX_GOAL_COORDINATE_M = 1.0e6
 
 
+# Where a command came from: the ground station over Zenoh (read inside a tick, and the ground-link
+# failsafe's sign of contact), or `rover run --goal` (given once, before the loop).
+CommandOrigin = Literal["zenoh", "command line"]
+COMMAND_ORIGINS: tuple[CommandOrigin, ...] = ("zenoh", "command line")
+
+
 @dataclass(frozen=True)
 class RoverCommand:
     """One accepted command. ``x``/``y`` (ENU metres) only for ``goal``; ``received_ns`` from the clock."""
@@ -45,6 +52,7 @@ class RoverCommand:
     received_ns: int
     x: float | None = None
     y: float | None = None
+    origin: CommandOrigin = "zenoh"
 
 
 class CommandSource(Protocol):
@@ -82,6 +90,7 @@ def command_record(t_ns: int, command: RoverCommand) -> dict[str, object]:
         "x": command.x,
         "y": command.y,
         "received": stamp(command.received_ns),
+        "origin": command.origin,
     }
 
 
@@ -96,11 +105,15 @@ def command_from_record(record: dict[str, Any]) -> RoverCommand:
         if not isinstance(received, dict):
             raise TypeError(type(received).__name__)
         received_ns = stamp_ns(received)
-    except (KeyError, TypeError, ValueError) as err:
+    except (KeyError, TypeError, ValueError, OverflowError) as err:  # Overflow: an infinite float
         raise ValueError(f"{kind} record's received time is {received!r}: {err!r}") from err
     if received_ns < 0:
         raise ValueError(f"{kind} record's received time {received_ns} ns is negative")
-    return _command_from_body(kind, record, received_ns)
+    origin = record.get("origin", "zenoh")  # recordings made before the field: Zenoh's alone
+    if origin not in COMMAND_ORIGINS:
+        raise ValueError(f"{kind} record's origin {origin!r} is none of {', '.join(COMMAND_ORIGINS)}")
+    command = _command_from_body(kind, record, received_ns)
+    return dataclasses.replace(command, origin=origin)
 
 
 def _command_from_body(kind: CommandKind, body: dict[str, Any], received_ns: int) -> RoverCommand:

@@ -37,15 +37,15 @@ from logs.reader import (
     read_entries,
     read_outline,
 )
+from logs.run_modes import LOCKSTEP_MODE
 from logs.scenario_record import SCENARIO_METADATA, WORLD_METADATA
 from logs.topics import NAVIGATOR_STATE, TRUTH_CONTACTS, TRUTH_POSE, TRUTH_STABILITY, TRUTH_WHEELS
 
 # What the peer knows and the rover does not; everything else comes from the rover's file.
 TRUTH_TOPICS = frozenset({TRUTH_POSE, TRUTH_WHEELS, TRUTH_STABILITY, TRUTH_CONTACTS})
 TRUTH_PREFIX = "truth:"  # the truth file's own metadata and attachments, kept apart from the rover's
-# ``trial.mode`` of a lockstep trial (``hil.trial``): its log times are a simulated clock counted from 0,
-# so they overlap any other lockstep trial's whichever run that was, and say nothing about pairing.
-LOCKSTEP_MODE = "sim-lockstep"
+# A lockstep trial's log times (``LOCKSTEP_MODE``) are a simulated clock counted from 0, so they overlap any
+# other lockstep trial's whichever run that was, and say nothing about pairing.
 TRIAL_METADATA = "trial"
 PEER_METADATA = "peer"  # the truth file's record of its HIL peer run (``run``: its id)
 

@@ -26,6 +26,7 @@ from logs.compare import RunComparison, compare_runs
 from logs.errors import LogReadError, LogsError
 from logs.paired_run import misplaced_truths
 from logs.reader import read_metadata
+from logs.run_modes import ROVER_RUN_MODE
 from logs.topics import ESTIMATOR_POSE
 
 logger = logging.getLogger(__name__)
@@ -100,7 +101,6 @@ TERRAIN_COLUMNS = {
     "final_distance_to_goal_m": "distance to goal at end (m, mean)",
     "energy_wh_per_m": "energy per metre (Wh/m, mean)",
 }
-ROVER_RUN_MODE = "rover-run"  # trial.mode of a `rover run` recording (navigator.rover_process)
 # Shown with 4 significant digits: 3 decimals leave a Wh/m figure (~0.01) with one or two.
 SIGNIFICANT_METRICS = frozenset({"energy_wh_per_m"})
 

@@ -406,10 +406,12 @@ _SPECS = [
                 "x": _NUM_OR_NULL,
                 "y": _NUM_OR_NULL,
                 "received": _TIME,
+                "origin": _STR,
             }
         ),
-        "A command the onboard stack took from the ground station over Zenoh (goal, estop, resume), at the "
-        "tick that read it; received: when it arrived. The stack's input, so a replay can give it again.",
+        "A command the onboard stack took (goal, estop, resume): from the ground station over Zenoh, at the "
+        'tick that read it, or `rover run --goal` (origin "command line"); received: when it arrived. The '
+        "stack's input, so a replay can give it again.",
     ),
     TopicSpec(
         LOG,

@@ -44,7 +44,7 @@ from firmware_bridge.mavlink_mission import (
 from firmware_bridge.obstacle_scan import ObstacleScan
 from logs import topics
 from logs.clock import NS_PER_S, Clock
-from logs.commands import CommandSource, command_record
+from logs.commands import CommandSource, RoverCommand, command_record
 from logs.sink import MessageSink
 from navigator.config import RoverConfig
 from navigator.deferred_sink import DeferredSink
@@ -456,20 +456,23 @@ class OnboardStack:
     def _read_commands(self) -> None:
         if self._commands is None:
             return
-        commands = self._commands.poll()
-        if not commands:
-            return
+        for command in self._commands.poll():
+            self._last_ground_ns = command.received_ns  # a sign of the ground station, for its failsafe
+            self.take_command(command)
+
+    def take_command(self, command: RoverCommand) -> None:
+        """A goal, e-stop or resume from outside the links (the ground station over Zenoh, ``rover run
+        --goal``): recorded on ground/commands as taken, the stack's input that a replay (hil.replay) gives
+        back, then acted on."""
         now = self._clock.now_ns()
-        for command in commands:
-            self._last_ground_ns = command.received_ns
-            # Recorded as taken, at this tick: the stack's input, which a replay (hil.replay) gives back.
-            self._sink.publish(topics.GROUND_COMMANDS, now, command_record(now, command))
-            if command.kind == "estop":
-                self.estop("ground station")
-            elif command.kind == "resume":
-                self.resume("ground station")
-            elif command.x is not None and command.y is not None:
-                self.set_goal(command.x, command.y)
+        self._sink.publish(topics.GROUND_COMMANDS, now, command_record(now, command))
+        who = "ground station" if command.origin == "zenoh" else command.origin
+        if command.kind == "estop":
+            self.estop(who)
+        elif command.kind == "resume":
+            self.resume(who)
+        elif command.x is not None and command.y is not None:
+            self.set_goal(command.x, command.y)
 
     def _read_obstacles(self, now: int, source: ObstacleSource) -> None:
         seen = source.poll()

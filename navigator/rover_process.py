@@ -31,12 +31,13 @@ from pathlib import Path
 from firmware_bridge.dbc_attachment import attach_vesc_dbc
 from logs import topics
 from logs.clock import Clock
-from logs.commands import ZenohCommandReceiver
+from logs.commands import RoverCommand, ZenohCommandReceiver
 from logs.encoding import EncodedSink
 from logs.errors import RecordingError
 from logs.log_topic import recording_logs
 from logs.pending_sink import PendingSink
 from logs.recorder import McapRecorder
+from logs.run_modes import ROVER_RUN_MODE
 from logs.sink import FanoutSink, MessageSink
 from logs.telemetry import ZenohTelemetry, open_session
 from logs.telemetry_station import rate_limited
@@ -207,7 +208,7 @@ def _open_recording(
         raise RoverSetupError(f"{err} (--out)") from err
     # can_bitrate: the report's bus load for frames counted from the recording (as hil.trial writes it)
     trial = {
-        "mode": "rover-run",
+        "mode": ROVER_RUN_MODE,
         "rover_id": config.rover_id,
         "config": config.source,
         "software_version": software_version(),
@@ -246,7 +247,8 @@ def _warm_up_and_run(
     warm_up(stack.guidance.planner, config, clock)
     stack.publish_map()
     if goal is not None:
-        stack.set_goal(*goal)
+        # As a command, so the recording holds it (ground/commands) and a replay gives it again.
+        stack.take_command(RoverCommand("goal", clock.now_ns(), goal[0], goal[1], origin="command line"))
     scheduler = control_scheduler(
         stack,
         clock,

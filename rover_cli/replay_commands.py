@@ -92,22 +92,25 @@ def replay_command(args: argparse.Namespace) -> int:
     except (ConfigError, LogsError) as err:
         print_error(console, err)
         return 2
-    partial = result.truncated or result.rejected_inputs > 0
+    code = 1 if result.partial else 0
     if args.json:
         document = {
             "recording": str(args.file),
             "replay": str(result.out_path),
             "source_mode": result.source_mode,
             "ticks": result.ticks,
+            "ticks_skipped": result.ticks_skipped,
+            "ingests": result.ingests,
             "inputs": {
                 "mavlink_frames": result.mavlink_frames,
                 "can_frames": result.can_frames,
                 "obstacle_records": result.obstacle_records,
+                "ground_commands": result.ground_commands,
                 "rejected": result.rejected_inputs,
             },
-            "truth_messages": result.truth_messages,
-            "commands_compared": result.commands_compared,
-            "commands_differing": result.commands_differing,
+            "copied_messages": result.copied_messages,
+            "wheel_commands_compared": result.wheel_commands_compared,
+            "wheel_commands_differing": result.wheel_commands_differing,
             "first_difference_s": result.first_difference_s,
             "truncated": result.truncated,
             "config_changes": [
@@ -118,11 +121,12 @@ def replay_command(args: argparse.Namespace) -> int:
             "estimate_shift_max_m": figures.estimate_shift_max_m,
         }
         console.print_json(json.dumps(document))
-        return 1 if partial else 0
+        return code
     console.print(
         f"replayed {result.ticks} ticks of {escape(str(args.file))} ({result.source_mode}): "
         f"{result.mavlink_frames} MAVLink frames, {result.can_frames} CAN frames, "
-        f"{result.obstacle_records} obstacle records fed; {result.truth_messages} truth messages copied",
+        f"{result.obstacle_records} obstacle records and {result.ground_commands} ground commands fed; "
+        f"{result.copied_messages} messages of the rest of the run (truth, the simulator's log) copied",
         soft_wrap=True,
     )
     if result.config_changes:
@@ -147,15 +151,19 @@ def replay_command(args: argparse.Namespace) -> int:
     console.print(table)
     first = "" if result.first_difference_s is None else f", the first at {result.first_difference_s:.2f} s"
     console.print(
-        f"wheel commands differing from the recording's: {result.commands_differing} of "
-        f"{result.commands_compared} ticks{first} (open loop: the recorded motion does not answer them)"
+        f"wheel commands differing from the recording's: {result.wheel_commands_differing} of "
+        f"{result.wheel_commands_compared} ticks{first} (open loop: the recorded motion does not answer them)"
     )
     if result.truncated:
-        console.print("[yellow]the recording was cut short[/yellow]: replayed up to the cut")
+        console.print("[yellow]the recording was cut short or damaged[/yellow]: replayed up to there")
     if result.rejected_inputs:
         console.print(
             f"[yellow]{result.rejected_inputs} input records not fed[/yellow] "
-            "(malformed; each named in the log)"
+            "(unreadable or malformed; each named in the log)"
+        )
+    if result.ticks_skipped:
+        console.print(
+            f"[yellow]{result.ticks_skipped} ticks skipped[/yellow]: their navigator/state went back in time"
         )
     console.print(f"replay: {escape(str(result.out_path))}")
-    return 1 if partial else 0
+    return code

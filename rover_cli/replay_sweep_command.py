@@ -63,7 +63,7 @@ def sweep_command(args: argparse.Namespace) -> int:
         except LogsError as err:  # the output folder itself cannot be written
             print_error(console, err)
             return 2
-    partial = any(r.result.truncated or r.result.rejected_inputs for r in result.replays)
+    partial = any(r.result.partial for r in result.replays)
     code = 1 if result.failed or partial else 0
     if args.json:
         document = {
@@ -76,8 +76,8 @@ def sweep_command(args: argparse.Namespace) -> int:
                     "position_error_rms_m": r.figures.position_error_rms.replayed,
                     "recorded_position_error_rms_m": r.figures.position_error_rms.recorded,
                     "estimate_shift_rms_m": r.figures.estimate_shift_rms_m,
-                    "commands_differing": r.result.commands_differing,
-                    "commands_compared": r.result.commands_compared,
+                    "wheel_commands_differing": r.result.wheel_commands_differing,
+                    "wheel_commands_compared": r.result.wheel_commands_compared,
                 }
                 for r in result.replays
             ],
@@ -108,13 +108,16 @@ def sweep_command(args: argparse.Namespace) -> int:
             fmt(row.error_max_m),
             fmt(row.yaw_error_rms_mean_rad),
             fmt(row.shift_rms_mean_m),
-            f"{row.commands_differing_pct:.1f} %",
+            f"{row.wheel_commands_differing_pct:.1f} %",
         )
     console.print(table)
     for recording, why in result.failed.items():
         console.print(f"[yellow]left out[/yellow] {escape(recording)}: {escape(why)}", soft_wrap=True)
     if partial:
-        console.print("[yellow]some recordings were cut short or had inputs not fed[/yellow] (see the log)")
+        console.print(
+            "[yellow]some recordings were cut short or damaged, or had inputs or ticks skipped[/yellow] "
+            "(see the log)"
+        )
     console.print(f"replays: {escape(str(args.out))}")
     return code
 

@@ -18,11 +18,12 @@ def rewrite(
     compression: CompressionType = CompressionType.ZSTD,
     metadata: Callable[[str, dict[str, str]], dict[str, str]] = lambda name, data: data,
     data: Callable[[str, int, bytes], bytes] = lambda topic, log_time_ns, payload: payload,
+    log_time: Callable[[str, int], int] = lambda topic, log_time_ns: log_time_ns,
 ) -> Path:
     """Every message of a kept topic (with its times and sequence), every metadata record; no attachment.
 
-    ``metadata`` and ``data`` may change what is written: a record's key/values by its name, a message's
-    payload by its topic and log time."""
+    ``metadata``, ``data`` and ``log_time`` may change what is written: a record's key/values by its name, a
+    message's payload or log time by its topic and log time (the file order stays as it was)."""
     with source.open("rb") as inp, target.open("wb") as out:
         reader = make_reader(inp)
         writer = Writer(out, compression=compression)
@@ -41,7 +42,7 @@ def rewrite(
                 )
             writer.add_message(
                 channels[channel.id],
-                message.log_time,
+                log_time(channel.topic, message.log_time),
                 data(channel.topic, message.log_time, message.data),
                 message.publish_time,
                 message.sequence,

@@ -34,9 +34,10 @@ def digests(path: Path) -> dict[str, tuple[int, str]]:
 
 @pytest.fixture(scope="session")
 def trials(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """A trial perceiving obstacles as objects (small_rocky) and one through a lidar's scans (hidden_rock)."""
+    """A trial perceiving obstacles as objects (small_rocky), one through a lidar's scans (hidden_rock), and
+    one with faults, a moving cart and the simulator's log lines (sandy_cart_glitch)."""
     out = tmp_path_factory.mktemp("replay-trials")
     return {
         name: run_trial(load_scenario(DATA / f"{name}.toml"), config_of(), out / name).mcap_path
-        for name in ("small_rocky", "hidden_rock")
+        for name in ("small_rocky", "hidden_rock", "sandy_cart_glitch")
     }

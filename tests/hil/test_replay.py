@@ -11,6 +11,7 @@ from __future__ import annotations
 import collections
 import itertools
 import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -22,18 +23,19 @@ from hil.recorded_obstacles import RecordedObstacles
 from hil.replay import ReplayError, replay_recording
 from hil.replay_figures import replay_figures
 from hil.scenario import load_scenario
-from hil.trial import run_trial
+from hil.trial import TrialResult, run_trial
 from logs import topics
 from logs.commands import RoverCommand
 from logs.errors import LogReadError, RecordingError
 from logs.reader import read_messages, read_metadata
+from navigator.onboard import OnboardStack
 from tests.hil.replay_trials import DATA, config_of, digests, trials
 from tests.mcap_rewrite import rewrite
 
 __all__ = ["trials"]  # the session fixture, imported for pytest
 
 
-@pytest.mark.parametrize("name", ["small_rocky", "hidden_rock"])
+@pytest.mark.parametrize("name", ["small_rocky", "hidden_rock", "sandy_cart_glitch"])
 def test_replayed_under_its_own_config_a_trial_gives_every_topic_back(
     trials: dict[str, Path], name: str, tmp_path: Path
 ) -> None:
@@ -41,12 +43,14 @@ def test_replayed_under_its_own_config_a_trial_gives_every_topic_back(
     original, replayed = digests(trials[name]), digests(tmp_path / "replay.mcap")
     assert replayed == original  # the stack's topics, can/frames and mavlink/raw both ways, the copied truth
     assert result.ticks == original[topics.NAVIGATOR_STATE][0]
-    assert result.commands_compared == result.ticks and result.commands_differing == 0
+    assert result.wheel_commands_compared == result.ticks and result.wheel_commands_differing == 0
     assert result.first_difference_s is None and result.config_changes == ()
     assert result.rejected_inputs == 0 and not result.truncated
+    if name == "sandy_cart_glitch":  # the simulator's fault lines, copied, beside the stack's own
+        assert result.copied_messages > original[topics.TRUTH_POSE][0] * 3
     if name == "small_rocky":  # objects perception: the recorded observations were the stack's input
         assert result.obstacle_records == original[topics.PERCEPTION_OBSTACLES][0] > 0
-    else:  # scans arrive over MAVLink: perception/obstacles is the stack's output, not fed
+    if name == "hidden_rock":  # scans arrive over MAVLink: perception/obstacles is the stack's output
         assert result.obstacle_records == 0 and topics.PERCEPTION_OBSTACLES in original
 
 
@@ -60,7 +64,7 @@ def test_another_config_is_named_and_changes_the_estimate_not_the_truth(
     assert replayed[topics.ESTIMATOR_POSE] != original[topics.ESTIMATOR_POSE]
     for topic in (topics.TRUTH_POSE, topics.TRUTH_WHEELS, topics.TRUTH_STABILITY):
         assert replayed[topic] == original[topic]
-    assert result.truth_messages == sum(original[t][0] for t in original if t.startswith("truth/"))
+    assert result.copied_messages == sum(original[t][0] for t in original if t.startswith("truth/"))
     metadata = read_metadata(out)
     assert metadata["replay"]["of"] == str(trials["small_rocky"])
     assert metadata["config"]["estimator.gps_noise_m"] == "2.0"
@@ -89,12 +93,12 @@ def test_a_rover_run_recording_replays_on_the_configs_map(trials: dict[str, Path
         f"[map]{map_table}"
     )
     result = replay_recording(run, config, tmp_path / "replay.mcap")
-    assert result.source_mode == "rover-run" and result.truth_messages == 0
+    assert result.source_mode == "rover-run" and result.copied_messages == 0
     original, replayed = digests(run), digests(tmp_path / "replay.mcap")
     assert result.ticks == original[topics.NAVIGATOR_STATE][0]
     assert replayed[topics.ESTIMATOR_POSE] == original[topics.ESTIMATOR_POSE]
     # No goal was given (the trial's came from its scenario): the replayed rover never drives.
-    assert result.commands_differing > 0
+    assert result.wheel_commands_differing > 0
 
 
 class _GroundStation:
@@ -137,12 +141,12 @@ def test_ground_station_commands_are_recorded_and_replayed(tmp_path: Path) -> No
     result = replay_recording(trial.mcap_path, config_of(), tmp_path / "replay.mcap")
     assert result.ground_commands == 3
     assert digests(tmp_path / "replay.mcap") == original
-    assert result.commands_differing == 0
+    assert result.wheel_commands_differing == 0
     # Without them the replayed rover drives to the scenario's goal instead, never stopping.
     without = rewrite(trial.mcap_path, tmp_path / "without.mcap", keep=lambda t: t != topics.GROUND_COMMANDS)
     scenario = load_scenario(DATA / "small_rocky.toml")
     blind = replay_recording(without, config_of(), tmp_path / "blind.mcap", scenario=scenario)
-    assert blind.ground_commands == 0 and blind.commands_differing > 0
+    assert blind.ground_commands == 0 and blind.wheel_commands_differing > 0
     assert blind.first_difference_s == pytest.approx(3.0, abs=0.05)
 
 
@@ -151,24 +155,11 @@ def test_links_read_between_ticks_are_read_there_again(tmp_path: Path) -> None:
     odd physics tick, 10 ms before each control tick. Those inputs are recorded at their read time, and the
     replay reads them at that time again: the run replays to itself, the CAN link's bus-load windows aside."""
 
-    def ingest_between_ticks(components: dict[str, Any]) -> None:
-        world, stack = components["world"], components["onboard"]
-        world_tick = world.tick
-        ticks = itertools.count(1)
+    def ingest(tick: int, stack: OnboardStack) -> None:
+        if tick % 2 == 1:
+            stack.ingest()
 
-        def tick_then_ingest(dt_s: float) -> None:
-            world_tick(dt_s)
-            if next(ticks) % 2 == 1:
-                stack.ingest()
-
-        world.tick = tick_then_ingest
-
-    trial = run_trial(
-        load_scenario(DATA / "small_rocky.toml"),
-        config_of(),
-        tmp_path / "trial",
-        on_components=ingest_between_ticks,
-    )
+    trial = _trial_acting_between_ticks(ingest, tmp_path)
     ticks_ns = {t for t, _ in _records(trial.mcap_path, topics.NAVIGATOR_STATE)}
     between = [
         t
@@ -177,7 +168,7 @@ def test_links_read_between_ticks_are_read_there_again(tmp_path: Path) -> None:
     ]
     assert between  # the autopilot's frames were read between ticks
     result = replay_recording(trial.mcap_path, config_of(), tmp_path / "replay.mcap")
-    assert result.ingests > 0 and result.commands_differing == 0
+    assert result.ingests > 0 and result.wheel_commands_differing == 0
     original, replayed = digests(trial.mcap_path), digests(tmp_path / "replay.mcap")
     # can/stats closes its one-second window at the first read a second after the link's first read, and a
     # read that found nothing leaves no record to replay (here the first, at 10 ms): its windows may close
@@ -185,6 +176,45 @@ def test_links_read_between_ticks_are_read_there_again(tmp_path: Path) -> None:
     assert replayed[topics.CAN_STATS][0] == original[topics.CAN_STATS][0]
     del replayed[topics.CAN_STATS], original[topics.CAN_STATS]
     assert replayed == original
+
+
+def test_a_command_line_goal_is_given_again_at_its_time(tmp_path: Path) -> None:
+    """`rover run --goal` hands its goal to the stack at once, outside a tick (``take_command``, origin
+    "command line"): recorded on ground/commands at that time, and given again there by the replay."""
+
+    def goal(tick: int, stack: OnboardStack) -> None:
+        if tick == 301:  # 3.01 s: between the control ticks at 3.00 and 3.02 s
+            stack.take_command(RoverCommand("goal", 3_010_000_000, 12.0, 3.0, origin="command line"))
+
+    trial = _trial_acting_between_ticks(goal, tmp_path)
+    (record,) = _records(trial.mcap_path, topics.GROUND_COMMANDS)
+    assert record[0] == 3_010_000_000 and record[1]["origin"] == "command line"
+    result = replay_recording(trial.mcap_path, config_of(), tmp_path / "replay.mcap")
+    assert result.ground_commands == 1 and result.wheel_commands_differing == 0
+    assert digests(tmp_path / "replay.mcap") == digests(trial.mcap_path)
+
+
+def _trial_acting_between_ticks(act: Callable[[int, OnboardStack], None], tmp_path: Path) -> TrialResult:
+    """small_rocky in lockstep, with ``act(physics tick number, stack)`` after each physics tick: the odd
+    ones fall between control ticks, where `rover run`'s loop also acts."""
+
+    def after_each_physics_tick(components: dict[str, Any]) -> None:
+        world, stack = components["world"], components["onboard"]
+        world_tick = world.tick
+        ticks = itertools.count(1)
+
+        def tick_then_act(dt_s: float) -> None:
+            world_tick(dt_s)
+            act(next(ticks), stack)
+
+        world.tick = tick_then_act
+
+    return run_trial(
+        load_scenario(DATA / "small_rocky.toml"),
+        config_of(),
+        tmp_path / "trial",
+        on_components=after_each_physics_tick,
+    )
 
 
 def _records(path: Path, topic: str) -> list[tuple[int, dict[str, Any]]]:
@@ -200,13 +230,14 @@ def test_without_its_attached_scenario_a_trial_needs_one_given(
     assert not (tmp_path / "replay.mcap").exists()  # refused before anything was written
     scenario = load_scenario(DATA / "small_rocky.toml")
     result = replay_recording(bare, config_of(), tmp_path / "given.mcap", scenario=scenario)
-    assert result.commands_differing == 0 and result.ticks > 0
+    assert result.wheel_commands_differing == 0 and result.ticks > 0
 
 
 @pytest.mark.parametrize(
     ("metadata", "message"),
     [
-        ({"mode": "sim-realtime-peer"}, "trial.mode 'sim-realtime-peer'"),
+        ({"mode": "sim-realtime-peer"}, "a HIL peer's truth file"),
+        ({"mode": "bench"}, "trial.mode 'bench' is not a recording of the onboard stack"),
         (None, "no trial metadata"),
     ],
 )
@@ -283,6 +314,67 @@ def test_malformed_input_records_are_counted_and_the_rest_replayed(
     assert result.ticks == digests(damaged)[topics.NAVIGATOR_STATE][0]
 
 
+def test_unreadable_input_records_and_ticks_back_in_time_are_counted(
+    trials: dict[str, Path], tmp_path: Path
+) -> None:
+    """A mavlink/raw payload that is not JSON (the reader skips it), a CAN record whose direction is a list,
+    and a navigator/state a second back in time: each counted, the replay partial, the rest replayed."""
+    spoiled: collections.Counter[str] = collections.Counter()
+
+    def spoil(topic: str, log_time_ns: int, payload: bytes) -> bytes:
+        if (
+            log_time_ns < 3_000_000_000
+            or spoiled[topic]
+            or topic not in (topics.MAVLINK_RAW, topics.CAN_FRAMES)
+        ):
+            return payload
+        spoiled[topic] += 1
+        if topic == topics.MAVLINK_RAW:
+            return b"\xff not json"
+        return payload.replace(b'"direction":"rx"', b'"direction":["rx"]').replace(
+            b'"direction":"tx"', b'"direction":["tx"]'
+        )
+
+    def back_in_time(topic: str, log_time_ns: int) -> int:
+        return (
+            log_time_ns - 1_000_000_000
+            if topic == topics.NAVIGATOR_STATE and log_time_ns == 4_000_000_000
+            else log_time_ns
+        )
+
+    damaged = rewrite(trials["small_rocky"], tmp_path / "damaged.mcap", data=spoil, log_time=back_in_time)
+    scenario = load_scenario(DATA / "small_rocky.toml")
+    result = replay_recording(damaged, config_of(), tmp_path / "replay.mcap", scenario=scenario)
+    assert dict(spoiled) == {topics.MAVLINK_RAW: 1, topics.CAN_FRAMES: 1}
+    assert result.rejected_inputs == 2 and result.ticks_skipped == 1 and result.partial
+    assert result.ticks == digests(damaged)[topics.NAVIGATOR_STATE][0] - 1
+
+
+def test_a_recording_with_nothing_to_replay_leaves_no_output(trials: dict[str, Path], tmp_path: Path) -> None:
+    no_ticks = rewrite(
+        trials["small_rocky"], tmp_path / "no_ticks.mcap", keep=lambda t: t != topics.NAVIGATOR_STATE
+    )
+    scenario = load_scenario(DATA / "small_rocky.toml")
+    with pytest.raises(ReplayError, match="no onboard ticks"):
+        replay_recording(no_ticks, config_of(), tmp_path / "replay.mcap", scenario=scenario)
+    assert not (tmp_path / "replay.mcap").exists()
+    # So the same --out can be given again once the input is right.
+    assert replay_recording(trials["small_rocky"], config_of(), tmp_path / "replay.mcap").ticks > 0
+
+
+def test_a_damaged_recording_replays_up_to_the_damage(trials: dict[str, Path], tmp_path: Path) -> None:
+    whole = bytearray(trials["small_rocky"].read_bytes())
+    middle = len(whole) // 2
+    whole[middle : middle + 64] = bytes(64)  # a chunk's bytes zeroed: its CRC fails or it does not parse
+    damaged = tmp_path / "damaged.mcap"
+    damaged.write_bytes(bytes(whole))
+    scenario = load_scenario(DATA / "small_rocky.toml")
+    result = replay_recording(damaged, config_of(), tmp_path / "replay.mcap", scenario=scenario)
+    assert result.truncated and result.partial
+    assert 0 < result.ticks < digests(trials["small_rocky"])[topics.NAVIGATOR_STATE][0]
+    assert result.wheel_commands_differing == 0
+
+
 def test_a_cut_recording_replays_up_to_the_cut(trials: dict[str, Path], tmp_path: Path) -> None:
     whole = trials["small_rocky"].read_bytes()
     cut = tmp_path / "cut.mcap"
@@ -293,7 +385,7 @@ def test_a_cut_recording_replays_up_to_the_cut(trials: dict[str, Path], tmp_path
     assert result.truncated
     total = digests(trials["small_rocky"])[topics.NAVIGATOR_STATE][0]
     assert 0 < result.ticks < total
-    assert result.commands_differing == 0  # what was there replays as it ran
+    assert result.wheel_commands_differing == 0  # what was there replays as it ran
     assert read_metadata(tmp_path / "replay.mcap")["replay"]["truncated"] == "true"
 
 
@@ -310,7 +402,14 @@ def test_a_cut_recording_replays_up_to_the_cut(trials: dict[str, Path], tmp_path
                     st.integers(),
                     st.dictionaries(
                         st.sampled_from(["id", "x", "y", "radius_m", "vx", "vy"]),
-                        st.one_of(st.none(), st.booleans(), st.floats(), st.integers(), st.text(max_size=3)),
+                        st.one_of(
+                            st.none(),
+                            st.booleans(),
+                            st.floats(),
+                            st.integers(),
+                            st.integers(min_value=10**300, max_value=10**400),  # beyond a float
+                            st.text(max_size=3),
+                        ),
                     ),
                 ),
                 max_size=4,
@@ -346,7 +445,7 @@ def test_rover_logs_replay_prints_what_changed_and_exits_by_outcome(
     assert document["config_changes"] == [
         {"key": "estimator.gps_noise_m", "recorded": "0.5", "replayed": "2.0"}
     ]
-    assert document["ticks"] == document["commands_compared"] > document["commands_differing"] > 0
+    assert document["ticks"] == document["wheel_commands_compared"] > document["wheel_commands_differing"] > 0
     assert document["figures"]["estimator position error RMS (m, vs truth)"]["replayed"] > 0.0
     # Bad input: nothing replayed, exit 2 naming it.
     assert _replay_cli(tmp_path / "nowhere.mcap", config, tmp_path / "x.mcap") == 2

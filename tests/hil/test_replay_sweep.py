@@ -31,9 +31,9 @@ def test_each_config_gets_a_row_over_every_recording(trials: dict[str, Path], tm
     as_run, noisy = result.rows
     assert (as_run.config, as_run.recordings, as_run.with_truth) == ("as-run", 2, 2)
     # Under the config the trials ran with, the replays are the trials: nothing differs.
-    assert as_run.commands_differing_pct == 0.0 and as_run.shift_rms_mean_m == 0.0
+    assert as_run.wheel_commands_differing_pct == 0.0 and as_run.shift_rms_mean_m == 0.0
     assert as_run.error_rms_mean_m == pytest.approx(as_run.recorded_error_rms_mean_m, abs=1e-12)
-    assert noisy.commands_differing_pct > 0.0 and noisy.shift_rms_mean_m is not None
+    assert noisy.wheel_commands_differing_pct > 0.0 and noisy.shift_rms_mean_m is not None
     assert noisy.shift_rms_mean_m > 0.0 and noisy.error_rms_mean_m != as_run.error_rms_mean_m
     assert noisy.recorded_error_rms_mean_m == as_run.recorded_error_rms_mean_m
     written = sorted(p.relative_to(tmp_path / "out").as_posix() for p in (tmp_path / "out").rglob("*.mcap"))
@@ -73,7 +73,7 @@ def test_a_folder_with_a_bad_file_is_replayed_without_it(
     document = json.loads(capsys.readouterr().out)
     assert list(document["failed"]) == [str(campaign / "broken" / "trial.mcap")]
     (row,) = document["rows"]
-    assert row["config"] == "noisy" and row["recordings"] == 2 and row["commands_differing_pct"] > 0.0
+    assert row["config"] == "noisy" and row["recordings"] == 2 and row["wheel_commands_differing_pct"] > 0.0
     # Again into the same folder: refused whole, the earlier replays left as they are.
     before = sorted(out.rglob("*.mcap"))
     assert main(["logs", "replay", str(campaign), "--config", str(noisy), "--out", str(out)]) == 2

@@ -142,6 +142,9 @@ def test_rover_run_stops_wheels_and_closes_recording_on_signal(tmp_path: Path, s
     assert len(frames) >= 6 and all(f["data"] == "00000000" for f in frames[-6:])  # the last six: zero rpm
     events = [m.message for m in read_messages(mcap, ["safety/events"])]
     assert any(e["kind"] == "failsafe.wheel_silent" for e in events)  # no controllers on this bus
+    # The --goal is the stack's input like a ground station's goal: recorded, so a replay gives it again.
+    (goal,) = [m.message for m in read_messages(mcap, ["ground/commands"])]
+    assert (goal["kind"], goal["x"], goal["y"], goal["origin"]) == ("goal", 8.0, 8.0, "command line")
     # The onboard stack's warnings (here the failsafe's) are on the log topic, not only on stderr.
     logged = [m.message for m in read_messages(mcap, ["log"])]
     assert any(
