@@ -31,7 +31,9 @@ from __future__ import annotations
 
 import base64
 import binascii
+import itertools
 import logging
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -46,10 +48,11 @@ from hil.lockstep import onboard_links
 from hil.lockstep_bus import lockstep_bus_pair
 from hil.recorded_commands import RecordedCommands
 from hil.recorded_obstacles import RecordedObstacles
+from hil.replay_planning import NextTickPlanning
 from hil.replay_setup import ReplayError, ReplaySetup, config_changes, read_header, replay_setup
 from hil.scenario import Scenario
 from logs.clock import SimClock, seconds
-from logs.commands import command_from_record
+from logs.commands import RoverCommand, command_from_record
 from logs.json_text import loads_json
 from logs.log_topic import ONBOARD_LOGGERS, recording_logs
 from logs.paired_run import TRUTH_TOPICS
@@ -97,7 +100,8 @@ class ReplayResult:
     copied_messages: int  # truth/* and the simulator's log lines, copied as they were
     wheel_commands_compared: int  # ticks with a wheels/command in both recordings
     wheel_commands_differing: int  # of those, ticks whose wheels/command differs byte for byte
-    first_difference_s: float | None  # the first such tick's clock reading
+    first_difference_s: float | None  # the first such tick, seconds from the replay's start (a trial's: 0)
+    wheel_speed_difference_max_mps: float  # the largest difference of one wheel's commanded speed
     truncated: bool  # the original was cut short or damaged: replayed up to there
     ingests: int = 0  # times the links were read between ticks (as `rover run`'s loop reads them)
     # (key, as recorded, as replayed) for each config value that differs, flattened ("estimator.gps_noise_m")
@@ -154,7 +158,7 @@ def replay_recording(
     except ReplayError:
         out.unlink(missing_ok=True)  # ours (created exclusively), and it replays nothing
         raise
-    compared, differing, first = _compare_wheel_commands(replayer.recorded_wheel_commands, out)
+    wheels = _compare_wheel_commands(replayer.recorded_wheel_commands, out)
     return ReplayResult(
         out_path=out,
         source_mode=setup.mode,
@@ -166,13 +170,24 @@ def replay_recording(
         rejected_inputs=replayer.rejected_inputs,
         ticks_skipped=replayer.ticks_skipped,
         copied_messages=replayer.copied_messages,
-        wheel_commands_compared=compared,
-        wheel_commands_differing=differing,
-        first_difference_s=None if first is None else seconds(first),
+        wheel_commands_compared=wheels.compared,
+        wheel_commands_differing=wheels.differing,
+        first_difference_s=None if wheels.first_ns is None else seconds(wheels.first_ns - replayer.start_ns),
+        wheel_speed_difference_max_mps=wheels.largest_mps,
         truncated=replayer.truncated,
         ingests=replayer.ingests,
         config_changes=config_changes(header.metadata.get("config", {}), setup.config),
     )
+
+
+@dataclass(frozen=True)
+class _Input:
+    """One thing the stack took in, at its log time: a received frame, or a command given from outside."""
+
+    t_ns: int
+    mavlink: bytes | None = None
+    can: can.Message | None = None
+    command: RoverCommand | None = None
 
 
 class _Replayer:
@@ -192,12 +207,13 @@ class _Replayer:
         self.recorded_wheel_commands: dict[int, bytes] = {}  # the original's wheels/command by log time
         self.ticks = self.mavlink_frames = self.can_frames = self.obstacle_records = self.ground_commands = 0
         self.copied_messages = self.ticks_skipped = self.ingests = self._rejected = 0
-        # Link inputs not written yet, all of one log time (_pending_ns): a later message moves it on.
-        self._mavlink_in: list[bytes] = []
-        self._can_in: list[can.Message] = []
-        self._pending_ns: int | None = None
+        # What the stack took in since the last tick, in file order, until the next tick's navigator/state
+        # says which of it came before the tick (read between ticks) and which inside it.
+        self._since_tick: list[_Input] = []
         self._next_progress_ns = 0
         self._last_ns = 0  # the latest log time read
+        self.start_ns = 0  # the replay clock's first reading (run sets it)
+        self._planning = NextTickPlanning() if setup.plans_a_tick_late else None
 
     @property
     def truncated(self) -> bool:
@@ -218,7 +234,8 @@ class _Replayer:
         first = next(messages, None)  # a `rover run` clock starts where its recording does
         if first is None:
             raise ReplayError(f"{recording} holds no messages to replay")
-        self._clock = clock = SimClock(first.log_time_ns if start_ns is None else start_ns)
+        self.start_ns = first.log_time_ns if start_ns is None else start_ns
+        self._clock = clock = SimClock(self.start_ns)
         # The stack's two wires, as a lockstep trial's, with the recording at the far ends.
         self._rover_bus, self._sim_bus = lockstep_bus_pair("replay", clock)
         self._rover_pipe, self._sim_pipe = memory_pipe_pair()
@@ -233,8 +250,7 @@ class _Replayer:
                 self._take(first)
                 for entry in messages:
                     self._take(entry)
-                if self._pending_ns is not None:
-                    self._ingest()
+                self._between_ticks(self._since_tick)  # read after the last tick, before the run ended
                 # The run ended (the stack closed: zero commands sent) at its last recorded message.
                 self._advance_to(self._last_ns)
             finally:
@@ -257,14 +273,12 @@ class _Replayer:
             self._setup.terrain,
             obstacles=self.obstacles if self._setup.obstacles_are_input else None,
             commands=self.ground_station,
+            planning=self._planning,
         )
 
     def _take(self, entry: RecordedMessage | RecordedRaw) -> None:
         topic, t_ns = entry.topic, entry.log_time_ns
         self._last_ns = max(self._last_ns, t_ns)
-        if self._pending_ns is not None and t_ns > self._pending_ns:
-            # Read at a time with no tick: between ticks, as the real-time loop reads its links.
-            self._ingest()
         if isinstance(entry, RecordedRaw):
             self._take_raw(topic, t_ns, entry.data)
             return
@@ -290,8 +304,7 @@ class _Replayer:
         except ValueError as err:
             self._reject(GROUND_COMMANDS, t_ns, str(err))
             return
-        self._advance_to(t_ns)
-        self._stack.take_command(command)
+        self._since_tick.append(_Input(t_ns, command=command))
 
     def _take_raw(self, topic: str, t_ns: int, data: bytes) -> None:
         if topic == NAVIGATOR_STATE:
@@ -314,60 +327,68 @@ class _Replayer:
             return
         if topic == MAVLINK_RAW:
             try:
-                self._mavlink_in.append(base64.b64decode(record["data"], validate=True))
+                frame = base64.b64decode(record["data"], validate=True)
             except (KeyError, TypeError, ValueError, binascii.Error) as err:
                 self._reject(topic, t_ns, f"its data is not a frame in base64: {err!r}")
                 return
+            self._since_tick.append(_Input(t_ns, mavlink=frame))
         else:
             try:
-                self._can_in.append(record_to_message(record, t_ns, "replay"))
+                self._since_tick.append(_Input(t_ns, can=record_to_message(record, t_ns, "replay")))
             except FrameError as err:
                 self._reject(topic, t_ns, str(err))
-                return
-        self._pending_ns = t_ns
 
     def _tick(self, t_ns: int) -> None:
-        """One recorded tick: the clock to its reading, what arrived then into the links, one step."""
+        """One recorded tick. What was read before the tick's clock reading was read between ticks (an
+        ingest: `rover run`'s loop reads its links as samples arrive); what was read at or after it, inside
+        the tick (its own link reads take a moment past the tick's start). Then one step at the reading."""
         now = self._clock.now_ns()
         if t_ns < now:
-            # A recording of ours never goes back in time; a rewritten one might. Its inputs wait for the
-            # next tick rather than be fed at a time that already passed.
+            # A recording of ours never goes back in time; a rewritten one might. What it read waits for
+            # the next tick rather than be fed at a time that already passed.
             self.ticks_skipped += 1
             _log.warning(
                 "replay: navigator/state at %d ns is before the replay's clock (%d ns): skipped", t_ns, now
             )
             return
+        inputs, self._since_tick = self._since_tick, []
+        self._between_ticks([i for i in inputs if i.t_ns < t_ns])
         self._advance_to(t_ns)
-        self._write_pending()
+        self._take_in([i for i in inputs if i.t_ns >= t_ns])
+        if self._planning is not None:
+            self._planning.release()
         self._stack.step()
         self._drain()
         self.ticks += 1
         if self._on_progress is not None and t_ns >= self._next_progress_ns:
-            self._on_progress(seconds(t_ns))
+            self._on_progress(seconds(t_ns - self.start_ns))
             self._next_progress_ns = t_ns + 1_000_000_000
 
-    def _ingest(self) -> None:
-        """The pending inputs written at their log time and read there, as ``rover run``'s loop read them."""
-        assert self._pending_ns is not None
-        self._advance_to(self._pending_ns)
-        self._write_pending()
-        stack = self._stack
-        # An ingest stops at a pacing sample and leaves the other link for the next read: read again when
-        # something written at this time is still waiting there (the original read it at this time too).
-        while stack.ingest() is not None and (self._rover_bus.pending() or self._rover_pipe.waiting):
-            pass
-        self._drain()
-        self.ingests += 1
+    def _between_ticks(self, inputs: list[_Input]) -> None:
+        """Inputs read between ticks, each batch of one log time at that time, as ``rover run``'s loop read
+        them (``OnboardStack.ingest``)."""
+        for t_ns, batch in itertools.groupby(inputs, key=lambda i: i.t_ns):
+            self._advance_to(t_ns)
+            self._take_in(list(batch))
+            stack = self._stack
+            # An ingest stops at a pacing sample and leaves the other link for the next read: read again
+            # while something written at this time still waits there (the original read it now too).
+            while stack.ingest() is not None and (self._rover_bus.pending() or self._rover_pipe.waiting):
+                pass
+            self._drain()
+            self.ingests += 1
 
-    def _write_pending(self) -> None:
-        for frame in self._mavlink_in:
-            self._sim_pipe.write(frame)
-        for message in self._can_in:
-            self._sim_bus.send(message)
-        self.mavlink_frames += len(self._mavlink_in)
-        self.can_frames += len(self._can_in)
-        self._mavlink_in, self._can_in = [], []
-        self._pending_ns = None
+    def _take_in(self, inputs: list[_Input]) -> None:
+        """Frames onto the links (read at the stack's next read), commands given to the stack."""
+        for item in inputs:
+            if item.mavlink is not None:
+                self._sim_pipe.write(item.mavlink)
+                self.mavlink_frames += 1
+            elif item.can is not None:
+                self._sim_bus.send(item.can)
+                self.can_frames += 1
+            elif item.command is not None:
+                self._stack.take_command(item.command)
 
     def _drain(self) -> None:
         """Drop what the stack sent: nobody answers it in a replay."""
@@ -393,10 +414,18 @@ def _onboard_line(data: bytes) -> bool:
     return isinstance(name, str) and name.split(".", 1)[0] in ONBOARD_LOGGERS
 
 
-def _compare_wheel_commands(recorded: dict[int, bytes], out: Path) -> tuple[int, int, int | None]:
-    """(ticks compared, ticks whose wheels/command differs, the first such tick's log time)."""
+@dataclass(frozen=True)
+class _WheelCommandComparison:
+    compared: int = 0  # ticks with a wheels/command in both recordings
+    differing: int = 0  # of those, ticks whose wheels/command differs byte for byte
+    first_ns: int | None = None  # the first such tick's log time
+    largest_mps: float = 0.0  # the largest difference of one wheel's commanded speed, any tick
+
+
+def _compare_wheel_commands(recorded: dict[int, bytes], out: Path) -> _WheelCommandComparison:
     compared = differing = 0
     first: int | None = None
+    largest = 0.0
     for entry in read_entries(out, topics=(WHEELS_COMMAND,), raw_topics=(WHEELS_COMMAND,)):
         if not isinstance(entry, RecordedRaw):
             continue
@@ -404,8 +433,22 @@ def _compare_wheel_commands(recorded: dict[int, bytes], out: Path) -> tuple[int,
         if original is None:
             continue
         compared += 1
-        if entry.data != original:
-            differing += 1
-            if first is None:
-                first = entry.log_time_ns
-    return compared, differing, first
+        if entry.data == original:
+            continue
+        differing += 1
+        if first is None:
+            first = entry.log_time_ns
+        largest = max(largest, _largest_speed_difference(original, entry.data))
+    return _WheelCommandComparison(compared, differing, first, largest)
+
+
+def _largest_speed_difference(original: bytes, replayed: bytes) -> float:
+    """The largest difference of one wheel's ``speed_mps`` between two wheels/command records (inf when
+    either is unreadable or they name different numbers of wheels)."""
+    try:
+        old, new = loads_json(original)["speed_mps"], loads_json(replayed)["speed_mps"]
+        if len(old) != len(new):
+            return math.inf
+        return max((abs(float(a) - float(b)) for a, b in zip(old, new, strict=True)), default=0.0)
+    except (ValueError, TypeError, KeyError):
+        return math.inf

@@ -18,6 +18,8 @@ from logs.analysis import TrialAnalysis, analyse
 from logs.reader import read_messages
 from logs.topics import ESTIMATOR_POSE
 
+# Two poses this close in log time are the same tick's (a tick is 20 ms at the default 50 Hz).
+SAME_TICK_NS = 5_000_000
 # (figure key in logs.analysis, label)
 _ESTIMATOR_FIGURES = (
     ("estimator_position_error_rms_m", "estimator position error RMS (m, vs truth)"),
@@ -95,9 +97,21 @@ def _positions(path: Path) -> dict[int, tuple[float, float]]:
 def _estimate_shift(
     recorded: dict[int, tuple[float, float]], replayed: dict[int, tuple[float, float]]
 ) -> tuple[float | None, float | None]:
-    """RMS and max distance between the two estimates at the log times both have."""
-    both = [(recorded[t], xy) for t, xy in replayed.items() if t in recorded]
-    if not both:
+    """RMS and max distance between the two estimates, each replayed pose against the recorded one nearest
+    in log time within ``SAME_TICK_NS``. A lockstep tick publishes both at the same reading; a `rover run`
+    tick published its pose a fraction of a millisecond into the tick, where the replay's clock stands
+    still at the tick's start."""
+    if not recorded or not replayed:
         return None, None
-    shift = np.asarray([math.hypot(new[0] - old[0], new[1] - old[1]) for old, new in both])
+    times = np.asarray(sorted(recorded), dtype=np.int64)
+    shifts: list[float] = []
+    for t, (x, y) in replayed.items():
+        i = int(np.searchsorted(times, t))
+        near = min((times[j] for j in (i - 1, i) if 0 <= j < len(times)), key=lambda c: abs(int(c) - t))
+        if abs(int(near) - t) <= SAME_TICK_NS:
+            old_x, old_y = recorded[int(near)]
+            shifts.append(math.hypot(x - old_x, y - old_y))
+    if not shifts:
+        return None, None
+    shift = np.asarray(shifts)
     return float(np.sqrt(np.mean(shift**2))), float(shift.max())

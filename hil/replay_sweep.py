@@ -58,6 +58,7 @@ class SweepRow:
     recorded_error_rms_mean_m: float | None  # the same recordings' own, for scale
     shift_rms_mean_m: float | None  # mean over all recordings of the shift from the recorded estimate
     wheel_commands_differing_pct: float  # of all ticks compared
+    wheel_speed_difference_max_mps: float  # the largest difference of one wheel's commanded speed
 
 
 @dataclass
@@ -195,6 +196,9 @@ def _row(entry: SweepConfig, replays: list[SweepReplay]) -> SweepRow:
         recorded_error_rms_mean_m=_mean(recorded),
         shift_rms_mean_m=_mean(shifts),
         wheel_commands_differing_pct=100.0 * differing / compared if compared else 0.0,
+        wheel_speed_difference_max_mps=max(
+            (r.result.wheel_speed_difference_max_mps for r in replays), default=0.0
+        ),
     )
 
 

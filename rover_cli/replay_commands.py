@@ -112,6 +112,7 @@ def replay_command(args: argparse.Namespace) -> int:
             "wheel_commands_compared": result.wheel_commands_compared,
             "wheel_commands_differing": result.wheel_commands_differing,
             "first_difference_s": result.first_difference_s,
+            "wheel_speed_difference_max_mps": result.wheel_speed_difference_max_mps,
             "truncated": result.truncated,
             "config_changes": [
                 {"key": key, "recorded": old, "replayed": new} for key, old, new in result.config_changes
@@ -149,7 +150,12 @@ def replay_command(args: argparse.Namespace) -> int:
         f"{fmt(figures.estimate_shift_rms_m)} / {fmt(figures.estimate_shift_max_m)}",
     )
     console.print(table)
-    first = "" if result.first_difference_s is None else f", the first at {result.first_difference_s:.2f} s"
+    first = (
+        ""
+        if result.first_difference_s is None
+        else f", the first at {result.first_difference_s:.2f} s, by up to "
+        f"{result.wheel_speed_difference_max_mps:.4f} m/s a wheel"
+    )
     console.print(
         f"wheel commands differing from the recording's: {result.wheel_commands_differing} of "
         f"{result.wheel_commands_compared} ticks{first} (open loop: the recorded motion does not answer them)"

@@ -96,7 +96,7 @@ def sweep_command(args: argparse.Namespace) -> int:
         "position error max m",
         "yaw error RMS rad",
         "estimate shift RMS m",
-        "commands differing",
+        "commands differing (max m/s)",
     )
     for column in columns:
         table.add_column(column, justify="left" if column == "config" else "right", overflow="fold")
@@ -108,7 +108,7 @@ def sweep_command(args: argparse.Namespace) -> int:
             fmt(row.error_max_m),
             fmt(row.yaw_error_rms_mean_rad),
             fmt(row.shift_rms_mean_m),
-            f"{row.wheel_commands_differing_pct:.1f} %",
+            f"{row.wheel_commands_differing_pct:.1f} % ({row.wheel_speed_difference_max_mps:.3f})",
         )
     console.print(table)
     for recording, why in result.failed.items():

@@ -13,16 +13,20 @@ import math
 import signal
 import subprocess
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 from hil.realtime_metrics import realtime_metrics
+from hil.replay import replay_recording
+from hil.replay_figures import replay_figures
 from hil.scenario import Scenario
 from hil.trial import TrialResult
 from logs.analysis import analyse
 from logs.reader import read_messages, read_metadata
 from logs.report import write_report
 from logs.topics import PERCEPTION_OBSTACLES
+from navigator.config import load_rover_config
 from tests.system.conftest import DATA
 from tests.system.realtime_rig import (
     START_TIMEOUT_S,
@@ -42,6 +46,13 @@ DRIVE_TIMEOUT_S = 60.0
 # The report's estimator error against the peer's truth: within this of lockstep's (0.14 m RMS on this
 # scenario; a real-time run measured 0.12 m), a clock or pairing error would be metres.
 ESTIMATOR_ERROR_SLACK_M = 0.3
+# A replay of the rover's recording: its estimate within this of the rover's (measured: 0.8 mm at most),
+# and at most this share of ticks commanding a wheel more than REPLAY_WHEEL_MPS apart (measured: 0-1 tick
+# of ~1000 above 0.01 m/s; one plan taken a tick apart is a tick at 1 m/s).
+REPLAY_SHIFT_M = 0.01
+REPLAY_WHEEL_MPS = 0.01
+REPLAY_TICKS_OFF = 0.02
+REPLAY_STAMP_NS = 20_000_000  # a tick: a read inside one is stamped at its start
 ARRIVED_LOG_LINE = "guidance.arrived"  # what `rover run -v` logs when guidance declares the goal reached
 
 # (CAN interface, channel, the rover's control loop): the default (phase-locked) loop on each bus, and the
@@ -124,6 +135,42 @@ def _compare_with_lockstep(tmp_path: Path, small_trial: TrialResult, control_loo
     assert isinstance(error, float) and isinstance(lockstep_error, float)
     assert abs(error - lockstep_error) <= ESTIMATOR_ERROR_SLACK_M, (error, lockstep_error)
     assert dict(run.sources)["estimator error"].startswith(f"rover: {rover_mcap}")
+    _replay_matches(rover_mcap, tmp_path / "peer" / "rover-hil.toml", tmp_path / "replay.mcap")
+
+
+def _replay_matches(rover_mcap: Path, config: Path, out: Path) -> None:
+    """`rover logs replay` of the real-time run under its own config: the same ticks, the links' readings
+    byte for byte, and an estimate and wheel commands within a hair of the rover's (the rover's clock moved
+    within each tick, the replay's stands at the tick's reading; plans come a tick late, as the worker's)."""
+    result = replay_recording(rover_mcap, load_rover_config(config), out)
+    assert result.source_mode == "rover-run" and result.ingests > 0 and not result.partial
+    assert result.ticks == len(list(read_messages(rover_mcap, ["navigator/state"])))
+    # The links read the same samples; one read inside a tick is stamped at the tick's reading, where the
+    # rover's clock had moved on by then (microseconds, milliseconds in a slow tick).
+    for topic in ("sensors/imu", "sensors/gps", "wheels/status"):
+        before, after = _untimed(rover_mcap, topic), _untimed(out, topic)
+        assert [m for _, m in after] == [m for _, m in before], topic
+        assert max(abs(a - b) for (a, _), (b, _) in zip(after, before, strict=True)) < REPLAY_STAMP_NS, topic
+    figures = replay_figures(rover_mcap, out)
+    assert figures.estimate_shift_max_m is not None and figures.estimate_shift_max_m < REPLAY_SHIFT_M, figures
+    # Open loop, a tick can still fall the other side of a threshold (a plan that took the rover longer
+    # than a tick, an arrival a tick apart): most ticks command the same, within a hair.
+    commands = dict(_untimed(rover_mcap, "wheels/command"))
+    off = [
+        t
+        for t, replayed in _untimed(out, "wheels/command")
+        if max(abs(a - b) for a, b in zip(replayed["speed_mps"], commands[t]["speed_mps"], strict=True))
+        > REPLAY_WHEEL_MPS
+    ]
+    assert len(off) <= REPLAY_TICKS_OFF * result.ticks, (len(off), result.ticks)
+
+
+def _untimed(path: Path, topic: str) -> list[tuple[int, dict[str, Any]]]:
+    """(log time, message without its timestamp) of each message on ``topic``."""
+    return [
+        (m.log_time_ns, {k: v for k, v in m.message.items() if k != "timestamp"})
+        for m in read_messages(path, [topic])
+    ]
 
 
 @needs_netns
