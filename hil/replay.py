@@ -368,15 +368,18 @@ class _Replayer:
         """Inputs read between ticks, each batch of one log time at that time, as ``rover run``'s loop read
         them (``OnboardStack.ingest``)."""
         for t_ns, batch in itertools.groupby(inputs, key=lambda i: i.t_ns):
+            items = list(batch)
             self._advance_to(t_ns)
-            self._take_in(list(batch))
+            self._take_in(items)
+            if all(item.command is not None for item in items):
+                continue  # a command-line goal alone: the rover read no link then
             stack = self._stack
             # An ingest stops at a pacing sample and leaves the other link for the next read: read again
             # while something written at this time still waits there (the original read it now too).
-            while stack.ingest() is not None and (self._rover_bus.pending() or self._rover_pipe.waiting):
-                pass
-            self._drain()
             self.ingests += 1
+            while stack.ingest() is not None and (self._rover_bus.pending() or self._rover_pipe.waiting):
+                self.ingests += 1
+            self._drain()
 
     def _take_in(self, inputs: list[_Input]) -> None:
         """Frames onto the links (read at the stack's next read), commands given to the stack."""
@@ -450,5 +453,5 @@ def _largest_speed_difference(original: bytes, replayed: bytes) -> float:
         if len(old) != len(new):
             return math.inf
         return max((abs(float(a) - float(b)) for a, b in zip(old, new, strict=True)), default=0.0)
-    except (ValueError, TypeError, KeyError):
+    except (ValueError, TypeError, KeyError, OverflowError):
         return math.inf

@@ -87,7 +87,7 @@ def _positions(path: Path) -> dict[int, tuple[float, float]]:
         try:
             position = entry.message["pose"]["position"]
             x, y = float(position["x"]), float(position["y"])
-        except (KeyError, TypeError, ValueError):
+        except (KeyError, TypeError, ValueError, OverflowError):  # Overflow: a number of hundreds of digits
             continue
         if math.isfinite(x) and math.isfinite(y):
             positions[entry.log_time_ns] = (x, y)

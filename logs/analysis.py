@@ -113,8 +113,9 @@ class Series:
     values: list[list[float]] = field(default_factory=list)
 
     def add(self, t_s: float, *values: float) -> None:
+        row = [float(v) for v in values]  # first: a value that is no float leaves the series as it was
         self.t.append(t_s)
-        self.values.append([float(v) for v in values])
+        self.values.append(row)
 
     def array(self) -> FloatArray:
         return np.asarray(self.values, dtype=np.float64).reshape(len(self.t), -1)
@@ -244,7 +245,8 @@ class _Collector:
             self.counts[entry.topic] += 1
             try:
                 self._message(entry)
-            except (KeyError, TypeError, ValueError, IndexError):
+            # OverflowError: a number of hundreds of digits (JSON has them), too large for a float.
+            except (KeyError, TypeError, ValueError, IndexError, OverflowError):
                 self.unusable[entry.topic] += 1
         elif isinstance(entry, RecordedRaw):
             self.counts[entry.topic] += 1
@@ -281,8 +283,10 @@ class _Collector:
         topic, message, t = entry.topic, entry.message, self.seconds(entry.log_time_ns)
         if topic == TRUTH_POSE:
             p = message["pose"]["position"]
-            self.truth.add(t, p["x"], p["y"])
-            self.truth_yaw.add(t, yaw_of(message["pose"]))
+            # Read whole before any series takes it: truth and truth_yaw must stay the same length.
+            x, y, yaw = float(p["x"]), float(p["y"]), yaw_of(message["pose"])
+            self.truth.add(t, x, y)
+            self.truth_yaw.add(t, yaw)
             self.speed_truth.add(t, message["speed_mps"])
             self.terrain[str(message.get("terrain", ""))] += 1
         elif topic == ESTIMATOR_POSE:

@@ -171,7 +171,12 @@ def _take_deferred_estimates(trial: _Trial, deferred_estimates: list[RecordedRaw
 
 
 def _finite(value: Any) -> float:
-    number = float(value)
+    """``value`` as a finite float; ``ValueError`` for anything else (an integer of hundreds of digits,
+    which JSON allows, too: float() raises OverflowError for it)."""
+    try:
+        number = float(value)
+    except OverflowError as err:
+        raise ValueError(f"{value!r} is too large for a float") from err
     if not math.isfinite(number):
         raise ValueError(f"non-finite value {value!r}")
     return number

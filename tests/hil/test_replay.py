@@ -28,6 +28,7 @@ from logs import topics
 from logs.commands import RoverCommand
 from logs.errors import LogReadError, RecordingError
 from logs.reader import read_messages, read_metadata
+from navigator.config import RoverConfig
 from navigator.onboard import OnboardStack
 from tests.hil.replay_trials import DATA, config_of, digests, trials
 from tests.mcap_rewrite import rewrite
@@ -79,26 +80,76 @@ def test_another_config_is_named_and_changes_the_estimate_not_the_truth(
 def test_a_rover_run_recording_replays_on_the_configs_map(trials: dict[str, Path], tmp_path: Path) -> None:
     """A `rover run` recording has no scenario: the map is the config's [map], the datum its [estimator]'s,
     and no goal is given but what arrived on the links. The estimator sees the same inputs: the same poses."""
-    scenario = load_scenario(DATA / "small_rocky.toml")
     run = rewrite(
         trials["small_rocky"],
         tmp_path / "run.mcap",
         keep=lambda topic: not topic.startswith("truth/"),
         metadata=lambda name, data: {**data, "mode": "rover-run"} if name == "trial" else data,
     )
-    lat, lon, alt = scenario.datum
-    map_table = (DATA / "small_rocky.toml").read_text().split("[terrain]")[1].split("[start]")[0]
-    config = config_of(
-        f"[estimator]\ndatum_lat_deg = {lat!r}\ndatum_lon_deg = {lon!r}\ndatum_alt_m = {alt!r}\n"
-        f"[map]{map_table}"
-    )
-    result = replay_recording(run, config, tmp_path / "replay.mcap")
+    result = replay_recording(run, _rover_run_config(), tmp_path / "replay.mcap")
     assert result.source_mode == "rover-run" and result.copied_messages == 0
     original, replayed = digests(run), digests(tmp_path / "replay.mcap")
     assert result.ticks == original[topics.NAVIGATOR_STATE][0]
     assert replayed[topics.ESTIMATOR_POSE] == original[topics.ESTIMATOR_POSE]
     # No goal was given (the trial's came from its scenario): the replayed rover never drives.
     assert result.wheel_commands_differing > 0
+
+
+def _rover_run_config() -> RoverConfig:
+    """small_rocky's terrain as the config's [map] and its datum as the estimator's, as `rover run` needs."""
+    lat, lon, alt = load_scenario(DATA / "small_rocky.toml").datum
+    map_table = (DATA / "small_rocky.toml").read_text().split("[terrain]")[1].split("[start]")[0]
+    return config_of(
+        f"[estimator]\ndatum_lat_deg = {lat!r}\ndatum_lon_deg = {lon!r}\ndatum_alt_m = {alt!r}\n"
+        f"[map]{map_table}"
+    )
+
+
+def test_a_rover_run_replay_takes_each_plan_in_a_tick_after_asking(tmp_path: Path) -> None:
+    """`rover run` plans on a worker thread: a plan asked for in one tick is taken in by the next. A trial
+    plans inline, in the same tick. Replayed as a `rover run` recording, a trial's replan for a ground
+    station's goal at 3.00 s comes a tick later, at 3.02 s."""
+    goal = RoverCommand("goal", 3_000_000_000, 12.0, 3.0)
+    trial = run_trial(
+        load_scenario(DATA / "small_rocky.toml"),
+        config_of(),
+        tmp_path / "trial",
+        commands=_GroundStation([goal]),
+    )
+    run = rewrite(
+        trial.mcap_path,
+        tmp_path / "run.mcap",
+        metadata=lambda name, data: {**data, "mode": "rover-run"} if name == "trial" else data,
+    )
+    replay_recording(run, _rover_run_config(), tmp_path / "replay.mcap")
+    inline = [t for t, _ in _records(run, topics.NAVIGATOR_PATH) if t >= goal.received_ns]
+    a_tick_late = [t for t, _ in _records(tmp_path / "replay.mcap", topics.NAVIGATOR_PATH)]
+    assert inline[0] == goal.received_ns and a_tick_late[0] == goal.received_ns + _GroundStation.TICK_NS
+
+
+def test_numbers_too_large_for_a_float_are_no_crash(trials: dict[str, Path], tmp_path: Path) -> None:
+    """A recorded wheel command and an estimated pose holding a 400-digit number (JSON allows it): the
+    replay and its figures finish, the comparison calling that tick as far apart as can be."""
+    huge = str(10**400).encode()
+
+    def spoil(topic: str, log_time_ns: int, payload: bytes) -> bytes:
+        if log_time_ns != 4_000_000_000:
+            return payload
+        record = json.loads(payload)
+        if topic == topics.WHEELS_COMMAND:
+            record["speed_mps"][0] = 0.0
+            return json.dumps(record).encode().replace(b"[0.0,", b"[" + huge + b",", 1)
+        if topic == topics.ESTIMATOR_POSE:
+            record["pose"]["position"]["x"] = 0.0
+            return json.dumps(record).encode().replace(b'"x": 0.0', b'"x": ' + huge, 1)
+        return payload
+
+    spoiled = rewrite(trials["small_rocky"], tmp_path / "spoiled.mcap", data=spoil)
+    scenario = load_scenario(DATA / "small_rocky.toml")
+    result = replay_recording(spoiled, config_of(), tmp_path / "replay.mcap", scenario=scenario)
+    assert result.wheel_commands_differing == 1 and result.wheel_speed_difference_max_mps == float("inf")
+    figures = replay_figures(spoiled, tmp_path / "replay.mcap")
+    assert figures.position_error_rms.recorded is not None and figures.estimate_shift_rms_m is not None
 
 
 class _GroundStation:

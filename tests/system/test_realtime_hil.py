@@ -46,10 +46,12 @@ DRIVE_TIMEOUT_S = 60.0
 # The report's estimator error against the peer's truth: within this of lockstep's (0.14 m RMS on this
 # scenario; a real-time run measured 0.12 m), a clock or pairing error would be metres.
 ESTIMATOR_ERROR_SLACK_M = 0.3
-# A replay of the rover's recording: its estimate within this of the rover's (measured: 0.8 mm at most),
-# and at most this share of ticks commanding a wheel more than REPLAY_WHEEL_MPS apart (measured: 0-1 tick
-# of ~1000 above 0.01 m/s; one plan taken a tick apart is a tick at 1 m/s).
-REPLAY_SHIFT_M = 0.01
+# A replay of the rover's recording: its estimate within this of the rover's (measured: 0.4 mm RMS, 0.8 mm
+# at most on an idle machine; 1.6 mm and 10.7 mm while the test suite ran beside it, in-tick reads stamped
+# milliseconds early), and at most this share of ticks commanding a wheel more than REPLAY_WHEEL_MPS apart
+# (measured: 0-1 tick of ~1000 above 0.01 m/s; one plan taken a tick apart is a tick at 1 m/s).
+REPLAY_SHIFT_RMS_M = 0.01
+REPLAY_SHIFT_MAX_M = 0.05
 REPLAY_WHEEL_MPS = 0.01
 REPLAY_TICKS_OFF = 0.02
 REPLAY_STAMP_NS = 20_000_000  # a tick: a read inside one is stamped at its start
@@ -152,7 +154,9 @@ def _replay_matches(rover_mcap: Path, config: Path, out: Path) -> None:
         assert [m for _, m in after] == [m for _, m in before], topic
         assert max(abs(a - b) for (a, _), (b, _) in zip(after, before, strict=True)) < REPLAY_STAMP_NS, topic
     figures = replay_figures(rover_mcap, out)
-    assert figures.estimate_shift_max_m is not None and figures.estimate_shift_max_m < REPLAY_SHIFT_M, figures
+    shift_rms, shift_max = figures.estimate_shift_rms_m, figures.estimate_shift_max_m
+    assert shift_rms is not None and shift_max is not None, figures
+    assert shift_rms < REPLAY_SHIFT_RMS_M and shift_max < REPLAY_SHIFT_MAX_M, figures
     # Open loop, a tick can still fall the other side of a threshold (a plan that took the rover longer
     # than a tick, an arrival a tick apart): most ticks command the same, within a hair.
     commands = dict(_untimed(rover_mcap, "wheels/command"))
