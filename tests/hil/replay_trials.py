@@ -1,4 +1,6 @@
-"""Two short lockstep trials for the replay tests, run once a session, and the helpers the tests share."""
+"""What the replay tests share: the test data, a config from TOML text, and per-topic digests of a recording.
+
+The trials they replay are the ``trials`` fixture (tests/hil/conftest.py), run once a session."""
 
 from __future__ import annotations
 
@@ -6,11 +8,8 @@ import collections
 import hashlib
 from pathlib import Path
 
-import pytest
 from mcap.reader import make_reader
 
-from hil.scenario import load_scenario
-from hil.trial import run_trial
 from logs.settings import parse_toml
 from navigator.config import RoverConfig, rover_config_from_table
 
@@ -30,14 +29,3 @@ def digests(path: Path) -> dict[str, tuple[int, str]]:
             hashes[channel.topic].update(message.log_time.to_bytes(8, "little") + message.data)
             counts[channel.topic] += 1
     return {topic: (counts[topic], digest.hexdigest()) for topic, digest in hashes.items()}
-
-
-@pytest.fixture(scope="session")
-def trials(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """A trial perceiving obstacles as objects (small_rocky), one through a lidar's scans (hidden_rock), and
-    one with faults, a moving cart and the simulator's log lines (sandy_cart_glitch)."""
-    out = tmp_path_factory.mktemp("replay-trials")
-    return {
-        name: run_trial(load_scenario(DATA / f"{name}.toml"), config_of(), out / name).mcap_path
-        for name in ("small_rocky", "hidden_rock", "sandy_cart_glitch")
-    }

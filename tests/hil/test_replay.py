@@ -30,10 +30,8 @@ from logs.errors import LogReadError, RecordingError
 from logs.reader import read_messages, read_metadata
 from navigator.config import RoverConfig
 from navigator.onboard import OnboardStack
-from tests.hil.replay_trials import DATA, config_of, digests, trials
+from tests.hil.replay_trials import DATA, config_of, digests
 from tests.mcap_rewrite import rewrite
-
-__all__ = ["trials"]  # the session fixture, imported for pytest
 
 
 @pytest.mark.parametrize("name", ["small_rocky", "hidden_rock", "sandy_cart_glitch"])

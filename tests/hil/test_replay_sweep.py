@@ -10,9 +10,7 @@ import pytest
 
 from hil.replay_sweep import SweepConfig, replay_sweep, sweep_names
 from rover_cli.main import main
-from tests.hil.replay_trials import config_of, trials
-
-__all__ = ["trials"]  # the session fixture, imported for pytest
+from tests.hil.replay_trials import config_of
 
 
 def test_config_names_stay_unique() -> None:
