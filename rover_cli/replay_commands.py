@@ -75,27 +75,27 @@ def replay_command(args: argparse.Namespace) -> int:
     if not single:
         return sweep_command(args)
     console = Console()
-    args.file, config_path = args.inputs[0], args.config[0]
+    recording, config_path = args.inputs[0], args.config[0]
     try:
         config = load_config(config_path)
         scenario = None if args.scenario is None else load_scenario(args.scenario)
-        with console.status(f"replaying {escape(str(args.file))} ...") as status:
+        with console.status(f"replaying {escape(str(recording))} ...") as status:
             result = replay_recording(
-                args.file,
+                recording,
                 config,
                 args.out,
                 scenario=scenario,
-                on_progress=lambda t_s: status.update(f"replaying {escape(str(args.file))}: {t_s:.0f} s"),
+                on_progress=lambda t_s: status.update(f"replaying {escape(str(recording))}: {t_s:.0f} s"),
             )
             status.update("comparing the estimates ...")
-            figures = replay_figures(args.file, args.out)
+            figures = replay_figures(recording, args.out)
     except (ConfigError, LogsError) as err:
         print_error(console, err)
         return 2
     code = 1 if result.partial else 0
     if args.json:
         document = {
-            "recording": str(args.file),
+            "recording": str(recording),
             "replay": str(result.out_path),
             "source_mode": result.source_mode,
             "ticks": result.ticks,
@@ -124,7 +124,7 @@ def replay_command(args: argparse.Namespace) -> int:
         console.print_json(json.dumps(document))
         return code
     console.print(
-        f"replayed {result.ticks} ticks of {escape(str(args.file))} ({result.source_mode}): "
+        f"replayed {result.ticks} ticks of {escape(str(recording))} ({result.source_mode}): "
         f"{result.mavlink_frames} MAVLink frames, {result.can_frames} CAN frames, "
         f"{result.obstacle_records} obstacle records and {result.ground_commands} ground commands fed; "
         f"{result.copied_messages} messages of the rest of the run (truth, the simulator's log) copied",
