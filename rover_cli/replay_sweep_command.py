@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import argparse
 import json
-from dataclasses import asdict
 from pathlib import Path
 
 from rich.console import Console
@@ -23,6 +22,7 @@ def sweep_command(args: argparse.Namespace) -> int:
     replayed only in part; 2: bad input (a config or the scenario does not load, no recording found)."""
     from hil.campaign_workers import resolved_workers
     from hil.replay_sweep import SweepConfig, replay_sweep, sweep_names
+    from hil.replay_sweep_summary import sweep_document, write_sweep_summary
     from hil.scenario import load_scenario
     from rover_cli.hil_commands import load_config
 
@@ -65,24 +65,9 @@ def sweep_command(args: argparse.Namespace) -> int:
             return 2
     partial = any(r.result.partial for r in result.replays)
     code = 1 if result.failed or partial else 0
+    markdown, json_path = write_sweep_summary(result, args.out)
     if args.json:
-        document = {
-            "rows": [asdict(row) for row in result.rows],
-            "replays": [
-                {
-                    "recording": str(r.recording),
-                    "config": r.config,
-                    "replay": str(r.result.out_path),
-                    "position_error_rms_m": r.figures.position_error_rms.replayed,
-                    "recorded_position_error_rms_m": r.figures.position_error_rms.recorded,
-                    "estimate_shift_rms_m": r.figures.estimate_shift_rms_m,
-                    "wheel_commands_differing": r.result.wheel_commands_differing,
-                    "wheel_commands_compared": r.result.wheel_commands_compared,
-                }
-                for r in result.replays
-            ],
-            "failed": result.failed,
-        }
+        document = sweep_document(result)
         console.print_json(json.dumps(document))
         return code
     table = RichTable(
@@ -119,6 +104,7 @@ def sweep_command(args: argparse.Namespace) -> int:
             "(see the log)"
         )
     console.print(f"replays: {escape(str(args.out))}")
+    console.print(f"summary: {escape(str(markdown))}\n         {escape(str(json_path))}")
     return code
 
 

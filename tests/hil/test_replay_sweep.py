@@ -69,6 +69,10 @@ def test_a_folder_with_a_bad_file_is_replayed_without_it(
     code = main(["logs", "replay", str(campaign), "--config", str(noisy), "--out", str(out), "--json"])
     assert code == 1  # one recording left out
     document = json.loads(capsys.readouterr().out)
+    # The same beside the replays, for scripts, and as a table for people.
+    assert json.loads((out / "sweep.json").read_text()) == document
+    table = (out / "sweep.md").read_text()
+    assert "| noisy | 2 (2) |" in table and f"`{campaign / 'broken' / 'trial.mcap'}`" in table
     assert list(document["failed"]) == [str(campaign / "broken" / "trial.mcap")]
     (row,) = document["rows"]
     assert row["config"] == "noisy" and row["recordings"] == 2 and row["wheel_commands_differing_pct"] > 0.0
@@ -102,3 +106,13 @@ def test_bad_sweep_input_is_refused_before_anything_runs(
     ]
     assert main([*args, "--out", str(tmp_path / "o")]) == 2
     assert "gps_noise_m" in capsys.readouterr().out
+
+
+def test_a_figure_that_could_not_be_compared_is_null_in_the_json() -> None:
+    from hil.replay_sweep import SweepResult, SweepRow
+    from hil.replay_sweep_summary import sweep_document
+
+    row = SweepRow("c", "c.toml", 1, 0, None, None, None, None, None, 100.0, float("inf"))
+    document = sweep_document(SweepResult(rows=[row]))
+    assert document["rows"][0]["wheel_speed_difference_max_mps"] is None
+    json.dumps(document, allow_nan=False)  # strict JSON: no Infinity
