@@ -51,7 +51,11 @@ class ReplaySetup:
     goal_source: str
     obstacles_are_input: bool
     start_ns: int | None  # None: the first message's log time (a `rover run` clock starts anywhere)
-    plans_a_tick_late: bool = False  # `rover run` planned on a worker thread (hil.replay_planning)
+
+    @property
+    def plans_a_tick_late(self) -> bool:
+        """`rover run` planned on a worker thread (hil.replay_planning); a lockstep trial, inline."""
+        return self.mode == ROVER_RUN_MODE
 
 
 def read_header(recording: Path) -> RecordingHeader:
@@ -80,16 +84,7 @@ def replay_setup(
                 f"{config.source}: replaying a `rover run` recording needs the config's [map] table "
                 "(the terrain the rover planned on), as `rover run` does"
             )
-        return ReplaySetup(
-            mode,
-            config,
-            config.terrain,
-            (),
-            "",
-            obstacles_are_input=False,
-            start_ns=None,
-            plans_a_tick_late=True,
-        )
+        return ReplaySetup(mode, config, config.terrain, (), "", obstacles_are_input=False, start_ns=None)
     if scenario is None:
         scenario = _attached_scenario(recording, header)
     # As `rover hil trial` ran it: the map's origin is the scenario's datum, the goals are the mission.

@@ -12,7 +12,6 @@ stays on its simulated time.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import logging
 import math
@@ -112,13 +111,14 @@ def command_from_record(record: dict[str, Any]) -> RoverCommand:
     origin = record.get("origin", "zenoh")  # recordings made before the field: Zenoh's alone
     if origin not in COMMAND_ORIGINS:
         raise ValueError(f"{kind} record's origin {origin!r} is none of {', '.join(COMMAND_ORIGINS)}")
-    command = _command_from_body(kind, record, received_ns)
-    return dataclasses.replace(command, origin=origin)
+    return _command_from_body(kind, record, received_ns, origin)
 
 
-def _command_from_body(kind: CommandKind, body: dict[str, Any], received_ns: int) -> RoverCommand:
+def _command_from_body(
+    kind: CommandKind, body: dict[str, Any], received_ns: int, origin: CommandOrigin = "zenoh"
+) -> RoverCommand:
     if kind != "goal":
-        return RoverCommand(kind, received_ns)
+        return RoverCommand(kind, received_ns, origin=origin)
     coordinates = []
     for axis in ("x", "y"):
         value = body.get(axis)
@@ -128,7 +128,7 @@ def _command_from_body(kind: CommandKind, body: dict[str, Any], received_ns: int
         if abs(value) > MAX_GOAL_COORDINATE_M or not math.isfinite(value):
             raise ValueError(f"goal {axis}={value!r} is not a finite ENU coordinate within 1000 km")
         coordinates.append(float(value))
-    return RoverCommand("goal", received_ns, coordinates[0], coordinates[1])
+    return RoverCommand("goal", received_ns, coordinates[0], coordinates[1], origin)
 
 
 class ZenohCommandReceiver:

@@ -14,13 +14,9 @@ Guidance (plan on a new goal, repair the plan as obstacles are perceived, follow
 ``navigator.guidance.Guidance`` behind a start-up gate (``navigator.route_guidance.RouteGuidance``); the
 safety supervisor (``navigator.safety``) decides how much of guidance's command reaches the wheels.
 
-Goals come one at a time (``set_goal``: Zenoh, a ground station's MAVLink goal, ``rover run --goal``) or as
-a mission, waypoints driven in order (``navigator.mission``): uploaded by a ground station with the MAVLink
-mission protocol (``firmware_bridge.mavlink_mission``, served here for every MAVLink link) or handed over
-by the trial runner (``start_mission``, driven at once). An upload replaces the mission; it is driven at
-once only in place of a mission being driven, else it waits for MISSION_START or MISSION_SET_CURRENT. The
-next waypoint becomes the goal at the end of the tick in which guidance reports ARRIVED; a single goal
-pauses the mission. ``navigator.onboard_mission.MissionDriver`` does all this for the stack.
+Goals come one at a time (``set_goal``) or as a mission of waypoints driven in order (``start_mission``, or
+uploaded over the MAVLink mission protocol): ``navigator.onboard_mission.MissionDriver`` turns both into
+guidance's goal for the stack.
 """
 
 from __future__ import annotations
@@ -39,7 +35,6 @@ from firmware_bridge.mavlink_commands import GoalRequest, StopRequest
 from firmware_bridge.mavlink_link import AttitudeSample, GpsFix, ImuSample, MavlinkLink
 from firmware_bridge.mavlink_mission import (
     MissionMessage,
-    MissionServer,
 )
 from firmware_bridge.obstacle_scan import ObstacleScan
 from logs import topics
@@ -220,11 +215,6 @@ class OnboardStack:
         """The mission in force and its progress (read it; change it through ``start_mission``,
         ``set_goal`` or the MAVLink mission protocol)."""
         return self._mission_driver.mission
-
-    @property
-    def mission_server(self) -> MissionServer:
-        """The MAVLink mission protocol's server (the mission as uploaded, the transfer under way)."""
-        return self._mission_driver.server
 
     # --- commands from outside (ground station, trial runner, operator) --------------------------------
     def set_goal(self, x: float, y: float) -> None:
