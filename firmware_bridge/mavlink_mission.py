@@ -53,7 +53,7 @@ from typing import Any, NamedTuple, Protocol
 from pymavlink.dialects.v20 import common as mavlink2
 
 from firmware_bridge.errors import BridgeOperationError
-from firmware_bridge.mavlink_commands import GLOBAL_FRAMES, judge_mission_start
+from firmware_bridge.mavlink_commands import GLOBAL_FRAMES, StartRequest, judge_mission_start
 from firmware_bridge.mavlink_health import MavlinkCounters
 from firmware_bridge.mission_state import MissionState
 from logs.clock import NS_PER_S, Clock
@@ -178,16 +178,9 @@ class CurrentRequested:
     compid: int
 
 
-@dataclass(frozen=True)
-class StartRequested:
-    """MAV_CMD_MISSION_START accepted (and acknowledged): drive the mission from item ``first``."""
-
-    first: int
-    sysid: int
-    compid: int
-
-
-MissionChange = MissionAccepted | MissionCleared | CurrentRequested | StartRequested
+# A StartRequest here is MAV_CMD_MISSION_START accepted (and acknowledged): drive the mission from its item
+# ``first``.
+MissionChange = MissionAccepted | MissionCleared | CurrentRequested | StartRequest
 
 
 class MissionProgress(NamedTuple):
@@ -198,13 +191,22 @@ class MissionProgress(NamedTuple):
 
 
 @dataclass
-class _Transfer:
-    """An upload or a download under way with one partner (system, component, on one link)."""
+class _Partner:
+    """A ground station: its system and component, on one link."""
 
-    upload: bool
     link: MissionLink
     sysid: int
     compid: int
+
+    def is_with(self, link: MissionLink, sysid: int, compid: int) -> bool:
+        return self.link is link and self.sysid == sysid and self.compid == compid
+
+
+@dataclass
+class _Transfer(_Partner):
+    """An upload or a download under way with one partner."""
+
+    upload: bool
     count: int
     resend: Any  # our last message waiting for an answer: sent again at a timeout
     deadline_ns: int
@@ -213,27 +215,18 @@ class _Transfer:
     items: list[MissionItem] = field(default_factory=list)  # upload: received; download: the snapshot
     waypoints: list[tuple[float, float]] = field(default_factory=list)  # upload: the items placed
 
-    def is_with(self, link: MissionLink, sysid: int, compid: int) -> bool:
-        return self.link is link and self.sysid == sysid and self.compid == compid
-
     @property
     def what(self) -> str:
         kind = "upload from" if self.upload else "download to"
         return f"mission {kind} {self.sysid}/{self.compid} on the {self.link.name} link"
 
 
-@dataclass(frozen=True)
-class _Finished:
+@dataclass
+class _Finished(_Partner):
     """An upload completed at ``t_ns``: its partner may resend its last item if our ACK was lost."""
 
-    link: MissionLink
-    sysid: int
-    compid: int
     count: int
     t_ns: int
-
-    def is_with(self, link: MissionLink, sysid: int, compid: int) -> bool:
-        return self.link is link and self.sysid == sysid and self.compid == compid
 
 
 class MissionServer:
@@ -357,7 +350,7 @@ class MissionServer:
             return self._clear(link, sysid, compid, _MISSION)
         now = self._clock.now_ns()
         request = self._request(sysid, compid, 0)
-        self._transfer = _Transfer(True, link, sysid, compid, count, request, now + self._item_timeout_ns)
+        self._transfer = _Transfer(link, sysid, compid, True, count, request, now + self._item_timeout_ns)
         logger.info("mission upload of %d items from %d/%d on the %s link", count, sysid, compid, link.name)
         link.send(request)
         return None
@@ -369,13 +362,7 @@ class MissionServer:
             if self._repeat_of_finished(link, msg, sysid, compid):
                 return None
             # A transfer of someone else's goes on; an upload of ours that timed out is told so here.
-            self._refuse(
-                link,
-                sysid,
-                compid,
-                mavlink2.MAV_MISSION_INVALID_SEQUENCE,
-                f"MISSION_ITEM_INT {seq} from {sysid}/{compid}, which has no upload under way",
-            )
+            self._refuse_outside_transfer(link, msg, sysid, compid, "upload")
             return None
         if self._ends_transfer(transfer, link, msg, sysid, compid, f"item {seq} of"):
             return None
@@ -454,10 +441,10 @@ class MissionServer:
         count = mavlink2.MAVLink_mission_count_message(sysid, compid, len(self.items), _MISSION)
         if self.items:
             self._transfer = _Transfer(
-                False,
                 link,
                 sysid,
                 compid,
+                False,
                 len(self.items),
                 count,
                 self._clock.now_ns() + self._operation_timeout_ns,
@@ -472,13 +459,7 @@ class MissionServer:
         transfer = self._transfer
         seq = msg.seq
         if transfer is None or transfer.upload or not transfer.is_with(link, sysid, compid):
-            self._refuse(
-                link,
-                sysid,
-                compid,
-                mavlink2.MAV_MISSION_INVALID_SEQUENCE,
-                f"{msg.get_type()} {seq} from {sysid}/{compid}, which has no download under way",
-            )
+            self._refuse_outside_transfer(link, msg, sysid, compid, "download")
             return None
         if self._ends_transfer(transfer, link, msg, sysid, compid, f"item {seq} asked of"):
             return None
@@ -545,7 +526,7 @@ class MissionServer:
             logger.warning("refused %s from %d/%d: %s", msg.get_type(), sysid, compid, verdict.reason)
             link.send_status_text(f"refused: {verdict.reason}", mavlink2.MAV_SEVERITY_WARNING)
             return None
-        return StartRequested(verdict.start.first, sysid, compid)
+        return verdict.start
 
     # --- internals --------------------------------------------------------------------------------
     def _repeat_of_finished(self, link: MissionLink, msg: Any, sysid: int, compid: int) -> bool:
@@ -658,6 +639,18 @@ class MissionServer:
             f"{operation} of mission type {mission_type} ({_type_name(mission_type)}): only "
             "MAV_MISSION_TYPE_MISSION is supported",
             mission_type,
+        )
+
+    def _refuse_outside_transfer(
+        self, link: MissionLink, msg: Any, sysid: int, compid: int, kind: str
+    ) -> None:
+        """An item (upload) or a request for one (download) from a partner with no ``kind`` under way."""
+        self._refuse(
+            link,
+            sysid,
+            compid,
+            mavlink2.MAV_MISSION_INVALID_SEQUENCE,
+            f"{msg.get_type()} {msg.seq} from {sysid}/{compid}, which has no {kind} under way",
         )
 
     def _refuse(

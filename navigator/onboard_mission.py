@@ -17,7 +17,7 @@ from collections.abc import Callable, Sequence
 
 from estimator.estimator import Estimator
 from estimator.geodesy import to_enu, to_geodetic
-from firmware_bridge.mavlink_commands import GoalRequest
+from firmware_bridge.mavlink_commands import GoalRequest, StartRequest
 from firmware_bridge.mavlink_link import MavlinkLink
 from firmware_bridge.mavlink_mission import (
     CurrentRequested,
@@ -26,7 +26,6 @@ from firmware_bridge.mavlink_mission import (
     MissionItemRefused,
     MissionMessage,
     MissionServer,
-    StartRequested,
 )
 from logs.clock import Clock
 from navigator.errors import ParameterError
@@ -126,7 +125,7 @@ class MissionDriver:
         who = f"{change.sysid}/{change.compid}"
         if isinstance(change, MissionAccepted):
             self._take_upload(change, f"MAVLink upload by {who} on the {link.name} link")
-        elif isinstance(change, StartRequested):
+        elif isinstance(change, StartRequest):
             self._start_at(change.first, "mission_started", f"mission started at item {change.first}", who)
         elif isinstance(change, MissionCleared):
             if self.mission.clear():

@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from pymavlink.dialects.v20 import common as mavlink2
 
-from firmware_bridge.mavlink_commands import GLOBAL_FRAMES
+from firmware_bridge.mavlink_commands import GLOBAL_FRAMES, StartRequest
 from firmware_bridge.mavlink_link import MavlinkLink
 from firmware_bridge.mavlink_mission import (
     ITEM_TIMEOUT_NS,
@@ -25,7 +25,6 @@ from firmware_bridge.mavlink_mission import (
     MissionItemRefused,
     MissionMessage,
     MissionServer,
-    StartRequested,
 )
 from firmware_bridge.mavlink_transport import memory_pipe_pair
 from firmware_bridge.mission_state import MissionState
@@ -647,7 +646,9 @@ def test_mission_start_from_an_item_to_the_end_is_acknowledged_and_passed_on(
     assert answer.get_type() == "COMMAND_ACK"
     assert (answer.command, answer.result) == (mavlink2.MAV_CMD_MISSION_START, mavlink2.MAV_RESULT_ACCEPTED)
     assert (answer.target_system, answer.target_component) == (255, 190)
-    assert rig.changes[-1] == StartRequested(first, 255, 190)
+    start = rig.changes[-1]
+    assert isinstance(start, StartRequest)
+    assert (start.first, start.sysid, start.compid) == (first, 255, 190)
 
 
 @pytest.mark.parametrize(
@@ -685,4 +686,4 @@ def test_mission_start_without_a_mission_is_denied_and_one_for_another_component
     # Component broadcast: the autopilot's mission (as for mission messages), not ours to answer.
     for target in ((1, 0), (1, 1)):
         assert rig.exchange(mission_start(0, 0, target=target)) == []
-    assert not any(isinstance(change, StartRequested) for change in rig.changes)
+    assert not any(isinstance(change, StartRequest) for change in rig.changes)
