@@ -4,21 +4,23 @@ A single-beam rangefinder (a sonar, a 1-D lidar such as LightWare or Benewake) r
 the direction it faces. ArduPilot and PX4 stream one DISTANCE_SENSOR per sensor and reading; the HIL
 autopilot's simulated ring does too (``hil.rangefinder_sim``). The fields, as pymavlink's common dialect
 defines them: ``min_distance``, ``max_distance``, ``current_distance`` in centimetres (uint16);
-``orientation`` a MAV_SENSOR_ORIENTATION; ``id`` the sensor's onboard id; ``horizontal_fov`` in radians, 0
-when unknown; ``signal_quality`` a percentage, 0 unknown, 1 invalid, 100 best. ``type``, ``covariance``,
-``vertical_fov`` and ``quaternion`` are not read.
+``orientation`` a MAV_SENSOR_ORIENTATION (``quaternion`` with MAV_SENSOR_ROTATION_CUSTOM); ``id`` the
+sensor's onboard id; ``horizontal_fov`` in radians, 0 when unknown; ``signal_quality`` a percentage, 0
+unknown, 1 invalid, 100 best. ``type``, ``covariance`` and ``vertical_fov`` are not read.
 
-Orientation. MAV_SENSOR_ROTATION_YAW_<n> turns the sensor's forward axis ``n`` degrees clockwise seen from
-above (FRD), as ArduPilot's ``RNGFND_ORIENT`` (2 = right, 6 = left) and PX4's DistanceSensor
-(``ROTATION_RIGHT_FACING = 2``, ``ROTATION_LEFT_FACING = 6``) use it. (The dialect's text on the field
-says "left-facing: ROTATION_YAW_90" and "backward-facing: ROTATION_PITCH_180"; the first contradicts the
-rotation and both autopilots, and is not followed.) A roll of 180 degrees does not move the forward axis:
-ROLL_180_YAW_<n> and ROLL_180 (a sensor mounted upside down) look where YAW_<n> does, PITCH_180 backward
-and PITCH_180_YAW_90 / _270 left / right, as ArduPilot's ``Vector3::rotate`` maps the axis. PITCH_90 and
-PITCH_270 (whatever the roll) look up and down: ground and ceiling sensors, not obstacle sensors for a
-rover; they are not refused but returned as None (the link counts them as not used). Every other
-orientation (turned on its side, tilted, MAV_SENSOR_ROTATION_CUSTOM's quaternion) is refused: where its
-field of view lies in the horizontal plane is not said.
+Orientation. Where the sensor looks comes from ``firmware_bridge.sensor_orientation``: every named
+MAV_SENSOR_ORIENTATION (roll, then pitch, then yaw, in FRD, as ArduPilot applies them) and
+MAV_SENSOR_ROTATION_CUSTOM with the message's quaternion. MAV_SENSOR_ROTATION_YAW_<n> turns the sensor's
+forward axis ``n`` degrees clockwise seen from above, as ArduPilot's ``RNGFND_ORIENT`` (2 = right, 6 =
+left) and PX4's DistanceSensor (``ROTATION_RIGHT_FACING = 2``, ``ROTATION_LEFT_FACING = 6``) use it. (The
+dialect's text on the field says "left-facing: ROTATION_YAW_90" and "backward-facing:
+ROTATION_PITCH_180"; the first contradicts the rotation and both autopilots, and is not followed.) A roll
+does not move the forward axis: a sensor upside down (ROLL_180_YAW_<n>) or on its side (ROLL_90_YAW_<n>)
+looks where YAW_<n> does. A sensor tilted more than ``MAX_TILT_RAD`` (10 degrees) up or down, PITCH_90
+and PITCH_270 (up and down) among them, is a ground, ceiling or cliff sensor, not an obstacle sensor for
+a rover: not refused but returned as None (the link counts it as not used). One tilted less gives its
+horizontal distances. An orientation that is no MAV_SENSOR_ORIENTATION, and CUSTOM without a rotation in
+its quaternion (all zeros: the field's "invalid"), is refused.
 
 Distances. A reading above ``max_distance`` is nothing within range (ArduPilot's OutOfRangeHigh); one
 between ``min_distance`` and ``max_distance`` an obstacle there. One below ``min_distance`` but at least
@@ -42,52 +44,14 @@ from typing import Any
 
 from pymavlink.dialects.v20 import common as mavlink2
 
+from firmware_bridge.sensor_orientation import OrientationError, facing
+
 INVALID_SIGNAL = 1
-# The bearing (radians counter-clockwise from the rover's front) of each orientation read as an obstacle
-# sensor; clockwise in the name, counter-clockwise here, as every angle of ours.
-_QUARTER = math.pi / 4.0
-_CLOCKWISE_STEPS = {
-    mavlink2.MAV_SENSOR_ROTATION_NONE: 0,
-    mavlink2.MAV_SENSOR_ROTATION_YAW_45: 1,
-    mavlink2.MAV_SENSOR_ROTATION_YAW_90: 2,
-    mavlink2.MAV_SENSOR_ROTATION_YAW_135: 3,
-    mavlink2.MAV_SENSOR_ROTATION_YAW_180: 4,
-    mavlink2.MAV_SENSOR_ROTATION_YAW_225: 5,
-    mavlink2.MAV_SENSOR_ROTATION_YAW_270: 6,
-    mavlink2.MAV_SENSOR_ROTATION_YAW_315: 7,
-    # Upside down: the roll leaves the forward axis where the yaw puts it.
-    mavlink2.MAV_SENSOR_ROTATION_ROLL_180: 0,
-    mavlink2.MAV_SENSOR_ROTATION_ROLL_180_YAW_45: 1,
-    mavlink2.MAV_SENSOR_ROTATION_ROLL_180_YAW_90: 2,
-    mavlink2.MAV_SENSOR_ROTATION_ROLL_180_YAW_135: 3,
-    mavlink2.MAV_SENSOR_ROTATION_PITCH_180: 4,  # roll 180 and yaw 180
-    mavlink2.MAV_SENSOR_ROTATION_ROLL_180_YAW_225: 5,
-    mavlink2.MAV_SENSOR_ROTATION_ROLL_180_YAW_270: 6,
-    mavlink2.MAV_SENSOR_ROTATION_ROLL_180_YAW_315: 7,
-    mavlink2.MAV_SENSOR_ROTATION_PITCH_180_YAW_90: 6,  # = ROLL_180_YAW_270 (ArduPilot's rotate)
-    mavlink2.MAV_SENSOR_ROTATION_PITCH_180_YAW_270: 2,  # = ROLL_180_YAW_90
-}
-
-
-def _bearing(clockwise_steps: int) -> float:
-    """``clockwise_steps`` x 45 degrees clockwise as radians counter-clockwise, in (-pi, pi]."""
-    return math.pi if clockwise_steps == 4 else math.remainder(-clockwise_steps * _QUARTER, math.tau)
-
-
-BEARINGS_RAD = {orientation: _bearing(steps) for orientation, steps in _CLOCKWISE_STEPS.items()}
-# Looking up or down (pitch 90 or 270, any roll): not an obstacle sensor for a rover.
-VERTICAL = frozenset(
-    {
-        mavlink2.MAV_SENSOR_ROTATION_PITCH_90,
-        mavlink2.MAV_SENSOR_ROTATION_PITCH_270,
-        mavlink2.MAV_SENSOR_ROTATION_ROLL_90_PITCH_90,
-        mavlink2.MAV_SENSOR_ROTATION_ROLL_180_PITCH_90,
-        mavlink2.MAV_SENSOR_ROTATION_ROLL_270_PITCH_90,
-        mavlink2.MAV_SENSOR_ROTATION_ROLL_90_PITCH_270,
-        mavlink2.MAV_SENSOR_ROTATION_ROLL_180_PITCH_270,
-        mavlink2.MAV_SENSOR_ROTATION_ROLL_270_PITCH_270,
-    }
-)
+# A beam tilted further than this from the horizontal is not an obstacle sensor for a rover: one 10
+# degrees down from 0.3 m meets flat ground 1.7 m out, within a sonar's range, and reports it as an
+# obstacle; one as far up passes over a 0.3 m rock from 1.7 m on. Closer to level, the reading is placed
+# in the horizontal plane at its horizontal distance (range x cos tilt).
+MAX_TILT_RAD = math.radians(10.0)
 # The orientation a simulated sensor turned ``45 k`` degrees clockwise reports (hil.rangefinder_sim).
 ORIENTATION_OF_YAW_DEG = {45 * steps: mavlink2.MAV_SENSOR_ROTATION_NONE + steps for steps in range(8)}
 
@@ -125,11 +89,15 @@ def read_beam(msg: Any, t_ns: int) -> RangeBeam | None:
     if not 0 <= quality <= 100:
         raise BeamRejected(f"signal_quality {quality} is not a percentage (0 unknown, 1 invalid, 100 best)")
     orientation = msg.orientation
-    bearing = BEARINGS_RAD.get(orientation) if isinstance(orientation, int) else None
-    if bearing is None:
-        if orientation in VERTICAL:
-            return None
-        raise BeamRejected(f"orientation {orientation!r} ({_orientation_name(orientation)}) is not read")
+    if isinstance(orientation, bool) or not isinstance(orientation, int):
+        raise BeamRejected(f"orientation {orientation!r} is no MAV_SENSOR_ORIENTATION")
+    try:
+        seen = facing(orientation, msg.quaternion)
+    except OrientationError as err:
+        raise BeamRejected(f"orientation {orientation}: {err}") from err
+    if abs(seen.tilt_rad) > MAX_TILT_RAD:
+        return None
+    to_level = math.cos(seen.tilt_rad)  # 1.0 exactly for a level sensor: its figures as they came
     min_cm = _distance(msg.min_distance, "min_distance")
     max_cm = _distance(msg.max_distance, "max_distance")
     if max_cm <= min_cm:
@@ -147,7 +115,10 @@ def read_beam(msg: Any, t_ns: int) -> RangeBeam | None:
             f"current_distance {current_cm:g} cm below min_distance {min_cm:g} cm is no reading, not a "
             "distance (a sensor too close to something reports at least 1 cm)"
         )
-    return RangeBeam(t_ns, int(msg.id), bearing, range_m, min_cm / 100.0, max_cm / 100.0, fov)
+    if range_m is not None:
+        range_m *= to_level
+    min_m, max_m = min_cm / 100.0 * to_level, max_cm / 100.0 * to_level
+    return RangeBeam(t_ns, int(msg.id), seen.bearing_rad, range_m, min_m, max_m, fov)
 
 
 def _whole(value: Any, name: str) -> int:
@@ -171,17 +142,6 @@ def _fov(value: Any) -> float | None:
     if not (math.isfinite(value) and 0.0 <= value <= math.tau):
         raise BeamRejected(f"horizontal_fov {value!r} rad is not an angle in [0, 2 pi] (0: unknown)")
     return float(value) if value > 0.0 else None
-
-
-def _orientation_name(orientation: Any) -> str:
-    entry = (
-        mavlink2.enums["MAV_SENSOR_ORIENTATION"].get(orientation) if isinstance(orientation, int) else None
-    )
-    if entry is None or entry.name.endswith("ENUM_END"):
-        return "no MAV_SENSOR_ORIENTATION"
-    if orientation == mavlink2.MAV_SENSOR_ROTATION_CUSTOM:
-        return f"{entry.name}: its quaternion is not read"
-    return f"{entry.name}: on its side or tilted"
 
 
 def beam_message(

@@ -12,7 +12,6 @@ from hypothesis import strategies as st
 from pymavlink.dialects.v20 import common as mavlink2
 
 from firmware_bridge.distance_sensor import (
-    BEARINGS_RAD,
     ORIENTATION_OF_YAW_DEG,
     BeamRejected,
     RangeBeam,
@@ -21,11 +20,13 @@ from firmware_bridge.distance_sensor import (
 )
 from firmware_bridge.mavlink_link import MavlinkLink
 from firmware_bridge.mavlink_transport import memory_pipe_pair
+from firmware_bridge.sensor_orientation import facing
 from logs.clock import NS_PER_S, SimClock
 from logs.sink import MemorySink
 from logs.topics import MAVLINK_STATS
 
 ROTATION = mavlink2.MAV_SENSOR_ROTATION_NONE
+CUSTOM = mavlink2.MAV_SENSOR_ROTATION_CUSTOM
 
 
 def _message(
@@ -37,6 +38,7 @@ def _message(
     sensor_id: int = 3,
     fov: Any = 0.0,
     quality: Any = 0,
+    quaternion: Any = (0.0, 0.0, 0.0, 0.0),
 ) -> mavlink2.MAVLink_distance_sensor_message:
     return mavlink2.MAVLink_distance_sensor_message(
         0,
@@ -49,7 +51,7 @@ def _message(
         255,
         fov,
         0.0,
-        (0.0, 0.0, 0.0, 0.0),
+        quaternion,
         quality,
     )
 
@@ -83,6 +85,14 @@ def test_a_forward_reading_in_metres_from_the_front() -> None:
         (mavlink2.MAV_SENSOR_ROTATION_PITCH_180, 180.0),
         (mavlink2.MAV_SENSOR_ROTATION_PITCH_180_YAW_90, 90.0),  # rotate() maps x to -y: left
         (mavlink2.MAV_SENSOR_ROTATION_PITCH_180_YAW_270, -90.0),
+        # On its side: a roll of 90 or 270 turns the sensor about the axis it looks along.
+        (mavlink2.MAV_SENSOR_ROTATION_ROLL_90, 0.0),
+        (mavlink2.MAV_SENSOR_ROTATION_ROLL_90_YAW_45, -45.0),
+        (mavlink2.MAV_SENSOR_ROTATION_ROLL_270_YAW_135, -135.0),
+        (mavlink2.MAV_SENSOR_ROTATION_ROLL_90_YAW_270, 90.0),
+        (mavlink2.MAV_SENSOR_ROTATION_ROLL_90_PITCH_180, 180.0),
+        (mavlink2.MAV_SENSOR_ROTATION_ROLL_270_PITCH_180, 180.0),
+        (mavlink2.MAV_SENSOR_ROTATION_ROLL_90_PITCH_180_YAW_90, 90.0),  # back, then a quarter clockwise
     ],
 )
 def test_every_horizontal_orientation_has_its_bearing(orientation: int, degrees_ccw: float) -> None:
@@ -93,7 +103,8 @@ def test_every_horizontal_orientation_has_its_bearing(orientation: int, degrees_
 
 def test_the_simulator_names_each_yaw_by_its_orientation() -> None:
     for yaw_deg, orientation in ORIENTATION_OF_YAW_DEG.items():
-        turned = BEARINGS_RAD[orientation] + math.radians(yaw_deg)  # clockwise there, counter-clockwise here
+        # clockwise there, counter-clockwise here
+        turned = facing(orientation).bearing_rad + math.radians(yaw_deg)
         assert math.remainder(turned, math.tau) == pytest.approx(0.0, abs=1e-12)
 
 
@@ -115,6 +126,9 @@ def test_too_close_to_measure_is_an_obstacle_at_the_minimum() -> None:
         mavlink2.MAV_SENSOR_ROTATION_PITCH_90,
         mavlink2.MAV_SENSOR_ROTATION_PITCH_270,
         mavlink2.MAV_SENSOR_ROTATION_ROLL_180_PITCH_270,
+        mavlink2.MAV_SENSOR_ROTATION_PITCH_315,  # 45 degrees down: a cliff sensor
+        mavlink2.MAV_SENSOR_ROTATION_ROLL_90_PITCH_315,
+        mavlink2.MAV_SENSOR_ROTATION_ROLL_90_PITCH_68_YAW_293,  # 68 degrees up
     ],
 )
 def test_up_and_down_sensors_are_not_obstacle_sensors(orientation: int) -> None:
@@ -126,10 +140,12 @@ def test_up_and_down_sensors_are_not_obstacle_sensors(orientation: int) -> None:
     [
         ({"quality": 1}, "invalid"),
         ({"quality": 101}, "percentage"),
-        ({"orientation": mavlink2.MAV_SENSOR_ROTATION_CUSTOM}, "quaternion"),
-        ({"orientation": mavlink2.MAV_SENSOR_ROTATION_ROLL_90}, "side or tilted"),
-        ({"orientation": mavlink2.MAV_SENSOR_ROTATION_PITCH_315}, "side or tilted"),
-        ({"orientation": 77}, "no MAV_SENSOR_ORIENTATION"),
+        ({"orientation": mavlink2.MAV_SENSOR_ROTATION_CUSTOM}, "invalid"),  # its quaternion all zeros
+        ({"orientation": CUSTOM, "quaternion": (math.nan, 0, 0, 1)}, "quaternion"),
+        ({"orientation": CUSTOM, "quaternion": (1.0, 0.0)}, "four numbers"),
+        ({"orientation": 77}, "no named MAV_SENSOR_ORIENTATION"),
+        ({"orientation": mavlink2.MAV_SENSOR_ORIENTATION_ENUM_END}, "no named MAV_SENSOR_ORIENTATION"),
+        ({"orientation": 2.0}, "no MAV_SENSOR_ORIENTATION"),
         ({"min_cm": 500, "max_cm": 400}, "max_distance"),
         ({"min_cm": 0, "max_cm": 0}, "max_distance"),
         ({"min_cm": float("nan")}, "min_distance"),
@@ -185,6 +201,19 @@ def test_the_link_delivers_beams_counts_the_rest_and_reports_them() -> None:
     assert (stats["beams"], stats["beams_rejected"], stats["beams_unused"]) == (1, 1, 1)
 
 
+def test_a_custom_mounting_reaches_the_rover_through_the_link_with_its_quaternion() -> None:
+    """The quaternion is a MAVLink 2 extension field: it must survive packing, the wire and parsing."""
+    companion_end, autopilot_end = memory_pipe_pair()
+    link = MavlinkLink(companion_end, SimClock(0), MemorySink())
+    sender = mavlink2.MAVLink(autopilot_end, 1, 1)
+    half = math.radians(-30.0) / 2.0  # 30 degrees counter-clockwise seen from above: yaw -30 in FRD
+    custom = mavlink2.MAV_SENSOR_ROTATION_CUSTOM
+    sender.send(_message(300, orientation=custom, quaternion=(math.cos(half), 0.0, 0.0, math.sin(half))))
+    (beam,) = [r for r in link.poll() if isinstance(r, RangeBeam)]
+    assert beam.bearing_rad == pytest.approx(math.radians(30.0), abs=1e-6)
+    assert beam.range_m == pytest.approx(3.0)
+
+
 def test_a_link_without_rangefinders_reports_no_beam_counts() -> None:
     companion_end, _ = memory_pipe_pair()
     clock = SimClock(0)
@@ -201,15 +230,26 @@ def test_a_link_without_rangefinders_reports_no_beam_counts() -> None:
     current_cm=st.one_of(st.integers(-5, 70000), st.floats(), st.none(), st.text(max_size=2)),
     min_cm=st.one_of(st.integers(0, 65535), st.floats()),
     max_cm=st.one_of(st.integers(0, 65535), st.floats()),
-    orientation=st.one_of(st.integers(-1, 255), st.none()),
+    orientation=st.one_of(st.integers(-1, 255), st.just(mavlink2.MAV_SENSOR_ROTATION_CUSTOM), st.none()),
     fov=st.one_of(st.floats(), st.integers(-3, 10)),
     quality=st.one_of(st.integers(-3, 300), st.floats(), st.booleans()),
+    quaternion=st.one_of(
+        st.tuples(st.floats(), st.floats(), st.floats(), st.floats()),
+        st.lists(st.one_of(st.integers(), st.floats(), st.text(max_size=1)), max_size=5),
+        st.none(),
+    ),
 )
 def test_any_field_values_give_a_reading_a_none_or_a_refusal(
-    current_cm: Any, min_cm: Any, max_cm: Any, orientation: Any, fov: Any, quality: Any
+    current_cm: Any, min_cm: Any, max_cm: Any, orientation: Any, fov: Any, quality: Any, quaternion: Any
 ) -> None:
     msg = _message(
-        current_cm, min_cm=min_cm, max_cm=max_cm, orientation=orientation, fov=fov, quality=quality
+        current_cm,
+        min_cm=min_cm,
+        max_cm=max_cm,
+        orientation=orientation,
+        fov=fov,
+        quality=quality,
+        quaternion=quaternion,
     )
     try:
         beam = read_beam(msg, 0)

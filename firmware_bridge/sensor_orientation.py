@@ -1,0 +1,113 @@
+"""Where a sensor mounted in a MAV_SENSOR_ORIENTATION looks: its forward axis in the vehicle's body frame.
+
+MAVLink's MAV_SENSOR_ORIENTATION (DISTANCE_SENSOR's ``orientation``) names each mounting by Euler angles
+in degrees, ``ROLL_<r>_PITCH_<p>_YAW_<y>`` with the absent ones 0: the sensor's frame is turned by roll
+about x, then pitch about y, then yaw about z, in the body frame FRD (x forward, y right, z down), the
+rotation ``Rz(yaw) Ry(pitch) Rx(roll)`` as ArduPilot's rotation table and ``Vector3::rotate`` apply it.
+The angles are read from the enum's names, so every named orientation is covered, the ones pymavlink adds
+later included. MAV_SENSOR_ROTATION_CUSTOM takes the message's quaternion instead (w, x, y, z, the sensor
+frame in the body frame; all zeros: invalid, as the field says).
+
+A sensor looks along its own x axis: ``forward_axis`` is where that axis points. Roll turns a sensor
+about that axis, so a sensor on its side (ROLL_90_YAW_45) looks where YAW_45 does; pitch tilts it up
+(positive) or down. ``facing`` gives the horizontal direction and the tilt a rover's perception needs.
+
+ArduPilot's ROLL_90_PITCH_68_YAW_293 is pitched 68.8 degrees, not the name's 68; the name's angle is used
+here (that sensor looks 68 degrees up either way: not an obstacle sensor for a rover).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import re
+from dataclasses import dataclass
+from typing import Any
+
+from pymavlink.dialects.v20 import common as mavlink2
+
+CUSTOM = mavlink2.MAV_SENSOR_ROTATION_CUSTOM
+_ANGLE = re.compile(r"(ROLL|PITCH|YAW)_(\d+)")
+# Axis components are rounded to this many decimals, so 45-degree steps give exact bearings (cos 90
+# degrees is 6e-17 in floating point, not 0, which would put YAW_180 at -pi instead of pi).
+_DECIMALS = 12
+
+
+class OrientationError(ValueError):
+    """An orientation this module cannot place; the message says why."""
+
+
+@dataclass(frozen=True)
+class Facing:
+    """Where a sensor looks: ``bearing_rad`` counter-clockwise from the vehicle's front in (-pi, pi] (0
+    for a sensor looking straight up or down), ``tilt_rad`` above the horizontal (negative: down)."""
+
+    bearing_rad: float
+    tilt_rad: float
+
+
+def euler_degrees(orientation: int) -> tuple[float, float, float]:
+    """(roll, pitch, yaw) in degrees of a named MAV_SENSOR_ORIENTATION other than CUSTOM."""
+    entry = mavlink2.enums["MAV_SENSOR_ORIENTATION"].get(orientation)
+    if entry is None or orientation == CUSTOM or not entry.name.startswith("MAV_SENSOR_ROTATION_"):
+        raise OrientationError(f"{orientation!r} is no named MAV_SENSOR_ORIENTATION")
+    angles = {"ROLL": 0.0, "PITCH": 0.0, "YAW": 0.0}
+    for axis, degrees in _ANGLE.findall(entry.name):
+        angles[axis] = float(degrees)
+    return angles["ROLL"], angles["PITCH"], angles["YAW"]
+
+
+def forward_axis(orientation: int, quaternion: Any = None) -> tuple[float, float, float]:
+    """The unit vector (FRD) a sensor mounted in ``orientation`` looks along; ``quaternion`` (w, x, y,
+    z) is read for MAV_SENSOR_ROTATION_CUSTOM only. ``OrientationError`` for an unknown orientation or
+    a custom one without a usable quaternion."""
+    if orientation == CUSTOM:
+        w, x, y, z = _unit_quaternion(quaternion)
+        # The first column of the quaternion's rotation matrix: where it turns the x axis.
+        axis = (1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y + w * z), 2.0 * (x * z - w * y))
+    else:
+        _, pitch, yaw = (math.radians(angle) for angle in euler_degrees(orientation))
+        # Rz(yaw) Ry(pitch) Rx(roll) applied to (1, 0, 0): the roll leaves the x axis where it is.
+        axis = (math.cos(pitch) * math.cos(yaw), math.cos(pitch) * math.sin(yaw), -math.sin(pitch))
+    return (round(axis[0], _DECIMALS) + 0.0, round(axis[1], _DECIMALS) + 0.0, round(axis[2], _DECIMALS) + 0.0)
+
+
+def facing(orientation: int, quaternion: Any = None) -> Facing:
+    """``forward_axis`` as a bearing (counter-clockwise, our convention; FRD's y is to the right) and a
+    tilt above the horizontal."""
+    if orientation == CUSTOM:
+        return _facing_along(forward_axis(orientation, quaternion))
+    return _named_facing(orientation)
+
+
+@functools.cache
+def _named_facing(orientation: int) -> Facing:
+    # Every rangefinder reading asks; the answer for a named orientation never changes.
+    return _facing_along(forward_axis(orientation))
+
+
+def _facing_along(axis: tuple[float, float, float]) -> Facing:
+    x, y, z = axis
+    horizontal = math.hypot(x, y)
+    tilt = math.atan2(-z, horizontal)
+    if horizontal == 0.0:
+        return Facing(0.0, tilt)
+    bearing = math.atan2(-y, x)
+    return Facing(math.pi if bearing == -math.pi else bearing, tilt)
+
+
+def _unit_quaternion(quaternion: Any) -> tuple[float, float, float, float]:
+    try:
+        w, x, y, z = (float(part) for part in quaternion)
+    except (TypeError, ValueError, OverflowError) as err:
+        raise OrientationError(
+            f"MAV_SENSOR_ROTATION_CUSTOM needs a quaternion of four numbers, got {quaternion!r}"
+        ) from err
+    norm = math.sqrt(w * w + x * x + y * y + z * z)
+    if not math.isfinite(norm) or norm < 1e-6:
+        # All zeros is the field's "invalid" (a sender that does not fill it, or a MAVLink 1 frame).
+        raise OrientationError(
+            f"MAV_SENSOR_ROTATION_CUSTOM with quaternion {tuple(quaternion)!r}: not a rotation "
+            "(all zeros: the sender left it invalid)"
+        )
+    return w / norm, x / norm, y / norm, z / norm
