@@ -155,10 +155,11 @@ def beam_message(
     max_range_m: float,
     fov_rad: float,
     sensor_type: int = mavlink2.MAV_DISTANCE_SENSOR_LASER,
+    quaternion: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0),
 ) -> Any:
     """A DISTANCE_SENSOR for one reading (None: nothing within ``max_range_m``, sent as ``max + 1`` cm);
     a range below ``min_range_m`` goes as it is, at least 1 cm (a too-close reading). ``fov_rad`` 0:
-    unknown."""
+    unknown. ``quaternion`` (w, x, y, z): the mounting, with MAV_SENSOR_ROTATION_CUSTOM only."""
     min_cm = round(min_range_m * 100.0)
     max_cm = round(max_range_m * 100.0)
     current_cm = max_cm + 1 if range_m is None else min(max(round(range_m * 100.0), 1), max_cm)
@@ -173,6 +174,6 @@ def beam_message(
         255,  # covariance: unknown (UINT8_MAX, as the field says)
         fov_rad,
         0.0,  # vertical_fov: unknown
-        (0.0, 0.0, 0.0, 0.0),  # quaternion: unused unless MAV_SENSOR_ROTATION_CUSTOM
+        quaternion,
         0,  # signal_quality: unknown
     )

@@ -111,10 +111,9 @@ def _perception_lines(scenario: Scenario) -> list[str]:
     sensors = scenario.sensors
     if sensors.perception == "rangefinders":
         # Every id, even at the centre: an id the config does not place is warned about.
-        forward, left = sensors.perception_mount_forward_m, sensors.perception_mount_left_m
         ring = ", ".join(
-            f"{{id = {i}, forward_m = {forward!r}, left_m = {left!r}}}"
-            for i in range(len(sensors.rangefinder_yaw_deg))
+            f"{{id = {i}, forward_m = {sensor.forward_m!r}, left_m = {sensor.left_m!r}}}"
+            for i, sensor in enumerate(sensors.rangefinder_ring)
         )
         return ["[perception]", f"rangefinders = [{ring}]", ""]
     if sensors.lidar_mount == AT_CENTRE:

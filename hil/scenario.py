@@ -17,7 +17,7 @@ import numpy as np
 
 from hil.faults import Fault, faults_from_tables
 from hil.moving_obstacles import MovingObstacle
-from hil.rangefinder_sim import DEFAULT_YAWS_DEG
+from hil.rangefinder_sim import DEFAULT_YAWS_DEG, yaw_ring
 from hil.scenario_placement import check_clear_of_obstacles
 from logs.metrics import DEFAULT_ENCOUNTER_MARGIN_M
 from logs.settings import MAX_SEED, ConfigError, Table, finite_float, parse_toml, read_settings_text, shown
@@ -83,6 +83,16 @@ class SensorSettings:
     # sit at perception_mount_forward_m / _left_m; range, rate and noise are the perception_* ones.
     rangefinder_yaw_deg: tuple[int, ...] = DEFAULT_YAWS_DEG
     rangefinder_fov_deg: float = 15.0
+    # Or each sensor on its own ([sensors] rangefinders = [{yaw_deg, forward_m, left_m}, ...]): where it
+    # sits and faces, any direction; None: the ring above.
+    rangefinder_mounts: tuple[SensorMount, ...] | None = None
+
+    @property
+    def rangefinder_ring(self) -> tuple[SensorMount, ...]:
+        """Where each simulated rangefinder sits and faces, by id (its place in the tuple)."""
+        if self.rangefinder_mounts is not None:
+            return self.rangefinder_mounts
+        return yaw_ring(self.rangefinder_yaw_deg, self.lidar_mount)
 
     @property
     def lidar_mount(self) -> SensorMount:
@@ -131,6 +141,7 @@ class SensorSettings:
             ),
             rangefinder_yaw_deg=_rangefinder_yaws(table),
             rangefinder_fov_deg=table.number("rangefinder_fov_deg", cls.rangefinder_fov_deg, lo=0.0, hi=90.0),
+            rangefinder_mounts=_rangefinder_mounts(table),
         )
         if settings.perception == "rangefinders" and settings.perception_mount_yaw_deg != 0.0:
             raise table.error(
@@ -139,6 +150,36 @@ class SensorSettings:
             )
         table.finish()
         return settings
+
+
+MAX_RANGEFINDERS = 16
+
+
+def _rangefinder_mounts(table: Table) -> tuple[SensorMount, ...] | None:
+    """``rangefinders = [{yaw_deg = 30.0, forward_m = 0.4, left_m = 0.2}, ...]``: each sensor's direction
+    (degrees clockwise from the rover's front, as MAVLink's orientations count) and place (m; default the
+    perception_mount_* point); ids by order. None when not given (the ``rangefinder_yaw_deg`` ring)."""
+    if not table.has("rangefinders"):
+        return None
+    if table.has("rangefinder_yaw_deg"):
+        raise table.error("rangefinders", "give rangefinders or rangefinder_yaw_deg, not both")
+    entries = table.tables("rangefinders")
+    if not 1 <= len(entries) <= MAX_RANGEFINDERS:
+        raise table.error("rangefinders", f"1 to {MAX_RANGEFINDERS} sensors, got {len(entries)}")
+    forward = table.number("perception_mount_forward_m", 0.0)
+    left = table.number("perception_mount_left_m", 0.0)
+    mounts = []
+    for entry in entries:
+        yaw_deg = entry.number("yaw_deg", lo=-360.0, hi=360.0)
+        mounts.append(
+            SensorMount(
+                entry.number("forward_m", forward, lo=-MAX_MOUNT_OFFSET_M, hi=MAX_MOUNT_OFFSET_M),
+                entry.number("left_m", left, lo=-MAX_MOUNT_OFFSET_M, hi=MAX_MOUNT_OFFSET_M),
+                -math.radians(yaw_deg),  # counter-clockwise, as every angle of ours
+            )
+        )
+        entry.finish()
+    return tuple(mounts)
 
 
 def _rangefinder_yaws(table: Table) -> tuple[int, ...]:

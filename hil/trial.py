@@ -21,6 +21,7 @@ import dataclasses
 import gc
 import io
 import json
+import math
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -391,7 +392,13 @@ def _perception_record(scenario: Scenario) -> dict[str, object]:
     }
     if sensors.perception == "rangefinders":
         # Only then: the record of every other trial stays as it was.
-        record["rangefinder_yaw_deg"] = list(sensors.rangefinder_yaw_deg)
+        if sensors.rangefinder_mounts is None:
+            record["rangefinder_yaw_deg"] = list(sensors.rangefinder_yaw_deg)
+        else:
+            record["rangefinders"] = [
+                {"yaw_deg": round(-math.degrees(m.yaw_rad), 9), "forward_m": m.forward_m, "left_m": m.left_m}
+                for m in sensors.rangefinder_mounts
+            ]
         record["rangefinder_fov_deg"] = sensors.rangefinder_fov_deg
     return record
 

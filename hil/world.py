@@ -160,12 +160,11 @@ class SimWorld:
                 clock,
                 self.perception.obstacles_at,
                 np.random.default_rng([seed, 4]),
-                yaw_deg=sensors.rangefinder_yaw_deg,
+                sensors=sensors.rangefinder_ring,
                 fov_deg=sensors.rangefinder_fov_deg,
                 range_m=sensors.perception_range_m,
                 rate_hz=sensors.perception_rate_hz,
                 noise_m=sensors.perception_noise_m,
-                mount=sensors.lidar_mount,
             )
             if sensors.perception == "rangefinders"
             else None

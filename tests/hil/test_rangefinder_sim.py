@@ -16,7 +16,7 @@ from firmware_bridge.mavlink_transport import memory_pipe_pair
 from hil.autopilot_sim import SimAutopilot
 from hil.peer import seen_through_lidar
 from hil.peer_files import write_peer_files
-from hil.rangefinder_sim import MIN_RANGE_M, SimRangefinders
+from hil.rangefinder_sim import MIN_RANGE_M, SimRangefinders, mavlink_orientation, yaw_ring
 from hil.scenario import PERCEPTION_MODELS, Scenario, load_scenario, scenario_from_table, with_perception
 from logs.clock import SimClock
 from logs.settings import ConfigError, parse_toml
@@ -44,15 +44,15 @@ def test_the_front_sensor_reads_the_near_edge_and_the_others_nothing() -> None:
 def test_a_cone_reads_an_edge_off_its_axis_and_a_beam_does_not() -> None:
     # A rock 4 m ahead and 1 m to the left: 14 deg off the axis, its near edge 10 deg off.
     beside = [("rock", 4.0, 1.0, 0.3, 0.0, 0.0)]
-    wide, _ = _ring(beside, yaw_deg=[0], fov_deg=30.0)
-    narrow, _ = _ring(beside, yaw_deg=[0], fov_deg=0.0)
+    wide, _ = _ring(beside, sensors=yaw_ring([0]), fov_deg=30.0)
+    narrow, _ = _ring(beside, sensors=yaw_ring([0]), fov_deg=0.0)
     (reading,) = wide.ranges(0, 0.0, 0.0, 0.0)
     assert reading is not None and 3.7 < reading < math.hypot(4.0, 1.0)
     assert narrow.ranges(0, 0.0, 0.0, 0.0) == [None]
 
 
 def test_the_ring_sits_where_its_mount_says() -> None:
-    ring, _ = _ring([ROCK], mount=SensorMount(forward_m=0.4, left_m=0.2))
+    ring, _ = _ring([ROCK], sensors=yaw_ring([0, 90], SensorMount(forward_m=0.4, left_m=0.2)))
     assert ring.ranges(0, 0.0, 0.0, 0.0)[0] == pytest.approx(math.hypot(4.0 - 0.4, 0.2) - 0.5, abs=0.01)
 
 
@@ -89,9 +89,7 @@ def test_the_noise_is_the_seeds() -> None:
 @pytest.mark.parametrize(
     ("kwargs", "named"),
     [
-        ({"yaw_deg": [10]}, "multiples of 45"),
-        ({"yaw_deg": [0, 0]}, "twice"),
-        ({"yaw_deg": []}, "multiples of 45"),
+        ({"sensors": ()}, "at least one sensor"),
         ({"fov_deg": 120.0}, "fov_deg"),
         ({"range_m": 0.1}, "range_m"),
         ({"rate_hz": 0.0}, "rate_hz"),
@@ -101,6 +99,14 @@ def test_the_noise_is_the_seeds() -> None:
 def test_a_ring_it_cannot_simulate_is_refused(kwargs: dict[str, Any], named: str) -> None:
     with pytest.raises(ValueError, match=named):
         _ring([], **kwargs)
+
+
+@pytest.mark.parametrize(
+    ("yaw_deg", "named"), [([10], "multiples of 45"), ([0, 0], "twice"), ([], "multiples")]
+)
+def test_a_ring_of_45_degree_steps_it_cannot_build_is_refused(yaw_deg: list[int], named: str) -> None:
+    with pytest.raises(ValueError, match=named):
+        yaw_ring(yaw_deg)
 
 
 def _scenario_with(sensors: str) -> Scenario:
@@ -143,3 +149,54 @@ def test_the_peer_keeps_rangefinders_and_tells_rover_run_where_they_sit(tmp_path
         (1, 0.3, 0.0),
     ]
     assert load_scenario(DATA / "hidden_rock.toml").sensors.perception == "scan"
+
+
+def test_each_sensor_sits_and_faces_where_its_own_mount_says() -> None:
+    # A corner sensor 0.5 m forward, 0.3 m left, turned 30 degrees left; a rock 3 m further along its axis.
+    corner = SensorMount(forward_m=0.5, left_m=0.3, yaw_rad=math.radians(30.0))
+    along = (0.5 + 3.5 * math.cos(math.radians(30.0)), 0.3 + 3.5 * math.sin(math.radians(30.0)))
+    rock = ("rock", along[0], along[1], 0.5, 0.0, 0.0)
+    ring, sent = _ring([rock], sensors=(SensorMount(), corner), fov_deg=0.0)
+    assert ring.ranges(0, 0.0, 0.0, 0.0) == [None, pytest.approx(3.0)]
+    ring.step(0.0, 0.0, 0.0)
+    front, turned = (read_beam(msg, 0) for msg in sent)
+    assert sent[1].orientation == mavlink2.MAV_SENSOR_ROTATION_CUSTOM
+    assert turned is not None and turned.bearing_rad == pytest.approx(math.radians(30.0))
+    assert turned.range_m == pytest.approx(3.0, abs=0.01)
+    assert front is not None and front.range_m is None
+
+
+def test_a_sensor_on_a_45_degree_step_says_so_by_name_and_others_by_quaternion() -> None:
+    assert mavlink_orientation(-math.radians(90.0)) == (mavlink2.MAV_SENSOR_ROTATION_YAW_90, (0.0,) * 4)
+    assert mavlink_orientation(math.radians(45.0))[0] == mavlink2.MAV_SENSOR_ROTATION_YAW_315
+    assert mavlink_orientation(math.pi)[0] == mavlink2.MAV_SENSOR_ROTATION_YAW_180
+    orientation, (w, x, y, z) = mavlink_orientation(math.radians(10.0))  # 10 degrees left: yaw 350 in FRD
+    assert orientation == mavlink2.MAV_SENSOR_ROTATION_CUSTOM and (x, y) == (0.0, 0.0)
+    assert 2.0 * math.degrees(math.atan2(z, w)) == pytest.approx(350.0)
+
+
+def test_the_scenario_places_each_sensor_and_refuses_a_bad_ring(tmp_path: Path) -> None:
+    sensors = _scenario_with(
+        'perception = "rangefinders"\nperception_mount_forward_m = 0.2\n'
+        "rangefinders = [{yaw_deg = 0.0, forward_m = 0.45}, {yaw_deg = -30.0, left_m = 0.25}]"
+    ).sensors
+    assert sensors.rangefinder_ring == (
+        SensorMount(0.45, 0.0, -0.0),
+        SensorMount(0.2, 0.25, math.radians(30.0)),
+    )
+    for bad, key in [
+        ("rangefinders = []", "rangefinders"),
+        ("rangefinders = [{yaw_deg = 0.0}]\nrangefinder_yaw_deg = [0]", "rangefinders"),
+        ("rangefinders = [{forward_m = 0.1}]", "yaw_deg"),
+        ("rangefinders = [{yaw_deg = 0.0, forward_m = 9.0}]", "forward_m"),
+        ("rangefinders = [{yaw_deg = 0.0, up_m = 0.1}]", "up_m"),
+        ("rangefinders = [{yaw_deg = 400.0}]", "yaw_deg"),
+    ]:
+        with pytest.raises(ConfigError, match=key):
+            _scenario_with(f'perception = "rangefinders"\n{bad}')
+    scenario = _scenario_with(
+        'perception = "rangefinders"\nrangefinders = [{yaw_deg = 20.0, forward_m = 0.4, left_m = -0.1}]'
+    )
+    config = rover_config_from_table(parse_toml("", "<defaults>"))
+    written = load_rover_config(write_peer_files(tmp_path, scenario, config, mavlink_port=14550))
+    assert [(m.sensor_id, m.forward_m, m.left_m) for m in written.perception.rangefinders] == [(0, 0.4, -0.1)]

@@ -5,6 +5,7 @@ around; the trial is as deterministic as any."""
 
 from __future__ import annotations
 
+import base64
 import json
 import math
 import statistics
@@ -74,3 +75,52 @@ def test_a_rangefinder_trial_is_deterministic(tmp_path: Path) -> None:
         for name in ("a", "b")
     )
     assert first == second
+
+
+# Four corner sonars turned out at 30 degrees and one at the nose, as a real vehicle might carry them: the
+# turned ones say MAV_SENSOR_ROTATION_CUSTOM with their quaternion; the config places each by id.
+CORNERS = (
+    "rangefinders = [{yaw_deg = 0.0, forward_m = 0.5}, {yaw_deg = 30.0, forward_m = 0.45, left_m = -0.3},"
+    " {yaw_deg = -30.0, forward_m = 0.45, left_m = 0.3}, {yaw_deg = 100.0, left_m = -0.35},"
+    " {yaw_deg = -100.0, left_m = 0.35}]"
+)
+CORNERS_CONFIG = (
+    "[perception]\nrangefinders = [{id = 0, forward_m = 0.5}, {id = 1, forward_m = 0.45, left_m = -0.3},"
+    " {id = 2, forward_m = 0.45, left_m = 0.3}, {id = 3, left_m = -0.35}, {id = 4, left_m = 0.35}]\n"
+)
+
+
+def test_a_ring_of_sensors_each_placed_and_turned_its_own_way_finds_the_rock(tmp_path: Path) -> None:
+    text = (
+        (DATA / "hidden_rock.toml")
+        .read_text()
+        .replace('perception = "scan"', f'perception = "rangefinders"\n{CORNERS}')
+    )
+    (tmp_path / "corners.toml").write_text(text)
+    config = rover_config_from_table(parse_toml(CORNERS_CONFIG, "<corners>"))
+    result = run_trial(load_scenario(tmp_path / "corners.toml"), config, tmp_path / "trial")
+    assert result.metrics.goal_reached and result.metrics.collisions == 0, result.metrics
+    sent = [
+        mavlink2.MAVLink(None).decode(bytearray(base64.b64decode(m.message["data"])))
+        for m in read_messages(result.mcap_path, topics={topics.MAVLINK_RAW})
+        if m.message["direction"] == "rx" and m.message["msgid"] == mavlink2.MAVLINK_MSG_ID_DISTANCE_SENSOR
+    ]
+    custom = mavlink2.MAV_SENSOR_ROTATION_CUSTOM
+    assert {(msg.id, msg.orientation) for msg in sent} == {
+        (0, 0),
+        (1, custom),
+        (2, custom),
+        (3, custom),
+        (4, custom),
+    }
+    stats = list(read_messages(result.mcap_path, topics={topics.MAVLINK_STATS}))
+    assert all(m.message["beams_rejected"] == 0 and m.message["beams_unused"] == 0 for m in stats)
+    seen = [
+        obstacle
+        for message in read_messages(result.mcap_path, topics={topics.PERCEPTION_OBSTACLES})
+        for obstacle in message.message["obstacles"]
+    ]
+    gaps = [math.hypot(o["x"] - ROCK_XY[0], o["y"] - ROCK_XY[1]) for o in seen]
+    assert seen and statistics.median(gaps) < ROCK_RADIUS_M + 0.2
+    ring = json.loads(read_metadata(result.mcap_path)["scenario"]["perception_json"])
+    assert [s["yaw_deg"] for s in ring["rangefinders"]] == [0.0, 30.0, -30.0, 100.0, -100.0]

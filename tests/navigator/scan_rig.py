@@ -12,7 +12,7 @@ from firmware_bridge.distance_sensor import RangeBeam, read_beam
 from firmware_bridge.mavlink_transport import memory_pipe_pair
 from firmware_bridge.obstacle_scan import ObstacleScan, read_scan, scan_message
 from hil.lidar_sim import MIN_RANGE_M, SimLidar
-from hil.rangefinder_sim import DEFAULT_YAWS_DEG, SimRangefinders
+from hil.rangefinder_sim import DEFAULT_YAWS_DEG, SimRangefinders, yaw_ring
 from logs.clock import SimClock
 from navigator.sensor_mount import AT_CENTRE, SensorMount
 
@@ -70,9 +70,8 @@ def beams_of(
         SimClock(t_ns),
         lambda _t: discs,
         np.random.default_rng(0),
-        yaw_deg=yaw_deg,
+        sensors=yaw_ring(yaw_deg, mount),
         fov_deg=fov_deg,
-        mount=mount,
     )
     ring.step(*pose)
     mav = mavlink2.MAVLink(None, 1, 1)
