@@ -55,6 +55,9 @@ class ExportStats:
     frames: int = 0
     tx: int = 0
     rx: int = 0
+    # Of rx, the error frames the controller delivered (bus-off, restarted...), written as each format
+    # writes one (candump: python-can's CAN_ERR_BUSERROR line, the class lost; .asc: ErrorFrame).
+    error_frames: int = 0
     rejected: int = 0  # records that do not describe a CAN frame
     first_ns: int | None = None
     last_ns: int | None = None
@@ -69,7 +72,10 @@ class ExportStats:
 
 
 def record_to_message(record: dict[str, Any], log_time_ns: int, channel: str) -> can.Message:
-    """One ``can/frames`` record as a python-can message stamped with its log time in seconds.
+    """One ``can/frames`` record as a python-can message stamped with its log time in seconds; a record
+    marked ``"error": true`` as an error frame (its error class in the id, as python-can's socketcan
+    delivers it). A record without the mark (every record made before error frames were recorded) is a
+    data frame.
 
     Raises ``FrameError`` (reason ``record``) naming what is wrong with the record.
     """
@@ -81,11 +87,14 @@ def record_to_message(record: dict[str, Any], log_time_ns: int, channel: str) ->
         data = bytes.fromhex(record["data"])
     except (KeyError, TypeError, ValueError) as err:
         raise FrameError(f"can/frames record is malformed: {err!r}", reason="record") from err
-    if not isinstance(extended, bool) or direction not in ("tx", "rx"):
+    error = record.get("error", False)
+    if not isinstance(extended, bool) or not isinstance(error, bool) or direction not in ("tx", "rx"):
         raise FrameError(
-            f"can/frames record has extended={extended!r}, direction={direction!r}", reason="record"
+            f"can/frames record has extended={extended!r}, error={error!r}, direction={direction!r}",
+            reason="record",
         )
-    limit = _EXTENDED_ID_MAX if extended else _STANDARD_ID_MAX
+    # An error frame's id is its error class, of Linux's 29 bits (CAN_ERR_MASK) whatever its format.
+    limit = _EXTENDED_ID_MAX if extended or error else _STANDARD_ID_MAX
     if not isinstance(arbitration_id, int) or not 0 <= arbitration_id <= limit:
         raise FrameError(f"can/frames record id {arbitration_id!r} is out of range", reason="record")
     if not isinstance(dlc, int) or dlc != len(data) or dlc > _CLASSIC_MAX_DLC:
@@ -101,6 +110,7 @@ def record_to_message(record: dict[str, Any], log_time_ns: int, channel: str) ->
         dlc=dlc,
         data=data,
         is_rx=direction == "rx",
+        is_error_frame=error,
         channel=channel,
     )
 
@@ -187,6 +197,7 @@ def export_can_log(
             stats.frames += 1
             if msg.is_rx:
                 stats.rx += 1
+                stats.error_frames += msg.is_error_frame
             else:
                 stats.tx += 1
             if stats.first_ns is None:

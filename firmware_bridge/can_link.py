@@ -59,6 +59,9 @@ _MAX_CACHED_FRAME_KINDS = 512
 # frame_bits per (format, length), remembered: it is asked for every frame (~720 per simulated second) and
 # the C-level cache lookup costs about half the Python call. Bounded: a bus delivers a handful of lengths.
 _frame_bits = functools.lru_cache(maxsize=128)(frame_bits)
+# An error frame's record ends with this mark (``_frame_record``'s "error": true); a data frame's has none,
+# so its bytes are what they were before error frames were recorded.
+_ERROR_TAIL = ',"error":true}'
 
 
 @dataclass(slots=True)  # a store per status frame
@@ -150,12 +153,12 @@ def _frame_json(t_ns: int, direction: str, msg: can.Message) -> bytes:
         f'{{"timestamp":{{"sec":{t_ns // 1_000_000_000},"nsec":{t_ns % 1_000_000_000}}},'
         f'"direction":"{direction}","id":{int(msg.arbitration_id)},'
         f'"extended":{"true" if msg.is_extended_id else "false"},"dlc":{int(msg.dlc)},'
-        f'"data":"{msg.data.hex()}"}}'
+        f'"data":"{msg.data.hex()}"{_ERROR_TAIL if msg.is_error_frame else "}"}'
     ).encode()
 
 
 def _frame_record(t_ns: int, direction: str, msg: can.Message) -> dict[str, object]:
-    return {
+    record: dict[str, object] = {
         "timestamp": stamp(t_ns),
         "direction": direction,
         "id": msg.arbitration_id,
@@ -163,10 +166,14 @@ def _frame_record(t_ns: int, direction: str, msg: can.Message) -> dict[str, obje
         "dlc": msg.dlc,
         "data": msg.data.hex(),
     }
+    if msg.is_error_frame:
+        record["error"] = True
+    return record
 
 
 class _FrameRecords:
-    """``_frame_record`` and ``_frame_json`` of one link's frames, from parts kept between frames.
+    """``_frame_record`` and ``_frame_json`` of one link's data frames (error frames: those functions
+    themselves, ``CanLink._record_error_frame``), from parts kept between frames.
 
     Hot path (every frame in both directions, ~720 per simulated second): the frames of one poll
     share a timestamp, and a link sees a few dozen (direction, id, format, length) combinations over and
@@ -694,8 +701,11 @@ class CanLink(ClosesOnExit):
     def _take(self, msg: can.Message, t_ns: int) -> bool:
         """Handle one received frame; True if it was a status frame."""
         if msg.is_error_frame:
-            # Error frames carry no data worth recording as a frame; the counter is their record.
+            # Not a frame on the wire but the controller's report to its host: counted in bus_errors, not
+            # rx nor the bus load; recorded (marked "error") so a recording says when the controller left
+            # the bus and rejoined it, and a replay can tell the stack again (hil.replay).
             self.counters.bus_errors += 1
+            self._record_error_frame(t_ns, msg)
             logger.debug("CAN error frame received (class 0x%x)", msg.arbitration_id)
             signal = classify_error_frame(msg)
             self._apply(
@@ -742,6 +752,18 @@ class CanLink(ClosesOnExit):
         if bus_state.state is not CanLinkState.OK and (change := bus_state.on_status(cid)) is not None:
             self._apply(t_ns, change, False)
         return True
+
+    def _record_error_frame(self, t_ns: int, msg: can.Message) -> None:
+        """An error frame on ``can/frames``, in its place among the poll's frames; formatted in full (rare:
+        a few a second at most, during a fault), not from ``_FrameRecords``' kept parts, whose records have
+        no "error" mark."""
+        if self._bytes_sink is not None:  # the poll began the batch at t_ns (_begin_frames)
+            self._frames.append(_frame_json(t_ns, "rx", msg))
+        elif self._encoded_sink is None:
+            self._sink.publish(CAN_FRAMES, t_ns, _frame_record(t_ns, "rx", msg))
+        else:
+            record = _frame_record(t_ns, "rx", msg)
+            self._encoded_sink.publish_encoded(CAN_FRAMES, t_ns, record, _frame_json(t_ns, "rx", msg))
 
     def _reject(self, msg: can.Message, err: FrameError) -> None:
         """Count a received frame the codec refused, by cause; a foreign controller is named once."""

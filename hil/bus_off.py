@@ -45,6 +45,12 @@ _ERROR_FRAME_DLC = 8  # Linux's CAN_ERR_DLC
 # learn from its failing sends; the link's own threshold for that is 0.1 s (``safety.can_fail_s``), so
 # a repeat every 0.1 s tells it as soon.
 BUS_OFF_REPEAT_NS = 100_000_000
+# What a refused send raises with (``can.CanOperationError``); the replay's end of a recorded bus-off says
+# the same (hil.replay_bus_off), so a link that logs it logs the same line.
+BUS_OFF_REFUSAL = (
+    "simulated bus-off: the rover's CAN controller left the bus (no ACK, transmit error counter past 255) "
+    "and refuses to transmit"
+)
 
 
 def error_frame(error_class: int, t_ns: int) -> can.Message:
@@ -105,10 +111,7 @@ class BusOffRoverEnd(can.BusABC):
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         if self.off:
             self.refused += 1
-            raise can.CanOperationError(
-                "simulated bus-off: the rover's CAN controller left the bus (no ACK, transmit error "
-                "counter past 255) and refuses to transmit"
-            )
+            raise can.CanOperationError(BUS_OFF_REFUSAL)
         self._inner.send(msg, timeout)
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:

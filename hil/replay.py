@@ -7,7 +7,8 @@ what a team does with rosbag2 and robot_localization, but deterministic: replaye
 with, a lockstep trial gives its recording back byte for byte (tests/hil/test_replay.py).
 
 Inputs, as the recording holds them: the MAVLink frames the rover received (``mavlink/raw``, "rx"), the CAN
-frames it received (``can/frames``, "rx"), the ground station's commands (``ground/commands``, recorded by
+frames it received (``can/frames``, "rx", with the error frames its controller delivered: bus-off and
+restarted, ``hil.replay_bus_off``), the ground station's commands (``ground/commands``, recorded by
 the stack as it takes them), and in a lockstep trial with "objects" perception the observations the
 simulator handed over (``perception/obstacles``); a lockstep trial's goals come from its scenario, as
 ``rover hil trial`` gives them (``hil.replay_setup``). Each onboard tick of the recording (a
@@ -22,9 +23,10 @@ truth (``truth/*``: so ``rover logs report`` gives the estimator's error against
 and trial runner's ``log`` lines; the original's metadata and attachments; the replay's own config
 (``config`` metadata, ``config.effective.json``); and a ``replay`` metadata record naming the original.
 
-Not replayed: MAVLink bytes that did not parse as frames, CAN error frames and bus states (a bus-off
-fault's refused sends), the ground station's malformed Zenoh samples (contact for the ground-link
-failsafe), and the commands of a recording made before ``ground/commands`` existed.
+Not replayed: MAVLink bytes that did not parse as frames, the ground station's malformed Zenoh samples
+(contact for the ground-link failsafe), and what a recording made before they were recorded lacks: the
+commands before ``ground/commands``, the CAN error frames (and so a lockstep bus-off's refused sends)
+before ``can/frames`` marked them "error".
 """
 
 from __future__ import annotations
@@ -48,6 +50,7 @@ from hil.lockstep import onboard_links
 from hil.lockstep_bus import lockstep_bus_pair
 from hil.recorded_commands import RecordedCommands
 from hil.recorded_obstacles import RecordedObstacles
+from hil.replay_bus_off import RecordedBusOffEnd
 from hil.replay_planning import NextTickPlanning
 from hil.replay_setup import ReplayError, ReplaySetup, config_changes, read_header, replay_setup
 from hil.scenario import Scenario
@@ -91,7 +94,7 @@ class ReplayResult:
     source_mode: str  # the original's trial.mode
     ticks: int  # onboard ticks replayed
     mavlink_frames: int  # received MAVLink frames fed to the link
-    can_frames: int  # received CAN frames fed to the link
+    can_frames: int  # received CAN frames fed to the link, error frames included
     obstacle_records: int  # perception/obstacles records handed to the stack as its perception
     ground_commands: int  # ground/commands records handed to the stack as the ground station's commands
     # Input records, or obstacles within one, that could not be read or fed (each logged, skipped).
@@ -104,6 +107,8 @@ class ReplayResult:
     wheel_speed_difference_max_mps: float  # the largest difference of one wheel's commanded speed
     truncated: bool  # the original was cut short or damaged: replayed up to there
     ingests: int = 0  # times the links were read between ticks (as `rover run`'s loop reads them)
+    can_error_frames: int = 0  # of can_frames, the controller's error frames (bus-off, restarted...)
+    can_sends_refused: int = 0  # frames the replay's CAN end refused during a lockstep trial's bus-off
     # (key, as recorded, as replayed) for each config value that differs, flattened ("estimator.gps_noise_m")
     config_changes: tuple[tuple[str, str, str], ...] = ()
 
@@ -176,6 +181,8 @@ def replay_recording(
         wheel_speed_difference_max_mps=wheels.largest_mps,
         truncated=replayer.truncated,
         ingests=replayer.ingests,
+        can_error_frames=replayer.can_error_frames,
+        can_sends_refused=0 if replayer.bus_off is None else replayer.bus_off.refused,
         config_changes=config_changes(header.metadata.get("config", {}), setup.config),
     )
 
@@ -207,6 +214,8 @@ class _Replayer:
         self.recorded_wheel_commands: dict[int, bytes] = {}  # the original's wheels/command by log time
         self.ticks = self.mavlink_frames = self.can_frames = self.obstacle_records = self.ground_commands = 0
         self.copied_messages = self.ticks_skipped = self.ingests = self._rejected = 0
+        self.can_error_frames = 0
+        self.bus_off: RecordedBusOffEnd | None = None  # the rover's CAN end in a lockstep trial's replay
         # What the stack took in since the last tick, in file order, until the next tick's navigator/state
         # says which of it came before the tick (read between ticks) and which inside it.
         self._since_tick: list[_Input] = []
@@ -238,6 +247,8 @@ class _Replayer:
         self._clock = clock = SimClock(self.start_ns)
         # The stack's two wires, as a lockstep trial's, with the recording at the far ends.
         self._rover_bus, self._sim_bus = lockstep_bus_pair("replay", clock)
+        if self._setup.bus_off_refuses_sends:
+            self.bus_off = RecordedBusOffEnd(self._rover_bus)
         self._rover_pipe, self._sim_pipe = memory_pipe_pair()
         with recording_logs(recorder, clock):
             self._stack = stack = self._build_stack()
@@ -263,7 +274,8 @@ class _Replayer:
 
     def _build_stack(self) -> OnboardStack:
         config, clock, recorder = self._setup.config, self._clock, self._recorder
-        can_link, mavlink = onboard_links(config, self._rover_bus, self._rover_pipe, clock, recorder)
+        can_end = self._rover_bus if self.bus_off is None else self.bus_off
+        can_link, mavlink = onboard_links(config, can_end, self._rover_pipe, clock, recorder)
         return OnboardStack(
             config,
             clock,
@@ -390,6 +402,10 @@ class _Replayer:
             elif item.can is not None:
                 self._sim_bus.send(item.can)
                 self.can_frames += 1
+                if item.can.is_error_frame:
+                    self.can_error_frames += 1
+                    if self.bus_off is not None:
+                        self.bus_off.heard(item.can)
             elif item.command is not None:
                 self._stack.take_command(item.command)
 

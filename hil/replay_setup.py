@@ -57,6 +57,12 @@ class ReplaySetup:
         """`rover run` planned on a worker thread (hil.replay_planning); a lockstep trial, inline."""
         return self.mode == ROVER_RUN_MODE
 
+    @property
+    def bus_off_refuses_sends(self) -> bool:
+        """A lockstep trial's rover end refused sends while bus-off (hil.bus_off.BusOffRoverEnd); `rover
+        run`'s bus took them, its link withholding its rounds itself (hil.replay_bus_off)."""
+        return self.mode == LOCKSTEP_MODE
+
 
 def read_header(recording: Path) -> RecordingHeader:
     """Metadata and attachments, read without decompressing a chunk."""

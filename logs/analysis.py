@@ -80,6 +80,8 @@ _COMPLETE_SHARE = 0.99
 # decode in the compact payload the recorder writes (``"extended":true,"dlc":8``).
 _DLC = re.compile(rb'"dlc":(\d+)')
 _EXTENDED = b'"extended":true'
+# An error frame's record (the controller's report, not a frame on the wire): no bits on the bus.
+_ERROR_FRAME = b'"error":true'
 RAW_TOPICS = frozenset({CAN_FRAMES})
 REPORT_TOPICS = frozenset(METRIC_TOPICS) | {
     CAN_STATS,
@@ -257,6 +259,8 @@ class _Collector:
         if found is None:
             self.unusable[entry.topic] += 1
             return
+        if _ERROR_FRAME in entry.data:
+            return  # not on the wire: neither a frame nor bits of the bus load
         t_ns = entry.log_time_ns
         if self.t0 is None:
             self.t0 = t_ns  # plots count time from the first message of any topic

@@ -247,6 +247,8 @@ class LiveView:
         elif topic == CAN_STATS:
             self._stats = (float(message["load_pct"]), int(message["bitrate"]))
         elif topic == CAN_FRAMES:
+            if message.get("error") is True:
+                return  # an error frame: the controller's report, no bits on the wire
             bits = frame_bits(bool(message["extended"]), int(message["dlc"]))
             self._can_frames.append((t_ns, bits))
             self._can_bits += bits

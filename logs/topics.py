@@ -102,9 +102,18 @@ _SPECS = [
                 "extended": _BOOL,
                 "dlc": _INT,
                 "data": {"type": "string", "description": "payload as lowercase hex"},
-            }
+                "error": {
+                    "type": "boolean",
+                    "description": "present (true) only on an error frame the controller delivered: "
+                    "its error class in id (CAN_ERR_BUSOFF 0x40, CAN_ERR_RESTARTED 0x100...), details "
+                    "in data (Linux's layout); absent on every data frame, and in recordings made "
+                    "before error frames were recorded",
+                },
+            },
+            required=["timestamp", "direction", "id", "extended", "dlc", "data"],
         ),
-        "Every CAN frame the companion sent (tx) or received (rx), raw.",
+        "Every CAN frame the companion sent (tx) or received (rx), raw, and the error frames its "
+        "controller delivered (rx, marked error).",
     ),
     TopicSpec(
         CAN_STATS,

@@ -38,7 +38,10 @@ def export_command(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps({"out": str(args.out), **stats.as_dict()}))
     else:
-        figures = f"{stats.frames} frames ({stats.tx} tx, {stats.rx} rx), {stats.rejected} records skipped"
+        errors = f", {stats.error_frames} of them error frames" if stats.error_frames else ""
+        figures = (
+            f"{stats.frames} frames ({stats.tx} tx, {stats.rx} rx{errors}), {stats.rejected} records skipped"
+        )
         print(f"{args.out}: {figures}")
         if stats.wall_clock_start is not None:
             print(f"dated by the recording's wall clock: first frame at {stats.wall_clock_start}")

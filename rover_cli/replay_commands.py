@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rich.console import Console
 from rich.markup import escape
@@ -20,6 +20,9 @@ from logs.settings import ConfigError
 from rover_cli.arg_types import bounded_int
 from rover_cli.errors import print_error
 from rover_cli.replay_sweep_command import fmt, sweep_command
+
+if TYPE_CHECKING:
+    from hil.replay import ReplayResult
 
 
 def register(commands: Any) -> None:
@@ -104,10 +107,12 @@ def replay_command(args: argparse.Namespace) -> int:
             "inputs": {
                 "mavlink_frames": result.mavlink_frames,
                 "can_frames": result.can_frames,
+                "can_error_frames": result.can_error_frames,
                 "obstacle_records": result.obstacle_records,
                 "ground_commands": result.ground_commands,
                 "rejected": result.rejected_inputs,
             },
+            "can_sends_refused": result.can_sends_refused,
             "copied_messages": result.copied_messages,
             "wheel_commands_compared": result.wheel_commands_compared,
             "wheel_commands_differing": result.wheel_commands_differing,
@@ -125,7 +130,7 @@ def replay_command(args: argparse.Namespace) -> int:
         return code
     console.print(
         f"replayed {result.ticks} ticks of {escape(str(recording))} ({result.source_mode}): "
-        f"{result.mavlink_frames} MAVLink frames, {result.can_frames} CAN frames, "
+        f"{result.mavlink_frames} MAVLink frames, {result.can_frames} CAN frames{_bus_off(result)}, "
         f"{result.obstacle_records} obstacle records and {result.ground_commands} ground commands fed; "
         f"{result.copied_messages} messages of the rest of the run (truth, the simulator's log) copied",
         soft_wrap=True,
@@ -173,3 +178,13 @@ def replay_command(args: argparse.Namespace) -> int:
         )
     console.print(f"replay: {escape(str(result.out_path))}")
     return code
+
+
+def _bus_off(result: ReplayResult) -> str:
+    """The CAN error frames among the frames fed, and the sends a replayed bus-off refused, if any."""
+    if not result.can_error_frames:
+        return ""
+    refused = (
+        f"; the replayed bus-off refused {result.can_sends_refused} sends" if result.can_sends_refused else ""
+    )
+    return f" ({result.can_error_frames} of them error frames{refused})"

@@ -19,8 +19,10 @@ def rewrite(
     metadata: Callable[[str, dict[str, str]], dict[str, str]] = lambda name, data: data,
     data: Callable[[str, int, bytes], bytes] = lambda topic, log_time_ns, payload: payload,
     log_time: Callable[[str, int], int] = lambda topic, log_time_ns: log_time_ns,
+    drop: Callable[[str, bytes], bool] = lambda topic, payload: False,
 ) -> Path:
-    """Every message of a kept topic (with its times and sequence), every metadata record; no attachment.
+    """Every message of a kept topic (with its times and sequence) but those ``drop`` names by topic and
+    payload, every metadata record; no attachment.
 
     ``metadata``, ``data`` and ``log_time`` may change what is written: a record's key/values by its name, a
     message's payload or log time by its topic and log time (the file order stays as it was)."""
@@ -31,7 +33,7 @@ def rewrite(
         schemas: dict[int, int] = {}
         channels: dict[int, int] = {}
         for schema, channel, message in reader.iter_messages(log_time_order=False):
-            if not keep(channel.topic):
+            if not keep(channel.topic) or drop(channel.topic, message.data):
                 continue
             if schema is not None and schema.id not in schemas:
                 schemas[schema.id] = writer.register_schema(schema.name, schema.encoding, schema.data)

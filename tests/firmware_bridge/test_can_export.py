@@ -106,18 +106,48 @@ def test_bad_records_are_counted_and_skipped_not_fatal(tmp_path):
     assert lines == ["(0.000001) can0 00000901#0102 R", "(0.000006) can0 123#0102 T"]
 
 
+def test_an_error_frame_record_exports_as_an_error_frame(tmp_path):
+    """A record marked "error" (the controller's bus-off report) is exported as python-can writes an error
+    frame (candump: its CAN_ERR_FLAG line) and counted as received; an unmarked one stays a data frame."""
+    stream = BytesIO()
+    busoff = {"direction": "rx", "id": 0x40, "extended": False, "dlc": 8, "data": "00" * 8, "error": True}
+    with McapRecorder(stream) as recorder:
+        recorder.publish(CAN_FRAMES, 1_000, {"timestamp": stamp(1_000), **busoff})
+        recorder.publish(CAN_FRAMES, 2_000, {"timestamp": stamp(2_000), **busoff, "error": False})
+    out = tmp_path / "errors.log"
+    stats = export_can_log(BytesIO(stream.getvalue()), out)
+    assert (stats.frames, stats.rx, stats.error_frames, stats.rejected) == (2, 2, 1, 0)
+    error, data = can.CanutilsLogReader(out)
+    assert error.is_error_frame and not data.is_error_frame and data.arbitration_id == 0x40
+
+
 @pytest.mark.parametrize(
     ("record", "text"),
     [
         ({"direction": "rx", "id": 1, "extended": True, "dlc": 1}, "malformed"),
         ({"direction": "rx", "id": -1, "extended": True, "dlc": 0, "data": ""}, "out of range"),
         ({"direction": "rx", "id": 1, "extended": True, "dlc": 9, "data": "00" * 9}, "dlc 9"),
+        ({"direction": "rx", "id": 0x40, "extended": False, "dlc": 0, "data": "", "error": 1}, "error=1"),
+        (
+            {"direction": "rx", "id": 1 << 29, "extended": False, "dlc": 0, "data": "", "error": True},
+            "out of range",
+        ),
     ],
 )
 def test_record_to_message_names_what_is_wrong(record, text):
     with pytest.raises(FrameError, match=text) as caught:
         record_to_message(record, 0, "can0")
     assert caught.value.reason == "record"
+
+
+def test_an_error_frames_class_may_use_all_29_bits_whatever_its_format():
+    # python-can's socketcan gives an error frame a standard-format id holding the class, of Linux's 29-bit
+    # CAN_ERR_MASK (the classes it defines end at 0x200; a driver may set more).
+    record = {"direction": "rx", "id": 0x1000, "extended": False, "dlc": 0, "data": "", "error": True}
+    msg = record_to_message(record, 5, "can0")
+    assert msg.is_error_frame and msg.arbitration_id == 0x1000 and not msg.is_extended_id
+    with pytest.raises(FrameError, match="out of range"):
+        record_to_message({**record, "error": False}, 5, "can0")  # past a standard data frame's 0x7ff
 
 
 def test_other_formats_by_suffix_and_refusals(request, tmp_path):

@@ -4,6 +4,7 @@ import random
 import can
 import pytest
 
+from firmware_bridge.can_health import CAN_ERR_BUSOFF
 from firmware_bridge.can_link import (
     _MAX_CACHED_FRAME_KINDS,
     CanConfig,
@@ -15,6 +16,7 @@ from firmware_bridge.can_link import (
     open_bus,
 )
 from firmware_bridge.errors import BridgeOperationError, BridgeSetupError
+from logs.can_load import frame_bits
 from logs.clock import SimClock
 from logs.encoding import encode_message
 from logs.settings import ConfigError, parse_toml
@@ -103,7 +105,10 @@ def test_poll_counts_bad_frames_and_keeps_good_status(buses):
     assert len(statuses) == 1
     assert [w["controller_id"] for w in statuses[0]["wheels"]] == [1, 2, 3, 4, 5, 6]
     assert statuses[0]["wheels"][1]["erpm"] == 1234.0
-    assert [m["direction"] for m in sink.on(CAN_FRAMES)] == ["rx"] * 5
+    # Every frame received, in order; the error frame marked as one (the counter counts it, not rx).
+    frames = sink.on(CAN_FRAMES)
+    assert [m["direction"] for m in frames] == ["rx"] * 6
+    assert [m.get("error", False) for m in frames] == [False, False, False, True, False, False]
     # nothing more to read: no frames, no new status message
     assert link.poll() == 0
     assert len(sink.on(WHEELS_STATUS)) == 1
@@ -215,6 +220,7 @@ def test_preformatted_frame_record_is_the_json_encoders_bytes(seed):
         msg = can.Message(
             arbitration_id=rng.randrange(1 << (29 if extended else 11)),
             is_extended_id=extended,
+            is_error_frame=rng.random() < 0.1,  # marked "error" in both
             data=rng.randbytes(dlc),
             dlc=dlc,
         )
@@ -267,25 +273,39 @@ def test_an_encoding_sink_gets_the_same_frame_records(buses):
     assert [d for t, d in sink.data if t == CAN_FRAMES] == [encode_message(m) for _, m in frames]
 
 
+class BytesOnly(MemorySink):
+    """A sink that takes frame records as their bytes alone, as the recorder and Zenoh do."""
+
+    records_bytes_only = True
+
+    def __init__(self):
+        super().__init__()
+        self.data = []
+        self.batches = []
+
+    def publish_bytes(self, topic, log_time_ns, data):
+        self.data.append((topic, log_time_ns, data))
+
+    def publish_bytes_many(self, topic, log_time_ns, datas):
+        self.batches.append((topic, log_time_ns, len(datas)))
+        self.data.extend((topic, log_time_ns, data) for data in datas)
+
+
+class Encoded(MemorySink):
+    """A sink that takes each record with its bytes (an EncodedSink), as a fan-out to both does."""
+
+    def __init__(self):
+        super().__init__()
+        self.data = []
+
+    def publish_encoded(self, topic, log_time_ns, message, data):
+        self.data.append((topic, log_time_ns, data))
+        self.publish(topic, log_time_ns, message)
+
+
 def test_a_bytes_only_sink_gets_the_frames_bytes_and_no_dicts(buses):
     """A sink recording bytes alone (the recorder, Zenoh) gets the same frame bytes, both directions, that
     the JSON encoder gives for the records a plain sink gets; everything else still comes as messages."""
-
-    class BytesOnly(MemorySink):
-        records_bytes_only = True
-
-        def __init__(self):
-            super().__init__()
-            self.data = []
-            self.batches = []
-
-        def publish_bytes(self, topic, log_time_ns, data):
-            self.data.append((topic, log_time_ns, data))
-
-        def publish_bytes_many(self, topic, log_time_ns, datas):
-            self.batches.append((topic, log_time_ns, len(datas)))
-            self.data.extend((topic, log_time_ns, data) for data in datas)
-
     ours, theirs = buses
     bytes_only, plain = BytesOnly(), MemorySink()
     codec = make_codec()
@@ -307,6 +327,49 @@ def test_a_bytes_only_sink_gets_the_frames_bytes_and_no_dicts(buses):
     assert bytes_only.batches == [(CAN_FRAMES, 2_000_000_000, 6), (CAN_FRAMES, 2_001_000_000, 2)]
     assert not bytes_only.on(CAN_FRAMES)
     assert bytes_only.on(WHEELS_STATUS)[0]["wheels"][1]["erpm"] == 1200.0
+
+
+def test_error_frames_are_recorded_as_received_marked_error_in_their_place(buses):
+    """The controller's error frames go on can/frames among the poll's frames, as received and marked
+    "error" (a replay delivers them again: hil.replay), the same bytes whatever the sink; counted as bus
+    errors, neither rx nor bus load."""
+    ours, theirs = buses
+    codec = make_codec()
+    busoff = can.Message(
+        arbitration_id=CAN_ERR_BUSOFF, is_error_frame=True, is_extended_id=False, data=bytes(8)
+    )
+    sinks = {"plain": MemorySink(), "encoded": Encoded(), "bytes": BytesOnly()}
+    for sink in sinks.values():
+        link = CanLink(ours, codec, SimClock(3_000_000_000), sink)
+        theirs.send(codec.encode("STATUS", 1, erpm=100.0, current=1.0, duty=0.1))
+        theirs.send(busoff)
+        theirs.send(codec.encode("STATUS", 2, erpm=200.0, current=1.0, duty=0.1))
+        assert link.poll() == 3
+        assert (link.counters.rx, link.counters.bus_errors, link.state.value) == (2, 1, "recovering")
+        assert link.bits_total == 2 * frame_bits(True, 8)  # the two status frames' bits: none for the error
+    records = sinks["plain"].on(CAN_FRAMES)
+    assert [(r["id"], r.get("error")) for r in records] == [
+        (0x901, None),
+        (CAN_ERR_BUSOFF, True),
+        (0x902, None),
+    ]
+    assert records[1] == {
+        "timestamp": {"sec": 3, "nsec": 0},
+        "direction": "rx",
+        "id": CAN_ERR_BUSOFF,
+        "extended": False,
+        "dlc": 8,
+        "data": "00" * 8,
+        "error": True,
+    }
+    expected = [encode_message(r) for r in records]
+    assert [d for topic, _, d in sinks["encoded"].data if topic == CAN_FRAMES] == expected
+    assert [d for _, _, d in sinks["bytes"].data] == expected
+    assert expected[1].endswith(b',"error":true}')
+    # Each record goes before the change of state it brought: the error frame's before the bus-off, the
+    # next status frame's before the recovery.
+    kinds = [t if t == CAN_FRAMES else m["kind"] for t, _, m in sinks["plain"].records if t != WHEELS_STATUS]
+    assert kinds == [CAN_FRAMES, CAN_FRAMES, "can_bus_off", CAN_FRAMES, "can_recovering"]
 
 
 def test_status_read_by_field_decoders_gives_the_readings_decode_gives(buses, monkeypatch):

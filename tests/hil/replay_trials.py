@@ -10,6 +10,7 @@ from pathlib import Path
 
 from mcap.reader import make_reader
 
+from hil.scenario import load_scenario
 from logs.settings import parse_toml
 from navigator.config import RoverConfig, rover_config_from_table
 
@@ -18,6 +19,17 @@ DATA = Path(__file__).resolve().parents[1] / "data"
 
 def config_of(text: str = "") -> RoverConfig:
     return rover_config_from_table(parse_toml(text, "<test config>"))
+
+
+def rover_run_config() -> RoverConfig:
+    """small_rocky's terrain as the config's [map] and its datum as the estimator's, as `rover run` needs
+    (small_rocky_bus_off has the same terrain and datum)."""
+    lat, lon, alt = load_scenario(DATA / "small_rocky.toml").datum
+    map_table = (DATA / "small_rocky.toml").read_text().split("[terrain]")[1].split("[start]")[0]
+    return config_of(
+        f"[estimator]\ndatum_lat_deg = {lat!r}\ndatum_lon_deg = {lon!r}\ndatum_alt_m = {alt!r}\n"
+        f"[map]{map_table}"
+    )
 
 
 def digests(path: Path) -> dict[str, tuple[int, str]]:

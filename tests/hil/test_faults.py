@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 
+from firmware_bridge.can_health import CAN_ERR_BUSOFF
 from hil.faults import Fault, FaultSchedule
 from hil.trial import run_trial
 from logs.reader import read_messages
@@ -110,7 +111,10 @@ def test_imu_bias_stuck_and_off(baseline):
 
 def test_can_bus_off_drop_and_delay(baseline):
     bus_off = run_world(fault("can", "off"))
-    assert bus_off.rx_frames(1.0, 3.0) == [] and bus_off.rx_frames(3.1, 4.0)
+    # No frame from the wire; only the rover's controller's own report that it left the bus (the error
+    # frame its link records, marked "error"), at its first read into the fault.
+    reports = [(f["id"], f.get("error")) for f in bus_off.rx_frames(1.0, 3.0)]
+    assert reports == [(CAN_ERR_BUSOFF, True)] and bus_off.rx_frames(3.1, 4.0)
     assert announced(bus_off, "can/off")
     dropping = run_world(fault("can", "intermittent", probability=0.5))
     kept, full = len(dropping.rx_frames(1.0, 3.0)), len(baseline.rx_frames(1.0, 3.0))

@@ -28,9 +28,8 @@ from logs import topics
 from logs.commands import RoverCommand
 from logs.errors import LogReadError, RecordingError
 from logs.reader import read_messages, read_metadata
-from navigator.config import RoverConfig
 from navigator.onboard import OnboardStack
-from tests.hil.replay_trials import DATA, config_of, digests
+from tests.hil.replay_trials import DATA, config_of, digests, rover_run_config
 from tests.mcap_rewrite import rewrite
 
 
@@ -84,23 +83,13 @@ def test_a_rover_run_recording_replays_on_the_configs_map(trials: dict[str, Path
         keep=lambda topic: not topic.startswith("truth/"),
         metadata=lambda name, data: {**data, "mode": "rover-run"} if name == "trial" else data,
     )
-    result = replay_recording(run, _rover_run_config(), tmp_path / "replay.mcap")
+    result = replay_recording(run, rover_run_config(), tmp_path / "replay.mcap")
     assert result.source_mode == "rover-run" and result.copied_messages == 0
     original, replayed = digests(run), digests(tmp_path / "replay.mcap")
     assert result.ticks == original[topics.NAVIGATOR_STATE][0]
     assert replayed[topics.ESTIMATOR_POSE] == original[topics.ESTIMATOR_POSE]
     # No goal was given (the trial's came from its scenario): the replayed rover never drives.
     assert result.wheel_commands_differing > 0
-
-
-def _rover_run_config() -> RoverConfig:
-    """small_rocky's terrain as the config's [map] and its datum as the estimator's, as `rover run` needs."""
-    lat, lon, alt = load_scenario(DATA / "small_rocky.toml").datum
-    map_table = (DATA / "small_rocky.toml").read_text().split("[terrain]")[1].split("[start]")[0]
-    return config_of(
-        f"[estimator]\ndatum_lat_deg = {lat!r}\ndatum_lon_deg = {lon!r}\ndatum_alt_m = {alt!r}\n"
-        f"[map]{map_table}"
-    )
 
 
 def test_a_rover_run_replay_takes_each_plan_in_a_tick_after_asking(tmp_path: Path) -> None:
@@ -119,7 +108,7 @@ def test_a_rover_run_replay_takes_each_plan_in_a_tick_after_asking(tmp_path: Pat
         tmp_path / "run.mcap",
         metadata=lambda name, data: {**data, "mode": "rover-run"} if name == "trial" else data,
     )
-    replay_recording(run, _rover_run_config(), tmp_path / "replay.mcap")
+    replay_recording(run, rover_run_config(), tmp_path / "replay.mcap")
     inline = [t for t, _ in _records(run, topics.NAVIGATOR_PATH) if t >= goal.received_ns]
     a_tick_late = [t for t, _ in _records(tmp_path / "replay.mcap", topics.NAVIGATOR_PATH)]
     assert inline[0] == goal.received_ns and a_tick_late[0] == goal.received_ns + _GroundStation.TICK_NS

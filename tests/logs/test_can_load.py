@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from logs.analysis import analyse
 from logs.can_load import WINDOW_NS, frame_bits, load_from_frame_windows, load_from_stats
 from logs.recorder import McapRecorder
-from logs.sink import MessageSink
+from logs.sink import Message, MessageSink
 from logs.telemetry_station import RateLimitedSink
 from logs.topics import CAN_FRAMES, CAN_STATS, LIVE_STREAM_METADATA, MAVLINK_RAW, SENSORS_IMU, stamp
 
@@ -144,6 +144,41 @@ def test_the_rovers_own_complete_recording_counts_frames_without_stats(tmp_path:
     assert run.figures["can_bus_load_mean_pct"] == pytest.approx(LOAD_PCT)
     assert run.figures["can_bus_load_peak_pct"] == pytest.approx(LOAD_PCT)
     assert run.can_load_source == "can/frames (every frame recorded)"
+
+
+class _BusOffReports:
+    """Passes every message on, with an error frame record (the controller's bus-off report, as the link
+    records it) before each tenth tick's frames."""
+
+    def __init__(self, inner: MessageSink) -> None:
+        self._inner = inner
+        self._last_ns = -1
+        self.reports = 0
+
+    def publish(self, topic: str, log_time_ns: int, message: Message) -> None:
+        if topic == CAN_FRAMES and log_time_ns % (10 * TICK_NS) == 0 and log_time_ns != self._last_ns:
+            self._last_ns = log_time_ns
+            report = {**_frame(log_time_ns, 8), "id": 0x40, "extended": False, "error": True}
+            self._inner.publish(CAN_FRAMES, log_time_ns, report)
+            self.reports += 1
+        self._inner.publish(topic, log_time_ns, message)
+
+
+@pytest.mark.parametrize("stats", [True, False])
+def test_error_frame_records_are_neither_frames_nor_bus_load(tmp_path: Path, stats: bool) -> None:
+    """The controller's error frames were never on the wire: the report's frame count, their share of the
+    link's count and the load counted from frames leave them out."""
+    plain = analyse(
+        _record(tmp_path / "plain.mcap", stats=stats, thinned_hz=None, live=False), can_bitrate=BITRATE
+    )
+    with McapRecorder(tmp_path / "bus-off.mcap") as recorder:
+        reports = _BusOffReports(recorder)
+        _drive(reports, 5, stats=stats)
+    run = analyse(tmp_path / "bus-off.mcap", can_bitrate=BITRATE)
+    assert reports.reports == 25 and run.counts[CAN_FRAMES] == plain.counts[CAN_FRAMES] + 25
+    assert run.figures == plain.figures and run.can_load_source == plain.can_load_source
+    assert run.figures["can_frames"] == 3000
+    assert run.figures["can_bus_load_mean_pct"] == pytest.approx(LOAD_PCT)
 
 
 def test_the_topic_table_lists_every_recorded_topic(tmp_path: Path) -> None:

@@ -137,6 +137,17 @@ def test_live_view_without_stats_never_shows_frames_as_the_whole_load() -> None:
     assert "may be thinned" in dict(no_bitrate.rows())["CAN bus load (%)"]
 
 
+def test_live_view_counts_no_bits_for_the_controllers_error_frames() -> None:
+    view = LiveView(SimClock(), bitrate=500_000)
+    for i in range(1000):  # 1000 frames in the last second, and a bus-off report beside every tenth
+        view.update(TelemetrySample(CAN_FRAMES, i * 1_000_000, _frame()))
+        if i % 10 == 0:
+            error = {"extended": False, "dlc": 8, "error": True}
+            view.update(TelemetrySample(CAN_FRAMES, i * 1_000_000, error))
+    load = 100.0 * 1000 * frame_bits(True, 8) / 500_000
+    assert dict(view.rows())["CAN bus load (%)"].startswith(f">= {load:.1f} ")
+
+
 def test_a_rover_config_thinning_can_stats_is_refused_on_load(tmp_path) -> None:  # type: ignore[no-untyped-def]
     # Refused when the file is read, naming the key: `rover run` once got as far as opening Zenoh,
     # failed there with a traceback and then hung at exit with the session still open.
