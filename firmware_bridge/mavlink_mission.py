@@ -3,10 +3,11 @@ and clears a mission and sets its current item (https://mavlink.io/en/services/m
 
 The server speaks the protocol and keeps the mission in force as uploaded (what a download returns); it
 does not drive. What a transfer changes comes back from ``take`` as a ``MissionChange`` for the onboard
-stack (``navigator.onboard_mission``), which drives the waypoints (``navigator.mission``) and reports
-progress back (``tick``: MISSION_CURRENT; ``item_reached``: MISSION_ITEM_REACHED). It also judges and answers
-MAV_CMD_MISSION_START (COMMAND_LONG or COMMAND_INT, which the link hands over as mission messages), as
-``firmware_bridge.mavlink_commands.judge_mission_start`` rules, with COMMAND_ACK.
+stack (``navigator.onboard_mission``), which drives the mission (``navigator.mission``: the waypoints in
+order, each speed change applied as it comes) and reports progress back (``tick``: MISSION_CURRENT;
+``item_reached``: MISSION_ITEM_REACHED, per waypoint reached and per speed change applied). It also judges
+and answers MAV_CMD_MISSION_START (COMMAND_LONG or COMMAND_INT, which the link hands over as mission
+messages), as ``firmware_bridge.mavlink_commands.judge_mission_start`` rules, with COMMAND_ACK.
 
 What is accepted, and the answer to everything else (each refusal a MISSION_ACK with the protocol's
 result, or a STATUSTEXT where the protocol has no ACK, counted in the link's ``mission_refused`` and
@@ -14,15 +15,20 @@ logged naming what was wrong):
 
 * Only ``MAV_MISSION_TYPE_MISSION`` (fence and rally: ``MAV_MISSION_UNSUPPORTED``); a clear of
   ``MAV_MISSION_TYPE_ALL`` clears the mission.
-* Items ``MAV_CMD_NAV_WAYPOINT`` (else ``MAV_MISSION_UNSUPPORTED``) in a global frame the goal commands
-  take (``GLOBAL_FRAMES``; else ``MAV_MISSION_UNSUPPORTED_FRAME``), latitude and longitude degrees x 1e7 in
-  range (``MAV_MISSION_INVALID_PARAM5_X`` / ``_PARAM6_Y``), placed by the rover (``place``: ENU through the
-  estimator's datum, inside the geofence; else ``MAV_MISSION_DENIED`` naming why). Altitude, hold time,
-  acceptance radius, yaw and ``autocontinue`` are kept for a download and not used. The legacy float
-  MISSION_ITEM is refused (``MAV_MISSION_UNSUPPORTED``): we ask with MISSION_REQUEST_INT.
-* Item 0 is the first waypoint, as the spec numbers items (as PX4 does). ArduPilot's convention of home as
-  item 0 is not taken: nothing in an upload says which one it follows, and taking item 0 as home would
-  drop every other ground station's first waypoint; an ArduPilot-style upload drives to home first.
+* Items ``MAV_CMD_NAV_WAYPOINT`` and ``MAV_CMD_DO_CHANGE_SPEED``; any other command:
+  ``MAV_MISSION_UNSUPPORTED``. A waypoint is in a global frame the goal commands take (``GLOBAL_FRAMES``;
+  else ``MAV_MISSION_UNSUPPORTED_FRAME``), latitude and longitude degrees x 1e7 in range
+  (``MAV_MISSION_INVALID_PARAM5_X`` / ``_PARAM6_Y``), placed by the rover (``place``: ENU through the
+  estimator's datum, inside the geofence; else ``MAV_MISSION_DENIED`` naming why). Its altitude, hold time,
+  acceptance radius, yaw and ``autocontinue`` are kept for a download and not used. A speed change has no
+  position (any frame is taken) and is judged by ``firmware_bridge.mission_speed``: its speed type
+  (``MAV_MISSION_INVALID_PARAM1``) and speed (``MAV_MISSION_INVALID_PARAM2``). A mission needs at least one
+  waypoint: an upload of speed changes alone is refused at its last item (``MAV_MISSION_ERROR``). The
+  legacy float MISSION_ITEM is refused (``MAV_MISSION_UNSUPPORTED``): we ask with MISSION_REQUEST_INT.
+* Items are numbered as uploaded, speed changes included: item 0 is the first item, as the spec numbers
+  them (as PX4 does). ArduPilot's convention of home as item 0 is not taken: nothing in an upload says
+  which one it follows, and taking item 0 as home would drop every other ground station's first waypoint;
+  an ArduPilot-style upload drives to home first.
 * At most ``MAX_MISSION_ITEMS`` items (``MAV_MISSION_NO_SPACE``). A count of 0 clears.
 * One transfer at a time. A new operation (MISSION_COUNT, MISSION_REQUEST_LIST, MISSION_CLEAR_ALL) from
   the partner of the transfer under way replaces it (a ground station that started over); from anyone else
@@ -55,6 +61,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 from firmware_bridge.errors import BridgeOperationError
 from firmware_bridge.mavlink_commands import GLOBAL_FRAMES, StartRequest, judge_mission_start
 from firmware_bridge.mavlink_health import MavlinkCounters
+from firmware_bridge.mission_speed import SpeedChange, speed_change, speed_change_refusal
 from firmware_bridge.mission_state import MissionState
 from logs.clock import NS_PER_S, Clock
 
@@ -134,10 +141,11 @@ def mission_addressed(msg: Any, system_id: int, component_id: int) -> bool:
 
 @dataclass(frozen=True)
 class MissionItem:
-    """One waypoint as uploaded: what a download gives back, field for field."""
+    """One item as uploaded (a waypoint or a speed change): what a download gives back, field for field."""
 
     seq: int
     frame: int
+    command: int  # MAV_CMD_NAV_WAYPOINT or MAV_CMD_DO_CHANGE_SPEED
     x: int  # latitude, degrees x 1e7
     y: int  # longitude, degrees x 1e7
     z: float
@@ -153,12 +161,17 @@ class MissionItem:
         return self.y * _DEGREES_E7
 
 
+# One item as the rover drives it: a waypoint's ENU (x, y) in metres, or a speed change.
+MissionStep = tuple[float, float] | SpeedChange
+
+
 @dataclass(frozen=True)
 class MissionAccepted:
-    """An upload completed: its items and their ENU waypoints; from whom."""
+    """An upload completed: its items, and each as the rover drives it (``steps``, item for item); from
+    whom."""
 
     items: tuple[MissionItem, ...]
-    waypoints: tuple[tuple[float, float], ...]
+    steps: tuple[MissionStep, ...]
     sysid: int
     compid: int
 
@@ -213,7 +226,7 @@ class _Transfer(_Partner):
     retries: int = 0
     next_seq: int = 0  # upload: the item asked for
     items: list[MissionItem] = field(default_factory=list)  # upload: received; download: the snapshot
-    waypoints: list[tuple[float, float]] = field(default_factory=list)  # upload: the items placed
+    steps: list[MissionStep] = field(default_factory=list)  # upload: the items as the rover drives them
 
     @property
     def what(self) -> str:
@@ -290,6 +303,7 @@ class MissionServer:
             MissionItem(
                 seq,
                 mavlink2.MAV_FRAME_GLOBAL_INT,
+                mavlink2.MAV_CMD_NAV_WAYPOINT,
                 round(lat / _DEGREES_E7),
                 round(lon / _DEGREES_E7),
                 0.0,
@@ -381,20 +395,18 @@ class MissionServer:
             logger.info("%s: item %d out of sequence, %d asked again", transfer.what, seq, transfer.next_seq)
             self._ask_again(transfer, self._clock.now_ns())
             return None
-        refusal = _judge_item(msg)
-        if refusal is None:
-            try:
-                waypoint = self._place(msg.x * _DEGREES_E7, msg.y * _DEGREES_E7)
-            except MissionItemRefused as err:
-                refusal = (mavlink2.MAV_MISSION_DENIED, f"item {seq}: {err}")
-        if refusal is not None:
+        step = self._step(msg)
+        if not isinstance(step, _Refusal) and seq + 1 == transfer.count:
+            step = _with_a_waypoint(transfer.steps, step, transfer.count)
+        if isinstance(step, _Refusal):
             self._transfer = None
-            self._refuse(link, sysid, compid, *refusal)
+            self._refuse(link, sysid, compid, *step)
             return None
         transfer.items.append(
             MissionItem(
                 seq,
                 msg.frame,
+                msg.command,
                 msg.x,
                 msg.y,
                 msg.z,
@@ -402,7 +414,7 @@ class MissionServer:
                 msg.autocontinue,
             )
         )
-        transfer.waypoints.append(waypoint)
+        transfer.steps.append(step)
         transfer.retries = 0
         if seq + 1 < transfer.count:
             transfer.next_seq = seq + 1
@@ -417,7 +429,7 @@ class MissionServer:
         link.counters.missions_accepted += 1
         logger.info("%s: %d items accepted", transfer.what, transfer.count)
         link.send(_ack(sysid, compid, mavlink2.MAV_MISSION_ACCEPTED, _MISSION))
-        return MissionAccepted(self.items, tuple(transfer.waypoints), sysid, compid)
+        return MissionAccepted(self.items, tuple(transfer.steps), sysid, compid)
 
     def _on_float_item(self, link: MissionLink, msg: Any, sysid: int, compid: int) -> MissionChange | None:
         transfer = self._transfer
@@ -529,6 +541,19 @@ class MissionServer:
         return verdict.start
 
     # --- internals --------------------------------------------------------------------------------
+    def _step(self, msg: Any) -> MissionStep | _Refusal:
+        """A MISSION_ITEM_INT as the rover drives it (a waypoint placed in ENU, a speed change), or why it
+        cannot be taken."""
+        refusal = _judge_item(msg)
+        if refusal is not None:
+            return refusal
+        if msg.command == mavlink2.MAV_CMD_DO_CHANGE_SPEED:
+            return speed_change(msg.param2)
+        try:
+            return self._place(msg.x * _DEGREES_E7, msg.y * _DEGREES_E7)
+        except MissionItemRefused as err:
+            return _Refusal(mavlink2.MAV_MISSION_DENIED, f"item {msg.seq}: {err}")
+
     def _repeat_of_finished(self, link: MissionLink, msg: Any, sysid: int, compid: int) -> bool:
         """Whether ``msg`` (a MISSION_ITEM_INT with no upload of its sender under way) belongs to the
         upload that partner finished within the last operation timeout, and is answered as such: its last
@@ -702,7 +727,7 @@ class MissionServer:
             compid,
             item.seq,
             item.frame,
-            mavlink2.MAV_CMD_NAV_WAYPOINT,
+            item.command,
             current,
             item.autocontinue,
             *item.params,
@@ -713,26 +738,52 @@ class MissionServer:
         )
 
 
-def _judge_item(msg: Any) -> tuple[int, str] | None:
-    """Why a MISSION_ITEM_INT cannot be a waypoint of ours (result and reason), or None."""
+class _Refusal(NamedTuple):
+    """Why an item, or an upload at its last item, is refused: the MISSION_ACK result and the reason."""
+
+    result: int
+    reason: str
+
+
+def _judge_item(msg: Any) -> _Refusal | None:
+    """Why a MISSION_ITEM_INT cannot be an item of ours (result and reason), or None."""
     seq = msg.seq
+    if msg.command == mavlink2.MAV_CMD_DO_CHANGE_SPEED:
+        refusal = speed_change_refusal(seq, msg.param1, msg.param2)
+        return None if refusal is None else _Refusal(*refusal)
     if msg.command != mavlink2.MAV_CMD_NAV_WAYPOINT:
         name = _enum_name("MAV_CMD", msg.command)
-        return (
+        return _Refusal(
             mavlink2.MAV_MISSION_UNSUPPORTED,
-            f"item {seq}: command {msg.command} ({name}) is not supported: only MAV_CMD_NAV_WAYPOINT",
+            f"item {seq}: command {msg.command} ({name}) is not supported: only MAV_CMD_NAV_WAYPOINT and "
+            "MAV_CMD_DO_CHANGE_SPEED",
         )
     if msg.frame not in GLOBAL_FRAMES:
         name = _enum_name("MAV_FRAME", msg.frame)
-        return (
+        return _Refusal(
             mavlink2.MAV_MISSION_UNSUPPORTED_FRAME,
             f"item {seq}: frame {msg.frame} ({name}) is not global (latitude, longitude)",
         )
     if not -90.0 <= msg.x * _DEGREES_E7 <= 90.0:
-        return mavlink2.MAV_MISSION_INVALID_PARAM5_X, f"item {seq}: latitude {msg.x} x 1e-7 is out of range"
+        return _Refusal(
+            mavlink2.MAV_MISSION_INVALID_PARAM5_X, f"item {seq}: latitude {msg.x} x 1e-7 is out of range"
+        )
     if not -180.0 <= msg.y * _DEGREES_E7 <= 180.0:
-        return mavlink2.MAV_MISSION_INVALID_PARAM6_Y, f"item {seq}: longitude {msg.y} x 1e-7 is out of range"
+        return _Refusal(
+            mavlink2.MAV_MISSION_INVALID_PARAM6_Y, f"item {seq}: longitude {msg.y} x 1e-7 is out of range"
+        )
     return None
+
+
+def _with_a_waypoint(steps: Sequence[MissionStep], last: MissionStep, count: int) -> MissionStep | _Refusal:
+    """The last item of an upload, or its refusal when no item of the upload is a waypoint: a mission of
+    speed changes alone has nowhere to drive."""
+    if not isinstance(last, SpeedChange) or any(not isinstance(step, SpeedChange) for step in steps):
+        return last
+    return _Refusal(
+        mavlink2.MAV_MISSION_ERROR,
+        f"a mission of {count} item(s) with no MAV_CMD_NAV_WAYPOINT: it needs at least one waypoint",
+    )
 
 
 def _ack(sysid: int, compid: int, result: int, mission_type: int) -> Any:

@@ -19,9 +19,10 @@ so the plan is there within the same tick. Obstacles seen on the way come in thr
   reaches the rover's own footprint (it stands in the obstacle's lane), it backs off, bounded (mode
   ``YIELDING``, ``navigator.yielding``), then holds as ``BLOCKED``.
 
-Speed limits on top of the follower's (curvature, goal approach): the slope under the rover, the terrain
+Speed limits on top of the follower's (curvature, goal approach): the mission's (``limit_speed``: a
+MAV_CMD_DO_CHANGE_SPEED item, ``navigator.onboard_mission``), the slope under the rover, the terrain
 class, and the predicted tip-over margin: on a side slope of roll ``r`` the lateral acceleration ``v^2 k``
-of a turn may use only ``g tan(tip_roll - min_tip_margin - |r|)``.
+of a turn may use only ``g tan(tip_roll - min_tip_margin - |r|)``. Each only ever lowers the target speed.
 """
 
 from __future__ import annotations
@@ -57,6 +58,7 @@ BLOCKED = "BLOCKED"
 PLANNING = "PLANNING"  # a goal, no path yet: the first plan is being made (wheels held)
 YIELDING = "YIELDING"  # backing off out of a moving obstacle's predicted track (navigator.yielding)
 
+REASON_MISSION_SPEED = "mission_speed"
 REASON_SLOPE = "slope"
 REASON_TERRAIN = "terrain_class"
 REASON_TIP_MARGIN = "tip_margin"
@@ -126,6 +128,8 @@ class Guidance:
             for terrain_class, spec in classes.items()
         }
         self._tip_room_rad = params.tip_roll_rad - follower_config.min_tip_margin_rad
+        # The mission's speed limit (``limit_speed``); infinity when there is none: one comparison a tick.
+        self._mission_speed_mps = math.inf
         self._goal: tuple[float, float] | None = None
         self._path: Path | None = None
         self._mode = IDLE
@@ -185,6 +189,24 @@ class Guidance:
         """Id of the moving obstacle predicted on the path while the mode is ``BLOCKED`` or ``YIELDING``,
         else None."""
         return self._blocker
+
+    @property
+    def mission_speed_mps(self) -> float | None:
+        """The mission's speed limit in force (m/s), or None."""
+        limit = self._mission_speed_mps
+        return None if limit == math.inf else limit
+
+    def limit_speed(self, limit_mps: float | None) -> None:
+        """The mission's speed limit from now on (m/s, > 0 and finite), or None for none. It caps the
+        target speed while following a path, whatever the goal, below the follower's and never above
+        any other limit; not a back-off (``YIELDING``), whose speed is a safety setting of its own.
+        ``ParameterError`` (the limit in force kept) for a value that is no speed."""
+        if limit_mps is None:
+            self._mission_speed_mps = math.inf
+            return
+        if not (isinstance(limit_mps, int | float) and math.isfinite(limit_mps) and limit_mps > 0.0):
+            raise ParameterError(f"a speed limit must be a finite number > 0 m/s, got {limit_mps!r}")
+        self._mission_speed_mps = float(limit_mps)
 
     def set_goal(self, x: float, y: float) -> None:
         if not (math.isfinite(x) and math.isfinite(y)):
@@ -394,9 +416,12 @@ class Guidance:
         self, command: FollowCommand, x: float, y: float, yaw: float, path_changed: bool, detail: str
     ) -> GuidanceOutput:
         cfg = self._follower_config
-        # The first (in this order) of the smallest limits names the reason: follower, slope, terrain class,
-        # tip margin. Compared as they are worked out: only a strictly smaller limit replaces the one so far.
+        # The first (in this order) of the smallest limits names the reason: follower, mission, slope, terrain
+        # class, tip margin. Compared as they are worked out: only a strictly smaller limit replaces the one
+        # so far.
         limit, reason = command.speed_limit_mps, command.speed_limit_reason
+        if self._mission_speed_mps < limit:
+            limit, reason = self._mission_speed_mps, REASON_MISSION_SPEED
         # Class and tilt in one look-up; None off the map.
         ground = self.planner.terrain.ground_on_map(x, y, yaw) if command.speed_mps > 0.0 else None
         if ground is not None:

@@ -1,9 +1,12 @@
-"""A mission: waypoints driven in order, one at a time, the next one when guidance reports ARRIVED.
+"""A mission: its items in order, waypoints driven one at a time (the next when guidance reports ARRIVED)
+and speed changes (MAV_CMD_DO_CHANGE_SPEED) applied as the mission comes to them.
 
-Pure and clock-free: it holds the waypoints (local ENU metres) and which one is current, and says which
-one to drive to next. The onboard stack (``navigator.onboard_mission``) hands guidance each waypoint as
-its goal, publishes the events and tells a ground station (``firmware_bridge.mavlink_mission``). Items are
-numbered from 0, as MAVLink numbers them.
+Pure and clock-free: it holds the items (waypoints in local ENU metres, ``SpeedChange``) and which one is
+current, and says where to go next (a ``Leg``: the speed changes passed on the way, then the waypoint).
+The onboard stack (``navigator.onboard_mission``) hands guidance each waypoint as its goal and each speed
+change as its speed limit, publishes the events and tells a ground station
+(``firmware_bridge.mavlink_mission``). Items are numbered from 0 as uploaded, speed changes included, as
+MAVLink numbers them.
 """
 
 from __future__ import annotations
@@ -12,10 +15,11 @@ import math
 from collections.abc import Sequence
 from typing import NamedTuple
 
+from firmware_bridge.mission_speed import SpeedChange
 from firmware_bridge.mission_state import MissionState
 from navigator.errors import ParameterError
 
-__all__ = ["Mission", "MissionState", "Waypoint"]
+__all__ = ["Leg", "Mission", "MissionState", "SpeedChange", "Waypoint"]
 
 
 class Waypoint(NamedTuple):
@@ -23,43 +27,64 @@ class Waypoint(NamedTuple):
     y: float
 
 
+class Leg(NamedTuple):
+    """Where the mission goes next: the speed changes it passed on the way (item number and change, in
+    order; each applies at once), then the waypoint now current, or None when no waypoint was left (the
+    mission is COMPLETE)."""
+
+    speed_changes: tuple[tuple[int, SpeedChange], ...]
+    waypoint: Waypoint | None
+
+
 class Mission:
     """The mission in force and its progress.
 
     ``state`` and ``current`` are plain attributes (the control tick reads ``state`` every tick); change
-    them only through the methods. ``current`` is the item being driven to (ACTIVE), the one a single goal
-    interrupted (PAUSED), the last one (COMPLETE), or 0 (NOT_STARTED: loaded, not driven yet).
+    them only through the methods. ``current`` is the waypoint being driven to (ACTIVE), the one a single
+    goal interrupted (PAUSED), the last item (COMPLETE), or 0 (NOT_STARTED: loaded, not driven yet). A
+    speed change is current for no time: the mission applies it and goes on in the same call.
     """
 
     def __init__(self) -> None:
-        self.waypoints: tuple[Waypoint, ...] = ()
+        self.items: tuple[Waypoint | SpeedChange, ...] = ()
         self.current = 0
         self.state = MissionState.NONE
 
     @property
     def count(self) -> int:
-        return len(self.waypoints)
+        """How many items, speed changes included (MISSION_CURRENT's total)."""
+        return len(self.items)
 
-    def load(self, waypoints: Sequence[tuple[float, float]]) -> None:
-        """Replace the mission with ``waypoints``, NOT_STARTED: ``set_current`` drives it.
+    @property
+    def waypoints(self) -> tuple[Waypoint, ...]:
+        """The waypoints alone, in order."""
+        return tuple(item for item in self.items if isinstance(item, Waypoint))
 
-        ``ParameterError`` (the mission in force kept) for an empty list or a coordinate that is not a
-        finite number."""
-        if not waypoints:
-            raise ParameterError("a mission needs at least one waypoint")
-        loaded = []
-        for index, (x, y) in enumerate(waypoints):
+    def load(self, items: Sequence[tuple[float, float] | SpeedChange]) -> None:
+        """Replace the mission with ``items`` (waypoints as (x, y), speed changes), NOT_STARTED:
+        ``set_current`` drives it.
+
+        ``ParameterError`` (the mission in force kept) for no waypoint among them or a coordinate that is
+        not a finite number."""
+        loaded: list[Waypoint | SpeedChange] = []
+        for index, item in enumerate(items):
+            if isinstance(item, SpeedChange):
+                loaded.append(item)
+                continue
+            x, y = item
             if not (math.isfinite(x) and math.isfinite(y)):
                 raise ParameterError(f"mission waypoint {index} ({x}, {y}) is not a finite position")
             loaded.append(Waypoint(float(x), float(y)))
-        self.waypoints = tuple(loaded)
+        if not any(isinstance(item, Waypoint) for item in loaded):
+            raise ParameterError("a mission needs at least one waypoint")
+        self.items = tuple(loaded)
         self.current = 0
         self.state = MissionState.NOT_STARTED
 
     def clear(self) -> bool:
         """Forget the mission; True if it was being driven."""
         was_active = self.state is MissionState.ACTIVE
-        self.waypoints = ()
+        self.items = ()
         self.current = 0
         self.state = MissionState.NONE
         return was_active
@@ -71,24 +96,46 @@ class Mission:
         self.state = MissionState.PAUSED
         return True
 
-    def set_current(self, seq: int) -> Waypoint:
-        """Make item ``seq`` current and drive the mission from it (whatever its state): returns it.
-        ``ParameterError`` if there is no mission or no such item."""
-        if not self.waypoints:
+    def set_current(self, seq: int) -> Leg:
+        """Drive the mission from item ``seq`` (whatever its state): the speed changes from it up to the
+        next waypoint, which becomes current. Speed changes before ``seq`` are not applied (as ArduPilot
+        does not replay the items a MISSION_SET_CURRENT skips). ``ParameterError`` if there is no mission
+        or no such item."""
+        if not self.items:
             raise ParameterError(f"no mission: item {seq} cannot be made current")
-        if not 0 <= seq < len(self.waypoints):
-            raise ParameterError(f"item {seq} is not in the mission (items 0..{len(self.waypoints) - 1})")
-        self.current = seq
+        if not 0 <= seq < len(self.items):
+            raise ParameterError(f"item {seq} is not in the mission (items 0..{len(self.items) - 1})")
         self.state = MissionState.ACTIVE
-        return self.waypoints[seq]
+        return self._go_from(seq)
 
-    def reached(self) -> Waypoint | None:
-        """The current item was reached: returns the next to drive to (now current), or None when it was
-        the last (the mission is COMPLETE). ``ParameterError`` unless the mission is ACTIVE."""
+    def reached(self) -> Leg:
+        """The current waypoint was reached: the speed changes after it up to the next waypoint (now
+        current), or to the end (the mission is COMPLETE). ``ParameterError`` unless the mission is
+        ACTIVE."""
         if self.state is not MissionState.ACTIVE:
             raise ParameterError(f"no mission is being driven (mission {self.state.value})")
-        if self.current + 1 >= len(self.waypoints):
-            self.state = MissionState.COMPLETE
-            return None
-        self.current += 1
-        return self.waypoints[self.current]
+        return self._go_from(self.current + 1)
+
+    def current_waypoint(self) -> Waypoint:
+        """The waypoint being driven to (or interrupted, or reached last); ``ParameterError`` when the
+        current item is none (no mission; a mission complete after a speed change)."""
+        item = self.items[self.current] if self.current < len(self.items) else None
+        if not isinstance(item, Waypoint):
+            raise ParameterError(
+                f"item {self.current} of the mission (mission {self.state.value}) is no waypoint"
+            )
+        return item
+
+    def _go_from(self, seq: int) -> Leg:
+        """From item ``seq`` on: the speed changes passed, then the first waypoint, made current."""
+        items = self.items
+        changes: list[tuple[int, SpeedChange]] = []
+        for index in range(seq, len(items)):
+            item = items[index]
+            if isinstance(item, Waypoint):
+                self.current = index
+                return Leg(tuple(changes), item)
+            changes.append((index, item))
+        self.current = len(items) - 1
+        self.state = MissionState.COMPLETE
+        return Leg(tuple(changes), None)

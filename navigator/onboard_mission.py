@@ -8,6 +8,13 @@ in place of a mission being driven, else on MISSION_START or MISSION_SET_CURRENT
 the mission and its server for the onboard stack (``navigator.onboard``), which calls ``end_tick`` after
 each tick's records: the next waypoint becomes the goal at the end of the tick in which guidance reports
 ARRIVED.
+
+A speed change (MAV_CMD_DO_CHANGE_SPEED) the mission comes to is applied at once, as guidance's speed
+limit (``RouteGuidance.limit_speed``), and the mission goes on to its next item in the same call. The
+limit stands for the rest of the mission, a single goal that pauses it included (as ArduPilot keeps a
+speed until it is changed), until a later speed change, or until the mission is cleared, replaced or
+complete. Speed changes a MISSION_SET_CURRENT or MISSION_START skips are not applied (not replayed): the
+limit in force, if any, stays.
 """
 
 from __future__ import annotations
@@ -30,7 +37,7 @@ from firmware_bridge.mavlink_mission import (
 from logs.clock import Clock
 from navigator.errors import ParameterError
 from navigator.fence_shape import Polygon, inside_polygon
-from navigator.mission import Mission, MissionState
+from navigator.mission import Leg, Mission, MissionState, SpeedChange
 from navigator.route_guidance import RouteGuidance
 from navigator.safety import EventSink
 
@@ -63,6 +70,7 @@ class MissionDriver:
         self._event = event
         self.mission = Mission()
         self.server = MissionServer(clock, self._place_waypoint)
+        self.speed_limit_mps: float | None = None  # the mission's, in force (guidance's limit_speed)
 
     def set_goal(self, x: float, y: float) -> None:
         """A single goal: driven at once, in place of the mission being driven (which is paused: setting
@@ -105,7 +113,7 @@ class MissionDriver:
         self._load(waypoints, source)  # ParameterError before anything changes: no waypoint, NaN
         geodetic = [to_geodetic(datum, x, y, 0.0) for x, y in self.mission.waypoints]
         self.server.replace([(lat, lon) for lat, lon, _ in geodetic])
-        self._drive_to(*self.mission.set_current(0), given=True)
+        self._follow(self.mission.set_current(0), given=True)
         return True
 
     def goal_from_ground_station(self, request: GoalRequest) -> None:
@@ -133,6 +141,7 @@ class MissionDriver:
                 self._event("mission_cleared", "info", f"mission cleared by {who}: the rover holds")
             else:
                 self._event("mission_cleared", "info", f"mission cleared by {who}")
+            self._lift_speed_limit("the mission was cleared")
         elif isinstance(change, CurrentRequested):
             self._start_at(change.seq, "mission_current", f"item {change.seq}", who, " made current")
 
@@ -147,13 +156,21 @@ class MissionDriver:
             mission_state = mission.state
         self.server.tick(mission.current, mission_state)
 
-    def _load(self, waypoints: Sequence[tuple[float, float]], source: str, note: str = "") -> None:
-        """The mission in force replaced (not driven yet: ``Mission.set_current`` starts it)."""
-        self.mission.load(waypoints)
-        count = self.mission.count
-        listed = ", ".join(f"({x:.2f}, {y:.2f})" for x, y in self.mission.waypoints)
-        noun = "waypoint" if count == 1 else "waypoints"
-        self._event("mission", "info", f"mission of {count} {noun} from {source}: {listed}{note}")
+    def _load(self, items: Sequence[tuple[float, float] | SpeedChange], source: str, note: str = "") -> None:
+        """The mission in force replaced (not driven yet: ``Mission.set_current`` starts it); the old
+        one's speed limit with it."""
+        mission = self.mission
+        mission.load(items)
+        self._lift_speed_limit("the mission was replaced")
+        count, waypoints = mission.count, len(mission.waypoints)
+        listed = ", ".join(_listed(item) for item in mission.items)
+        noun = "waypoint" if waypoints == 1 else "waypoints"
+        if waypoints == count:
+            what = f"{count} {noun}"
+        else:
+            changes = count - waypoints
+            what = f"{count} items ({waypoints} {noun}, {changes} speed change{'' if changes == 1 else 's'})"
+        self._event("mission", "info", f"mission of {what} from {source}: {listed}{note}")
 
     def _drive_to(self, x: float, y: float, *, given: bool) -> None:
         """Guidance's new goal: a single goal or a mission's waypoint. ``given``: chosen from outside (a
@@ -200,31 +217,90 @@ class MissionDriver:
             if driving
             else "; not started: MISSION_START or MISSION_SET_CURRENT drives it"
         )
-        self._load(change.waypoints, source, note)
+        self._load(change.steps, source, note)
         if driving:
-            self._drive_to(*self.mission.set_current(0), given=True)
+            self._follow(self.mission.set_current(0), given=True)
 
     def _start_at(self, seq: int, kind: str, what: str, who: str, verb: str = "") -> None:
-        """A ground station made item ``seq`` current or started the mission there: it is driven from it."""
+        """A ground station made item ``seq`` current or started the mission there: it is driven from it
+        (the speed changes skipped before it are not applied; the limit in force stays)."""
         try:
-            waypoint = self.mission.set_current(seq)
+            leg = self.mission.set_current(seq)
         except ParameterError as err:
             # The server asks only for an item it holds, and holds the mission driven; should the two
             # ever differ, a ground station's message must still not stop the loop.
             _log.warning("%s from %s not taken: %s", kind, who, err)
             return
         self._event(kind, "info", f"{what} of {self.mission.count}{verb} by {who}")
-        self._drive_to(*waypoint, given=True)
+        if not self._follow(leg, given=True):
+            # Only speed changes from ``seq`` to the end: nothing left to drive to.
+            self._guidance.clear_goal()
+            self._complete(f"no waypoint from item {seq}: the rover holds")
 
     def _item_reached(self) -> None:
         """Guidance reports ARRIVED at the mission's current waypoint: on to the next, or the end."""
         mission = self.mission
         seq, count = mission.current, mission.count
-        x, y = mission.waypoints[seq]
+        x, y = mission.current_waypoint()
         self._event("mission_item_reached", "info", f"item {seq} of {count} ({x:.2f}, {y:.2f}) reached")
         self.server.item_reached(seq)
-        following = mission.reached()
-        if following is None:
-            self._event("mission_complete", "info", f"mission complete: its {count} waypoint(s) reached")
+        # given=False: the mission's own step, the latches stand.
+        if not self._follow(mission.reached(), given=False):
+            self._complete(f"its {len(mission.waypoints)} waypoint(s) reached")
+
+    def _complete(self, detail: str) -> None:
+        """The mission is complete: a ``mission_complete`` event, and its speed limit lifted."""
+        self._event("mission_complete", "info", f"mission complete: {detail}")
+        self._lift_speed_limit("the mission is complete")
+
+    def _follow(self, leg: Leg, *, given: bool) -> bool:
+        """Apply the speed changes the mission passed, in order, then drive to its waypoint (``given``:
+        see ``_drive_to``). False when no waypoint was left: the mission is complete (``_complete``)."""
+        for seq, change in leg.speed_changes:
+            self._change_speed(seq, change)
+        if leg.waypoint is None:
+            return False
+        self._drive_to(*leg.waypoint, given=given)
+        return True
+
+    def _change_speed(self, seq: int, change: SpeedChange) -> None:
+        """A speed change item reached: guidance's limit from now on; a ``mission_speed`` event and
+        MISSION_ITEM_REACHED, as for a waypoint reached (ArduPilot and PX4 report a DO item done so too)."""
+        item = f"item {seq} of {self.mission.count}"
+        limit = change.limit_mps
+        if change.keep:
+            in_force = self.speed_limit_mps
+            kept = "none" if in_force is None else f"{in_force:.2f} m/s"
+            detail = f"{item}: speed unchanged (DO_CHANGE_SPEED -1): the mission's limit stays {kept}"
+        elif limit is None:
+            detail = f"{item}: back to the default speed: no mission speed limit"
+            self._set_speed_limit(None)
         else:
-            self._drive_to(*following, given=False)  # the mission's own step: the latches stand
+            top = self._guidance.max_speed_mps
+            detail = f"{item}: mission speed limit {limit:.2f} m/s"
+            if limit >= top:
+                detail += f": at or above the rover's max_speed_mps {top:.2f}, which stays its limit"
+            self._set_speed_limit(limit)
+        self._event("mission_speed", "info", detail)
+        self.server.item_reached(seq)
+
+    def _set_speed_limit(self, limit_mps: float | None) -> None:
+        self.speed_limit_mps = limit_mps
+        self._guidance.limit_speed(limit_mps)
+
+    def _lift_speed_limit(self, why: str) -> None:
+        """The mission's speed limit, if one is in force, lifted (a ``mission_speed`` event saying why)."""
+        in_force = self.speed_limit_mps
+        if in_force is None:
+            return  # no event: a mission without speed changes records what it always did
+        self._set_speed_limit(None)
+        self._event("mission_speed", "info", f"mission speed limit {in_force:.2f} m/s lifted: {why}")
+
+
+def _listed(item: tuple[float, float] | SpeedChange) -> str:
+    """A mission item as the ``mission`` event lists it."""
+    if not isinstance(item, SpeedChange):
+        return f"({item[0]:.2f}, {item[1]:.2f})"
+    if item.keep:
+        return "speed unchanged"
+    return "speed default" if item.limit_mps is None else f"speed {item.limit_mps:.2f} m/s"

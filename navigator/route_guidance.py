@@ -74,6 +74,7 @@ class RouteGuidance:
         planning: Executor | None = None,
     ) -> None:
         self.core = Guidance(terrain, config.vehicle, config.planner, config.follower, executor=planning)
+        self.max_speed_mps = config.follower.max_speed_mps  # the rover's own top speed, above any limit
         self._sink = sink
         self._event = event
         self.mode = Mode.IDLE
@@ -90,6 +91,10 @@ class RouteGuidance:
     def set_goal(self, x: float, y: float) -> None:
         self.goal = Goal(x, y)
         self.mode = Mode.WAITING_ESTIMATE
+
+    def limit_speed(self, limit_mps: float | None) -> None:
+        """The mission's speed limit from now on, or None for none (``Guidance.limit_speed``)."""
+        self.core.limit_speed(limit_mps)
 
     def clear_goal(self) -> None:
         """No goal: the rover holds (IDLE) until the next one."""

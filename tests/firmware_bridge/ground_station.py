@@ -34,6 +34,21 @@ def waypoint(
     )  # fmt: skip
 
 
+def change_speed(
+    seq: int,
+    speed: float,
+    *,
+    speed_type: float = mavlink2.SPEED_TYPE_GROUNDSPEED,
+    frame: int = mavlink2.MAV_FRAME_MISSION,
+    target: tuple[int, int] = ROVER,
+) -> Any:
+    """A MISSION_ITEM_INT MAV_CMD_DO_CHANGE_SPEED as QGroundControl plans one (no position; throttle -1)."""
+    return mavlink2.MAVLink_mission_item_int_message(
+        *target, seq, frame, mavlink2.MAV_CMD_DO_CHANGE_SPEED, 0, 1, speed_type, speed, -1.0, 0.0, 0, 0, 0.0,
+        MISSION,
+    )  # fmt: skip
+
+
 def mission_start(first: float, last: float, *, kind: str = "COMMAND_LONG", target: Any = ROVER) -> Any:
     """MAV_CMD_MISSION_START (param1 the first item, param2 the last) as COMMAND_LONG or COMMAND_INT."""
     if kind == "COMMAND_INT":

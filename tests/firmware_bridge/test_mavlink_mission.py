@@ -27,11 +27,19 @@ from firmware_bridge.mavlink_mission import (
     MissionServer,
 )
 from firmware_bridge.mavlink_transport import memory_pipe_pair
+from firmware_bridge.mission_speed import SpeedChange, speed_change_refusal
 from firmware_bridge.mission_state import MissionState
 from logs.clock import SimClock
 from logs.sink import MemorySink
 from logs.topics import MAVLINK_STATS
-from tests.firmware_bridge.ground_station import MISSION, ROVER, GroundStation, mission_start, waypoint
+from tests.firmware_bridge.ground_station import (
+    MISSION,
+    ROVER,
+    GroundStation,
+    change_speed,
+    mission_start,
+    waypoint,
+)
 
 TICK_NS = 20_000_000  # the onboard loop's 50 Hz
 FENCE_LAT = 47.001  # north of it the test's placer refuses: the rover's geofence stands in
@@ -122,7 +130,9 @@ def test_upload_asks_for_each_item_in_turn_then_accepts_and_places_them() -> Non
     assert {(r.target_system, r.target_component, r.mission_type) for r in requests} == {(255, 190, MISSION)}
     assert (change.sysid, change.compid) == (255, 190)
     expected = [place(lat, lon) for lat, lon in PLAN]
-    assert [c for xy in change.waypoints for c in xy] == pytest.approx([c for xy in expected for c in xy])
+    assert [c for xy in change.steps if not isinstance(xy, SpeedChange) for c in xy] == pytest.approx(
+        [c for xy in expected for c in xy]
+    )
     assert [i.seq for i in rig.server.items] == [0, 1, 2]
     assert rig.link.counters.missions_accepted == 1 and rig.link.counters.mission_refused == 0
 
@@ -146,6 +156,64 @@ def test_download_gives_back_what_was_uploaded_field_for_field() -> None:
     rig.exchange(mavlink2.MAVLink_mission_request_list_message(*ROVER, MISSION))
     (item,) = rig.exchange(mavlink2.MAVLink_mission_request_message(*ROVER, 1, MISSION))
     assert item.get_type() == "MISSION_ITEM_INT" and item.seq == 1
+
+
+def with_speeds() -> list[Any]:
+    """PLAN with speed changes, as QGroundControl plans a "Change speed" item: before the first waypoint, one
+    back to the default between two waypoints, one faster than any rover after the last."""
+    first, second, third = items()
+    return [
+        change_speed(0, 0.5),
+        *renumbered([first], 1),
+        change_speed(2, -2.0, speed_type=mavlink2.SPEED_TYPE_AIRSPEED),  # 0: airspeed, read as ground speed
+        *renumbered([second, third], 3),
+        change_speed(5, 25.0, frame=mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT),  # any frame
+    ]
+
+
+def renumbered(plan: list[Any], first: int) -> list[Any]:
+    """``plan``'s items numbered from ``first`` on."""
+    for offset, item in enumerate(plan):
+        item.seq = first + offset
+    return plan
+
+
+def test_an_upload_with_speed_changes_is_accepted_numbered_as_uploaded() -> None:
+    rig = Rig()
+    assert rig.upload(with_speeds()).type == mavlink2.MAV_MISSION_ACCEPTED
+    assert [r.seq for r in rig.gcs.of_type("MISSION_REQUEST_INT")] == [0, 1, 2, 3, 4, 5]
+    change = rig.changes[-1]
+    assert isinstance(change, MissionAccepted)
+    placed = [place(lat, lon) for lat, lon in PLAN]
+    # Speed 25 m/s is accepted: the rover's own top speed stands (docs/firmware_bridge.md "Missions").
+    assert change.steps == (
+        SpeedChange(0.5),
+        placed[0],
+        SpeedChange(None),
+        placed[1],
+        placed[2],
+        SpeedChange(25.0),
+    )
+    assert [i.command for i in rig.server.items] == [178, 16, 178, 16, 16, 178]
+    assert rig.link.counters.missions_accepted == 1 and rig.link.counters.mission_refused == 0
+
+
+def test_a_download_gives_back_speed_changes_field_for_field() -> None:
+    rig = Rig()
+    sent = with_speeds()
+    rig.upload(sent)
+    (announced,) = rig.exchange(mavlink2.MAVLink_mission_request_list_message(*ROVER, MISSION))
+    assert announced.count == 6
+    for seq, original in enumerate(sent):
+        (item,) = rig.exchange(mavlink2.MAVLink_mission_request_int_message(*ROVER, seq, MISSION))
+        assert item.get_type() == "MISSION_ITEM_INT"
+        for name in ("seq", "frame", "command", "current", "autocontinue", "x", "y", "z", "mission_type"):
+            assert getattr(item, name) == getattr(original, name), (seq, name)
+        for name in ("param1", "param2", "param3", "param4"):
+            got, want = getattr(item, name), getattr(original, name)
+            assert got == want or (math.isnan(got) and math.isnan(want)), (seq, name)
+    rig.exchange(ack(mavlink2.MAV_MISSION_ACCEPTED))
+    assert rig.link.counters.mission_downloads == 1
 
 
 def test_an_empty_mission_downloads_as_a_count_of_zero() -> None:
@@ -196,8 +264,40 @@ REFUSALS = [
     pytest.param(
         [count(2), waypoint(0, 47.0, 8.0, command=mavlink2.MAV_CMD_NAV_LOITER_UNLIM)],
         mavlink2.MAV_MISSION_UNSUPPORTED,
-        "item 0: command 17 (MAV_CMD_NAV_LOITER_UNLIM) is not supported",
+        "item 0: command 17 (MAV_CMD_NAV_LOITER_UNLIM) is not supported: only MAV_CMD_NAV_WAYPOINT and "
+        "MAV_CMD_DO_CHANGE_SPEED",
         id="not-a-waypoint",
+    ),
+    *[
+        pytest.param(
+            [count(3), waypoint(0, 47.0, 8.0), change_speed(1, speed)],
+            mavlink2.MAV_MISSION_INVALID_PARAM2,
+            f"item 1: DO_CHANGE_SPEED speed (param2) {shown} m/s is not a speed",
+            id=f"speed-{shown}",
+        )
+        for speed, shown in [
+            (0.0, "0.0"),  # would park the rover mid-mission
+            (-0.5, "-0.5"),
+            (-3.0, "-3.0"),
+            (math.nan, "nan"),
+            (math.inf, "inf"),
+            (-math.inf, "-inf"),
+        ]
+    ],
+    *[
+        pytest.param(
+            [count(2), change_speed(0, 1.0, speed_type=speed_type)],
+            mavlink2.MAV_MISSION_INVALID_PARAM1,
+            f"item 0: DO_CHANGE_SPEED speed type (param1) {shown} is not taken",
+            id=f"speed-type-{shown}",
+        )
+        for speed_type, shown in [(mavlink2.SPEED_TYPE_CLIMB_SPEED, "2.0"), (0.5, "0.5"), (math.nan, "nan")]
+    ],
+    pytest.param(
+        [count(2), change_speed(0, 1.0), change_speed(1, -2.0)],
+        mavlink2.MAV_MISSION_ERROR,
+        "a mission of 2 item(s) with no MAV_CMD_NAV_WAYPOINT: it needs at least one waypoint",
+        id="speed-changes-alone",
     ),
     pytest.param(
         [count(2), waypoint(0, 47.0, 8.0, frame=mavlink2.MAV_FRAME_LOCAL_NED)],
@@ -539,7 +639,9 @@ _float = st.floats(width=32, allow_nan=True, allow_infinity=True)
 _target = st.sampled_from([ROVER, (0, 191), (1, 0), (2, 191)])
 _mission_type = st.sampled_from([MISSION, MISSION, 1, 2, 255]) | _u8
 _frame = st.sampled_from([mavlink2.MAV_FRAME_GLOBAL_INT, mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, 1]) | _u8
-_command = st.sampled_from([mavlink2.MAV_CMD_NAV_WAYPOINT] * 3 + [17, 21]) | _u16
+_command = (
+    st.sampled_from([mavlink2.MAV_CMD_NAV_WAYPOINT] * 3 + [mavlink2.MAV_CMD_DO_CHANGE_SPEED, 17, 21]) | _u16
+)
 _lat = st.integers(469_990_000, 470_020_000) | _int32  # near the fence, or anything
 _lon = st.integers(79_990_000, 80_010_000) | _int32
 
@@ -565,7 +667,13 @@ _messages = st.one_of(
         _lon,
         current=_u8,
         auto=_u8,
-        params=st.tuples(_float, _float, _float, _float),
+        # A speed change's speed type and speed: valid ones too, or hypothesis seldom finds one.
+        params=st.tuples(
+            st.sampled_from([0.0, 1.0]) | _float,
+            st.sampled_from([-1.0, -2.0, 0.5]) | _float,
+            _float,
+            _float,
+        ),
         z=_float,
         mission_type=_mission_type,
     ),
@@ -620,9 +728,16 @@ def test_malformed_mission_traffic_never_raises_and_only_a_whole_valid_upload_ch
             assert new and isinstance(new[-1], MissionAccepted | MissionCleared)
             assert rig.server.items == (new[-1].items if isinstance(new[-1], MissionAccepted) else ())
         assert len(rig.server.items) <= 8
-        for item in rig.server.items:
+        speed = mavlink2.MAV_CMD_DO_CHANGE_SPEED
+        waypoints = [item for item in rig.server.items if item.command != speed]
+        assert waypoints or not rig.server.items  # a mission has a waypoint
+        for item in waypoints:
+            assert item.command == mavlink2.MAV_CMD_NAV_WAYPOINT
             assert item.frame in GLOBAL_FRAMES and -90 <= item.lat_deg <= FENCE_LAT
             assert -180 <= item.lon_deg <= 180
+        for item in rig.server.items:
+            if item.command == speed:
+                assert speed_change_refusal(item.seq, item.params[0], item.params[1]) is None
     # After the garbage and the timeouts, a clean upload still gets through: a stray start marker the
     # parser holds (a byte stream) is flushed by the traffic after it, here zeros (what it held is then
     # read), and a transfer left under way is abandoned within 6 timeouts (one per tick past a deadline).

@@ -1,11 +1,13 @@
 """A lockstep trial in which a ground station uploads a 3-waypoint mission over MAVLink (the rover's
 ground-station link): the onboard stack drives it in order to the end, in place of the scenario's own
-goals, and the recording says what was uploaded and reached."""
+goals, and the recording says what was uploaded and reached; one with a MAV_CMD_DO_CHANGE_SPEED between
+two legs, the second driven at or below its speed."""
 
 from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import pymap3d
 import pytest
@@ -17,7 +19,7 @@ from logs import topics
 from logs.reader import read_messages
 from logs.settings import parse_toml
 from navigator.config import rover_config_from_table
-from tests.firmware_bridge.ground_station import ScriptedGroundStation, waypoint
+from tests.firmware_bridge.ground_station import ScriptedGroundStation, change_speed, waypoint
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 # ENU metres on small_rocky's map (14 x 10 m, the rock at (6.5, 4.5)): not the scenario's own goals.
@@ -75,6 +77,52 @@ def test_a_mission_uploaded_over_mavlink_is_driven_in_order_to_the_end(tmp_path:
     closest = [nearest(poses, w) for w in UPLOADED]
     assert closest == sorted(closest)
     assert all(math.dist(poses[i], w) < 0.6 for i, w in zip(closest, UPLOADED, strict=True))
+
+
+# Two legs on small_rocky's map from the start (2, 2), clear of the rock: a long one at full speed, then a
+# DO_CHANGE_SPEED to 0.5 m/s, then the second leg.
+FAST_LEG, SLOW_LEG, SLOW_MPS = (7.0, 2.0), (10.0, 4.5), 0.5
+
+
+def test_the_legs_after_a_speed_change_are_driven_at_or_below_its_speed(tmp_path: Path) -> None:
+    scenario = load_scenario(DATA / "small_rocky_waypoints.toml")
+    place = [pymap3d.enu2geodetic(x, y, 0.0, *scenario.datum)[:2] for x, y in (FAST_LEG, SLOW_LEG)]
+    station = ScriptedGroundStation(
+        [waypoint(0, *place[0]), change_speed(1, SLOW_MPS), waypoint(2, *place[1])]
+    )
+    config = rover_config_from_table(parse_toml("", "<defaults>"))
+    result = run_trial(scenario, config, tmp_path / "trial", ground_station=station)
+
+    assert result.end_reason == "arrived", result
+    assert [m.seq for m in station.station.of_type("MISSION_ITEM_REACHED")] == [0, 1, 2]
+    events = list(read_messages(result.mcap_path, topics=[topics.SAFETY_EVENTS]))
+    speeds = [(m.log_time_ns, m.message["detail"]) for m in events if m.message["kind"] == "mission_speed"]
+    assert [detail for _, detail in speeds] == [
+        "item 1 of 3: mission speed limit 0.50 m/s",
+        "mission speed limit 0.50 m/s lifted: the mission is complete",
+    ]
+    applied_ns, lifted_ns = (t for t, _ in speeds)
+
+    def during(topic: str, start_ns: int, end_ns: int) -> list[dict[str, Any]]:
+        return [
+            m.message
+            for m in read_messages(result.mcap_path, topics=[topic])
+            if start_ns <= m.log_time_ns < end_ns
+        ]
+
+    # The leg before: faster than the limit (rocky ground allows 1 / sqrt(1.6) = 0.79 m/s), by guidance's
+    # target and by the truth.
+    before = during(topics.NAVIGATOR_STATE, 0, applied_ns)
+    assert max(s["target_speed_mps"] for s in before) > SLOW_MPS + 0.2
+    assert max(p["speed_mps"] for p in during(topics.TRUTH_POSE, 0, applied_ns)) > SLOW_MPS + 0.2
+    # The leg after: at or below it; navigator/state names the mission's limit while it holds the rover back.
+    after = during(topics.NAVIGATOR_STATE, applied_ns, lifted_ns)
+    assert max(s["target_speed_mps"] for s in after) <= SLOW_MPS
+    assert max(p["speed_mps"] for p in during(topics.TRUTH_POSE, applied_ns, lifted_ns)) <= SLOW_MPS + 0.02
+    assert {s["speed_limit_reason"] for s in after} >= {"mission_speed"}
+    assert max(s["speed_limit_mps"] for s in after if s["speed_limit_reason"] == "mission_speed") == SLOW_MPS
+    final = during(topics.TRUTH_POSE, lifted_ns, lifted_ns + 1)[-1]["pose"]["position"]
+    assert math.hypot(final["x"] - SLOW_LEG[0], final["y"] - SLOW_LEG[1]) < 0.6
 
 
 def nearest(poses: list[tuple[float, float]], point: tuple[float, float]) -> int:

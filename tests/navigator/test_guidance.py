@@ -8,6 +8,7 @@ import pytest
 
 from logs.settings import ConfigError, parse_toml
 from navigator.config import PlannerConfig, rover_config_from_table
+from navigator.errors import ParameterError
 from navigator.follower import FollowerConfig, PurePursuit
 from navigator.guidance import ARRIVED, BLOCKED, DRIVING, IDLE, NO_PATH, Guidance
 from navigator.perception import ObstacleObservation
@@ -333,3 +334,33 @@ def test_an_obstacle_pending_static_that_starts_moving_never_enters_the_map() ->
     out = guidance.update(3, 11.0, 10.0, 0.0, 0.0)  # the rover is now within 5 m of where it stood
     assert "cart" not in out.detail
     assert not guidance.planner.terrain.obstacles[guidance.planner.terrain.cell_of(14.0, 10.0)]
+
+
+def test_a_mission_speed_limit_lowers_the_target_speed_and_never_raises_it() -> None:
+    guidance = _guidance(_flat())
+    guidance.set_goal(27.0, 10.0)  # straight east: the follower's own limit is max_speed (1 m/s)
+    out = guidance.update(0, 2.0, 10.0, 0.0, 1.0)
+    assert (out.speed_mps, out.speed_limit_reason) == (1.0, "max_speed")
+    guidance.limit_speed(0.4)
+    out = guidance.update(1, 2.0, 10.0, 0.0, 1.0)
+    assert (out.speed_mps, out.speed_limit_mps, out.speed_limit_reason) == (0.4, 0.4, "mission_speed")
+    guidance.limit_speed(3.0)  # above the rover's top speed: the follower's limit stands
+    out = guidance.update(2, 2.0, 10.0, 0.0, 1.0)
+    assert (out.speed_mps, out.speed_limit_reason) == (1.0, "max_speed")
+    for bad in (0.0, -1.0, math.nan, math.inf):
+        with pytest.raises(ParameterError, match="speed limit"):
+            guidance.limit_speed(bad)
+    assert guidance.mission_speed_mps == 3.0  # the limit in force kept
+    guidance.limit_speed(None)
+    assert guidance.mission_speed_mps is None
+
+
+def test_a_smaller_limit_of_another_kind_still_wins_over_the_mission_speed() -> None:
+    guidance = _guidance(_flat())
+    guidance.set_goal(3.5, 10.0)  # 1.5 m ahead: the goal approach limits to ~1.0 x 1.5 / 2 m/s
+    guidance.limit_speed(0.9)
+    out = guidance.update(0, 2.0, 10.0, 0.0, 0.5)
+    assert out.speed_limit_reason == "goal_approach" and out.speed_mps < 0.85
+    guidance.limit_speed(0.5)
+    out = guidance.update(1, 2.0, 10.0, 0.0, 0.5)
+    assert (out.speed_mps, out.speed_limit_reason) == (0.5, "mission_speed")

@@ -1,4 +1,5 @@
-"""The mission's own bookkeeping: waypoints in order, the current item, its states."""
+"""The mission's own bookkeeping: waypoints in order, speed changes passed on the way, the current item,
+its states."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import math
 import pytest
 
 from navigator.errors import ParameterError
-from navigator.mission import Mission, MissionState, Waypoint
+from navigator.mission import Leg, Mission, MissionState, SpeedChange, Waypoint
 
 THREE = [(1.0, 2.0), (3.0, 4.0), (5.0, 6.0)]
 
@@ -19,11 +20,11 @@ def test_waypoints_are_driven_in_order_then_the_mission_is_complete() -> None:
     assert (mission.state, mission.current, mission.count) == (MissionState.NOT_STARTED, 0, 3)
     with pytest.raises(ParameterError, match="NOT_STARTED"):
         mission.reached()  # loaded is not driven: no arrival advances it
-    assert mission.set_current(0) == Waypoint(1.0, 2.0)
+    assert mission.set_current(0) == Leg((), Waypoint(1.0, 2.0))
     assert (mission.state, mission.current) == (MissionState.ACTIVE, 0)
-    assert mission.reached() == Waypoint(3.0, 4.0) and mission.current == 1
-    assert mission.reached() == Waypoint(5.0, 6.0) and mission.current == 2
-    assert mission.reached() is None
+    assert mission.reached() == Leg((), Waypoint(3.0, 4.0)) and mission.current == 1
+    assert mission.reached() == Leg((), Waypoint(5.0, 6.0)) and mission.current == 2
+    assert mission.reached() == Leg((), None)
     assert (mission.state, mission.current) == (MissionState.COMPLETE, 2)
     with pytest.raises(ParameterError, match="COMPLETE"):
         mission.reached()
@@ -40,7 +41,7 @@ def test_a_single_goal_pauses_it_and_setting_an_item_drives_it_again() -> None:
     assert not mission.pause()  # once
     with pytest.raises(ParameterError):
         mission.reached()  # a paused mission does not advance on the single goal's arrival
-    assert mission.set_current(0) == Waypoint(1.0, 2.0)
+    assert mission.set_current(0).waypoint == Waypoint(1.0, 2.0)
     assert (mission.state, mission.current) == (MissionState.ACTIVE, 0)
 
 
@@ -48,8 +49,8 @@ def test_a_complete_mission_runs_again_from_the_item_set() -> None:
     mission = Mission()
     mission.load(THREE[:1])
     mission.set_current(0)
-    assert mission.reached() is None and mission.state is MissionState.COMPLETE
-    assert mission.set_current(0) == Waypoint(1.0, 2.0) and mission.state is MissionState.ACTIVE
+    assert mission.reached().waypoint is None and mission.state is MissionState.COMPLETE
+    assert mission.set_current(0).waypoint == Waypoint(1.0, 2.0) and mission.state is MissionState.ACTIVE
 
 
 def test_clear_says_whether_it_was_being_driven() -> None:
@@ -88,3 +89,59 @@ def test_a_bad_mission_is_refused_and_the_one_in_force_kept(waypoints: list[tupl
     with pytest.raises(ParameterError):
         mission.load(waypoints)
     assert mission.waypoints == tuple(Waypoint(*w) for w in THREE) and mission.state is MissionState.ACTIVE
+
+
+SLOW, DEFAULT, KEEP = SpeedChange(0.4), SpeedChange(None), SpeedChange(None, keep=True)
+# Items as uploaded: a speed change first, one between two waypoints, two in a row, one after the last.
+WITH_SPEEDS: list[tuple[float, float] | SpeedChange] = [
+    SLOW,
+    (1.0, 2.0),
+    (3.0, 4.0),
+    DEFAULT,
+    (5.0, 6.0),
+    KEEP,
+    SLOW,
+    (7.0, 8.0),
+    DEFAULT,
+]
+
+
+def test_speed_changes_are_numbered_as_uploaded_and_passed_on_the_way_to_the_next_waypoint() -> None:
+    mission = Mission()
+    mission.load(WITH_SPEEDS)
+    assert mission.count == 9 and mission.waypoints == tuple(
+        Waypoint(*w) for w in [(1.0, 2.0), (3.0, 4.0), (5.0, 6.0), (7.0, 8.0)]
+    )
+    # Item 0 is a speed change: applied on the way to item 1, the first waypoint, now current.
+    assert mission.set_current(0) == Leg(((0, SLOW),), Waypoint(1.0, 2.0))
+    assert (mission.state, mission.current) == (MissionState.ACTIVE, 1)
+    assert mission.reached() == Leg((), Waypoint(3.0, 4.0)) and mission.current == 2
+    assert mission.reached() == Leg(((3, DEFAULT),), Waypoint(5.0, 6.0)) and mission.current == 4
+    assert mission.reached() == Leg(((5, KEEP), (6, SLOW)), Waypoint(7.0, 8.0)) and mission.current == 7
+    # The last waypoint reached, a speed change after it: passed, then the end.
+    assert mission.reached() == Leg(((8, DEFAULT),), None)
+    assert (mission.state, mission.current) == (MissionState.COMPLETE, 8)
+    with pytest.raises(ParameterError, match="no waypoint"):
+        mission.current_waypoint()
+
+
+def test_set_current_skips_the_speed_changes_before_the_item_and_applies_one_it_names() -> None:
+    mission = Mission()
+    mission.load(WITH_SPEEDS)
+    # After the speed changes at 0 and 3: none of them comes back (not replayed).
+    assert mission.set_current(4) == Leg((), Waypoint(5.0, 6.0)) and mission.current == 4
+    # Naming a speed change applies it (and the one after it) on the way to the next waypoint.
+    assert mission.set_current(5) == Leg(((5, KEEP), (6, SLOW)), Waypoint(7.0, 8.0))
+    assert mission.current_waypoint() == Waypoint(7.0, 8.0)
+    # Nothing but a speed change left from the item named: applied, and the mission is complete.
+    assert mission.set_current(8) == Leg(((8, DEFAULT),), None)
+    assert mission.state is MissionState.COMPLETE
+
+
+@pytest.mark.parametrize("items", [[SLOW], [SLOW, DEFAULT, KEEP]])
+def test_speed_changes_alone_are_no_mission(items: list[SpeedChange]) -> None:
+    mission = Mission()
+    mission.load(THREE)
+    with pytest.raises(ParameterError, match="at least one waypoint"):
+        mission.load(items)
+    assert mission.count == 3 and mission.state is MissionState.NOT_STARTED

@@ -17,7 +17,14 @@ from firmware_bridge.mavlink_transport import memory_pipe_pair
 from navigator.mission import MissionState
 from navigator.route_guidance import Mode
 from navigator.safety import WHEEL_STALLED
-from tests.firmware_bridge.ground_station import MISSION, ROVER, GroundStation, mission_start, waypoint
+from tests.firmware_bridge.ground_station import (
+    MISSION,
+    ROVER,
+    GroundStation,
+    change_speed,
+    mission_start,
+    waypoint,
+)
 from tests.runtime.rig import DATUM, MSG_GPS_RAW_INT, Rig, rig_config
 
 # ENU metres on the rig's open 20 m x 20 m map; the rover starts at (3, 3).
@@ -306,3 +313,94 @@ def test_start_mission_before_the_datum_is_refused() -> None:
         assert station.rig.stack.mission.state is MissionState.NONE
     finally:
         station.close()
+
+
+def speed_plan() -> list[Any]:
+    """PLAN with speed changes: 0.5 m/s before the first waypoint, back to the default before the last."""
+    first, second, third = plan_items()
+    for item, seq in ((first, 1), (second, 2), (third, 4)):
+        item.seq = seq
+    return [change_speed(0, 0.5), first, second, change_speed(3, -2.0), third]
+
+
+def state_records(rig: Rig, after_ns: int) -> list[dict[str, Any]]:
+    return [m for topic, t, m in rig.sink.records if topic == "navigator/state" and t > after_ns]
+
+
+def test_a_speed_change_limits_the_rest_of_the_mission_a_single_goal_included(station: Station) -> None:
+    rig = station.rig
+    stack = rig.stack
+    assert station.upload(speed_plan()).type == mavlink2.MAV_MISSION_ACCEPTED
+    assert station.details("mission")[-1].startswith(
+        "mission of 5 items (3 waypoints, 2 speed changes) from MAVLink upload by 255/190 on the "
+        "ground_station link: speed 0.50 m/s, (6.00, 4.00), (7.00, 8.00), speed default, (4.00, 9.0"
+    )
+    station.start()
+    # Item 0 applied at once, the mission on to item 1 in the same tick; the ground station told.
+    mission = stack.mission
+    assert (mission.state, mission.current, mission.count) == (MissionState.ACTIVE, 1, 5)
+    assert station.details("mission_speed") == ["item 0 of 5: mission speed limit 0.50 m/s"]
+    assert stack.guidance.core.mission_speed_mps == 0.5
+    assert [m.seq for m in station.gcs.of_type("MISSION_ITEM_REACHED")] == [0]
+    assert station.gcs.of_type("MISSION_CURRENT")[-1].seq == 1
+    started = rig.drive()
+    rig.run_for(2.0)
+    states = state_records(rig, started)
+    assert max(s["target_speed_mps"] for s in states) <= 0.5
+    assert any(s["speed_limit_reason"] == "mission_speed" for s in states)
+    # A single goal pauses the mission; the limit stands for it (as ArduPilot keeps a speed until changed).
+    stack.set_goal(12.0, 12.0)
+    paused = rig.run_until(lambda: stack.safety_mode.value == "DRIVING", 5.0, "the single goal driven")
+    rig.run_for(2.0)
+    assert mission.state is MissionState.PAUSED
+    assert max(s["target_speed_mps"] for s in state_records(rig, paused)) <= 0.5
+    # MISSION_SET_CURRENT past the speed change back to the default: skipped, not applied.
+    station.send(mavlink2.MAVLink_mission_set_current_message(*ROVER, 4))
+    assert mission.current == 4 and stack.guidance.core.mission_speed_mps == 0.5
+    # ... one naming it applies it, on the way to the next waypoint.
+    station.send(mavlink2.MAVLink_mission_set_current_message(*ROVER, 3))
+    assert mission.current == 4 and stack.guidance.core.mission_speed_mps is None
+    assert (
+        station.details("mission_speed")[-1]
+        == "item 3 of 5: back to the default speed: no mission speed limit"
+    )
+    # Cleared: the limit goes with the mission.
+    station.send(mavlink2.MAVLink_mission_set_current_message(*ROVER, 0))
+    assert stack.guidance.core.mission_speed_mps == 0.5
+    station.send(mavlink2.MAVLink_mission_clear_all_message(*ROVER, MISSION))
+    assert stack.guidance.core.mission_speed_mps is None
+    assert (
+        station.details("mission_speed")[-1] == "mission speed limit 0.50 m/s lifted: the mission was cleared"
+    )
+    station.gcs.receive()
+    assert [m.seq for m in station.gcs.of_type("MISSION_ITEM_REACHED")] == [0, 3, 0]
+
+
+def test_a_replaced_mission_takes_its_limit_along_and_a_last_speed_change_completes_it(
+    station: Station,
+) -> None:
+    stack = station.rig.stack
+    station.upload(speed_plan())
+    station.start()
+    assert stack.guidance.core.mission_speed_mps == 0.5
+    # An upload in place of the mission being driven: the old limit lifted, the new mission's applied.
+    (first,) = plan_items(PLAN[:1])
+    assert station.upload([first, change_speed(1, 5.0)]).type == mavlink2.MAV_MISSION_ACCEPTED
+    assert (
+        station.details("mission_speed")[-1]
+        == "mission speed limit 0.50 m/s lifted: the mission was replaced"
+    )
+    assert stack.guidance.core.mission_speed_mps is None and stack.mission.current == 0
+    # Item 1, a speed change after the last waypoint: above the rover's top speed (that stands), then the
+    # end, which lifts it: nothing left to drive, the rover holds.
+    station.send(mavlink2.MAVLink_mission_set_current_message(*ROVER, 1))
+    assert station.details("mission_speed")[-2:] == [
+        "item 1 of 2: mission speed limit 5.00 m/s: at or above the rover's max_speed_mps 1.00, which stays "
+        "its limit",
+        "mission speed limit 5.00 m/s lifted: the mission is complete",
+    ]
+    assert station.details("mission_complete") == [
+        "mission complete: no waypoint from item 1: the rover holds"
+    ]
+    assert stack.mission.state is MissionState.COMPLETE and stack.mode is Mode.IDLE
+    assert stack.guidance.core.mission_speed_mps is None
