@@ -98,15 +98,25 @@ class Mission:
 
     def set_current(self, seq: int) -> Leg:
         """Drive the mission from item ``seq`` (whatever its state): the speed changes from it up to the
-        next waypoint, which becomes current. Speed changes before ``seq`` are not applied (as ArduPilot
-        does not replay the items a MISSION_SET_CURRENT skips). ``ParameterError`` if there is no mission
-        or no such item."""
+        next waypoint, which becomes current. The speed the items before ``seq`` set is
+        ``speed_set_before(seq)``'s. ``ParameterError`` if there is no mission or no such item."""
         if not self.items:
             raise ParameterError(f"no mission: item {seq} cannot be made current")
         if not 0 <= seq < len(self.items):
             raise ParameterError(f"item {seq} is not in the mission (items 0..{len(self.items) - 1})")
         self.state = MissionState.ACTIVE
         return self._go_from(seq)
+
+    def speed_set_before(self, seq: int) -> tuple[int, SpeedChange] | None:
+        """The last speed change before item ``seq`` that set or reset the speed (item number and change;
+        "no change" items skipped), or None: the speed a mission driven from its start would have when it
+        came to ``seq``. A mission started part-way applies it, as PX4 replays the last speed change
+        before the item it resumes at: a "slow zone" stays slow however the ground station jumps into it."""
+        for index in range(min(seq, len(self.items)) - 1, -1, -1):
+            item = self.items[index]
+            if isinstance(item, SpeedChange) and not item.keep:
+                return index, item
+        return None
 
     def reached(self) -> Leg:
         """The current waypoint was reached: the speed changes after it up to the next waypoint (now

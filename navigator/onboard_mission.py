@@ -13,8 +13,9 @@ A speed change (MAV_CMD_DO_CHANGE_SPEED) the mission comes to is applied at once
 limit (``RouteGuidance.limit_speed``), and the mission goes on to its next item in the same call. The
 limit stands for the rest of the mission, a single goal that pauses it included (as ArduPilot keeps a
 speed until it is changed), until a later speed change, or until the mission is cleared, replaced or
-complete. Speed changes a MISSION_SET_CURRENT or MISSION_START skips are not applied (not replayed): the
-limit in force, if any, stays.
+complete. A MISSION_SET_CURRENT or MISSION_START that enters the mission part-way sets the speed the
+items it skipped would have left (the last speed change before the item, or none), as PX4 replays the last
+speed change before the item it resumes at: a slow stretch stays slow however a ground station jumps in.
 """
 
 from __future__ import annotations
@@ -222,8 +223,8 @@ class MissionDriver:
             self._follow(self.mission.set_current(0), given=True)
 
     def _start_at(self, seq: int, kind: str, what: str, who: str, verb: str = "") -> None:
-        """A ground station made item ``seq`` current or started the mission there: it is driven from it
-        (the speed changes skipped before it are not applied; the limit in force stays)."""
+        """A ground station made item ``seq`` current or started the mission there: it is driven from it,
+        at the speed the items before it set (``Mission.speed_set_before``)."""
         try:
             leg = self.mission.set_current(seq)
         except ParameterError as err:
@@ -232,6 +233,7 @@ class MissionDriver:
             _log.warning("%s from %s not taken: %s", kind, who, err)
             return
         self._event(kind, "info", f"{what} of {self.mission.count}{verb} by {who}")
+        self._speed_from_before(seq)
         if not self._follow(leg, given=True):
             # Only speed changes from ``seq`` to the end: nothing left to drive to.
             self._guidance.clear_goal()
@@ -283,6 +285,23 @@ class MissionDriver:
             self._set_speed_limit(limit)
         self._event("mission_speed", "info", detail)
         self.server.item_reached(seq)
+
+    def _speed_from_before(self, seq: int) -> None:
+        """The mission's speed limit as the items before ``seq`` left it (the mission entered at ``seq``
+        skipped them): a ``mission_speed`` event when that changes the limit in force; no
+        MISSION_ITEM_REACHED (those items were not reached)."""
+        before = self.mission.speed_set_before(seq)
+        limit = None if before is None else before[1].limit_mps
+        if limit == self.speed_limit_mps:
+            return
+        if before is None:
+            detail = f"no speed change before item {seq}: no mission speed limit"
+        elif limit is None:
+            detail = f"item {before[0]} before item {seq}: back to the default speed: no mission speed limit"
+        else:
+            detail = f"item {before[0]} before item {seq}: mission speed limit {limit:.2f} m/s"
+        self._set_speed_limit(limit)
+        self._event("mission_speed", "info", detail)
 
     def _set_speed_limit(self, limit_mps: float | None) -> None:
         self.speed_limit_mps = limit_mps

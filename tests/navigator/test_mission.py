@@ -125,11 +125,15 @@ def test_speed_changes_are_numbered_as_uploaded_and_passed_on_the_way_to_the_nex
         mission.current_waypoint()
 
 
-def test_set_current_skips_the_speed_changes_before_the_item_and_applies_one_it_names() -> None:
+def test_set_current_passes_the_speed_changes_from_the_item_and_says_which_one_set_the_speed_before() -> None:
     mission = Mission()
     mission.load(WITH_SPEEDS)
-    # After the speed changes at 0 and 3: none of them comes back (not replayed).
+    # After the speed changes at 0 and 3: the leg passes none; the speed there is item 3's (the default).
     assert mission.set_current(4) == Leg((), Waypoint(5.0, 6.0)) and mission.current == 4
+    assert mission.speed_set_before(4) == (3, DEFAULT)
+    assert mission.speed_set_before(2) == (0, SLOW) and mission.speed_set_before(0) is None
+    # "No change" sets nothing: the last change before item 7 that set the speed is item 6's.
+    assert mission.speed_set_before(6) == (3, DEFAULT) and mission.speed_set_before(7) == (6, SLOW)
     # Naming a speed change applies it (and the one after it) on the way to the next waypoint.
     assert mission.set_current(5) == Leg(((5, KEEP), (6, SLOW)), Waypoint(7.0, 8.0))
     assert mission.current_waypoint() == Waypoint(7.0, 8.0)

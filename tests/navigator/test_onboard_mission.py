@@ -354,10 +354,22 @@ def test_a_speed_change_limits_the_rest_of_the_mission_a_single_goal_included(st
     rig.run_for(2.0)
     assert mission.state is MissionState.PAUSED
     assert max(s["target_speed_mps"] for s in state_records(rig, paused)) <= 0.5
-    # MISSION_SET_CURRENT past the speed change back to the default: skipped, not applied.
+    # MISSION_SET_CURRENT past the speed change back to the default: the rover drives item 4 at the speed
+    # the mission sets there, as PX4 replays the last speed change before the item it resumes at.
     station.send(mavlink2.MAVLink_mission_set_current_message(*ROVER, 4))
-    assert mission.current == 4 and stack.guidance.core.mission_speed_mps == 0.5
-    # ... one naming it applies it, on the way to the next waypoint.
+    assert mission.current == 4 and stack.guidance.core.mission_speed_mps is None
+    assert (
+        station.details("mission_speed")[-1]
+        == "item 3 before item 4: back to the default speed: no mission speed limit"
+    )
+    # Back into the slow stretch (item 2, after the 0.5 m/s at item 0): slow again, told once.
+    station.send(mavlink2.MAVLink_mission_set_current_message(*ROVER, 2))
+    assert mission.current == 2 and stack.guidance.core.mission_speed_mps == 0.5
+    assert station.details("mission_speed")[-1] == "item 0 before item 2: mission speed limit 0.50 m/s"
+    events = len(station.details("mission_speed"))
+    station.send(mavlink2.MAVLink_mission_set_current_message(*ROVER, 1))  # the same speed: no event
+    assert stack.guidance.core.mission_speed_mps == 0.5 and len(station.details("mission_speed")) == events
+    # One naming a speed change applies it, on the way to the next waypoint.
     station.send(mavlink2.MAVLink_mission_set_current_message(*ROVER, 3))
     assert mission.current == 4 and stack.guidance.core.mission_speed_mps is None
     assert (
