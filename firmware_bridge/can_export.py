@@ -45,6 +45,9 @@ _CLASSIC_MAX_DLC = 8
 # python-can's CSV columns are timestamp, id, extended, remote, error, dlc, data: no rx/tx, so its reader
 # returns every frame as received.
 _NO_DIRECTION_SUFFIXES = (".csv",)
+# python-can's TRC writer has no error frame line: it logs "not implemented" and writes nothing, so the
+# export leaves error records out of .trc itself, counted (ExportStats.error_frames_dropped) and said.
+_NO_ERROR_FRAME_SUFFIXES = (".trc",)
 _MAX_REJECTION_WARNINGS = 10  # the first few bad records are logged in full, the rest only counted
 
 
@@ -56,8 +59,11 @@ class ExportStats:
     tx: int = 0
     rx: int = 0
     # Of rx, the error frames the controller delivered (bus-off, restarted...), written as each format
-    # writes one (candump: python-can's CAN_ERR_BUSERROR line, the class lost; .asc: ErrorFrame).
+    # writes one: candump a CAN_ERR_BUSERROR line and .asc an ErrorFrame line, both read back with id 0
+    # (the class lost); .blf and .csv keep the class.
     error_frames: int = 0
+    # Error frame records left out: the format has no line for them (.trc). Not in ``frames``.
+    error_frames_dropped: int = 0
     rejected: int = 0  # records that do not describe a CAN frame
     first_ns: int | None = None
     last_ns: int | None = None
@@ -185,6 +191,9 @@ def export_can_log(
                 if stats.rejected <= _MAX_REJECTION_WARNINGS:
                     logger.warning("skipped can/frames record at %d ns: %s", entry.log_time_ns, err)
                 continue
+            if msg.is_error_frame and suffix in _NO_ERROR_FRAME_SUFFIXES:
+                stats.error_frames_dropped += 1
+                continue
             if opened is None:
                 # The writer opens at the first frame: only then is the file's date known.
                 base = time_base(suffix, anchor, entry.log_time_ns, wall_ns())
@@ -229,6 +238,15 @@ def export_can_log(
             path,
             suffix,
             stats.tx,
+        )
+    if stats.error_frames_dropped:
+        logger.warning(
+            "%s: python-can's %s format has no error frame line: the %d error frame(s) recorded (the "
+            "controller's bus-off, restart...) are not in it; export to .blf or .csv to keep them with "
+            "their class, .log or .asc to keep them without",
+            path,
+            suffix,
+            stats.error_frames_dropped,
         )
     if stats.rejected > _MAX_REJECTION_WARNINGS:
         logger.warning("skipped %d can/frames records in all", stats.rejected)

@@ -39,6 +39,9 @@ def export_command(args: argparse.Namespace) -> int:
         print(json.dumps({"out": str(args.out), **stats.as_dict()}))
     else:
         errors = f", {stats.error_frames} of them error frames" if stats.error_frames else ""
+        if stats.error_frames_dropped:
+            dropped = stats.error_frames_dropped
+            errors += f"; {dropped} error frames left out (the format has no line for them)"
         figures = (
             f"{stats.frames} frames ({stats.tx} tx, {stats.rx} rx{errors}), {stats.rejected} records skipped"
         )

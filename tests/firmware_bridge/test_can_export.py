@@ -122,6 +122,37 @@ def test_an_error_frame_record_exports_as_an_error_frame(tmp_path):
 
 
 @pytest.mark.parametrize(
+    ("suffix", "error_back"),
+    [
+        (".log", (True, 0)),
+        (".asc", (True, 0)),
+        (".blf", (True, 0x40)),
+        (".csv", (True, 0x40)),
+        (".trc", None),
+    ],
+)
+def test_every_format_reads_back_what_the_export_counts(tmp_path, suffix, error_back):
+    """Each format's reader gets back the frames the export says it wrote; an error frame as far as the
+    format keeps it (candump and .asc lose its class, .trc has no line for it: left out and counted)."""
+    stream = BytesIO()
+    data = {"direction": "rx", "id": 0x901, "extended": True, "dlc": 2, "data": "0102"}
+    busoff = {"direction": "rx", "id": 0x40, "extended": False, "dlc": 8, "data": "00" * 8, "error": True}
+    with McapRecorder(stream) as recorder:
+        recorder.publish(CAN_FRAMES, 1_000, {"timestamp": stamp(1_000), **data})
+        recorder.publish(CAN_FRAMES, 2_000, {"timestamp": stamp(2_000), **busoff})
+    out = tmp_path / f"run{suffix}"
+    stats = export_can_log(BytesIO(stream.getvalue()), out)
+    back = list(can.LogReader(out))
+    assert len(back) == stats.frames
+    assert [(m.arbitration_id, m.is_error_frame) for m in back][:1] == [(0x901, False)]
+    if error_back is None:
+        assert (stats.frames, stats.error_frames, stats.error_frames_dropped) == (1, 0, 1)
+    else:
+        assert (stats.frames, stats.error_frames, stats.error_frames_dropped) == (2, 1, 0)
+        assert (back[1].is_error_frame, back[1].arbitration_id) == error_back
+
+
+@pytest.mark.parametrize(
     ("record", "text"),
     [
         ({"direction": "rx", "id": 1, "extended": True, "dlc": 1}, "malformed"),
