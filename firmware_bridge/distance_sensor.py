@@ -6,7 +6,9 @@ autopilot's simulated ring does too (``hil.rangefinder_sim``). The fields, as py
 defines them: ``min_distance``, ``max_distance``, ``current_distance`` in centimetres (uint16);
 ``orientation`` a MAV_SENSOR_ORIENTATION (``quaternion`` with MAV_SENSOR_ROTATION_CUSTOM); ``id`` the
 sensor's onboard id; ``horizontal_fov`` in radians, 0 when unknown; ``signal_quality`` a percentage, 0
-unknown, 1 invalid, 100 best. ``type``, ``covariance`` and ``vertical_fov`` are not read.
+unknown, 1 invalid, 100 best; ``vertical_fov`` in place of ``horizontal_fov`` for a sensor on its side
+(rolled near 90 degrees: its own vertical spans the rover's horizontal plane). ``type`` and
+``covariance`` are not read.
 
 Orientation. Where the sensor looks comes from ``firmware_bridge.sensor_orientation``: every named
 MAV_SENSOR_ORIENTATION (roll, then pitch, then yaw, in FRD, as ArduPilot applies them) and
@@ -49,8 +51,8 @@ from firmware_bridge.sensor_orientation import OrientationError, facing
 INVALID_SIGNAL = 1
 # A beam tilted further than this from the horizontal is not an obstacle sensor for a rover: one 10
 # degrees down from 0.3 m meets flat ground 1.7 m out, within a sonar's range, and reports it as an
-# obstacle; one as far up passes over a 0.3 m rock from 1.7 m on. Closer to level, the reading is placed
-# in the horizontal plane at its horizontal distance (range x cos tilt).
+# obstacle; one as far up is 0.6 m above the ground 1.7 m out and passes over a 0.5 m rock there. Closer to
+# level, the reading is placed in the horizontal plane at its horizontal distance (range x cos tilt).
 MAX_TILT_RAD = math.radians(10.0)
 # The orientation a simulated sensor turned ``45 k`` degrees clockwise reports (hil.rangefinder_sim).
 ORIENTATION_OF_YAW_DEG = {45 * steps: mavlink2.MAV_SENSOR_ROTATION_NONE + steps for steps in range(8)}
@@ -103,7 +105,12 @@ def read_beam(msg: Any, t_ns: int) -> RangeBeam | None:
     if max_cm <= min_cm:
         raise BeamRejected(f"max_distance {max_cm:g} cm is not above min_distance {min_cm:g} cm")
     current_cm = _distance(msg.current_distance, "current_distance")
-    fov = _fov(msg.horizontal_fov)
+    # The width across the rover's horizontal plane: the sensor's own vertical one when it lies on its side.
+    fov = (
+        _fov(msg.vertical_fov, "vertical_fov")
+        if seen.on_its_side
+        else _fov(msg.horizontal_fov, "horizontal_fov")
+    )
     if current_cm > max_cm:
         range_m: float | None = None
     elif current_cm >= min_cm:
@@ -136,11 +143,11 @@ def _distance(value: Any, name: str) -> float:
     return float(value)
 
 
-def _fov(value: Any) -> float | None:
+def _fov(value: Any, name: str) -> float | None:
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise BeamRejected(f"horizontal_fov {value!r} is not a number")
+        raise BeamRejected(f"{name} {value!r} is not a number")
     if not (math.isfinite(value) and 0.0 <= value <= math.tau):
-        raise BeamRejected(f"horizontal_fov {value!r} rad is not an angle in [0, 2 pi] (0: unknown)")
+        raise BeamRejected(f"{name} {value!r} rad is not an angle in [0, 2 pi] (0: unknown)")
     return float(value) if value > 0.0 else None
 
 

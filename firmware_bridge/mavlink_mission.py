@@ -364,7 +364,10 @@ class MissionServer:
             return self._clear(link, sysid, compid, _MISSION)
         now = self._clock.now_ns()
         request = self._request(sysid, compid, 0)
-        self._transfer = _Transfer(link, sysid, compid, True, count, request, now + self._item_timeout_ns)
+        deadline_ns = now + self._item_timeout_ns
+        self._transfer = _Transfer(
+            link, sysid, compid, upload=True, count=count, resend=request, deadline_ns=deadline_ns
+        )
         logger.info("mission upload of %d items from %d/%d on the %s link", count, sysid, compid, link.name)
         link.send(request)
         return None
@@ -424,7 +427,7 @@ class MissionServer:
             return None
         # The last item: only now does the upload replace the mission in force.
         self._transfer = None
-        self._finished = _Finished(link, sysid, compid, transfer.count, self._clock.now_ns())
+        self._finished = _Finished(link, sysid, compid, count=transfer.count, t_ns=self._clock.now_ns())
         self.items = tuple(transfer.items)
         link.counters.missions_accepted += 1
         logger.info("%s: %d items accepted", transfer.what, transfer.count)
@@ -456,10 +459,10 @@ class MissionServer:
                 link,
                 sysid,
                 compid,
-                False,
-                len(self.items),
-                count,
-                self._clock.now_ns() + self._operation_timeout_ns,
+                upload=False,
+                count=len(self.items),
+                resend=count,
+                deadline_ns=self._clock.now_ns() + self._operation_timeout_ns,
                 items=list(self.items),
             )
         else:

@@ -10,7 +10,8 @@ frame in the body frame; all zeros: invalid, as the field says).
 
 A sensor looks along its own x axis: ``forward_axis`` is where that axis points. Roll turns a sensor
 about that axis, so a sensor on its side (ROLL_90_YAW_45) looks where YAW_45 does; pitch tilts it up
-(positive) or down. ``facing`` gives the horizontal direction and the tilt a rover's perception needs.
+(positive) or down. ``facing`` gives the horizontal direction and the tilt a rover's perception needs,
+and whether the sensor lies on its side (then its vertical field of view is the one across the ground).
 
 ArduPilot's ROLL_90_PITCH_68_YAW_293 is pitched 68.8 degrees, not the name's 68; the name's angle is used
 here (that sensor looks 68 degrees up either way: not an obstacle sensor for a rover).
@@ -40,10 +41,14 @@ class OrientationError(ValueError):
 @dataclass(frozen=True)
 class Facing:
     """Where a sensor looks: ``bearing_rad`` counter-clockwise from the vehicle's front in (-pi, pi] (0
-    for a sensor looking straight up or down), ``tilt_rad`` above the horizontal (negative: down)."""
+    for a sensor looking straight up or down), ``tilt_rad`` above the horizontal (negative: down).
+    ``on_its_side``: the sensor's own y axis (across its beam, its "horizontal") stands closer to the
+    vehicle's vertical than to its horizontal plane (a roll near 90 or 270 degrees), so what the sensor
+    calls its vertical field of view spans the vehicle's horizontal plane."""
 
     bearing_rad: float
     tilt_rad: float
+    on_its_side: bool = False
 
 
 def euler_degrees(orientation: int) -> tuple[float, float, float]:
@@ -72,28 +77,48 @@ def forward_axis(orientation: int, quaternion: Any = None) -> tuple[float, float
     return (round(axis[0], _DECIMALS) + 0.0, round(axis[1], _DECIMALS) + 0.0, round(axis[2], _DECIMALS) + 0.0)
 
 
+def side_axis(orientation: int, quaternion: Any = None) -> tuple[float, float, float]:
+    """The unit vector (FRD) the sensor's own y axis points along: ``forward_axis``'s companion, the
+    second column of the same rotation."""
+    if orientation == CUSTOM:
+        w, x, y, z = _unit_quaternion(quaternion)
+        return (2.0 * (x * y - w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z + w * x))
+    roll, pitch, yaw = (math.radians(angle) for angle in euler_degrees(orientation))
+    # Rz(yaw) Ry(pitch) Rx(roll) applied to (0, 1, 0).
+    sr, cr, sp, cp, sy, cy = (
+        math.sin(roll),
+        math.cos(roll),
+        math.sin(pitch),
+        math.cos(pitch),
+        math.sin(yaw),
+        math.cos(yaw),
+    )
+    return (cy * sp * sr - sy * cr, sy * sp * sr + cy * cr, cp * sr)
+
+
 def facing(orientation: int, quaternion: Any = None) -> Facing:
     """``forward_axis`` as a bearing (counter-clockwise, our convention; FRD's y is to the right) and a
-    tilt above the horizontal."""
+    tilt above the horizontal; whether the sensor is on its side (``side_axis``)."""
     if orientation == CUSTOM:
-        return _facing_along(forward_axis(orientation, quaternion))
+        return _facing_along(forward_axis(orientation, quaternion), side_axis(orientation, quaternion))
     return _named_facing(orientation)
 
 
 @functools.cache
 def _named_facing(orientation: int) -> Facing:
     # Every rangefinder reading asks; the answer for a named orientation never changes.
-    return _facing_along(forward_axis(orientation))
+    return _facing_along(forward_axis(orientation), side_axis(orientation))
 
 
-def _facing_along(axis: tuple[float, float, float]) -> Facing:
+def _facing_along(axis: tuple[float, float, float], side: tuple[float, float, float]) -> Facing:
     x, y, z = axis
     horizontal = math.hypot(x, y)
     tilt = math.atan2(-z, horizontal)
+    on_its_side = abs(side[2]) > math.hypot(side[0], side[1])
     if horizontal == 0.0:
-        return Facing(0.0, tilt)
+        return Facing(0.0, tilt, on_its_side)
     bearing = math.atan2(-y, x)
-    return Facing(math.pi if bearing == -math.pi else bearing, tilt)
+    return Facing(math.pi if bearing == -math.pi else bearing, tilt, on_its_side)
 
 
 def _unit_quaternion(quaternion: Any) -> tuple[float, float, float, float]:

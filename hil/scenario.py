@@ -146,7 +146,8 @@ class SensorSettings:
         if settings.perception == "rangefinders" and settings.perception_mount_yaw_deg != 0.0:
             raise table.error(
                 "perception_mount_yaw_deg",
-                "turns the lidar; a rangefinder faces where its rangefinder_yaw_deg entry says",
+                "turns the lidar; a rangefinder faces where its rangefinder_yaw_deg or rangefinders entry "
+                "says",
             )
         table.finish()
         return settings
@@ -157,8 +158,9 @@ MAX_RANGEFINDERS = 16
 
 def _rangefinder_mounts(table: Table) -> tuple[SensorMount, ...] | None:
     """``rangefinders = [{yaw_deg = 30.0, forward_m = 0.4, left_m = 0.2}, ...]``: each sensor's direction
-    (degrees clockwise from the rover's front, as MAVLink's orientations count) and place (m; default the
-    perception_mount_* point); ids by order. None when not given (the ``rangefinder_yaw_deg`` ring)."""
+    (degrees counter-clockwise from the rover's front, as ``perception_mount_yaw_deg`` and the rover config
+    count) and place (m; default the perception_mount_* point), each sensor once; ids by order. None when
+    not given (the ``rangefinder_yaw_deg`` ring, whose directions count clockwise as MAVLink names them)."""
     if not table.has("rangefinders"):
         return None
     if table.has("rangefinder_yaw_deg"):
@@ -168,17 +170,20 @@ def _rangefinder_mounts(table: Table) -> tuple[SensorMount, ...] | None:
         raise table.error("rangefinders", f"1 to {MAX_RANGEFINDERS} sensors, got {len(entries)}")
     forward = table.number("perception_mount_forward_m", 0.0)
     left = table.number("perception_mount_left_m", 0.0)
-    mounts = []
-    for entry in entries:
+    mounts: list[SensorMount] = []
+    for index, entry in enumerate(entries):
         yaw_deg = entry.number("yaw_deg", lo=-360.0, hi=360.0)
-        mounts.append(
-            SensorMount(
-                entry.number("forward_m", forward, lo=-MAX_MOUNT_OFFSET_M, hi=MAX_MOUNT_OFFSET_M),
-                entry.number("left_m", left, lo=-MAX_MOUNT_OFFSET_M, hi=MAX_MOUNT_OFFSET_M),
-                -math.radians(yaw_deg),  # counter-clockwise, as every angle of ours
-            )
+        mount = SensorMount(
+            entry.number("forward_m", forward, lo=-MAX_MOUNT_OFFSET_M, hi=MAX_MOUNT_OFFSET_M),
+            entry.number("left_m", left, lo=-MAX_MOUNT_OFFSET_M, hi=MAX_MOUNT_OFFSET_M),
+            math.radians(math.remainder(yaw_deg, 360.0)),
         )
         entry.finish()
+        if mount in mounts:
+            raise table.error(
+                "rangefinders", f"sensor {index} is sensor {mounts.index(mount)} again: same place, same way"
+            )
+        mounts.append(mount)
     return tuple(mounts)
 
 

@@ -396,7 +396,7 @@ def _perception_record(scenario: Scenario) -> dict[str, object]:
             record["rangefinder_yaw_deg"] = list(sensors.rangefinder_yaw_deg)
         else:
             record["rangefinders"] = [
-                {"yaw_deg": round(-math.degrees(m.yaw_rad), 9), "forward_m": m.forward_m, "left_m": m.left_m}
+                {"yaw_deg": round(math.degrees(m.yaw_rad), 9), "forward_m": m.forward_m, "left_m": m.left_m}
                 for m in sensors.rangefinder_mounts
             ]
         record["rangefinder_fov_deg"] = sensors.rangefinder_fov_deg

@@ -128,9 +128,10 @@ def replay_command(args: argparse.Namespace) -> int:
         }
         console.print_json(json.dumps(document))
         return code
+    error_frames = _error_frames_note(result)
     console.print(
         f"replayed {result.ticks} ticks of {escape(str(recording))} ({result.source_mode}): "
-        f"{result.mavlink_frames} MAVLink frames, {result.can_frames} CAN frames{_bus_off(result)}, "
+        f"{result.mavlink_frames} MAVLink frames, {result.can_frames} CAN frames{error_frames}, "
         f"{result.obstacle_records} obstacle records and {result.ground_commands} ground commands fed; "
         f"{result.copied_messages} messages of the rest of the run (truth, the simulator's log) copied",
         soft_wrap=True,
@@ -180,7 +181,7 @@ def replay_command(args: argparse.Namespace) -> int:
     return code
 
 
-def _bus_off(result: ReplayResult) -> str:
+def _error_frames_note(result: ReplayResult) -> str:
     """The CAN error frames among the frames fed, and the sends a replayed bus-off refused, if any."""
     if not result.can_error_frames:
         return ""

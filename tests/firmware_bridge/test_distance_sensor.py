@@ -39,6 +39,7 @@ def _message(
     fov: Any = 0.0,
     quality: Any = 0,
     quaternion: Any = (0.0, 0.0, 0.0, 0.0),
+    vertical_fov: Any = 0.0,
 ) -> mavlink2.MAVLink_distance_sensor_message:
     return mavlink2.MAVLink_distance_sensor_message(
         0,
@@ -50,7 +51,7 @@ def _message(
         orientation,
         255,
         fov,
-        0.0,
+        vertical_fov,
         quaternion,
         quality,
     )

@@ -12,8 +12,15 @@ from hypothesis import strategies as st
 from pymavlink.dialects.v20 import common as mavlink2
 from scipy.spatial.transform import Rotation
 
-from firmware_bridge.distance_sensor import MAX_TILT_RAD, read_beam
-from firmware_bridge.sensor_orientation import CUSTOM, OrientationError, euler_degrees, facing, forward_axis
+from firmware_bridge.distance_sensor import MAX_TILT_RAD, BeamRejected, read_beam
+from firmware_bridge.sensor_orientation import (
+    CUSTOM,
+    OrientationError,
+    euler_degrees,
+    facing,
+    forward_axis,
+    side_axis,
+)
 from tests.firmware_bridge.test_distance_sensor import _message
 
 NAMED = sorted(
@@ -34,8 +41,9 @@ def test_every_named_orientation_is_read_from_its_name() -> None:
 def test_each_named_orientation_looks_where_scipys_rotation_turns_the_x_axis(orientation: int) -> None:
     roll, pitch, yaw = euler_degrees(orientation)
     # Intrinsic z-y'-x'' (yaw, pitch, roll): the matrix Rz Ry Rx, ArduPilot's from_euler.
-    expected = Rotation.from_euler("ZYX", [yaw, pitch, roll], degrees=True).apply([1.0, 0.0, 0.0])
-    assert np.allclose(forward_axis(orientation), expected, atol=1e-9)
+    rotation = Rotation.from_euler("ZYX", [yaw, pitch, roll], degrees=True)
+    assert np.allclose(forward_axis(orientation), rotation.apply([1.0, 0.0, 0.0]), atol=1e-9)
+    assert np.allclose(side_axis(orientation), rotation.apply([0.0, 1.0, 0.0]), atol=1e-9)
     assert math.isclose(float(np.linalg.norm(forward_axis(orientation))), 1.0, abs_tol=1e-9)
 
 
@@ -50,13 +58,49 @@ def test_each_named_orientation_looks_where_scipys_rotation_turns_the_x_axis(ori
         (mavlink2.MAV_SENSOR_ROTATION_PITCH_90, 0.0, 90.0),  # up: RNGFND_ORIENT 24
         (mavlink2.MAV_SENSOR_ROTATION_PITCH_270, 0.0, -90.0),  # down: RNGFND_ORIENT 25
         (mavlink2.MAV_SENSOR_ROTATION_PITCH_315, 0.0, -45.0),
-        (mavlink2.MAV_SENSOR_ROTATION_ROLL_90_PITCH_68_YAW_293, 67.0, 68.0),
     ],
 )
 def test_mountings_face_as_the_autopilot_means(orientation: int, bearing_deg: float, tilt_deg: float) -> None:
     seen = facing(orientation)
     assert math.degrees(seen.bearing_rad) == pytest.approx(bearing_deg, abs=1e-9)
     assert math.degrees(seen.tilt_rad) == pytest.approx(tilt_deg, abs=1e-9)
+
+
+def test_the_one_mounting_whose_name_rounds_its_pitch_still_looks_steeply_up() -> None:
+    # ArduPilot's Vector3::rotate maps x to (0.143, -0.332, -0.932) for it: 66.7 degrees left of the front,
+    # 68.8 up. The name says pitch 68, read here as 67 and 68: far past the tilt limit either way.
+    seen = facing(mavlink2.MAV_SENSOR_ROTATION_ROLL_90_PITCH_68_YAW_293)
+    assert math.degrees(seen.bearing_rad) == pytest.approx(66.7, abs=0.5)
+    assert math.degrees(seen.tilt_rad) == pytest.approx(68.8, abs=1.0)
+    assert read_beam(_message(orientation=mavlink2.MAV_SENSOR_ROTATION_ROLL_90_PITCH_68_YAW_293), 0) is None
+
+
+@pytest.mark.parametrize(
+    ("orientation", "on_its_side"),
+    [
+        (mavlink2.MAV_SENSOR_ROTATION_NONE, False),
+        (mavlink2.MAV_SENSOR_ROTATION_ROLL_180_YAW_90, False),
+        (mavlink2.MAV_SENSOR_ROTATION_ROLL_90, True),
+        (mavlink2.MAV_SENSOR_ROTATION_ROLL_270_YAW_45, True),
+        (mavlink2.MAV_SENSOR_ROTATION_ROLL_90_PITCH_180_YAW_90, True),
+    ],
+)
+def test_a_sensor_on_its_side_gives_its_vertical_field_of_view_as_the_width_across_the_ground(
+    orientation: int, on_its_side: bool
+) -> None:
+    assert facing(orientation).on_its_side is on_its_side
+    beam = read_beam(_message(orientation=orientation, fov=0.5, vertical_fov=0.1), 0)
+    assert beam is not None and beam.fov_rad == pytest.approx(0.1 if on_its_side else 0.5)
+    if on_its_side:  # its horizontal one is not read; an unknown vertical one is unknown
+        unknown = read_beam(_message(orientation=orientation, fov=math.nan, vertical_fov=0.0), 0)
+        assert unknown is not None and unknown.fov_rad is None
+        with pytest.raises(BeamRejected, match="vertical_fov"):
+            read_beam(_message(orientation=orientation, vertical_fov=-1.0), 0)
+
+
+def test_a_custom_quaternion_knows_a_sensor_on_its_side() -> None:
+    assert facing(CUSTOM, _quaternion(-45.0, 0.0, 90.0)).on_its_side
+    assert not facing(CUSTOM, _quaternion(-45.0, 0.0, 180.0)).on_its_side
 
 
 def _quaternion(yaw_deg: float, pitch_deg: float, roll_deg: float = 0.0) -> tuple[float, float, float, float]:

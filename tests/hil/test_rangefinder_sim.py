@@ -178,11 +178,14 @@ def test_a_sensor_on_a_45_degree_step_says_so_by_name_and_others_by_quaternion()
 def test_the_scenario_places_each_sensor_and_refuses_a_bad_ring(tmp_path: Path) -> None:
     sensors = _scenario_with(
         'perception = "rangefinders"\nperception_mount_forward_m = 0.2\n'
-        "rangefinders = [{yaw_deg = 0.0, forward_m = 0.45}, {yaw_deg = -30.0, left_m = 0.25}]"
+        "rangefinders = [{yaw_deg = 0.0, forward_m = 0.45}, {yaw_deg = 30.0, left_m = 0.25},"
+        " {yaw_deg = 270.0}]"
     ).sensors
+    # Counter-clockwise, as perception_mount_yaw_deg: 30 turns the sensor left; 270 is 90 to the right.
     assert sensors.rangefinder_ring == (
-        SensorMount(0.45, 0.0, -0.0),
+        SensorMount(0.45, 0.0, 0.0),
         SensorMount(0.2, 0.25, math.radians(30.0)),
+        SensorMount(0.2, 0.0, math.radians(-90.0)),
     )
     for bad, key in [
         ("rangefinders = []", "rangefinders"),
@@ -191,6 +194,7 @@ def test_the_scenario_places_each_sensor_and_refuses_a_bad_ring(tmp_path: Path) 
         ("rangefinders = [{yaw_deg = 0.0, forward_m = 9.0}]", "forward_m"),
         ("rangefinders = [{yaw_deg = 0.0, up_m = 0.1}]", "up_m"),
         ("rangefinders = [{yaw_deg = 400.0}]", "yaw_deg"),
+        ("rangefinders = [{yaw_deg = 10.0}, {yaw_deg = -350.0}]", "sensor 1 is sensor 0 again"),
     ]:
         with pytest.raises(ConfigError, match=key):
             _scenario_with(f'perception = "rangefinders"\n{bad}')

@@ -77,12 +77,13 @@ def test_a_rangefinder_trial_is_deterministic(tmp_path: Path) -> None:
     assert first == second
 
 
-# Four corner sonars turned out at 30 degrees and one at the nose, as a real vehicle might carry them: the
-# turned ones say MAV_SENSOR_ROTATION_CUSTOM with their quaternion; the config places each by id.
+# A nose sonar, two front corner ones turned 30 degrees outward and two side ones turned 100 degrees out
+# (yaw_deg counter-clockwise: negative on the right), as a real vehicle might carry them: the turned ones
+# say MAV_SENSOR_ROTATION_CUSTOM with their quaternion; the config places each by id.
 CORNERS = (
-    "rangefinders = [{yaw_deg = 0.0, forward_m = 0.5}, {yaw_deg = 30.0, forward_m = 0.45, left_m = -0.3},"
-    " {yaw_deg = -30.0, forward_m = 0.45, left_m = 0.3}, {yaw_deg = 100.0, left_m = -0.35},"
-    " {yaw_deg = -100.0, left_m = 0.35}]"
+    "rangefinders = [{yaw_deg = 0.0, forward_m = 0.5}, {yaw_deg = -30.0, forward_m = 0.45, left_m = -0.3},"
+    " {yaw_deg = 30.0, forward_m = 0.45, left_m = 0.3}, {yaw_deg = -100.0, left_m = -0.35},"
+    " {yaw_deg = 100.0, left_m = 0.35}]"
 )
 CORNERS_CONFIG = (
     "[perception]\nrangefinders = [{id = 0, forward_m = 0.5}, {id = 1, forward_m = 0.45, left_m = -0.3},"
@@ -123,4 +124,4 @@ def test_a_ring_of_sensors_each_placed_and_turned_its_own_way_finds_the_rock(tmp
     gaps = [math.hypot(o["x"] - ROCK_XY[0], o["y"] - ROCK_XY[1]) for o in seen]
     assert seen and statistics.median(gaps) < ROCK_RADIUS_M + 0.2
     ring = json.loads(read_metadata(result.mcap_path)["scenario"]["perception_json"])
-    assert [s["yaw_deg"] for s in ring["rangefinders"]] == [0.0, 30.0, -30.0, 100.0, -100.0]
+    assert [s["yaw_deg"] for s in ring["rangefinders"]] == [0.0, -30.0, 30.0, -100.0, 100.0]
