@@ -259,9 +259,11 @@ class MissionServer:
         item_timeout_ns: int = ITEM_TIMEOUT_NS,
         operation_timeout_ns: int = OPERATION_TIMEOUT_NS,
         max_retries: int = MAX_RETRIES,
+        slowest_speed_mps: float = 0.0,
     ) -> None:
         self._clock = clock
         self._place = place
+        self._slowest_speed_mps = slowest_speed_mps  # DO_CHANGE_SPEED below it is refused
         self.max_items = max_items
         self._item_timeout_ns = item_timeout_ns
         self._operation_timeout_ns = operation_timeout_ns
@@ -400,7 +402,7 @@ class MissionServer:
             return None
         step = self._step(msg)
         if not isinstance(step, _Refusal) and seq + 1 == transfer.count:
-            step = _with_a_waypoint(transfer.steps, step, transfer.count)
+            step = _refused_without_a_waypoint(transfer.steps, step, transfer.count)
         if isinstance(step, _Refusal):
             self._transfer = None
             self._refuse(link, sysid, compid, *step)
@@ -547,7 +549,7 @@ class MissionServer:
     def _step(self, msg: Any) -> MissionStep | _Refusal:
         """A MISSION_ITEM_INT as the rover drives it (a waypoint placed in ENU, a speed change), or why it
         cannot be taken."""
-        refusal = _judge_item(msg)
+        refusal = _judge_item(msg, self._slowest_speed_mps)
         if refusal is not None:
             return refusal
         if msg.command == mavlink2.MAV_CMD_DO_CHANGE_SPEED:
@@ -748,11 +750,11 @@ class _Refusal(NamedTuple):
     reason: str
 
 
-def _judge_item(msg: Any) -> _Refusal | None:
+def _judge_item(msg: Any, slowest_speed_mps: float) -> _Refusal | None:
     """Why a MISSION_ITEM_INT cannot be an item of ours (result and reason), or None."""
     seq = msg.seq
     if msg.command == mavlink2.MAV_CMD_DO_CHANGE_SPEED:
-        refusal = speed_change_refusal(seq, msg.param1, msg.param2)
+        refusal = speed_change_refusal(seq, msg.param1, msg.param2, slowest_speed_mps)
         return None if refusal is None else _Refusal(*refusal)
     if msg.command != mavlink2.MAV_CMD_NAV_WAYPOINT:
         name = _enum_name("MAV_CMD", msg.command)
@@ -778,7 +780,9 @@ def _judge_item(msg: Any) -> _Refusal | None:
     return None
 
 
-def _with_a_waypoint(steps: Sequence[MissionStep], last: MissionStep, count: int) -> MissionStep | _Refusal:
+def _refused_without_a_waypoint(
+    steps: Sequence[MissionStep], last: MissionStep, count: int
+) -> MissionStep | _Refusal:
     """The last item of an upload, or its refusal when no item of the upload is a waypoint: a mission of
     speed changes alone has nowhere to drive."""
     if not isinstance(last, SpeedChange) or any(not isinstance(step, SpeedChange) for step in steps):

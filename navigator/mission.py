@@ -15,6 +15,7 @@ import math
 from collections.abc import Sequence
 from typing import NamedTuple
 
+from firmware_bridge.mavlink_mission import MissionStep
 from firmware_bridge.mission_speed import SpeedChange
 from firmware_bridge.mission_state import MissionState
 from navigator.errors import ParameterError
@@ -60,7 +61,7 @@ class Mission:
         """The waypoints alone, in order."""
         return tuple(item for item in self.items if isinstance(item, Waypoint))
 
-    def load(self, items: Sequence[tuple[float, float] | SpeedChange]) -> None:
+    def load(self, items: Sequence[MissionStep]) -> None:
         """Replace the mission with ``items`` (waypoints as (x, y), speed changes), NOT_STARTED:
         ``set_current`` drives it.
 

@@ -36,6 +36,7 @@ from firmware_bridge.mavlink_link import AttitudeSample, GpsFix, ImuSample, Mavl
 from firmware_bridge.mavlink_mission import (
     MissionMessage,
 )
+from firmware_bridge.mission_speed import slowest_mission_speed
 from firmware_bridge.obstacle_scan import ObstacleScan
 from logs import topics
 from logs.clock import NS_PER_S, Clock
@@ -159,7 +160,17 @@ class OnboardStack:
             controller_ids=config.vesc.controller_ids,
         )
         self._mission_driver = MissionDriver(
-            clock, self.estimator, self.guidance, self.safety.new_goal, config.safety.fence, self._event
+            clock,
+            self.estimator,
+            self.guidance,
+            self.safety.new_goal,
+            config.safety.fence,
+            self._event,
+            slowest_mission_speed(
+                config.follower.min_speed_mps,
+                config.safety.stuck_min_command_mps,
+                config.safety.wheel_stall_min_command_mps,
+            ),
         )
         self._last_heartbeat_sent_ns: int | None = None
         self._start_up = StartUpChecks(self._event, start_up_report)

@@ -9,13 +9,14 @@ the mission and its server for the onboard stack (``navigator.onboard``), which 
 each tick's records: the next waypoint becomes the goal at the end of the tick in which guidance reports
 ARRIVED.
 
-A speed change (MAV_CMD_DO_CHANGE_SPEED) the mission comes to is applied at once, as guidance's speed
-limit (``RouteGuidance.limit_speed``), and the mission goes on to its next item in the same call. The
-limit stands for the rest of the mission, a single goal that pauses it included (as ArduPilot keeps a
-speed until it is changed), until a later speed change, or until the mission is cleared, replaced or
-complete. A MISSION_SET_CURRENT or MISSION_START that enters the mission part-way sets the speed the
-items it skipped would have left (the last speed change before the item, or none), as PX4 replays the last
-speed change before the item it resumes at: a slow stretch stays slow however a ground station jumps in.
+A speed change (MAV_CMD_DO_CHANGE_SPEED) the mission comes to is applied at once, as guidance's speed limit
+(``RouteGuidance.limit_speed``), and the mission goes on to its next item in the same call. The limit stands
+for the rest of the mission, until a later speed change, or until the mission is paused by a single goal,
+cleared, replaced or complete (the spec's "until it is overridden or there is a mode change": ArduPilot's
+Guided mode and PX4 reset the speed when the vehicle leaves its mission). A MISSION_SET_CURRENT or
+MISSION_START that enters the mission part-way sets the speed the items it skipped would have left (the last
+speed change before the item, or none), as PX4 replays the last speed change before the item it resumes at:
+a slow stretch stays slow however a ground station jumps in.
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ from firmware_bridge.mavlink_mission import (
     MissionItemRefused,
     MissionMessage,
     MissionServer,
+    MissionStep,
 )
 from logs.clock import Clock
 from navigator.errors import ParameterError
@@ -52,7 +54,8 @@ class MissionDriver:
     (the mission as uploaded, the transfer under way). ``estimator``: its datum places waypoints and goals
     given in latitude and longitude; ``new_goal`` (the safety supervisor's) clears the stuck and stall
     latches on a goal given from outside; ``fence``: ``[safety] fence`` (empty: none), outside which goals
-    and waypoints are refused; ``event`` publishes a ``safety/events`` message.
+    and waypoints are refused; ``event`` publishes a ``safety/events`` message; ``slowest_speed_mps``: the
+    lowest DO_CHANGE_SPEED an upload may set (``firmware_bridge.mission_speed.slowest_mission_speed``).
     """
 
     def __init__(
@@ -63,6 +66,7 @@ class MissionDriver:
         new_goal: Callable[[], None],
         fence: Polygon,
         event: EventSink,
+        slowest_speed_mps: float = 0.0,
     ) -> None:
         self._estimator = estimator
         self._guidance = guidance
@@ -70,7 +74,7 @@ class MissionDriver:
         self._fence = fence
         self._event = event
         self.mission = Mission()
-        self.server = MissionServer(clock, self._place_waypoint)
+        self.server = MissionServer(clock, self._place_waypoint, slowest_speed_mps=slowest_speed_mps)
         self.speed_limit_mps: float | None = None  # the mission's, in force (guidance's limit_speed)
 
     def set_goal(self, x: float, y: float) -> None:
@@ -86,6 +90,10 @@ class MissionDriver:
                 "info",
                 f"a single goal replaced the mission at item {mission.current} of {mission.count}",
             )
+            # A speed change persists "until it is overridden or there is a mode change" (the MAVLink
+            # spec); leaving the mission for a goal is that change, as ArduPilot's Guided mode and PX4
+            # reset the speed. Resuming sets it again (_speed_from_before).
+            self._lift_speed_limit("a single goal paused the mission")
         self._drive_to(x, y, given=True)
 
     def start_mission(self, waypoints: Sequence[tuple[float, float]], source: str) -> bool:
@@ -157,7 +165,7 @@ class MissionDriver:
             mission_state = mission.state
         self.server.tick(mission.current, mission_state)
 
-    def _load(self, items: Sequence[tuple[float, float] | SpeedChange], source: str, note: str = "") -> None:
+    def _load(self, items: Sequence[MissionStep], source: str, note: str = "") -> None:
         """The mission in force replaced (not driven yet: ``Mission.set_current`` starts it); the old
         one's speed limit with it."""
         mission = self.mission
@@ -233,7 +241,9 @@ class MissionDriver:
             _log.warning("%s from %s not taken: %s", kind, who, err)
             return
         self._event(kind, "info", f"{what} of {self.mission.count}{verb} by {who}")
-        self._speed_from_before(seq)
+        if all(change.keep for _, change in leg.speed_changes):
+            # The leg sets no speed of its own (none, or "no change" items): the items before seq say it.
+            self._speed_from_before(seq)
         if not self._follow(leg, given=True):
             # Only speed changes from ``seq`` to the end: nothing left to drive to.
             self._guidance.clear_goal()
@@ -316,7 +326,7 @@ class MissionDriver:
         self._event("mission_speed", "info", f"mission speed limit {in_force:.2f} m/s lifted: {why}")
 
 
-def _listed(item: tuple[float, float] | SpeedChange) -> str:
+def _listed(item: MissionStep) -> str:
     """A mission item as the ``mission`` event lists it."""
     if not isinstance(item, SpeedChange):
         return f"({item[0]:.2f}, {item[1]:.2f})"

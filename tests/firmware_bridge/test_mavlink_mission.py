@@ -27,7 +27,7 @@ from firmware_bridge.mavlink_mission import (
     MissionServer,
 )
 from firmware_bridge.mavlink_transport import memory_pipe_pair
-from firmware_bridge.mission_speed import SpeedChange, speed_change_refusal
+from firmware_bridge.mission_speed import SpeedChange, slowest_mission_speed
 from firmware_bridge.mission_state import MissionState
 from logs.clock import SimClock
 from logs.sink import MemorySink
@@ -366,6 +366,23 @@ REFUSALS = [
         id="request-beyond-the-count",
     ),
 ]
+
+
+def test_a_speed_below_the_slowest_the_rover_drives_is_refused_and_the_slowest_taken() -> None:
+    rig = Rig(slowest_speed_mps=0.2)
+    accepted(rig)
+    rig.exchange(count(2))
+    rig.exchange(waypoint(0, 47.0, 8.0))
+    answer, text = rig.refusal(rig.exchange(change_speed(1, 0.15)))
+    assert answer == mavlink2.MAV_MISSION_INVALID_PARAM2 and rig.link.counters.mission_refused == 1
+    assert "0.15 m/s is below 0.2 m/s, the slowest this rover drives with its stuck and stall checks" in text
+    assert rig.upload([waypoint(0, 47.0, 8.0), change_speed(1, 0.2)]).type == mavlink2.MAV_MISSION_ACCEPTED
+
+
+def test_the_slowest_mission_speed_keeps_the_follower_and_both_failsafes_awake() -> None:
+    assert slowest_mission_speed(0.1, 0.2, 0.1) == 0.2
+    assert slowest_mission_speed(0.3, 0.2, 0.1) == 0.3
+    assert slowest_mission_speed(0.0, 0.0, 0.25) == 0.25
 
 
 @pytest.mark.parametrize(("messages", "result", "reason"), REFUSALS)
@@ -737,7 +754,10 @@ def test_malformed_mission_traffic_never_raises_and_only_a_whole_valid_upload_ch
             assert -180 <= item.lon_deg <= 180
         for item in rig.server.items:
             if item.command == speed:
-                assert speed_change_refusal(item.seq, item.params[0], item.params[1]) is None
+                # The rule itself: ground or air speed; a positive finite speed, -1 or -2.
+                speed_type, value = item.params[0], item.params[1]
+                assert speed_type in (0.0, 1.0)
+                assert value in (-1.0, -2.0) or (math.isfinite(value) and value > 0.0)
     # After the garbage and the timeouts, a clean upload still gets through: a stray start marker the
     # parser holds (a byte stream) is flushed by the traffic after it, here zeros (what it held is then
     # read), and a transfer left under way is abandoned within 6 timeouts (one per tick past a deadline).

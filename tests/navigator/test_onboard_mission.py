@@ -327,7 +327,11 @@ def state_records(rig: Rig, after_ns: int) -> list[dict[str, Any]]:
     return [m for topic, t, m in rig.sink.records if topic == "navigator/state" and t > after_ns]
 
 
-def test_a_speed_change_limits_the_rest_of_the_mission_a_single_goal_included(station: Station) -> None:
+def set_current(station: Station, seq: int) -> None:
+    station.send(mavlink2.MAVLink_mission_set_current_message(*ROVER, seq))
+
+
+def test_a_speed_change_limits_the_mission_and_a_single_goal_lifts_it_until_resumed(station: Station) -> None:
     rig = station.rig
     stack = rig.stack
     assert station.upload(speed_plan()).type == mavlink2.MAV_MISSION_ACCEPTED
@@ -348,44 +352,83 @@ def test_a_speed_change_limits_the_rest_of_the_mission_a_single_goal_included(st
     states = state_records(rig, started)
     assert max(s["target_speed_mps"] for s in states) <= 0.5
     assert any(s["speed_limit_reason"] == "mission_speed" for s in states)
-    # A single goal pauses the mission; the limit stands for it (as ArduPilot keeps a speed until changed).
+    # A single goal pauses the mission and lifts its limit: the spec's speed lasts "until it is overridden
+    # or there is a mode change", and ArduPilot's Guided mode and PX4 reset it when leaving the mission.
     stack.set_goal(12.0, 12.0)
     paused = rig.run_until(lambda: stack.safety_mode.value == "DRIVING", 5.0, "the single goal driven")
     rig.run_for(2.0)
-    assert mission.state is MissionState.PAUSED
-    assert max(s["target_speed_mps"] for s in state_records(rig, paused)) <= 0.5
-    # MISSION_SET_CURRENT past the speed change back to the default: the rover drives item 4 at the speed
-    # the mission sets there, as PX4 replays the last speed change before the item it resumes at.
-    station.send(mavlink2.MAVLink_mission_set_current_message(*ROVER, 4))
-    assert mission.current == 4 and stack.guidance.core.mission_speed_mps is None
-    assert (
-        station.details("mission_speed")[-1]
-        == "item 3 before item 4: back to the default speed: no mission speed limit"
+    assert mission.state is MissionState.PAUSED and stack.guidance.core.mission_speed_mps is None
+    assert station.details("mission_speed")[-1] == (
+        "mission speed limit 0.50 m/s lifted: a single goal paused the mission"
     )
-    # Back into the slow stretch (item 2, after the 0.5 m/s at item 0): slow again, told once.
-    station.send(mavlink2.MAVLink_mission_set_current_message(*ROVER, 2))
-    assert mission.current == 2 and stack.guidance.core.mission_speed_mps == 0.5
-    assert station.details("mission_speed")[-1] == "item 0 before item 2: mission speed limit 0.50 m/s"
-    events = len(station.details("mission_speed"))
-    station.send(mavlink2.MAVLink_mission_set_current_message(*ROVER, 1))  # the same speed: no event
-    assert stack.guidance.core.mission_speed_mps == 0.5 and len(station.details("mission_speed")) == events
-    # One naming a speed change applies it, on the way to the next waypoint.
-    station.send(mavlink2.MAVLink_mission_set_current_message(*ROVER, 3))
-    assert mission.current == 4 and stack.guidance.core.mission_speed_mps is None
-    assert (
-        station.details("mission_speed")[-1]
-        == "item 3 of 5: back to the default speed: no mission speed limit"
-    )
+    assert all(s["speed_limit_reason"] != "mission_speed" for s in state_records(rig, paused))
+    # Resumed at item 1: the speed item 0 set comes back with it.
+    set_current(station, 1)
+    assert mission.state is MissionState.ACTIVE and stack.guidance.core.mission_speed_mps == 0.5
+    assert station.details("mission_speed")[-1] == "item 0 before item 1: mission speed limit 0.50 m/s"
     # Cleared: the limit goes with the mission.
-    station.send(mavlink2.MAVLink_mission_set_current_message(*ROVER, 0))
-    assert stack.guidance.core.mission_speed_mps == 0.5
     station.send(mavlink2.MAVLink_mission_clear_all_message(*ROVER, MISSION))
     assert stack.guidance.core.mission_speed_mps is None
     assert (
         station.details("mission_speed")[-1] == "mission speed limit 0.50 m/s lifted: the mission was cleared"
     )
     station.gcs.receive()
-    assert [m.seq for m in station.gcs.of_type("MISSION_ITEM_REACHED")] == [0, 3, 0]
+    assert [m.seq for m in station.gcs.of_type("MISSION_ITEM_REACHED")] == [0]
+
+
+def test_a_jump_into_the_mission_takes_the_speed_the_items_before_it_set(station: Station) -> None:
+    stack = station.rig.stack
+    mission = stack.mission
+    station.upload(speed_plan())
+    station.start()
+    # Past the speed change back to the default: item 4 is driven at the speed the mission sets there,
+    # as PX4 replays the last speed change before the item it resumes at.
+    set_current(station, 4)
+    assert mission.current == 4 and stack.guidance.core.mission_speed_mps is None
+    assert station.details("mission_speed")[-1] == (
+        "item 3 before item 4: back to the default speed: no mission speed limit"
+    )
+    # Back into the slow stretch (item 2, after the 0.5 m/s at item 0): slow again, told once.
+    set_current(station, 2)
+    assert mission.current == 2 and stack.guidance.core.mission_speed_mps == 0.5
+    assert station.details("mission_speed")[-1] == "item 0 before item 2: mission speed limit 0.50 m/s"
+    told = len(station.details("mission_speed"))
+    set_current(station, 1)  # the same speed: no event
+    assert stack.guidance.core.mission_speed_mps == 0.5 and len(station.details("mission_speed")) == told
+    # Naming a speed change that sets the speed applies it alone, not the one before it first.
+    set_current(station, 4)
+    told = len(station.details("mission_speed"))
+    set_current(station, 3)
+    assert mission.current == 4 and stack.guidance.core.mission_speed_mps is None
+    assert station.details("mission_speed")[told:] == [
+        "item 3 of 5: back to the default speed: no mission speed limit"
+    ]
+    station.gcs.receive()
+    assert [m.seq for m in station.gcs.of_type("MISSION_ITEM_REACHED")] == [0, 3]
+
+
+def test_the_stack_refuses_a_mission_speed_below_its_stuck_and_stall_checks(station: Station) -> None:
+    (first,) = plan_items(PLAN[:1])
+    first.seq = 1
+    # The default config: stuck_min_command_mps 0.2 is the largest of the three floors.
+    refused = station.upload([change_speed(0, 0.15), first])
+    assert refused.type == mavlink2.MAV_MISSION_INVALID_PARAM2
+    assert station.upload([change_speed(0, 0.2), first]).type == mavlink2.MAV_MISSION_ACCEPTED
+
+
+def test_a_no_change_speed_item_keeps_the_limit_in_force(station: Station) -> None:
+    stack = station.rig.stack
+    first, second = plan_items(PLAN[:2])
+    first.seq, second.seq = 1, 3
+    items = [change_speed(0, 0.5), first, change_speed(2, -1.0), second]
+    assert station.upload(items).type == mavlink2.MAV_MISSION_ACCEPTED
+    station.start()
+    assert stack.guidance.core.mission_speed_mps == 0.5
+    set_current(station, 2)  # the "no change" item: applied, the limit item 0 set stays
+    assert stack.mission.current == 3 and stack.guidance.core.mission_speed_mps == 0.5
+    assert station.details("mission_speed")[-1] == (
+        "item 2 of 4: speed unchanged (DO_CHANGE_SPEED -1): the mission's limit stays 0.50 m/s"
+    )
 
 
 def test_a_replaced_mission_takes_its_limit_along_and_a_last_speed_change_completes_it(
