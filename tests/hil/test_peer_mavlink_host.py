@@ -27,8 +27,9 @@ def test_the_rover_config_and_the_printed_line_name_the_loopback_address_the_pee
             "--duration", "0.5", "--out", str(out), "--port-file", str(out / "port"),
         ]
     )  # fmt: skip
-    assert code == 0
+    printed = capsys.readouterr()
+    assert code == 0, f"exit {code}; stdout: {printed.out!r}; stderr: {printed.err!r}"
     port = int((out / "port").read_text(encoding="utf-8"))
     written = tomllib.loads((out / "rover-hil.toml").read_text(encoding="utf-8"))
     assert written["mavlink"]["connection"] == f"udpout:127.0.0.5:{port}"
-    assert f"mavlink: udpout:127.0.0.5:{port}" in capsys.readouterr().out
+    assert f"mavlink: udpout:127.0.0.5:{port}" in printed.out
