@@ -19,12 +19,14 @@ logged naming what was wrong):
   ``MAV_MISSION_UNSUPPORTED``. A waypoint is in a global frame the goal commands take (``GLOBAL_FRAMES``;
   else ``MAV_MISSION_UNSUPPORTED_FRAME``), latitude and longitude degrees x 1e7 in range
   (``MAV_MISSION_INVALID_PARAM5_X`` / ``_PARAM6_Y``), placed by the rover (``place``: ENU through the
-  estimator's datum, inside the geofence; else ``MAV_MISSION_DENIED`` naming why). Its altitude, hold time,
-  acceptance radius, yaw and ``autocontinue`` are kept for a download and not used. A speed change has no
-  position (any frame is taken) and is judged by ``firmware_bridge.mission_speed``: its speed type
-  (``MAV_MISSION_INVALID_PARAM1``) and speed (``MAV_MISSION_INVALID_PARAM2``). A mission needs at least one
-  waypoint: an upload of speed changes alone is refused at its last item (``MAV_MISSION_ERROR``). The
-  legacy float MISSION_ITEM is refused (``MAV_MISSION_UNSUPPORTED``): we ask with MISSION_REQUEST_INT.
+  estimator's datum, inside the geofence; else ``MAV_MISSION_DENIED`` naming why), with its hold time
+  (param1, seconds the rover waits there: ``firmware_bridge.mission_hold``; ``MAV_MISSION_INVALID_PARAM1``
+  past it). Its altitude, acceptance radius, yaw and ``autocontinue`` are kept for a download and not used.
+  A speed change has no position (any frame is taken) and is judged by ``firmware_bridge.mission_speed``:
+  its speed type (``MAV_MISSION_INVALID_PARAM1``) and speed (``MAV_MISSION_INVALID_PARAM2``). A mission
+  needs at least one waypoint: an upload of speed changes alone is refused at its last item
+  (``MAV_MISSION_ERROR``). The legacy float MISSION_ITEM is refused (``MAV_MISSION_UNSUPPORTED``): we ask
+  with MISSION_REQUEST_INT.
 * Items are numbered as uploaded, speed changes included: item 0 is the first item, as the spec numbers
   them (as PX4 does). ArduPilot's convention of home as item 0 is not taken: nothing in an upload says
   which one it follows, and taking item 0 as home would drop every other ground station's first waypoint;
@@ -61,6 +63,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 from firmware_bridge.errors import BridgeOperationError
 from firmware_bridge.mavlink_commands import GLOBAL_FRAMES, StartRequest, judge_mission_start
 from firmware_bridge.mavlink_health import MavlinkCounters
+from firmware_bridge.mission_hold import PlacedWaypoint, hold_refusal, hold_seconds
 from firmware_bridge.mission_speed import SpeedChange, speed_change, speed_change_refusal
 from firmware_bridge.mission_state import MissionState
 from logs.clock import NS_PER_S, Clock
@@ -161,8 +164,9 @@ class MissionItem:
         return self.y * _DEGREES_E7
 
 
-# One item as the rover drives it: a waypoint's ENU (x, y) in metres, or a speed change.
-MissionStep = tuple[float, float] | SpeedChange
+# One item as the rover drives it: a waypoint placed in ENU metres (with its hold time; a plain (x, y) from a
+# trial's goals holds for none), or a speed change.
+MissionStep = PlacedWaypoint | tuple[float, float] | SpeedChange
 
 
 @dataclass(frozen=True)
@@ -555,9 +559,10 @@ class MissionServer:
         if msg.command == mavlink2.MAV_CMD_DO_CHANGE_SPEED:
             return speed_change(msg.param2)
         try:
-            return self._place(msg.x * _DEGREES_E7, msg.y * _DEGREES_E7)
+            x, y = self._place(msg.x * _DEGREES_E7, msg.y * _DEGREES_E7)
         except MissionItemRefused as err:
             return _Refusal(mavlink2.MAV_MISSION_DENIED, f"item {msg.seq}: {err}")
+        return PlacedWaypoint(x, y, hold_seconds(msg.param1))
 
     def _repeat_of_finished(self, link: MissionLink, msg: Any, sysid: int, compid: int) -> bool:
         """Whether ``msg`` (a MISSION_ITEM_INT with no upload of its sender under way) belongs to the
@@ -777,7 +782,8 @@ def _judge_item(msg: Any, slowest_speed_mps: float) -> _Refusal | None:
         return _Refusal(
             mavlink2.MAV_MISSION_INVALID_PARAM6_Y, f"item {seq}: longitude {msg.y} x 1e-7 is out of range"
         )
-    return None
+    refusal = hold_refusal(seq, msg.param1)
+    return None if refusal is None else _Refusal(*refusal)
 
 
 def _refused_without_a_waypoint(

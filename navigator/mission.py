@@ -24,8 +24,11 @@ __all__ = ["Leg", "Mission", "MissionState", "SpeedChange", "Waypoint"]
 
 
 class Waypoint(NamedTuple):
+    """Where to drive (local ENU metres), and how long to wait there before the next item (s)."""
+
     x: float
     y: float
+    hold_s: float = 0.0
 
 
 class Leg(NamedTuple):
@@ -62,8 +65,8 @@ class Mission:
         return tuple(item for item in self.items if isinstance(item, Waypoint))
 
     def load(self, items: Sequence[MissionStep]) -> None:
-        """Replace the mission with ``items`` (waypoints as (x, y), speed changes), NOT_STARTED:
-        ``set_current`` drives it.
+        """Replace the mission with ``items`` (waypoints as (x, y) or ``PlacedWaypoint`` with a hold time,
+        speed changes), NOT_STARTED: ``set_current`` drives it.
 
         ``ParameterError`` (the mission in force kept) for no waypoint among them or a coordinate that is
         not a finite number."""
@@ -72,10 +75,13 @@ class Mission:
             if isinstance(item, SpeedChange):
                 loaded.append(item)
                 continue
-            x, y = item
+            x, y, *hold = item  # (x, y) or a PlacedWaypoint (x, y, hold_s)
+            hold_s = hold[0] if hold else 0.0
             if not (math.isfinite(x) and math.isfinite(y)):
                 raise ParameterError(f"mission waypoint {index} ({x}, {y}) is not a finite position")
-            loaded.append(Waypoint(float(x), float(y)))
+            if not (math.isfinite(hold_s) and hold_s >= 0.0):
+                raise ParameterError(f"mission waypoint {index}: hold {hold_s} s is not a duration")
+            loaded.append(Waypoint(float(x), float(y), float(hold_s)))
         if not any(isinstance(item, Waypoint) for item in loaded):
             raise ParameterError("a mission needs at least one waypoint")
         self.items = tuple(loaded)

@@ -37,10 +37,10 @@ from firmware_bridge.mavlink_mission import (
     MissionServer,
     MissionStep,
 )
-from logs.clock import Clock
+from logs.clock import Clock, to_ns
 from navigator.errors import ParameterError
 from navigator.fence_shape import Polygon, inside_polygon
-from navigator.mission import Leg, Mission, MissionState, SpeedChange
+from navigator.mission import Leg, Mission, MissionState, SpeedChange, Waypoint
 from navigator.route_guidance import RouteGuidance
 from navigator.safety import EventSink
 
@@ -73,8 +73,12 @@ class MissionDriver:
         self._new_goal = new_goal
         self._fence = fence
         self._event = event
+        self._clock = clock
         self.mission = Mission()
         self.server = MissionServer(clock, self._place_waypoint, slowest_speed_mps=slowest_speed_mps)
+        # While the rover waits at a waypoint with a hold time: when it goes on (clock ns); any new goal
+        # ends the wait (_drive_to).
+        self._hold_until_ns: int | None = None
         self.speed_limit_mps: float | None = None  # the mission's, in force (guidance's limit_speed)
 
     def set_goal(self, x: float, y: float) -> None:
@@ -120,7 +124,7 @@ class MissionDriver:
             )
             return False
         self._load(waypoints, source)  # ParameterError before anything changes: no waypoint, NaN
-        geodetic = [to_geodetic(datum, x, y, 0.0) for x, y in self.mission.waypoints]
+        geodetic = [to_geodetic(datum, point.x, point.y, 0.0) for point in self.mission.waypoints]
         self.server.replace([(lat, lon) for lat, lon, _ in geodetic])
         self._follow(self.mission.set_current(0), given=True)
         return True
@@ -159,11 +163,14 @@ class MissionDriver:
         guidance reports ARRIVED, takes a mission being driven on to its next waypoint; then the server's
         own tick (MISSION_CURRENT, transfer timeouts)."""
         mission = self.mission
-        mission_state = mission.state
-        if mission_state is MissionState.ACTIVE and arrived:
-            self._item_reached()
-            mission_state = mission.state
-        self.server.tick(mission.current, mission_state)
+        if mission.state is MissionState.ACTIVE:
+            if self._hold_until_ns is not None:
+                if self._clock.now_ns() >= self._hold_until_ns:
+                    self._hold_until_ns = None
+                    self._advance()
+            elif arrived:
+                self._item_reached()
+        self.server.tick(mission.current, mission.state)
 
     def _load(self, items: Sequence[MissionStep], source: str, note: str = "") -> None:
         """The mission in force replaced (not driven yet: ``Mission.set_current`` starts it); the old
@@ -186,6 +193,7 @@ class MissionDriver:
         goal, a mission started, an item made current), which clears the stuck and stall latches (the
         operator chose where to go next); a mission advancing by itself to its next waypoint does not: a
         rover stuck at one waypoint is as stuck on the way to the next."""
+        self._hold_until_ns = None
         self._guidance.set_goal(x, y)
         if given:
             self._new_goal()
@@ -250,12 +258,27 @@ class MissionDriver:
             self._complete(f"no waypoint from item {seq}: the rover holds")
 
     def _item_reached(self) -> None:
-        """Guidance reports ARRIVED at the mission's current waypoint: on to the next, or the end."""
+        """Guidance reports ARRIVED at the mission's current waypoint: the ground station told at once
+        (MISSION_ITEM_REACHED, as ArduPilot says it on arrival); then its hold, if it has one (the rover
+        waits there, ARRIVED, the item still current), or on to the next item, or the end."""
         mission = self.mission
         seq, count = mission.current, mission.count
-        x, y = mission.current_waypoint()
-        self._event("mission_item_reached", "info", f"item {seq} of {count} ({x:.2f}, {y:.2f}) reached")
+        waypoint = mission.current_waypoint()
+        self._event(
+            "mission_item_reached",
+            "info",
+            f"item {seq} of {count} ({waypoint.x:.2f}, {waypoint.y:.2f}) reached",
+        )
         self.server.item_reached(seq)
+        if waypoint.hold_s > 0.0:
+            self._hold_until_ns = self._clock.now_ns() + to_ns(waypoint.hold_s)
+            self._event("mission_hold", "info", f"item {seq} of {count}: holding {waypoint.hold_s:g} s")
+            return
+        self._advance()
+
+    def _advance(self) -> None:
+        """From the waypoint reached (and held at) to the next item, or the end."""
+        mission = self.mission
         # given=False: the mission's own step, the latches stand.
         if not self._follow(mission.reached(), given=False):
             self._complete(f"its {len(mission.waypoints)} waypoint(s) reached")
@@ -272,7 +295,7 @@ class MissionDriver:
             self._change_speed(seq, change)
         if leg.waypoint is None:
             return False
-        self._drive_to(*leg.waypoint, given=given)
+        self._drive_to(leg.waypoint.x, leg.waypoint.y, given=given)
         return True
 
     def _change_speed(self, seq: int, change: SpeedChange) -> None:
@@ -326,10 +349,11 @@ class MissionDriver:
         self._event("mission_speed", "info", f"mission speed limit {in_force:.2f} m/s lifted: {why}")
 
 
-def _listed(item: MissionStep) -> str:
-    """A mission item as the ``mission`` event lists it."""
-    if not isinstance(item, SpeedChange):
-        return f"({item[0]:.2f}, {item[1]:.2f})"
+def _listed(item: Waypoint | SpeedChange) -> str:
+    """A mission item as the ``mission`` event lists it (a waypoint without a hold as it always was)."""
+    if isinstance(item, Waypoint):
+        held = f" hold {item.hold_s:g} s" if item.hold_s > 0.0 else ""
+        return f"({item.x:.2f}, {item.y:.2f}){held}"
     if item.keep:
         return "speed unchanged"
     return "speed default" if item.limit_mps is None else f"speed {item.limit_mps:.2f} m/s"

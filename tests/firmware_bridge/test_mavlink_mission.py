@@ -27,6 +27,7 @@ from firmware_bridge.mavlink_mission import (
     MissionServer,
 )
 from firmware_bridge.mavlink_transport import memory_pipe_pair
+from firmware_bridge.mission_hold import MAX_HOLD_S, PlacedWaypoint
 from firmware_bridge.mission_speed import SpeedChange, slowest_mission_speed
 from firmware_bridge.mission_state import MissionState
 from logs.clock import SimClock
@@ -130,7 +131,7 @@ def test_upload_asks_for_each_item_in_turn_then_accepts_and_places_them() -> Non
     assert {(r.target_system, r.target_component, r.mission_type) for r in requests} == {(255, 190, MISSION)}
     assert (change.sysid, change.compid) == (255, 190)
     expected = [place(lat, lon) for lat, lon in PLAN]
-    assert [c for xy in change.steps if not isinstance(xy, SpeedChange) for c in xy] == pytest.approx(
+    assert [c for xy in change.steps if not isinstance(xy, SpeedChange) for c in xy[:2]] == pytest.approx(
         [c for xy in expected for c in xy]
     )
     assert [i.seq for i in rig.server.items] == [0, 1, 2]
@@ -184,7 +185,7 @@ def test_an_upload_with_speed_changes_is_accepted_numbered_as_uploaded() -> None
     assert [r.seq for r in rig.gcs.of_type("MISSION_REQUEST_INT")] == [0, 1, 2, 3, 4, 5]
     change = rig.changes[-1]
     assert isinstance(change, MissionAccepted)
-    placed = [place(lat, lon) for lat, lon in PLAN]
+    placed = [PlacedWaypoint(*place(lat, lon)) for lat, lon in PLAN]
     # Speed 25 m/s is accepted: the rover's own top speed stands (docs/firmware_bridge.md "Missions").
     assert change.steps == (
         SpeedChange(0.5),
@@ -240,6 +241,27 @@ def test_clearing_empties_the_mission_and_is_acknowledged(clearing: Any) -> None
     assert rig.server.items == () and isinstance(rig.changes[-1], MissionCleared)
 
 
+def _held(item: Any, hold_s: float) -> Any:
+    """``item`` (a MISSION_ITEM_INT waypoint) with ``hold_s`` in its param1, its hold time."""
+    item.param1 = hold_s
+    return item
+
+
+def test_a_waypoints_hold_time_comes_with_it_and_nan_is_none() -> None:
+    rig = Rig()
+    plan = [
+        _held(waypoint(0, 47.0, 8.0), 5.0),
+        _held(waypoint(1, 47.0001, 8.0), math.nan),
+        waypoint(2, 47.0, 8.0),
+    ]
+    assert rig.upload(plan).type == mavlink2.MAV_MISSION_ACCEPTED
+    change = rig.changes[-1]
+    assert isinstance(change, MissionAccepted)
+    assert [step.hold_s for step in change.steps if isinstance(step, PlacedWaypoint)] == [5.0, 0.0, 0.0]
+    # A download gives back what was sent, NaN included.
+    assert math.isnan(rig.server.items[1].params[0]) and rig.server.items[0].params[0] == 5.0
+
+
 # Each refusal: what the ground station sends after a good upload, the MISSION_ACK result, the reason.
 REFUSALS = [
     pytest.param(
@@ -283,6 +305,15 @@ REFUSALS = [
             (math.inf, "inf"),
             (-math.inf, "-inf"),
         ]
+    ],
+    *[
+        pytest.param(
+            [count(2), _held(waypoint(0, 47.0, 8.0), hold_s)],
+            mavlink2.MAV_MISSION_INVALID_PARAM1,
+            f"item 0: MAV_CMD_NAV_WAYPOINT hold time (param1) {shown} s is not a hold",
+            id=f"hold-{shown}",
+        )
+        for hold_s, shown in [(-1.0, "-1.0"), (math.inf, "inf"), (MAX_HOLD_S + 1.0, "3601.0")]
     ],
     *[
         pytest.param(

@@ -7,6 +7,7 @@ import math
 
 import pytest
 
+from firmware_bridge.mission_hold import PlacedWaypoint
 from navigator.errors import ParameterError
 from navigator.mission import Leg, Mission, MissionState, SpeedChange, Waypoint
 
@@ -149,3 +150,13 @@ def test_speed_changes_alone_are_no_mission(items: list[SpeedChange]) -> None:
     with pytest.raises(ParameterError, match="at least one waypoint"):
         mission.load(items)
     assert mission.count == 3 and mission.state is MissionState.NOT_STARTED
+
+
+def test_a_waypoints_hold_time_is_kept_and_must_be_a_duration() -> None:
+    mission = Mission()
+    mission.load([PlacedWaypoint(1.0, 2.0, 5.0), (3.0, 4.0)])
+    assert mission.waypoints == (Waypoint(1.0, 2.0, 5.0), Waypoint(3.0, 4.0, 0.0))
+    for bad in (-1.0, math.nan, math.inf):
+        with pytest.raises(ParameterError, match="hold"):
+            mission.load([PlacedWaypoint(1.0, 2.0, bad)])
+    assert mission.count == 2  # the mission in force kept

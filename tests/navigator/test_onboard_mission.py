@@ -37,7 +37,8 @@ def plan_items(plan: list[tuple[float, float]] = PLAN) -> list[Any]:
 
 
 def flat(points: Any) -> list[float]:
-    return [float(c) for point in points for c in point]
+    """Each point's x and y, one list (a waypoint's hold time left out)."""
+    return [float(c) for point in points for c in point[:2]]
 
 
 def points(details: list[str]) -> list[float]:
@@ -119,6 +120,45 @@ def test_an_uploaded_mission_is_driven_waypoint_by_waypoint_to_the_end(station: 
     assert [m.seq for m in station.gcs.of_type("MISSION_ITEM_REACHED")] == [0, 1, 2]
     last = station.gcs.of_type("MISSION_CURRENT")[-1]
     assert (last.seq, last.total, last.mission_state) == (3, 3, mavlink2.MISSION_STATE_COMPLETE)
+
+
+def test_a_waypoint_with_a_hold_time_keeps_the_rover_there_that_long_then_goes_on(station: Station) -> None:
+    rig = station.rig
+    items = plan_items(PLAN[:2])
+    items[0].param1 = 2.0  # hold 2 s at the first waypoint (ArduPilot Rover's delay, PX4's hold time)
+    assert station.upload(items).type == mavlink2.MAV_MISSION_ACCEPTED
+    assert ": (6.00, 4.00) hold 2 s, (7.00, 8.00); not started" in station.details("mission")[-1]
+    mission = rig.stack.mission
+    station.start()
+    arrived = rig.run_until(lambda: bool(station.details("mission_hold")), 30.0, "the hold at item 0")
+    assert station.details("mission_hold") == ["item 0 of 2: holding 2 s"]
+    station.gcs.receive()
+    assert [m.seq for m in station.gcs.of_type("MISSION_ITEM_REACHED")] == [0]  # said on arrival
+    went_on = rig.run_until(lambda: mission.current == 1, 5.0, "the mission going on")
+    assert went_on - arrived >= 2_000_000_000 and went_on - arrived <= 2_000_000_000 + 40_000_000
+    # The rover waited at the waypoint: ARRIVED, the wheels stopped, item 0 current on navigator/state.
+    waiting = [
+        m
+        for topic, t, m in rig.sink.records
+        if topic == "navigator/state" and arrived + 500_000_000 < t < went_on
+    ]
+    assert waiting and all(m["mode"] == "ARRIVED" and m["mission"]["current"] == 0 for m in waiting)
+    assert all(m["target_speed_mps"] == 0.0 for m in waiting)
+    rig.run_until(lambda: mission.state is MissionState.COMPLETE, 30.0, "the mission's end")
+
+
+def test_a_single_goal_during_a_hold_ends_it(station: Station) -> None:
+    rig = station.rig
+    items = plan_items(PLAN[:2])
+    items[0].param1 = 30.0
+    station.upload(items)
+    station.start()
+    rig.run_until(lambda: bool(station.details("mission_hold")), 30.0, "the hold at item 0")
+    rig.stack.set_goal(2.0, 2.0)
+    assert rig.stack.mission.state is MissionState.PAUSED
+    set_current(station, 1)  # resumed further on: no hold left over from item 0
+    rig.run_for(1.0)
+    assert rig.stack.mission.current == 1 and rig.stack.mode is not Mode.ARRIVED
 
 
 def test_a_waypoint_outside_the_geofence_refuses_the_upload_and_keeps_the_mission() -> None:
