@@ -200,3 +200,13 @@ def test_a_back_off_speed_of_zero_holds_in_the_carts_way() -> None:
     guidance = _guidance_with(PlannerConfig(yield_speed_mps=0.0))
     outputs, rover_x = _run(guidance, 100, 10.0, 10.3, 12.5)
     assert {out.mode for out in outputs} == {BLOCKED} and rover_x == 10.0
+
+
+def test_a_mission_speed_limit_does_not_slow_a_back_off() -> None:
+    # The back-off is a safety manoeuvre with its own speed (yield_speed_mps); a mission's DO_CHANGE_SPEED
+    # below it limits the driving, not the getting out of a cart's way.
+    guidance = _guidance(_flat())
+    guidance.limit_speed(0.2)
+    outputs, _ = _run(guidance, 5, 10.0, 10.3, 12.5)
+    assert outputs[0].mode == YIELDING and outputs[0].speed_mps == pytest.approx(-YIELD_SPEED_MPS)
+    assert YIELD_SPEED_MPS > 0.2 and outputs[0].speed_limit_reason == "moving_obstacle"
