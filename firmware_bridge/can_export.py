@@ -217,7 +217,7 @@ def export_can_log(
     finally:
         if opened is not None:
             opened[1].stop()
-    if opened is None and not stats.rejected and read_stats.stop is None:
+    if opened is None and not stats.rejected and not stats.error_frames_dropped and read_stats.stop is None:
         # A whole recording with no frame record at all is the wrong file (the peer's truth.mcap, a
         # ground-station recording): an empty log and exit 0 would hide that.
         has = ""
@@ -227,7 +227,8 @@ def export_can_log(
             f"cannot export CAN frames: {source} has no {CAN_FRAMES} records{has}; the rover's recording "
             "holds them (a trial's trial.mcap, or rover run's), not the peer's truth.mcap"
         )
-    if opened is None:  # cut short or damaged before its first frame: the log is written, empty
+    if opened is None:  # cut short or damaged before its first frame, or only error frames .trc cannot
+        # hold: the log is written, empty
         _open_writer(path, channel, time_base(suffix, anchor, 0, wall_ns())).stop()
     stats.truncated = read_stats.truncated
     stats.stop = read_stats.stop

@@ -176,7 +176,7 @@ def _rangefinder_mounts(table: Table) -> tuple[SensorMount, ...] | None:
         mount = SensorMount(
             entry.number("forward_m", forward, lo=-MAX_MOUNT_OFFSET_M, hi=MAX_MOUNT_OFFSET_M),
             entry.number("left_m", left, lo=-MAX_MOUNT_OFFSET_M, hi=MAX_MOUNT_OFFSET_M),
-            math.radians(math.remainder(yaw_deg, 360.0)),
+            math.radians(_half_turns(yaw_deg)),
         )
         entry.finish()
         if mount in mounts:
@@ -185,6 +185,13 @@ def _rangefinder_mounts(table: Table) -> tuple[SensorMount, ...] | None:
             )
         mounts.append(mount)
     return tuple(mounts)
+
+
+def _half_turns(yaw_deg: float) -> float:
+    """``yaw_deg`` in (-180, 180]: one number for each direction (-180 is 180), so two sensors the same way
+    compare equal."""
+    wrapped = math.remainder(yaw_deg, 360.0)
+    return 180.0 if wrapped == -180.0 else wrapped
 
 
 def _rangefinder_yaws(table: Table) -> tuple[int, ...]:

@@ -68,15 +68,14 @@ class Mission:
         """Replace the mission with ``items`` (waypoints as (x, y) or ``PlacedWaypoint`` with a hold time,
         speed changes), NOT_STARTED: ``set_current`` drives it.
 
-        ``ParameterError`` (the mission in force kept) for no waypoint among them or a coordinate that is
-        not a finite number."""
+        ``ParameterError`` (the mission in force kept) for no waypoint among them, a coordinate that is
+        not a finite number or a hold time that is not a finite, non-negative duration."""
         loaded: list[Waypoint | SpeedChange] = []
         for index, item in enumerate(items):
             if isinstance(item, SpeedChange):
                 loaded.append(item)
                 continue
-            x, y, *hold = item  # (x, y) or a PlacedWaypoint (x, y, hold_s)
-            hold_s = hold[0] if hold else 0.0
+            x, y, hold_s = item if len(item) == 3 else (*item, 0.0)  # (x, y) or a PlacedWaypoint
             if not (math.isfinite(x) and math.isfinite(y)):
                 raise ParameterError(f"mission waypoint {index} ({x}, {y}) is not a finite position")
             if not (math.isfinite(hold_s) and hold_s >= 0.0):

@@ -76,9 +76,9 @@ class MissionDriver:
         self._clock = clock
         self.mission = Mission()
         self.server = MissionServer(clock, self._place_waypoint, slowest_speed_mps=slowest_speed_mps)
-        # While the rover waits at a waypoint with a hold time: when it goes on (clock ns); any new goal
-        # ends the wait (_drive_to).
-        self._hold_until_ns: int | None = None
+        # While the rover waits at a waypoint with a hold time: (that item, when it goes on in clock ns).
+        # Honoured only while that item is current in a mission driven; any new goal ends it (_drive_to).
+        self._hold: tuple[int, int] | None = None
         self.speed_limit_mps: float | None = None  # the mission's, in force (guidance's limit_speed)
 
     def set_goal(self, x: float, y: float) -> None:
@@ -163,10 +163,13 @@ class MissionDriver:
         guidance reports ARRIVED, takes a mission being driven on to its next waypoint; then the server's
         own tick (MISSION_CURRENT, transfer timeouts)."""
         mission = self.mission
+        hold = self._hold
+        if hold is not None and (mission.state is not MissionState.ACTIVE or hold[0] != mission.current):
+            hold = self._hold = None  # the mission changed under it: cleared, replaced, paused, jumped
         if mission.state is MissionState.ACTIVE:
-            if self._hold_until_ns is not None:
-                if self._clock.now_ns() >= self._hold_until_ns:
-                    self._hold_until_ns = None
+            if hold is not None:
+                if self._clock.now_ns() >= hold[1]:
+                    self._hold = None
                     self._advance()
             elif arrived:
                 self._item_reached()
@@ -193,7 +196,7 @@ class MissionDriver:
         goal, a mission started, an item made current), which clears the stuck and stall latches (the
         operator chose where to go next); a mission advancing by itself to its next waypoint does not: a
         rover stuck at one waypoint is as stuck on the way to the next."""
-        self._hold_until_ns = None
+        self._hold = None
         self._guidance.set_goal(x, y)
         if given:
             self._new_goal()
@@ -249,8 +252,10 @@ class MissionDriver:
             _log.warning("%s from %s not taken: %s", kind, who, err)
             return
         self._event(kind, "info", f"{what} of {self.mission.count}{verb} by {who}")
-        if all(change.keep for _, change in leg.speed_changes):
-            # The leg sets no speed of its own (none, or "no change" items): the items before seq say it.
+        changes = leg.speed_changes
+        if not changes or changes[0][1].keep:
+            # The leg does not begin by setting a speed of its own: the items before seq say the speed it
+            # starts from (a "no change" first keeps that one, and says so).
             self._speed_from_before(seq)
         if not self._follow(leg, given=True):
             # Only speed changes from ``seq`` to the end: nothing left to drive to.
@@ -271,7 +276,7 @@ class MissionDriver:
         )
         self.server.item_reached(seq)
         if waypoint.hold_s > 0.0:
-            self._hold_until_ns = self._clock.now_ns() + to_ns(waypoint.hold_s)
+            self._hold = (seq, self._clock.now_ns() + to_ns(waypoint.hold_s))
             self._event("mission_hold", "info", f"item {seq} of {count}: holding {waypoint.hold_s:g} s")
             return
         self._advance()

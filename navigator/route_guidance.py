@@ -74,9 +74,8 @@ class RouteGuidance:
         planning: Executor | None = None,
     ) -> None:
         self.core = Guidance(terrain, config.vehicle, config.planner, config.follower, executor=planning)
-        self.max_speed_mps = (
-            config.follower.max_speed_mps
-        )  # the rover's own top speed (the mission's events name it)
+        # The rover's own top speed: the mission's speed events name it.
+        self.max_speed_mps = config.follower.max_speed_mps
         self._sink = sink
         self._event = event
         self.mode = Mode.IDLE

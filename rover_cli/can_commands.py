@@ -24,8 +24,9 @@ def register(families: Any) -> None:
 
 
 def export_command(args: argparse.Namespace) -> int:
-    """Exit 0: every frame exported; 1: a log was written, but without some records (skipped, or the
-    recording was cut short or damaged: stderr says where); 2: bad input, no log written."""
+    """Exit 0: every frame exported; 1: a log was written, but without some records (skipped, error frames
+    the format has no line for, or the recording was cut short or damaged: stderr says where); 2: bad
+    input, no log written."""
     from firmware_bridge.can_export import export_can_log
     from firmware_bridge.errors import BridgeError
     from logs.read_stop import partial_notice
@@ -53,4 +54,4 @@ def export_command(args: argparse.Namespace) -> int:
     if stats.stop is not None:
         kept = f"wrote the {stats.frames} frames before it to {args.out}"
         print(f"rover can export: {partial_notice(args.trial, stats.stop, kept)}", file=sys.stderr)
-    return 1 if stats.rejected or stats.stop is not None else 0
+    return 1 if stats.rejected or stats.error_frames_dropped or stats.stop is not None else 0

@@ -152,6 +152,20 @@ def test_every_format_reads_back_what_the_export_counts(tmp_path, suffix, error_
         assert (back[1].is_error_frame, back[1].arbitration_id) == error_back
 
 
+def test_a_recording_of_error_frames_alone_exports_to_trc_empty_and_says_so(tmp_path, capsys):
+    """A run bus-off throughout: its can/frames holds error records only, which .trc cannot hold. The
+    export writes the empty log, counts them, and exits 1 (not everything exported), not 2 (no frames)."""
+    busoff = {"direction": "rx", "id": 0x40, "extended": False, "dlc": 8, "data": "00" * 8, "error": True}
+    recording = tmp_path / "bus_off.mcap"
+    with recording.open("wb") as stream, McapRecorder(stream) as recorder:
+        recorder.publish(CAN_FRAMES, 1_000, {"timestamp": stamp(1_000), **busoff})
+    out = tmp_path / "bus_off.trc"
+    stats = export_can_log(recording, out)
+    assert (stats.frames, stats.error_frames_dropped) == (0, 1) and out.exists()
+    assert main(["can", "export", str(recording), str(tmp_path / "again.trc")]) == 1
+    assert "1 error frames left out" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize(
     ("record", "text"),
     [

@@ -195,6 +195,7 @@ def test_the_scenario_places_each_sensor_and_refuses_a_bad_ring(tmp_path: Path) 
         ("rangefinders = [{yaw_deg = 0.0, up_m = 0.1}]", "up_m"),
         ("rangefinders = [{yaw_deg = 400.0}]", "yaw_deg"),
         ("rangefinders = [{yaw_deg = 10.0}, {yaw_deg = -350.0}]", "sensor 1 is sensor 0 again"),
+        ("rangefinders = [{yaw_deg = 180.0}, {yaw_deg = -180.0}]", "sensor 1 is sensor 0 again"),
     ]:
         with pytest.raises(ConfigError, match=key):
             _scenario_with(f'perception = "rangefinders"\n{bad}')

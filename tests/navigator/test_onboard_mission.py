@@ -156,9 +156,43 @@ def test_a_single_goal_during_a_hold_ends_it(station: Station) -> None:
     rig.run_until(lambda: bool(station.details("mission_hold")), 30.0, "the hold at item 0")
     rig.stack.set_goal(2.0, 2.0)
     assert rig.stack.mission.state is MissionState.PAUSED
-    set_current(station, 1)  # resumed further on: no hold left over from item 0
-    rig.run_for(1.0)
-    assert rig.stack.mission.current == 1 and rig.stack.mode is not Mode.ARRIVED
+    set_current(station, 1)  # resumed further on: no hold left over from item 0 (30 s of it)
+    rig.run_until(lambda: rig.stack.mission.state is MissionState.COMPLETE, 15.0, "the mission's end")
+    assert [line.split(" (")[0] for line in station.details("mission_item_reached")] == [
+        "item 0 of 2",
+        "item 1 of 2",
+    ]
+
+
+def test_a_hold_at_the_last_waypoint_reports_it_current_then_completes(station: Station) -> None:
+    rig = station.rig
+    (item,) = plan_items(PLAN[:1])
+    item.param1 = 1.5
+    station.upload([item])
+    station.start()
+    arrived = rig.run_until(lambda: bool(station.details("mission_hold")), 30.0, "the hold")
+    rig.run_for(1.2)  # MISSION_CURRENT once a second: the held item, the mission still ACTIVE
+    station.gcs.receive()
+    current = station.gcs.of_type("MISSION_CURRENT")[-1]
+    assert (current.seq, current.mission_state) == (0, mavlink2.MISSION_STATE_ACTIVE)
+    done = rig.run_until(lambda: rig.stack.mission.state is MissionState.COMPLETE, 2.0, "the end")
+    assert 1_500_000_000 <= done - arrived <= 1_540_000_000
+
+
+def test_a_mission_cleared_or_replaced_during_a_hold_leaves_no_wait_behind(station: Station) -> None:
+    rig = station.rig
+    first, second = plan_items(PLAN[:2])
+    first.param1 = 30.0
+    station.upload([first, second])
+    station.start()
+    rig.run_until(lambda: bool(station.details("mission_hold")), 30.0, "the hold at item 0")
+    station.send(mavlink2.MAVLink_mission_clear_all_message(*ROVER, MISSION))
+    rig.run_for(0.1)
+    # A new mission whose item 0 is where the rover stands, without a hold: done at once, not 30 s on.
+    (here,) = plan_items([PLAN[0]])
+    station.upload([here, plan_items(PLAN[:2])[1]])
+    station.start()
+    rig.run_until(lambda: rig.stack.mission.state is MissionState.COMPLETE, 15.0, "the new mission's end")
 
 
 def test_a_waypoint_outside_the_geofence_refuses_the_upload_and_keeps_the_mission() -> None:
@@ -445,6 +479,24 @@ def test_a_jump_into_the_mission_takes_the_speed_the_items_before_it_set(station
     ]
     station.gcs.receive()
     assert [m.seq for m in station.gcs.of_type("MISSION_ITEM_REACHED")] == [0, 3]
+
+
+def test_a_jump_to_a_no_change_item_starts_from_the_speed_before_it(station: Station) -> None:
+    stack = station.rig.stack
+    first, second, third = plan_items()
+    first.seq, second.seq, third.seq = 1, 3, 6
+    items = [change_speed(0, 0.5), first, change_speed(2, -2.0), second, change_speed(4, -1.0)]
+    station.upload([*items, change_speed(5, 0.3), third])
+    station.start()
+    told = len(station.details("mission_speed"))
+    set_current(station, 4)  # "no change", then 0.3: the speed it keeps is item 2's default
+    assert station.details("mission_speed")[told:] == [
+        "item 2 before item 4: back to the default speed: no mission speed limit",
+        "item 4 of 7: speed unchanged (DO_CHANGE_SPEED -1): the mission's limit stays none",
+        "item 5 of 7: mission speed limit 0.30 m/s",
+    ]
+    assert stack.mission.current == 6  # the speed came as float32:
+    assert stack.guidance.core.mission_speed_mps == pytest.approx(0.3)
 
 
 def test_the_stack_refuses_a_mission_speed_below_its_stuck_and_stall_checks(station: Station) -> None:
