@@ -25,6 +25,7 @@ from hil.replay import ReplayResult, replay_recording
 from hil.replay_figures import EstimateRecord, ReplayFigures, replay_figures
 from hil.scenario import Scenario
 from logs.errors import LogsError
+from logs.warn_once import each_message_once
 from navigator.config import RoverConfig
 
 _log = logging.getLogger(__name__)
@@ -154,23 +155,28 @@ class _Outcome:
 
 def _replay_job(job: _Job) -> _Outcome:
     """One recording under every config (in a worker, or inline); never raises: a failure is an outcome."""
-    replays: list[SweepReplay] = []
     try:
-        recorded: EstimateRecord | None = None
-        for entry in job.configs:
-            replayed = replay_recording(
-                job.recording, entry.config, job.folder / f"{entry.name}.mcap", scenario=job.scenario
-            )
-            # Read once, after the first replay has found the file readable and replayable.
-            recorded = recorded or EstimateRecord.of(job.recording)
-            figures = replay_figures(recorded, replayed.out_path)
-            replays.append(SweepReplay(job.recording, entry.name, replayed, figures))
+        with each_message_once("logs.reader"):  # one notice of a cut recording, not one per pass
+            return _replay_under_every_config(job)
     except LogsError as err:
         # One config failing the recording leaves it out of every row, so each row has the same runs.
         return _Outcome([], str(err))
     except Exception as err:  # a bug must not take the other recordings down; it is logged and named
         _log.exception("replay of %s failed", job.recording)
         return _Outcome([], repr(err))
+
+
+def _replay_under_every_config(job: _Job) -> _Outcome:
+    replays: list[SweepReplay] = []
+    recorded: EstimateRecord | None = None
+    for entry in job.configs:
+        replayed = replay_recording(
+            job.recording, entry.config, job.folder / f"{entry.name}.mcap", scenario=job.scenario
+        )
+        # Read once, after the first replay has found the file readable and replayable.
+        recorded = recorded or EstimateRecord.of(job.recording)
+        figures = replay_figures(recorded, replayed.out_path)
+        replays.append(SweepReplay(job.recording, entry.name, replayed, figures))
     return _Outcome(replays, None)
 
 

@@ -72,6 +72,7 @@ def replay_command(args: argparse.Namespace) -> int:
     from hil.replay import replay_recording
     from hil.replay_figures import replay_figures
     from hil.scenario import load_scenario
+    from logs.warn_once import each_message_once
     from rover_cli.hil_commands import load_config
 
     single = len(args.inputs) == 1 and not args.inputs[0].is_dir() and len(args.config) == 1
@@ -82,7 +83,11 @@ def replay_command(args: argparse.Namespace) -> int:
     try:
         config = load_config(config_path)
         scenario = None if args.scenario is None else load_scenario(args.scenario)
-        with console.status(f"replaying {escape(str(recording))} ...") as status:
+        # One notice of a cut or damaged recording, not one per pass over it.
+        with (
+            each_message_once("logs.reader"),
+            console.status(f"replaying {escape(str(recording))} ...") as status,
+        ):
             result = replay_recording(
                 recording,
                 config,

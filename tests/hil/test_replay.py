@@ -11,6 +11,7 @@ from __future__ import annotations
 import collections
 import itertools
 import json
+import logging
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -500,3 +501,19 @@ def test_rover_logs_replay_prints_what_changed_and_exits_by_outcome(
     assert _replay_cli(trials["small_rocky"], config, tmp_path / "table.mcap") == 0
     printed = capsys.readouterr().out
     assert "estimator.gps_noise_m" in printed and "wheel commands differing" in printed
+
+
+def test_a_cut_recording_replayed_is_said_to_be_cut_once(
+    trials: dict[str, Path], tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    whole = trials["small_rocky"].read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(whole[: len(whole) // 2])
+    config = tmp_path / "rover.toml"
+    config.write_text("")
+    caplog.set_level(logging.WARNING, logger="logs.reader")
+    scenario = DATA / "small_rocky.toml"
+    code = _replay_cli(cut, config, tmp_path / "r.mcap", "--scenario", str(scenario))
+    assert code == 1
+    notices = [r for r in caplog.records if r.name == "logs.reader" and "cut" in r.getMessage()]
+    assert len(notices) == 1, [r.getMessage() for r in notices]
