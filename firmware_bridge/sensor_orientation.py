@@ -62,55 +62,65 @@ def euler_degrees(orientation: int) -> tuple[float, float, float]:
     return angles["ROLL"], angles["PITCH"], angles["YAW"]
 
 
-def forward_axis(orientation: int, quaternion: Any = None) -> tuple[float, float, float]:
+Axis = tuple[float, float, float]
+
+
+def forward_axis(orientation: int, quaternion: Any = None) -> Axis:
     """The unit vector (FRD) a sensor mounted in ``orientation`` looks along; ``quaternion`` (w, x, y,
     z) is read for MAV_SENSOR_ROTATION_CUSTOM only. ``OrientationError`` for an unknown orientation or
     a custom one without a usable quaternion."""
-    if orientation == CUSTOM:
-        w, x, y, z = _unit_quaternion(quaternion)
-        # The first column of the quaternion's rotation matrix: where it turns the x axis.
-        axis = (1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y + w * z), 2.0 * (x * z - w * y))
-    else:
-        _, pitch, yaw = (math.radians(angle) for angle in euler_degrees(orientation))
-        # Rz(yaw) Ry(pitch) Rx(roll) applied to (1, 0, 0): the roll leaves the x axis where it is.
-        axis = (math.cos(pitch) * math.cos(yaw), math.cos(pitch) * math.sin(yaw), -math.sin(pitch))
-    return (round(axis[0], _DECIMALS) + 0.0, round(axis[1], _DECIMALS) + 0.0, round(axis[2], _DECIMALS) + 0.0)
+    return _axes(orientation, quaternion)[0]
 
 
-def side_axis(orientation: int, quaternion: Any = None) -> tuple[float, float, float]:
+def side_axis(orientation: int, quaternion: Any = None) -> Axis:
     """The unit vector (FRD) the sensor's own y axis points along: ``forward_axis``'s companion, the
     second column of the same rotation."""
-    if orientation == CUSTOM:
-        w, x, y, z = _unit_quaternion(quaternion)
-        return (2.0 * (x * y - w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z + w * x))
-    roll, pitch, yaw = (math.radians(angle) for angle in euler_degrees(orientation))
-    # Rz(yaw) Ry(pitch) Rx(roll) applied to (0, 1, 0).
-    sr, cr, sp, cp, sy, cy = (
-        math.sin(roll),
-        math.cos(roll),
-        math.sin(pitch),
-        math.cos(pitch),
-        math.sin(yaw),
-        math.cos(yaw),
-    )
-    return (cy * sp * sr - sy * cr, sy * sp * sr + cy * cr, cp * sr)
+    return _axes(orientation, quaternion)[1]
 
 
 def facing(orientation: int, quaternion: Any = None) -> Facing:
     """``forward_axis`` as a bearing (counter-clockwise, our convention; FRD's y is to the right) and a
     tilt above the horizontal; whether the sensor is on its side (``side_axis``)."""
     if orientation == CUSTOM:
-        return _facing_along(forward_axis(orientation, quaternion), side_axis(orientation, quaternion))
+        return _facing_along(*_axes(orientation, quaternion))
     return _named_facing(orientation)
 
 
 @functools.cache
 def _named_facing(orientation: int) -> Facing:
     # Every rangefinder reading asks; the answer for a named orientation never changes.
-    return _facing_along(forward_axis(orientation), side_axis(orientation))
+    return _facing_along(*_axes(orientation, None))
 
 
-def _facing_along(axis: tuple[float, float, float], side: tuple[float, float, float]) -> Facing:
+def _axes(orientation: int, quaternion: Any) -> tuple[Axis, Axis]:
+    """The first two columns of the sensor's rotation into the body frame: where it turns the x axis (the
+    beam; rounded, see ``_DECIMALS``) and the y axis."""
+    if orientation == CUSTOM:
+        w, x, y, z = _unit_quaternion(quaternion)
+        forward = (1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y + w * z), 2.0 * (x * z - w * y))
+        side = (2.0 * (x * y - w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z + w * x))
+    else:
+        roll, pitch, yaw = (math.radians(angle) for angle in euler_degrees(orientation))
+        sr, cr, sp, cp, sy, cy = (
+            math.sin(roll),
+            math.cos(roll),
+            math.sin(pitch),
+            math.cos(pitch),
+            math.sin(yaw),
+            math.cos(yaw),
+        )
+        # Rz(yaw) Ry(pitch) Rx(roll) applied to (1, 0, 0) (the roll leaves it where it is) and (0, 1, 0).
+        forward = (cp * cy, cp * sy, -sp)
+        side = (cy * sp * sr - sy * cr, sy * sp * sr + cy * cr, cp * sr)
+    rounded = (
+        round(forward[0], _DECIMALS) + 0.0,
+        round(forward[1], _DECIMALS) + 0.0,
+        round(forward[2], _DECIMALS) + 0.0,
+    )
+    return rounded, side
+
+
+def _facing_along(axis: Axis, side: Axis) -> Facing:
     x, y, z = axis
     horizontal = math.hypot(x, y)
     tilt = math.atan2(-z, horizontal)
