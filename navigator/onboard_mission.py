@@ -79,7 +79,6 @@ class MissionDriver:
         # While the rover waits at a waypoint with a hold time: (that item, when it goes on in clock ns).
         # Honoured only while that item is current in a mission driven; any new goal ends it (_drive_to).
         self._hold: tuple[int, int] | None = None
-        self.speed_limit_mps: float | None = None  # the mission's, in force (guidance's limit_speed)
 
     def set_goal(self, x: float, y: float) -> None:
         """A single goal: driven at once, in place of the mission being driven (which is paused: setting
@@ -314,13 +313,13 @@ class MissionDriver:
             detail = f"{item}: speed unchanged (DO_CHANGE_SPEED -1): the mission's limit stays {kept}"
         elif limit is None:
             detail = f"{item}: back to the default speed: no mission speed limit"
-            self._set_speed_limit(None)
+            self._guidance.limit_speed(None)
         else:
             top = self._guidance.max_speed_mps
             detail = f"{item}: mission speed limit {limit:.2f} m/s"
             if limit >= top:
                 detail += f": at or above the rover's max_speed_mps {top:.2f}, which stays its limit"
-            self._set_speed_limit(limit)
+            self._guidance.limit_speed(limit)
         self._event("mission_speed", "info", detail)
         self.server.item_reached(seq)
 
@@ -338,19 +337,20 @@ class MissionDriver:
             detail = f"item {before[0]} before item {seq}: back to the default speed: no mission speed limit"
         else:
             detail = f"item {before[0]} before item {seq}: mission speed limit {limit:.2f} m/s"
-        self._set_speed_limit(limit)
+        self._guidance.limit_speed(limit)
         self._event("mission_speed", "info", detail)
 
-    def _set_speed_limit(self, limit_mps: float | None) -> None:
-        self.speed_limit_mps = limit_mps
-        self._guidance.limit_speed(limit_mps)
+    @property
+    def speed_limit_mps(self) -> float | None:
+        """The mission's speed limit in force (guidance holds it), or None."""
+        return self._guidance.core.mission_speed_mps
 
     def _lift_speed_limit(self, why: str) -> None:
         """The mission's speed limit, if one is in force, lifted (a ``mission_speed`` event saying why)."""
         in_force = self.speed_limit_mps
         if in_force is None:
             return  # no event: a mission without speed changes records what it always did
-        self._set_speed_limit(None)
+        self._guidance.limit_speed(None)
         self._event("mission_speed", "info", f"mission speed limit {in_force:.2f} m/s lifted: {why}")
 
 
