@@ -11,6 +11,7 @@ import logging
 import math
 from collections import Counter
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -45,6 +46,21 @@ from logs.sink import MessageSink
 from logs.topics import ESTIMATOR_INNOVATIONS, ESTIMATOR_POSE, stamp
 
 logger = logging.getLogger(__name__)
+
+
+class FirstFix(NamedTuple):
+    """The fix that initialised the filter: where the rover stood when it first knew where it was (its home,
+    as ArduPilot sets home at the first fix: ``navigator.onboard_home``). WGS84 degrees and metres, and the
+    same point in the local ENU frame (metres from the datum)."""
+
+    t_ns: int  # fix time
+    lat_deg: float
+    lon_deg: float
+    alt_m: float
+    east_m: float
+    north_m: float
+    up_m: float
+
 
 # MAVLink GPS_FIX_TYPE: 3 = 3D fix and better (DGPS, RTK float/fixed). A 2D fix has no usable altitude
 # and is often a receiver still settling, so it is refused rather than half-trusted.
@@ -92,6 +108,7 @@ class Estimator:
         self._sink = sink
         self._ekf = RoverEkf(config)
         self._datum: Datum | None = config.datum
+        self._first_fix: FirstFix | None = None
         self._counters: Counter[str] = Counter()
         self._bootstrap = HeadingBootstrap(config.heading_init_distance_m)
         self._initial_heading: tuple[float, float] | None = None
@@ -124,6 +141,11 @@ class Estimator:
     @property
     def datum(self) -> Datum | None:
         return self._datum
+
+    @property
+    def first_fix(self) -> FirstFix | None:
+        """The fix that initialised the filter (None before it): kept as it came, never replaced."""
+        return self._first_fix
 
     @property
     def counters(self) -> dict[str, int]:
@@ -236,6 +258,9 @@ class Estimator:
         self._last_gps_fix_ns = t_fix
 
         if not self._ekf.initialised:
+            if self._first_fix is None:
+                up = to_enu(self._datum, lat_deg, lon_deg, alt_m)[2]  # once: the fused fix needs none
+                self._first_fix = FirstFix(t_fix, lat_deg, lon_deg, alt_m, east, north, up)
             self._initialise(t_fix, east, north, std)
             self._last_gps_accepted_ns = t_fix
             self._last_gps_accepted_xy = (east, north)

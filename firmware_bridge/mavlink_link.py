@@ -35,6 +35,7 @@ from firmware_bridge.mavlink_commands import (
 )
 from firmware_bridge.mavlink_frames import V2_FRAME_OVERHEAD, decode_unsigned_v2
 from firmware_bridge.mavlink_health import MavlinkCounters, MavlinkHealth
+from firmware_bridge.mavlink_home import is_home_command
 from firmware_bridge.mavlink_mission import (
     MISSION_MESSAGE_IDS,
     MISSION_MESSAGES,
@@ -404,9 +405,10 @@ class MavlinkLink(ClosesOnExit):
         self.counters.rx_frames += 1
         self._publish_raw(t_ns, "rx", frame, msgid, kind, sysid, compid)
         if kind in COMMAND_MESSAGES:
-            if is_mission_start(msg):
-                # The mission server's (it holds the mission the start is judged against), addressed as
-                # mission messages are: a component-broadcast start on the autopilot's link is its own.
+            if is_mission_start(msg) or is_home_command(msg):
+                # The mission server's (it holds the mission the start is judged against) or the onboard
+                # stack's home's (firmware_bridge.mavlink_home), addressed as mission messages are: a
+                # component-broadcast start or home request on the autopilot's link is the autopilot's own.
                 if mission_addressed(msg, self.system_id, self.component_id):
                     readings.append(MissionMessage(msg, t_ns))
                 return

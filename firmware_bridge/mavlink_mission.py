@@ -3,11 +3,14 @@ and clears a mission and sets its current item (https://mavlink.io/en/services/m
 
 The server speaks the protocol and keeps the mission in force as uploaded (what a download returns); it
 does not drive. What a transfer changes comes back from ``take`` as a ``MissionChange`` for the onboard
-stack (``navigator.onboard_mission``), which drives the mission (``navigator.mission``: the waypoints in
-order, each speed change applied as it comes) and reports progress back (``tick``: MISSION_CURRENT;
-``item_reached``: MISSION_ITEM_REACHED, per waypoint reached and per speed change applied). It also judges
+stack (``navigator.onboard_mission``), which drives the mission (``navigator.mission``: the waypoints and
+loiters in order, each speed change applied as it comes, a return to launch driven home, where the mission
+ends) and reports progress back (``tick``: MISSION_CURRENT; ``item_reached``: MISSION_ITEM_REACHED, per
+waypoint, loiter or return reached and per speed change applied). It also judges
 and answers MAV_CMD_MISSION_START (COMMAND_LONG or COMMAND_INT, which the link hands over as mission
-messages), as ``firmware_bridge.mavlink_commands.judge_mission_start`` rules, with COMMAND_ACK.
+messages), as ``firmware_bridge.mavlink_commands.judge_mission_start`` rules, with COMMAND_ACK. The home
+commands the link hands over the same way (``firmware_bridge.mavlink_home``) are the onboard stack's
+(``navigator.onboard_home``), not the server's.
 
 What is accepted, and the answer to everything else (each refusal a MISSION_ACK with the protocol's
 result, or a STATUSTEXT where the protocol has no ACK, counted in the link's ``mission_refused`` and
@@ -15,18 +18,25 @@ logged naming what was wrong):
 
 * Only ``MAV_MISSION_TYPE_MISSION`` (fence and rally: ``MAV_MISSION_UNSUPPORTED``); a clear of
   ``MAV_MISSION_TYPE_ALL`` clears the mission.
-* Items ``MAV_CMD_NAV_WAYPOINT`` and ``MAV_CMD_DO_CHANGE_SPEED``; any other command:
-  ``MAV_MISSION_UNSUPPORTED``. A waypoint is in a global frame the goal commands take (``GLOBAL_FRAMES``;
-  else ``MAV_MISSION_UNSUPPORTED_FRAME``), latitude and longitude degrees x 1e7 in range
+* Items ``MAV_CMD_NAV_WAYPOINT``, ``MAV_CMD_NAV_LOITER_TIME``, ``MAV_CMD_NAV_LOITER_UNLIM``,
+  ``MAV_CMD_NAV_RETURN_TO_LAUNCH`` and ``MAV_CMD_DO_CHANGE_SPEED`` (``ITEM_COMMANDS``); any other command:
+  ``MAV_MISSION_UNSUPPORTED``. A waypoint (and a loiter) is in a global frame the goal commands take
+  (``GLOBAL_FRAMES``; else ``MAV_MISSION_UNSUPPORTED_FRAME``), latitude and longitude degrees x 1e7 in range
   (``MAV_MISSION_INVALID_PARAM5_X`` / ``_PARAM6_Y``), placed by the rover (``place``: ENU through the
   estimator's datum, inside the geofence; else ``MAV_MISSION_DENIED`` naming why), with its hold time
   (param1, seconds the rover waits there: ``firmware_bridge.mission_hold``; ``MAV_MISSION_INVALID_PARAM1``
   past it). Its altitude, acceptance radius, yaw and ``autocontinue`` are kept for a download and not used.
+  A loiter is a waypoint with a hold (``firmware_bridge.mission_hold``): LOITER_TIME's param1 is its time
+  (judged as a hold time, but NaN refused: ``MAV_MISSION_INVALID_PARAM1``), LOITER_UNLIM holds until the
+  operator moves the mission on; radius and yaw are kept, not used. A return to launch has no position
+  and no parameters (any frame is taken, everything kept for a download): the rover drives to home as it
+  is when the mission comes to it (``firmware_bridge.mavlink_home.ReturnToLaunch``), and the mission is
+  complete there, whatever follows it, as ArduPilot Rover holds at home.
   A speed change has no position (any frame is taken) and is judged by ``firmware_bridge.mission_speed``:
   its speed type (``MAV_MISSION_INVALID_PARAM1``) and speed (``MAV_MISSION_INVALID_PARAM2``). A mission
-  needs at least one waypoint: an upload of speed changes alone is refused at its last item
-  (``MAV_MISSION_ERROR``). The legacy float MISSION_ITEM is refused (``MAV_MISSION_UNSUPPORTED``): we ask
-  with MISSION_REQUEST_INT.
+  needs at least one waypoint, loiter or return to launch: an upload of speed changes alone is refused at
+  its last item (``MAV_MISSION_ERROR``). The legacy float MISSION_ITEM is refused
+  (``MAV_MISSION_UNSUPPORTED``): we ask with MISSION_REQUEST_INT.
 * Items are numbered as uploaded, speed changes included: item 0 is the first item, as the spec numbers
   them (as PX4 does). ArduPilot's convention of home as item 0 is not taken: nothing in an upload says
   which one it follows, and taking item 0 as home would drop every other ground station's first waypoint;
@@ -61,9 +71,16 @@ from typing import Any, NamedTuple, Protocol
 from pymavlink.dialects.v20 import common as mavlink2
 
 from firmware_bridge.errors import BridgeOperationError
-from firmware_bridge.mavlink_commands import GLOBAL_FRAMES, StartRequest, judge_mission_start
+from firmware_bridge.mavlink_commands import (
+    GLOBAL_FRAMES,
+    StartRequest,
+    Verdict,
+    is_mission_start,
+    judge_mission_start,
+)
 from firmware_bridge.mavlink_health import MavlinkCounters
-from firmware_bridge.mission_hold import PlacedWaypoint, hold_refusal, hold_seconds
+from firmware_bridge.mavlink_home import ReturnToLaunch
+from firmware_bridge.mission_hold import HOLD_UNLIMITED, PlacedWaypoint, hold_refusal, hold_seconds
 from firmware_bridge.mission_speed import SpeedChange, speed_change, speed_change_refusal
 from firmware_bridge.mission_state import MissionState
 from logs.clock import NS_PER_S, Clock
@@ -99,6 +116,15 @@ CURRENT_PERIOD_NS = NS_PER_S  # MISSION_CURRENT while a ground station follows t
 _NO_MISSION_TOTAL = 65535  # MISSION_CURRENT.total: UINT16_MAX, "no mission on the vehicle"
 _DEGREES_E7 = 1e-7
 _MISSION = mavlink2.MAV_MISSION_TYPE_MISSION
+# The items taken; the ones with a position (placed by the rover, in a global frame) first.
+_PLACED_COMMANDS = frozenset(
+    {mavlink2.MAV_CMD_NAV_WAYPOINT, mavlink2.MAV_CMD_NAV_LOITER_TIME, mavlink2.MAV_CMD_NAV_LOITER_UNLIM}
+)
+ITEM_COMMANDS = _PLACED_COMMANDS | {mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH, mavlink2.MAV_CMD_DO_CHANGE_SPEED}
+_TAKEN = (
+    "MAV_CMD_NAV_WAYPOINT, MAV_CMD_NAV_LOITER_TIME, MAV_CMD_NAV_LOITER_UNLIM, "
+    "MAV_CMD_NAV_RETURN_TO_LAUNCH and MAV_CMD_DO_CHANGE_SPEED"
+)
 # MissionState -> (MISSION_STATE, MISSION_CURRENT.mission_mode: 1 in mission mode, 2 suspended (not in
 # mission mode), 0 unknown).
 _STATES = {
@@ -148,7 +174,7 @@ class MissionItem:
 
     seq: int
     frame: int
-    command: int  # MAV_CMD_NAV_WAYPOINT or MAV_CMD_DO_CHANGE_SPEED
+    command: int  # one of ITEM_COMMANDS
     x: int  # latitude, degrees x 1e7
     y: int  # longitude, degrees x 1e7
     z: float
@@ -165,8 +191,8 @@ class MissionItem:
 
 
 # One item as the rover drives it: a waypoint placed in ENU metres (with its hold time; a plain (x, y) from a
-# trial's goals holds for none), or a speed change.
-MissionStep = PlacedWaypoint | tuple[float, float] | SpeedChange
+# trial's goals holds for none; a loiter item is one too), a speed change, or a return to launch.
+MissionStep = PlacedWaypoint | tuple[float, float] | SpeedChange | ReturnToLaunch
 
 
 @dataclass(frozen=True)
@@ -539,8 +565,15 @@ class MissionServer:
     def _on_mission_start(self, link: MissionLink, msg: Any, sysid: int, compid: int) -> MissionChange | None:
         """MAV_CMD_MISSION_START, judged against the mission in force and answered with COMMAND_ACK as the
         link answers the other commands (a refusal also with a STATUSTEXT, counted in
-        ``commands_rejected``)."""
-        verdict = judge_mission_start(msg, self._clock.now_ns(), len(self.items))
+        ``commands_rejected``). Any other command handed here (a home command is the onboard stack's, not
+        the server's: ``navigator.onboard_mission``) is refused UNSUPPORTED, never read as a start."""
+        if is_mission_start(msg):
+            verdict = judge_mission_start(msg, self._clock.now_ns(), len(self.items))
+        else:
+            name = _enum_name("MAV_CMD", msg.command)
+            verdict = Verdict(
+                None, mavlink2.MAV_RESULT_UNSUPPORTED, f"{name} is not the mission server's to answer"
+            )
         link.send(mavlink2.MAVLink_command_ack_message(msg.command, verdict.result, 0, 0, sysid, compid))
         if verdict.start is None:
             link.counters.commands_rejected += 1
@@ -551,18 +584,23 @@ class MissionServer:
 
     # --- internals --------------------------------------------------------------------------------
     def _step(self, msg: Any) -> MissionStep | _Refusal:
-        """A MISSION_ITEM_INT as the rover drives it (a waypoint placed in ENU, a speed change), or why it
-        cannot be taken."""
+        """A MISSION_ITEM_INT as the rover drives it (a waypoint or loiter placed in ENU, a speed change, a
+        return to launch), or why it cannot be taken."""
         refusal = _judge_item(msg, self._slowest_speed_mps)
         if refusal is not None:
             return refusal
-        if msg.command == mavlink2.MAV_CMD_DO_CHANGE_SPEED:
+        command = msg.command
+        if command == mavlink2.MAV_CMD_DO_CHANGE_SPEED:
             return speed_change(msg.param2)
+        if command == mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH:
+            return ReturnToLaunch()  # to home as it is when the mission comes to it
         try:
             x, y = self._place(msg.x * _DEGREES_E7, msg.y * _DEGREES_E7)
         except MissionItemRefused as err:
             return _Refusal(mavlink2.MAV_MISSION_DENIED, f"item {msg.seq}: {err}")
-        return PlacedWaypoint(x, y, hold_seconds(msg.param1))
+        if command == mavlink2.MAV_CMD_NAV_LOITER_UNLIM:
+            return PlacedWaypoint(x, y, HOLD_UNLIMITED)
+        return PlacedWaypoint(x, y, hold_seconds(msg.param1))  # a waypoint's hold, a loiter's time
 
     def _repeat_of_finished(self, link: MissionLink, msg: Any, sysid: int, compid: int) -> bool:
         """Whether ``msg`` (a MISSION_ITEM_INT with no upload of its sender under way) belongs to the
@@ -757,16 +795,17 @@ class _Refusal(NamedTuple):
 
 def _judge_item(msg: Any, slowest_speed_mps: float) -> _Refusal | None:
     """Why a MISSION_ITEM_INT cannot be an item of ours (result and reason), or None."""
-    seq = msg.seq
-    if msg.command == mavlink2.MAV_CMD_DO_CHANGE_SPEED:
+    seq, command = msg.seq, msg.command
+    if command == mavlink2.MAV_CMD_DO_CHANGE_SPEED:
         refusal = speed_change_refusal(seq, msg.param1, msg.param2, slowest_speed_mps)
         return None if refusal is None else _Refusal(*refusal)
-    if msg.command != mavlink2.MAV_CMD_NAV_WAYPOINT:
-        name = _enum_name("MAV_CMD", msg.command)
+    if command == mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH:
+        return None  # no position, no parameters: any frame, all kept for a download
+    if command not in _PLACED_COMMANDS:
+        name = _enum_name("MAV_CMD", command)
         return _Refusal(
             mavlink2.MAV_MISSION_UNSUPPORTED,
-            f"item {seq}: command {msg.command} ({name}) is not supported: only MAV_CMD_NAV_WAYPOINT and "
-            "MAV_CMD_DO_CHANGE_SPEED",
+            f"item {seq}: command {command} ({name}) is not supported: only {_TAKEN}",
         )
     if msg.frame not in GLOBAL_FRAMES:
         name = _enum_name("MAV_FRAME", msg.frame)
@@ -782,20 +821,26 @@ def _judge_item(msg: Any, slowest_speed_mps: float) -> _Refusal | None:
         return _Refusal(
             mavlink2.MAV_MISSION_INVALID_PARAM6_Y, f"item {seq}: longitude {msg.y} x 1e-7 is out of range"
         )
-    refusal = hold_refusal(seq, msg.param1)
+    if command == mavlink2.MAV_CMD_NAV_LOITER_UNLIM:
+        return None  # param1 is empty; it holds for ever
+    if command == mavlink2.MAV_CMD_NAV_LOITER_TIME:
+        refusal = hold_refusal(seq, msg.param1, "MAV_CMD_NAV_LOITER_TIME loiter time", unset_is_none=False)
+    else:
+        refusal = hold_refusal(seq, msg.param1)
     return None if refusal is None else _Refusal(*refusal)
 
 
 def _refused_without_a_waypoint(
     steps: Sequence[MissionStep], last: MissionStep, count: int
 ) -> MissionStep | _Refusal:
-    """The last item of an upload, or its refusal when no item of the upload is a waypoint: a mission of
-    speed changes alone has nowhere to drive."""
+    """The last item of an upload, or its refusal when no item of the upload is one to drive to (a
+    waypoint, a loiter, a return to launch): a mission of speed changes alone has nowhere to drive."""
     if not isinstance(last, SpeedChange) or any(not isinstance(step, SpeedChange) for step in steps):
         return last
     return _Refusal(
         mavlink2.MAV_MISSION_ERROR,
-        f"a mission of {count} item(s) with no MAV_CMD_NAV_WAYPOINT: it needs at least one waypoint",
+        f"a mission of {count} item(s) with no MAV_CMD_NAV_WAYPOINT: it needs at least one waypoint (or "
+        "loiter, or return to launch)",
     )
 
 

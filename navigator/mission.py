@@ -1,8 +1,10 @@
 """A mission: its items in order, waypoints driven one at a time (the next when guidance reports ARRIVED)
-and speed changes (MAV_CMD_DO_CHANGE_SPEED) applied as the mission comes to them.
+and speed changes (MAV_CMD_DO_CHANGE_SPEED) applied as the mission comes to them; a return to launch
+(MAV_CMD_NAV_RETURN_TO_LAUNCH) is driven to home and ends the mission there.
 
-Pure and clock-free: it holds the items (waypoints in local ENU metres, ``SpeedChange``) and which one is
-current, and says where to go next (a ``Leg``: the speed changes passed on the way, then the waypoint).
+Pure and clock-free: it holds the items (waypoints in local ENU metres, ``SpeedChange``,
+``ReturnToLaunch``) and which one is current, and says where to go next (a ``Leg``: the speed changes
+passed on the way, then the waypoint or the return to launch; where home is, is the onboard stack's).
 The onboard stack (``navigator.onboard_mission``) hands guidance each waypoint as its goal and each speed
 change as its speed limit, publishes the events and tells a ground station
 (``firmware_bridge.mavlink_mission``). Items are numbered from 0 as uploaded, speed changes included, as
@@ -15,42 +17,50 @@ import math
 from collections.abc import Sequence
 from typing import NamedTuple
 
+from firmware_bridge.mavlink_home import ReturnToLaunch
 from firmware_bridge.mavlink_mission import MissionStep
 from firmware_bridge.mission_speed import SpeedChange
 from firmware_bridge.mission_state import MissionState
 from navigator.errors import ParameterError
 
-__all__ = ["Leg", "Mission", "MissionState", "SpeedChange", "Waypoint"]
+__all__ = ["Leg", "Mission", "MissionItem", "MissionState", "ReturnToLaunch", "SpeedChange", "Waypoint"]
 
 
 class Waypoint(NamedTuple):
-    """Where to drive (local ENU metres), and how long to wait there before the next item (s)."""
+    """Where to drive (local ENU metres), and how long to wait there before the next item (s; infinite:
+    until the operator moves the mission on, a loiter without end)."""
 
     x: float
     y: float
     hold_s: float = 0.0
 
 
+MissionItem = Waypoint | SpeedChange | ReturnToLaunch
+# The items the rover drives to (a mission needs one).
+_DRIVEN = (Waypoint, ReturnToLaunch)
+
+
 class Leg(NamedTuple):
     """Where the mission goes next: the speed changes it passed on the way (item number and change, in
-    order; each applies at once), then the waypoint now current, or None when no waypoint was left (the
-    mission is COMPLETE)."""
+    order; each applies at once), then the waypoint (or return to launch) now current, or None when none
+    was left (the mission is COMPLETE)."""
 
     speed_changes: tuple[tuple[int, SpeedChange], ...]
-    waypoint: Waypoint | None
+    waypoint: Waypoint | ReturnToLaunch | None
 
 
 class Mission:
     """The mission in force and its progress.
 
     ``state`` and ``current`` are plain attributes (the control tick reads ``state`` every tick); change
-    them only through the methods. ``current`` is the waypoint being driven to (ACTIVE), the one a single
-    goal interrupted (PAUSED), the last item (COMPLETE), or 0 (NOT_STARTED: loaded, not driven yet). A
-    speed change is current for no time: the mission applies it and goes on in the same call.
+    them only through the methods. ``current`` is the waypoint (or return to launch) being driven to
+    (ACTIVE), the one a single goal interrupted (PAUSED), the last item or the return to launch that ended
+    it (COMPLETE), or 0 (NOT_STARTED: loaded, not driven yet). A speed change is current for no time: the
+    mission applies it and goes on in the same call.
     """
 
     def __init__(self) -> None:
-        self.items: tuple[Waypoint | SpeedChange, ...] = ()
+        self.items: tuple[MissionItem, ...] = ()
         self.current = 0
         self.state = MissionState.NONE
 
@@ -66,23 +76,24 @@ class Mission:
 
     def load(self, items: Sequence[MissionStep]) -> None:
         """Replace the mission with ``items`` (waypoints as (x, y) or ``PlacedWaypoint`` with a hold time,
-        speed changes), NOT_STARTED: ``set_current`` drives it.
+        speed changes, returns to launch), NOT_STARTED: ``set_current`` drives it.
 
-        ``ParameterError`` (the mission in force kept) for no waypoint among them, a coordinate that is
-        not a finite number or a hold time that is not a finite, non-negative duration."""
-        loaded: list[Waypoint | SpeedChange] = []
+        ``ParameterError`` (the mission in force kept) for no waypoint or return to launch among them, a
+        coordinate that is not a finite number or a hold time that is not a non-negative duration
+        (infinite: a loiter without end)."""
+        loaded: list[MissionItem] = []
         for index, item in enumerate(items):
-            if isinstance(item, SpeedChange):
+            if isinstance(item, SpeedChange | ReturnToLaunch):
                 loaded.append(item)
                 continue
             x, y, hold_s = item if len(item) == 3 else (*item, 0.0)  # (x, y) or a PlacedWaypoint
             if not (math.isfinite(x) and math.isfinite(y)):
                 raise ParameterError(f"mission waypoint {index} ({x}, {y}) is not a finite position")
-            if not (math.isfinite(hold_s) and hold_s >= 0.0):
+            if not hold_s >= 0.0:  # NaN fails too
                 raise ParameterError(f"mission waypoint {index}: hold {hold_s} s is not a duration")
             loaded.append(Waypoint(float(x), float(y), float(hold_s)))
-        if not any(isinstance(item, Waypoint) for item in loaded):
-            raise ParameterError("a mission needs at least one waypoint")
+        if not any(isinstance(item, _DRIVEN) for item in loaded):
+            raise ParameterError("a mission needs at least one waypoint (or return to launch)")
         self.items = tuple(loaded)
         self.current = 0
         self.state = MissionState.NOT_STARTED
@@ -126,10 +137,14 @@ class Mission:
 
     def reached(self) -> Leg:
         """The current waypoint was reached: the speed changes after it up to the next waypoint (now
-        current), or to the end (the mission is COMPLETE). ``ParameterError`` unless the mission is
-        ACTIVE."""
+        current), or to the end (the mission is COMPLETE). A return to launch reached ends the mission
+        there, COMPLETE with it current, whatever items follow (as ArduPilot Rover leaves its mission for
+        RTL and holds at home). ``ParameterError`` unless the mission is ACTIVE."""
         if self.state is not MissionState.ACTIVE:
             raise ParameterError(f"no mission is being driven (mission {self.state.value})")
+        if isinstance(self.items[self.current], ReturnToLaunch):
+            self.state = MissionState.COMPLETE
+            return Leg((), None)
         return self._go_from(self.current + 1)
 
     def current_waypoint(self) -> Waypoint:
@@ -143,12 +158,13 @@ class Mission:
         return item
 
     def _go_from(self, seq: int) -> Leg:
-        """From item ``seq`` on: the speed changes passed, then the first waypoint, made current."""
+        """From item ``seq`` on: the speed changes passed, then the first waypoint or return to launch,
+        made current."""
         items = self.items
         changes: list[tuple[int, SpeedChange]] = []
         for index in range(seq, len(items)):
             item = items[index]
-            if isinstance(item, Waypoint):
+            if not isinstance(item, SpeedChange):
                 self.current = index
                 return Leg(tuple(changes), item)
             changes.append((index, item))

@@ -17,16 +17,24 @@ Guided mode and PX4 reset the speed when the vehicle leaves its mission). A MISS
 MISSION_START that enters the mission part-way sets the speed the items it skipped would have left (the last
 speed change before the item, or none), as PX4 replays the last speed change before the item it resumes at:
 a slow stretch stays slow however a ground station jumps in.
+
+Home (``navigator.onboard_home.HomeKeeper``, ``home``) is where a return to launch drives: as a mission item
+the mission comes to (home as it is then becomes the goal; reached, the mission is complete), or as a
+ground station's MAV_CMD_NAV_RETURN_TO_LAUNCH (a single goal to home: it pauses the mission like any). A
+loiter item is a waypoint with a hold: LOITER_TIME's for its time, LOITER_UNLIM's until the operator moves
+the mission on (a current item set, a start, a clear, a new goal or mission).
 """
 
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable, Sequence
 
 from estimator.estimator import Estimator
 from estimator.geodesy import to_enu, to_geodetic
 from firmware_bridge.mavlink_commands import GoalRequest, StartRequest
+from firmware_bridge.mavlink_home import Home, HomeRefusal, ReturnToLaunch, is_home_command
 from firmware_bridge.mavlink_link import MavlinkLink
 from firmware_bridge.mavlink_mission import (
     CurrentRequested,
@@ -40,7 +48,8 @@ from firmware_bridge.mavlink_mission import (
 from logs.clock import Clock, to_ns
 from navigator.errors import ParameterError
 from navigator.fence_shape import Polygon, inside_polygon
-from navigator.mission import Leg, Mission, MissionState, SpeedChange, Waypoint
+from navigator.mission import Leg, Mission, MissionItem, MissionState, SpeedChange, Waypoint
+from navigator.onboard_home import HomeKeeper
 from navigator.route_guidance import RouteGuidance
 from navigator.safety import EventSink
 
@@ -76,9 +85,11 @@ class MissionDriver:
         self._clock = clock
         self.mission = Mission()
         self.server = MissionServer(clock, self._place_waypoint, slowest_speed_mps=slowest_speed_mps)
-        # While the rover waits at a waypoint with a hold time: (that item, when it goes on in clock ns).
-        # Honoured only while that item is current in a mission driven; any new goal ends it (_drive_to).
-        self._hold: tuple[int, int] | None = None
+        self.home = HomeKeeper(clock, estimator, self._placed, self._outside_fence, event)
+        # While the rover waits at a waypoint with a hold time: (that item, when it goes on in clock ns; None:
+        # never, a loiter without end). Honoured only while that item is current in a mission driven; any
+        # new goal ends it (_drive_to).
+        self._hold: tuple[int, int | None] | None = None
 
     def set_goal(self, x: float, y: float) -> None:
         """A single goal: driven at once, in place of the mission being driven (which is paused: setting
@@ -138,8 +149,22 @@ class MissionDriver:
         self.set_goal(*placed)
 
     def take_message(self, link: MavlinkLink, reading: MissionMessage) -> None:
-        """A ground station's mission message: the server answers it; what it changes is driven here."""
-        change = self.server.take(link, reading.msg)
+        """A ground station's mission message: the server answers it; what it changes is driven here. A
+        home command (``firmware_bridge.mavlink_home``) is answered by ``home``; a return to launch
+        accepted is driven as a single goal to home."""
+        msg = reading.msg
+        if is_home_command(msg):
+            home = self.home.take(link, msg)
+            if home is not None:
+                who = f"{msg.get_srcSystem()}/{msg.get_srcComponent()}"
+                self._event(
+                    "return_to_launch",
+                    "info",
+                    f"return to launch by {who}: home ({home.x:.2f}, {home.y:.2f})",
+                )
+                self.set_goal(home.x, home.y)
+            return
+        change = self.server.take(link, msg)
         if change is None:
             return
         who = f"{change.sysid}/{change.compid}"
@@ -167,7 +192,8 @@ class MissionDriver:
             hold = self._hold = None  # the mission changed under it: cleared, replaced, paused, jumped
         if mission.state is MissionState.ACTIVE:
             if hold is not None:
-                if self._clock.now_ns() >= hold[1]:
+                until = hold[1]
+                if until is not None and self._clock.now_ns() >= until:
                     self._hold = None
                     self._advance()
             elif arrived:
@@ -186,8 +212,14 @@ class MissionDriver:
         if waypoints == count:
             what = f"{count} {noun}"
         else:
-            changes = count - waypoints
-            what = f"{count} items ({waypoints} {noun}, {changes} speed change{'' if changes == 1 else 's'})"
+            returns = sum(isinstance(item, ReturnToLaunch) for item in mission.items)
+            changes = count - waypoints - returns
+            kinds = [f"{waypoints} {noun}"]
+            if changes:
+                kinds.append(f"{changes} speed change{'' if changes == 1 else 's'}")
+            if returns:
+                kinds.append(f"{returns} return to launch")
+            what = f"{count} items ({', '.join(kinds)})"
         self._event("mission", "info", f"mission of {what} from {source}: {listed}{note}")
 
     def _drive_to(self, x: float, y: float, *, given: bool) -> None:
@@ -267,6 +299,17 @@ class MissionDriver:
         waits there, ARRIVED, the item still current), or on to the next item, or the end."""
         mission = self.mission
         seq, count = mission.current, mission.count
+        item = mission.items[seq]
+        if isinstance(item, ReturnToLaunch):
+            goal = self._guidance.goal  # home as it was driven to
+            where = "home" if goal is None else f"home ({goal.x:.2f}, {goal.y:.2f})"
+            self._event(
+                "mission_item_reached", "info", f"item {seq} of {count} (return to launch) {where} reached"
+            )
+            self.server.item_reached(seq)
+            mission.reached()  # COMPLETE there, whatever follows (Mission.reached)
+            self._complete(f"returned to launch at item {seq}: the rover holds at home")
+            return
         waypoint = mission.current_waypoint()
         self._event(
             "mission_item_reached",
@@ -274,9 +317,18 @@ class MissionDriver:
             f"item {seq} of {count} ({waypoint.x:.2f}, {waypoint.y:.2f}) reached",
         )
         self.server.item_reached(seq)
-        if waypoint.hold_s > 0.0:
-            self._hold = (seq, self._clock.now_ns() + to_ns(waypoint.hold_s))
-            self._event("mission_hold", "info", f"item {seq} of {count}: holding {waypoint.hold_s:g} s")
+        hold_s = waypoint.hold_s
+        if hold_s == math.inf:
+            self._hold = (seq, None)
+            self._event(
+                "mission_hold",
+                "info",
+                f"item {seq} of {count}: holding until the operator moves the mission on (loiter unlimited)",
+            )
+            return
+        if hold_s > 0.0:
+            self._hold = (seq, self._clock.now_ns() + to_ns(hold_s))
+            self._event("mission_hold", "info", f"item {seq} of {count}: holding {hold_s:g} s")
             return
         self._advance()
 
@@ -293,13 +345,41 @@ class MissionDriver:
         self._lift_speed_limit("the mission is complete")
 
     def _follow(self, leg: Leg, *, given: bool) -> bool:
-        """Apply the speed changes the mission passed, in order, then drive to its waypoint (``given``:
-        see ``_drive_to``). False when no waypoint was left: the mission is complete (``_complete``)."""
+        """Apply the speed changes the mission passed, in order, then drive to its waypoint, or home for a
+        return to launch (``given``: see ``_drive_to``). False when no waypoint was left: the mission is
+        complete (``_complete``; a return to launch with no home completes it itself, ``_return_home``)."""
         for seq, change in leg.speed_changes:
             self._change_speed(seq, change)
-        if leg.waypoint is None:
+        target = leg.waypoint
+        if target is None:
             return False
-        self._drive_to(leg.waypoint.x, leg.waypoint.y, given=given)
+        if isinstance(target, ReturnToLaunch):
+            return self._return_home(given=given)
+        self._drive_to(target.x, target.y, given=given)
+        return True
+
+    def _return_home(self, *, given: bool) -> bool:
+        """The mission came to a return to launch: home as it is now becomes the goal (a
+        ``return_to_launch`` event). With no home to drive to (no GPS fix yet, home outside the geofence)
+        the mission ends there, COMPLETE, and the rover holds (a warning event saying why, then
+        ``mission_complete``). True either way: the item was dealt with."""
+        mission = self.mission
+        seq, count = mission.current, mission.count
+        target: Home | HomeRefusal = self.home.return_target()
+        if isinstance(target, HomeRefusal):
+            self._event(
+                "return_to_launch", "warning", f"item {seq} of {count}: {target.reason}: the rover holds"
+            )
+            mission.reached()
+            self._guidance.clear_goal()
+            self._complete(f"no home to return to at item {seq}: the rover holds")
+            return True
+        self._event(
+            "return_to_launch",
+            "info",
+            f"item {seq} of {count}: return to launch: home ({target.x:.2f}, {target.y:.2f})",
+        )
+        self._drive_to(target.x, target.y, given=given)
         return True
 
     def _change_speed(self, seq: int, change: SpeedChange) -> None:
@@ -354,10 +434,15 @@ class MissionDriver:
         self._event("mission_speed", "info", f"mission speed limit {in_force:.2f} m/s lifted: {why}")
 
 
-def _listed(item: Waypoint | SpeedChange) -> str:
+def _listed(item: MissionItem) -> str:
     """A mission item as the ``mission`` event lists it (a waypoint without a hold as it always was)."""
+    if isinstance(item, ReturnToLaunch):
+        return "return to launch"
     if isinstance(item, Waypoint):
-        held = f" hold {item.hold_s:g} s" if item.hold_s > 0.0 else ""
+        if item.hold_s == math.inf:
+            held = " hold until moved on"
+        else:
+            held = f" hold {item.hold_s:g} s" if item.hold_s > 0.0 else ""
         return f"({item.x:.2f}, {item.y:.2f}){held}"
     if item.keep:
         return "speed unchanged"

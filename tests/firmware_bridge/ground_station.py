@@ -49,6 +49,34 @@ def change_speed(
     )  # fmt: skip
 
 
+def return_to_launch(
+    seq: int, *, frame: int = mavlink2.MAV_FRAME_MISSION, target: tuple[int, int] = ROVER
+) -> Any:
+    """A MISSION_ITEM_INT MAV_CMD_NAV_RETURN_TO_LAUNCH as a ground station plans "Return to launch" (no
+    position, no parameters)."""
+    return mavlink2.MAVLink_mission_item_int_message(
+        *target, seq, frame, mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH, 0, 1, 0.0, 0.0, 0.0, 0.0, 0, 0, 0.0,
+        MISSION,
+    )  # fmt: skip
+
+
+def loiter(seq: int, lat: float, lon: float, seconds: float | None = None, *, target: Any = ROVER) -> Any:
+    """A MISSION_ITEM_INT MAV_CMD_NAV_LOITER_TIME (``seconds`` in param1, radius 2 m in param3) or, with no
+    ``seconds``, MAV_CMD_NAV_LOITER_UNLIM (param1 empty), as a ground station plans a loiter."""
+    command = mavlink2.MAV_CMD_NAV_LOITER_UNLIM if seconds is None else mavlink2.MAV_CMD_NAV_LOITER_TIME
+    return mavlink2.MAVLink_mission_item_int_message(
+        *target, seq, mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, command, 0, 1,
+        0.0 if seconds is None else seconds, 0.0, 2.0, float("nan"), round(lat * 1e7), round(lon * 1e7), 2.0,
+        MISSION,
+    )  # fmt: skip
+
+
+def command_long(command: int, *params: float, target: Any = ROVER) -> Any:
+    """A COMMAND_LONG carrying ``command`` with up to seven params (the rest 0)."""
+    padded = [*params, *[0.0] * (7 - len(params))]
+    return mavlink2.MAVLink_command_long_message(*target, command, 0, *padded)
+
+
 def mission_start(first: float, last: float, *, kind: str = "COMMAND_LONG", target: Any = ROVER) -> Any:
     """MAV_CMD_MISSION_START (param1 the first item, param2 the last) as COMMAND_LONG or COMMAND_INT."""
     if kind == "COMMAND_INT":

@@ -97,9 +97,7 @@ def test_position_target_becomes_a_goal_and_is_echoed():
         (reposition(frame=mavlink2.MAV_FRAME_LOCAL_NED), mavlink2.MAV_RESULT_DENIED, "not global"),
         (reposition(lat=91.0), mavlink2.MAV_RESULT_DENIED, "out of range"),
         (
-            mavlink2.MAVLink_command_long_message(
-                1, 191, mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH, 0, *[0.0] * 7
-            ),
+            mavlink2.MAVLink_command_long_message(1, 191, mavlink2.MAV_CMD_NAV_LAND, 0, *[0.0] * 7),
             mavlink2.MAV_RESULT_UNSUPPORTED,
             "not supported",
         ),

@@ -131,7 +131,7 @@ def test_upload_asks_for_each_item_in_turn_then_accepts_and_places_them() -> Non
     assert {(r.target_system, r.target_component, r.mission_type) for r in requests} == {(255, 190, MISSION)}
     assert (change.sysid, change.compid) == (255, 190)
     expected = [place(lat, lon) for lat, lon in PLAN]
-    assert [c for xy in change.steps if not isinstance(xy, SpeedChange) for c in xy[:2]] == pytest.approx(
+    assert [c for xy in change.steps if isinstance(xy, tuple) for c in xy[:2]] == pytest.approx(
         [c for xy in expected for c in xy]
     )
     assert [i.seq for i in rig.server.items] == [0, 1, 2]
@@ -284,9 +284,10 @@ REFUSALS = [
     ),
     pytest.param([count(257)], mavlink2.MAV_MISSION_NO_SPACE, "257 items: at most 256", id="too-many"),
     pytest.param(
-        [count(2), waypoint(0, 47.0, 8.0, command=mavlink2.MAV_CMD_NAV_LOITER_UNLIM)],
+        [count(2), waypoint(0, 47.0, 8.0, command=mavlink2.MAV_CMD_NAV_LAND)],
         mavlink2.MAV_MISSION_UNSUPPORTED,
-        "item 0: command 17 (MAV_CMD_NAV_LOITER_UNLIM) is not supported: only MAV_CMD_NAV_WAYPOINT and "
+        "item 0: command 21 (MAV_CMD_NAV_LAND) is not supported: only MAV_CMD_NAV_WAYPOINT, "
+        "MAV_CMD_NAV_LOITER_TIME, MAV_CMD_NAV_LOITER_UNLIM, MAV_CMD_NAV_RETURN_TO_LAUNCH and "
         "MAV_CMD_DO_CHANGE_SPEED",
         id="not-a-waypoint",
     ),

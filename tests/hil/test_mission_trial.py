@@ -19,7 +19,12 @@ from logs import topics
 from logs.reader import read_messages
 from logs.settings import parse_toml
 from navigator.config import rover_config_from_table
-from tests.firmware_bridge.ground_station import ScriptedGroundStation, change_speed, waypoint
+from tests.firmware_bridge.ground_station import (
+    ScriptedGroundStation,
+    change_speed,
+    return_to_launch,
+    waypoint,
+)
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 # ENU metres on small_rocky's map (14 x 10 m, the rock at (6.5, 4.5)): not the scenario's own goals.
@@ -123,6 +128,30 @@ def test_the_legs_after_a_speed_change_are_driven_at_or_below_its_speed(tmp_path
     assert max(s["speed_limit_mps"] for s in after if s["speed_limit_reason"] == "mission_speed") == SLOW_MPS
     final = during(topics.TRUTH_POSE, lifted_ns, lifted_ns + 1)[-1]["pose"]["position"]
     assert math.hypot(final["x"] - SLOW_LEG[0], final["y"] - SLOW_LEG[1]) < 0.6
+
+
+def test_a_mission_ending_in_return_to_launch_brings_the_rover_home(tmp_path: Path) -> None:
+    scenario = load_scenario(DATA / "small_rocky_waypoints.toml")
+    away = pymap3d.enu2geodetic(*FAST_LEG, 0.0, *scenario.datum)[:2]
+    station = ScriptedGroundStation([waypoint(0, *away), return_to_launch(1)])
+    config = rover_config_from_table(parse_toml("", "<defaults>"))
+    result = run_trial(scenario, config, tmp_path / "trial", ground_station=station)
+
+    assert result.end_reason == "arrived", result
+    assert [m.seq for m in station.station.of_type("MISSION_ITEM_REACHED")] == [0, 1]
+    events = [m.message for m in read_messages(result.mcap_path, topics=[topics.SAFETY_EVENTS])]
+    # The recording says where home was: where the rover stood at its first fix (the start, within GPS noise).
+    (home,) = [e["detail"] for e in events if e["kind"] == "home"]
+    x, y = map(float, home.split("ENU (")[1].split(",")[:2])
+    assert math.dist((x, y), scenario.start_xy) < 1.0, home
+    assert [e["detail"] for e in events if e["kind"] == "mission_complete"] == [
+        "mission complete: returned to launch at item 1: the rover holds at home"
+    ]
+    poses = [
+        m.message["pose"]["position"] for m in read_messages(result.mcap_path, topics=[topics.TRUTH_POSE])
+    ]
+    assert min(math.dist((p["x"], p["y"]), FAST_LEG) for p in poses) < 0.6  # it went out
+    assert math.dist((poses[-1]["x"], poses[-1]["y"]), (x, y)) < 0.6  # and came back home
 
 
 def nearest(poses: list[tuple[float, float]], point: tuple[float, float]) -> int:

@@ -7,9 +7,9 @@ import math
 
 import pytest
 
-from firmware_bridge.mission_hold import PlacedWaypoint
+from firmware_bridge.mission_hold import HOLD_UNLIMITED, PlacedWaypoint
 from navigator.errors import ParameterError
-from navigator.mission import Leg, Mission, MissionState, SpeedChange, Waypoint
+from navigator.mission import Leg, Mission, MissionState, ReturnToLaunch, SpeedChange, Waypoint
 
 THREE = [(1.0, 2.0), (3.0, 4.0), (5.0, 6.0)]
 
@@ -154,9 +154,33 @@ def test_speed_changes_alone_are_no_mission(items: list[SpeedChange]) -> None:
 
 def test_a_waypoints_hold_time_is_kept_and_must_be_a_duration() -> None:
     mission = Mission()
-    mission.load([PlacedWaypoint(1.0, 2.0, 5.0), (3.0, 4.0)])
-    assert mission.waypoints == (Waypoint(1.0, 2.0, 5.0), Waypoint(3.0, 4.0, 0.0))
-    for bad in (-1.0, math.nan, math.inf):
+    mission.load([PlacedWaypoint(1.0, 2.0, 5.0), (3.0, 4.0), PlacedWaypoint(5.0, 6.0, HOLD_UNLIMITED)])
+    assert mission.waypoints == (
+        Waypoint(1.0, 2.0, 5.0),
+        Waypoint(3.0, 4.0, 0.0),
+        Waypoint(5.0, 6.0, math.inf),
+    )
+    for bad in (-1.0, math.nan, -math.inf):
         with pytest.raises(ParameterError, match="hold"):
             mission.load([PlacedWaypoint(1.0, 2.0, bad)])
-    assert mission.count == 2  # the mission in force kept
+    assert mission.count == 3  # the mission in force kept
+
+
+def test_a_return_to_launch_is_driven_like_a_waypoint_and_ends_the_mission_there() -> None:
+    mission = Mission()
+    slow = SpeedChange(0.5)
+    # Items after the return to launch are never driven, as ArduPilot Rover holds at home after RTL.
+    mission.load([(1.0, 2.0), slow, ReturnToLaunch(), (9.0, 9.0)])
+    assert mission.set_current(0) == Leg((), Waypoint(1.0, 2.0))
+    assert mission.reached() == Leg(((1, slow),), ReturnToLaunch()) and mission.current == 2
+    assert mission.reached() == Leg((), None)
+    assert (mission.state, mission.current) == (MissionState.COMPLETE, 2)
+
+
+def test_a_return_to_launch_alone_is_a_mission() -> None:
+    mission = Mission()
+    mission.load([ReturnToLaunch()])
+    assert mission.set_current(0) == Leg((), ReturnToLaunch())
+    with pytest.raises(ParameterError, match="at least one waypoint"):
+        mission.load([SpeedChange(0.5)])
+    assert mission.count == 1
