@@ -66,7 +66,8 @@ class Home:
 @dataclass(frozen=True)
 class ReturnToLaunch:
     """A MAV_CMD_NAV_RETURN_TO_LAUNCH mission item as the rover drives it: to home as it is when the
-    mission comes to the item; the mission is complete there (as ArduPilot Rover holds at home)."""
+    mission comes to the item; reached, the mission goes on to its next item (complete when it was the
+    last), as ArduPilot Rover's Auto mode goes on after its RTL sub-mode reaches home."""
 
 
 class HomeAsked(NamedTuple):

@@ -4,12 +4,12 @@ and clears a mission and sets its current item (https://mavlink.io/en/services/m
 The server speaks the protocol and keeps the mission in force as uploaded (what a download returns); it
 does not drive. What a transfer changes comes back from ``take`` as a ``MissionChange`` for the onboard
 stack (``navigator.onboard_mission``), which drives the mission (``navigator.mission``: the waypoints and
-loiters in order, each speed change applied as it comes, a return to launch driven home, where the mission
-ends) and reports progress back (``tick``: MISSION_CURRENT; ``item_reached``: MISSION_ITEM_REACHED, per
-waypoint, loiter or return reached and per speed change applied). It also judges
-and answers MAV_CMD_MISSION_START (COMMAND_LONG or COMMAND_INT, which the link hands over as mission
-messages), as ``firmware_bridge.mavlink_commands.judge_mission_start`` rules, with COMMAND_ACK. The home
-commands the link hands over the same way (``firmware_bridge.mavlink_home``) are the onboard stack's
+loiters in order, each speed change applied as it comes, a return to launch driven home) and reports
+progress back (``tick``: MISSION_CURRENT; ``item_reached``: MISSION_ITEM_REACHED, per waypoint, loiter or
+return reached and per speed change applied). It also judges and answers MAV_CMD_MISSION_START (COMMAND_LONG
+or COMMAND_INT, which the link hands over as mission messages), as
+``firmware_bridge.mavlink_commands.judge_mission_start`` rules, with COMMAND_ACK. The home commands the link
+hands over the same way (``firmware_bridge.mavlink_home``) are the onboard stack's
 (``navigator.onboard_home``), not the server's.
 
 What is accepted, and the answer to everything else (each refusal a MISSION_ACK with the protocol's
@@ -30,8 +30,8 @@ logged naming what was wrong):
   (judged as a hold time, but NaN refused: ``MAV_MISSION_INVALID_PARAM1``), LOITER_UNLIM holds until the
   operator moves the mission on; radius and yaw are kept, not used. A return to launch has no position
   and no parameters (any frame is taken, everything kept for a download): the rover drives to home as it
-  is when the mission comes to it (``firmware_bridge.mavlink_home.ReturnToLaunch``), and the mission is
-  complete there, whatever follows it, as ArduPilot Rover holds at home.
+  is when the mission comes to it (``firmware_bridge.mavlink_home.ReturnToLaunch``); reached, the mission
+  goes on to its next item (complete when it was the last), as ArduPilot Rover's Auto mode does.
   A speed change has no position (any frame is taken) and is judged by ``firmware_bridge.mission_speed``:
   its speed type (``MAV_MISSION_INVALID_PARAM1``) and speed (``MAV_MISSION_INVALID_PARAM2``). A mission
   needs at least one waypoint, loiter or return to launch: an upload of speed changes alone is refused at

@@ -1,6 +1,7 @@
 """A mission: its items in order, waypoints driven one at a time (the next when guidance reports ARRIVED)
 and speed changes (MAV_CMD_DO_CHANGE_SPEED) applied as the mission comes to them; a return to launch
-(MAV_CMD_NAV_RETURN_TO_LAUNCH) is driven to home and ends the mission there.
+(MAV_CMD_NAV_RETURN_TO_LAUNCH) is driven to home like a waypoint, and reached, the mission goes on to its
+next item (complete when it was the last), as ArduPilot Rover's Auto mode drives RTL as a sub-mode.
 
 Pure and clock-free: it holds the items (waypoints in local ENU metres, ``SpeedChange``,
 ``ReturnToLaunch``) and which one is current, and says where to go next (a ``Leg``: the speed changes
@@ -54,8 +55,8 @@ class Mission:
 
     ``state`` and ``current`` are plain attributes (the control tick reads ``state`` every tick); change
     them only through the methods. ``current`` is the waypoint (or return to launch) being driven to
-    (ACTIVE), the one a single goal interrupted (PAUSED), the last item or the return to launch that ended
-    it (COMPLETE), or 0 (NOT_STARTED: loaded, not driven yet). A speed change is current for no time: the
+    (ACTIVE), the one a single goal interrupted (PAUSED), the last item (COMPLETE), or 0 (NOT_STARTED:
+    loaded, not driven yet). A speed change is current for no time: the
     mission applies it and goes on in the same call.
     """
 
@@ -137,14 +138,12 @@ class Mission:
 
     def reached(self) -> Leg:
         """The current waypoint was reached: the speed changes after it up to the next waypoint (now
-        current), or to the end (the mission is COMPLETE). A return to launch reached ends the mission
-        there, COMPLETE with it current, whatever items follow (as ArduPilot Rover leaves its mission for
-        RTL and holds at home). ``ParameterError`` unless the mission is ACTIVE."""
+        current), or to the end (the mission is COMPLETE). A return to launch reached goes on the same
+        way: ArduPilot Rover's ``ModeAuto::verify_RTL`` returns ``reached_destination()``, so its mission
+        goes on to the item after RTL once home is reached. ``ParameterError`` unless the mission is
+        ACTIVE."""
         if self.state is not MissionState.ACTIVE:
             raise ParameterError(f"no mission is being driven (mission {self.state.value})")
-        if isinstance(self.items[self.current], ReturnToLaunch):
-            self.state = MissionState.COMPLETE
-            return Leg((), None)
         return self._go_from(self.current + 1)
 
     def current_waypoint(self) -> Waypoint:

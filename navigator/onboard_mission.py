@@ -19,7 +19,8 @@ speed change before the item, or none), as PX4 replays the last speed change bef
 a slow stretch stays slow however a ground station jumps in.
 
 Home (``navigator.onboard_home.HomeKeeper``, ``home``) is where a return to launch drives: as a mission item
-the mission comes to (home as it is then becomes the goal; reached, the mission is complete), or as a
+the mission comes to (home as it is then becomes the goal; reached, the mission goes on to its next
+item, as ArduPilot Rover's Auto mode does), or as a
 ground station's MAV_CMD_NAV_RETURN_TO_LAUNCH (a single goal to home: it pauses the mission like any). A
 loiter item is a waypoint with a hold: LOITER_TIME's for its time, LOITER_UNLIM's until the operator moves
 the mission on (a current item set, a start, a clear, a new goal or mission).
@@ -307,8 +308,9 @@ class MissionDriver:
                 "mission_item_reached", "info", f"item {seq} of {count} (return to launch) {where} reached"
             )
             self.server.item_reached(seq)
-            mission.reached()  # COMPLETE there, whatever follows (Mission.reached)
-            self._complete(f"returned to launch at item {seq}: the rover holds at home")
+            # On to the next item, as ArduPilot Rover's Auto goes on once RTL reaches home; the last item:
+            # the mission is complete and the rover holds at home.
+            self._advance(f"returned to launch at item {seq}: the rover holds at home")
             return
         waypoint = mission.current_waypoint()
         self._event(
@@ -332,12 +334,13 @@ class MissionDriver:
             return
         self._advance()
 
-    def _advance(self) -> None:
-        """From the waypoint reached (and held at) to the next item, or the end."""
+    def _advance(self, done: str | None = None) -> None:
+        """From the item reached (and held at) to the next item, or the end (``done``: what the
+        ``mission_complete`` event says then, by default the waypoints reached)."""
         mission = self.mission
         # given=False: the mission's own step, the latches stand.
         if not self._follow(mission.reached(), given=False):
-            self._complete(f"its {len(mission.waypoints)} waypoint(s) reached")
+            self._complete(done or f"its {len(mission.waypoints)} waypoint(s) reached")
 
     def _complete(self, detail: str) -> None:
         """The mission is complete: a ``mission_complete`` event, and its speed limit lifted."""

@@ -166,15 +166,26 @@ def test_a_waypoints_hold_time_is_kept_and_must_be_a_duration() -> None:
     assert mission.count == 3  # the mission in force kept
 
 
-def test_a_return_to_launch_is_driven_like_a_waypoint_and_ends_the_mission_there() -> None:
+def test_a_return_to_launch_is_driven_like_a_waypoint_and_the_mission_goes_on_after_it() -> None:
     mission = Mission()
-    slow = SpeedChange(0.5)
-    # Items after the return to launch are never driven, as ArduPilot Rover holds at home after RTL.
-    mission.load([(1.0, 2.0), slow, ReturnToLaunch(), (9.0, 9.0)])
+    slow, fast = SpeedChange(0.5), SpeedChange(1.5)
+    # As ArduPilot Rover's Auto: RTL reached (verify_RTL), the mission goes on to the next item.
+    mission.load([(1.0, 2.0), slow, ReturnToLaunch(), fast, (9.0, 9.0)])
     assert mission.set_current(0) == Leg((), Waypoint(1.0, 2.0))
     assert mission.reached() == Leg(((1, slow),), ReturnToLaunch()) and mission.current == 2
+    assert mission.reached() == Leg(((3, fast),), Waypoint(9.0, 9.0)) and mission.current == 4
+    assert mission.state is MissionState.ACTIVE
     assert mission.reached() == Leg((), None)
-    assert (mission.state, mission.current) == (MissionState.COMPLETE, 2)
+    assert (mission.state, mission.current) == (MissionState.COMPLETE, 4)
+
+
+def test_a_return_to_launch_as_the_last_item_completes_the_mission_when_reached() -> None:
+    mission = Mission()
+    mission.load([(1.0, 2.0), ReturnToLaunch()])
+    mission.set_current(0)
+    assert mission.reached() == Leg((), ReturnToLaunch())
+    assert mission.reached() == Leg((), None)
+    assert (mission.state, mission.current) == (MissionState.COMPLETE, 1)
 
 
 def test_a_return_to_launch_alone_is_a_mission() -> None:

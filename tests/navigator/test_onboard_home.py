@@ -141,12 +141,11 @@ def test_return_to_launch_pauses_the_mission_and_drives_home(station: Station) -
 
 def test_a_mission_ending_in_return_to_launch_ends_at_home(station: Station) -> None:
     rig = station.rig
-    items = [*plan_items(PLAN[:1]), return_to_launch(1), *plan_items(PLAN[1:2])]
-    items[2].seq = 2  # after the return: never driven, as ArduPilot Rover holds at home
+    items = [*plan_items(PLAN[:1]), return_to_launch(1)]
     assert station.upload(items).type == mavlink2.MAV_MISSION_ACCEPTED
     assert station.details("mission")[-1].startswith(
-        "mission of 3 items (2 waypoints, 1 return to launch) from MAVLink upload by 255/190 on the "
-        "ground_station link: (6.00, 4.00), return to launch, (7.00, 8.00); not started"
+        "mission of 2 items (1 waypoint, 1 return to launch) from MAVLink upload by 255/190 on the "
+        "ground_station link: (6.00, 4.00), return to launch; not started"
     )
     station.start()
     mission = rig.stack.mission
@@ -156,16 +155,33 @@ def test_a_mission_ending_in_return_to_launch_ends_at_home(station: Station) -> 
     assert math.hypot(rig.body.x - fix.east_m, rig.body.y - fix.north_m) < 0.6
     assert mission.current == 1 and rig.stack.mode is Mode.ARRIVED
     assert station.details("return_to_launch") == [
-        f"item 1 of 3: return to launch: home ({fix.east_m:.2f}, {fix.north_m:.2f})"
+        f"item 1 of 2: return to launch: home ({fix.east_m:.2f}, {fix.north_m:.2f})"
     ]
-    assert station.details("mission_item_reached")[-1].startswith("item 1 of 3 (return to launch) home (")
+    assert station.details("mission_item_reached")[-1].startswith("item 1 of 2 (return to launch) home (")
     assert station.details("mission_complete") == [
         "mission complete: returned to launch at item 1: the rover holds at home"
     ]
     station.gcs.receive()
     assert [m.seq for m in station.gcs.of_type("MISSION_ITEM_REACHED")] == [0, 1]
     last = station.gcs.of_type("MISSION_CURRENT")[-1]
-    assert (last.seq, last.total, last.mission_state) == (3, 3, mavlink2.MISSION_STATE_COMPLETE)
+    assert (last.seq, last.total, last.mission_state) == (2, 2, mavlink2.MISSION_STATE_COMPLETE)
+
+
+def test_after_a_return_to_launch_the_mission_goes_on_to_its_next_item(station: Station) -> None:
+    rig = station.rig
+    items = [*plan_items(PLAN[:1]), return_to_launch(1), *plan_items(PLAN[1:2])]
+    items[2].seq = 2
+    assert station.upload(items).type == mavlink2.MAV_MISSION_ACCEPTED
+    station.start()
+    mission = rig.stack.mission
+    rig.run_until(lambda: mission.current == 2, 60.0, "the item after the return")
+    assert mission.state is MissionState.ACTIVE and station.details("mission_complete") == []
+    assert station.details("mission_item_reached")[-1].startswith("item 1 of 3 (return to launch) home (")
+    rig.run_until(lambda: mission.state is MissionState.COMPLETE, 60.0, "the mission's end")
+    assert math.hypot(rig.body.x - PLAN[1][0], rig.body.y - PLAN[1][1]) < 0.6
+    assert station.details("mission_complete") == ["mission complete: its 2 waypoint(s) reached"]
+    station.gcs.receive()
+    assert [m.seq for m in station.gcs.of_type("MISSION_ITEM_REACHED")] == [0, 1, 2]
 
 
 def test_a_timed_loiter_holds_as_a_waypoint_does(station: Station) -> None:
