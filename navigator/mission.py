@@ -129,9 +129,13 @@ class Mission:
         """The last speed change before item ``seq`` that set or reset the speed (item number and change;
         "no change" items skipped), or None: the speed a mission driven from its start would have when it
         came to ``seq``. A mission started part-way applies it, as PX4 replays the last speed change
-        before the item it resumes at: a "slow zone" stays slow however the ground station jumps into it."""
+        before the item it resumes at: a "slow zone" stays slow however the ground station jumps into it.
+        A return to launch before ``seq`` ends the search (None): it drives at the rover's own speed and
+        lifts the limit (``navigator.onboard_mission``), so no speed change before it stands after it."""
         for index in range(min(seq, len(self.items)) - 1, -1, -1):
             item = self.items[index]
+            if isinstance(item, ReturnToLaunch):
+                return None
             if isinstance(item, SpeedChange) and not item.keep:
                 return index, item
         return None

@@ -16,7 +16,9 @@ cleared, replaced or complete (the spec's "until it is overridden or there is a 
 Guided mode and PX4 reset the speed when the vehicle leaves its mission). A MISSION_SET_CURRENT or
 MISSION_START that enters the mission part-way sets the speed the items it skipped would have left (the last
 speed change before the item, or none), as PX4 replays the last speed change before the item it resumes at:
-a slow stretch stays slow however a ground station jumps in.
+a slow stretch stays slow however a ground station jumps in. A return to launch the mission comes to lifts
+the limit: ArduPilot Rover's RTL drives at its own speed (RTL_SPEED, else the default), so a slow stretch
+before it does not slow the way home; the speed changes after it set the limit again as they come.
 
 Home (``navigator.onboard_home.HomeKeeper``, ``home``) is where a return to launch drives: as a mission item
 the mission comes to (home as it is then becomes the goal; reached, the mission goes on to its next
@@ -285,9 +287,10 @@ class MissionDriver:
             return
         self._event(kind, "info", f"{what} of {self.mission.count}{verb} by {who}")
         changes = leg.speed_changes
-        if not changes or changes[0][1].keep:
+        if (not changes or changes[0][1].keep) and not isinstance(leg.waypoint, ReturnToLaunch):
             # The leg does not begin by setting a speed of its own: the items before seq say the speed it
-            # starts from (a "no change" first keeps that one, and says so).
+            # starts from (a "no change" first keeps that one, and says so). A return to launch drives at
+            # the rover's own speed whatever came before (_return_home).
             self._speed_from_before(seq)
         if not self._follow(leg, given=True):
             # Only speed changes from ``seq`` to the end: nothing left to drive to.
@@ -382,6 +385,7 @@ class MissionDriver:
             "info",
             f"item {seq} of {count}: return to launch: home ({target.x:.2f}, {target.y:.2f})",
         )
+        self._lift_speed_limit(f"item {seq} of {count} returns to launch at the rover's own speed")
         self._drive_to(target.x, target.y, given=given)
         return True
 
@@ -415,7 +419,12 @@ class MissionDriver:
         if limit == self.speed_limit_mps:
             return
         if before is None:
-            detail = f"no speed change before item {seq}: no mission speed limit"
+            returned = any(isinstance(item, ReturnToLaunch) for item in self.mission.items[:seq])
+            detail = (
+                f"a return to launch before item {seq}: no mission speed limit"
+                if returned
+                else f"no speed change before item {seq}: no mission speed limit"
+            )
         elif limit is None:
             detail = f"item {before[0]} before item {seq}: back to the default speed: no mission speed limit"
         else:

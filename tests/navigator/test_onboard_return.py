@@ -1,0 +1,93 @@
+"""A return to launch in a mission, on the lockstep rig with a ground station on its second link: the way
+home at the rover's own speed (the mission's speed limit lifted there, set again by the items after it),
+and the mission entered at, past, paused and resumed on a return to launch."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+from pymavlink.dialects.v20 import common as mavlink2
+
+from navigator.mission import MissionState
+from tests.firmware_bridge.ground_station import change_speed, return_to_launch
+from tests.navigator.test_onboard_mission import PLAN, Station, plan_items, set_current, state_records
+
+SLOW_MPS = 0.5
+
+
+@pytest.fixture
+def station() -> Any:
+    made = Station()
+    yield made
+    made.close()
+
+
+def slow_then_home(*after: Any) -> list[Any]:
+    """0.5 m/s (item 0), PLAN[0] (item 1), a return to launch (item 2), then ``after`` (items 3 on)."""
+    (first,) = plan_items(PLAN[:1])
+    first.seq = 1
+    return [change_speed(0, SLOW_MPS), first, return_to_launch(2), *after]
+
+
+def second_waypoint(seq: int) -> Any:
+    (item,) = plan_items(PLAN[1:2])
+    item.seq = seq
+    return item
+
+
+def test_the_way_home_lifts_the_mission_speed_limit_and_later_items_set_theirs(station: Station) -> None:
+    rig = station.rig
+    stack = rig.stack
+    plan = slow_then_home(change_speed(3, 0.8), second_waypoint(4))
+    assert station.upload(plan).type == mavlink2.MAV_MISSION_ACCEPTED
+    station.start()
+    mission = stack.mission
+    assert stack.guidance.core.mission_speed_mps == SLOW_MPS
+    homeward = rig.run_until(lambda: mission.current == 2, 60.0, "the return to launch")
+    # ArduPilot's RTL drives at its own speed (RTL_SPEED, else the default), not a mission's slow stretch.
+    assert stack.guidance.core.mission_speed_mps is None
+    assert station.details("mission_speed")[-1] == (
+        "mission speed limit 0.50 m/s lifted: item 2 of 5 returns to launch at the rover's own speed"
+    )
+    rig.run_until(lambda: mission.current == 4, 60.0, "home, then the item after it")
+    on_the_way_home = state_records(rig, homeward)
+    assert all(s["speed_limit_reason"] != "mission_speed" for s in on_the_way_home)
+    assert max(s["target_speed_mps"] for s in on_the_way_home) > SLOW_MPS + 0.1
+    # Past home, the mission's own speed change holds again (float32 on the wire).
+    assert stack.guidance.core.mission_speed_mps == pytest.approx(0.8)
+    assert station.details("mission_speed")[-1] == "item 3 of 5: mission speed limit 0.80 m/s"
+
+
+def test_set_current_at_a_return_to_launch_drives_home_at_the_rovers_own_speed(station: Station) -> None:
+    stack = station.rig.stack
+    assert station.upload(slow_then_home(second_waypoint(3))).type == mavlink2.MAV_MISSION_ACCEPTED
+    station.start()
+    told = len(station.details("mission_speed"))
+    set_current(station, 2)
+    mission = stack.mission
+    assert (mission.state, mission.current) == (MissionState.ACTIVE, 2)
+    # The speed item 0 set is not put back for the way home (no "item 0 before item 2" first), only lifted.
+    assert station.details("mission_speed")[told:] == [
+        "mission speed limit 0.50 m/s lifted: item 2 of 4 returns to launch at the rover's own speed"
+    ]
+    assert stack.guidance.core.mission_speed_mps is None
+    (home,) = station.details("return_to_launch")
+    goal = stack.goal
+    assert goal is not None and home.endswith(f"return to launch: home ({goal.x:.2f}, {goal.y:.2f})")
+
+
+def test_set_current_past_a_return_to_launch_leaves_the_speed_before_it_behind(station: Station) -> None:
+    stack = station.rig.stack
+    assert station.upload(slow_then_home(second_waypoint(3))).type == mavlink2.MAV_MISSION_ACCEPTED
+    station.start()
+    assert stack.guidance.core.mission_speed_mps == SLOW_MPS
+    set_current(station, 3)
+    mission = stack.mission
+    assert (mission.state, mission.current) == (MissionState.ACTIVE, 3)
+    # Driven from the start, the mission would come to item 3 after the return lifted the 0.5 m/s.
+    assert stack.guidance.core.mission_speed_mps is None
+    assert station.details("mission_speed")[-1] == "a return to launch before item 3: no mission speed limit"
+    assert station.details("return_to_launch") == []  # jumped past, not driven
+    goal = stack.goal
+    assert goal is not None and (goal.x, goal.y) == pytest.approx(PLAN[1], abs=0.01)
