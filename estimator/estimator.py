@@ -48,18 +48,15 @@ from logs.topics import ESTIMATOR_INNOVATIONS, ESTIMATOR_POSE, stamp
 logger = logging.getLogger(__name__)
 
 
-class FirstFix(NamedTuple):
-    """The fix that initialised the filter: where the rover stood when it first knew where it was (its home,
-    as ArduPilot sets home at the first fix: ``navigator.onboard_home``). WGS84 degrees and metres, and the
-    same point in the local ENU frame (metres from the datum)."""
+class GpsReset(NamedTuple):
+    """A re-anchoring of the position on GPS, after GPS disagreed with the estimate fix after fix for
+    ``gps_reset_after_s``: the estimate had been wrong by the jump, at least since ``agreed_until_ns``.
+    ``navigator.onboard_home`` moves a home taken from the estimate by it."""
 
-    t_ns: int  # fix time
-    lat_deg: float
-    lon_deg: float
-    alt_m: float
-    east_m: float
+    t_ns: int  # fix time of the fix re-anchored on
+    agreed_until_ns: int | None  # fix time of the last fix accepted before the disagreement (or the first)
+    east_m: float  # the jump: the fix less the estimate at t_ns, ENU metres
     north_m: float
-    up_m: float
 
 
 # MAVLink GPS_FIX_TYPE: 3 = 3D fix and better (DGPS, RTK float/fixed). A 2D fix has no usable altitude
@@ -108,7 +105,7 @@ class Estimator:
         self._sink = sink
         self._ekf = RoverEkf(config)
         self._datum: Datum | None = config.datum
-        self._first_fix: FirstFix | None = None
+        self._last_gps_reset: GpsReset | None = None
         self._counters: Counter[str] = Counter()
         self._bootstrap = HeadingBootstrap(config.heading_init_distance_m)
         self._initial_heading: tuple[float, float] | None = None
@@ -143,9 +140,9 @@ class Estimator:
         return self._datum
 
     @property
-    def first_fix(self) -> FirstFix | None:
-        """The fix that initialised the filter (None before it): kept as it came, never replaced."""
-        return self._first_fix
+    def last_gps_reset(self) -> GpsReset | None:
+        """The last re-anchoring of the position on GPS (``GpsReset``), or None: a new object each time."""
+        return self._last_gps_reset
 
     @property
     def counters(self) -> dict[str, int]:
@@ -258,9 +255,6 @@ class Estimator:
         self._last_gps_fix_ns = t_fix
 
         if not self._ekf.initialised:
-            if self._first_fix is None:
-                up = to_enu(self._datum, lat_deg, lon_deg, alt_m)[2]  # once: the fused fix needs none
-                self._first_fix = FirstFix(t_fix, lat_deg, lon_deg, alt_m, east, north, up)
             self._initialise(t_fix, east, north, std)
             self._last_gps_accepted_ns = t_fix
             self._last_gps_accepted_xy = (east, north)
@@ -427,7 +421,10 @@ class Estimator:
         if gated_for_s >= self._config.gps_reset_after_s:
             # GPS has disagreed with us for long, fix after fix: more likely we drifted (or the wheels
             # lied) than that GPS is wrong for so long. A short glitch never gets here.
-            self._ekf.reset_position(east, north, std)
+            ekf = self._ekf
+            jump_east, jump_north = east - ekf.state(X), north - ekf.state(Y)  # at t_fix (_advance above)
+            self._last_gps_reset = GpsReset(t_fix, self._last_gps_accepted_ns, jump_east, jump_north)
+            ekf.reset_position(east, north, std)
             self._last_gps_accepted_xy = (east, north)
             self._counters["gps_reset"] += 1
             logger.warning(

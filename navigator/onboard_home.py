@@ -1,28 +1,38 @@
 """The rover's home: where it returns to (MAV_CMD_NAV_RETURN_TO_LAUNCH, as a command or a mission item),
 and the answers to a ground station's home commands (``firmware_bridge.mavlink_home``).
 
-Home is where the rover stood at its first GPS fix, as ArduPilot sets home: the fix that initialised the
-estimator (``Estimator.first_fix``: its latitude, longitude and altitude, and the same point in ENU; with
-a datum from that fix, ENU (0, 0, 0)). MAV_CMD_DO_SET_HOME moves it: to the current position (the pose
-estimate's, on the ground plane at the datum's altitude) or to a given latitude and longitude, placed as
-goals are; refused outside the geofence (home is where RTL drives) and before the rover knows where it is.
+Home is where the rover stood when its position estimate first became healthy (``PoseEstimate.healthy``:
+a datum, the heading known, position and heading tight), taken from the estimate, never from a raw fix:
+ArduPilot sets home from its EKF's position (``Rover::set_home_to_current_location``), and a raw first
+fix may be a glitch the filter goes on to throw out. The rover does not drive before the estimate is
+healthy (the start-up check), so that is where it stood. One correction while home is still unused: when
+the estimator re-anchors its position on GPS (``Estimator.last_gps_reset``: GPS disagreed with the
+estimate for ``gps_reset_after_s``) and no fix agreed with the estimate between home being taken and the
+disagreement, the estimate home came from was off by the same jump (a first fix 25 m off that started the
+filter there), and home moves by it. A re-anchoring after fixes had agreed is later drift, not home's:
+home stays. Once used, home stays as it was told and driven to; only DO_SET_HOME moves it.
+
+MAV_CMD_DO_SET_HOME moves it: to the current position (the pose estimate's) or to a given latitude and
+longitude, placed as goals are; refused outside the geofence (home is where RTL drives) and before the
+rover knows where it is. Home is on the ground plane at the datum's altitude (ENU z 0), as goals are.
 
 Every home is a ``home`` event on ``safety/events``, so a trial's recording says where home was whenever
-home mattered in it. The first-fix home is taken, and its event published, when home is first needed (a
-ground station asks for it, moves it, or sends the rover there; a mission comes to a return to launch), not
-at the fix: a trial that never uses home records what it always did (the default trial's recording stays
-byte-identical), and its first accepted fix on ``sensors/gps`` is its home all the same.
+home mattered in it. Where home will be is followed every tick (``observe``, which records nothing); it
+is made home, and its event published, when home is first needed (a ground station asks for it, moves it,
+or sends the rover there; a mission comes to a return to launch): a trial that never uses home records
+what it always did (the default trial's recording stays byte-identical).
 """
 
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple
 
 from pymavlink.dialects.v20 import common as mavlink2
 
-from estimator.estimator import Estimator
+from estimator.estimator import Estimator, GpsReset
 from estimator.geodesy import to_geodetic
 from firmware_bridge.mavlink_home import (
     Home,
@@ -40,6 +50,16 @@ from navigator.safety import EventSink
 _log = logging.getLogger(__name__)
 
 _NS_PER_US = 1000
+_NO_HOME_YET = "no home yet (the position estimate has not been healthy yet)"
+
+
+class _Spot(NamedTuple):
+    """Where home will be, until it is first needed: ENU metres, the estimate's time, and how it came."""
+
+    t_ns: int
+    x: float
+    y: float
+    how: str
 
 
 class HomeKeeper:
@@ -61,27 +81,61 @@ class HomeKeeper:
         self._outside_fence = outside_fence
         self._event = event
         self._home: Home | None = None
+        self._spot: _Spot | None = None  # where home will be, while it is unused
+        self._reset_seen: GpsReset | None = None  # the estimator's last re-anchoring, as last looked at
+
+    def observe(self) -> None:
+        """Every tick, while home is unused: the estimate's position at its first healthy tick becomes
+        where home will be, moved by a re-anchoring on GPS that shows it was off (the module's note).
+        Records nothing."""
+        if self._home is not None:
+            return
+        estimator = self._estimator
+        reset = estimator.last_gps_reset
+        spot = self._spot
+        if spot is None:
+            pose = estimator.pose()
+            if pose is None or not pose.healthy or estimator.datum is None:
+                return
+            how = f"the rover's position estimate at {seconds(pose.t_ns):.2f} s, its first healthy one"
+            self._spot, self._reset_seen = _Spot(pose.t_ns, pose.x, pose.y, how), reset
+            return
+        if reset is None or reset is self._reset_seen:
+            return
+        self._reset_seen = reset
+        agreed = reset.agreed_until_ns
+        if agreed is None or agreed > spot.t_ns:
+            return  # a fix agreed with the estimate after home was taken: later drift, not home's error
+        jump = math.hypot(reset.east_m, reset.north_m)
+        self._spot = _Spot(
+            spot.t_ns,
+            spot.x + reset.east_m,
+            spot.y + reset.north_m,
+            f"{spot.how}, moved {jump:.2f} m by the estimator's re-anchoring on GPS at "
+            f"{seconds(reset.t_ns):.2f} s",
+        )
 
     def home(self) -> Home | None:
-        """Home, or None before the first GPS fix (and no DO_SET_HOME). The first-fix home is taken here,
-        on first need, with its ``home`` event (see the module's note)."""
+        """Home, or None before the position estimate has been healthy (and no DO_SET_HOME). The
+        estimate's home is made home here, on first need, with its ``home`` event (the module's note)."""
         home = self._home
         if home is not None:
             return home
-        fix = self._estimator.first_fix
-        if fix is None:
+        self.observe()
+        spot, datum = self._spot, self._estimator.datum
+        if spot is None or datum is None:
             return None
-        how = f"where the rover stood at its first GPS fix ({seconds(fix.t_ns):.2f} s)"
-        home = Home(fix.lat_deg, fix.lon_deg, fix.alt_m, fix.east_m, fix.north_m, fix.up_m, how)
+        lat, lon, alt = to_geodetic(datum, spot.x, spot.y, 0.0)
+        home = Home(lat, lon, alt, spot.x, spot.y, 0.0, spot.how)
         self._set(home)
         return home
 
     def return_target(self) -> Home | HomeRefusal:
         """Where a return to launch drives (home), or why it cannot: no home yet, home outside the
-        geofence (one set at the first fix may be: DO_SET_HOME refuses any other there)."""
+        geofence (the rover's own start may be: DO_SET_HOME refuses any other there)."""
         home = self.home()
         if home is None:
-            return HomeRefusal(mavlink2.MAV_RESULT_TEMPORARILY_REJECTED, "no home yet (no GPS fix)")
+            return HomeRefusal(mavlink2.MAV_RESULT_TEMPORARILY_REJECTED, _NO_HOME_YET)
         if self._outside_fence(home.x, home.y):
             return HomeRefusal(
                 mavlink2.MAV_RESULT_DENIED, f"home ({home.x:.2f}, {home.y:.2f}) is outside the geofence"
@@ -101,11 +155,8 @@ class HomeKeeper:
             answer = self.return_target()
         elif isinstance(verdict, HomeAsked):
             home = self.home()
-            answer = (
-                home
-                if home is not None
-                else HomeRefusal(mavlink2.MAV_RESULT_TEMPORARILY_REJECTED, "no home yet (no GPS fix)")
-            )
+            refusal = HomeRefusal(mavlink2.MAV_RESULT_TEMPORARILY_REJECTED, _NO_HOME_YET)
+            answer = home if home is not None else refusal
         else:
             answer = self._judge_set(verdict, msg)
         sysid, compid = msg.get_srcSystem(), msg.get_srcComponent()

@@ -188,7 +188,9 @@ class MissionDriver:
     def end_tick(self, arrived: bool) -> None:
         """After a tick's records (as the trial runner once set the next goal between ticks): ``arrived``,
         guidance reports ARRIVED, takes a mission being driven on to its next waypoint; then the server's
-        own tick (MISSION_CURRENT, transfer timeouts)."""
+        own tick (MISSION_CURRENT, transfer timeouts). Home follows the estimate until it is used
+        (``HomeKeeper.observe``)."""
+        self.home.observe()
         mission = self.mission
         hold = self._hold
         if hold is not None and (mission.state is not MissionState.ACTIVE or hold[0] != mission.current):
@@ -366,8 +368,8 @@ class MissionDriver:
 
     def _return_home(self, *, given: bool) -> bool:
         """The mission came to a return to launch: home as it is now becomes the goal (a
-        ``return_to_launch`` event). With no home to drive to (no GPS fix yet, home outside the geofence)
-        the mission ends there, COMPLETE, and the rover holds (a warning event saying why, then
+        ``return_to_launch`` event). With no home to drive to (no healthy estimate yet, home outside the
+        geofence) the mission ends there, COMPLETE, and the rover holds (a warning event saying why, then
         ``mission_complete``). True either way: the item was dealt with."""
         mission = self.mission
         seq, count = mission.current, mission.count

@@ -140,7 +140,8 @@ def test_a_mission_ending_in_return_to_launch_brings_the_rover_home(tmp_path: Pa
     assert result.end_reason == "arrived", result
     assert [m.seq for m in station.station.of_type("MISSION_ITEM_REACHED")] == [0, 1]
     events = [m.message for m in read_messages(result.mcap_path, topics=[topics.SAFETY_EVENTS])]
-    # The recording says where home was: where the rover stood at its first fix (the start, within GPS noise).
+    # The recording says where home was: the first healthy estimate of where it stood (the start, within GPS
+    # noise).
     (home,) = [e["detail"] for e in events if e["kind"] == "home"]
     x, y = map(float, home.split("ENU (")[1].split(",")[:2])
     assert math.dist((x, y), scenario.start_xy) < 1.0, home

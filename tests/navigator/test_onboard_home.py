@@ -1,7 +1,8 @@
-"""Home in the onboard stack, on the lockstep rig with a ground station on its second link: where the first
-fix put the rover, told as HOME_POSITION; moved by DO_SET_HOME (current or given, refused outside the
-geofence); MAV_CMD_NAV_RETURN_TO_LAUNCH as a command (a single goal home) and as a mission item (the
-mission ends at home); the loiter items (a timed hold, and one the operator ends)."""
+"""Home in the onboard stack, on the lockstep rig with a ground station on its second link: where the
+first healthy estimate put the rover, told as HOME_POSITION; moved by DO_SET_HOME (current or given,
+refused outside the geofence); MAV_CMD_NAV_RETURN_TO_LAUNCH as a command (a single goal home) and as a
+mission item (home, then on to the next item); the loiter items (a timed hold, and one the operator
+ends)."""
 
 from __future__ import annotations
 
@@ -47,20 +48,26 @@ def geodetic(x: float, y: float) -> tuple[float, float]:
     return lat, lon
 
 
-def test_home_is_where_the_first_fix_put_the_rover(station: Station) -> None:
+def home_xy(station: Station) -> tuple[float, float]:
+    """Home in ENU metres, as HOME_POSITION tells it (NED)."""
+    _, (home,) = answers(station.send(GET_HOME))
+    return home.y, home.x
+
+
+def test_home_is_the_first_healthy_estimate_of_where_the_rover_stood(station: Station) -> None:
     rig = station.rig
     rig.run_for(1.0)
     assert station.details("home") == []  # not needed yet: a trial that never uses home records none
     ack, (home,) = answers(station.send(GET_HOME))
     assert (ack.command, ack.result) == (mavlink2.MAV_CMD_REQUEST_MESSAGE, mavlink2.MAV_RESULT_ACCEPTED)
-    fix = rig.stack.estimator.first_fix
-    assert fix is not None
-    assert (home.latitude, home.longitude) == (round(fix.lat_deg * 1e7), round(fix.lon_deg * 1e7))
-    assert home.altitude == round(fix.alt_m * 1000)
-    assert (home.x, home.y) == pytest.approx((fix.north_m, fix.east_m), abs=1e-4)  # NED
-    assert math.hypot(fix.east_m - 3.0, fix.north_m - 3.0) < 1.5  # the rig's start, within GPS noise
     (detail,) = station.details("home")
-    assert detail.startswith("home at (") and "where the rover stood at its first GPS fix" in detail
+    assert detail.startswith("home at (") and "the rover's position estimate at " in detail, detail
+    assert detail.endswith("s, its first healthy one")
+    x, y = home.y, home.x  # NED
+    assert math.hypot(x - 3.0, y - 3.0) < 1.5  # the rig's start (it has not moved), within GPS noise
+    lat, lon = geodetic(x, y)
+    assert (home.latitude, home.longitude) == (round(lat * 1e7), round(lon * 1e7))
+    assert (home.z, home.altitude) == (0.0, round(DATUM[2] * 1000))  # on the ground plane, at the datum
     # The deprecated command is answered the same way, and home is announced once.
     ack, (again,) = answers(station.send(command_long(mavlink2.MAV_CMD_GET_HOME_POSITION)))
     assert ack.result == mavlink2.MAV_RESULT_ACCEPTED and again.latitude == home.latitude
@@ -129,13 +136,10 @@ def test_return_to_launch_pauses_the_mission_and_drives_home(station: Station) -
     ack, _ = answers(station.send(RTL))
     assert (ack.command, ack.result) == (mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH, mavlink2.MAV_RESULT_ACCEPTED)
     assert mission.state is MissionState.PAUSED
-    fix = rig.stack.estimator.first_fix
-    assert fix is not None
-    assert station.details("return_to_launch") == [
-        f"return to launch by 255/190: home ({fix.east_m:.2f}, {fix.north_m:.2f})"
-    ]
+    x, y = home_xy(station)
+    assert station.details("return_to_launch") == [f"return to launch by 255/190: home ({x:.2f}, {y:.2f})"]
     rig.run_until(lambda: rig.stack.mode is Mode.ARRIVED, 30.0, "home")
-    assert math.hypot(rig.body.x - fix.east_m, rig.body.y - fix.north_m) < 0.6
+    assert math.hypot(rig.body.x - x, rig.body.y - y) < 0.6
     assert mission.state is MissionState.PAUSED and mission.current == 1  # set current drives it again
 
 
@@ -150,13 +154,10 @@ def test_a_mission_ending_in_return_to_launch_ends_at_home(station: Station) -> 
     station.start()
     mission = rig.stack.mission
     rig.run_until(lambda: mission.state is MissionState.COMPLETE, 60.0, "the mission's end")
-    fix = rig.stack.estimator.first_fix
-    assert fix is not None
-    assert math.hypot(rig.body.x - fix.east_m, rig.body.y - fix.north_m) < 0.6
     assert mission.current == 1 and rig.stack.mode is Mode.ARRIVED
-    assert station.details("return_to_launch") == [
-        f"item 1 of 2: return to launch: home ({fix.east_m:.2f}, {fix.north_m:.2f})"
-    ]
+    x, y = home_xy(station)
+    assert math.hypot(rig.body.x - x, rig.body.y - y) < 0.6
+    assert station.details("return_to_launch") == [f"item 1 of 2: return to launch: home ({x:.2f}, {y:.2f})"]
     assert station.details("mission_item_reached")[-1].startswith("item 1 of 2 (return to launch) home (")
     assert station.details("mission_complete") == [
         "mission complete: returned to launch at item 1: the rover holds at home"
