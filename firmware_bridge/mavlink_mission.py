@@ -326,6 +326,11 @@ class MissionServer:
     def transfer_under_way(self) -> bool:
         return self._transfer is not None
 
+    @property
+    def followers(self) -> tuple[MissionLink, ...]:
+        """The links a mission partner has talked to us on (MISSION_CURRENT goes there), in that order."""
+        return tuple(self._links)
+
     # --- from the rover -----------------------------------------------------------------------------
     def replace(self, positions: Sequence[tuple[float, float]]) -> None:
         """The rover started a mission of its own (a scenario's goals): ``positions`` (latitude, longitude

@@ -171,6 +171,7 @@ class OnboardStack:
                 config.safety.stuck_min_command_mps,
                 config.safety.wheel_stall_min_command_mps,
             ),
+            autopilot=mavlink,
         )
         self._last_heartbeat_sent_ns: int | None = None
         self._start_up = StartUpChecks(self._event, start_up_report)

@@ -16,18 +16,21 @@ MAV_CMD_DO_SET_HOME moves it: to the current position (the pose estimate's) or t
 longitude, placed as goals are; refused outside the geofence (home is where RTL drives) and before the
 rover knows where it is. Home is on the ground plane at the datum's altitude (ENU z 0), as goals are.
 
-Every home is a ``home`` event on ``safety/events``, so a trial's recording says where home was whenever
-home mattered in it. Where home will be is followed every tick (``observe``, which records nothing); it
-is made home, and its event published, when home is first needed (a ground station asks for it, moves it,
-or sends the rover there; a mission comes to a return to launch): a trial that never uses home records
-what it always did (the default trial's recording stays byte-identical).
+Every home is a ``home`` event on ``safety/events``, so a trial's recording says where home was whenever home
+mattered in it, and a HOME_POSITION to the ground stations that follow the mission (``listeners``; never the
+autopilot's link, whose home is its own), as ArduPilot sends HOME_POSITION when home is set or moved: a ground
+station that did not ask learns where home is now. The one that asked or moved it has its answer on its own
+link, once. Where home will be is followed every tick (``observe``, which records nothing); it is made home,
+and its event published, when home is first needed (a ground station asks for it, moves it, or sends the rover
+there; a mission comes to a return to launch): a trial that never uses home records what it always did (the
+default trial's recording stays byte-identical).
 """
 
 from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any, NamedTuple
 
 from pymavlink.dialects.v20 import common as mavlink2
@@ -65,7 +68,8 @@ class _Spot(NamedTuple):
 class HomeKeeper:
     """Home and the home commands. ``placed`` turns a latitude and longitude into ENU metres the way
     goals are placed (None before the datum is known); ``outside_fence`` says whether an ENU point is
-    outside ``[safety] fence``; ``event`` publishes a ``safety/events`` message."""
+    outside ``[safety] fence``; ``event`` publishes a ``safety/events`` message; ``listeners``: the links
+    each new home is told on (none by default)."""
 
     def __init__(
         self,
@@ -74,8 +78,10 @@ class HomeKeeper:
         placed: Callable[[float, float], tuple[float, float] | None],
         outside_fence: Callable[[float, float], bool],
         event: EventSink,
+        listeners: Callable[[], Sequence[MissionLink]] = tuple,
     ) -> None:
         self._clock = clock
+        self._listeners = listeners
         self._estimator = estimator
         self._placed = placed
         self._outside_fence = outside_fence
@@ -115,9 +121,10 @@ class HomeKeeper:
             f"{seconds(reset.t_ns):.2f} s",
         )
 
-    def home(self) -> Home | None:
+    def home(self, asked_on: MissionLink | None = None) -> Home | None:
         """Home, or None before the position estimate has been healthy (and no DO_SET_HOME). The
-        estimate's home is made home here, on first need, with its ``home`` event (the module's note)."""
+        estimate's home is made home here, on first need, with its ``home`` event and HOME_POSITION to the
+        listeners but ``asked_on``, where the caller answers with it (the module's note)."""
         home = self._home
         if home is not None:
             return home
@@ -127,7 +134,7 @@ class HomeKeeper:
             return None
         lat, lon, alt = to_geodetic(datum, spot.x, spot.y, 0.0)
         home = Home(lat, lon, alt, spot.x, spot.y, 0.0, spot.how)
-        self._set(home)
+        self._set(home, asked_on=asked_on)
         return home
 
     def return_target(self) -> Home | HomeRefusal:
@@ -154,7 +161,7 @@ class HomeKeeper:
         elif isinstance(verdict, ReturnRequested):
             answer = self.return_target()
         elif isinstance(verdict, HomeAsked):
-            home = self.home()
+            home = self.home(asked_on=link)
             refusal = HomeRefusal(mavlink2.MAV_RESULT_TEMPORARILY_REJECTED, _NO_HOME_YET)
             answer = home if home is not None else refusal
         else:
@@ -174,7 +181,7 @@ class HomeKeeper:
             )
         )
         if isinstance(verdict, SetHomeRequest):
-            self._set(answer, f" by {sysid}/{compid}")
+            self._set(answer, f" by {sysid}/{compid}", asked_on=link)
         if not isinstance(verdict, ReturnRequested):
             link.send(home_position_message(answer, self._clock.now_ns() // _NS_PER_US))
             return None
@@ -209,7 +216,8 @@ class HomeKeeper:
             )
         return Home(lat, lon, alt, x, y, 0.0, how)
 
-    def _set(self, home: Home, by: str = "") -> None:
+    def _set(self, home: Home, by: str = "", *, asked_on: MissionLink | None = None) -> None:
+        """Home is ``home`` now: its ``home`` event, and HOME_POSITION to each listener but ``asked_on``."""
         moved = self._home is not None
         self._home = home
         verb = "home moved to" if moved else "home at"
@@ -219,3 +227,8 @@ class HomeKeeper:
             f"{verb} ({home.lat_deg:.7f}, {home.lon_deg:.7f}, {home.alt_m:.2f} m), ENU ({home.x:.2f}, "
             f"{home.y:.2f}, {home.z:.2f}): {home.how}{by}",
         )
+        told = None
+        for listener in self._listeners():
+            if listener is not asked_on:
+                told = told or home_position_message(home, self._clock.now_ns() // _NS_PER_US)
+                listener.send(told)

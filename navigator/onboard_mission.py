@@ -44,6 +44,7 @@ from firmware_bridge.mavlink_mission import (
     MissionAccepted,
     MissionCleared,
     MissionItemRefused,
+    MissionLink,
     MissionMessage,
     MissionServer,
     MissionStep,
@@ -67,7 +68,8 @@ class MissionDriver:
     given in latitude and longitude; ``new_goal`` (the safety supervisor's) clears the stuck and stall
     latches on a goal given from outside; ``fence``: ``[safety] fence`` (empty: none), outside which goals
     and waypoints are refused; ``event`` publishes a ``safety/events`` message; ``slowest_speed_mps``: the
-    lowest DO_CHANGE_SPEED an upload may set (``firmware_bridge.mission_speed.slowest_mission_speed``).
+    lowest DO_CHANGE_SPEED an upload may set (``firmware_bridge.mission_speed.slowest_mission_speed``);
+    ``autopilot``: the autopilot's link, never told where our home is (its home is its own).
     """
 
     def __init__(
@@ -79,6 +81,7 @@ class MissionDriver:
         fence: Polygon,
         event: EventSink,
         slowest_speed_mps: float = 0.0,
+        autopilot: MavlinkLink | None = None,
     ) -> None:
         self._estimator = estimator
         self._guidance = guidance
@@ -88,7 +91,10 @@ class MissionDriver:
         self._clock = clock
         self.mission = Mission()
         self.server = MissionServer(clock, self._place_waypoint, slowest_speed_mps=slowest_speed_mps)
-        self.home = HomeKeeper(clock, estimator, self._placed, self._outside_fence, event)
+        self._autopilot = autopilot
+        self.home = HomeKeeper(
+            clock, estimator, self._placed, self._outside_fence, event, listeners=self._home_listeners
+        )
         # While the rover waits at a waypoint with a hold time: (that item, when it goes on in clock ns; None:
         # never, a loiter without end). Honoured only while that item is current in a mission driven; any
         # new goal ends it (_drive_to).
@@ -237,6 +243,11 @@ class MissionDriver:
         if given:
             self._new_goal()
         self._event("goal", "info", f"new goal ({x:.2f}, {y:.2f})")
+
+    def _home_listeners(self) -> list[MissionLink]:
+        """The links a new home is told on: the ground stations following the mission, not the autopilot."""
+        autopilot = self._autopilot
+        return [link for link in self.server.followers if link is not autopilot]
 
     def _outside_fence(self, x: float, y: float) -> bool:
         """Whether (x, y), local ENU metres, is outside ``[safety] fence`` (none: never)."""

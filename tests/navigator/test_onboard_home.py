@@ -13,9 +13,10 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
 from estimator.geodesy import Datum, to_geodetic
+from firmware_bridge.mavlink_mission import MissionMessage
 from navigator.mission import MissionState
 from navigator.route_guidance import Mode
-from tests.firmware_bridge.ground_station import ROVER, command_long, loiter, return_to_launch
+from tests.firmware_bridge.ground_station import MISSION, ROVER, command_long, loiter, return_to_launch
 from tests.navigator.test_onboard_mission import (
     PLAN,
     Station,
@@ -49,9 +50,10 @@ def geodetic(x: float, y: float) -> tuple[float, float]:
 
 
 def home_xy(station: Station) -> tuple[float, float]:
-    """Home in ENU metres, as HOME_POSITION tells it (NED)."""
-    _, (home,) = answers(station.send(GET_HOME))
-    return home.y, home.x
+    """Home in ENU metres, as the HOME_POSITION answering a request tells it (NED; the last one: a ground
+    station following the mission was also told when home was first used)."""
+    _, homes = answers(station.send(GET_HOME))
+    return homes[-1].y, homes[-1].x
 
 
 def test_home_is_the_first_healthy_estimate_of_where_the_rover_stood(station: Station) -> None:
@@ -225,3 +227,34 @@ def test_a_home_request_for_another_component_is_not_ours(station: Station) -> N
         command_long(mavlink2.MAV_CMD_REQUEST_MESSAGE, HOME_POSITION, target=(ROVER[0], 1))
     )
     assert [m for m in received if m.get_type() in ("COMMAND_ACK", "HOME_POSITION")] == []
+
+
+def test_a_new_home_is_told_to_the_ground_stations_following_the_mission_not_the_autopilot(
+    station: Station, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    rig = station.rig
+    stack = rig.stack
+    assert station.upload(plan_items()).type == mavlink2.MAV_MISSION_ACCEPTED  # it follows the mission now
+    autopilot, driver = stack._mavlink, stack._mission_driver
+    # A mission partner on the autopilot's link as well (a ground station routed through the autopilot).
+    request_list = mavlink2.MAVLink_mission_request_list_message(*ROVER, MISSION)
+    driver.take_message(autopilot, MissionMessage(request_list, rig.now_ns))
+    to_autopilot: list[Any] = []
+    monkeypatch.setattr(autopilot, "send", to_autopilot.append)
+    # Moved by the ground station: its answer once on its own link; the autopilot's link is never told.
+    ack, (_,) = answers(station.send(command_long(mavlink2.MAV_CMD_DO_SET_HOME, 1.0)))
+    assert ack.result == mavlink2.MAV_RESULT_ACCEPTED
+    assert [m.get_type() for m in to_autopilot if m.get_type() == "HOME_POSITION"] == []
+    # Moved from elsewhere (the partner behind the autopilot): the ground station is told unasked.
+    lat, lon = geodetic(10.0, 12.0)
+    given = mavlink2.MAVLink_command_int_message(
+        *ROVER, mavlink2.MAV_FRAME_GLOBAL, mavlink2.MAV_CMD_DO_SET_HOME, 0, 0, 0.0, 0, 0, 0,
+        round(lat * 1e7), round(lon * 1e7), 0.0,
+    )  # fmt: skip
+    driver.take_message(autopilot, MissionMessage(given, rig.now_ns))
+    assert [m.get_type() for m in to_autopilot] == ["COMMAND_ACK", "HOME_POSITION"]  # its answer, once
+    rig.control_tick()
+    told = [m for m in station.gcs.receive() if m.get_type() in ("COMMAND_ACK", "HOME_POSITION")]
+    assert [m.get_type() for m in told] == ["HOME_POSITION"]
+    assert (told[0].y, told[0].x) == pytest.approx((10.0, 12.0), abs=0.01)  # NED
+    assert station.details("home")[-1].startswith("home moved to (")
