@@ -10,8 +10,16 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
 from navigator.mission import MissionState
-from tests.firmware_bridge.ground_station import change_speed, return_to_launch
-from tests.navigator.test_onboard_mission import PLAN, Station, plan_items, set_current, state_records
+from tests.firmware_bridge.ground_station import change_speed, command_long, return_to_launch
+from tests.navigator.test_onboard_mission import (
+    PLAN,
+    Station,
+    _station_without_datum,
+    plan_items,
+    set_current,
+    state_records,
+)
+from tests.runtime.rig import rig_config
 
 SLOW_MPS = 0.5
 
@@ -91,3 +99,70 @@ def test_set_current_past_a_return_to_launch_leaves_the_speed_before_it_behind(s
     assert station.details("return_to_launch") == []  # jumped past, not driven
     goal = stack.goal
     assert goal is not None and (goal.x, goal.y) == pytest.approx(PLAN[1], abs=0.01)
+
+
+def test_a_return_to_launch_leg_paused_by_a_goal_and_resumed_drives_home_then_goes_on(
+    station: Station,
+) -> None:
+    rig = station.rig
+    stack = rig.stack
+    (first,) = plan_items(PLAN[:1])
+    assert (
+        station.upload([first, return_to_launch(1), second_waypoint(2)]).type == mavlink2.MAV_MISSION_ACCEPTED
+    )
+    station.start()
+    mission = stack.mission
+    rig.run_until(lambda: mission.current == 1, 60.0, "the way home")
+    home = stack.goal
+    assert home is not None
+    stack.set_goal(12.0, 12.0)
+    assert (mission.state, mission.current) == (MissionState.PAUSED, 1)
+    assert station.details("mission_paused")[-1] == "a single goal replaced the mission at item 1 of 3"
+    rig.run_for(3.0)  # on the way to the single goal: reaching it would not advance the mission
+    set_current(station, 1)
+    assert (mission.state, mission.current) == (MissionState.ACTIVE, 1)
+    resumed = stack.goal
+    assert resumed is not None and (resumed.x, resumed.y) == (home.x, home.y)  # home again, as it is
+    assert len(station.details("return_to_launch")) == 2
+    rig.run_until(lambda: mission.current == 2, 60.0, "home, then the item after it")
+    assert station.details("mission_item_reached")[-1].startswith("item 1 of 3 (return to launch) home (")
+    rig.run_until(lambda: mission.state is MissionState.COMPLETE, 60.0, "the mission's end")
+
+
+def test_a_return_to_launch_with_no_home_ends_the_mission_and_the_rover_holds() -> None:
+    station = _station_without_datum()  # no fix, no estimate: no home
+    try:
+        # A return to launch needs no placing: the upload is taken without a datum.
+        assert station.upload([return_to_launch(0)]).type == mavlink2.MAV_MISSION_ACCEPTED
+        station.start()
+        mission = station.rig.stack.mission
+        assert (mission.state, mission.current) == (MissionState.COMPLETE, 0)
+        assert station.details("return_to_launch") == [
+            "item 0 of 1: no home yet (the position estimate has not been healthy yet): the rover holds"
+        ]
+        assert station.details("mission_complete") == [
+            "mission complete: no home to return to at item 0: the rover holds"
+        ]
+        assert station.rig.stack.goal is None and station.details("home") == []
+    finally:
+        station.close()
+
+
+def test_a_return_to_launch_command_is_denied_when_home_is_outside_the_fence() -> None:
+    # The fence leaves out the rig's start (3, 3): home, where the rover stood, is outside it.
+    station = Station(config=rig_config(fence=((5.0, 5.0), (19.0, 5.0), (19.0, 19.0), (5.0, 19.0))))
+    try:
+        station.rig.run_for(1.0)
+        received = station.send(command_long(mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH))
+        (ack,) = [m for m in received if m.get_type() == "COMMAND_ACK"]
+        assert (ack.command, ack.result) == (
+            mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH,
+            mavlink2.MAV_RESULT_DENIED,
+        )
+        (text,) = [m.text for m in received if m.get_type() == "STATUSTEXT"]
+        assert text.startswith("refused: home (") and text.endswith(") is outside the geofence"), text
+        ground_link = station.rig.stack._ground_station
+        assert ground_link is not None and ground_link.counters.commands_rejected == 1
+        assert station.details("return_to_launch") == []  # not driven
+    finally:
+        station.close()
