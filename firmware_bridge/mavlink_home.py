@@ -126,15 +126,19 @@ def judge_home_command(msg: Any) -> HomeCommand | HomeRefusal:
         if msg.frame not in GLOBAL_FRAMES:
             return HomeRefusal(mavlink2.MAV_RESULT_DENIED, f"DO_SET_HOME frame {msg.frame} is not global")
         lat, lon = msg.x * _DEGREES_E7, msg.y * _DEGREES_E7
+        lat_field, lon_field = "x", "y"  # COMMAND_INT carries them in x and y, degrees x 1e7
     else:
         lat, lon = msg.param5, msg.param6
+        lat_field, lon_field = "param5", "param6"
     if lat == 0.0 and lon == 0.0:
         return SetHomeRequest(current=True)  # ArduPilot's reading of an empty position
     if not (math.isfinite(lat) and -90.0 <= lat <= 90.0):
-        return HomeRefusal(mavlink2.MAV_RESULT_DENIED, f"DO_SET_HOME latitude (param5) {lat} is out of range")
+        return HomeRefusal(
+            mavlink2.MAV_RESULT_DENIED, f"DO_SET_HOME latitude ({lat_field}) {lat} is out of range"
+        )
     if not (math.isfinite(lon) and -180.0 <= lon <= 180.0):
         return HomeRefusal(
-            mavlink2.MAV_RESULT_DENIED, f"DO_SET_HOME longitude (param6) {lon} is out of range"
+            mavlink2.MAV_RESULT_DENIED, f"DO_SET_HOME longitude ({lon_field}) {lon} is out of range"
         )
     return SetHomeRequest(False, float(lat), float(lon))
 

@@ -28,7 +28,8 @@ logged naming what was wrong):
   past it). Its altitude, acceptance radius, yaw and ``autocontinue`` are kept for a download and not used.
   A loiter is a waypoint with a hold (``firmware_bridge.mission_hold``): LOITER_TIME's param1 is its time
   (judged as a hold time, but NaN refused: ``MAV_MISSION_INVALID_PARAM1``), LOITER_UNLIM holds until the
-  operator moves the mission on; radius and yaw are kept, not used. A return to launch has no position
+  operator moves the mission on; the other params (radius; LOITER_TIME's heading required and Xtrack,
+  LOITER_UNLIM's yaw) are kept, not used. A return to launch has no position
   and no parameters (any frame is taken, everything kept for a download): the rover drives to home as it
   is when the mission comes to it (``firmware_bridge.mavlink_home.ReturnToLaunch``); reached, the mission
   goes on to its next item (complete when it was the last), as ArduPilot Rover's Auto mode does.

@@ -14,8 +14,9 @@ The loiter items are waypoints with a hold, the same mechanism: MAV_CMD_NAV_LOIT
 loiter time, judged as a hold time except that NaN is refused (the time is what the item is for; a sender
 that leaves it unset means a plain waypoint, and should send one); MAV_CMD_NAV_LOITER_UNLIM holds for ever
 (``HOLD_UNLIMITED``): the mission goes on only when the operator moves it (a current item set, a start, a
-clear, a new goal or mission). The rover stops at the point; the loiter radius and yaw (param3, param4) are
-kept for a download, not used.
+clear, a new goal or mission). The rover stops at the point; the rest is kept for a download, not used:
+the loiter radius (param3) of both, LOITER_TIME's heading required (param2) and Xtrack location (param4),
+LOITER_UNLIM's yaw (param4).
 """
 
 from __future__ import annotations

@@ -87,6 +87,9 @@ def test_other_commands_are_not_home_commands() -> None:
             "DO_SET_HOME longitude (param6) inf is out of range",
         ),
         (set_home_int(0.0, 47.0, 8.0, mavlink2.MAV_FRAME_LOCAL_NED), "DO_SET_HOME frame 1 is not global"),
+        # COMMAND_INT carries the position in x and y: the reason names those fields.
+        (set_home_int(0.0, 91.0, 8.0), "DO_SET_HOME latitude (x) 91.0 is out of range"),
+        (set_home_int(0.0, 47.0, 181.0), "DO_SET_HOME longitude (y) 181.0 is out of range"),
     ],
 )
 def test_a_bad_set_home_is_denied_naming_the_param(msg: Any, reason: str) -> None:
