@@ -164,6 +164,17 @@ class MissionMessage(NamedTuple):
     t_ns: int
 
 
+def refuse_command(link: MissionLink, msg: Any, result: int, reason: str) -> None:
+    """A COMMAND_LONG / COMMAND_INT handed to the onboard stack (a mission start, a home command) refused
+    as the link refuses the other commands: COMMAND_ACK with ``result`` to its sender, counted in
+    ``commands_rejected``, logged at WARNING with ``reason``, and a STATUSTEXT ``refused: <reason>``."""
+    sysid, compid = msg.get_srcSystem(), msg.get_srcComponent()
+    link.send(mavlink2.MAVLink_command_ack_message(msg.command, result, 0, 0, sysid, compid))
+    link.counters.commands_rejected += 1
+    logger.warning("refused %s %d from %d/%d: %s", msg.get_type(), msg.command, sysid, compid, reason)
+    link.send_status_text(f"refused: {reason}", mavlink2.MAV_SEVERITY_WARNING)
+
+
 def mission_addressed(msg: Any, system_id: int, component_id: int) -> bool:
     """Our system (or broadcast) and our component by its id (see the module's note)."""
     return msg.target_system in (0, system_id) and msg.target_component == component_id
@@ -580,12 +591,10 @@ class MissionServer:
             verdict = Verdict(
                 None, mavlink2.MAV_RESULT_UNSUPPORTED, f"{name} is not the mission server's to answer"
             )
-        link.send(mavlink2.MAVLink_command_ack_message(msg.command, verdict.result, 0, 0, sysid, compid))
         if verdict.start is None:
-            link.counters.commands_rejected += 1
-            logger.warning("refused %s from %d/%d: %s", msg.get_type(), sysid, compid, verdict.reason)
-            link.send_status_text(f"refused: {verdict.reason}", mavlink2.MAV_SEVERITY_WARNING)
+            refuse_command(link, msg, verdict.result, verdict.reason)
             return None
+        link.send(mavlink2.MAVLink_command_ack_message(msg.command, verdict.result, 0, 0, sysid, compid))
         return verdict.start
 
     # --- internals --------------------------------------------------------------------------------

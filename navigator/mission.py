@@ -24,19 +24,20 @@ from firmware_bridge.mission_speed import SpeedChange
 from firmware_bridge.mission_state import MissionState
 from navigator.errors import ParameterError
 
-__all__ = ["Leg", "Mission", "MissionItem", "MissionState", "ReturnToLaunch", "SpeedChange", "Waypoint"]
+__all__ = ["DrivenItem", "Leg", "Mission", "MissionState", "ReturnToLaunch", "SpeedChange", "Waypoint"]
 
 
 class Waypoint(NamedTuple):
-    """Where to drive (local ENU metres), and how long to wait there before the next item (s; infinite:
-    until the operator moves the mission on, a loiter without end)."""
+    """Where to drive (local ENU metres), and how long to wait there before the next item (s;
+    ``HOLD_UNLIMITED``: until the operator moves the mission on, a loiter without end)."""
 
     x: float
     y: float
     hold_s: float = 0.0
 
 
-MissionItem = Waypoint | SpeedChange | ReturnToLaunch
+# An item as the mission drives it (``firmware_bridge.mavlink_mission.MissionItem`` is one as uploaded).
+DrivenItem = Waypoint | SpeedChange | ReturnToLaunch
 # The items the rover drives to (a mission needs one).
 _DRIVEN = (Waypoint, ReturnToLaunch)
 
@@ -47,7 +48,7 @@ class Leg(NamedTuple):
     was left (the mission is COMPLETE)."""
 
     speed_changes: tuple[tuple[int, SpeedChange], ...]
-    waypoint: Waypoint | ReturnToLaunch | None
+    target: Waypoint | ReturnToLaunch | None
 
 
 class Mission:
@@ -61,7 +62,7 @@ class Mission:
     """
 
     def __init__(self) -> None:
-        self.items: tuple[MissionItem, ...] = ()
+        self.items: tuple[DrivenItem, ...] = ()
         self.current = 0
         self.state = MissionState.NONE
 
@@ -82,7 +83,7 @@ class Mission:
         ``ParameterError`` (the mission in force kept) for no waypoint or return to launch among them, a
         coordinate that is not a finite number or a hold time that is not a non-negative duration
         (infinite: a loiter without end)."""
-        loaded: list[MissionItem] = []
+        loaded: list[DrivenItem] = []
         for index, item in enumerate(items):
             if isinstance(item, SpeedChange | ReturnToLaunch):
                 loaded.append(item)

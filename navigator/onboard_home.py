@@ -28,7 +28,6 @@ default trial's recording stays byte-identical).
 
 from __future__ import annotations
 
-import logging
 import math
 from collections.abc import Callable, Sequence
 from typing import Any, NamedTuple
@@ -46,11 +45,9 @@ from firmware_bridge.mavlink_home import (
     home_position_message,
     judge_home_command,
 )
-from firmware_bridge.mavlink_mission import MissionLink
+from firmware_bridge.mavlink_mission import MissionLink, refuse_command
 from logs.clock import Clock, seconds
 from navigator.safety import EventSink
-
-_log = logging.getLogger(__name__)
 
 _NS_PER_US = 1000
 _NO_HOME_YET = "no home yet (the position estimate has not been healthy yet)"
@@ -166,15 +163,10 @@ class HomeKeeper:
             answer = home if home is not None else refusal
         else:
             answer = self._judge_set(verdict, msg)
-        sysid, compid = msg.get_srcSystem(), msg.get_srcComponent()
         if isinstance(answer, HomeRefusal):
-            link.send(mavlink2.MAVLink_command_ack_message(msg.command, answer.result, 0, 0, sysid, compid))
-            link.counters.commands_rejected += 1
-            _log.warning(
-                "refused %s %d from %d/%d: %s", msg.get_type(), msg.command, sysid, compid, answer.reason
-            )
-            link.send_status_text(f"refused: {answer.reason}", mavlink2.MAV_SEVERITY_WARNING)
+            refuse_command(link, msg, answer.result, answer.reason)
             return None
+        sysid, compid = msg.get_srcSystem(), msg.get_srcComponent()
         link.send(
             mavlink2.MAVLink_command_ack_message(
                 msg.command, mavlink2.MAV_RESULT_ACCEPTED, 0, 0, sysid, compid

@@ -31,7 +31,6 @@ the mission on (a current item set, a start, a clear, a new goal or mission).
 from __future__ import annotations
 
 import logging
-import math
 from collections.abc import Callable, Sequence
 
 from estimator.estimator import Estimator
@@ -49,10 +48,11 @@ from firmware_bridge.mavlink_mission import (
     MissionServer,
     MissionStep,
 )
+from firmware_bridge.mission_hold import HOLD_UNLIMITED
 from logs.clock import Clock, to_ns
 from navigator.errors import ParameterError
 from navigator.fence_shape import Polygon, inside_polygon
-from navigator.mission import Leg, Mission, MissionItem, MissionState, SpeedChange, Waypoint
+from navigator.mission import DrivenItem, Leg, Mission, MissionState, SpeedChange, Waypoint
 from navigator.onboard_home import HomeKeeper
 from navigator.route_guidance import RouteGuidance
 from navigator.safety import EventSink
@@ -300,7 +300,7 @@ class MissionDriver:
             return
         self._event(kind, "info", f"{what} of {self.mission.count}{verb} by {who}")
         changes = leg.speed_changes
-        if (not changes or changes[0][1].keep) and not isinstance(leg.waypoint, ReturnToLaunch):
+        if (not changes or changes[0][1].keep) and not isinstance(leg.target, ReturnToLaunch):
             # The leg does not begin by setting a speed of its own: the items before seq say the speed it
             # starts from (a "no change" first keeps that one, and says so). A return to launch drives at
             # the rover's own speed whatever came before (_return_home).
@@ -336,7 +336,7 @@ class MissionDriver:
         )
         self.server.item_reached(seq)
         hold_s = waypoint.hold_s
-        if hold_s == math.inf:
+        if hold_s == HOLD_UNLIMITED:
             self._hold = (seq, None)
             self._event(
                 "mission_hold",
@@ -369,7 +369,7 @@ class MissionDriver:
         complete (``_complete``; a return to launch with no home completes it itself, ``_return_home``)."""
         for seq, change in leg.speed_changes:
             self._change_speed(seq, change)
-        target = leg.waypoint
+        target = leg.target
         if target is None:
             return False
         if isinstance(target, ReturnToLaunch):
@@ -459,12 +459,12 @@ class MissionDriver:
         self._event("mission_speed", "info", f"mission speed limit {in_force:.2f} m/s lifted: {why}")
 
 
-def _listed(item: MissionItem) -> str:
+def _listed(item: DrivenItem) -> str:
     """A mission item as the ``mission`` event lists it (a waypoint without a hold as it always was)."""
     if isinstance(item, ReturnToLaunch):
         return "return to launch"
     if isinstance(item, Waypoint):
-        if item.hold_s == math.inf:
+        if item.hold_s == HOLD_UNLIMITED:
             held = " hold until moved on"
         else:
             held = f" hold {item.hold_s:g} s" if item.hold_s > 0.0 else ""

@@ -42,7 +42,7 @@ def test_a_single_goal_pauses_it_and_setting_an_item_drives_it_again() -> None:
     assert not mission.pause()  # once
     with pytest.raises(ParameterError):
         mission.reached()  # a paused mission does not advance on the single goal's arrival
-    assert mission.set_current(0).waypoint == Waypoint(1.0, 2.0)
+    assert mission.set_current(0).target == Waypoint(1.0, 2.0)
     assert (mission.state, mission.current) == (MissionState.ACTIVE, 0)
 
 
@@ -50,8 +50,8 @@ def test_a_complete_mission_runs_again_from_the_item_set() -> None:
     mission = Mission()
     mission.load(THREE[:1])
     mission.set_current(0)
-    assert mission.reached().waypoint is None and mission.state is MissionState.COMPLETE
-    assert mission.set_current(0).waypoint == Waypoint(1.0, 2.0) and mission.state is MissionState.ACTIVE
+    assert mission.reached().target is None and mission.state is MissionState.COMPLETE
+    assert mission.set_current(0).target == Waypoint(1.0, 2.0) and mission.state is MissionState.ACTIVE
 
 
 def test_clear_says_whether_it_was_being_driven() -> None:
