@@ -20,9 +20,18 @@ The model, per step of ``dt`` (semi-implicit Euler, no randomness):
   ``tan θ <= μ − crr``; in steady driving and turning the ground speed lags the tyres by the curve's slip,
   so a turn falls short of the wheels' kinematic yaw rate by the slip the scrub needs. The scrub is
   Coulomb friction on the yaw (it stops a turn, never reverses it).
-* No lateral slip (the body moves along its heading); horizontal displacement is ``v cos(pitch) dt``.
-* Rollover when a stability margin (``navigator.vehicle.stability_margins``, lateral acceleration ``v ω``
-  included) goes negative: latched, the rover stays stopped.
+* Sideways sliding: the body has a sideways speed (body y, left). Gravity's cross-slope part
+  ``-g cos(pitch) sin(roll)`` and the turn's centripetal need ``v ω`` ask for a sideways force; the wheels
+  hold it by Coulomb friction, at most ``sum(sqrt((μ N_i)² − F_i²))``, each wheel's friction circle less
+  what its longitudinal pull ``F_i`` uses (``hil.traction.sideways_grip``). Within that the sideways speed
+  stays exactly 0; past it the body slides, the friction opposing the sliding until it stops (never
+  reversing it). Parked across a slope steeper than ``atan μ`` it slides downhill at ``g (sin φ − μ cos φ)``.
+  Horizontal displacement is ``v cos(pitch) dt`` along the heading plus the sideways speed along the
+  body's y axis.
+* Rollover when a stability margin (``navigator.vehicle.stability_margins``, with the body's sideways
+  acceleration: the turn's ``v ω`` and any sliding's change) goes negative: latched, the rover stays
+  stopped. A body sliding sideways is tipped by the friction's pull, not gravity's, so on ground with
+  ``μ`` below ``(track / 2) / h_cg`` it slides before it tips.
 * Collision when the footprint, the oriented rectangle ``footprint_length_m`` x ``footprint_width_m`` (the
   planner's exact test, ``navigator.footprint.rectangle_contact``), would overlap an obstacle cell or reach
   past the map edge: a move that pushes it further in is refused and the rover stopped at the contact. If
@@ -142,6 +151,11 @@ class RoverDynamics:
     def speed(self) -> float:
         """Speed along the heading (m/s, along the ground)."""
         return self._state.speed
+
+    @property
+    def lateral_speed(self) -> float:
+        """Sideways speed (m/s, body y: left positive); 0.0 unless the body slides."""
+        return self._state.lateral_speed
 
     @property
     def yaw_rate(self) -> float:
@@ -275,6 +289,7 @@ class RoverDynamics:
             y=state.y,
             yaw=state.yaw,
             speed_mps=0.0,
+            lateral_speed_mps=0.0,
             yaw_rate_rps=0.0,
             roll_rad=state.roll,
             pitch_rad=state.pitch,

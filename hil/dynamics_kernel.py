@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil import traction
-from hil.traction import drive_forces, wheel_outputs
+from hil.traction import MU, drive_forces, sideways_grip, sideways_speed, wheel_outputs
 from navigator import footprint, ground_kernel, vehicle
 from navigator.footprint import BOUNDARY, CLEAR, OBSTACLE, rectangle_contact
 from navigator.ground_kernel import ground_at_kernel
@@ -56,7 +56,9 @@ FORCE_X, FORCE_Y, FORCE_Z = 23, 24, 25  # specific force in body axes
 WHEELS, SLIP, NORMALS, TRACTION, CURRENTS, DUTY = 26, 32, 38, 44, 50, 56
 # --- the map's frame (TerrainMap.origin_xy, resolution_m), set with the terrain ---
 ORIGIN_X, ORIGIN_Y, RESOLUTION = 62, 63, 64
-VALUES_SIZE = 65
+# --- more of the state: the body's sideways speed (m/s, y left) and its change over the last step (m/s^2)
+LATERAL_SPEED, SLIDE_ACCEL = 65, 66
+VALUES_SIZE = 67
 
 # --- ``surface``: the map's float layers stacked, one (rows, cols) plane each ---
 ELEVATION_LAYER, GRAD_X_LAYER, GRAD_Y_LAYER = 0, 1, 2
@@ -81,6 +83,7 @@ class BodyState(NamedTuple):
     y: float
     yaw: float
     speed: float  # m/s along the heading
+    lateral_speed: float  # m/s sideways (y left): 0.0 unless the body slides
     yaw_rate: float
     energy_j: float  # electrical energy used by the motors so far
     class_id: int  # the terrain under the rover: its class, elevation, roll and pitch at its heading
@@ -94,7 +97,7 @@ class DynamicsStep(NamedTuple):
 
     Its fields but the last come from the compiled step itself (``step_kernel``, in this order: numba boxes
     the floats, bools and tuples straight from the vector), so Python neither reads the vector back nor
-    assembles 28 fields every physics step; it adds the terrain's name and makes the tuple this class with
+    assembles 29 fields every physics step; it adds the terrain's name and makes the tuple this class with
     ``_make``. (numba could box this class itself, but its boxing looks the class up anew every call
     through a Python function: more than it saves.) A NamedTuple, not a frozen dataclass: one is built
     every physics step."""
@@ -103,6 +106,7 @@ class DynamicsStep(NamedTuple):
     y: float
     yaw: float
     speed_mps: float
+    lateral_speed_mps: float  # sideways (y left): 0.0 unless the body slides
     yaw_rate_rps: float
     roll_rad: float
     pitch_rad: float
@@ -135,14 +139,15 @@ class DynamicsStep(NamedTuple):
     terrain_name: str
 
 
-StateFields = tuple[float, float, float, float, float, float, int, float, float, float]
+StateFields = tuple[float, float, float, float, float, float, float, int, float, float, float]
 
 
 @numba.njit(cache=True)
 def state(values: Array) -> StateFields:
     """The body's state in ``values``: ``BodyState``'s fields."""
     return (
-        values[X], values[Y], values[YAW], values[SPEED], values[YAW_RATE], values[ENERGY_J],
+        values[X], values[Y], values[YAW], values[SPEED], values[LATERAL_SPEED], values[YAW_RATE],
+        values[ENERGY_J],
         int(values[CLASS]), values[ELEVATION], values[ROLL], values[PITCH],
     )  # fmt: skip
 
@@ -181,6 +186,7 @@ def _record(values: Array, terrain_class: int, battery_voltage: float) -> tuple[
         values[Y],
         values[YAW],
         values[SPEED],  # speed_mps
+        values[LATERAL_SPEED],  # lateral_speed_mps
         values[YAW_RATE],  # yaw_rate_rps
         values[ROLL],  # roll_rad
         values[PITCH],  # pitch_rad
@@ -347,21 +353,45 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
             values[DUTY : DUTY + 6],
         )
         ground = ground_table[int(values[CLASS])]
+        lateral_speed0, slide_accel0 = values[LATERAL_SPEED], values[SLIDE_ACCEL]
 
+        # The body's sideways acceleration loads the downhill / outer wheels; a sliding body's is less
+        # than the turn's v w (added only while it slides: otherwise the floats stay the ones before
+        # sliding was modelled).
+        lateral_load = speed0 * yaw_rate0
+        if slide_accel0 != 0.0:
+            lateral_load += slide_accel0
         normal_forces_into(
             body[MASS], body[CG_HEIGHT], body[TRACK], body[HALF_WHEELBASE], roll, pitch, values[ACCEL],
-            speed0 * yaw_rate0, normals,
+            lateral_load, normals,
         )  # fmt: skip
         accel, yaw_rate = drive_forces(
             wheels, normals, ground, body[VEHICLE:MOTOR], speed0, yaw_rate0, pitch, dt, traction
         )
 
         speed = speed0 + accel * dt
+        if lateral_speed0 != 0.0:
+            # In the turning body's axes a sliding velocity turns into the heading's (dv_x/dt = a_x + v_y w;
+            # dv_y/dt = a_y - v_x w below): it keeps its direction over the ground, and the wheels take the
+            # part now along the heading on the next steps, as any difference from the target speed.
+            speed += lateral_speed0 * yaw_rate0 * dt
+        # Sideways: gravity's cross-slope part (roll positive lowers the right side, so it pulls to -y) less
+        # the turn's centripetal need, against what the wheels' friction circles leave after their pull.
+        demand = -G * math.cos(pitch) * math.sin(roll) - speed * yaw_rate
+        grip = sideways_grip(normals, traction, ground[MU]) / body[MASS]
+        lateral_speed = sideways_speed(lateral_speed0, demand, grip, dt)
         mean_speed = 0.5 * (speed0 + speed)
         turn = 0.5 * (yaw_rate0 + yaw_rate) * dt
         heading = yaw + 0.5 * turn
         new_x = x + mean_speed * math.cos(pitch) * math.cos(heading) * dt
         new_y = y + mean_speed * math.cos(pitch) * math.sin(heading) * dt
+        mean_lateral = 0.5 * (lateral_speed0 + lateral_speed)
+        if mean_lateral != 0.0:
+            # The body's y axis over the ground: (-sin(roll) sin(pitch), cos(roll)) in the heading's frame.
+            across = -math.sin(roll) * math.sin(pitch)
+            along_left = math.cos(roll)
+            new_x += mean_lateral * (across * math.cos(heading) - along_left * math.sin(heading)) * dt
+            new_y += mean_lateral * (across * math.sin(heading) + along_left * math.cos(heading)) * dt
         new_yaw = wrap_angle(yaw + turn)
 
         # Contact: refuse a move that pushes the footprint further into an obstacle or over the edge. Most
@@ -379,6 +409,7 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
                 yaw_rate = 0.0
             accel = (0.0 - speed0) / dt
             speed = 0.0
+            lateral_speed = 0.0
             again = contact_kind(grid, body, new_x, new_y, new_yaw, CONTACT_TOLERANCE_M)
             kind = again if again != CLEAR else kind
         if touching:
@@ -391,6 +422,8 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
         values[X], values[Y], values[YAW] = new_x, new_y, new_yaw
         values[SPEED], values[YAW_RATE], values[ACCEL] = speed, yaw_rate, accel
         values[STEP_ACCEL] = accel
+        slide_accel = (lateral_speed - lateral_speed0) / dt
+        values[LATERAL_SPEED], values[SLIDE_ACCEL] = lateral_speed, slide_accel
         class_id, height, new_roll, new_pitch = ground_at_kernel(
             classes,
             surface[ELEVATION_LAYER],
@@ -406,7 +439,9 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
         if class_id < 0:
             return OFF_MAP, state(values), _record(values, terrain_class, battery_voltage)
         values[CLASS], values[ELEVATION], values[ROLL], values[PITCH] = class_id, height, new_roll, new_pitch
-        lateral = speed * yaw_rate
+        lateral = speed * yaw_rate  # the body's sideways acceleration: the turn's, and any sliding's change
+        if slide_accel != 0.0:
+            lateral += slide_accel
         roll_margin, pitch_margin = tilt_margins_kernel(
             body[TIP_ROLL], body[TIP_PITCH], new_roll, new_pitch, lateral
         )
@@ -415,6 +450,7 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
         values[ROLLOVER_STARTED] = 1.0 if rollover_started else 0.0
         if rollover_started:
             values[SPEED] = values[YAW_RATE] = values[ACCEL] = 0.0
+            values[LATERAL_SPEED] = values[SLIDE_ACCEL] = 0.0
 
         power = wheel_outputs(
             wheels,

@@ -21,6 +21,10 @@ The laws (parameters per class in ``navigator.terrain_classes``, sources in docs
   they slip alike and pull in proportion to their load, each at most ``mu N_i`` and at most the force its
   motor's current limit gives; a wheel at its current limit pulls less and the others take the rest.
 
+* Sideways grip (``sideways_grip``, ``sideways_speed``): the body slides sideways when gravity's
+  cross-slope part and the turn's centripetal need exceed what the wheels' friction circles leave after
+  their longitudinal pull, ``sum(sqrt((mu N_i)^2 - F_i^2))``; Coulomb friction, as the scrub's.
+
 ``drive_forces`` turns these into one step of the body's motion (see ``hil.dynamics``): the body is pulled
 toward the ground speeds the wheel speeds give once the curve's steady-state slip is taken off, within the
 drive and yaw time constants, as far as the wheels' traction and current limits allow.
@@ -303,6 +307,43 @@ def drive_forces(
     _share_side(0.5 * drive - moment / track, normals, 0, mu, forward_caps, backward_caps, out_forces)
     _share_side(0.5 * drive + moment / track, normals, 3, mu, forward_caps, backward_caps, out_forces)
     return accel, new_yaw_rate
+
+
+@numba.njit(cache=True)
+def sideways_grip(normals: Array, forces: Array, mu: float) -> float:
+    """The most sideways force the six wheels can hold the body with (N): each wheel's friction circle less
+    what its longitudinal force uses of it, ``sum(sqrt((mu N_i)^2 - F_i^2))``.
+
+    The longitudinal force comes first (the motors hold each wheel's speed and the curve sets its pull,
+    ``drive_forces``); the sideways friction gets what is left of the circle (Pacejka, *Tire and Vehicle
+    Dynamics*, ch. 1, the friction circle; Wong, *Theory of Ground Vehicles*, ch. 1, a tyre's cornering
+    force falling as its tractive effort grows). A wheel pulling ``mu N`` (spinning or sliding locked
+    along its heading) holds nothing sideways; a lifted one nothing at all.
+    """
+    grip = 0.0
+    for i in range(6):
+        limit = mu * normals[i]
+        grip += math.sqrt(max(limit * limit - forces[i] * forces[i], 0.0))
+    return grip
+
+
+@numba.njit(cache=True)
+def sideways_speed(speed: float, demand: float, grip: float, dt: float) -> float:
+    """The body's sideways speed (m/s, y left) after ``dt`` s, from ``speed`` under the sideways
+    acceleration ``demand`` (m/s^2: gravity's cross-slope part less the turn's centripetal need) with the
+    wheels' Coulomb friction ``grip`` (m/s^2, ``sideways_grip`` / mass) against it.
+
+    Coulomb friction, implicit as the yaw scrub's in ``drive_forces``: within the grip it holds the body
+    (a body that was not sliding stays at exactly 0.0); past it, it opposes the sliding and can stop it,
+    never reverse it.
+    """
+    free = speed + demand * dt
+    change = grip * dt
+    if abs(free) <= change:
+        return 0.0
+    if free > 0.0:
+        return free - change
+    return free + change
 
 
 @numba.njit(cache=True)

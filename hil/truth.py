@@ -52,6 +52,7 @@ class TruthRecorder:
                 "roll_rad": step.roll_rad,
                 "pitch_rad": step.pitch_rad,
                 "speed_mps": step.speed_mps,
+                "lateral_speed_mps": step.lateral_speed_mps,
                 "yaw_rate_rps": step.yaw_rate_rps,
                 "terrain": step.terrain_name,
             },

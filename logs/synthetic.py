@@ -70,6 +70,7 @@ def synthetic_trial(
                 "roll_rad": 0.01,
                 "pitch_rad": 0.02,
                 "speed_mps": SPEED_MPS,
+                "lateral_speed_mps": 0.0,
                 "yaw_rate_rps": 0.0,
                 "terrain": terrain,
             },

@@ -461,11 +461,13 @@ _SPECS = [
                 "roll_rad": _NUM,
                 "pitch_rad": _NUM,
                 "speed_mps": _NUM,
+                "lateral_speed_mps": _NUM,
                 "yaw_rate_rps": _NUM,
                 "terrain": _STR,
             }
         ),
-        "Simulation only: the true pose of the rover.",
+        "Simulation only: the true pose of the rover; speed along its heading and sideways (body y, left: "
+        "0 unless it slides).",
     ),
     TopicSpec(
         TRUTH_WHEELS,

@@ -105,8 +105,13 @@ def test_normal_forces_and_currents_on_a_slope():
 @pytest.mark.parametrize(("degrees", "tips"), [(45.0, True), (40.0, False)])
 def test_static_tilt_and_rollover(degrees, tips):
     assert math.degrees(PARAMS.tip_roll_rad) == pytest.approx(42.5, abs=0.1)
-    # Heading east across a slope that rises to the north (the rover's left): roll = slope angle.
-    body = RoverDynamics(plane(grade_y=math.tan(math.radians(degrees))), PARAMS, x=10.0, y=10.0, yaw=0.0)
+    # Heading east across a slope that rises to the north (the rover's left): roll = slope angle. On ground
+    # grippy enough to hold it there (mu 1.2: atan 50 deg); on firm ground (mu 0.8) it slides sideways
+    # before it tips (tests/hil/test_sideways_slide.py).
+    grippy = {0: TerrainClass(0, "grippy", 1.2, 0.02, 1.0, "test")}
+    body = RoverDynamics(
+        plane(grade_y=math.tan(math.radians(degrees))), PARAMS, grippy, x=10.0, y=10.0, yaw=0.0
+    )
     steps = run(body, [0.0] * 6, 0.2)
     assert body.roll == pytest.approx(math.radians(degrees))
     assert steps[-1].rollover is tips

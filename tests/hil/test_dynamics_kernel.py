@@ -49,7 +49,10 @@ def test_the_compiled_tilt_margins_are_the_planners_bit_for_bit():
 @pytest.mark.parametrize("degrees", [5.0, 70.0])
 def test_specific_force_at_rest_is_gravity_in_body_axes_rolled_over_or_not(degrees):
     grade = math.tan(math.radians(degrees))
-    body = RoverDynamics(slope(grade), PARAMS, x=7.5, y=7.5, yaw=math.pi / 2.0)  # across the slope: rolls
+    # Across the slope: it rolls. On ground that holds it at rest even at 70 deg (on firm ground it would
+    # slide, and slide rather than tip: tests/hil/test_sideways_slide.py).
+    grippy = {0: TerrainClass(0, "grippy", 3.0, 0.02, 1.0, "test")}
+    body = RoverDynamics(slope(grade), PARAMS, grippy, x=7.5, y=7.5, yaw=math.pi / 2.0)
     for _ in range(3):
         step = body.step(0.01, [0.0] * 6, 24.0)
     roll = step.roll_rad
@@ -86,6 +89,7 @@ def _record_read_back(body: RoverDynamics, before: BodyState, voltage: float) ->
         v[k.Y],
         v[k.YAW],
         v[k.SPEED],
+        v[k.LATERAL_SPEED],
         v[k.YAW_RATE],
         v[k.ROLL],
         v[k.PITCH],

@@ -1,0 +1,159 @@
+"""Sideways sliding of the body against closed forms: parked and driving across a side slope, level ground.
+
+The rover heads east (yaw 0) across a plane rising to the north (its left), so its roll is the slope angle
+and gravity's cross-slope part pulls it to the right (-y, downhill). Test classes have no sinkage, so each
+wheel's rolling resistance is exactly ``crr N`` and the closed forms hold to rounding.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from hil.dynamics import RoverDynamics
+from hil.traction import sideways_grip, sideways_speed
+from navigator.terrain import TerrainMap
+from navigator.terrain_classes import TERRAIN_CLASSES, TerrainClass
+from navigator.vehicle import G, VehicleParams
+
+PARAMS = VehicleParams()
+DT = 0.01
+VOLTS = 24.0
+MU = 0.3  # mud's
+
+
+def side_slope(degrees: float, size: tuple[int, int] = (80, 80), res: float = 0.25) -> TerrainMap:
+    """A plane rising to the north at ``degrees``."""
+    ys = (np.arange(size[0]) + 0.5) * res
+    elevation = np.broadcast_to(math.tan(math.radians(degrees)) * ys[:, np.newaxis], size).copy()
+    return TerrainMap(elevation, np.zeros(size, np.uint8), np.zeros(size, bool), res)
+
+
+def ground(crr: float) -> dict[int, TerrainClass]:
+    return {0: TerrainClass(0, "test", MU, crr, 1.0, "test")}
+
+
+def ramped(body: RoverDynamics, top_mps: float, seconds: float, ramp_s: float = 2.0) -> list:
+    """Drive straight, the wheels ramped to ``top_mps`` over ``ramp_s`` (a gentle start: the pull that
+    accelerates the body uses little of the friction)."""
+    steps = []
+    for i in range(round(seconds / DT)):
+        wheel = top_mps * min(1.0, i * DT / ramp_s)
+        steps.append(body.step(DT, [wheel] * 6, VOLTS))
+    return steps
+
+
+def test_parked_below_the_holding_slope_it_does_not_slide():
+    degrees = 15.0  # tan 0.268 < mu 0.3
+    body = RoverDynamics(side_slope(degrees), PARAMS, ground(0.15), x=10.0, y=10.0, yaw=0.0)
+    steps = [body.step(DT, [0.0] * 6, VOLTS) for _ in range(200)]
+    assert all(s.lateral_speed_mps == 0.0 for s in steps)
+    assert body.x == 10.0 and body.y == 10.0
+    assert body.roll == pytest.approx(math.radians(degrees))
+
+
+def test_parked_past_the_holding_slope_it_slides_downhill_at_the_papers_rate():
+    """``a = g (sin phi - mu cos phi)`` sideways: the wheels hold nothing along, their whole friction
+    circle holds sideways. Tolerance: 1e-9 relative (the same law in floats; only rounding differs)."""
+    degrees = 18.0  # tan 0.325 > mu 0.3
+    phi = math.radians(degrees)
+    body = RoverDynamics(side_slope(degrees), PARAMS, ground(0.15), x=10.0, y=10.0, yaw=0.0)
+    steps = [body.step(DT, [0.0] * 6, VOLTS) for _ in range(100)]
+    expected = G * (math.sin(phi) - MU * math.cos(phi))
+    accel = (steps[-1].lateral_speed_mps - steps[49].lateral_speed_mps) / (50 * DT)
+    assert accel == pytest.approx(-expected, rel=1e-9)  # to the right: downhill
+    assert body.y < 10.0 and body.x == pytest.approx(10.0, abs=1e-12)
+    assert body.speed == 0.0 and body.yaw_rate == 0.0
+    # The IMU feels the sliding: specific force y = a_y + g cos(pitch) sin(roll).
+    assert steps[-1].specific_force_body_mps2[1] == pytest.approx(G * math.sin(phi) - expected, rel=1e-9)
+    assert steps[-1].lateral_accel_mps2 == pytest.approx(-expected, rel=1e-9)
+
+
+@pytest.mark.parametrize(("crr", "slides"), [(0.15, True), (0.0, False)])
+def test_driving_across_a_slope_the_pull_leaves_too_little_friction_sideways(crr, slides):
+    """Below the parked holding slope (tan 15.5 deg = 0.277 < mu), driving straight at a steady speed:
+    each wheel pulls its rolling resistance ``crr N_i`` and holds sideways ``sqrt((mu N_i)^2 - (crr N_i)^2)``,
+    so the body slides at ``g (sin phi - sqrt(mu^2 - crr^2) cos phi)`` when that is positive (crr 0.15:
+    sqrt(mu^2 - crr^2) = 0.260 < 0.277) and not at all with no pull to make (crr 0). Tolerance: 1e-6
+    relative (the pull settles to ``crr N_i`` within the drive time constant)."""
+    degrees = 15.5
+    phi = math.radians(degrees)
+    body = RoverDynamics(side_slope(degrees), PARAMS, ground(crr), x=3.0, y=10.0, yaw=0.0)
+    steps = ramped(body, 0.5, 5.0)
+    if not slides:
+        assert all(s.lateral_speed_mps == 0.0 for s in steps)
+        assert body.y == pytest.approx(10.0, abs=1e-6)
+        return
+    expected = G * (math.sin(phi) - math.sqrt(MU**2 - crr**2) * math.cos(phi))
+    assert expected > 0.0
+    accel = (steps[-1].lateral_speed_mps - steps[399].lateral_speed_mps) / (100 * DT)
+    assert accel == pytest.approx(-expected, rel=1e-6)
+    last = steps[-1]
+    grip = sideways_grip(np.array(last.normal_forces_n), np.array(last.traction_forces_n), MU)
+    assert grip == pytest.approx(math.sqrt(MU**2 - crr**2) * sum(last.normal_forces_n), rel=1e-6)
+    assert body.y < 10.0 - 0.3  # it drifted downhill while driving along the contour
+    assert body.yaw == pytest.approx(0.0, abs=1e-3)
+
+
+def test_sliding_stops_once_the_friction_holds_again_and_never_reverses():
+    """Coulomb friction: a body sliding on a slope it can hold on decelerates at the friction's excess
+    and comes to rest at exactly 0; it never slides back uphill."""
+    degrees = 14.0  # holds parked and driving (tan 0.249 < sqrt(mu^2 - crr^2) 0.260)
+    body = RoverDynamics(side_slope(degrees), PARAMS, ground(0.15), x=3.0, y=10.0, yaw=0.0)
+    # An abrupt start: accelerating to 0.5 m/s within the drive time constant spends the friction on the
+    # pull, and the body slides while it accelerates.
+    steps = [body.step(DT, [0.5] * 6, VOLTS) for _ in range(1000)]
+    lateral = [s.lateral_speed_mps for s in steps]
+    assert min(lateral) < -0.05
+    assert all(v <= 0.0 for v in lateral)
+    assert lateral[-1] == 0.0
+
+
+def test_past_the_tip_angle_on_firm_ground_it_slides_before_it_tips():
+    """mu 0.8 < (track / 2) / h_cg = 0.917: parked across a 45 deg slope (past the 42.5 deg tip angle) the
+    friction cannot hold the body, so it slides, and a sliding body's tipping load is the friction's: its
+    effective tilt ``roll + atan(a_y / g)`` stays below the tip angle."""
+    body = RoverDynamics(side_slope(45.0), PARAMS, x=10.0, y=10.0, yaw=0.0)
+    steps = [body.step(DT, [0.0] * 6, VOLTS) for _ in range(50)]
+    assert not any(s.rollover for s in steps[1:])
+    assert steps[-1].lateral_speed_mps < -0.5 and steps[-1].roll_margin_rad > 0.0
+    firm = TERRAIN_CLASSES[0].friction_mu
+    slide = G * (math.sin(math.pi / 4.0) - firm * math.cos(math.pi / 4.0))
+    assert steps[-1].lateral_accel_mps2 == pytest.approx(-slide, rel=1e-9)
+
+
+def test_the_friction_circle_and_the_coulomb_step():
+    normals = np.array([50.0, 60.0, 70.0, 40.0, 50.0, 60.0])
+    assert sideways_grip(normals, np.zeros(6), 0.5) == pytest.approx(0.5 * normals.sum())
+    pulls = 0.3 * normals
+    assert sideways_grip(normals, pulls, 0.5) == pytest.approx(0.4 * normals.sum())  # 3-4-5
+    assert sideways_grip(normals, 0.5 * normals, 0.5) == 0.0  # spinning: nothing left sideways
+    assert sideways_speed(0.0, -2.0, 2.5, DT) == 0.0  # within the grip: held exactly
+    assert sideways_speed(0.0, -3.0, 2.5, DT) == pytest.approx(-0.5 * DT)
+    assert sideways_speed(-0.001, 0.0, 2.5, DT) == 0.0  # stopped, not reversed
+    assert sideways_speed(-0.1, 0.0, 2.5, DT) == pytest.approx(-0.1 + 2.5 * DT)
+
+
+@pytest.mark.parametrize("class_id", sorted(TERRAIN_CLASSES))
+def test_on_the_level_the_body_never_slides_at_the_rovers_speeds(class_id):
+    """Straight at top speed, a turn on the spot, and an arc at the follower's lateral limit (1 m/s^2 at
+    1 m/s, far below any class's sideways grip) entered from a straight run: the sideways speed stays
+    exactly 0.0, so every state is the one the model gave before sliding existed.
+
+    (An arc commanded from rest on mud is not in the list: its wheels spin at full traction while the body
+    picks up speed, which leaves them no sideways grip, and it slides by under 1 mm/s: as it should.)"""
+    size = (160, 160)
+    flat = TerrainMap(np.zeros(size), np.full(size, class_id, np.uint8), np.zeros(size, bool), 0.25)
+    top = PARAMS.max_wheel_speed_mps
+    difference = 1.0 * PARAMS.effective_track_m  # w = 1 rad/s at 1 m/s
+    arc = [1.0 - difference / 2.0] * 3 + [1.0 + difference / 2.0] * 3
+    runs = (
+        [[top] * 6] * 300,
+        [[-top] * 3 + [top] * 3] * 300,
+        [[1.0] * 6] * 200 + [arc] * 300,
+    )
+    for commands in runs:
+        body = RoverDynamics(flat, PARAMS, x=20.0, y=20.0, yaw=0.0)
+        steps = [body.step(DT, wheels, VOLTS) for wheels in commands]
+        assert all(s.lateral_speed_mps == 0.0 for s in steps)
+        assert abs(body.yaw_rate) > 0.3 or commands[-1][0] == top  # it turned (or ran straight)
