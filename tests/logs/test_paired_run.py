@@ -10,6 +10,7 @@ import json
 from pathlib import Path
 
 import pytest
+from mcap.reader import make_reader
 
 from hil.realtime_metrics import realtime_metrics
 from logs.analysis import analyse
@@ -74,6 +75,17 @@ def test_truth_with_several_recordings_is_refused(tmp_path: Path) -> None:
     assert main(["logs", "report", str(reference), str(rover), "--truth", str(truth), "--out", out]) == 2
 
 
+def _inside_a_chunk(path: Path) -> int:
+    """The offset of a byte in the middle of the compressed records of the file's middle chunk (the file's
+    middle byte may be a chunk's header, whose damage a reader need not notice)."""
+    with path.open("rb") as stream:
+        summary = make_reader(stream).get_summary()
+    assert summary is not None and summary.chunk_indexes
+    chunk = summary.chunk_indexes[len(summary.chunk_indexes) // 2]
+    records_end = chunk.chunk_start_offset + chunk.chunk_length
+    return records_end - chunk.compressed_size // 2
+
+
 @pytest.mark.parametrize("truth_kind", ["not MCAP", "missing", "damaged"])
 def test_an_unreadable_truth_is_named_and_the_rover_run_kept(tmp_path: Path, truth_kind: str) -> None:
     """`rover logs report rover.mcap --truth T` with a T that cannot be read once dropped the rover's
@@ -84,7 +96,7 @@ def test_an_unreadable_truth_is_named_and_the_rover_run_kept(tmp_path: Path, tru
         truth.write_bytes(b"not a recording\n")
     elif truth_kind == "damaged":
         data = bytearray(good_truth.read_bytes())
-        data[len(data) // 2] ^= 0xFF  # a flipped byte inside a chunk: it fails its CRC
+        data[_inside_a_chunk(good_truth)] ^= 0xFF  # a flipped byte inside a chunk: it fails its CRC
         truth.write_bytes(bytes(data))
     out = tmp_path / "out"
     assert main(["logs", "report", str(rover), "--truth", str(truth), "--out", str(out), "--no-plots"]) == 1
