@@ -30,7 +30,7 @@ from navigator import footprint, ground_kernel, vehicle
 from navigator.footprint import BOUNDARY, CLEAR, OBSTACLE, rectangle_contact
 from navigator.ground_kernel import ground_at_kernel
 from navigator.kernel_cache import sources_fingerprint
-from navigator.vehicle import G, normal_forces_into, tilt_margins_kernel
+from navigator.vehicle import G, critical_sliding_speed_kernel, normal_forces_into, tilt_margins_kernel
 
 Array = NDArray[np.float64]
 # A map's obstacle layer and frame (resolution m, origin x and y m), as rectangle_contact takes them.
@@ -399,7 +399,9 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
         kind = contact_kind(grid, body, new_x, new_y, new_yaw, CONTACT_TOLERANCE_M)
         touching = kind != CLEAR
         overlapping = False
-        if touching and _refused(grid, body, values, new_x, new_y, new_yaw):
+        refused = touching and _refused(grid, body, values, new_x, new_y, new_yaw)
+        stopped_slide = 0.0  # the sideways speed a contact stopped this step (m/s, y left)
+        if refused:
             if not _refused(grid, body, values, x, y, new_yaw):
                 # The turn alone is free: keep it, and stop the move at the contact.
                 new_x, new_y, _ = _advance_to_contact(grid, body, values, new_x, new_y, new_yaw, 0.0)
@@ -409,6 +411,7 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
                 yaw_rate = 0.0
             accel = (0.0 - speed0) / dt
             speed = 0.0
+            stopped_slide = lateral_speed
             lateral_speed = 0.0
             again = contact_kind(grid, body, new_x, new_y, new_yaw, CONTACT_TOLERANCE_M)
             kind = again if again != CLEAR else kind
@@ -422,7 +425,10 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
         values[X], values[Y], values[YAW] = new_x, new_y, new_yaw
         values[SPEED], values[YAW_RATE], values[ACCEL] = speed, yaw_rate, accel
         values[STEP_ACCEL] = accel
-        slide_accel = (lateral_speed - lateral_speed0) / dt
+        # A slide stopped by a contact is an impact, not a sustained sideways acceleration: as v / dt it
+        # would load the wheels and tip the margin by an amount set by the step length. The impact's own
+        # test is the trip below.
+        slide_accel = 0.0 if refused else (lateral_speed - lateral_speed0) / dt
         values[LATERAL_SPEED], values[SLIDE_ACCEL] = lateral_speed, slide_accel
         class_id, height, new_roll, new_pitch = ground_at_kernel(
             classes,
@@ -447,6 +453,11 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
         )
         values[LATERAL], values[ROLL_MARGIN], values[PITCH_MARGIN] = lateral, roll_margin, pitch_margin
         rollover_started = min(roll_margin, pitch_margin) < 0.0
+        if stopped_slide != 0.0:
+            # Tripped: the body pivots about the wheels it slid towards (roll > 0 tilts it to the right, -y).
+            towards = new_roll if stopped_slide < 0.0 else -new_roll
+            critical = critical_sliding_speed_kernel(body[TRACK], body[CG_HEIGHT], body[TIP_ROLL] - towards)
+            rollover_started = rollover_started or abs(stopped_slide) >= critical
         values[ROLLOVER_STARTED] = 1.0 if rollover_started else 0.0
         if rollover_started:
             values[SPEED] = values[YAW_RATE] = values[ACCEL] = 0.0

@@ -304,3 +304,26 @@ def tilt_margins(
 # The same function compiled, for the simulator's physics kernel (hil.dynamics_kernel); the planner's
 # safety checks call the plain one (a compiled call from Python costs more than these few operations).
 tilt_margins_kernel = numba.njit(cache=True)(tilt_margins)
+
+
+def critical_sliding_speed(track_m: float, cg_height_m: float, margin_rad: float) -> float:
+    """The sideways speed (m/s) at which a slide stopped dead by a contact trips the rover over the edge of
+    the wheels it slid towards; ``margin_rad``: that side's static margin angle (tip angle less the tilt
+    towards it). 0.0 when the margin is already gone.
+
+    The impact stops the slide in an instant; the body keeps its angular momentum about the edge,
+    ``L = m v h_cg``, and pivots about it with ``L^2 / (2 I_edge)`` of energy. It trips when that lifts the
+    centre of gravity over the edge, ``m g R (1 - cos(margin))``, ``R = sqrt((track/2)^2 + h_cg^2)``:
+    ``v^2 = 2 g I_edge R (1 - cos(margin)) / (m h_cg^2)``, the critical sliding velocity (CSV) of tripped
+    rollovers (Chrstos and Guenther, "The Measurement of Static Rollover Metrics", SAE 920582, 1992; NHTSA's
+    rollover resistance metrics). ``I_edge = I_cg + m R^2`` with ``I_cg = 0`` (all the mass at the centre of
+    gravity): the least ``I_edge``, so the lowest tripping speed, the cautious side for a rover whose roll
+    inertia about its centre of gravity is not known (any real ``I_cg > 0`` raises the speed).
+    """
+    if margin_rad <= 0.0:
+        return 0.0
+    lever = math.hypot(0.5 * track_m, cg_height_m)
+    return math.sqrt(2.0 * G * lever**3 * (1.0 - math.cos(margin_rad))) / cg_height_m
+
+
+critical_sliding_speed_kernel = numba.njit(cache=True)(critical_sliding_speed)
