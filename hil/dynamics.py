@@ -28,10 +28,12 @@ The model, per step of ``dt`` (semi-implicit Euler, no randomness):
   reversing it). Parked across a slope steeper than ``atan μ`` it slides downhill at ``g (sin φ − μ cos φ)``.
   Horizontal displacement is ``v cos(pitch) dt`` along the heading plus the sideways speed along the
   body's y axis.
-* Rollover when a stability margin (``navigator.vehicle.stability_margins``, with the body's sideways
-  acceleration: the turn's ``v ω`` and any sliding's change) goes negative: latched, the rover stays
-  stopped. A body sliding sideways is tipped by the friction's pull, not gravity's, so on ground with
-  ``μ`` below ``(track / 2) / h_cg`` it slides before it tips.
+* Rollover when a stability margin (``navigator.vehicle.tilt_margins``: the tilt of the step's specific
+  force, with the body's sideways acceleration, the turn's ``v ω`` and any sliding's change, and its
+  acceleration along the heading) goes negative, or when an obstacle stops a slide at the critical sliding
+  speed (``navigator.vehicle.critical_sliding_speed``): latched, the rover stays stopped. A body sliding
+  sideways is tipped by the friction's pull, not gravity's, so on ground with ``μ`` below
+  ``(track / 2) / h_cg`` it slides before it tips.
 * Collision when the footprint, the oriented rectangle ``footprint_length_m`` x ``footprint_width_m`` (the
   planner's exact test, ``navigator.footprint.rectangle_contact``), would overlap an obstacle cell or reach
   past the map edge: a move that pushes it further in is refused and the rover stopped at the contact. If

@@ -448,8 +448,13 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
         lateral = speed * yaw_rate  # the body's sideways acceleration: the turn's, and any sliding's change
         if slide_accel != 0.0:
             lateral += slide_accel
+        # The margins are the specific force's tilt, the same force the wheel loads and the IMU see; but a
+        # refused move's stop is an impact, not a sustained deceleration (its v / dt is set by the step
+        # length): the pitch margin leaves it out, as the slide's stop is left out of a_y above.
+        specific_force(values, lateral)
+        force_x = G * math.sin(new_pitch) if refused else values[FORCE_X]
         roll_margin, pitch_margin = tilt_margins_kernel(
-            body[TIP_ROLL], body[TIP_PITCH], new_roll, new_pitch, lateral
+            body[TIP_ROLL], body[TIP_PITCH], force_x, values[FORCE_Y], values[FORCE_Z]
         )
         values[LATERAL], values[ROLL_MARGIN], values[PITCH_MARGIN] = lateral, roll_margin, pitch_margin
         rollover_started = min(roll_margin, pitch_margin) < 0.0
@@ -489,7 +494,6 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
         for i in range(6):
             input_current += max(currents[i] * duty[i], 0.0)
         values[INPUT_CURRENT_A] = input_current
-        specific_force(values, lateral)
         return STEPPED, state(values), _record(values, terrain_class, battery_voltage)
 
     return step_kernel

@@ -281,24 +281,46 @@ def wheel_normal_forces(
 
 
 def stability_margins(
-    params: VehicleParams, roll_rad: float, pitch_rad: float, lateral_accel_mps2: float = 0.0
+    params: VehicleParams,
+    roll_rad: float,
+    pitch_rad: float,
+    lateral_accel_mps2: float = 0.0,
+    longitudinal_accel_mps2: float = 0.0,
 ) -> tuple[float, float]:
-    """(roll margin, pitch margin) in rad: tip angle minus the effective tilt; < 0 means tip-over.
+    """(roll margin, pitch margin) in rad: tip angle minus the tilt of the specific force; < 0 means
+    tip-over.
 
-    The effective roll tilt adds the lateral acceleration as an equivalent tilt ``atan(a_lat / g)``
-    (a left turn, ``a_lat > 0``, tips the rover over its right wheels, like a positive roll). Roll and
-    pitch are checked separately (the rover's support polygon is treated as a rectangle's two axes).
+    The specific force in body axes (x forward, y left, z up) is the body's acceleration less gravity,
+    ``(a_x + g sin(pitch), a_y + g cos(pitch) sin(roll), g cos(pitch) cos(roll))``, as the simulator's
+    ``specific_force`` computes it; ``tilt_margins`` has the law. At rest the tilts are the roll and pitch
+    themselves; a left turn (``a_y > 0``) tips the rover over its right wheels, like a positive roll.
     """
-    return tilt_margins(params.tip_roll_rad, params.tip_pitch_rad, roll_rad, pitch_rad, lateral_accel_mps2)
+    cos_pitch = math.cos(pitch_rad)
+    return tilt_margins(
+        params.tip_roll_rad,
+        params.tip_pitch_rad,
+        longitudinal_accel_mps2 + G * math.sin(pitch_rad),
+        lateral_accel_mps2 + G * cos_pitch * math.sin(roll_rad),
+        G * cos_pitch * math.cos(roll_rad),
+    )
 
 
 def tilt_margins(
-    tip_roll_rad: float, tip_pitch_rad: float, roll_rad: float, pitch_rad: float, lateral_accel_mps2: float
+    tip_roll_rad: float, tip_pitch_rad: float, force_x: float, force_y: float, force_z: float
 ) -> tuple[float, float]:
-    """``stability_margins`` from the tip angles themselves (``VehicleParams.tip_roll_rad`` and
-    ``tip_pitch_rad``)."""
-    effective_roll = roll_rad + math.atan(lateral_accel_mps2 / G)
-    return tip_roll_rad - abs(effective_roll), tip_pitch_rad - abs(pitch_rad)
+    """(roll margin, pitch margin) in rad from the specific force in body axes (m/s^2, any scale):
+    ``tip_roll - atan2(|f_y|, f_z)``, ``tip_pitch - atan2(|f_x|, f_z)``.
+
+    The same law as the wheel loads' (``normal_forces_into``): a side lifts when the moment ``m h f_y``
+    reaches ``m f_z track / 2``, i.e. when ``|f_y| / f_z`` reaches ``(track / 2) / h = tan(tip_roll)``; an
+    axle likewise with ``f_x`` and the wheelbase. A force pointing away from the ground (``f_z <= 0``) gives
+    a tilt of 90 deg or more: past any tip angle. Roll and pitch are checked separately (the support
+    polygon is treated as a rectangle's two axes).
+    """
+    return (
+        tip_roll_rad - math.atan2(abs(force_y), force_z),
+        tip_pitch_rad - math.atan2(abs(force_x), force_z),
+    )
 
 
 # The same function compiled, for the simulator's physics kernel (hil.dynamics_kernel); the planner's

@@ -112,7 +112,7 @@ def test_sliding_stops_once_the_friction_holds_again_and_never_reverses():
 def test_past_the_tip_angle_on_firm_ground_it_slides_before_it_tips():
     """mu 0.8 < (track / 2) / h_cg = 0.917: parked across a 45 deg slope (past the 42.5 deg tip angle) the
     friction cannot hold the body, so it slides, and a sliding body's tipping load is the friction's: its
-    effective tilt ``roll + atan(a_y / g)`` stays below the tip angle."""
+    specific force's tilt ``atan(f_y / f_z)`` = ``atan(mu)`` stays below the tip angle."""
     body = RoverDynamics(side_slope(45.0), PARAMS, x=10.0, y=10.0, yaw=0.0)
     steps = [body.step(DT, [0.0] * 6, VOLTS) for _ in range(50)]
     assert not any(s.rollover for s in steps[1:])
@@ -120,6 +120,21 @@ def test_past_the_tip_angle_on_firm_ground_it_slides_before_it_tips():
     firm = TERRAIN_CLASSES[0].friction_mu
     slide = G * (math.sin(math.pi / 4.0) - firm * math.cos(math.pi / 4.0))
     assert steps[-1].lateral_accel_mps2 == pytest.approx(-slide, rel=1e-9)
+
+
+def test_a_sliding_bodys_margin_is_the_tilt_of_its_specific_force():
+    """Parked across 51 deg on firm ground (mu 0.8) it slides; the friction's pull leaves the specific
+    force at ``f_y / f_z = mu``, so the roll margin is ``tip_roll - atan(mu)`` = 3.85 deg, the wheel loads'
+    (not ``roll + atan(a_y / g)``'s 6.8 deg)."""
+    body = RoverDynamics(side_slope(51.0), PARAMS, x=10.0, y=12.0, yaw=0.0)
+    steps = [body.step(DT, [0.0] * 6, VOLTS) for _ in range(30)]
+    assert not any(s.rollover for s in steps)
+    firm = TERRAIN_CLASSES[0].friction_mu
+    _, f_y, f_z = steps[-1].specific_force_body_mps2
+    assert f_y / f_z == pytest.approx(firm, rel=1e-9)
+    expected = PARAMS.tip_roll_rad - math.atan(firm)
+    assert steps[-1].roll_margin_rad == pytest.approx(expected, rel=1e-9)
+    assert math.degrees(expected) == pytest.approx(3.85, abs=0.01)
 
 
 def test_the_friction_circle_and_the_coulomb_step():

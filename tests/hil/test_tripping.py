@@ -83,3 +83,25 @@ def test_a_slow_slide_stopped_by_an_obstacle_is_not_a_rollover(dt):
     speed, rolled = slide_into_the_wall(0.18, dt, degrees=16.8, mu=0.3, seconds=8.0)
     assert -speed == pytest.approx(0.08, abs=0.01)
     assert not rolled
+
+
+@pytest.mark.parametrize("dt", [0.005, 0.01, 0.02])
+def test_a_head_on_stop_at_an_obstacle_is_not_a_pitch_over(dt):
+    """Driving at top speed into a wall on the level: the stop is an impact, not a deceleration of
+    ``v / dt`` (which would tilt the specific force past the 49 deg pitch tip angle at any of these dt)."""
+    size = (80, 80)
+    obstacles = np.zeros(size, bool)
+    obstacles[:, 60] = True  # a wall at x = 15 m
+    flat = TerrainMap(np.zeros(size), np.zeros(size, np.uint8), obstacles, RES)
+    body = RoverDynamics(flat, PARAMS, x=5.0, y=10.0, yaw=0.0)
+    top = PARAMS.max_wheel_speed_mps
+    fastest = 0.0
+    for _ in range(round(12.0 / dt)):
+        step = body.step(dt, [top] * 6, VOLTS)
+        assert not step.rollover
+        if step.collided and step.speed_mps == 0.0:
+            break
+        fastest = max(fastest, step.speed_mps)
+    else:
+        raise AssertionError("it never reached the wall")
+    assert fastest > 1.4

@@ -72,10 +72,27 @@ def test_a_lifting_axle_clamps_at_zero_and_keeps_the_sum():
 def test_stability_margins():
     roll_margin, pitch_margin = stability_margins(PARAMS, 0.1, -0.2)
     assert roll_margin == pytest.approx(PARAMS.tip_roll_rad - 0.1)
-    assert pitch_margin == pytest.approx(PARAMS.tip_pitch_rad - 0.2)
+    assert pitch_margin == pytest.approx(PARAMS.tip_pitch_rad - math.atan(math.tan(0.2) / math.cos(0.1)))
     turning, _ = stability_margins(PARAMS, 0.0, 0.0, lateral_accel_mps2=G)
     assert turning == pytest.approx(PARAMS.tip_roll_rad - math.pi / 4.0)
     assert stability_margins(PARAMS, PARAMS.tip_roll_rad + 0.01, 0.0)[0] < 0.0
+    _, braking = stability_margins(PARAMS, 0.0, 0.0, longitudinal_accel_mps2=-G)
+    assert braking == pytest.approx(PARAMS.tip_pitch_rad - math.pi / 4.0)
+
+
+@pytest.mark.parametrize("roll", [0.0, 0.3, 0.7, -0.5])
+def test_the_roll_margin_is_zero_where_the_wheel_loads_lift_a_side(roll):
+    """The margin's law is the load transfer's: at the sideways acceleration that empties the uphill side
+    (bisection on ``wheel_normal_forces``), the roll margin is 0; the tilt is ``atan(f_y / f_z)``, not
+    ``roll + atan(a_y / g)`` (they differ on a slope: 3 deg at 51 deg of roll)."""
+    pitch = 0.2
+    low, high = 0.0, 3.0 * G
+    for _ in range(60):
+        mid = 0.5 * (low + high)
+        lifted = wheel_normal_forces(PARAMS, roll, pitch, 0.0, mid)[:3].sum() == 0.0
+        low, high = (low, mid) if lifted else (mid, high)
+    margin, _ = stability_margins(PARAMS, roll, pitch, lateral_accel_mps2=high)
+    assert margin == pytest.approx(0.0, abs=1e-9)
 
 
 def test_params_validation_and_strict_table():
