@@ -66,7 +66,7 @@ ELEVATION_LAYER, GRAD_X_LAYER, GRAD_Y_LAYER = 0, 1, 2
 # --- ``body``: the vehicle and motor constants, built once ---
 # drive_forces' ``vehicle`` vector (its docstring has the layout), then wheel_outputs' ``motor`` vector.
 VEHICLE, MOTOR, MOTOR_END = 0, 9, 14
-MASS, TRACK, HALF_WHEELBASE = 0, 2, 4
+MASS, TRACK, EFFECTIVE_TRACK, HALF_WHEELBASE = 0, 2, 3, 4
 RESISTANCE = 12  # the motor vector's winding resistance
 CG_HEIGHT, TIP_ROLL, TIP_PITCH, CURRENT_LIMIT, HALF_LENGTH, HALF_WIDTH = 14, 15, 16, 17, 18, 19
 BODY_SIZE = 20
@@ -378,7 +378,12 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
         # Sideways: gravity's cross-slope part (roll positive lowers the right side, so it pulls to -y) less
         # the turn's centripetal need, against what the wheels' friction circles leave after their pull.
         demand = -G * math.cos(pitch) * math.sin(roll) - speed * yaw_rate
-        grip = sideways_grip(normals, traction, ground[MU]) / body[MASS]
+        grip = (
+            sideways_grip(
+                normals, traction, ground[MU], wheels, speed, yaw_rate, body[EFFECTIVE_TRACK], lateral_speed0
+            )
+            / body[MASS]
+        )
         lateral_speed = sideways_speed(lateral_speed0, demand, grip, dt)
         mean_speed = 0.5 * (speed0 + speed)
         turn = 0.5 * (yaw_rate0 + yaw_rate) * dt

@@ -23,7 +23,9 @@ The laws (parameters per class in ``navigator.terrain_classes``, sources in docs
 
 * Sideways grip (``sideways_grip``, ``sideways_speed``): the body slides sideways when gravity's
   cross-slope part and the turn's centripetal need exceed what the wheels' friction circles leave after
-  their longitudinal pull, ``sum(sqrt((mu N_i)^2 - F_i^2))``; Coulomb friction, as the scrub's.
+  their longitudinal pull, ``sqrt((mu N_i)^2 - F_i^2)`` each; a wheel at its friction limit (spinning, or
+  locked and sliding) resists sideways by the sideways part of its contact's sliding velocity,
+  ``mu N_i share_i``; Coulomb friction, as the scrub's.
 
 ``drive_forces`` turns these into one step of the body's motion (see ``hil.dynamics``): the body is pulled
 toward the ground speeds the wheel speeds give once the curve's steady-state slip is taken off, within the
@@ -310,20 +312,44 @@ def drive_forces(
 
 
 @numba.njit(cache=True)
-def sideways_grip(normals: Array, forces: Array, mu: float) -> float:
-    """The most sideways force the six wheels can hold the body with (N): each wheel's friction circle less
-    what its longitudinal force uses of it, ``sum(sqrt((mu N_i)^2 - F_i^2))``.
+def sideways_grip(
+    normals: Array,
+    forces: Array,
+    mu: float,
+    wheels: Array,
+    speed: float,
+    yaw_rate: float,
+    effective_track: float,
+    lateral_speed: float,
+) -> float:
+    """The most sideways force the six wheels can hold the body with (N).
 
-    The longitudinal force comes first (the motors hold each wheel's speed and the curve sets its pull,
-    ``drive_forces``); the sideways friction gets what is left of the circle (Pacejka, *Tire and Vehicle
-    Dynamics*, ch. 1, the friction circle; Wong, *Theory of Ground Vehicles*, ch. 1, a tyre's cornering
-    force falling as its tractive effort grows). A wheel pulling ``mu N`` (spinning or sliding locked
-    along its heading) holds nothing sideways; a lifted one nothing at all.
+    A wheel below its friction limit: its friction circle less what its longitudinal force ``F_i`` uses,
+    ``sqrt((mu N_i)^2 - F_i^2)``. The longitudinal force comes first (the motors hold each wheel's speed and
+    the curve sets its pull, ``drive_forces``); the sideways friction gets what is left of the circle
+    (Pacejka, *Tire and Vehicle Dynamics*, ch. 1, the friction circle; Wong, *Theory of Ground Vehicles*,
+    ch. 1, a tyre's cornering force falling as its tractive effort grows).
+
+    A wheel at its limit (``|F_i| = mu N_i``: it spins, or is locked and slides) is sliding, and sliding
+    friction acts against the contact's sliding velocity (Coulomb; Wong ch. 7, as ``sideways_share`` for
+    the scrub): sideways ``mu N_i share_i``, ``share_i`` the sideways part of its sliding velocity, the
+    body's ``lateral_speed`` against the wheel's longitudinal ``surface - ground`` speed (``wheels``, and
+    the ground under each side from ``speed``, ``yaw_rate`` and ``effective_track``). So a locked wheel
+    sliding mostly sideways resists with nearly ``mu N_i``. Its limits: the longitudinal force stays the
+    ``mu N_i`` ``drive_forces`` gave it (it is not cut back to its share), so a wheel sliding obliquely has
+    up to ``sqrt(2) mu N_i`` of friction in all; and the yaw's own sideways sliding of the end wheels is
+    left out of the share (the body's ``lateral_speed`` is the same at every wheel). A lifted wheel holds
+    nothing.
     """
     grip = 0.0
     for i in range(6):
         limit = mu * normals[i]
-        grip += math.sqrt(max(limit * limit - forces[i] * forces[i], 0.0))
+        if abs(forces[i]) < limit * (1.0 - 1e-9):
+            grip += math.sqrt(limit * limit - forces[i] * forces[i])
+        elif limit > 0.0:
+            side = 1.0 if i >= 3 else -1.0
+            sliding = wheels[i] - (speed + side * yaw_rate * 0.5 * effective_track)
+            grip += limit * sideways_share(abs(lateral_speed), sliding)
     return grip
 
 

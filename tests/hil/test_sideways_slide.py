@@ -89,7 +89,9 @@ def test_driving_across_a_slope_the_pull_leaves_too_little_friction_sideways(crr
     accel = (steps[-1].lateral_speed_mps - steps[399].lateral_speed_mps) / (100 * DT)
     assert accel == pytest.approx(-expected, rel=1e-6)
     last = steps[-1]
-    grip = sideways_grip(np.array(last.normal_forces_n), np.array(last.traction_forces_n), MU)
+    grip = sideways_grip(
+        np.array(last.normal_forces_n), np.array(last.traction_forces_n), MU, np.zeros(6), 0.0, 0.0, 1.0, 0.0
+    )
     assert grip == pytest.approx(math.sqrt(MU**2 - crr**2) * sum(last.normal_forces_n), rel=1e-6)
     assert body.y < 10.0 - 0.3  # it drifted downhill while driving along the contour
     assert body.yaw == pytest.approx(0.0, abs=1e-3)
@@ -137,12 +139,55 @@ def test_a_sliding_bodys_margin_is_the_tilt_of_its_specific_force():
     assert math.degrees(expected) == pytest.approx(3.85, abs=0.01)
 
 
+def test_locked_wheels_sliding_down_a_slope_resist_sideways_as_a_sliding_block():
+    """Parked (wheels locked) 60 deg off the contour of a 25 deg plane, mu 0.3: gravity along the heading
+    is past the wheels' grip, so they slide along at ``mu N``; their friction then follows their sliding
+    velocity, not what the circle leaves after ``mu N`` (nothing, as on ice: before, the body slid away
+    sideways at 2.9 m/s after 1.5 s). Like a block, it slides down the fall line (its track within 5 % of
+    straight downhill) no faster than ``g (sin phi - mu cos phi)`` (friction at least ``mu N``: more while
+    its velocity is oblique to a wheel, see ``sideways_grip``'s limits) and not much slower."""
+    degrees = 25.0
+    phi = math.radians(degrees)
+    body = RoverDynamics(
+        side_slope(degrees, (160, 160)), PARAMS, ground(0.15), x=20.0, y=25.0, yaw=-math.pi / 3
+    )
+    steps = [body.step(DT, [0.0] * 6, VOLTS) for _ in range(150)]
+    last = steps[-1]
+    pulls, loads = np.array(last.traction_forces_n), np.array(last.normal_forces_n)
+    assert np.abs(pulls) == pytest.approx(MU * loads)  # every wheel at its limit: sliding
+    moved_x, moved_y = body.x - 20.0, body.y - 25.0
+    assert moved_y < -1.0 and abs(moved_x) < 0.05 * abs(moved_y)
+    speed = math.hypot(last.speed_mps, last.lateral_speed_mps)
+    block = G * (math.sin(phi) - MU * math.cos(phi)) * 150 * DT
+    assert 0.8 * block < speed <= block
+    assert abs(last.lateral_speed_mps) < 0.5
+
+
 def test_the_friction_circle_and_the_coulomb_step():
     normals = np.array([50.0, 60.0, 70.0, 40.0, 50.0, 60.0])
-    assert sideways_grip(normals, np.zeros(6), 0.5) == pytest.approx(0.5 * normals.sum())
+
+    def grip(forces: np.ndarray, wheels: np.ndarray | None = None, speed: float = 0.0, lateral: float = 0.0):
+        wheels = np.full(6, speed) if wheels is None else wheels
+        return sideways_grip(normals, forces, 0.5, wheels, speed, 0.0, 0.9, lateral)
+
+    assert grip(np.zeros(6)) == pytest.approx(0.5 * normals.sum())
     pulls = 0.3 * normals
-    assert sideways_grip(normals, pulls, 0.5) == pytest.approx(0.4 * normals.sum())  # 3-4-5
-    assert sideways_grip(normals, 0.5 * normals, 0.5) == 0.0  # spinning: nothing left sideways
+    assert grip(pulls) == pytest.approx(0.4 * normals.sum())  # 3-4-5
+    # Spinning at mu N (surface 2 m/s over ground at rest), not sliding sideways: next to nothing (the
+    # share's 1 cm/s at rest over 2 m/s)...
+    spinning = np.full(6, 2.0)
+    assert grip(0.5 * normals, spinning) == pytest.approx(0.5 * normals.sum() * 0.005, rel=1e-3)
+    # ... sliding sideways at 2 m/s too: the sideways part of the sliding velocity, 45 deg.
+    share = 2.01 / math.hypot(2.01, 2.0)
+    assert grip(0.5 * normals, spinning, lateral=-2.0) == pytest.approx(0.5 * normals.sum() * share)
+    # Locked (surface 0) while the body slides along at 0.1 m/s and sideways at 3 m/s: nearly mu N.
+    locked = grip(-0.5 * normals, np.zeros(6), speed=0.1, lateral=3.0)
+    assert locked == pytest.approx(0.5 * normals.sum() * 3.01 / math.hypot(3.01, 0.1))
+    lifted = normals.copy()
+    lifted[:3] = 0.0
+    assert sideways_grip(lifted, np.zeros(6), 0.5, np.zeros(6), 0.0, 0.0, 0.9, 1.0) == pytest.approx(
+        0.5 * lifted.sum()
+    )
     assert sideways_speed(0.0, -2.0, 2.5, DT) == 0.0  # within the grip: held exactly
     assert sideways_speed(0.0, -3.0, 2.5, DT) == pytest.approx(-0.5 * DT)
     assert sideways_speed(-0.001, 0.0, 2.5, DT) == 0.0  # stopped, not reversed

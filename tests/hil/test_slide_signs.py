@@ -41,24 +41,33 @@ def test_a_slide_down_a_diagonal_balances_its_energy(yaw_deg):
     friction_work = 0.0
     for _ in range(150):
         step = body.step(DT, [0.0] * 6, VOLTS)
-        grip = sideways_grip(np.array(step.normal_forces_n), np.array(step.traction_forces_n), 0.3)
+        grip = sideways_grip(
+            np.array(step.normal_forces_n),
+            np.array(step.traction_forces_n),
+            0.3,
+            np.zeros(6),
+            step.speed_mps,  # as the kernel's step calls it: after the drive, before the slide
+            step.yaw_rate_rps,
+            PARAMS.effective_track_m,
+            previous.lateral_speed_mps,
+        )
         friction_work += grip * abs(0.5 * (previous.lateral_speed_mps + step.lateral_speed_mps)) * DT
         previous = step
     assert abs(math.degrees(step.pitch_rad)) == pytest.approx(13.1, abs=0.1)
     assert step.speed_mps == pytest.approx(0.0, abs=1e-9) and step.lateral_speed_mps != 0.0
     potential = -mass * G * math.tan(math.radians(25.0)) * (body.y - y0)
     kinetic = 0.5 * mass * (step.lateral_speed_mps**2 + step.speed_mps**2) - kinetic0
-    assert potential > 300.0  # J: it slid a couple of metres
+    assert potential > 200.0  # J: it slid a metre and more
     assert potential == pytest.approx(kinetic + friction_work, rel=1e-3)
 
 
 @pytest.mark.parametrize("turn", [1.0, -1.0])
 def test_a_turn_past_the_grip_slides_to_the_outside(turn):
-    """On the level (mu 0.2, no rolling resistance), at 1.5 m/s a hard arc asks ``v w`` past what the
+    """On the level (mu 0.15, no rolling resistance), at 1.5 m/s a hard arc asks ``v w`` past what the
     wheels hold sideways: the body slides to the outside of the turn (y right in a left turn), never in."""
     size = (200, 200)
     flat = TerrainMap(np.zeros(size), np.zeros(size, np.uint8), np.zeros(size, bool), RES)
-    body = RoverDynamics(flat, PARAMS, {0: ground_class(0.2)}, x=10.0, y=25.0, yaw=0.0)
+    body = RoverDynamics(flat, PARAMS, {0: ground_class(0.15)}, x=10.0, y=25.0, yaw=0.0)
     for i in range(300):
         body.step(DT, [1.5 * min(1.0, i * DT / 2.0)] * 6, VOLTS)
     inner, outer = [0.3] * 3, [1.5] * 3
@@ -66,7 +75,7 @@ def test_a_turn_past_the_grip_slides_to_the_outside(turn):
     steps = [body.step(DT, wheels, VOLTS) for _ in range(200)]
     assert all(turn * s.yaw_rate_rps >= 0.0 for s in steps)
     assert all(turn * s.lateral_speed_mps <= 0.0 for s in steps)
-    assert min(turn * s.lateral_speed_mps for s in steps) < -0.03
+    assert min(turn * s.lateral_speed_mps for s in steps) < -0.02
 
 
 def test_a_spinning_body_coasting_on_ice_keeps_its_velocity_over_the_ground():
