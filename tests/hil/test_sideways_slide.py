@@ -166,7 +166,9 @@ def test_locked_wheels_sliding_down_a_slope_resist_sideways_as_a_sliding_block()
 def test_the_friction_circle_and_the_coulomb_step():
     normals = np.array([50.0, 60.0, 70.0, 40.0, 50.0, 60.0])
 
-    def grip(forces: np.ndarray, wheels: np.ndarray | None = None, speed: float = 0.0, lateral: float = 0.0):
+    def grip(
+        forces: np.ndarray, wheels: np.ndarray | None = None, speed: float = 0.0, lateral: float = 0.0
+    ) -> float:
         wheels = np.full(6, speed) if wheels is None else wheels
         return sideways_grip(normals, forces, 0.5, wheels, speed, 0.0, 0.9, lateral)
 
