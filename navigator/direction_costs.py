@@ -15,21 +15,19 @@ and ``inf`` (the move is forbidden) when the rover driving that way would be bey
 * ``roll  > tip_roll  - tip_margin``   (tips over sideways: crossing too steep a side slope);
 * ``|pitch| > tip_pitch - tip_margin`` (tips over end to end);
 * ``along > tan(max_climbable_slope(mu, crr) - climb_margin)`` of either cell's class (cannot climb);
-* ``-along > tan(atan(mu) - climb_margin)`` (cannot hold itself: it would slide down with braked wheels);
-* on a side slope (``cross > 0``), when the friction the wheels have left sideways cannot hold the body
-  (it would slide sideways downhill, off its path: ``hil.traction.sideways_grip``). Per unit of normal
-  load the body needs ``tan(roll)`` sideways, and along its heading ``pull = tan(pitch) / cos(roll) + crr``
-  to drive on (gravity's part along it, and rolling resistance) or ``brake = -tan(pitch) / cos(roll)`` to
-  stand still; each wheel's friction is a circle, so the move is forbidden when
-  ``tan(roll)^2 + max(pull, 0)^2 > (tan(max_climbable_slope(mu, crr) - climb_margin) + crr)^2`` (it cannot
-  drive across) or ``tan(roll)^2 + max(brake, 0)^2 > tan(atan(mu) - climb_margin)^2`` (it cannot stop
-  there), for either cell's class. The budgets are the ones the climb and hold rules above allow along the
-  slope, so with no side slope these are those rules exactly; across a level-contour slope they are the
-  simulator's holding limits less the margin (mud: 11.1 deg driving, 13.7 deg parked). The cost grid
-  (``navigator.costs``) already makes a cell lethal past the climb limit whatever the heading, and
-  ``tan(climb limit) = mu - crr < sqrt(mu^2 - crr^2)``, so between cells the cost grid lets through this rule
-  forbids nothing on the shipped maps; it states the belief where the sliding is decided, and holds if the
-  cell rule's margin or limit is ever relaxed.
+* ``-along > tan(atan(mu) - climb_margin)`` (cannot hold itself: it would slide down with braked wheels).
+
+No rule of its own forbids crossing a side slope the wheels cannot hold on sideways: within a class
+none could fire between cells the cost grid lets through. Per unit of normal load the body needs
+``tan(roll)`` sideways and ``along_load = tan(pitch) / cos(roll)`` along its heading, and
+``tan(roll)^2 + along_load^2 = along^2 + cross^2 = |grad z|^2`` whatever the heading; the cost grid
+(``navigator.costs``) makes a cell lethal past ``|grad z| = tan(climb limit)`` of its class, and
+``tan(climb limit) + crr <= mu``, so on every passable cell each wheel's friction circle holds the body
+driving on (``tan(roll)^2 + (along_load + crr)^2 <= mu^2``) and standing still
+(``tan(roll)^2 + along_load^2 <= mu^2``). ``tests/navigator/test_side_slope_invariant.py`` keeps that
+guarantee: it fails if the cell rule is relaxed past the friction. (Where two classes meet, a move's
+slope, the mean of its cells', can pass the firmer cell's limit and exceed the softer class's for that one
+step; a rover on the softer cell's own slope is within it.)
 
 Every factor is >= 1, so ``step * mean(cell costs)`` stays a lower bound of every move and the A*
 heuristics stay admissible. ``side_weight`` > ``climb_weight`` by default: a rover on a hill prefers to
@@ -74,30 +72,6 @@ def _shifted(layer: np.ndarray, d_row: int, d_col: int) -> np.ndarray:
     return padded[1 + d_row : 1 + d_row + rows, 1 + d_col : 1 + d_col + cols]
 
 
-def _slides_sideways(
-    along: np.ndarray,
-    cross: np.ndarray,
-    class_ids: np.ndarray,
-    d_row: int,
-    d_col: int,
-    crr: np.ndarray,
-    pull_budget: np.ndarray,
-    hold_budget: np.ndarray,
-) -> np.ndarray:
-    """Where a move across a side slope leaves the wheels too little friction sideways, in either cell's
-    class (the module doc's side-slope rule). ``along``, ``cross``: the move's gradients, (rows, cols)."""
-    tan_roll = cross / np.sqrt(1.0 + along * along)  # TerrainMap.tilt_at's roll
-    # Gravity along the heading per unit of normal load: tan(pitch) / cos(roll).
-    along_load = along * np.sqrt(1.0 + tan_roll * tan_roll)
-    sideways = tan_roll * tan_roll
-    braking = np.maximum(-along_load, 0.0) ** 2
-    slides = np.zeros(along.shape, dtype=bool)
-    for ids in (class_ids, _shifted(class_ids, d_row, d_col)):
-        pulling = np.maximum(along_load + crr[ids], 0.0) ** 2
-        slides |= (sideways + pulling > pull_budget[ids] ** 2) | (sideways + braking > hold_budget[ids] ** 2)
-    return slides & (cross > 0.0)
-
-
 def direction_factors(
     terrain: TerrainMap,
     params: VehicleParams,
@@ -111,7 +85,6 @@ def direction_factors(
     size = max(int(class_ids.max()) + 1, max(classes) + 1)
     tan_climb = np.full(size, np.inf)
     tan_hold = np.full(size, np.inf)
-    crr = np.zeros(size)
     for class_id, terrain_class in classes.items():
         tan_climb[class_id] = math.tan(
             max_climbable_slope_rad(
@@ -119,10 +92,6 @@ def direction_factors(
             )
         )
         tan_hold[class_id] = math.tan(max(0.0, math.atan(terrain_class.friction_mu) - w.climb_margin_rad))
-        crr[class_id] = terrain_class.rolling_resistance
-    # The friction budgets (per unit of normal load) of the side-slope rule: driving on, standing still.
-    pull_budget = tan_climb + crr
-    hold_budget = tan_hold
     roll_limit = params.tip_roll_rad - w.tip_margin_rad
     pitch_limit = params.tip_pitch_rad - w.tip_margin_rad
 
@@ -148,7 +117,6 @@ def direction_factors(
             | (np.arctan(np.abs(along)) > pitch_limit)
             | (along > climb_ok)
             | (-along > hold_ok)
-            | _slides_sideways(along, cross, class_ids, d_row, d_col, crr, pull_budget, hold_budget)
         )
         factor[forbidden] = np.inf
         factors[move] = factor
