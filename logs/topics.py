@@ -464,10 +464,20 @@ _SPECS = [
                 "lateral_speed_mps": _NUM,
                 "yaw_rate_rps": _NUM,
                 "terrain": _STR,
-            }
+            },
+            # Not lateral_speed_mps: recordings made before the body could slide sideways lack it.
+            required=[
+                *_POSE_IN_FRAME_FIELDS,
+                "yaw_rad",
+                "roll_rad",
+                "pitch_rad",
+                "speed_mps",
+                "yaw_rate_rps",
+                "terrain",
+            ],
         ),
         "Simulation only: the true pose of the rover; speed along its heading and sideways (body y, left: "
-        "0 unless it slides).",
+        "0 unless it slides; absent in recordings made before sliding was modelled).",
     ),
     TopicSpec(
         TRUTH_WHEELS,
