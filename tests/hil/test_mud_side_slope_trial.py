@@ -49,7 +49,7 @@ def test_driving_along_the_muddy_side_slope_it_slides_downhill(tmp_path: Path) -
     on_band = [p for p in poses if FULL_TILT_X[0] <= _xy(p)[0] <= FULL_TILT_X[1]]
     assert on_band
     # Before the band, on level mud, it hardly slides (under 1 mm/s: in its first second its wheels spin
-    # at full traction, which leaves none sideways, while it straightens up); on the band it slides
+    # at full traction, which leaves little sideways, while it straightens up); on the band it slides
     # sideways, downhill (-y: the ground rises to its left), at up to ~0.8 m/s, and ends well below the
     # line it was following.
     assert max(abs(p["lateral_speed_mps"]) for p in poses if _xy(p)[0] < 3.0) < 1e-3

@@ -203,7 +203,7 @@ def test_on_the_level_the_body_never_slides_at_the_rovers_speeds(class_id):
     exactly 0.0, so every state is the one the model gave before sliding existed.
 
     (An arc commanded from rest on mud is not in the list: its wheels spin at full traction while the body
-    picks up speed, which leaves them no sideways grip, and it slides by under 1 mm/s: as it should.)"""
+    picks up speed, which leaves them little sideways grip, and it slides by under 1 mm/s: as it should.)"""
     size = (160, 160)
     flat = TerrainMap(np.zeros(size), np.full(size, class_id, np.uint8), np.zeros(size, bool), 0.25)
     top = PARAMS.max_wheel_speed_mps
