@@ -376,15 +376,15 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
             # part now along the heading on the next steps, as any difference from the target speed.
             speed += lateral_speed0 * yaw_rate0 * dt
         # Sideways: gravity's cross-slope part (roll positive lowers the right side, so it pulls to -y) less
-        # the turn's centripetal need, against what the wheels' friction circles leave after their pull.
-        demand = -G * math.cos(pitch) * math.sin(roll) - speed * yaw_rate
-        grip = (
+        # the turn's centripetal need, against the wheels' sideways friction (sideways_grip, N, per kg).
+        demand_mps2 = -G * math.cos(pitch) * math.sin(roll) - speed * yaw_rate
+        grip_mps2 = (
             sideways_grip(
                 normals, traction, ground[MU], wheels, speed, yaw_rate, body[EFFECTIVE_TRACK], lateral_speed0
             )
             / body[MASS]
         )
-        lateral_speed = sideways_speed(lateral_speed0, demand, grip, dt)
+        lateral_speed = sideways_speed(lateral_speed0, demand_mps2, grip_mps2, dt)
         mean_speed = 0.5 * (speed0 + speed)
         turn = 0.5 * (yaw_rate0 + yaw_rate) * dt
         heading = yaw + 0.5 * turn

@@ -248,12 +248,12 @@ def drive_forces(
         radius = min(radius, abs(speed) / abs(yaw_rate))
     elif math.isinf(radius):
         radius = 0.0  # not turning and not asked to: static friction holds the heading in full
-    lateral_speed = abs(yaw_rate) * half_base  # of the end wheels, sideways
+    end_scrub_speed = abs(yaw_rate) * half_base  # the end wheels' sideways speed in the turn
     left_sliding = left - (speed - 0.5 * yaw_rate * effective_track)
     right_sliding = right - (speed + 0.5 * yaw_rate * effective_track)
     scrub = scrub_coefficient(ground[MU_LAT], radius, track) * (
-        left_lever * sideways_share(lateral_speed, left_sliding)
-        + right_lever * sideways_share(lateral_speed, right_sliding)
+        left_lever * sideways_share(end_scrub_speed, left_sliding)
+        + right_lever * sideways_share(end_scrub_speed, right_sliding)
     )
     turn_sign = 1.0 if yaw_cmd > 0.0 else (-1.0 if yaw_cmd < 0.0 else 0.0)
 
@@ -354,17 +354,18 @@ def sideways_grip(
 
 
 @numba.njit(cache=True)
-def sideways_speed(speed: float, demand: float, grip: float, dt: float) -> float:
+def sideways_speed(speed: float, demand_mps2: float, grip_mps2: float, dt: float) -> float:
     """The body's sideways speed (m/s, y left) after ``dt`` s, from ``speed`` under the sideways
-    acceleration ``demand`` (m/s^2: gravity's cross-slope part less the turn's centripetal need) with the
-    wheels' Coulomb friction ``grip`` (m/s^2, ``sideways_grip`` / mass) against it.
+    acceleration ``demand_mps2`` (gravity's cross-slope part less the turn's centripetal need) with the
+    wheels' Coulomb friction ``grip_mps2`` (the deceleration it can give: ``sideways_grip``, N, / mass)
+    against it.
 
     Coulomb friction, implicit as the yaw scrub's in ``drive_forces``: within the grip it holds the body
     (a body that was not sliding stays at exactly 0.0); past it, it opposes the sliding and can stop it,
     never reverse it.
     """
-    free = speed + demand * dt
-    change = grip * dt
+    free = speed + demand_mps2 * dt
+    change = grip_mps2 * dt
     if abs(free) <= change:
         return 0.0
     if free > 0.0:
