@@ -56,9 +56,9 @@ class Mission:
 
     ``state`` and ``current`` are plain attributes (the control tick reads ``state`` every tick); change
     them only through the methods. ``current`` is the waypoint (or return to launch) being driven to
-    (ACTIVE), the one a single goal interrupted (PAUSED), the last item (COMPLETE), or 0 (NOT_STARTED:
-    loaded, not driven yet). A speed change is current for no time: the
-    mission applies it and goes on in the same call.
+    (ACTIVE), the one a single goal interrupted (PAUSED), the last item or the return to launch the
+    mission ended at (COMPLETE, ``end_here``), or 0 (NOT_STARTED: loaded, not driven yet). A speed
+    change is current for no time: the mission applies it and goes on in the same call.
     """
 
     def __init__(self) -> None:
@@ -150,6 +150,13 @@ class Mission:
         if self.state is not MissionState.ACTIVE:
             raise ParameterError(f"no mission is being driven (mission {self.state.value})")
         return self._go_from(self.current + 1)
+
+    def end_here(self) -> None:
+        """The current item cannot be driven (a return to launch with no home to go to): the mission ends
+        COMPLETE on it, ``current`` kept, whatever items follow. ``ParameterError`` unless ACTIVE."""
+        if self.state is not MissionState.ACTIVE:
+            raise ParameterError(f"no mission is being driven (mission {self.state.value})")
+        self.state = MissionState.COMPLETE
 
     def current_waypoint(self) -> Waypoint:
         """The waypoint being driven to (or interrupted, or reached last); ``ParameterError`` when the

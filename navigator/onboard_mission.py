@@ -380,8 +380,13 @@ class MissionDriver:
     def _return_home(self, *, given: bool) -> bool:
         """The mission came to a return to launch: home as it is now becomes the goal (a
         ``return_to_launch`` event). With no home to drive to (no healthy estimate yet, home outside the
-        geofence) the mission ends there, COMPLETE, and the rover holds (a warning event saying why, then
-        ``mission_complete``). True either way: the item was dealt with."""
+        geofence) the mission ends there, COMPLETE on the return item (``Mission.end_here``;
+        MISSION_CURRENT says COMPLETE, as the event does), whatever items follow, and the rover holds (a
+        warning event saying why, then ``mission_complete``). True either way: the item was dealt with.
+
+        Not ArduPilot's way: AP_Mission's ``advance_current_nav_cmd`` goes on to the next NAV command when
+        one fails to start. A rover told to come home that cannot should not drive on, away from it, to
+        the items planned for after home; it stops and the operator decides."""
         mission = self.mission
         seq, count = mission.current, mission.count
         target: Home | HomeRefusal = self.home.return_target()
@@ -389,7 +394,7 @@ class MissionDriver:
             self._event(
                 "return_to_launch", "warning", f"item {seq} of {count}: {target.reason}: the rover holds"
             )
-            mission.reached()
+            mission.end_here()
             self._guidance.clear_goal()
             self._complete(f"no home to return to at item {seq}: the rover holds")
             return True

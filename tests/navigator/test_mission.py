@@ -188,6 +188,16 @@ def test_a_return_to_launch_as_the_last_item_completes_the_mission_when_reached(
     assert (mission.state, mission.current) == (MissionState.COMPLETE, 1)
 
 
+def test_end_here_completes_the_mission_on_its_current_item_whatever_follows() -> None:
+    mission = Mission()
+    mission.load([ReturnToLaunch(), SpeedChange(0.5), (9.0, 9.0)])
+    mission.set_current(0)
+    mission.end_here()  # a return to launch with no home to go to
+    assert (mission.state, mission.current) == (MissionState.COMPLETE, 0)
+    with pytest.raises(ParameterError, match="COMPLETE"):
+        mission.end_here()
+
+
 def test_a_return_to_launch_alone_is_a_mission() -> None:
     mission = Mission()
     mission.load([ReturnToLaunch()])

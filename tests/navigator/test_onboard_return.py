@@ -166,3 +166,28 @@ def test_a_return_to_launch_command_is_denied_when_home_is_outside_the_fence() -
         assert station.details("return_to_launch") == []  # not driven
     finally:
         station.close()
+
+
+def test_a_refused_return_to_launch_ends_the_mission_there_whatever_items_follow() -> None:
+    # Home, where the rover stood (3, 3), is outside the fence; the waypoint after the return is inside.
+    station = Station(config=rig_config(fence=((5.0, 5.0), (19.0, 5.0), (19.0, 19.0), (5.0, 19.0))))
+    try:
+        station.rig.run_for(1.0)  # the estimate healthy: home is known, and outside the fence
+        plan = [return_to_launch(0), change_speed(1, SLOW_MPS), second_waypoint(2)]
+        assert station.upload(plan).type == mavlink2.MAV_MISSION_ACCEPTED
+        station.start()
+        stack = station.rig.stack
+        mission = stack.mission
+        # Not on to the items after it: the rover holds, the mission COMPLETE at the return item.
+        assert (mission.state, mission.current) == (MissionState.COMPLETE, 0)
+        assert stack.goal is None and stack.guidance.core.mission_speed_mps is None
+        assert station.details("mission_complete") == [
+            "mission complete: no home to return to at item 0: the rover holds"
+        ]
+        station.rig.run_for(1.2)  # MISSION_CURRENT once a second: it says what the event said
+        station.gcs.receive()
+        last = station.gcs.of_type("MISSION_CURRENT")[-1]
+        assert (last.seq, last.total, last.mission_state) == (3, 3, mavlink2.MISSION_STATE_COMPLETE)
+        assert mission.state is MissionState.COMPLETE and stack.goal is None
+    finally:
+        station.close()
