@@ -54,7 +54,9 @@ class GpsReset(NamedTuple):
     ``navigator.onboard_home`` moves a home taken from the estimate by it."""
 
     t_ns: int  # fix time of the fix re-anchored on
-    agreed_until_ns: int | None  # fix time of the last fix accepted before the disagreement (or the first)
+    # Fix time of the last fix the estimate agreed with before the disagreement: the last accepted (the
+    # first fix, which started the filter, counts) or the last re-anchoring's, whichever is later.
+    agreed_until_ns: int
     east_m: float  # the jump: the fix less the estimate at t_ns, ENU metres
     north_m: float
 
@@ -423,7 +425,8 @@ class Estimator:
             # lied) than that GPS is wrong for so long. A short glitch never gets here.
             ekf = self._ekf
             jump_east, jump_north = east - ekf.state(X), north - ekf.state(Y)  # at t_fix (_advance above)
-            self._last_gps_reset = GpsReset(t_fix, self._last_gps_accepted_ns, jump_east, jump_north)
+            agreed = self._agreed_until_ns()
+            self._last_gps_reset = GpsReset(t_fix, agreed, jump_east, jump_north)
             ekf.reset_position(east, north, std)
             self._last_gps_accepted_xy = (east, north)
             self._counters["gps_reset"] += 1
@@ -434,6 +437,18 @@ class Estimator:
                 north,
             )
             self._gps_rejected_since_ns = None
+
+    def _agreed_until_ns(self) -> int:
+        """Fix time of the last fix the estimate agreed with: the last accepted, or the last re-anchoring's
+        (the estimate was put on that fix), whichever is later. A re-anchoring is not counted as accepted
+        (``_last_gps_accepted_ns`` says how fresh GPS is for health), but it is an agreement: without it a
+        second long disagreement right after the first would carry the first's time, and read as the
+        estimate having been off since then (``navigator.onboard_home`` would move home twice)."""
+        times = [self._last_gps_accepted_ns]
+        if self._last_gps_reset is not None:
+            times.append(self._last_gps_reset.t_ns)
+        # The first fix, which started the filter, is accepted: only a filter never started has neither.
+        return max((t for t in times if t is not None), default=0)
 
     def _judge_spinning(self, t_fix: int, east: float, north: float, std: float) -> None:
         was_spinning = self._stuck.spinning

@@ -10,7 +10,9 @@ the estimator re-anchors its position on GPS (``Estimator.last_gps_reset``: GPS 
 estimate for ``gps_reset_after_s``) and no fix agreed with the estimate between home being taken and the
 disagreement, the estimate home came from was off by the same jump (a first fix 25 m off that started the
 filter there), and home moves by it. A re-anchoring after fixes had agreed is later drift, not home's:
-home stays. Once used, home stays as it was told and driven to; only DO_SET_HOME moves it.
+home stays. A re-anchoring is itself an agreement (``GpsReset.agreed_until_ns``), so home moves at most
+once this way: a second long disagreement right after the first is a glitch after home was put right.
+Once used, home stays as it was told and driven to; only DO_SET_HOME moves it.
 
 MAV_CMD_DO_SET_HOME moves it: to the current position (the pose estimate's) or to a given latitude and
 longitude, placed as goals are; refused outside the geofence (home is where RTL drives) and before the
@@ -106,9 +108,10 @@ class HomeKeeper:
         if reset is None or reset is self._reset_seen:
             return
         self._reset_seen = reset
-        agreed = reset.agreed_until_ns
-        if agreed is None or agreed > spot.t_ns:
-            return  # a fix agreed with the estimate after home was taken: later drift, not home's error
+        if reset.agreed_until_ns > spot.t_ns:
+            # A fix (or a re-anchoring) agreed with the estimate after home was taken: later drift, not
+            # home's error.
+            return
         jump = math.hypot(reset.east_m, reset.north_m)
         self._spot = _Spot(
             spot.t_ns,

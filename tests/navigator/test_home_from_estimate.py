@@ -80,6 +80,24 @@ def test_a_re_anchoring_after_fixes_agreed_leaves_home_where_the_rover_stood() -
     assert rover.events[0][2].endswith("its first healthy one")
 
 
+def test_a_second_re_anchoring_right_after_the_first_does_not_move_home_again() -> None:
+    rover = Standing()
+    rover.fixes_at(25.0, 0.0, PERIOD_S)  # the glitched first fix
+    rover.fixes_at(0.0, 0.0, 10.2)  # the truth, gated out until the re-anchoring on its last fix
+    first = rover.estimator.last_gps_reset
+    assert first is not None and (first.east_m, first.north_m) == pytest.approx((-25.0, 0.0), abs=0.5)
+    assert first.t_ns == rover.clock.now_ns()  # no truth fix accepted after it
+    rover.fixes_at(0.0, 25.0, 15.0)  # then at once a long glitch 25 m north: re-anchored on it too
+    second = rover.estimator.last_gps_reset
+    assert second is not None and second is not first
+    assert (second.east_m, second.north_m) == pytest.approx((0.0, 25.0), abs=0.5)
+    assert second.agreed_until_ns == first.t_ns  # the first re-anchoring is the last agreement
+    home = rover.keeper.home()
+    assert home is not None and math.hypot(home.x, home.y) < 0.5  # moved once, to where the rover stands
+    ((_, _, detail),) = rover.events
+    assert detail.count("moved") == 1
+
+
 def test_once_used_home_stays_as_told() -> None:
     rover = Standing()
     rover.fixes_at(25.0, 0.0, PERIOD_S)
