@@ -12,20 +12,24 @@ disagreement, the estimate home came from was off by the same jump (a first fix 
 filter there), and home moves by it. A re-anchoring after fixes had agreed is later drift, not home's:
 home stays. A re-anchoring is itself an agreement (``GpsReset.agreed_until_ns``), so home moves at most
 once this way: a second long disagreement right after the first is a glitch after home was put right.
-Once used, home stays as it was told and driven to; only DO_SET_HOME moves it.
+Once used (driven to, or moved by DO_SET_HOME), home is fixed: only DO_SET_HOME moves it. A ground station
+asking where home is (HOME_POSITION) does not fix it: many ask on connect, and that would keep a glitched
+first fix home for good; it is told home as it is then, and the correction, should it come, as a move.
 
 MAV_CMD_DO_SET_HOME moves it: to the current position (the pose estimate's) or to a given latitude and
 longitude, placed as goals are; refused outside the geofence (home is where RTL drives) and before the
 rover knows where it is. Home is on the ground plane at the datum's altitude (ENU z 0), as goals are.
 
-Every home is a ``home`` event on ``safety/events``, so a trial's recording says where home was whenever home
-mattered in it, and a HOME_POSITION to the ground stations that follow the mission (``listeners``; never the
-autopilot's link, whose home is its own), as ArduPilot sends HOME_POSITION when home is set or moved: a ground
-station that did not ask learns where home is now. The one that asked or moved it has its answer on its own
-link, once. Where home will be is followed every tick (``observe``, which records nothing); it is made home,
-and its event published, when home is first needed (a ground station asks for it, moves it, or sends the rover
-there; a mission comes to a return to launch): a trial that never uses home records what it always did (the
-default trial's recording stays byte-identical).
+Every home told is a ``home`` event on ``safety/events``, so a trial's recording says where home was
+whenever home mattered in it, and a HOME_POSITION to the ground stations that follow the mission
+(``listeners``; never the autopilot's link, whose home is its own), as ArduPilot sends HOME_POSITION when
+home is set or moved: a ground station that did not ask learns where home is now. The one that asked or
+moved it has its answer on its own link, once. Where home will be is followed every tick (``observe``,
+which records nothing until home has been told); it is first told, with its event, when home is first
+needed (a ground station asks for it, moves it, or sends the rover there; a mission comes to a return to
+launch), and again as ``home moved to`` when a correction moves it after it was told and before it was
+fixed. A trial that never uses home records what it always did (the default trial's recording stays
+byte-identical).
 """
 
 from __future__ import annotations
@@ -85,14 +89,15 @@ class HomeKeeper:
         self._placed = placed
         self._outside_fence = outside_fence
         self._event = event
-        self._home: Home | None = None
+        self._home: Home | None = None  # home fixed: driven to, or set by DO_SET_HOME
+        self._told: Home | None = None  # the home last told (event, HOME_POSITION), fixed or not
         self._spot: _Spot | None = None  # where home will be, while it is unused
         self._reset_seen: GpsReset | None = None  # the estimator's last re-anchoring, as last looked at
 
     def observe(self) -> None:
         """Every tick, while home is unused: the estimate's position at its first healthy tick becomes
         where home will be, moved by a re-anchoring on GPS that shows it was off (the module's note).
-        Records nothing."""
+        Records nothing, unless home was told before it was fixed: then the move is told too."""
         if self._home is not None:
             return
         estimator = self._estimator
@@ -120,22 +125,44 @@ class HomeKeeper:
             f"{spot.how}, moved {jump:.2f} m by the estimator's re-anchoring on GPS at "
             f"{seconds(reset.t_ns):.2f} s",
         )
+        if self._told is not None:
+            # A ground station was told the home before the correction (it asked): told again, as a move.
+            moved = self._from_spot()
+            if moved is not None:
+                self._tell(moved)
 
-    def home(self, asked_on: MissionLink | None = None) -> Home | None:
-        """Home, or None before the position estimate has been healthy (and no DO_SET_HOME). The
-        estimate's home is made home here, on first need, with its ``home`` event and HOME_POSITION to the
-        listeners but ``asked_on``, where the caller answers with it (the module's note)."""
+    def home(self) -> Home | None:
+        """Home, fixed (to be driven to), or None before the position estimate has been healthy (and no
+        DO_SET_HOME). The estimate's home is fixed here, on first need, with its ``home`` event and
+        HOME_POSITION to the listeners unless it was told already as it is (the module's note)."""
+        home = self._home
+        if home is not None:
+            return home
+        home = self.where()
+        if home is not None:
+            self._home = home
+        return home
+
+    def where(self, asked_on: MissionLink | None = None) -> Home | None:
+        """Home as it is now, not fixed (a HOME_POSITION request's answer): a correction may still move
+        it. Told (its ``home`` event, HOME_POSITION to the listeners but ``asked_on``, where the caller
+        answers with it) unless told already as it is; None before the estimate has been healthy."""
         home = self._home
         if home is not None:
             return home
         self.observe()
+        home = self._from_spot()
+        if home is not None and home != self._told:
+            self._tell(home, asked_on=asked_on)
+        return home
+
+    def _from_spot(self) -> Home | None:
+        """Where home will be (the estimate's), as a ``Home``; None before there is one."""
         spot, datum = self._spot, self._estimator.datum
         if spot is None or datum is None:
             return None
         lat, lon, alt = to_geodetic(datum, spot.x, spot.y, 0.0)
-        home = Home(lat, lon, alt, spot.x, spot.y, 0.0, spot.how)
-        self._set(home, asked_on=asked_on)
-        return home
+        return Home(lat, lon, alt, spot.x, spot.y, 0.0, spot.how)
 
     def return_target(self) -> Home | HomeRefusal:
         """Where a return to launch drives (home), or why it cannot: no home yet, home outside the
@@ -161,7 +188,7 @@ class HomeKeeper:
         elif isinstance(verdict, ReturnRequested):
             answer = self.return_target()
         elif isinstance(verdict, HomeAsked):
-            home = self.home(asked_on=link)
+            home = self.where(asked_on=link)
             refusal = HomeRefusal(mavlink2.MAV_RESULT_TEMPORARILY_REJECTED, _NO_HOME_YET)
             answer = home if home is not None else refusal
         else:
@@ -212,9 +239,14 @@ class HomeKeeper:
         return Home(lat, lon, alt, x, y, 0.0, how)
 
     def _set(self, home: Home, by: str = "", *, asked_on: MissionLink | None = None) -> None:
-        """Home is ``home`` now: its ``home`` event, and HOME_POSITION to each listener but ``asked_on``."""
-        moved = self._home is not None
+        """Home is ``home`` now, fixed (DO_SET_HOME), and told (``_tell``)."""
+        self._tell(home, by, asked_on=asked_on)
         self._home = home
+
+    def _tell(self, home: Home, by: str = "", *, asked_on: MissionLink | None = None) -> None:
+        """Home told as ``home``: its ``home`` event, and HOME_POSITION to each listener but ``asked_on``."""
+        moved = self._told is not None
+        self._told = home
         verb = "home moved to" if moved else "home at"
         self._event(
             "home",

@@ -1,22 +1,43 @@
 """Home taken from the estimator, not from a raw fix: a first fix 25 m off (a GPS glitch that started the
 filter there) does not stay home once the estimator re-anchors on GPS; a re-anchoring after fixes had
-agreed with the estimate (drift, or a long glitch later on) leaves home where it was."""
+agreed with the estimate (drift, or a long glitch later on) leaves home where it was. A ground station
+asking where home is does not fix it: the correction is told to it as a move."""
 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import pytest
+from pymavlink.dialects.v20 import common as mavlink2
 
 from estimator.config import EstimatorConfig
 from estimator.estimator import Estimator
 from estimator.geodesy import Datum, to_geodetic
+from firmware_bridge.mavlink_health import MavlinkCounters
 from logs.clock import SimClock
 from logs.sink import MemorySink
 from navigator.onboard_home import HomeKeeper
+from tests.firmware_bridge.ground_station import command_long
 
 DATUM = Datum(47.397742, 8.545594, 488.0)
 PERIOD_S = 0.2  # a 5 Hz GPS
+
+
+class Follower:
+    """A ground station's link following the mission: the HOME_POSITIONs it is told."""
+
+    name = "follower"
+
+    def __init__(self) -> None:
+        self.counters = MavlinkCounters()
+        self.sent: list[Any] = []
+
+    def send(self, msg: Any) -> None:
+        self.sent.append(msg)
+
+    def send_status_text(self, text: str, severity: int = 6) -> None:
+        raise AssertionError(f"no STATUSTEXT expected: {text}")
 
 
 class Standing:
@@ -31,12 +52,14 @@ class Standing:
         self.estimator = Estimator(config, self.clock, MemorySink())
         self.estimator.set_initial_heading(0.0, 0.05)
         self.events: list[tuple[str, str, str]] = []
+        self.follower = Follower()
         self.keeper = HomeKeeper(
             self.clock,
             self.estimator,
             lambda lat, lon: None,
             lambda x, y: False,
             lambda kind, severity, detail: self.events.append((kind, severity, detail)),
+            listeners=lambda: [self.follower],
         )
         self.k = 0
 
@@ -107,3 +130,22 @@ def test_once_used_home_stays_as_told() -> None:
     rover.fixes_at(0.0, 0.0, 15.0)
     assert rover.estimator.last_gps_reset is not None
     assert rover.keeper.home() == told  # a home told and driven to moves only by DO_SET_HOME
+
+
+def test_home_asked_for_is_not_fixed_and_the_correction_is_told_as_a_move() -> None:
+    rover = Standing()
+    rover.fixes_at(25.0, 0.0, PERIOD_S)  # the glitched first fix: healthy there at once
+    # A ground station asks on connect (MAV_CMD_REQUEST_MESSAGE HOME_POSITION), then asks again.
+    ask = command_long(mavlink2.MAV_CMD_REQUEST_MESSAGE, float(mavlink2.MAVLINK_MSG_ID_HOME_POSITION))
+    assert rover.keeper.take(rover.follower, ask) is None
+    assert rover.keeper.take(rover.follower, ask) is None
+    assert len(rover.events) == 1  # told once: home at the glitch
+    rover.fixes_at(0.0, 0.0, 15.0)  # the truth: the estimator re-anchors, home with it
+    assert [detail.split(" (")[0] for _, _, detail in rover.events] == ["home at", "home moved to"]
+    told = [m for m in rover.follower.sent if m.get_type() == "HOME_POSITION"]
+    assert [round(m.y) for m in told] == [25, 25, 0]  # the two answers, the move (NED: y is east, m)
+    home = rover.keeper.home()  # driven to: fixed as told, not told again
+    assert home is not None and math.hypot(home.x, home.y) < 0.5
+    assert len(rover.events) == 2
+    rover.fixes_at(0.0, 25.0, 15.0)
+    assert rover.keeper.home() == home and len(rover.events) == 2  # fixed: a later glitch moves it not
