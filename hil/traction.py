@@ -330,26 +330,41 @@ def sideways_grip(
     (Pacejka, *Tire and Vehicle Dynamics*, ch. 1, the friction circle; Wong, *Theory of Ground Vehicles*,
     ch. 1, a tyre's cornering force falling as its tractive effort grows).
 
-    A wheel at its limit (``|F_i| = mu N_i``: it spins, or is locked and slides) is sliding, and sliding
-    friction acts against the contact's sliding velocity (Coulomb; Wong ch. 7, as ``sideways_share`` for
-    the scrub): sideways ``mu N_i share_i``, ``share_i`` the sideways part of its sliding velocity, the
-    body's ``lateral_speed`` against the wheel's longitudinal ``surface - ground`` speed (``wheels``, and
-    the ground under each side from ``speed``, ``yaw_rate`` and ``effective_track``). So a locked wheel
-    sliding mostly sideways resists with nearly ``mu N_i``. Its limits: the longitudinal force stays the
-    ``mu N_i`` ``drive_forces`` gave it (it is not cut back to its share), so a wheel sliding obliquely has
-    up to ``sqrt(2) mu N_i`` of friction in all; and the yaw's own sideways sliding of the end wheels is
-    left out of the share (the body's ``lateral_speed`` is the same at every wheel). A lifted wheel holds
-    nothing.
+    A wheel whose contact slides sideways (the body's ``lateral_speed`` is not 0) also has Coulomb friction
+    against its contact's sliding velocity (Coulomb; Wong ch. 7, as ``sideways_share`` for the scrub): the
+    sideways part ``share_i`` of that velocity, the body's ``lateral_speed`` against the wheel's
+    longitudinal ``surface - ground`` speed (``wheels``, and the ground under each side from ``speed``,
+    ``yaw_rate`` and ``effective_track``). Its sideways grip is the larger of the two,
+    ``max(sqrt((mu N_i)^2 - F_i^2), |F_i| share_i)``: with no pull the circle's rest (all of ``mu N_i``), at
+    the limit (``|F_i| = mu N_i``: it spins, or is locked and slides) ``mu N_i share_i``, so a locked wheel
+    sliding mostly sideways resists with nearly ``mu N_i``; and in between it changes continuously with the
+    pull (before, a wheel went from the circle's ~0 just below its limit to ``mu N_i share_i`` at it, and a
+    locked rover's slide jumped with its heading). The Coulomb part is weighted by ``|F_i|``, not ``mu N_i``,
+    so that a wheel pulling well below its limit keeps the circle's rest: a driven wheel's small slip would
+    otherwise turn all its friction sideways and hold a rover the circle lets slide (``g (sin phi -
+    sqrt(mu^2 - crr^2) cos phi)`` across a slope). A body not sliding sideways has ``share_i`` 0 (no
+    at-rest epsilon as the scrub's), so its grip is the circle's rest exactly as before.
+
+    Its limits: the longitudinal force stays the one ``drive_forces`` gave it (it is not cut back to the
+    sliding direction's share), so a wheel sliding obliquely has up to ``sqrt(2) mu N_i`` of friction in
+    all; a locked rover whose wheels hold it along its heading while it slides sideways therefore slides
+    less than a block would (a locked-wheel body is a block: ``docs/physics.md``); and the yaw's own
+    sideways sliding of the end wheels is left out of the share (the body's ``lateral_speed`` is the same
+    at every wheel). A lifted wheel holds nothing.
     """
     grip = 0.0
+    sideways = abs(lateral_speed)
     for i in range(6):
         limit = mu * normals[i]
-        if abs(forces[i]) < limit * (1.0 - 1e-9):
-            grip += math.sqrt(limit * limit - forces[i] * forces[i])
-        elif limit > 0.0:
-            side = 1.0 if i >= 3 else -1.0
-            sliding = wheels[i] - (speed + side * yaw_rate * 0.5 * effective_track)
-            grip += limit * sideways_share(abs(lateral_speed), sliding)
+        if limit <= 0.0:
+            continue  # lifted
+        left_over = math.sqrt(max(limit * limit - forces[i] * forces[i], 0.0))
+        if sideways == 0.0:
+            grip += left_over  # share 0: the circle's rest (below the limit, the float it always was)
+            continue
+        side = 1.0 if i >= 3 else -1.0
+        sliding = wheels[i] - (speed + side * yaw_rate * 0.5 * effective_track)
+        grip += max(left_over, abs(forces[i]) * sideways / math.hypot(sideways, sliding))
     return grip
 
 

@@ -5,6 +5,7 @@ and gravity's cross-slope part pulls it to the right (-y, downhill). Test classe
 wheel's rolling resistance is exactly ``crr N`` and the closed forms hold to rounding.
 """
 
+import itertools
 import math
 
 import numpy as np
@@ -175,16 +176,24 @@ def test_the_friction_circle_and_the_coulomb_step():
     assert grip(np.zeros(6)) == pytest.approx(0.5 * normals.sum())
     pulls = 0.3 * normals
     assert grip(pulls) == pytest.approx(0.4 * normals.sum())  # 3-4-5
-    # Spinning at mu N (surface 2 m/s over ground at rest), not sliding sideways: next to nothing (the
-    # share's 1 cm/s at rest over 2 m/s)...
+    # Spinning at mu N (surface 2 m/s over ground at rest), not sliding sideways: nothing (share 0)...
     spinning = np.full(6, 2.0)
-    assert grip(0.5 * normals, spinning) == pytest.approx(0.5 * normals.sum() * 0.005, rel=1e-3)
+    assert grip(0.5 * normals, spinning) == 0.0
     # ... sliding sideways at 2 m/s too: the sideways part of the sliding velocity, 45 deg.
-    share = 2.01 / math.hypot(2.01, 2.0)
+    share = 2.0 / math.hypot(2.0, 2.0)
     assert grip(0.5 * normals, spinning, lateral=-2.0) == pytest.approx(0.5 * normals.sum() * share)
     # Locked (surface 0) while the body slides along at 0.1 m/s and sideways at 3 m/s: nearly mu N.
     locked = grip(-0.5 * normals, np.zeros(6), speed=0.1, lateral=3.0)
-    assert locked == pytest.approx(0.5 * normals.sum() * 3.01 / math.hypot(3.01, 0.1))
+    assert locked == pytest.approx(0.5 * normals.sum() * 3.0 / math.hypot(3.0, 0.1))
+    # Below the limit and sliding sideways: the larger of the circle's rest and |F| share, so no jump at
+    # the limit. Pulling 0.8 mu N, not sliding along: 0.8 mu N (the circle leaves 0.6); 0.3 mu N: the
+    # circle's 0.95 mu N; 0.999999 mu N: the Coulomb part, ~ what the limit gives.
+    rolling = np.zeros(6)
+    assert grip(0.4 * normals, rolling, lateral=-0.2) == pytest.approx(0.4 * normals.sum())
+    circle = math.sqrt(0.5**2 - 0.15**2) * normals.sum()
+    assert grip(0.15 * normals, rolling, lateral=-0.2) == pytest.approx(circle)
+    near, at = grip(0.4999995 * normals, spinning, lateral=-2.0), grip(0.5 * normals, spinning, lateral=-2.0)
+    assert near == pytest.approx(at, rel=1e-5)
     lifted = normals.copy()
     lifted[:3] = 0.0
     assert sideways_grip(lifted, np.zeros(6), 0.5, np.zeros(6), 0.0, 0.0, 0.9, 1.0) == pytest.approx(
@@ -219,3 +228,31 @@ def test_on_the_level_the_body_never_slides_at_the_rovers_speeds(class_id):
         steps = [body.step(DT, wheels, VOLTS) for wheels in commands]
         assert all(s.lateral_speed_mps == 0.0 for s in steps)
         assert abs(body.yaw_rate) > 0.3 or commands[-1][0] == top  # it turned (or ran straight)
+
+
+def test_a_locked_rovers_slide_changes_continuously_with_its_heading():
+    """Parked (wheels locked) on a plane of grade 0.35 (19.3 deg, mu 0.3: a block slides 0.874 m down the
+    fall line in 2 s), headings 0..90 deg off the contour, 1 deg apart. Before, a wheel's sideways grip
+    jumped from the circle's ~0 just below its limit to ``mu N share`` at it, and the drop jumped with the
+    heading (1.03 m at 30 deg, 0.07 m at 45, 0.23 m at 56, 0.025 m at 58). Now: no two neighbours differ
+    by more than 0.1 m; along the contour (no pull) and straight downhill (every wheel sliding along at its
+    limit) it drops as a block (1 %); never more than 12 % past a block (the circle's rest, less than
+    ``mu N``, while the wheels hold along). In between it drops less than a block: see ``sideways_grip``'s
+    limits."""
+    phi = math.atan(0.35)
+    plane = side_slope(math.degrees(phi), (200, 200))
+    block = 0.5 * G * (math.sin(phi) - MU * math.cos(phi)) * 2.0**2 * math.cos(phi)  # horizontal
+    drops = []
+    for off in range(91):
+        body = RoverDynamics(plane, PARAMS, ground(0.15), x=25.0, y=30.0, yaw=-math.radians(off))
+        for _ in range(200):
+            step = body.step(DT, [0.0] * 6, VOLTS)
+        drops.append(30.0 - body.y)
+        if off >= 75:
+            pulls, loads = np.abs(step.traction_forces_n), np.array(step.normal_forces_n)
+            assert pulls == pytest.approx(MU * loads)  # every wheel sliding along at its limit
+    assert block == pytest.approx(0.874, abs=1e-3)
+    assert max(abs(b - a) for a, b in itertools.pairwise(drops)) < 0.1
+    assert drops[0] == pytest.approx(block, rel=0.01) and drops[90] == pytest.approx(block, rel=0.01)
+    assert max(drops) < 1.12 * block
+    assert drops[75:] == sorted(drops[75:])  # towards the block's as the wheels slide more along
