@@ -428,7 +428,11 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
         values[CONTACT_KIND] = kind
 
         values[X], values[Y], values[YAW] = new_x, new_y, new_yaw
-        values[SPEED], values[YAW_RATE], values[ACCEL] = speed, yaw_rate, accel
+        values[SPEED], values[YAW_RATE] = speed, yaw_rate
+        # A refused move's stop is an impact, not a sustained deceleration: as v / dt it would load the next
+        # step's front wheels by an amount set by the step length, so the loads see 0. The step's record
+        # keeps it (the IMU's specific force x: the mean deceleration over the step the contact stopped).
+        values[ACCEL] = 0.0 if refused else accel
         values[STEP_ACCEL] = accel
         # A slide stopped by a contact is an impact, not a sustained sideways acceleration: as v / dt it
         # would load the wheels and tip the margin by an amount set by the step length. The impact's own

@@ -137,6 +137,27 @@ def test_collision_with_an_obstacle_is_reported_once_and_not_entered():
     assert sum(s.collided_obstacle for s in steps) == 1
 
 
+@pytest.mark.parametrize("dt", [0.005, 0.01, 0.02])
+def test_a_head_on_stop_leaves_the_static_wheel_loads(dt):
+    """Into a wall at 1.5 m/s on the level: the stop is an impact, not a sustained deceleration, so the
+    loads of the steps after it are the static ones (before, the stop's ``v / dt`` loaded the next step's
+    front wheels: [221, 0, 0, 221, 0, 0] N at every dt). The step that stopped still records it (the IMU's
+    specific force x)."""
+    obstacles = np.zeros((80, 80), bool)
+    obstacles[:, 60:] = True  # a wall at x >= 15 m
+    body = RoverDynamics(plane(obstacles=obstacles), PARAMS, x=10.0, y=10.0, yaw=0.0)
+    still = RoverDynamics(plane(), PARAMS, x=10.0, y=10.0, yaw=0.0)
+    static = still.step(dt, [0.0] * 6, VOLTS).normal_forces_n
+    steps = [body.step(dt, [1.5] * 6, VOLTS) for _ in range(round(4.0 / dt))]
+    hit = next(i for i, s in enumerate(steps) if s.collided_obstacle)
+    assert steps[hit - 1].speed_mps > 1.4 and steps[hit].speed_mps == 0.0
+    assert steps[hit].longitudinal_accel_mps2 < -1.4 / dt  # the impact, in the step that stopped
+    after = steps[hit + 1 : hit + 4] + [body.step(dt, [0.0] * 6, VOLTS) for _ in range(3)]
+    for step in after:  # still pushing, then parked
+        assert step.normal_forces_n == pytest.approx(static, rel=1e-12)
+        assert step.collided and step.speed_mps == 0.0
+
+
 def test_leaving_the_map_is_a_boundary_collision():
     body = RoverDynamics(plane(size=(40, 40)), PARAMS, x=5.0, y=5.0, yaw=math.pi)
     steps = run(body, [1.0] * 6, 8.0)
