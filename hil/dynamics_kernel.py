@@ -406,6 +406,7 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
         overlapping = False
         refused = touching and _refused(grid, body, values, new_x, new_y, new_yaw)
         stopped_slide = 0.0  # the sideways speed a contact stopped this step (m/s, y left)
+        stopped_drive = 0.0  # the speed along the heading a contact stopped this step (m/s)
         if refused:
             if not _refused(grid, body, values, x, y, new_yaw):
                 # The turn alone is free: keep it, and stop the move at the contact.
@@ -415,6 +416,7 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
                 new_x, new_y, new_yaw = _advance_to_contact(grid, body, values, new_x, new_y, yaw, turn)
                 yaw_rate = 0.0
             accel = (0.0 - speed0) / dt
+            stopped_drive = speed
             speed = 0.0
             stopped_slide = lateral_speed
             lateral_speed = 0.0
@@ -467,11 +469,19 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
         )
         values[LATERAL], values[ROLL_MARGIN], values[PITCH_MARGIN] = lateral, roll_margin, pitch_margin
         rollover_started = min(roll_margin, pitch_margin) < 0.0
+        # Tripped, each axis on its own: the contact stops the sideways and the forward motion, and the body
+        # pivots about the edge it moved towards with each one's angular momentum about that edge.
         if stopped_slide != 0.0:
-            # Tripped: the body pivots about the wheels it slid towards (roll > 0 tilts it to the right, -y).
+            # About the wheels it slid towards (roll > 0 lowers the right side, -y).
             towards = new_roll if stopped_slide < 0.0 else -new_roll
             critical = critical_sliding_speed_kernel(body[TRACK], body[CG_HEIGHT], body[TIP_ROLL] - towards)
             rollover_started = rollover_started or abs(stopped_slide) >= critical
+        if stopped_drive != 0.0:
+            # Pitch-over about the end axle it moved towards (pitch > 0, nose up, lowers the rear).
+            towards = new_pitch if stopped_drive < 0.0 else -new_pitch
+            wheelbase = 2.0 * body[HALF_WHEELBASE]
+            critical = critical_sliding_speed_kernel(wheelbase, body[CG_HEIGHT], body[TIP_PITCH] - towards)
+            rollover_started = rollover_started or abs(stopped_drive) >= critical
         values[ROLLOVER_STARTED] = 1.0 if rollover_started else 0.0
         if rollover_started:
             values[SPEED] = values[YAW_RATE] = values[ACCEL] = 0.0
