@@ -56,9 +56,9 @@ FORCE_X, FORCE_Y, FORCE_Z = 23, 24, 25  # specific force in body axes
 WHEELS, SLIP, NORMALS, TRACTION, CURRENTS, DUTY = 26, 32, 38, 44, 50, 56
 # --- the map's frame (TerrainMap.origin_xy, resolution_m), set with the terrain ---
 ORIGIN_X, ORIGIN_Y, RESOLUTION = 62, 63, 64
-# --- more of the state: the body's sideways speed (m/s, y left) and its change over the last step (m/s^2)
-LATERAL_SPEED, SLIDE_ACCEL = 65, 66
-VALUES_SIZE = 67
+# --- more of the state: the body's sideways speed (m/s, y left)
+LATERAL_SPEED = 65
+VALUES_SIZE = 66
 
 # --- ``surface``: the map's float layers stacked, one (rows, cols) plane each ---
 ELEVATION_LAYER, GRAD_X_LAYER, GRAD_Y_LAYER = 0, 1, 2
@@ -353,17 +353,13 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
             values[DUTY : DUTY + 6],
         )
         ground = ground_table[int(values[CLASS])]
-        lateral_speed0, slide_accel0 = values[LATERAL_SPEED], values[SLIDE_ACCEL]
+        lateral_speed0 = values[LATERAL_SPEED]
 
-        # The body's sideways acceleration loads the downhill / outer wheels; a sliding body's is less
-        # than the turn's v w (added only while it slides: otherwise the floats stay the ones before
-        # sliding was modelled).
-        lateral_load = speed0 * yaw_rate0
-        if slide_accel0 != 0.0:
-            lateral_load += slide_accel0
+        # The body's sideways acceleration at the end of the last step (LATERAL: the turn's v w and any
+        # slide's change) loads the downhill / outer wheels.
         normal_forces_into(
             body[MASS], body[CG_HEIGHT], body[TRACK], body[HALF_WHEELBASE], roll, pitch, values[ACCEL],
-            lateral_load, normals,
+            values[LATERAL], normals,
         )  # fmt: skip
         accel, yaw_rate = drive_forces(
             wheels, normals, ground, body[VEHICLE:MOTOR], speed0, yaw_rate0, pitch, dt, traction
@@ -440,7 +436,7 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
         # would load the wheels and tip the margin by an amount set by the step length. The impact's own
         # test is the trip below.
         slide_accel = 0.0 if refused else (lateral_speed - lateral_speed0) / dt
-        values[LATERAL_SPEED], values[SLIDE_ACCEL] = lateral_speed, slide_accel
+        values[LATERAL_SPEED] = lateral_speed
         class_id, height, new_roll, new_pitch = ground_at_kernel(
             classes,
             surface[ELEVATION_LAYER],
@@ -485,7 +481,7 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
         values[ROLLOVER_STARTED] = 1.0 if rollover_started else 0.0
         if rollover_started:
             values[SPEED] = values[YAW_RATE] = values[ACCEL] = 0.0
-            values[LATERAL_SPEED] = values[SLIDE_ACCEL] = 0.0
+            values[LATERAL_SPEED] = 0.0
 
         power = wheel_outputs(
             wheels,
