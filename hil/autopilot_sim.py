@@ -21,7 +21,7 @@ from firmware_bridge.mavlink_frames import send_unsigned_v2
 from firmware_bridge.mavlink_transport import Transport
 from hil.faults import FaultSchedule
 from hil.first_sample import first_sample_withheld
-from hil.sensors import GpsModel, GpsSample, ImuModel, course_bearing_deg
+from hil.sensors import GpsModel, GpsSample, ImuModel, course_over_ground_deg, ground_speed_mps
 from logs.clock import Clock, to_ns
 
 logger = logging.getLogger(__name__)
@@ -60,6 +60,7 @@ class AutopilotTruth(NamedTuple):
     battery_voltage_v: float = 0.0
     battery_current_a: float = 0.0
     battery_remaining_pct: int = -1  # -1: unknown, as in SYS_STATUS
+    lateral_speed_mps: float = 0.0  # the body's sideways slide (y left): the GPS's ground track has it
 
 
 def _int16(value: float) -> int:
@@ -161,7 +162,11 @@ class SimAutopilot:
     # --- sending -------------------------------------------------------------------------------
     def _record(self, now: int, truth: AutopilotTruth) -> None:
         """Let the GPS remember where the rover was at ``now`` (for its latency and delay faults)."""
-        self._gps.record(GpsSample(now, truth.x_m, truth.y_m, truth.z_m, truth.yaw_rad, truth.speed_mps))
+        self._gps.record(
+            GpsSample(
+                now, truth.x_m, truth.y_m, truth.z_m, truth.yaw_rad, truth.speed_mps, truth.lateral_speed_mps
+            )
+        )
 
     def step(self, truth: AutopilotTruth) -> None:
         """Send what is due at the clock's now, in a fixed order: IMU, attitude, GPS, status, heartbeat.
@@ -282,8 +287,8 @@ class SimAutopilot:
             round(float(alt) * 1e3),
             eph_cm,
             min(_UINT16_KNOWN_MAX, eph_cm * 2),
-            min(_UINT16_KNOWN_MAX, round(abs(fix.speed_mps) * 100.0)),
-            round(course_bearing_deg(fix.yaw_rad, fix.speed_mps) * 100.0) % 36000,
+            min(_UINT16_KNOWN_MAX, round(ground_speed_mps(fix.speed_mps, fix.lateral_speed_mps) * 100.0)),
+            round(course_over_ground_deg(fix.yaw_rad, fix.speed_mps, fix.lateral_speed_mps) * 100.0) % 36000,
             fix.satellites,
         )
 

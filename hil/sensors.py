@@ -37,6 +37,7 @@ class GpsSample(NamedTuple):
     z_m: float
     yaw_rad: float
     speed_mps: float
+    lateral_speed_mps: float = 0.0  # sideways (y left): a sliding body's ground track is off its heading
 
 
 @dataclass(frozen=True)
@@ -49,6 +50,7 @@ class GpsFix:
     fix_type: int
     satellites: int
     eph_m: float
+    lateral_speed_mps: float = 0.0
 
 
 class GpsModel:
@@ -125,7 +127,17 @@ class GpsModel:
         if "garbage" in kinds:
             # A receiver reporting nonsense: no fix, no satellites, a position far off.
             return GpsFix(x + 1e4, y - 1e4, z, truth.yaw_rad, 0.0, FIX_NONE, 0, 9999.0)
-        return GpsFix(x, y, z, truth.yaw_rad, truth.speed_mps, FIX_3D, self._satellites, self._noise_m)
+        return GpsFix(
+            x,
+            y,
+            z,
+            truth.yaw_rad,
+            truth.speed_mps,
+            FIX_3D,
+            self._satellites,
+            self._noise_m,
+            truth.lateral_speed_mps,
+        )
 
     def _at(self, t_ns: int) -> GpsSample:
         """The newest recorded truth at or before ``t_ns`` (the oldest one if none is that old)."""
@@ -210,6 +222,23 @@ class ImuModel:
 def _plus(a: tuple[float, float, float], b: tuple[float, float, float]) -> tuple[float, float, float]:
     """``a + b`` for three-vectors, in plain floats."""
     return (a[0] + float(b[0]), a[1] + float(b[1]), a[2] + float(b[2]))
+
+
+def ground_speed_mps(speed_mps: float, lateral_speed_mps: float) -> float:
+    """The GPS's speed over ground: the body's forward and sideways speeds together (``abs(speed)`` while the
+    body does not slide, the very float it always was)."""
+    if lateral_speed_mps == 0.0:
+        return abs(speed_mps)
+    return math.hypot(speed_mps, lateral_speed_mps)
+
+
+def course_over_ground_deg(yaw_rad: float, speed_mps: float, lateral_speed_mps: float) -> float:
+    """The GPS's course over ground as a compass bearing: where the body moves, which a sideways slide turns
+    off its heading (a rover sliding downhill while it drives along the contour tracks downhill of it).
+    Without a slide, ``course_bearing_deg`` of the heading, the same float as before slides existed."""
+    if lateral_speed_mps == 0.0:
+        return course_bearing_deg(yaw_rad, speed_mps)
+    return course_bearing_deg(yaw_rad + math.atan2(lateral_speed_mps, speed_mps), 1.0)
 
 
 def course_bearing_deg(yaw_rad: float, speed_mps: float) -> float:

@@ -288,6 +288,7 @@ class SimWorld:
                 voltage,  # battery_voltage_v
                 battery.current_a,
                 round(100.0 * battery.state_of_charge),  # battery_remaining_pct
+                step.lateral_speed_mps,
             )
             autopilot.step(truth)
         autopilot.poll()

@@ -45,7 +45,7 @@ from navigator.planner import Path, Planner
 from navigator.stanley import Stanley
 from navigator.terrain import TerrainMap
 from navigator.terrain_classes import TERRAIN_CLASSES, TerrainClass
-from navigator.vehicle import G, VehicleParams
+from navigator.vehicle import VehicleParams, turn_acceleration_room
 from navigator.yielding import BackOff, BackOffStep, YieldLimits, predicted_track
 
 _log = logging.getLogger(__name__)
@@ -121,13 +121,14 @@ class Guidance:
         )
         self._clearance_m = params.footprint_radius_m + planner_config.inflation_m
         # For the speed limits of every tick, worked out once: the slope limit's divisor, each terrain
-        # class's limit (the classes are fixed for the guidance's life) and the roll room before the margin.
+        # class's limit (the classes are fixed for the guidance's life) and the tilt a turn may bring the
+        # specific force to (the tip angle less the margin kept).
         self._tan_tip_roll = math.tan(params.tip_roll_rad)
         self._terrain_limit_mps = {
             terrain_class: follower_config.max_speed_mps / math.sqrt(max(spec.cost_factor, 1.0))
             for terrain_class, spec in classes.items()
         }
-        self._tip_room_rad = params.tip_roll_rad - follower_config.min_tip_margin_rad
+        self._turn_tilt_limit_rad = params.tip_roll_rad - follower_config.min_tip_margin_rad
         # The mission's speed limit (``limit_speed``); infinity when there is none: one comparison a tick.
         self._mission_speed_mps = math.inf
         self._goal: tuple[float, float] | None = None
@@ -438,8 +439,8 @@ class Guidance:
                 limit, reason = candidate, REASON_TERRAIN
             curvature = abs(command.curvature_1pm)
             if curvature > 1e-9:
-                room = self._tip_room_rad - abs_roll
-                lateral = G * math.tan(max(room, 0.0))
+                # The turn's v^2 kappa may tilt the specific force to the margin, as the simulator judges it.
+                lateral = turn_acceleration_room(self._turn_tilt_limit_rad, roll, pitch)
                 candidate = max(math.sqrt(lateral / curvature), cfg.min_speed_mps)
                 if candidate < limit:
                     limit, reason = candidate, REASON_TIP_MARGIN

@@ -328,6 +328,24 @@ def tilt_margins(
 tilt_margins_kernel = numba.njit(cache=True)(tilt_margins)
 
 
+def turn_acceleration_room(tilt_limit_rad: float, roll_rad: float, pitch_rad: float) -> float:
+    """The sideways acceleration (m/s^2, >= 0) a turn may add towards the downhill side, on ground tilted by
+    ``roll_rad`` and ``pitch_rad``, before the roll tilt of ``tilt_margins`` reaches ``tilt_limit_rad``.
+
+    As in ``stability_margins``, gravity's part of the specific force is ``f_y = g cos θ sin φ``,
+    ``f_z = g cos θ cos φ``, and a turn adds ``a`` to ``f_y``. ``atan2(|f_y|, f_z) = limit`` gives
+    ``a = g cos θ (cos φ tan(limit) - sin φ)``: pitch takes room too, since it shrinks the ``f_z`` that holds
+    the side down. The worst side (the turn's acceleration added
+    to the downhill pull) is assumed, so the sign of the roll does not matter. 0.0 when the tilt already
+    reaches the limit.
+    """
+    if tilt_limit_rad <= 0.0:
+        return 0.0
+    roll = abs(roll_rad)
+    room = G * math.cos(pitch_rad) * (math.cos(roll) * math.tan(tilt_limit_rad) - math.sin(roll))
+    return room if room > 0.0 else 0.0
+
+
 def critical_sliding_speed(track_m: float, cg_height_m: float, margin_rad: float) -> float:
     """The sideways speed (m/s) at which a slide stopped dead by a contact trips the rover over the edge of
     the wheels it slid towards; ``margin_rad``: that side's static margin angle (tip angle less the tilt

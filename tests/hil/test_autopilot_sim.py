@@ -123,6 +123,24 @@ def test_reversing_reports_course_opposite_to_yaw():
     assert abs(fix.course_rad) == pytest.approx(math.pi, abs=1e-3)
 
 
+@pytest.mark.parametrize(
+    ("speed", "lateral", "course_deg"),
+    [
+        (1.0, -1.0, -45.0),  # along the contour facing east, sliding downhill (right): south-east
+        (0.0, 0.5, 90.0),  # parked, sliding to its left: north
+        (-1.0, 1.0, 135.0),  # backing west while sliding north: north-west
+    ],
+)
+def test_a_sliding_body_reports_its_ground_track_not_its_heading(speed, lateral, course_deg):
+    """The GPS measures where the rover goes: a sideways slide adds to its speed and turns its course off
+    the heading (yaw 0, facing east)."""
+    clock, _, link, sim = make_pair(gps_noise_m=0.0)
+    sliding = AutopilotTruth(0.0, 0.0, 0.0, 0.0, speed, 0.0, (0.0, 0.0, 9.80665), lateral_speed_mps=lateral)
+    fix = next(r for r in run(clock, link, sim, sliding, 0.1) if isinstance(r, GpsFix))
+    assert fix.speed_mps == pytest.approx(math.hypot(speed, lateral), abs=0.01)
+    assert math.degrees(fix.course_rad) == pytest.approx(course_deg, abs=0.01)
+
+
 def test_the_imu_leaves_first_on_a_step_where_every_stream_is_due():
     # The IMU paces the rover's control loop: the other streams' encoding must not delay its send.
     _clock, sink, link, sim = make_pair()

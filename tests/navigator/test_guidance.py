@@ -15,7 +15,7 @@ from navigator.perception import ObstacleObservation
 from navigator.planner import Planner
 from navigator.stanley import Stanley
 from navigator.terrain import TerrainMap, disc_mask
-from navigator.vehicle import VehicleParams
+from navigator.vehicle import VehicleParams, stability_margins
 
 PARAMS = VehicleParams()
 
@@ -240,18 +240,26 @@ def test_arrives_and_stays_arrived() -> None:
     assert guidance.update(2, 4.9, 10.0, 0.0, 0.0).mode == ARRIVED
 
 
-def test_side_slope_turn_is_slowed_by_the_tip_margin() -> None:
+@pytest.mark.parametrize("yaw", [0.0, -0.4])  # across the slope (roll only); diagonal (roll and pitch)
+def test_side_slope_turn_is_slowed_to_the_tip_margin_the_simulator_judges(yaw: float) -> None:
     rows, cols, res = 80, 120, 0.25
-    grade = math.tan(math.radians(25.0))
+    grade = math.tan(math.radians(30.0))
     elevation = np.tile((np.arange(rows) * res * grade)[:, None], (1, cols))  # rises to the north
     terrain = TerrainMap(elevation, np.zeros((rows, cols), np.uint8), np.zeros((rows, cols), bool), res)
-    guidance = Guidance(
-        terrain, PARAMS, PlannerConfig(cost_mode="classical"), FollowerConfig(max_speed_mps=2.0)
-    )
+    follower = FollowerConfig(max_speed_mps=2.0)
+    guidance = Guidance(terrain, PARAMS, PlannerConfig(cost_mode="classical"), follower)
     guidance.set_goal(20.0, 12.0)
-    out = guidance.update(0, 5.0, 5.0, 0.0, 1.0)  # heading east across the slope, the goal up-left
-    assert out.speed_limit_reason in ("tip_margin", "slope")
+    out = guidance.update(0, 5.0, 5.0, yaw, 1.0)  # the goal up-left: a turn on the slope
+    assert out.speed_limit_reason == "tip_margin"
     assert out.speed_limit_mps < 2.0
+    # The turn's v * omega (= v^2 kappa) tilts the specific force to the tip angle less the margin kept.
+    ground = terrain.ground_on_map(5.0, 5.0, yaw)
+    assert ground is not None
+    lateral = out.speed_mps * abs(out.yaw_rate_rps)
+    margin, _ = stability_margins(
+        PARAMS, ground.roll_rad, ground.pitch_rad, lateral_accel_mps2=math.copysign(lateral, ground.roll_rad)
+    )
+    assert margin == pytest.approx(follower.min_tip_margin_rad, abs=1e-9)
 
 
 def test_a_far_obstacle_seen_every_cycle_waits_once_and_enters_the_map_at_its_newest_sighting() -> None:

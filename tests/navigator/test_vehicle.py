@@ -13,6 +13,7 @@ from navigator.vehicle import (
     max_climbable_slope_rad,
     slope_acceleration,
     stability_margins,
+    turn_acceleration_room,
     wheel_normal_forces,
 )
 
@@ -93,6 +94,33 @@ def test_the_roll_margin_is_zero_where_the_wheel_loads_lift_a_side(roll):
         low, high = (low, mid) if lifted else (mid, high)
     margin, _ = stability_margins(PARAMS, roll, pitch, lateral_accel_mps2=high)
     assert margin == pytest.approx(0.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("roll_deg", [0.0, 15.0, -15.0, 25.0])
+@pytest.mark.parametrize("pitch_deg", [0.0, 20.0, -35.0])
+def test_a_turn_at_the_room_guidance_allows_leaves_exactly_the_margin_it_keeps(roll_deg, pitch_deg):
+    """Guidance's turn limit and the simulator's tip law agree: a turn's sideways acceleration at
+    ``turn_acceleration_room``, added towards the downhill side, brings the roll margin of
+    ``stability_margins`` to exactly the margin kept (12 deg), whatever the pitch. The older law,
+    ``g tan(limit - |roll|)``, left 10.8 deg at roll 15, pitch 35."""
+    kept = math.radians(12.0)
+    roll, pitch = math.radians(roll_deg), math.radians(pitch_deg)
+    room = turn_acceleration_room(PARAMS.tip_roll_rad - kept, roll, pitch)
+    downhill = math.copysign(1.0, roll) if roll != 0.0 else 1.0
+    margin, _ = stability_margins(PARAMS, roll, pitch, lateral_accel_mps2=downhill * room)
+    assert margin == pytest.approx(kept, abs=1e-12)
+    # Turning the other way (uphill) with the same acceleration keeps more than the margin.
+    uphill, _ = stability_margins(PARAMS, roll, pitch, lateral_accel_mps2=-downhill * room)
+    assert uphill >= kept - 1e-12
+
+
+def test_no_turn_room_once_the_tilt_already_reaches_the_limit():
+    limit = PARAMS.tip_roll_rad - math.radians(12.0)
+    assert turn_acceleration_room(limit, limit, 0.0) == pytest.approx(0.0, abs=1e-12)
+    assert turn_acceleration_room(limit, limit + 0.1, 0.3) == 0.0
+    assert turn_acceleration_room(0.0, 0.0, 0.0) == 0.0
+    # Level, the room is g tan(limit): the tilt is atan(a / g).
+    assert turn_acceleration_room(limit, 0.0, 0.0) == pytest.approx(G * math.tan(limit))
 
 
 def test_params_validation_and_strict_table():
