@@ -18,7 +18,7 @@ demo: $(STAMP)
 	$(BIN)/rover hil trial $(SCENARIO) --seed $(SEED) --config configs/rover.toml --report
 
 test: $(STAMP)
-	scripts/in-private-netns $(BIN)/python -m pytest -q $(PYTEST_ARGS)
+	scripts/in-private-netns scripts/run-tests $(BIN)/python $(PYTEST_ARGS)
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

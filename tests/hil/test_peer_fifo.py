@@ -15,6 +15,7 @@ ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = ROOT / "tests" / "data" / "small_rocky.toml"
 
 
+@pytest.mark.realtime
 @needs_netns
 def test_the_peer_runs_at_the_priority_asked_or_says_why_not(tmp_path: Path) -> None:
     done = subprocess.run(

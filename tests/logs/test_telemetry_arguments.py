@@ -117,4 +117,6 @@ def test_the_hint_for_a_station_that_reached_nothing_is_printed_as_written(
     code = main(["telemetry", *command, "--config", str(config)])
     out = _out(capsys)
     assert code == 1, out
-    assert f"does --config {config}'s [zenoh] connect name the rover" in out, out
+    # Compared without whitespace: rich wraps a long path (a pytest worker's tmp path) wherever it likes.
+    expected = f"does --config {config}'s [zenoh] connect name the rover"
+    assert "".join(expected.split()) in "".join(out.split()), out

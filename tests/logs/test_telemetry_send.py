@@ -26,6 +26,8 @@ from logs.errors import TelemetryError, TelemetrySetupError
 from logs.telemetry import ZenohSettings, ZenohTelemetry, open_session, zenoh_config
 from rover_cli.main import main
 
+pytestmark = pytest.mark.realtime  # a rover must answer within the command's timeout (0.2-1 s)
+
 TICK_S = 0.02
 MAP_M = 20.0
 SHORT_TIMEOUT_S = 1.0

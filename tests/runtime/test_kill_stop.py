@@ -15,6 +15,8 @@ import signal
 import time
 from pathlib import Path
 
+import pytest
+
 from hil.scenario import load_scenario
 from logs.reader import read_messages
 from tests.system.conftest import DATA
@@ -27,6 +29,8 @@ from tests.system.realtime_rig import (
     running_rover,
     wait_for,
 )
+
+pytestmark = pytest.mark.realtime  # the controllers must stop the wheels within 0.62 s of the kill
 
 COMMAND_TIMEOUT_S = 0.5  # hil.vesc_sim.SimVescBank's default
 STATUS_PERIOD_S = 0.02  # 50 Hz STATUS

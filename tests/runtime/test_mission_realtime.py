@@ -10,12 +10,15 @@ import time
 from pathlib import Path
 from typing import Any
 
+import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
 from logs.reader import read_messages
 from tests.firmware_bridge.ground_station import MISSION, ROVER, mission_start, waypoint
 from tests.runtime.run_config import rover_run_config
 from tests.runtime.test_rover_run import start_rover, wait_until_running
+
+pytestmark = pytest.mark.realtime  # the rover abandons an unfinished upload on its monotonic clock
 
 DATUM = (47.0, 8.0)
 # Latitude, longitude near the datum: inside the config's 10 m map.

@@ -21,6 +21,8 @@ from navigator.config_record import software_version
 from navigator.runtime import FixedRateScheduler, RingStats, TimingStats
 from tests.runtime.run_config import rover_run_config
 
+pytestmark = pytest.mark.realtime  # the scheduler's rate and a stop within its budget, on the real clock
+
 
 def start_rover(config: Path, out: Path, *args: str) -> subprocess.Popen[str]:
     command = [

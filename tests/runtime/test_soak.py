@@ -79,6 +79,7 @@ def test_an_out_holding_an_earlier_soaks_recordings_is_refused_before_anything_r
     assert (tmp_path / "peer" / "truth.mcap").read_bytes() == b"an earlier soak's truth"
 
 
+@pytest.mark.realtime
 @needs_netns
 def test_a_short_soak_injects_sees_and_recovers_every_fault(tmp_path: Path) -> None:
     # Seed 3 in 32 s: a controller reboot, an e-stop over Zenoh, a silent IMU (the pacing sensor), a CAN

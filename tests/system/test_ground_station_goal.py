@@ -11,11 +11,14 @@ import time
 from pathlib import Path
 
 import pymap3d
+import pytest
 
 from firmware_bridge.mavlink_transport import UdpTransport
 from hil.trial import run_trial
 from logs import topics
 from logs.reader import read_messages
+
+pytestmark = pytest.mark.realtime  # a ground station process and the rover answer each other in time
 
 SCRIPT = Path(__file__).resolve().parent / "gcs_goal_script.py"
 GCS_GOAL = (3.0, 8.0)  # ENU metres: far from the scenario's own goal (11.5, 7.5)

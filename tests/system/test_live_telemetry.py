@@ -5,11 +5,15 @@ from __future__ import annotations
 import threading
 import time
 
+import pytest
+
 from hil.trial import run_trial
 from logs import topics
 from logs.reader import read_messages
 from logs.telemetry import TelemetrySample, ZenohTelemetry, subscribe
 from tests.system.zenoh_pair import open_pair
+
+pytestmark = pytest.mark.realtime  # the live stream must keep up with the trial
 
 CHECKED = (topics.SENSORS_GPS, topics.NAVIGATOR_PATH, topics.SAFETY_EVENTS)
 

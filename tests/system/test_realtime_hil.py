@@ -66,6 +66,7 @@ BUSES = [
 ]
 
 
+@pytest.mark.realtime
 @pytest.mark.parametrize(("interface", "channel", "control_loop"), BUSES)
 def test_rover_run_and_peer_reach_the_goal_like_lockstep(
     interface: str,
@@ -177,6 +178,7 @@ def _untimed(path: Path, topic: str) -> list[tuple[int, dict[str, Any]]]:
     ]
 
 
+@pytest.mark.realtime
 @needs_netns
 def test_rover_run_drives_around_a_rock_it_sees_only_through_the_peers_lidar(tmp_path: Path) -> None:
     # hidden_rock.toml: a rock missing from the rover's map, on the straight line to the goal. The peer

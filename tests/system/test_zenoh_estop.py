@@ -4,12 +4,16 @@ from __future__ import annotations
 
 import time
 
+import pytest
+
 from hil.trial import run_trial
 from logs import topics
 from logs.clock import SimClock
 from logs.commands import ZenohCommandReceiver, send_command
 from logs.reader import read_messages
 from tests.system.zenoh_pair import open_pair
+
+pytestmark = pytest.mark.realtime  # the e-stop must arrive over Zenoh while the trial runs
 
 ESTOP_AT = 0.2  # share of the scenario's duration: the rover is driving by then
 
