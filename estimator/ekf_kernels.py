@@ -94,7 +94,11 @@ def predict_kernel(x: Array, p: Array, dt: float, q_rate: Array, accel: float) -
             mean = 0.5 * (new[i, j] + new[j, i])
             new[i, j] = mean
             new[j, i] = mean
-    p[:, :] = new
+    # Element by element: a slice assignment (p[:, :] = new) compiles numba's shape-mismatch message, ~8 s
+    # of every cold start's compile for a copy whose shapes cannot differ.
+    for i in range(n):
+        for j in range(n):
+            p[i, j] = new[i, j]
 
 
 @numba.njit(cache=True)

@@ -94,7 +94,10 @@ def _grown(buckets: np.ndarray, lengths: np.ndarray) -> np.ndarray:
     slots, capacity = buckets.shape
     grown = np.empty((slots, 2 * capacity), dtype=np.int32)
     for slot in range(slots):
-        grown[slot, : lengths[slot]] = buckets[slot, : lengths[slot]]
+        # A loop, not a slice assignment: that compiles numba's shape-mismatch message (seconds of a cold
+        # start) for a copy whose shapes cannot differ.
+        for k in range(lengths[slot]):
+            grown[slot, k] = buckets[slot, k]
     return grown
 
 

@@ -101,11 +101,13 @@ def _grown_heap(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The heap's three arrays copied into new ones of ``capacity`` entries (the first ``size`` kept)."""
     grown_f = np.empty(capacity)
-    grown_f[:size] = hf[:size]
     grown_g = np.empty(capacity)
-    grown_g[:size] = hg[:size]
     grown_c = np.empty(capacity, dtype=np.int32)
-    grown_c[:size] = hc[:size]
+    # A loop, not slice assignments: those compile numba's shape-mismatch message (seconds of a cold start).
+    for i in range(size):
+        grown_f[i] = hf[i]
+        grown_g[i] = hg[i]
+        grown_c[i] = hc[i]
     return grown_f, grown_g, grown_c
 
 
