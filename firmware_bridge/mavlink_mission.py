@@ -81,7 +81,16 @@ from firmware_bridge.mavlink_commands import (
 )
 from firmware_bridge.mavlink_health import MavlinkCounters
 from firmware_bridge.mavlink_home import ReturnToLaunch
+from firmware_bridge.mission_delay import Delay, delay, delay_refusal
 from firmware_bridge.mission_hold import HOLD_UNLIMITED, PlacedWaypoint, hold_refusal, hold_seconds
+from firmware_bridge.mission_jump import (
+    Jump,
+    idle_loop,
+    idle_loop_reason,
+    jump,
+    jump_refusal,
+    moves_the_rover,
+)
 from firmware_bridge.mission_speed import SpeedChange, speed_change, speed_change_refusal
 from firmware_bridge.mission_state import MissionState
 from logs.clock import NS_PER_S, Clock
@@ -121,10 +130,15 @@ _MISSION = mavlink2.MAV_MISSION_TYPE_MISSION
 _PLACED_COMMANDS = frozenset(
     {mavlink2.MAV_CMD_NAV_WAYPOINT, mavlink2.MAV_CMD_NAV_LOITER_TIME, mavlink2.MAV_CMD_NAV_LOITER_UNLIM}
 )
-ITEM_COMMANDS = _PLACED_COMMANDS | {mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH, mavlink2.MAV_CMD_DO_CHANGE_SPEED}
+ITEM_COMMANDS = _PLACED_COMMANDS | {
+    mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH,
+    mavlink2.MAV_CMD_DO_CHANGE_SPEED,
+    mavlink2.MAV_CMD_DO_JUMP,
+    mavlink2.MAV_CMD_NAV_DELAY,
+}
 _TAKEN = (
     "MAV_CMD_NAV_WAYPOINT, MAV_CMD_NAV_LOITER_TIME, MAV_CMD_NAV_LOITER_UNLIM, "
-    "MAV_CMD_NAV_RETURN_TO_LAUNCH and MAV_CMD_DO_CHANGE_SPEED"
+    "MAV_CMD_NAV_RETURN_TO_LAUNCH, MAV_CMD_DO_CHANGE_SPEED, MAV_CMD_DO_JUMP and MAV_CMD_NAV_DELAY"
 )
 # MissionState -> (MISSION_STATE, MISSION_CURRENT.mission_mode: 1 in mission mode, 2 suspended (not in
 # mission mode), 0 unknown).
@@ -203,8 +217,9 @@ class MissionItem:
 
 
 # One item as the rover drives it: a waypoint placed in ENU metres (with its hold time; a plain (x, y) from a
-# trial's goals holds for none; a loiter item is one too), a speed change, or a return to launch.
-MissionStep = PlacedWaypoint | tuple[float, float] | SpeedChange | ReturnToLaunch
+# trial's goals holds for none; a loiter item is one too), a speed change, a return to launch, a jump or a
+# delay.
+MissionStep = PlacedWaypoint | tuple[float, float] | SpeedChange | ReturnToLaunch | Jump | Delay
 
 
 @dataclass(frozen=True)
@@ -447,9 +462,9 @@ class MissionServer:
             logger.info("%s: item %d out of sequence, %d asked again", transfer.what, seq, transfer.next_seq)
             self._ask_again(transfer, self._clock.now_ns())
             return None
-        step = self._step(msg)
+        step = self._step(msg, transfer.count)
         if not isinstance(step, _Refusal) and seq + 1 == transfer.count:
-            step = _refused_without_a_waypoint(transfer.steps, step, transfer.count)
+            step = _judge_mission(transfer.steps, step, transfer.count)
         if isinstance(step, _Refusal):
             self._transfer = None
             self._refuse(link, sysid, compid, *step)
@@ -598,15 +613,19 @@ class MissionServer:
         return verdict.start
 
     # --- internals --------------------------------------------------------------------------------
-    def _step(self, msg: Any) -> MissionStep | _Refusal:
-        """A MISSION_ITEM_INT as the rover drives it (a waypoint or loiter placed in ENU, a speed change, a
-        return to launch), or why it cannot be taken."""
-        refusal = _judge_item(msg, self._slowest_speed_mps)
+    def _step(self, msg: Any, count: int) -> MissionStep | _Refusal:
+        """A MISSION_ITEM_INT of a mission of ``count`` items as the rover drives it (a waypoint or loiter
+        placed in ENU, a speed change, a return to launch, a jump, a delay), or why it cannot be taken."""
+        refusal = _judge_item(msg, self._slowest_speed_mps, count)
         if refusal is not None:
             return refusal
         command = msg.command
         if command == mavlink2.MAV_CMD_DO_CHANGE_SPEED:
             return speed_change(msg.param2)
+        if command == mavlink2.MAV_CMD_DO_JUMP:
+            return jump(msg.param1, msg.param2)
+        if command == mavlink2.MAV_CMD_NAV_DELAY:
+            return delay(msg.param1)
         if command == mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH:
             return ReturnToLaunch()  # to home as it is when the mission comes to it
         try:
@@ -808,11 +827,18 @@ class _Refusal(NamedTuple):
     reason: str
 
 
-def _judge_item(msg: Any, slowest_speed_mps: float) -> _Refusal | None:
-    """Why a MISSION_ITEM_INT cannot be an item of ours (result and reason), or None."""
+def _judge_item(msg: Any, slowest_speed_mps: float, count: int) -> _Refusal | None:
+    """Why a MISSION_ITEM_INT of a mission of ``count`` items cannot be an item of ours (result and
+    reason), or None."""
     seq, command = msg.seq, msg.command
     if command == mavlink2.MAV_CMD_DO_CHANGE_SPEED:
         refusal = speed_change_refusal(seq, msg.param1, msg.param2, slowest_speed_mps)
+        return None if refusal is None else _Refusal(*refusal)
+    if command == mavlink2.MAV_CMD_DO_JUMP:
+        refusal = jump_refusal(seq, msg.param1, msg.param2, count)
+        return None if refusal is None else _Refusal(*refusal)
+    if command == mavlink2.MAV_CMD_NAV_DELAY:
+        refusal = delay_refusal(seq, msg.param1)
         return None if refusal is None else _Refusal(*refusal)
     if command == mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH:
         return None  # no position, no parameters: any frame, all kept for a download
@@ -845,18 +871,21 @@ def _judge_item(msg: Any, slowest_speed_mps: float) -> _Refusal | None:
     return None if refusal is None else _Refusal(*refusal)
 
 
-def _refused_without_a_waypoint(
-    steps: Sequence[MissionStep], last: MissionStep, count: int
-) -> MissionStep | _Refusal:
-    """The last item of an upload, or its refusal when no item of the upload is one to drive to (a
-    waypoint, a loiter, a return to launch): a mission of speed changes alone has nowhere to drive."""
-    if not isinstance(last, SpeedChange) or any(not isinstance(step, SpeedChange) for step in steps):
-        return last
-    return _Refusal(
-        mavlink2.MAV_MISSION_ERROR,
-        f"a mission of {count} item(s) with no MAV_CMD_NAV_WAYPOINT: it needs at least one waypoint (or "
-        "loiter, or return to launch)",
-    )
+def _judge_mission(steps: Sequence[MissionStep], last: MissionStep, count: int) -> MissionStep | _Refusal:
+    """The last item of an upload, or the upload's refusal at it: when no item is one to drive to (a
+    waypoint, a loiter, a return to launch: a mission of speed changes, jumps and delays alone has nowhere
+    to drive), or when a jump loops without one (``firmware_bridge.mission_jump.idle_loop``)."""
+    every = [*steps, last]
+    if not any(moves_the_rover(step) for step in every):
+        return _Refusal(
+            mavlink2.MAV_MISSION_ERROR,
+            f"a mission of {count} item(s) with no MAV_CMD_NAV_WAYPOINT: it needs at least one waypoint (or "
+            "loiter, or return to launch)",
+        )
+    found = idle_loop(every)
+    if found is not None:
+        return _Refusal(mavlink2.MAV_MISSION_INVALID_PARAM1, idle_loop_reason(*found))
+    return last
 
 
 def _ack(sysid: int, compid: int, result: int, mission_type: int) -> Any:

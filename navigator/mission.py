@@ -1,11 +1,15 @@
 """A mission: its items in order, waypoints driven one at a time (the next when guidance reports ARRIVED)
 and speed changes (MAV_CMD_DO_CHANGE_SPEED) applied as the mission comes to them; a return to launch
 (MAV_CMD_NAV_RETURN_TO_LAUNCH) is driven to home like a waypoint, and reached, the mission goes on to its
-next item (complete when it was the last), as ArduPilot Rover's Auto mode drives RTL as a sub-mode.
+next item (complete when it was the last), as ArduPilot Rover's Auto mode drives RTL as a sub-mode. A jump
+(MAV_CMD_DO_JUMP) is passed as a speed change is, in no time: the mission goes on at its target, its count
+of times permitting, else past it; a delay (MAV_CMD_NAV_DELAY) is current while the onboard stack waits it
+out, as a waypoint is while the rover drives to it.
 
 Pure and clock-free: it holds the items (waypoints in local ENU metres, ``SpeedChange``,
-``ReturnToLaunch``) and which one is current, and says where to go next (a ``Leg``: the speed changes
-passed on the way, then the waypoint or the return to launch; where home is, is the onboard stack's).
+``ReturnToLaunch``, ``Jump``, ``Delay``), which one is current and how many times each jump has been taken,
+and says where to go next (a ``Leg``: the speed changes and jumps passed on the way, then the waypoint, the
+return to launch or the delay; where home is, and the clock a delay counts on, are the onboard stack's).
 The onboard stack (``navigator.onboard_mission``) hands guidance each waypoint as its goal and each speed
 change as its speed limit, publishes the events and tells a ground station
 (``firmware_bridge.mavlink_mission``). Items are numbered from 0 as uploaded, speed changes included, as
@@ -20,11 +24,24 @@ from typing import NamedTuple
 
 from firmware_bridge.mavlink_home import ReturnToLaunch
 from firmware_bridge.mavlink_mission import MissionStep
+from firmware_bridge.mission_delay import Delay
+from firmware_bridge.mission_jump import JUMP_FOREVER, Jump, idle_loop, idle_loop_reason, moves_the_rover
 from firmware_bridge.mission_speed import SpeedChange
 from firmware_bridge.mission_state import MissionState
 from navigator.errors import ParameterError
 
-__all__ = ["DrivenItem", "Leg", "Mission", "MissionState", "ReturnToLaunch", "SpeedChange", "Waypoint"]
+__all__ = [
+    "Delay",
+    "DrivenItem",
+    "Jump",
+    "JumpPassed",
+    "Leg",
+    "Mission",
+    "MissionState",
+    "ReturnToLaunch",
+    "SpeedChange",
+    "Waypoint",
+]
 
 
 class Waypoint(NamedTuple):
@@ -37,34 +54,47 @@ class Waypoint(NamedTuple):
 
 
 # An item as the mission drives it (``firmware_bridge.mavlink_mission.MissionItem`` is one as uploaded).
-DrivenItem = Waypoint | SpeedChange | ReturnToLaunch
-# The items the rover drives to (a mission needs one).
-_DRIVEN = (Waypoint, ReturnToLaunch)
+DrivenItem = Waypoint | SpeedChange | ReturnToLaunch | Jump | Delay
+
+
+class JumpPassed(NamedTuple):
+    """A jump the mission came to: item ``seq``, ``jump``; ``taken``: it went on at the target (the
+    ``done``-th time of ``jump.repeat``), else past it, its count done."""
+
+    seq: int
+    jump: Jump
+    done: int
+    taken: bool
 
 
 class Leg(NamedTuple):
     """Where the mission goes next: the speed changes it passed on the way (item number and change, in
-    order; each applies at once), then the waypoint (or return to launch) now current, or None when none
-    was left (the mission is COMPLETE)."""
+    order; each applies at once), then the waypoint (or return to launch, or delay) now current, or None
+    when none was left (the mission is COMPLETE); ``jumps``: the jumps passed on the way, in order."""
 
     speed_changes: tuple[tuple[int, SpeedChange], ...]
-    target: Waypoint | ReturnToLaunch | None
+    target: Waypoint | ReturnToLaunch | Delay | None
+    jumps: tuple[JumpPassed, ...] = ()
 
 
 class Mission:
     """The mission in force and its progress.
 
     ``state`` and ``current`` are plain attributes (the control tick reads ``state`` every tick); change
-    them only through the methods. ``current`` is the waypoint (or return to launch) being driven to
-    (ACTIVE), the one a single goal interrupted (PAUSED), the last item or the return to launch the
-    mission ended at (COMPLETE, ``end_here``), or 0 (NOT_STARTED: loaded, not driven yet). A speed
-    change is current for no time: the mission applies it and goes on in the same call.
+    them only through the methods. ``current`` is the waypoint (or return to launch, or delay) being driven
+    to or waited out (ACTIVE), the one a single goal interrupted (PAUSED), the last item or the return to
+    launch the mission ended at (COMPLETE, ``end_here``), or 0 (NOT_STARTED: loaded, not driven yet). A
+    speed change or a jump is current for no time: the mission passes it and goes on in the same call.
+
+    Each jump counts the times it was taken in this run of the mission: from 0 on ``load`` and on a
+    ``set_current`` that starts the mission again (``restart``), kept by one that goes on with it.
     """
 
     def __init__(self) -> None:
         self.items: tuple[DrivenItem, ...] = ()
         self.current = 0
         self.state = MissionState.NONE
+        self._jumps_done: dict[int, int] = {}  # jump item -> times taken in this run
 
     @property
     def count(self) -> int:
@@ -78,13 +108,24 @@ class Mission:
 
     def load(self, items: Sequence[MissionStep]) -> None:
         """Replace the mission with ``items`` (waypoints as (x, y) or ``PlacedWaypoint`` with a hold time,
-        speed changes, returns to launch), NOT_STARTED: ``set_current`` drives it.
+        speed changes, returns to launch, jumps, delays), NOT_STARTED: ``set_current`` drives it.
 
         ``ParameterError`` (the mission in force kept) for no waypoint or return to launch among them, a
-        coordinate that is not a finite number or a hold time that is not a non-negative duration
-        (infinite: a loiter without end)."""
+        coordinate that is not a finite number, a hold time that is not a non-negative duration (infinite:
+        a loiter without end), a delay that is not a finite one, a jump to an item the mission lacks or one
+        whose loop has no item that moves the rover (``firmware_bridge.mission_jump.idle_loop``)."""
         loaded: list[DrivenItem] = []
         for index, item in enumerate(items):
+            if isinstance(item, Jump):
+                if not 0 <= item.target < len(items) or item.repeat < JUMP_FOREVER:
+                    raise ParameterError(f"mission item {index}: {item} jumps nowhere in the mission")
+                loaded.append(item)
+                continue
+            if isinstance(item, Delay):
+                if not 0.0 <= item.seconds < math.inf:  # NaN fails too
+                    raise ParameterError(f"mission item {index}: delay {item.seconds} s is not a duration")
+                loaded.append(item)
+                continue
             if isinstance(item, SpeedChange | ReturnToLaunch):
                 loaded.append(item)
                 continue
@@ -94,11 +135,15 @@ class Mission:
             if not hold_s >= 0.0:  # NaN fails too
                 raise ParameterError(f"mission waypoint {index}: hold {hold_s} s is not a duration")
             loaded.append(Waypoint(float(x), float(y), float(hold_s)))
-        if not any(isinstance(item, _DRIVEN) for item in loaded):
+        if not any(moves_the_rover(item) for item in loaded):
             raise ParameterError("a mission needs at least one waypoint (or return to launch)")
+        found = idle_loop(loaded)
+        if found is not None:
+            raise ParameterError(idle_loop_reason(*found))
         self.items = tuple(loaded)
         self.current = 0
         self.state = MissionState.NOT_STARTED
+        self._jumps_done = {}
 
     def clear(self) -> bool:
         """Forget the mission; True if it was being driven."""
@@ -106,6 +151,7 @@ class Mission:
         self.items = ()
         self.current = 0
         self.state = MissionState.NONE
+        self._jumps_done = {}
         return was_active
 
     def pause(self) -> bool:
@@ -115,16 +161,24 @@ class Mission:
         self.state = MissionState.PAUSED
         return True
 
-    def set_current(self, seq: int) -> Leg:
-        """Drive the mission from item ``seq`` (whatever its state): the speed changes from it up to the
-        next waypoint, which becomes current. The speed the items before ``seq`` set is
-        ``speed_set_before(seq)``'s. ``ParameterError`` if there is no mission or no such item."""
+    def set_current(self, seq: int, *, restart: bool = True) -> Leg:
+        """Drive the mission from item ``seq`` (whatever its state): the speed changes and jumps from it up
+        to the next waypoint (or return to launch, or delay), which becomes current. ``restart``: a new run
+        of the mission, every jump's count from 0; else the counts go on (a resume). The speed the items
+        before ``seq`` set is ``speed_set_before(seq)``'s. ``ParameterError`` if there is no mission or no
+        such item."""
         if not self.items:
             raise ParameterError(f"no mission: item {seq} cannot be made current")
         if not 0 <= seq < len(self.items):
             raise ParameterError(f"item {seq} is not in the mission (items 0..{len(self.items) - 1})")
+        if restart:
+            self._jumps_done = {}
         self.state = MissionState.ACTIVE
         return self._go_from(seq)
+
+    def jumps_done(self, seq: int) -> int:
+        """How many times the jump at item ``seq`` was taken in this run (0 for any other item)."""
+        return self._jumps_done.get(seq, 0)
 
     def speed_set_before(self, seq: int) -> tuple[int, SpeedChange] | None:
         """The last speed change before item ``seq`` that set or reset the speed (item number and change;
@@ -169,16 +223,34 @@ class Mission:
         return item
 
     def _go_from(self, seq: int) -> Leg:
-        """From item ``seq`` on: the speed changes passed, then the first waypoint or return to launch,
-        made current."""
+        """From item ``seq`` on: the speed changes and jumps passed, then the first waypoint, return to
+        launch or delay, made current.
+
+        ``load`` refuses a loop without an item that moves the rover, so the walk passes each item at most
+        once (a jump taken leads to such an item before the jump again) and ends within ``count`` steps.
+        The bound is kept here too: should an idle loop ever get in, the walk ends the mission COMPLETE
+        rather than spin the control tick."""
         items = self.items
         changes: list[tuple[int, SpeedChange]] = []
-        for index in range(seq, len(items)):
+        jumps: list[JumpPassed] = []
+        index = seq
+        for _ in range(len(items) + 1):
+            if index >= len(items):
+                break
             item = items[index]
-            if not isinstance(item, SpeedChange):
+            if isinstance(item, SpeedChange):
+                changes.append((index, item))
+                index += 1
+            elif isinstance(item, Jump):
+                done = self._jumps_done.get(index, 0)
+                taken = item.repeat == JUMP_FOREVER or done < item.repeat
+                if taken:
+                    done = self._jumps_done[index] = done + 1
+                jumps.append(JumpPassed(index, item, done, taken))
+                index = item.target if taken else index + 1
+            else:
                 self.current = index
-                return Leg(tuple(changes), item)
-            changes.append((index, item))
+                return Leg(tuple(changes), item, tuple(jumps))
         self.current = len(items) - 1
         self.state = MissionState.COMPLETE
-        return Leg(tuple(changes), None)
+        return Leg(tuple(changes), None, tuple(jumps))

@@ -49,10 +49,21 @@ from firmware_bridge.mavlink_mission import (
     MissionStep,
 )
 from firmware_bridge.mission_hold import HOLD_UNLIMITED
+from firmware_bridge.mission_jump import JUMP_FOREVER
 from logs.clock import Clock, to_ns
 from navigator.errors import ParameterError
 from navigator.fence_shape import Polygon, inside_polygon
-from navigator.mission import DrivenItem, Leg, Mission, MissionState, SpeedChange, Waypoint
+from navigator.mission import (
+    Delay,
+    DrivenItem,
+    Jump,
+    JumpPassed,
+    Leg,
+    Mission,
+    MissionState,
+    SpeedChange,
+    Waypoint,
+)
 from navigator.onboard_home import HomeKeeper
 from navigator.route_guidance import RouteGuidance
 from navigator.safety import EventSink
@@ -180,7 +191,11 @@ class MissionDriver:
         if isinstance(change, MissionAccepted):
             self._take_upload(change, f"MAVLink upload by {who} on the {link.name} link")
         elif isinstance(change, StartRequest):
-            self._start_at(change.first, "mission_started", f"mission started at item {change.first}", who)
+            # A start is a new run of the mission (every jump's count from 0), but for a mission paused by
+            # a single goal: the operator resumes the laps it was driving.
+            restart = self.mission.state is not MissionState.PAUSED
+            what = f"mission started at item {change.first}"
+            self._start_at(change.first, "mission_started", what, who, restart=restart)
         elif isinstance(change, MissionCleared):
             if self.mission.clear():
                 self._guidance.clear_goal()
@@ -189,7 +204,11 @@ class MissionDriver:
                 self._event("mission_cleared", "info", f"mission cleared by {who}")
             self._lift_speed_limit("the mission was cleared")
         elif isinstance(change, CurrentRequested):
-            self._start_at(change.seq, "mission_current", f"item {change.seq}", who, " made current")
+            # A new run only for a mission not under way (not started, complete); within a mission being
+            # driven or paused the jump counts go on, as the spec says of MISSION_SET_CURRENT.
+            restart = self.mission.state in (MissionState.NOT_STARTED, MissionState.COMPLETE)
+            what = f"item {change.seq}"
+            self._start_at(change.seq, "mission_current", what, who, " made current", restart=restart)
 
     def end_tick(self, arrived: bool) -> None:
         """After a tick's records (as the trial runner once set the next goal between ticks): ``arrived``,
@@ -206,7 +225,7 @@ class MissionDriver:
                 until = hold[1]
                 if until is not None and self._clock.now_ns() >= until:
                     self._hold = None
-                    self._advance()
+                    self._wait_over()
             elif arrived:
                 self._item_reached()
         self.server.tick(mission.current, mission.state)
@@ -224,12 +243,18 @@ class MissionDriver:
             what = f"{count} {noun}"
         else:
             returns = sum(isinstance(item, ReturnToLaunch) for item in mission.items)
-            changes = count - waypoints - returns
+            changes = sum(isinstance(item, SpeedChange) for item in mission.items)
+            jumps = sum(isinstance(item, Jump) for item in mission.items)
+            delays = sum(isinstance(item, Delay) for item in mission.items)
             kinds = [f"{waypoints} {noun}"]
             if changes:
                 kinds.append(f"{changes} speed change{'' if changes == 1 else 's'}")
             if returns:
                 kinds.append(f"{returns} return to launch")
+            if jumps:
+                kinds.append(f"{jumps} jump{'' if jumps == 1 else 's'}")
+            if delays:
+                kinds.append(f"{delays} delay{'' if delays == 1 else 's'}")
             what = f"{count} items ({', '.join(kinds)})"
         self._event("mission", "info", f"mission of {what} from {source}: {listed}{note}")
 
@@ -288,11 +313,14 @@ class MissionDriver:
         if driving:
             self._follow(self.mission.set_current(0), given=True)
 
-    def _start_at(self, seq: int, kind: str, what: str, who: str, verb: str = "") -> None:
+    def _start_at(
+        self, seq: int, kind: str, what: str, who: str, verb: str = "", *, restart: bool = True
+    ) -> None:
         """A ground station made item ``seq`` current or started the mission there: it is driven from it,
-        at the speed the items before it set (``Mission.speed_set_before``)."""
+        at the speed the items before it set (``Mission.speed_set_before``); ``restart``: every jump's
+        count from 0 (a new run), else they go on (``Mission.set_current``)."""
         try:
-            leg = self.mission.set_current(seq)
+            leg = self.mission.set_current(seq, restart=restart)
         except ParameterError as err:
             # The server asks only for an item it holds, and holds the mission driven; should the two
             # ever differ, a ground station's message must still not stop the loop.
@@ -301,6 +329,9 @@ class MissionDriver:
         self._event(kind, "info", f"{what} of {self.mission.count}{verb} by {who}")
         changes = leg.speed_changes
         if (not changes or changes[0][1].keep) and not isinstance(leg.target, ReturnToLaunch):
+            # One mechanism for the speed, jumps or not: entering part-way replays the items before the
+            # entry in the list (a jump on the way is not followed back); after that, each speed change is
+            # applied as the mission passes it, a jump's loop round included.
             # The leg does not begin by setting a speed of its own: the items before seq say the speed it
             # starts from (a "no change" first keeps that one, and says so). A return to launch drives at
             # the rover's own speed whatever came before (_return_home).
@@ -350,6 +381,19 @@ class MissionDriver:
             return
         self._advance()
 
+    def _wait_over(self) -> None:
+        """A hold at a waypoint or a delay ran out: a delay is reported done (a ``mission_item_reached``
+        event and MISSION_ITEM_REACHED, as ArduPilot reports a NAV command completed), then on to the next
+        item."""
+        mission = self.mission
+        seq = mission.current
+        item = mission.items[seq]
+        if isinstance(item, Delay):
+            detail = f"item {seq} of {mission.count} (delay {item.seconds:g} s) done"
+            self._event("mission_item_reached", "info", detail)
+            self.server.item_reached(seq)
+        self._advance()
+
     def _advance(self, done: str | None = None) -> None:
         """From the item reached (and held at) to the next item, or the end (``done``: what the
         ``mission_complete`` event says then, by default the waypoints reached)."""
@@ -369,13 +413,41 @@ class MissionDriver:
         complete (``_complete``; a return to launch with no home completes it itself, ``_return_home``)."""
         for seq, change in leg.speed_changes:
             self._change_speed(seq, change)
+        for passed in leg.jumps:
+            self._event("mission_jump", "info", self._jump_detail(passed))
         target = leg.target
         if target is None:
             return False
         if isinstance(target, ReturnToLaunch):
             return self._return_home(given=given)
+        if isinstance(target, Delay):
+            self._wait(target)
+            return True
         self._drive_to(target.x, target.y, given=given)
         return True
+
+    def _jump_detail(self, passed: JumpPassed) -> str:
+        """A jump passed, as its ``mission_jump`` event says it."""
+        item = f"item {passed.seq} of {self.mission.count}"
+        target, repeat = passed.jump
+        times = "for ever" if repeat == JUMP_FOREVER else f"of {repeat}"
+        if passed.taken:
+            return f"{item}: jump to item {target} ({passed.done} {times})"
+        return f"{item}: jumped to item {target} {passed.done} of {repeat} times: on past it"
+
+    def _wait(self, delay: Delay) -> None:
+        """The mission came to a delay: the rover held where it is (no goal: guidance IDLE) until
+        ``delay.seconds`` on the stack's clock have passed (``end_tick``), the item current; a
+        ``mission_delay`` event. Any new goal ends it, as it ends a hold at a waypoint."""
+        mission = self.mission
+        seq = mission.current
+        self._guidance.clear_goal()
+        self._hold = (seq, self._clock.now_ns() + to_ns(delay.seconds))
+        self._event(
+            "mission_delay",
+            "info",
+            f"item {seq} of {mission.count}: waiting {delay.seconds:g} s, the rover held where it is",
+        )
 
     def _return_home(self, *, given: bool) -> bool:
         """The mission came to a return to launch: home as it is now becomes the goal (a
@@ -474,6 +546,11 @@ def _listed(item: DrivenItem) -> str:
         else:
             held = f" hold {item.hold_s:g} s" if item.hold_s > 0.0 else ""
         return f"({item.x:.2f}, {item.y:.2f}){held}"
+    if isinstance(item, Jump):
+        times = "for ever" if item.repeat == JUMP_FOREVER else f"{item.repeat} times"
+        return f"jump to item {item.target} {times}"
+    if isinstance(item, Delay):
+        return f"delay {item.seconds:g} s"
     if item.keep:
         return "speed unchanged"
     return "speed default" if item.limit_mps is None else f"speed {item.limit_mps:.2f} m/s"

@@ -60,6 +60,32 @@ def return_to_launch(
     )  # fmt: skip
 
 
+def do_jump(
+    seq: int,
+    target: float,
+    repeat: float,
+    *,
+    frame: int = mavlink2.MAV_FRAME_MISSION,
+    target_ids: Any = ROVER,
+) -> Any:
+    """A MISSION_ITEM_INT MAV_CMD_DO_JUMP as a ground station plans "Jump" (param1 the item, param2 the
+    repeat count; no position)."""
+    return mavlink2.MAVLink_mission_item_int_message(
+        *target_ids, seq, frame, mavlink2.MAV_CMD_DO_JUMP, 0, 1, target, repeat, 0.0, 0.0, 0, 0, 0.0, MISSION,
+    )  # fmt: skip
+
+
+def nav_delay(
+    seq: int, seconds: float, hour: float = -1.0, minute: float = -1.0, second: float = -1.0
+) -> Any:
+    """A MISSION_ITEM_INT MAV_CMD_NAV_DELAY (param1 the delay in seconds, or -1 and the UTC time of day in
+    params 2-4; no position)."""
+    return mavlink2.MAVLink_mission_item_int_message(
+        *ROVER, seq, mavlink2.MAV_FRAME_MISSION, mavlink2.MAV_CMD_NAV_DELAY, 0, 1, seconds, hour, minute,
+        second, 0, 0, 0.0, MISSION,
+    )  # fmt: skip
+
+
 def loiter(seq: int, lat: float, lon: float, seconds: float | None = None, *, target: Any = ROVER) -> Any:
     """A MISSION_ITEM_INT MAV_CMD_NAV_LOITER_TIME (``seconds`` in param1, radius 2 m in param3) or, with no
     ``seconds``, MAV_CMD_NAV_LOITER_UNLIM (param1 empty), as a ground station plans a loiter."""

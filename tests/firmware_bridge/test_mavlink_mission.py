@@ -287,8 +287,8 @@ REFUSALS = [
         [count(2), waypoint(0, 47.0, 8.0, command=mavlink2.MAV_CMD_NAV_LAND)],
         mavlink2.MAV_MISSION_UNSUPPORTED,
         "item 0: command 21 (MAV_CMD_NAV_LAND) is not supported: only MAV_CMD_NAV_WAYPOINT, "
-        "MAV_CMD_NAV_LOITER_TIME, MAV_CMD_NAV_LOITER_UNLIM, MAV_CMD_NAV_RETURN_TO_LAUNCH and "
-        "MAV_CMD_DO_CHANGE_SPEED",
+        "MAV_CMD_NAV_LOITER_TIME, MAV_CMD_NAV_LOITER_UNLIM, MAV_CMD_NAV_RETURN_TO_LAUNCH, "
+        "MAV_CMD_DO_CHANGE_SPEED, MAV_CMD_DO_JUMP and MAV_CMD_NAV_DELAY",
         id="not-a-waypoint",
     ),
     *[
