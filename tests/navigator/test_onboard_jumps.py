@@ -133,3 +133,18 @@ def test_a_delay_first_holds_a_parked_rover(station: Station) -> None:
     rig.run_for(0.9)
     assert mission.current == 0 and abs(rig.body.x - 3.0) < 0.05
     rig.run_until(lambda: mission.current == 1, 0.2, "the delay's end")
+
+
+def test_set_current_within_a_mission_driven_keeps_the_count_and_on_a_complete_one_begins_it_again(
+    station: Station,
+) -> None:
+    rig = station.rig
+    mission = rig.stack.mission
+    station.upload([at(0, A), at(1, B), do_jump(2, 0, 1), at(3, C)])
+    station.start()
+    rig.run_until(lambda: mission.jumps_done(2) == 1, 40.0, "the jump")
+    set_current(station, 1)  # the spec: MISSION_SET_CURRENT does not reset the jump counters
+    assert mission.state is MissionState.ACTIVE and mission.jumps_done(2) == 1
+    rig.run_until(lambda: mission.state is MissionState.COMPLETE, 40.0, "the mission's end")
+    set_current(station, 0)  # a complete mission driven again: a new run
+    assert mission.state is MissionState.ACTIVE and mission.jumps_done(2) == 0
