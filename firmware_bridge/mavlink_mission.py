@@ -4,10 +4,11 @@ and clears a mission and sets its current item (https://mavlink.io/en/services/m
 The server speaks the protocol and keeps the mission in force as uploaded (what a download returns); it
 does not drive. What a transfer changes comes back from ``take`` as a ``MissionChange`` for the onboard
 stack (``navigator.onboard_mission``), which drives the mission (``navigator.mission``: the waypoints and
-loiters in order, each speed change applied as it comes, a return to launch driven home) and reports
-progress back (``tick``: MISSION_CURRENT; ``item_reached``: MISSION_ITEM_REACHED, per waypoint, loiter or
-return reached and per speed change applied). It also judges and answers MAV_CMD_MISSION_START (COMMAND_LONG
-or COMMAND_INT, which the link hands over as mission messages), as
+loiters in order, each speed change applied as it comes, a return to launch driven home, each jump taken
+as its count allows, each delay waited out) and reports progress back (``tick``: MISSION_CURRENT, naming
+the item driven to or waited at, never a speed change or a jump; ``item_reached``: MISSION_ITEM_REACHED,
+per waypoint, loiter, return or delay done and per speed change applied). It also judges and answers
+MAV_CMD_MISSION_START (COMMAND_LONG or COMMAND_INT, which the link hands over as mission messages), as
 ``firmware_bridge.mavlink_commands.judge_mission_start`` rules, with COMMAND_ACK. The home commands the link
 hands over the same way (``firmware_bridge.mavlink_home``) are the onboard stack's
 (``navigator.onboard_home``), not the server's.
@@ -19,9 +20,10 @@ logged naming what was wrong):
 * Only ``MAV_MISSION_TYPE_MISSION`` (fence and rally: ``MAV_MISSION_UNSUPPORTED``); a clear of
   ``MAV_MISSION_TYPE_ALL`` clears the mission.
 * Items ``MAV_CMD_NAV_WAYPOINT``, ``MAV_CMD_NAV_LOITER_TIME``, ``MAV_CMD_NAV_LOITER_UNLIM``,
-  ``MAV_CMD_NAV_RETURN_TO_LAUNCH`` and ``MAV_CMD_DO_CHANGE_SPEED`` (``ITEM_COMMANDS``); any other command:
-  ``MAV_MISSION_UNSUPPORTED``. A waypoint (and a loiter) is in a global frame the goal commands take
-  (``GLOBAL_FRAMES``; else ``MAV_MISSION_UNSUPPORTED_FRAME``), latitude and longitude degrees x 1e7 in range
+  ``MAV_CMD_NAV_RETURN_TO_LAUNCH``, ``MAV_CMD_DO_CHANGE_SPEED``, ``MAV_CMD_DO_JUMP`` and
+  ``MAV_CMD_NAV_DELAY`` (``ITEM_COMMANDS``); any other command: ``MAV_MISSION_UNSUPPORTED``. A waypoint
+  (and a loiter) is in a global frame the goal commands take (``GLOBAL_FRAMES``; else
+  ``MAV_MISSION_UNSUPPORTED_FRAME``), latitude and longitude degrees x 1e7 in range
   (``MAV_MISSION_INVALID_PARAM5_X`` / ``_PARAM6_Y``), placed by the rover (``place``: ENU through the
   estimator's datum, inside the geofence; else ``MAV_MISSION_DENIED`` naming why), with its hold time
   (param1, seconds the rover waits there: ``firmware_bridge.mission_hold``; ``MAV_MISSION_INVALID_PARAM1``
@@ -34,14 +36,21 @@ logged naming what was wrong):
   is when the mission comes to it (``firmware_bridge.mavlink_home.ReturnToLaunch``); reached, the mission
   goes on to its next item (complete when it was the last), as ArduPilot Rover's Auto mode does.
   A speed change has no position (any frame is taken) and is judged by ``firmware_bridge.mission_speed``:
-  its speed type (``MAV_MISSION_INVALID_PARAM1``) and speed (``MAV_MISSION_INVALID_PARAM2``). A mission
-  needs at least one waypoint, loiter or return to launch: an upload of speed changes alone is refused at
-  its last item (``MAV_MISSION_ERROR``). The legacy float MISSION_ITEM is refused
-  (``MAV_MISSION_UNSUPPORTED``): we ask with MISSION_REQUEST_INT.
-* Items are numbered as uploaded, speed changes included: item 0 is the first item, as the spec numbers
-  them (as PX4 does). ArduPilot's convention of home as item 0 is not taken: nothing in an upload says
-  which one it follows, and taking item 0 as home would drop every other ground station's first waypoint;
-  an ArduPilot-style upload drives to home first.
+  its speed type (``MAV_MISSION_INVALID_PARAM1``) and speed (``MAV_MISSION_INVALID_PARAM2``).
+  A jump (any frame, no position) is judged by ``firmware_bridge.mission_jump``: its target (param1), an
+  item of the mission (``MAV_MISSION_INVALID_PARAM1``), and its repeat count (param2), a whole number or -1
+  for ever (``MAV_MISSION_INVALID_PARAM2``); at the upload's last item, a jump whose loop has no item that
+  moves the rover is refused (``MAV_MISSION_INVALID_PARAM1``): the mission must never go round without a
+  waypoint, loiter or return to launch in between. A delay (any frame, no position) is judged by
+  ``firmware_bridge.mission_delay``: param1 seconds, 0 to 3600; -1 (until a time of day) refused
+  (``MAV_MISSION_INVALID_PARAM1``). A mission needs at least one waypoint, loiter or return to launch: an
+  upload of speed changes, jumps and delays alone is refused at its last item (``MAV_MISSION_ERROR``). The
+  legacy float MISSION_ITEM is refused (``MAV_MISSION_UNSUPPORTED``): we ask with MISSION_REQUEST_INT.
+* Items are numbered as uploaded, speed changes and jumps included (a jump's target counts the same way):
+  item 0 is the first item, as the spec numbers them (as PX4 does). ArduPilot's convention of home as item
+  0 is not taken: nothing in an upload says which one it follows, and taking item 0 as home would drop
+  every other ground station's first waypoint; an ArduPilot-style upload drives to home first (and its
+  jump targets, counted with home as item 0, still name the same items).
 * At most ``MAX_MISSION_ITEMS`` items (``MAV_MISSION_NO_SPACE``). A count of 0 clears.
 * One transfer at a time. A new operation (MISSION_COUNT, MISSION_REQUEST_LIST, MISSION_CLEAR_ALL) from
   the partner of the transfer under way replaces it (a ground station that started over); from anyone else

@@ -26,6 +26,15 @@ item, as ArduPilot Rover's Auto mode does), or as a
 ground station's MAV_CMD_NAV_RETURN_TO_LAUNCH (a single goal to home: it pauses the mission like any). A
 loiter item is a waypoint with a hold: LOITER_TIME's for its time, LOITER_UNLIM's until the operator moves
 the mission on (a current item set, a start, a clear, a new goal or mission).
+
+A jump (MAV_CMD_DO_JUMP) the mission comes to is passed as a speed change is (a ``mission_jump`` event, no
+MISSION_ITEM_REACHED): on at its target while its count allows, else past it; the speed changes a loop
+passes again apply again, those a jump skips do not. The counts belong to a run of the mission: an upload,
+MISSION_START (but on a mission paused by a single goal: that resumes the laps) and MISSION_SET_CURRENT on
+a mission not under way (not started, complete) start them from 0; a resume of a paused mission and
+MISSION_SET_CURRENT within a mission being driven keep them (the spec: "mission jump repeat counters are
+not reset"). A delay (MAV_CMD_NAV_DELAY) is a hold where the rover is: no goal (guidance IDLE) for its
+seconds on the stack's clock, the item current, any new goal ending it.
 """
 
 from __future__ import annotations
