@@ -16,9 +16,11 @@ cleared, replaced or complete (the spec's "until it is overridden or there is a 
 Guided mode and PX4 reset the speed when the vehicle leaves its mission). A MISSION_SET_CURRENT or
 MISSION_START that enters the mission part-way sets the speed the items it skipped would have left (the last
 speed change before the item, or none), as PX4 replays the last speed change before the item it resumes at:
-a slow stretch stays slow however a ground station jumps in. A return to launch the mission comes to lifts
-the limit: ArduPilot Rover's RTL drives at its own speed (RTL_SPEED, else the default), so a slow stretch
-before it does not slow the way home; the speed changes after it set the limit again as they come.
+a slow stretch stays slow however a ground station jumps in. A resume at the very item a single goal paused
+the mission at takes back the limit in force then (on a jump's later lap the list before it can differ).
+A return to launch the mission comes to lifts the limit: ArduPilot Rover's RTL drives at its own speed
+(RTL_SPEED, else the default), so a slow stretch before it does not slow the way home; the speed changes
+after it set the limit again as they come.
 
 Home (``navigator.onboard_home.HomeKeeper``, ``home``) is where a return to launch drives: as a mission item
 the mission comes to (home as it is then becomes the goal; reached, the mission goes on to its next
@@ -119,6 +121,10 @@ class MissionDriver:
         # never, a loiter without end). Honoured only while that item is current in a mission driven; any
         # new goal ends it (_drive_to).
         self._hold: tuple[int, int | None] | None = None
+        # The item a single goal paused the mission at and the mission's speed limit in force then: a resume
+        # at that item drives at that speed again (in a jump's later lap the list before the item can say
+        # otherwise). None while the mission is not paused.
+        self._paused_at: tuple[int, float | None] | None = None
 
     def set_goal(self, x: float, y: float) -> None:
         """A single goal: driven at once, in place of the mission being driven (which is paused: setting
@@ -127,7 +133,9 @@ class MissionDriver:
             self._event("goal_rejected", "warning", f"goal ({x:.2f}, {y:.2f}) is outside the geofence")
             return
         mission = self.mission
+        in_force = self.speed_limit_mps
         if mission.pause():
+            self._paused_at = (mission.current, in_force)
             self._event(
                 "mission_paused",
                 "info",
@@ -135,7 +143,7 @@ class MissionDriver:
             )
             # A speed change persists "until it is overridden or there is a mode change" (the MAVLink
             # spec); leaving the mission for a goal is that change, as ArduPilot's Guided mode and PX4
-            # reset the speed. Resuming sets it again (_speed_from_before).
+            # reset the speed. Resuming at that item sets it again (_start_at).
             self._lift_speed_limit("a single goal paused the mission")
         self._drive_to(x, y, given=True)
 
@@ -327,7 +335,10 @@ class MissionDriver:
     ) -> None:
         """A ground station made item ``seq`` current or started the mission there: it is driven from it,
         at the speed the items before it set (``Mission.speed_set_before``); ``restart``: every jump's
-        count from 0 (a new run), else they go on (``Mission.set_current``)."""
+        count from 0 (a new run), else they go on (``Mission.set_current``). A resume at the item a single
+        goal paused the mission at drives at the speed in force then, instead."""
+        paused_at, self._paused_at = self._paused_at, None
+        resumed = paused_at is not None and paused_at[0] == seq and self.mission.state is MissionState.PAUSED
         try:
             leg = self.mission.set_current(seq, restart=restart)
         except ParameterError as err:
@@ -343,8 +354,12 @@ class MissionDriver:
             # applied as the mission passes it, a jump's loop round included.
             # The leg does not begin by setting a speed of its own: the items before seq say the speed it
             # starts from (a "no change" first keeps that one, and says so). A return to launch drives at
-            # the rover's own speed whatever came before (_return_home).
-            self._speed_from_before(seq)
+            # the rover's own speed whatever came before (_return_home). A resume where the mission was
+            # paused takes the speed it was driving at: in a jump's later lap that can be another.
+            if resumed and paused_at is not None:
+                self._speed_as_paused(seq, paused_at[1])
+            else:
+                self._speed_from_before(seq)
         if not self._follow(leg, given=True):
             # Only speed changes from ``seq`` to the end: nothing left to drive to.
             self._guidance.clear_goal()
@@ -530,6 +545,15 @@ class MissionDriver:
             detail = f"item {before[0]} before item {seq}: mission speed limit {limit:.2f} m/s"
         self._guidance.limit_speed(limit)
         self._event("mission_speed", "info", detail)
+
+    def _speed_as_paused(self, seq: int, limit: float | None) -> None:
+        """The mission's speed limit as it was when a single goal paused the mission at item ``seq``: a
+        ``mission_speed`` event when that changes the limit in force."""
+        if limit == self.speed_limit_mps:
+            return
+        as_paused = "no mission speed limit" if limit is None else f"mission speed limit {limit:.2f} m/s"
+        self._guidance.limit_speed(limit)
+        self._event("mission_speed", "info", f"resumed at item {seq}: {as_paused}, as when it was paused")
 
     @property
     def speed_limit_mps(self) -> float | None:

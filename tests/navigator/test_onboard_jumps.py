@@ -87,6 +87,26 @@ def test_a_resume_after_a_single_goal_keeps_the_count_and_mission_start_begins_i
     rig.run_until(lambda: mission.jumps_done(2) == 1, 40.0, "the jump of the new run")
 
 
+def test_a_resume_on_lap_two_drives_at_the_speed_it_was_paused_at(station: Station) -> None:
+    # Lap 1 leaves the speed at 0.5 m/s; on lap 2 the operator takes over at A and resumes there. The list
+    # before item 0 holds no speed change, so replaying it would lift the limit: the rover would drive
+    # lap 2's rest faster than the lap it was driving.
+    rig = station.rig
+    mission = rig.stack.mission
+    station.upload([at(0, A), at(1, B), change_speed(2, 0.5), do_jump(3, 0, 1), at(4, C)])
+    station.start()
+    rig.run_until(lambda: mission.jumps_done(3) == 1, 60.0, "the jump")
+    assert mission.current == 0 and rig.stack.guidance.core.mission_speed_mps == 0.5
+    rig.stack.set_goal(3.0, 3.0)
+    assert rig.stack.guidance.core.mission_speed_mps is None  # a single goal lifts it
+    rig.run_for(0.5)
+    set_current(station, 0)
+    assert rig.stack.guidance.core.mission_speed_mps == 0.5
+    assert station.details("mission_speed")[-1] == (
+        "resumed at item 0: mission speed limit 0.50 m/s, as when it was paused"
+    )
+
+
 def test_a_loop_for_ever_advances_at_most_an_item_a_tick(station: Station) -> None:
     rig = station.rig
     mission = rig.stack.mission

@@ -436,10 +436,12 @@ def test_a_speed_change_limits_the_mission_and_a_single_goal_lifts_it_until_resu
         "mission speed limit 0.50 m/s lifted: a single goal paused the mission"
     )
     assert all(s["speed_limit_reason"] != "mission_speed" for s in state_records(rig, paused))
-    # Resumed at item 1: the speed item 0 set comes back with it.
+    # Resumed at item 1, where it was paused: the speed in force then (item 0's) comes back with it.
     set_current(station, 1)
     assert mission.state is MissionState.ACTIVE and stack.guidance.core.mission_speed_mps == 0.5
-    assert station.details("mission_speed")[-1] == "item 0 before item 1: mission speed limit 0.50 m/s"
+    assert station.details("mission_speed")[-1] == (
+        "resumed at item 1: mission speed limit 0.50 m/s, as when it was paused"
+    )
     # Cleared: the limit goes with the mission.
     station.send(mavlink2.MAVLink_mission_clear_all_message(*ROVER, MISSION))
     assert stack.guidance.core.mission_speed_mps is None
