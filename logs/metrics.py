@@ -14,7 +14,7 @@ from collections import Counter
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -80,6 +80,10 @@ class TrialMetrics:
     final_distance_to_goal_m: float | None
     cross_track_error_rms_m: float | None
     cross_track_error_max_m: float | None
+    # The least distance from the trajectory (the rover's centre) to an obstacle's edge, and that obstacle:
+    # how near the rover came, where "encountered" only says whether it came within the margin.
+    closest_obstacle_m: float | None = None
+    closest_obstacle_id: str | None = None
     truncated: bool = False
     skipped_messages: int = 0
     missing: tuple[str, ...] = ()
@@ -317,7 +321,8 @@ def metrics_from_entries(entries: Iterable[Entry], stats: ReadStats) -> TrialMet
     duration = _duration_s(times, drive_end_ns)
 
     collisions, rollovers = _contact_counts(trial, trajectory_topic, notes)
-    encountered, avoided, success = _obstacle_avoidance(trial, scenario, times, xy, margin, notes)
+    avoidance = _obstacle_avoidance(trial, scenario, times, xy, margin, notes)
+    encountered, avoided, success = avoidance.encountered, avoidance.avoided, avoidance.success_pct
     energy = _energy_wh(trial, notes)
     goal_reached, goal_distance = _goal(trial, xy, notes)
     xte_rms, xte_max = _cross_track(trial, drive_end_ns)
@@ -343,6 +348,8 @@ def metrics_from_entries(entries: Iterable[Entry], stats: ReadStats) -> TrialMet
         final_distance_to_goal_m=goal_distance,
         cross_track_error_rms_m=xte_rms,
         cross_track_error_max_m=xte_max,
+        closest_obstacle_m=avoidance.closest_m,
+        closest_obstacle_id=avoidance.closest_id,
         truncated=stats.truncated,
         skipped_messages=stats.skipped + sum(trial.rejected.values()),
         missing=tuple(notes.missing),
@@ -506,6 +513,14 @@ def _contact_counts(
     return kinds["collision"], kinds["rollover"]
 
 
+class _Avoidance(NamedTuple):
+    encountered: int | None = None
+    avoided: int | None = None
+    success_pct: float | None = None
+    closest_m: float | None = None  # centre of the rover to the nearest obstacle's edge (< 0: inside it)
+    closest_id: str | None = None
+
+
 def _obstacle_avoidance(
     trial: _Trial,
     scenario: dict[str, str],
@@ -513,37 +528,43 @@ def _obstacle_avoidance(
     xy: FloatArray,
     margin: float,
     notes: _Notes,
-) -> tuple[int | None, int | None, float | None]:
+) -> _Avoidance:
     text = scenario.get("obstacles_json")
     if text is None:
         notes.missing.append(f"metadata:{SCENARIO_METADATA}.obstacles_json")
-        return None, None, None
+        return _Avoidance()
     obstacles, static_problems = static_obstacles(text)
     movers, moving_problems = moving_obstacles(scenario.get("moving_obstacles_json"))
     epoch_ns, epoch_problems = world_epoch_ns(trial.world) if movers else (0, [])
     notes.problems += static_problems + moving_problems + epoch_problems
     if len(xy) == 0:
-        return None, None, None
+        return _Avoidance()
     hit = {str(c.get("obstacle_id")) for c in trial.contacts if c["kind"] == "collision"}
-    near: dict[str, bool] = {}
+    # obstacle id -> least distance from the trajectory to its edge
+    clearance: dict[str, float] = {}
     for obstacle in obstacles:
         centre = np.array([[obstacle.x, obstacle.y]], dtype=np.float64)
-        closest = float(distances_to_polyline(centre, xy)[0])
-        near[obstacle.id] = closest <= obstacle.radius_m + margin + DISTANCE_EPSILON_M
+        clearance[obstacle.id] = float(distances_to_polyline(centre, xy)[0]) - obstacle.radius_m
     # The simulator moves them on the world's time: the clock that stamps the log, from the world's start.
     t_s = (times - epoch_ns) / 1e9
     for mover in movers:
         centres = np.array([mover.state_at(float(t))[:2] for t in t_s], dtype=np.float64)
-        closest = float(np.hypot(*(xy - centres).T).min())
-        near[mover.id] = closest <= mover.radius_m + margin + DISTANCE_EPSILON_M
+        clearance[mover.id] = float(np.hypot(*(xy - centres).T).min()) - mover.radius_m
     # A collision means the obstacle was in the way and not avoided, whatever the sampled geometry says
     # (a cart that drives into the rover between two samples, a wall a footprint corner touched).
-    encountered = [obstacle_id for obstacle_id, close in near.items() if close or obstacle_id in hit]
+    encountered = [
+        obstacle_id
+        for obstacle_id, edge_m in clearance.items()
+        if edge_m <= margin + DISTANCE_EPSILON_M or obstacle_id in hit
+    ]
     avoided = sum(obstacle_id not in hit for obstacle_id in encountered)
+    # The first of the nearest, in the scenario's order (static, then moving): a stable pick on a tie.
+    closest_id = min(clearance, key=clearance.__getitem__) if clearance else None
+    closest_m = None if closest_id is None else clearance[closest_id]
     if TRUTH_CONTACTS in notes.missing:
-        return len(encountered), None, None
+        return _Avoidance(len(encountered), None, None, closest_m, closest_id)
     success = 100.0 * avoided / len(encountered) if encountered else None
-    return len(encountered), avoided, success
+    return _Avoidance(len(encountered), avoided, success, closest_m, closest_id)
 
 
 def _energy_wh(trial: _Trial, notes: _Notes) -> float | None:

@@ -37,6 +37,7 @@ HEADLINE_METRICS = (
     ("path_accuracy_pct", "path accuracy (% of driven, {source})"),
     ("route_accuracy_pct", "path accuracy (% of route, {source})"),
     ("obstacle_avoidance_success_pct", "obstacle-avoidance success (%, {source})"),
+    ("closest_obstacle_m", "closest approach to an obstacle (m, centre to its edge, {source})"),
     ("rollovers", "rollovers"),
     ("collisions", "collisions"),
     ("cross_track_error_rms_m", "cross-track error RMS (m, rover's estimate)"),
@@ -83,6 +84,7 @@ OTHER_METRIC_LABELS = {
     "encounter_margin_m": "encounter margin (m)",
     "obstacles_encountered": "obstacles encountered ({source})",
     "obstacles_avoided": "obstacles avoided ({source})",
+    "closest_obstacle_id": "obstacle approached closest ({source})",
     "truncated": "recording cut short",
     "skipped_messages": "messages skipped",
 }

@@ -238,6 +238,7 @@ def _trial_table(title: str, result: TrialResult) -> RichTable:
         ("path accuracy (% of driven)", _fmt(metrics.path_accuracy_pct, "{:.1f}")),
         ("path accuracy (% of route)", _fmt(metrics.route_accuracy_pct, "{:.1f}")),
         ("obstacle-avoidance success (%)", _fmt(metrics.obstacle_avoidance_success_pct, "{:.1f}")),
+        ("closest approach to an obstacle (m)", _fmt(metrics.closest_obstacle_m, "{:.2f}")),
         ("rollovers", _fmt(metrics.rollovers, "{}")),
         ("collisions", _fmt(metrics.collisions, "{}")),
         ("energy (Wh)", _fmt(metrics.energy_wh, "{:.3f}")),

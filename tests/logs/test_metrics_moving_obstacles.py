@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import io
 import json
+import math
 
 import pytest
 
@@ -117,3 +118,20 @@ def test_an_unusable_world_start_is_described_and_taken_as_zero() -> None:
     assert [p for p in metrics.problems if "world.epoch_ns" in p] == [
         "metadata world.epoch_ns='soon' is not an int64 >= 0; used 0"
     ]
+
+
+def test_the_closest_approach_is_the_least_centre_to_edge_distance_and_names_the_obstacle() -> None:
+    # Static only: the far rock at (5, 9), radius 1, from the track y = 0: 9 - 1 = 8 m.
+    alone = compute_metrics(io.BytesIO(_run([], None)))
+    assert alone.closest_obstacle_m == pytest.approx(8.0)
+    assert alone.closest_obstacle_id == "far-rock"
+    # With the carts, judged where each was at each sample: the early cart is nearest at t = 7 s, at
+    # (10, -2) with the rover at (7, 0) (hypot(3, 2) less its 0.5 m radius); the rammer stands where the
+    # rover is at t = 15 s: -0.5 m, inside its radius.
+    both = compute_metrics(io.BytesIO(_run([], [PASSED_BEHIND])))
+    assert both.closest_obstacle_m == pytest.approx(math.hypot(3.0, 2.0) - 0.5)
+    assert both.closest_obstacle_id == "early-cart"
+    rammed = compute_metrics(io.BytesIO(_run([], [PASSED_BEHIND, RAMMER])))
+    assert rammed.closest_obstacle_m == pytest.approx(-0.5)
+    assert rammed.closest_obstacle_id == "rammer"
+    assert rammed.to_dict()["closest_obstacle_m"] == -0.5
