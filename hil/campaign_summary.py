@@ -37,6 +37,9 @@ COLUMNS = (
     ("energy_wh_per_m", "Energy (Wh/m)", "{:.4f}", "{:.4f}"),
     ("duration_s", "Duration (s)", "{:.1f}", "{:.1f}"),
     ("collisions", "Collisions", "{:.2f}", "{:d}"),
+    # How near the rover's centre came to an obstacle's edge (docs/metrics.md): the encounter count only
+    # says whether it came within the margin.
+    ("closest_obstacle_m", "Closest Obstacle Approach (m)", "{:.2f}", "{:.2f}"),
     # Beside goal_reached (the rover's own ARRIVED, judged on its estimate): where it really stopped.
     ("final_distance_to_goal_m", "Final Distance to Goal (m, truth)", "{:.2f}", "{:.2f}"),
 )

@@ -108,3 +108,18 @@ def test_table_1_says_how_many_trials_its_means_are_of(tmp_path):
     markdown, _json_path = write_summary(CAMPAIGN, ROWS, tmp_path / "all-ran")
     table1 = markdown.read_text(encoding="utf-8").split("## Table 1")[1].split("## Table 2")[0]
     assert "| rocky | classical | 2 |" in table1
+
+
+def test_the_closest_approach_is_a_column_of_both_tables(tmp_path):
+    rows = [
+        {**ROWS[0], "metrics": {**ROWS[0]["metrics"], "closest_obstacle_m": 0.8}},
+        {**ROWS[1], "metrics": {**ROWS[1]["metrics"], "closest_obstacle_m": -0.1}},  # inside a radius
+    ]
+    markdown, json_path = write_summary(CAMPAIGN, rows, tmp_path)
+    table2 = markdown.read_text(encoding="utf-8").split("## Table 2")[1]
+    header, _rule, first, second = table2.strip().splitlines()[-4:]
+    at = {name.strip(): index for index, name in enumerate(header.strip("|").split("|"))}
+    cells = [[c.strip() for c in line.strip("|").split("|")] for line in (first, second)]
+    assert [row[at["Closest Obstacle Approach (m)"]] for row in cells] == ["0.80", "-0.10"]
+    (entry,) = json.loads(json_path.read_text(encoding="utf-8"))["table1"]
+    assert entry["closest_obstacle_m"] == 0.35  # the mean over seeds, as every Table 1 figure
