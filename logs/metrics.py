@@ -558,9 +558,12 @@ def _obstacle_avoidance(
         if edge_m <= margin + DISTANCE_EPSILON_M or obstacle_id in hit
     ]
     avoided = sum(obstacle_id not in hit for obstacle_id in encountered)
-    # The first of the nearest, in the scenario's order (static, then moving): a stable pick on a tie.
-    closest_id = min(clearance, key=clearance.__getitem__) if clearance else None
-    closest_m = None if closest_id is None else clearance[closest_id]
+    # The first of the nearest, in the scenario's order (static, then moving): a stable pick on a tie. A
+    # distance that is not a number (an obstacle whose entries overflow) is left out: min() with a NaN
+    # key would answer by the order instead.
+    measured = {key: edge_m for key, edge_m in clearance.items() if not math.isnan(edge_m)}
+    closest_id = min(measured, key=measured.__getitem__) if measured else None
+    closest_m = None if closest_id is None else measured[closest_id]
     if TRUTH_CONTACTS in notes.missing:
         return _Avoidance(len(encountered), None, None, closest_m, closest_id)
     success = 100.0 * avoided / len(encountered) if encountered else None

@@ -117,8 +117,13 @@ class Mission:
         loaded: list[DrivenItem] = []
         for index, item in enumerate(items):
             if isinstance(item, Jump):
-                if not 0 <= item.target < len(items) or item.repeat < JUMP_FOREVER:
+                if not 0 <= item.target < len(items):
                     raise ParameterError(f"mission item {index}: {item} jumps nowhere in the mission")
+                if item.repeat < JUMP_FOREVER:
+                    raise ParameterError(
+                        f"mission item {index}: {item} repeats {item.repeat} times "
+                        "(0 or more, or -1: for ever)"
+                    )
                 loaded.append(item)
                 continue
             if isinstance(item, Delay):

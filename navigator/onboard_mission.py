@@ -32,8 +32,9 @@ the mission on (a current item set, a start, a clear, a new goal or mission).
 A jump (MAV_CMD_DO_JUMP) the mission comes to is passed as a speed change is (a ``mission_jump`` event, no
 MISSION_ITEM_REACHED): on at its target while its count allows, else past it; the speed changes a loop
 passes again apply again, those a jump skips do not. The counts belong to a run of the mission: an upload,
-MISSION_START (but on a mission paused by a single goal: that resumes the laps) and MISSION_SET_CURRENT on
-a mission not under way (not started, complete) start them from 0; a resume of a paused mission and
+MISSION_START (but at the item a single goal paused the mission at: that resumes the laps) and
+MISSION_SET_CURRENT on a mission not under way (not started, complete) start them from 0; a resume of a
+paused mission and
 MISSION_SET_CURRENT within a mission being driven keep them (the spec: "mission jump repeat counters are
 not reset"). A delay (MAV_CMD_NAV_DELAY) is a hold where the rover is: no goal (guidance IDLE) for its
 seconds on the stack's clock, the item current, any new goal ending it.
@@ -208,9 +209,11 @@ class MissionDriver:
         if isinstance(change, MissionAccepted):
             self._take_upload(change, f"MAVLink upload by {who} on the {link.name} link")
         elif isinstance(change, StartRequest):
-            # A start is a new run of the mission (every jump's count from 0), but for a mission paused by
-            # a single goal: the operator resumes the laps it was driving.
-            restart = self.mission.state is not MissionState.PAUSED
+            # A start is a new run of the mission (every jump's count from 0), but at the item a single
+            # goal paused it at: that resumes the laps it was driving. A start elsewhere on a paused
+            # mission is a new run too (back to item 0 with lap 2's counts would be neither).
+            mission = self.mission
+            restart = not (mission.state is MissionState.PAUSED and change.first == mission.current)
             what = f"mission started at item {change.first}"
             self._start_at(change.first, "mission_started", what, who, restart=restart)
         elif isinstance(change, MissionCleared):

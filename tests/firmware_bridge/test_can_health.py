@@ -255,6 +255,7 @@ def wait_for(condition, timeout_s=5.0):
         time.sleep(0.005)
 
 
+@pytest.mark.realtime
 def test_threaded_link_repeats_by_itself_and_stops_a_stalled_loop(buses):
     ours, theirs = buses
     sink = MemorySink()

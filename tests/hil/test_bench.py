@@ -21,6 +21,7 @@ class _Sleeper:
             self.inner.step()
 
 
+@pytest.mark.realtime
 def test_nested_calls_count_once_for_their_own_component() -> None:
     timer = ExclusiveTimer()
     inner = _Sleeper(0.2)

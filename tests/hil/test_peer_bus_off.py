@@ -161,6 +161,7 @@ def run_rover_against_peer(
     return rover
 
 
+@pytest.mark.realtime
 @pytest.mark.parametrize("pair", BUS_PAIRS)
 def test_the_rovers_link_goes_bus_off_at_the_faults_start_and_recovers_at_its_end(
     pair: BusPair, tmp_path: Path

@@ -43,11 +43,13 @@ def _run(
     *,
     shift_ns: int = 0,
     world: dict[str, str] | None = None,
+    static: list[dict] | None = None,
 ) -> bytes:
     """The recording; every time later by ``shift_ns`` (a world started then on the clock that stamps the
     log, as the real-time peer's monotonic clock), ``world`` its ``world`` metadata record if any."""
     buffer = io.BytesIO()
-    scenario = {"path_tolerance_m": "0.5", "encounter_margin_m": "1.5", "obstacles_json": json.dumps(STATIC)}
+    obstacles = json.dumps(STATIC if static is None else static)
+    scenario = {"path_tolerance_m": "0.5", "encounter_margin_m": "1.5", "obstacles_json": obstacles}
     if moving is not None:
         scenario["moving_obstacles_json"] = json.dumps(moving)
     with McapRecorder(buffer) as recorder:
@@ -135,3 +137,19 @@ def test_the_closest_approach_is_the_least_centre_to_edge_distance_and_names_the
     assert rammed.closest_obstacle_m == pytest.approx(-0.5)
     assert rammed.closest_obstacle_id == "rammer"
     assert rammed.to_dict()["closest_obstacle_m"] == -0.5
+
+
+def test_an_obstacle_whose_distance_is_not_a_number_does_not_hide_the_nearest() -> None:
+    # Waypoints at +-1e308 overflow the cart's walk to NaN: whatever its place in the list (first of all
+    # here: no static obstacle), the rammer at -0.5 m stays the closest approach (min() with a NaN key
+    # answers by the order).
+    broken = {
+        "id": "overflow",
+        "radius": 0.5,
+        "waypoints": [[1e308, 1e308], [-1e308, -1e308]],
+        "speed_mps": 1.0,
+    }
+    for moving in ([broken, RAMMER], [RAMMER, broken]):
+        metrics = compute_metrics(io.BytesIO(_run([], moving, static=[])))
+        assert metrics.closest_obstacle_id == "rammer"
+        assert metrics.closest_obstacle_m == pytest.approx(-0.5)

@@ -7,6 +7,8 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 from logs.doctor import diagnose
 
 
@@ -16,6 +18,7 @@ def _free_tcp_port() -> int:
         return int(probe.getsockname()[1])
 
 
+@pytest.mark.realtime
 def test_sigterm_leaves_a_complete_recording(tmp_path: Path) -> None:
     out = tmp_path / "station.mcap"
     station = subprocess.Popen(

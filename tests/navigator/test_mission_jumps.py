@@ -4,8 +4,6 @@ bounded whatever the items."""
 
 from __future__ import annotations
 
-import time
-
 import pytest
 
 from firmware_bridge.mavlink_mission import MissionStep
@@ -128,7 +126,7 @@ def test_a_delay_is_current_until_reached() -> None:
         ([A, Jump(2, -1), Jump(1, -1), B], "the loop from item 1 back to item 2"),
         ([A, SLOW, Delay(1.0), Jump(1, 3)], "the loop from item 1 back to item 3"),
         ([A, Jump(5, 1)], "jumps nowhere in the mission"),
-        ([A, Jump(0, -2)], "jumps nowhere in the mission"),
+        ([A, Jump(0, -2)], "repeats -2 times \\(0 or more, or -1: for ever\\)"),
         ([A, Delay(float("nan"))], "delay nan s is not a duration"),
         ([Delay(1.0), Jump(0, 0)], "needs at least one waypoint"),
     ],
@@ -147,8 +145,6 @@ def test_the_walk_stays_bounded_even_on_a_loop_load_would_refuse() -> None:
     mission = Mission()
     mission.load(steps(A, B))
     mission.items = (A, SLOW, Jump(1, JUMP_FOREVER), Jump(2, JUMP_FOREVER))
-    began = time.perf_counter()
-    leg = mission.set_current(1)
-    assert time.perf_counter() - began < 0.5
+    leg = mission.set_current(1)  # returns: a spinning walk would never get to the asserts below
     assert leg.target is None and mission.state is MissionState.COMPLETE
     assert len(leg.speed_changes) + len(leg.jumps) <= len(mission.items) + 1

@@ -107,6 +107,24 @@ def test_a_resume_on_lap_two_drives_at_the_speed_it_was_paused_at(station: Stati
     )
 
 
+def test_mission_start_elsewhere_on_a_paused_mission_is_a_new_run(station: Station) -> None:
+    # Paused on lap 2, then started at item 0 (not where it was paused): the laps again, not item 0 with
+    # lap 2's count (which would drive one lap fewer than either a resume or a new run).
+    rig = station.rig
+    mission = rig.stack.mission
+    station.upload([at(0, A), at(1, B), do_jump(2, 0, 1), at(3, C)])
+    station.start()
+    rig.run_until(lambda: mission.jumps_done(2) == 1 and mission.current == 0, 40.0, "lap 2 under way")
+    rig.run_until(lambda: mission.current == 1, 40.0, "lap 2 at B")
+    rig.stack.set_goal(3.0, 3.0)
+    rig.run_for(0.5)
+    assert mission.state is MissionState.PAUSED and mission.current == 1
+    station.start(0)
+    assert mission.jumps_done(2) == 0
+    rig.run_until(lambda: mission.state is MissionState.COMPLETE, 90.0, "the mission's end")
+    assert reached(station)[-5:] == [0, 1, 0, 1, 3]
+
+
 def test_a_loop_for_ever_advances_at_most_an_item_a_tick(station: Station) -> None:
     rig = station.rig
     mission = rig.stack.mission

@@ -9,6 +9,7 @@ from concurrent.futures import Executor, Future
 from typing import Any, TypeVar
 
 import numpy as np
+import pytest
 
 from navigator.config import PlannerConfig
 from navigator.follower import FollowerConfig
@@ -103,6 +104,7 @@ def test_no_path_stays_no_path_on_the_next_ticks() -> None:
     assert guidance.update(1, 2.0, 10.0, 0.0, 0.0).mode == NO_PATH  # held, not an error
 
 
+@pytest.mark.realtime
 def test_a_long_plan_on_the_worker_thread_does_not_block_the_tick() -> None:
     terrain = _flat(600, 600, 0.25)  # a full cost-to-go field over 360 000 cells: tens of ms at least
     with plan_worker() as worker:

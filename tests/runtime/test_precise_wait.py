@@ -78,6 +78,7 @@ def test_on_the_real_clock_it_never_returns_before_the_deadline() -> None:
     assert spin_until(clock, deadline) >= deadline
 
 
+@pytest.mark.realtime
 def test_fixed_rate_ticks_with_the_precise_wait_start_at_or_after_their_deadlines() -> None:
     clock = MonotonicClock()
     starts: list[int] = []
@@ -99,6 +100,7 @@ def test_fixed_rate_ticks_with_the_precise_wait_start_at_or_after_their_deadline
         FixedRateScheduler(clock, 50.0, lambda: None, wait=time.sleep, spin_ns=-1)
 
 
+@pytest.mark.realtime
 def test_input_poller_sees_a_datagram_without_blocking() -> None:
     with (
         socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as rx,
