@@ -164,7 +164,15 @@ class SimAutopilot:
         """Let the GPS remember where the rover was at ``now`` (for its latency and delay faults)."""
         self._gps.record(
             GpsSample(
-                now, truth.x_m, truth.y_m, truth.z_m, truth.yaw_rad, truth.speed_mps, truth.lateral_speed_mps
+                now,
+                truth.x_m,
+                truth.y_m,
+                truth.z_m,
+                truth.yaw_rad,
+                truth.speed_mps,
+                truth.lateral_speed_mps,
+                truth.roll_rad,
+                truth.pitch_rad,
             )
         )
 
@@ -278,6 +286,7 @@ class SimAutopilot:
         if fix is None:
             return None
         lat, lon, alt = self._enu_to_geodetic(fix.x_m, fix.y_m, fix.z_m)
+        in_plane = (fix.speed_mps, fix.lateral_speed_mps, fix.roll_rad, fix.pitch_rad)
         eph_cm = min(_UINT16_KNOWN_MAX, round(fix.eph_m * 100.0))
         return self._mav.gps_raw_int_encode(
             now // 1_000,
@@ -287,8 +296,8 @@ class SimAutopilot:
             round(float(alt) * 1e3),
             eph_cm,
             min(_UINT16_KNOWN_MAX, eph_cm * 2),
-            min(_UINT16_KNOWN_MAX, round(ground_speed_mps(fix.speed_mps, fix.lateral_speed_mps) * 100.0)),
-            round(course_over_ground_deg(fix.yaw_rad, fix.speed_mps, fix.lateral_speed_mps) * 100.0) % 36000,
+            min(_UINT16_KNOWN_MAX, round(ground_speed_mps(*in_plane) * 100.0)),
+            round(course_over_ground_deg(fix.yaw_rad, *in_plane) * 100.0) % 36000,
             fix.satellites,
         )
 

@@ -38,6 +38,8 @@ class GpsSample(NamedTuple):
     yaw_rad: float
     speed_mps: float
     lateral_speed_mps: float = 0.0  # sideways (y left): a sliding body's ground track is off its heading
+    roll_rad: float = 0.0  # the body's tilt: its speeds are in its own plane, the GPS's over the ground
+    pitch_rad: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -51,6 +53,8 @@ class GpsFix:
     satellites: int
     eph_m: float
     lateral_speed_mps: float = 0.0
+    roll_rad: float = 0.0
+    pitch_rad: float = 0.0
 
 
 class GpsModel:
@@ -137,6 +141,8 @@ class GpsModel:
             self._satellites,
             self._noise_m,
             truth.lateral_speed_mps,
+            truth.roll_rad,
+            truth.pitch_rad,
         )
 
     def _at(self, t_ns: int) -> GpsSample:
@@ -224,21 +230,43 @@ def _plus(a: tuple[float, float, float], b: tuple[float, float, float]) -> tuple
     return (a[0] + float(b[0]), a[1] + float(b[1]), a[2] + float(b[2]))
 
 
-def ground_speed_mps(speed_mps: float, lateral_speed_mps: float) -> float:
-    """The GPS's speed over ground: the body's forward and sideways speeds together (``abs(speed)`` while the
-    body does not slide, the very float it always was)."""
+def ground_velocity_enu(
+    yaw_rad: float, speed_mps: float, lateral_speed_mps: float, roll_rad: float, pitch_rad: float
+) -> tuple[float, float]:
+    """The body's velocity over the ground (east, north; m/s) from its speeds in its own plane: forward
+    ``speed_mps`` along the heading tilted by the pitch, sideways ``lateral_speed_mps`` along the body's y
+    axis, ``(-sin(roll) sin(pitch), cos(roll))`` in the heading's frame. The simulator moves the body by the
+    same law (``hil.dynamics_kernel``), so this is the rate its position changes at."""
+    forward = speed_mps * math.cos(pitch_rad)
+    cos_yaw, sin_yaw = math.cos(yaw_rad), math.sin(yaw_rad)
+    east, north = forward * cos_yaw, forward * sin_yaw
+    if lateral_speed_mps != 0.0:
+        across = -math.sin(roll_rad) * math.sin(pitch_rad)
+        along_left = math.cos(roll_rad)
+        east += lateral_speed_mps * (across * cos_yaw - along_left * sin_yaw)
+        north += lateral_speed_mps * (across * sin_yaw + along_left * cos_yaw)
+    return east, north
+
+
+def ground_speed_mps(speed_mps: float, lateral_speed_mps: float, roll_rad: float, pitch_rad: float) -> float:
+    """The GPS's speed over ground: the horizontal speed of ``ground_velocity_enu`` (while the body does not
+    slide, ``abs(speed) cos(pitch)``: on level ground the very float it always was)."""
     if lateral_speed_mps == 0.0:
-        return abs(speed_mps)
-    return math.hypot(speed_mps, lateral_speed_mps)
+        return abs(speed_mps) * math.cos(pitch_rad)
+    return math.hypot(*ground_velocity_enu(0.0, speed_mps, lateral_speed_mps, roll_rad, pitch_rad))
 
 
-def course_over_ground_deg(yaw_rad: float, speed_mps: float, lateral_speed_mps: float) -> float:
-    """The GPS's course over ground as a compass bearing: where the body moves, which a sideways slide turns
-    off its heading (a rover sliding downhill while it drives along the contour tracks downhill of it).
-    Without a slide, ``course_bearing_deg`` of the heading, the same float as before slides existed."""
+def course_over_ground_deg(
+    yaw_rad: float, speed_mps: float, lateral_speed_mps: float, roll_rad: float, pitch_rad: float
+) -> float:
+    """The GPS's course over ground as a compass bearing: where the body moves over the ground, which a
+    sideways slide turns off its heading (a rover sliding downhill while it drives along the contour tracks
+    downhill of it). Without a slide, ``course_bearing_deg`` of the heading, the same float as before slides
+    existed; standing still, the heading too."""
     if lateral_speed_mps == 0.0:
         return course_bearing_deg(yaw_rad, speed_mps)
-    return course_bearing_deg(yaw_rad + math.atan2(lateral_speed_mps, speed_mps), 1.0)
+    east, north = ground_velocity_enu(yaw_rad, speed_mps, lateral_speed_mps, roll_rad, pitch_rad)
+    return math.degrees(math.atan2(east, north)) % 360.0
 
 
 def course_bearing_deg(yaw_rad: float, speed_mps: float) -> float:

@@ -15,6 +15,9 @@ SMALL = Path(__file__).parents[1] / "data" / "small_rocky.toml"
 
 def test_the_start_up_heap_is_frozen_during_the_loop_and_unfrozen_after(tmp_path):
     scenario = dataclasses.replace(load_scenario(SMALL), duration_s=2.0)
+    # An in-process `rover run` earlier in this process (a parallel worker's test order) froze its own
+    # start-up heap for good; the trial's unfreeze hands that back too. Start from none frozen.
+    gc.unfreeze()
     frozen_before = gc.get_freeze_count()
     frozen_during: list[int] = []
     run_trial(
