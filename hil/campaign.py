@@ -36,6 +36,7 @@ from hil.scenario import PERCEPTION_MODELS, Scenario, load_scenario
 from hil.start_clearance import check_start_clear
 from logs.settings import MAX_SEED, ConfigError, Table, load_toml
 from navigator.config import RoverConfig, rover_config_from_table
+from navigator.file_kinds import CAMPAIGN, ROVER_CONFIG, refuse_another_kind
 
 
 @dataclass(frozen=True)
@@ -104,8 +105,12 @@ class Campaign:
 
 def load_campaign(path: str | Path) -> Campaign:
     """Read a campaign file and validate everything it refers to; ``ConfigError`` on any problem."""
-    root = load_toml(path)
-    base = Path(path).parent
+    return campaign_from_table(load_toml(path), Path(path).parent)
+
+
+def campaign_from_table(root: Table, base: Path) -> Campaign:
+    """The campaign ``root`` describes; its paths are relative to ``base`` (the campaign file's folder)."""
+    refuse_another_kind(root, CAMPAIGN)
     name = _path_safe_name(root, "name")  # part of the default output folder's name
     root.text("description", "")
     config_path = base / root.text("config") if root.has("config") else None
@@ -231,6 +236,7 @@ def campaign_config(config_path: Path | None, overrides: dict[str, Any], where: 
     else:
         data = _read(config_path)
         source = str(config_path)
+        refuse_another_kind(Table(data, source, ""), ROVER_CONFIG)  # the file itself, before any overrides
     merged = _merged(copy.deepcopy(data), overrides)
     label = source if not overrides else f"{source} + overrides of {where}"
     # Files the config names are relative to its folder: the label is no path once overrides are in it.

@@ -20,8 +20,8 @@ from hil.moving_obstacles import MovingObstacle
 from hil.rangefinder_sim import DEFAULT_YAWS_DEG, yaw_ring
 from hil.scenario_placement import check_clear_of_obstacles
 from logs.metrics import DEFAULT_ENCOUNTER_MARGIN_M
-from logs.settings import MAX_SEED, ConfigError, Table, finite_float, parse_toml, read_settings_text, shown
-from navigator.config import ROVER_CONFIG_TABLES
+from logs.settings import MAX_SEED, Table, finite_float, parse_toml, read_settings_text, shown
+from navigator.file_kinds import SCENARIO, refuse_another_kind
 from navigator.map_config import terrain_from_table
 from navigator.scan_tracker_config import MAX_MOUNT_OFFSET_M
 from navigator.sensor_mount import SensorMount
@@ -270,7 +270,7 @@ def load_scenario(path: str | Path) -> Scenario:
 
 
 def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
-    refuse_a_rover_config(root)
+    refuse_another_kind(root, SCENARIO)
     name = root.text("name")
     root.text("description", "")
     duration_s = root.number("duration_s", 120.0, lo=1.0, hi=24 * 3600.0)
@@ -369,20 +369,6 @@ def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
         success=success,
         encounter_margin_m=encounter_margin_m,
     )
-
-
-def refuse_a_rover_config(root: Table) -> None:
-    """A rover config where the scenario goes: say so, rather than "name: required key is missing"."""
-    present = set(root.keys())
-    found = [key for key in ROVER_CONFIG_TABLES if key in present]
-    if found and "terrain" not in present:
-        tables = ", ".join(f"[{key}]" for key in found)
-        raise ConfigError(
-            root.source,
-            "",
-            f"this is a rover config (it has {tables}), not a scenario: a scenario (scenarios/default.toml, "
-            "docs/hil.md) goes here, the rover config after --config",
-        )
 
 
 def _tags(root: Table) -> tuple[str, ...]:

@@ -16,10 +16,11 @@ from firmware_bridge.can_link import CanConfig
 from firmware_bridge.mavlink_link import MavlinkConfig
 from firmware_bridge.vesc import VescProfile
 from logs.clock import NS_PER_S
-from logs.settings import ConfigError, Table, load_toml
+from logs.settings import Table, load_toml
 from logs.telemetry import ZenohSettings
 from navigator.astar import HEURISTICS
 from navigator.config_checks import check_cross_fields
+from navigator.file_kinds import ROVER_CONFIG, refuse_another_kind
 from navigator.follower import FollowerConfig
 from navigator.map_config import terrain_from_table
 from navigator.phase_locked_loop import DEFAULT_LATE_WAIT_NS, DEFAULT_OFFSET_NS
@@ -37,22 +38,6 @@ HEURISTIC_WEIGHT_RANGE = (1.0, 10.0)
 # The measurement whose arrival starts a control tick in real time (navigator.paced_loop); "none": a
 # plain fixed-rate loop.
 PACING_SENSORS = ("imu", "gps", "wheels", "none")
-# The tables every scenario file has (hil.scenario) and no rover config does.
-_SCENARIO_TABLES = ("terrain", "start", "goals")
-# The tables of a rover config, none of which a scenario has (hil.scenario names a config given as one).
-ROVER_CONFIG_TABLES = (
-    "vehicle",
-    "vesc",
-    "can",
-    "mavlink",
-    "zenoh",
-    "estimator",
-    "planner",
-    "follower",
-    "safety",
-    "perception",
-    "map",
-)
 # Skid-steer kinematics the estimator shares with the vehicle: single-sourced from [vehicle].
 _VEHICLE_KINEMATICS = ("track_m", "skid_factor")
 # Busy-poll the pacing link this long before (and at most after) each expected sample (navigator.paced_loop):
@@ -150,22 +135,17 @@ class RoverConfig:
 
 def load_rover_config(path: str | Path) -> RoverConfig:
     """Read and validate a rover config file; raises ``logs.settings.ConfigError`` naming file and key."""
-    return rover_config_from_table(load_toml(path))
+    root = load_toml(path)
+    # Here, not in rover_config_from_table: a campaign variant's overrides merged over no base config are
+    # no file, and a stray [sensors] there is named by its key, not as "a scenario".
+    refuse_another_kind(root, ROVER_CONFIG)
+    return rover_config_from_table(root)
 
 
 def rover_config_from_table(root: Table, base_dir: Path | None = None) -> RoverConfig:
     """The config a root table describes; files it names (``[map]`` layers, ``[vesc] dbc``) are read
     relative to ``base_dir``, by default the folder of ``root.source`` (the file the table came from)."""
     base_dir = Path(root.source).parent if base_dir is None else base_dir
-    if all(key in set(root.keys()) for key in _SCENARIO_TABLES):
-        # A scenario where a rover config goes (--config): its first key would be "unknown", which names
-        # nothing the user got wrong.
-        raise ConfigError(
-            root.source,
-            "",
-            "this is a scenario file (it has [terrain], [start] and [[goals]]), not a rover config: a rover "
-            "config (configs/rover.toml lists every key) goes here",
-        )
     rover_id = root.text("rover_id", "rover1")
     if not rover_id or not all(c.isalnum() or c in "-_" for c in rover_id):
         raise root.error(

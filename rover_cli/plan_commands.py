@@ -143,7 +143,8 @@ def _rovers_map(args: argparse.Namespace) -> PlanMap:
     A rover config without a ``[map]`` is named as a config."""
     if args.map.suffix.lower() != ".toml" or args.resolution_m is not None:
         return load_map(args.map, args.resolution_m)  # an image or a layer, or the --resolution-m refusal
-    from hil.scenario import refuse_a_rover_config, scenario_from_table
+    from hil.scenario import scenario_from_table
+    from navigator.file_kinds import SCENARIO, refuse_another_kind
 
     text = read_settings_text(args.map)
     root = parse_toml(text, str(args.map))
@@ -151,7 +152,7 @@ def _rovers_map(args: argparse.Namespace) -> PlanMap:
         terrain = rover_config_from_table(root).terrain
         assert terrain is not None  # a config with [map] has its map
         return PlanMap(terrain)  # a rover config names no start nor goal
-    refuse_a_rover_config(root)
+    refuse_another_kind(root, SCENARIO)
     if root.has("obstacles"):
         scenario = scenario_from_table(root, text, base_dir=args.map.parent)
         goal = scenario.goals[0]
