@@ -211,7 +211,7 @@ def _override_error(
     that the overrides now contradict, with that file named."""
     written = _dotted_keys(overrides)
     if err.key and any(
-        k == err.key or k.startswith(f"{err.key}.") or err.key.startswith(f"{k}.") for k in written
+        k == err.key or k.startswith(f"{err.key}.") or err.key.startswith((f"{k}.", f"{k}[")) for k in written
     ):
         return ConfigError(variant.source, variant.key_path(f"overrides.{err.key}"), err.problem)
     base = "the built-in defaults" if config_path is None else f"the base config {config_path}"

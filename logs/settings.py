@@ -72,10 +72,33 @@ class Table:
 
     # --- helpers -------------------------------------------------------------------------------
     def key_path(self, key: str) -> str:
+        """``key`` under this table's path; "" is the table itself."""
+        if not key:
+            return self.prefix
         return f"{self.prefix}.{key}" if self.prefix else key
 
     def error(self, key: str, problem: str) -> ConfigError:
         return ConfigError(self.source, self.key_path(key), problem)
+
+    def absent(self, key: str, problem: str) -> ConfigError:
+        """``problem``: ``key`` is missing ("" for something of this table, read only when present: a layer
+        file, a class table); but a key written here one slip from the one missing (from any known one
+        for "") is named first, as unknown. The typo is the likelier cause, and a message about the key
+        meant never names it ("radius_m: required key is missing" when ``raduis_m`` is written)."""
+        meant = [key] if key else sorted(self._used | self._asked)
+        # Not read nor asked about yet, and one slip only, not finish()'s looser match: a key not read yet
+        # may be a real one read later, and two real keys differ by more (yield_max_m and yield_max_s
+        # differ by one letter, but neither is ever missing: both have defaults).
+        for written in sorted(set(self._data) - self._used - self._asked):
+            near = next((k for k in meant if _one_slip(written, k)), None)
+            if near is not None:
+                where = f"{self.key_path(key)}: " if self.key_path(key) else ""
+                return ConfigError(
+                    self.source,
+                    self.key_path(written),
+                    f"unknown key (did you mean {near!r}? without it: {where}{problem})",
+                )
+        return self.error(key, problem)
 
     def has(self, key: str) -> bool:
         self._asked.add(key)
@@ -89,7 +112,7 @@ class Table:
         if key in self._data:
             return self._data[key]
         if default is _REQUIRED:
-            raise self.error(key, "required key is missing")
+            raise self.absent(key, "required key is missing")
         return default
 
     # --- typed getters -------------------------------------------------------------------------
@@ -203,9 +226,7 @@ class Table:
             key = unknown[0]
             # A typo is the usual cause: name the nearest known key first, then all of them.
             known = sorted(self._used | self._asked)
-            nearest = difflib.get_close_matches(key, known, n=1, cutoff=0.6)
-            guess = f"did you mean {nearest[0]!r}? " if nearest else ""
-            problem = f"unknown key ({guess}known here: {', '.join(known) or 'none'})"
+            problem = f"unknown key ({did_you_mean(key, known)}known here: {', '.join(known) or 'none'})"
             # No setting has a dot in its name: this is a quoted dotted key, which reads as the real one.
             if "." in key:
                 table, _, leaf = key.rpartition(".")
@@ -214,6 +235,33 @@ class Table:
                     f"{key} = ..., to set {leaf} in [{self.key_path(table)}]"
                 )
             raise self.error(key, problem)
+
+
+def did_you_mean(written: str, known: Sequence[str]) -> str:
+    """``"did you mean 'x'? "`` naming the known key nearest to ``written``, or "" when none is near."""
+    # difflib misses a slip in a short key ("di" for "id"): a one-slip match as well.
+    nearest = (
+        difflib.get_close_matches(written, known, n=1, cutoff=0.6)
+        or [k for k in known if _one_slip(written, k)][:1]
+    )
+    return f"did you mean {nearest[0]!r}? " if nearest else ""
+
+
+def _one_slip(written: str, meant: str) -> bool:
+    """``written`` is ``meant`` with one letter left out, added or changed, or two neighbours swapped."""
+    if written == meant or abs(len(written) - len(meant)) > 1:
+        return False
+    if len(written) == len(meant):
+        differ = [i for i, (a, b) in enumerate(zip(written, meant, strict=True)) if a != b]
+        swapped = (
+            len(differ) == 2
+            and differ[1] == differ[0] + 1
+            and written[differ[0]] == meant[differ[1]]
+            and written[differ[1]] == meant[differ[0]]
+        )
+        return len(differ) == 1 or swapped
+    shorter, longer = sorted((written, meant), key=len)
+    return any(longer[:i] + longer[i + 1 :] == shorter for i in range(len(longer)))
 
 
 def finite_float(value: Any) -> float | None:

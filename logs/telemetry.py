@@ -29,7 +29,7 @@ import zenoh
 from logs.encoding import encode_message
 from logs.errors import TelemetryError, TelemetrySetupError
 from logs.json_text import loads_json
-from logs.settings import Table
+from logs.settings import Table, did_you_mean
 from logs.sink import Message
 from logs.topics import CAN_FRAMES, CAN_STATS, ESTIMATOR_INNOVATIONS, TOPICS
 
@@ -110,7 +110,10 @@ def _rates(table: Table) -> tuple[tuple[str, float], ...]:
     result = []
     for topic in sorted(rates.keys()):
         if topic not in TOPICS:
-            raise rates.error(topic, f"unknown topic; known topics: {', '.join(sorted(TOPICS))}")
+            known = sorted(TOPICS)
+            raise rates.error(
+                topic, f"unknown topic ({did_you_mean(topic, known)}known topics: {', '.join(known)})"
+            )
         if topic in NEVER_THINNED:
             # Refused on load, not when the stream opens: the rover must not get as far as its links.
             raise rates.error(topic, "is never thinned (the ground station's bus load comes from it; ~1/s)")

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from logs.settings import MAX_SEED, ConfigError, Table
+from logs.settings import MAX_SEED, Table
 from navigator.errors import TerrainError
 from navigator.png_layers import load_png_layers
 from navigator.terrain import TerrainMap, check_map_cells, from_maze, load_npy_layers, procedural
@@ -28,10 +28,8 @@ def terrain_from_table(table: Table, base_dir: Path) -> tuple[TerrainMap, str]:
     kind = table.text("kind", choices=TERRAIN_KINDS)
     if kind in ("npy", "png") and not any(table.has(layer) for layer in _LAYERS):
         # The map's shape comes from its layers: at least one is needed.
-        raise ConfigError(
-            table.source,
-            table.prefix,
-            f'kind = "{kind}" needs at least one layer file: elevation, classes or obstacles',
+        raise table.absent(
+            "", f'kind = "{kind}" needs at least one layer file: elevation, classes or obstacles'
         )
     try:
         if kind == "maze":
@@ -79,8 +77,8 @@ def terrain_from_table(table: Table, base_dir: Path) -> tuple[TerrainMap, str]:
             )
             summary = f"npy layers {terrain.shape[0]}x{terrain.shape[1]} at {resolution} m"
     except TerrainError as err:
-        key = table.prefix if err.key is None else table.key_path(err.key)
-        raise ConfigError(table.source, key, str(err)) from err
+        # Layer files and the class table are read only when present: a misspelt one reads as absent.
+        raise table.absent(err.key or "", str(err)) from err
     table.finish()
     return terrain, summary
 
