@@ -63,6 +63,9 @@ CONTROL_DIVIDER = 2  # onboard control at 50 Hz
 # After the final ARRIVED: the rover counts as stopped below this body speed; the wait for it is bounded.
 AT_REST_MPS = 0.02
 SETTLE_MAX_NS = 3_000_000_000
+# What a trial writes into its folder.
+TRIAL_MCAP = "trial.mcap"
+METRICS_JSON = "metrics.json"
 
 
 @dataclass(frozen=True)
@@ -103,7 +106,9 @@ def run_trial(
     ground_station: Transport | None = None,
     campaign: CampaignPlace | None = None,
 ) -> TrialResult:
-    """Run one lockstep trial; writes ``trial.mcap`` and ``metrics.json`` into ``out_dir``.
+    """Run one lockstep trial; writes ``trial.mcap`` and ``metrics.json`` into ``out_dir``, over an earlier
+    trial's there (a campaign run again into its folder redoes its trials; ``rover hil trial`` refuses such
+    a folder first).
 
     ``campaign`` names the campaign terrain and variant the trial belongs to (recorded in the ``trial``
     metadata).
@@ -111,7 +116,7 @@ def run_trial(
     seed = scenario.seed if seed is None else seed
     config = _georeferenced(config, scenario)
     out_dir.mkdir(parents=True, exist_ok=True)
-    mcap_path = out_dir / "trial.mcap"
+    mcap_path = out_dir / TRIAL_MCAP
     clock = SimClock()
 
     with McapRecorder(mcap_path) as recorder:
@@ -186,7 +191,7 @@ def run_trial(
         simulated_s = seconds(clock.now_ns())
 
     metrics = compute_metrics(mcap_path)
-    metrics_path = out_dir / "metrics.json"
+    metrics_path = out_dir / METRICS_JSON
     metrics.write_json(metrics_path)
     failures = (*judge(scenario.success, metrics), *fault_failures)
     return TrialResult(

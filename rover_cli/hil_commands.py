@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -25,6 +26,9 @@ if TYPE_CHECKING:
     from hil.trial import TrialResult
 
 DEFAULT_TRIALS_DIR = Path("logs/trials")
+# What `rover hil trial` writes into its --out: the recording, the metrics, and with --report the report
+# (logs.report.write_report's three files). Any of them there already is an earlier trial's: refused.
+TRIAL_FILES = ("trial.mcap", "metrics.json", "report.html", "report.md", "report.json")
 
 
 def register(families: Any) -> None:
@@ -132,6 +136,21 @@ def _usable_out_dir(path: Path) -> str | None:
     return None
 
 
+def _earlier_run_problem(out_dir: Path, names: Sequence[str], what: str) -> str | None:
+    """The files of ``names`` already in ``out_dir`` (an earlier run's, ``what``), named as bad input (exit
+    2) before anything is written; None if there are none. Written over, they would be lost, or, left
+    beside the new run's files, read as its own (an earlier report beside a new recording)."""
+    earlier = [out_dir / name for name in names if (out_dir / name).exists()]
+    if not earlier:
+        return None
+    one = len(earlier) == 1
+    return (
+        f"--out {out_dir}: {', '.join(map(str, earlier))} already {'exists' if one else 'exist'} ({what}; "
+        f"{'it is' if one else 'they are'} left as {'it is' if one else 'they are'}): give --out a new "
+        f"folder, or move {'that file' if one else 'those files'} away"
+    )
+
+
 def _peer_paths_problem(out_dir: Path, port_file: Path | None, status_file: Path | None) -> str | None:
     """What keeps the peer from writing its files, found before it runs (exit 2), else None.
 
@@ -140,15 +159,11 @@ def _peer_paths_problem(out_dir: Path, port_file: Path | None, status_file: Path
     """
     from hil.peer import TRUTH_MCAP
 
-    problem = _usable_out_dir(out_dir)
+    problem = _usable_out_dir(out_dir) or _earlier_run_problem(
+        out_dir, (TRUTH_MCAP,), "an earlier run's ground truth"
+    )
     if problem is not None:
         return problem
-    truth = out_dir / TRUTH_MCAP
-    if truth.exists():
-        return (
-            f"--out {out_dir}: {truth} already exists (an earlier run's ground truth; it is left as it is): "
-            "give --out a new folder, or move that file away"
-        )
     for option, path in (("--port-file", port_file), ("--status-file", status_file)):
         if path is None:
             continue
@@ -181,7 +196,9 @@ def run_trial_command(args: argparse.Namespace) -> int:
         return 2
     seed = scenario.seed if args.seed is None else args.seed
     out_dir = args.out or _unique_run_dir(DEFAULT_TRIALS_DIR, f"{scenario.name}-seed{seed}")
-    problem = _usable_out_dir(out_dir)
+    problem = _usable_out_dir(out_dir) or _earlier_run_problem(
+        out_dir, TRIAL_FILES, "an earlier trial's recording, metrics or report"
+    )
     if problem is not None:
         print_error(console, problem)
         return 2

@@ -172,3 +172,11 @@ def test_trial_command_with_report_writes_the_report_beside_the_recording(tmp_pa
     (run,) = report["runs"]
     assert Path(run["path"]).name == "trial.mcap" and not run["missing"]
     assert run["metrics"]["distance_m"] == pytest.approx(metrics["distance_m"])  # the trial's own figures
+    # Everything it wrote is what a second trial into this folder refuses to write over (exit 2).
+    from rover_cli.hil_commands import TRIAL_FILES
+
+    written = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert set(written) == set(TRIAL_FILES)
+    assert main(["hil", "trial", str(scenario), "--out", str(out), "--no-telemetry", "--report"]) == 2
+    assert "already exist" in capsys.readouterr().out
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == written
