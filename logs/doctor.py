@@ -2,8 +2,10 @@
 
 Checks: the magic at both ends; every record framed completely (else: where the file is cut); every
 chunk decompresses to its stated size and matches its CRC; every attachment matches its CRC; the data
-section CRC in DataEnd; the Statistics record (if any) agrees with what was counted. Counts per topic
-with first / last log time, metadata and attachment names. Problems are listed, never raised, except for
+section CRC in DataEnd; the Statistics record (if any) agrees with what was counted; the file holds a
+message (metadata and attachments alone are no recording of a run: a trial writes them before its first
+chunk, so a file cut before that chunk's end holds nothing else). Counts per topic with first / last log
+time, metadata and attachment names. Problems are listed, never raised, except for
 a file that is missing or holds no recording at all (``LogReadError``; ``NotARecording`` for an empty file,
 one that ends inside the MCAP magic, or one that is not MCAP), as ``rover can export`` and ``rover logs
 csv`` refuse them. A cut and damage are worded as those tools word them (``logs.read_stop``).
@@ -89,12 +91,28 @@ def diagnose(path: str | Path) -> DoctorReport:
     if walk.stop is not None:
         report.cut_at = walk.stop.offset
         report.bytes_after_last_record = size - walk.end
-        report.problems.append(
-            f"file ({size} bytes) is {walk.stop.describe()}; `rover logs recover` keeps every complete chunk"
+        # recover keeps messages; before the first chunk's end there is none to keep, and it says so
+        advice = (
+            "`rover logs recover` keeps every complete chunk"
+            if report.messages
+            else "no complete chunk before it: no message to recover"
         )
+        report.problems.append(f"file ({size} bytes) is {walk.stop.describe()}; {advice}")
     elif report.complete and not walk.trailing_magic:
         report.problems.append("the closing magic bytes are missing")
+    if not report.messages and walk.stop is None:
+        # Metadata and attachments alone are not a recording of a run (a trial writes them before its
+        # first chunk closes): never "healthy".
+        report.problems.append(_no_messages(report))
     return report
+
+
+def _no_messages(report: DoctorReport) -> str:
+    held = len(report.metadata) + len(report.attachments)
+    besides = (
+        f", only {len(report.metadata)} metadata and {len(report.attachments)} attachment(s)" if held else ""
+    )
+    return f"no messages: the recording holds none{besides}"
 
 
 class _Checker:

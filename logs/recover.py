@@ -6,9 +6,15 @@ dropped and counted, and the copy goes on after it. Message bytes, log and publi
 numbers are copied unchanged; schema and channel ids are renumbered in the order first seen (the MCAP
 writer assigns them), which readers never depend on. The output gets a fresh summary and footer.
 
-A file with nothing to keep (empty, cut inside its magic or header, or with no message, metadata or
-attachment that survives) is an error, ``NothingRecoverable``, and no output file is left behind: an
-empty "recovered" MCAP would look like a rescued recording.
+A file with no message to keep (empty, cut inside its magic or header, cut before its first chunk's end,
+every chunk damaged) is an error, ``NothingRecoverable``, and no output file is left behind: a
+"recovered" MCAP of metadata and attachments alone would pass for a rescued recording (a trial writes
+its metadata and attachments first, so a file cut before its first chunk's end holds those and nothing
+else). The output is written beside ``output`` under a temporary name and renamed when complete, so a
+failed recover neither leaves a file nor replaces one already there.
+
+The writer chunks the messages anew (by size, not by the recorder's second of log time), so the output
+has other chunks than the source: the result counts both (``chunks_kept`` read, ``chunks_written``).
 """
 
 from __future__ import annotations
@@ -24,6 +30,7 @@ from typing import Any, BinaryIO
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
 from mcap.opcode import Opcode
+from mcap.reader import make_reader
 from mcap.records import Attachment, Channel, Header, Message, Metadata, Schema
 from mcap.writer import CompressionType, Writer
 
@@ -40,7 +47,8 @@ class RecoverResult:
     output: str
     was_complete: bool  # the source had its DataEnd: nothing needed recovering
     cut_at: int | None
-    chunks_kept: int
+    chunks_kept: int  # chunks of the source whose records were copied
+    chunks_written: int  # chunks of the output (the writer chunks anew: not chunks_kept)
     chunks_dropped: int
     messages: int
     orphan_messages: int  # messages whose channel record was lost; they cannot be decoded and are dropped
@@ -54,12 +62,13 @@ class RecoverResult:
 
 
 class NothingRecoverable(LogReadError):
-    """The file holds no complete message, metadata or attachment record: there is nothing to keep."""
+    """The file holds no complete message: there is nothing to keep (metadata and attachments alone would
+    pass for a rescued recording)."""
 
 
 def recover(source: str | Path, output: str | Path) -> RecoverResult:
     """Copy every complete record of ``source`` into a new, valid MCAP file at ``output``;
-    ``NothingRecoverable`` (and no output) when the file holds nothing worth keeping."""
+    ``NothingRecoverable`` (and no output) when the file holds no message to keep."""
     src, dst = Path(source), Path(output)
     if src.resolve() == dst.resolve():
         raise RecordingError(f"recover writes a new file: give an output path other than {src}")
@@ -73,22 +82,25 @@ def recover(source: str | Path, output: str | Path) -> RecoverResult:
         walk = FrameWalk(stream, str(src))
         try:
             copier.copy(walk)
-        finally:
-            output_file.close(finish=copier.started)
-    if copier.messages + copier.metadata + copier.attachments == 0:
+        except BaseException:
+            output_file.close(finish=False)
+            output_file.remove()
+            raise
+    if copier.messages == 0:
+        output_file.close(finish=False)
         output_file.remove()
-        where = f"cut {walk.cut_reason} at byte {walk.cut_at}" if walk.cut_at is not None else "no records"
-        dropped = f", {copier.chunks_dropped} damaged chunk(s) dropped" if copier.chunks_dropped else ""
         raise NothingRecoverable(
-            f"nothing recoverable in {src}: no complete message, metadata or attachment ({where}{dropped}); "
-            f"no output written"
+            f"nothing recoverable in {src}: {_why_no_message(copier, walk)}; no output written"
         )
+    output_file.close(finish=True)
+    chunks_written = output_file.commit()
     result = RecoverResult(
         source=str(src),
         output=str(dst),
         was_complete=copier.complete,
         cut_at=walk.cut_at,
         chunks_kept=copier.chunks_kept,
+        chunks_written=chunks_written,
         chunks_dropped=copier.chunks_dropped,
         messages=copier.messages,
         orphan_messages=copier.orphans,
@@ -101,12 +113,33 @@ def recover(source: str | Path, output: str | Path) -> RecoverResult:
     return result
 
 
+def _why_no_message(copier: _Copier, walk: FrameWalk) -> str:
+    """Why a file gave no message: where it is cut or what was damaged, and what it held besides."""
+    if walk.stop is not None and copier.chunks_kept == 0 and copier.chunks_dropped == 0:
+        why = f"{walk.stop.describe()}, before its first chunk's end: no complete chunk"
+    elif copier.chunks_kept == 0 and copier.chunks_dropped:
+        why = f"no complete chunk: {copier.chunks_dropped} damaged chunk(s) dropped"
+        if walk.stop is not None:
+            why += f", then {walk.stop.describe()}"
+    elif copier.orphans:
+        where = f" (in the {copier.chunks_dropped} damaged chunk(s) dropped)" if copier.chunks_dropped else ""
+        why = f"{copier.orphans} message(s) whose channel record was lost{where}, which cannot be decoded"
+    else:
+        why = "the recording holds none"
+    if copier.metadata + copier.attachments:
+        held = f"{copier.metadata} metadata and {copier.attachments} attachment record(s)"
+        why += f"; its {held} alone are no recording"
+    return f"no message ({why})"
+
+
 class _LazyOutput:
-    """The output file, created only when the first record worth copying arrives (so a file with nothing
-    to keep neither creates nor overwrites anything)."""
+    """The output file, created only when the first record worth copying arrives, under a temporary name
+    beside ``path`` until ``commit`` (so a file with nothing to keep neither creates nor replaces
+    anything)."""
 
     def __init__(self, path: Path) -> None:
         self.path = path
+        self.partial = path.with_name(path.name + ".partial")
         self._stream: BinaryIO | None = None
         self._writer: Writer | None = None
 
@@ -114,9 +147,9 @@ class _LazyOutput:
         if self._writer is None:
             try:
                 self.path.parent.mkdir(parents=True, exist_ok=True)
-                self._stream = self.path.open("wb")
+                self._stream = self.partial.open("wb")
             except OSError as err:
-                raise RecordingError(f"cannot create {self.path}: {err}") from err
+                raise RecordingError(f"cannot create {self.partial}: {err}") from err
             self._writer = Writer(
                 self._stream, chunk_size=DEFAULT_CHUNK_SIZE, compression=CompressionType.ZSTD
             )
@@ -130,7 +163,19 @@ class _LazyOutput:
 
     def remove(self) -> None:
         if self._stream is not None:  # only a file this run created
-            self.path.unlink(missing_ok=True)
+            self.partial.unlink(missing_ok=True)
+
+    def commit(self) -> int:
+        """Give the finished file its name; the number of chunks written (from its summary, as ``rover
+        logs doctor`` counts them)."""
+        try:
+            with self.partial.open("rb") as written:
+                summary = make_reader(written).get_summary()
+            self.partial.replace(self.path)
+        except OSError as err:
+            self.remove()
+            raise RecordingError(f"cannot write {self.path}: {err}") from err
+        return 0 if summary is None or summary.statistics is None else summary.statistics.chunk_count
 
 
 class _Copier:

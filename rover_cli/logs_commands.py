@@ -126,10 +126,13 @@ def recover_command(args: argparse.Namespace) -> int:
         console.print_json(json.dumps(result.to_dict()))
         return 0
     where = "complete file, copied" if result.was_complete else f"cut at byte {result.cut_at}"
+    # Counts the reader can check with `rover logs doctor OUT`: the writer chunks the messages anew, so the
+    # output's chunks are not the source's (kept 23, written 10).
     console.print(
-        f"{result.source} ({where}) -> {result.output}: kept {result.chunks_kept} chunks, "
-        f"{result.messages} messages, {result.metadata} metadata, {result.attachments} attachments; "
-        f"dropped {result.chunks_dropped} damaged chunks, {result.orphan_messages} orphan messages"
+        f"{result.source} ({where}) -> {result.output}: kept {result.messages} messages, "
+        f"{result.metadata} metadata, {result.attachments} attachments (from {result.chunks_kept} complete "
+        f"chunks read; written as {result.chunks_written} chunks); dropped {result.chunks_dropped} damaged "
+        f"chunks, {result.orphan_messages} orphan messages"
     )
     return 0
 

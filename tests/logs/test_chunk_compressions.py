@@ -17,7 +17,7 @@ from logs.errors import LogReadError
 from logs.metrics import compute_metrics
 from logs.reader import read_messages
 from logs.recorder import McapRecorder
-from logs.recover import recover
+from logs.recover import NothingRecoverable, recover
 from logs.synthetic import synthetic_metadata, synthetic_trial
 from tests.mcap_rewrite import rewrite
 
@@ -104,7 +104,11 @@ def test_a_damaged_chunk_size_is_damage_not_a_crash(recordings: tuple[Path, Path
     with pytest.raises(LogReadError, match="damaged"):
         list(read_messages(damaged))
     assert diagnose(damaged).chunks_damaged == 1
-    assert recover(damaged, tmp_path / "fixed.mcap").chunks_dropped == 1
+    # The lost chunk held every channel record (the mcap writer puts them in the chunk of their first
+    # message): the messages after it cannot be decoded, so there is nothing to recover, and recover says so.
+    with pytest.raises(NothingRecoverable, match=r"channel record was lost \(in the 1 damaged chunk"):
+        recover(damaged, tmp_path / "fixed.mcap")
+    assert not (tmp_path / "fixed.mcap").exists()
 
 
 def test_decompress_names_an_unknown_compression_and_a_wrong_size() -> None:
