@@ -95,7 +95,8 @@ def read_paired(
     rover_stats, truth_stats = ReadStats(), ReadStats()
     wanted_truth = [topic for topic in topics if topic in TRUTH_TOPICS]
     wanted_rover = [topic for topic in topics if topic not in TRUTH_TOPICS]
-    ticks = list(read_entries(rover, topics=[NAVIGATOR_STATE]))
+    # quiet at a cut: the second read below says where the rover's file is cut, once
+    ticks = list(read_entries(rover, topics=[NAVIGATOR_STATE], warn_cut=False))
     window = drive_window(ticks)
     rover_records = _records_by_name(ticks)
     rover_has_scenario = SCENARIO_METADATA in rover_records
@@ -320,7 +321,7 @@ def _outlines(paths: Iterable[Path]) -> dict[Path, RecordingOutline]:
     outlines = {}
     for path in paths:
         try:
-            outlines[path] = read_outline(path)
+            outlines[path] = read_outline(path, warn_cut=False)  # the report's read warns of a cut
         except LogsError:
             continue
     return outlines

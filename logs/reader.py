@@ -140,6 +140,7 @@ def read_entries(
     raw_topics: Collection[str] = (),
     stop_at_damage: bool = False,
     refuse_empty: bool = False,
+    warn_cut: bool = True,
 ) -> Iterator[Entry]:
     """Messages, metadata and attachments in file order, in one pass.
 
@@ -152,6 +153,7 @@ def read_entries(
     For tools whose output is what was read (exports): ``stop_at_damage`` ends the iteration at damage
     as at a cut (``stats.stop``) instead of raising; ``refuse_empty`` raises ``NotARecording`` for a file
     that ends before its magic is complete (empty: nothing to export) instead of reading it as cut.
+    ``warn_cut=False``: no warning at a cut (a first look at a file that is read again, and warned of, next).
     """
     stats = stats if stats is not None else ReadStats()
     wanted = frozenset(topics) if topics is not None else None
@@ -171,6 +173,7 @@ def read_entries(
             skip_channels=unwanted,
             stop_at_damage=stop_at_damage,
             refuse_empty=refuse_empty,
+            warn_cut=warn_cut,
         ):
             if type(record) is tuple:  # a MessageRow: the hot path, first
                 if messages:
@@ -196,11 +199,12 @@ def read_messages(
             yield entry
 
 
-def read_metadata(source: Source) -> dict[str, dict[str, str]]:
-    """Metadata records by name; a later record of the same name replaces an earlier one."""
+def read_metadata(source: Source, *, warn_cut: bool = True) -> dict[str, dict[str, str]]:
+    """Metadata records by name; a later record of the same name replaces an earlier one. ``warn_cut`` as
+    for ``read_entries``."""
     return {
         entry.name: entry.data
-        for entry in read_entries(source, messages=False)
+        for entry in read_entries(source, messages=False, warn_cut=warn_cut)
         if isinstance(entry, RecordedMetadata)
     }
 
@@ -222,15 +226,18 @@ class RecordingOutline:
     span_ns: tuple[int, int] | None  # first and last message log time; None: it holds no message
 
 
-def read_outline(source: Source) -> RecordingOutline:
+def read_outline(source: Source, *, warn_cut: bool = True) -> RecordingOutline:
     """Metadata (a later record of a name replaces an earlier one) and the messages' log-time span, from
     the chunk headers: no chunk is decompressed, so it costs little more than reading the bytes. A cut
-    file: what comes before the cut. ``LogReadError`` as for ``read_entries``."""
+    file: what comes before the cut. ``LogReadError`` and ``warn_cut`` as for ``read_entries``."""
     metadata: dict[str, dict[str, str]] = {}
     spans: list[tuple[int, int]] = []
     with ExitStack() as stack:
         stream, name = _open(source, stack)
-        for record in _records(stream, name, ReadStats(), decode_chunks=False, chunk_headers=True):
+        records = _records(
+            stream, name, ReadStats(), decode_chunks=False, chunk_headers=True, warn_cut=warn_cut
+        )
+        for record in records:
             if isinstance(record, Chunk):
                 spans.append((record.message_start_time, record.message_end_time))
             elif type(record) is tuple:  # a message outside any chunk (an unchunked recording)
@@ -377,6 +384,7 @@ def _records(
     skip_channels: Collection[int] = frozenset(),
     stop_at_damage: bool = False,
     refuse_empty: bool = False,
+    warn_cut: bool = True,
 ) -> Iterator[RawRecord]:
     """Records of the data section (messages as ``MessageRow``), chunks opened up; stops at DataEnd or,
     with a warning, at a cut (and with ``stop_at_damage`` at damage). Without ``decode_chunks`` a chunk is
@@ -386,13 +394,14 @@ def _records(
     Messages inside chunks on ``skip_channels`` (which the caller may grow while reading) are left out."""
     magic = _read_up_to(stream, len(MCAP_MAGIC), name)
     if not magic_complete(magic, name, refuse_empty=refuse_empty):
-        _cut(stats, name, len(magic), "inside the file magic")
+        _cut(stats, name, len(magic), "inside the file magic", warn_cut)
         return
     offset = len(MCAP_MAGIC)
     while True:
         head = _read_up_to(stream, _FRAME_HEAD.size, name)
         if len(head) < _FRAME_HEAD.size:
-            _cut(stats, name, offset, "inside a record header" if head else "before the data section ended")
+            where = "inside a record header" if head else "before the data section ended"
+            _cut(stats, name, offset, where, warn_cut)
             return
         opcode, length = _FRAME_HEAD.unpack(head)
         try:
@@ -400,7 +409,8 @@ def _records(
                 raise RecordingDamaged(name, oversized_record(offset, opcode, length))
             body = _read_up_to(stream, length, name)
             if len(body) < length:
-                _cut(stats, name, offset, f"inside a record: {len(body)} of its {length} bytes present")
+                where = f"inside a record: {len(body)} of its {length} bytes present"
+                _cut(stats, name, offset, where, warn_cut)
                 return
             if opcode == Opcode.DATA_END:
                 stats.complete = True
@@ -418,10 +428,11 @@ def _records(
         offset += _FRAME_HEAD.size + length
 
 
-def _cut(stats: ReadStats, name: str, offset: int, reason: str) -> None:
+def _cut(stats: ReadStats, name: str, offset: int, reason: str, warn: bool) -> None:
     stats.truncated = True
     stats.stop = ReadStop(CUT, offset, reason)
-    logger.warning("%s is %s; read everything before the cut", name, stats.stop.describe())
+    if warn:
+        logger.warning("%s is %s; read everything before the cut", name, stats.stop.describe())
 
 
 _PLAIN_RECORDS: dict[int, Any] = {

@@ -4,7 +4,9 @@ Inputs are recordings and/or directories (a campaign: every ``*.mcap`` below it)
 metrics, figures and plots; the first run is compared with each other run (aligned by distance); with more
 than two runs, or a directory, the per-terrain table of the paper's metrics is added. A recording that
 cannot be read at all is listed with the reason and the report goes on; one with missing topics gets a
-partial section that lists what is missing. A real-time HIL run (``rover run``'s recording and
+partial section that lists what is missing. A path given as a file that is no recording (missing, a TOML
+scenario or config: ``logs.report_inputs``) is refused before anything is read, and with no input read
+nothing is written. A real-time HIL run (``rover run``'s recording and
 ``rover hil peer``'s ground truth, two files) is one run: ``--truth`` once per rover recording, paired in
 order (``given_pairs``), or the two files given alone (``realtime_pairs``), merged by log time
 (``logs.paired_run``); two such runs are compared as two lockstep trials are.
@@ -23,9 +25,10 @@ from typing import Any
 
 from logs.analysis import TrialAnalysis, analyse
 from logs.compare import RunComparison, compare_runs
-from logs.errors import LogReadError, LogsError
+from logs.errors import LogReadError, LogsError, RecordingDamaged
 from logs.paired_run import misplaced_truths
 from logs.reader import read_metadata
+from logs.report_inputs import not_a_recording
 from logs.run_modes import ROVER_RUN_MODE
 from logs.topics import ESTIMATOR_POSE
 
@@ -118,6 +121,7 @@ class ReportResult:
     json: Path
     runs: list[TrialAnalysis] = field(default_factory=list)
     failed: dict[str, str] = field(default_factory=dict)
+    damaged: list[str] = field(default_factory=list)  # failed with a damaged chunk: recover keeps the rest
     comparisons: list[RunComparison] = field(default_factory=list)
     terrain_table: list[dict[str, Any]] = field(default_factory=list)
 
@@ -161,7 +165,15 @@ def write_report(
 ) -> ReportResult:
     """``truth``: the peer's ground truth of each real-time HIL run (``--truth``), one per rover recording
     in ``inputs`` and paired with them in order (``given_pairs``); one path is the one-run case. Without
-    it, a lone real-time pair among the files is found by ``realtime_pairs``."""
+    it, a lone real-time pair among the files is found by ``realtime_pairs``.
+
+    ``ReportError``, with nothing written, for a path given as a file that is no recording (missing, a
+    TOML scenario, not MCAP) and when no input could be read."""
+    refused = [why for item in inputs if not Path(item).is_dir() and (why := not_a_recording(Path(item)))]
+    if refused:
+        raise ReportError(
+            "; ".join(refused) + ": give MCAP recordings (.mcap) or folders of them; nothing written"
+        )
     files, campaign = expand_inputs(inputs)
     if not files:
         raise ReportError(f"no recordings found in {', '.join(map(str, inputs))}")
@@ -172,23 +184,35 @@ def write_report(
         found = {} if campaign else realtime_pairs(files)
         reads = [(path, found.get(path)) for path in files if path not in found.values()]
     out = Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise ReportError(f"cannot create the report folder {out}: {err}") from err
     result = ReportResult(out / "report.html", out / "report.md", out / "report.json")
     for path, paired_truth in reads:
         try:
             run = analyse(path, truth=paired_truth)
         except LogReadError as err:
             result.failed[str(path)] = str(err)
+            if isinstance(err, RecordingDamaged):
+                result.damaged.append(str(path))
             logger.warning("skipped %s: %s", path, err)
             continue
         if not any(run.counts.values()):
             # An empty file, or one cut before its first message: a report of it would be all blanks.
-            result.failed[str(path)] = "holds no messages (cut before the first one?)"
+            result.failed[str(path)] = (
+                "holds no messages (cut short before its first chunk's end: nothing to report or recover)"
+                if run.metrics.truncated
+                else "holds no messages"
+            )
             continue
         result.runs.append(run)
+    if not result.runs:
+        # A report of no run would be all "Not readable" lines: the error says the same, with nothing written.
+        reasons = "; ".join(f"{path}: {why}" for path, why in result.failed.items())
+        raise ReportError(
+            f"no input could be read ({reasons}); {unreadable_advice(result.damaged)}; nothing written"
+        )
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise ReportError(f"cannot create the report folder {out}: {err}") from err
     folders = campaign_folders(inputs, files)
     if campaign:
         # A campaign's order (terrains, then variants, as in its file: the first variant is the
@@ -207,9 +231,22 @@ def write_report(
     result.json.write_text(
         json.dumps(document, indent=2, sort_keys=True, default=str) + "\n", encoding="utf-8"
     )
-    result.markdown.write_text(_markdown(result), encoding="utf-8")
+    result.markdown.write_text(_markdown(result, plots), encoding="utf-8")
     result.html.write_text(_html(result, plots), encoding="utf-8")
     return result
+
+
+def unreadable_advice(damaged: Sequence[str]) -> str:
+    """What to run about the inputs that could not be read: doctor for any; recover only for those with a
+    damaged chunk (a file cut short is reported up to the cut, and one cut before its first chunk's end
+    holds no message for recover to keep)."""
+    advice = "`rover logs doctor FILE` says what is wrong with a file"
+    if damaged:
+        advice += (
+            f"; `rover logs recover FILE OUT` keeps every complete chunk of {', '.join(damaged)}, "
+            "those after the damage too"
+        )
+    return advice
 
 
 def given_pairs(
@@ -252,7 +289,8 @@ def realtime_pairs(files: Sequence[Path]) -> dict[Path, Path]:
     rovers, truths = [], []
     for path in files:
         try:
-            metadata = read_metadata(path)
+            # quiet: analyse reads the file next and says where it is cut, once
+            metadata = read_metadata(path, warn_cut=False)
         except LogsError:
             continue  # unreadable: analyse says why, in its place in the report
         if "peer" in metadata:
@@ -495,8 +533,17 @@ def _md_table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _markdown(result: ReportResult) -> str:
-    parts = ["# Trial report\n"]
+# The plots are SVG inside report.html; PNG copies for the Markdown would cost more than the SVG (the
+# default trial's four: 1.1-1.4 s against 0.75-1.1 s, in a 3.7-4.7 s report), so the Markdown says where.
+PLOTS_IN_HTML = (
+    "Plots: in [report.html](report.html), beside this file (each run's trajectory, cross-track error, "
+    "speed / current / stability margin and innovations; each comparison's position gap and speeds).\n"
+)
+NO_PLOTS = "No plots: written without them (`--no-plots`); report.html has the same tables.\n"
+
+
+def _markdown(result: ReportResult, plots: bool) -> str:
+    parts = ["# Trial report\n", PLOTS_IN_HTML if plots else NO_PLOTS]
     for path, reason in result.failed.items():
         parts.append(f"**Not readable:** `{path}`: {reason}\n")
     for run in result.runs:

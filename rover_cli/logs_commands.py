@@ -138,7 +138,7 @@ def recover_command(args: argparse.Namespace) -> int:
 
 
 def report_command(args: argparse.Namespace) -> int:
-    from logs.report import write_report
+    from logs.report import unreadable_advice, write_report
 
     console = Console()
     try:
@@ -149,11 +149,7 @@ def report_command(args: argparse.Namespace) -> int:
     for path, reason in result.failed.items():
         console.print(f"[yellow]skipped[/yellow] {escape(path)}: {escape(reason)}", soft_wrap=True)
     if result.failed:
-        console.print(
-            "  `rover logs doctor FILE` says what is wrong with a file; `rover logs recover FILE OUT` "
-            "rescues every complete chunk of a damaged or cut one.",
-            soft_wrap=True,
-        )
+        console.print(f"  {escape(unreadable_advice(result.damaged))}.", soft_wrap=True)
     unmerged = [run for run in result.runs if run.truth_path and not run.truth_merged]
     for run in result.runs:
         # The pairing's own problems name the truth file: said here, not only in the report.
@@ -171,9 +167,6 @@ def report_command(args: argparse.Namespace) -> int:
         if run.missing:
             console.print(f"[yellow]partial[/yellow] {escape(run.path)}: missing {', '.join(run.missing)}")
     console.print(f"report: {result.html}\n        {result.markdown}\n        {result.json}")
-    if not result.runs:
-        print_error(console, "no input could be read: the report only says why")
-        return 2
     # 1: a report was written, but without some of the inputs (a script must not take it for all of them);
     # a --truth file that could not be merged is such an input.
     return 1 if result.failed or unmerged else 0

@@ -53,16 +53,20 @@ def test_report_exit_codes_say_whether_every_input_made_it(
 ) -> None:
     empty = tmp_path / "empty.mcap"
     empty.write_bytes(b"")  # a recorder that died before its first byte
-    junk = tmp_path / "junk.mcap"
-    junk.write_bytes(b"PK\x03\x04 a zip file")
+    damaged = tmp_path / "damaged.mcap"
+    damaged.write_bytes(damage_a_middle_chunk(recording.read_bytes())[0])
     out = ["--out", str(tmp_path / "r"), "--no-plots"]
-    # A report of the good file, without the two others: 1, each named with why, and where to look next.
-    assert main(["logs", "report", str(recording), str(empty), str(junk), *out]) == 1
+    # A report of the good file, without the two others: 1, each named with why, and where to look next:
+    # recover for the damaged one only (the empty one holds nothing to recover).
+    assert main(["logs", "report", str(recording), str(empty), str(damaged), *out]) == 1
     printed = " ".join(capsys.readouterr().out.split())
-    assert "empty.mcap: holds no messages" in printed and "junk.mcap" in printed
-    assert "rover logs recover" in printed
-    # Nothing readable at all: 2.
-    assert main(["logs", "report", str(empty), *out]) == 2
+    assert "empty.mcap: holds no messages" in printed and "damaged.mcap: " in printed
+    assert f"`rover logs recover FILE OUT` keeps every complete chunk of {damaged}," in printed
+    assert main(["logs", "report", str(recording), str(empty), *out]) == 1
+    assert "rover logs recover" not in capsys.readouterr().out
+    # Nothing readable at all: 2, and no report of nothing.
+    assert main(["logs", "report", str(empty), "--out", str(tmp_path / "none")]) == 2
+    assert not (tmp_path / "none").exists()
     assert main(["logs", "report", str(recording), *out]) == 0
 
 
