@@ -49,9 +49,12 @@ def register(families: Any) -> None:
     )
     report.set_defaults(handler=report_command)
 
-    export = commands.add_parser(
-        "csv", help="one CSV file per topic (fields flattened), for pandas or a spreadsheet"
+    csv_columns = (
+        "one CSV file per topic (truth/pose -> truth.pose.csv), a row a message: log_time_ns, log_time_s, "
+        "then the message's fields flattened with dots (pose.position.x); a list of up to 16 items over "
+        "indexed columns (wheels.0.erpm), a longer one as one JSON cell; for a spreadsheet or any CSV reader"
     )
+    export = commands.add_parser("csv", help=csv_columns, description=csv_columns)
     export.add_argument("file", type=Path)
     export.add_argument("--out", type=Path, required=True, help="folder for the CSV files")
     export.add_argument(

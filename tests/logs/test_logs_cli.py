@@ -145,3 +145,16 @@ def test_doctor_and_csv_tables_piped_to_a_file_keep_every_name_whole(
     printed = capsys.readouterr().out
     (written,) = out.iterdir()
     assert "…" not in printed and str(written) in printed
+
+
+def test_csv_help_says_what_the_files_hold(capsys: pytest.CaptureFixture[str]) -> None:
+    """It said "for pandas", which the venv does not have: it says what the columns are."""
+    from logs.csv_export import MAX_SPREAD_LIST
+
+    for command in (["logs", "--help"], ["logs", "csv", "--help"]):
+        with pytest.raises(SystemExit):
+            main(command)
+        printed = " ".join(capsys.readouterr().out.split())
+        assert "log_time_ns, log_time_s, then the message's fields flattened with dots" in printed, command
+        assert "pandas" not in printed
+    assert f"a list of up to {MAX_SPREAD_LIST} items over indexed columns" in printed
