@@ -85,6 +85,7 @@ def _chunk_spans_ns(path: Path) -> list[int]:
         return spans
 
 
+@pytest.mark.realtime  # kill points in wall time, trials started within a wall-clock budget
 def test_sigkill_then_recover_then_report(tmp_path: Path) -> None:
     # Random kill points (seeded, so a failure reproduces): a delay after the first chunk is on disk.
     # Wall-time points, not sizes: the trial's real-time factor varies with the machine's load.
