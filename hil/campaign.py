@@ -34,9 +34,9 @@ from typing import Any
 from hil.campaign_workers import MAX_WORKERS, resolved_workers
 from hil.scenario import PERCEPTION_MODELS, Scenario, load_scenario
 from hil.start_clearance import check_start_clear
+from logs.file_kinds import CAMPAIGN, ROVER_CONFIG, refuse_another_kind
 from logs.settings import MAX_SEED, ConfigError, Table, load_toml
 from navigator.config import RoverConfig, rover_config_from_table
-from navigator.file_kinds import CAMPAIGN, ROVER_CONFIG, refuse_another_kind
 
 
 @dataclass(frozen=True)

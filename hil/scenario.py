@@ -19,9 +19,9 @@ from hil.faults import Fault, faults_from_tables
 from hil.moving_obstacles import MovingObstacle
 from hil.rangefinder_sim import DEFAULT_YAWS_DEG, yaw_ring
 from hil.scenario_placement import check_clear_of_obstacles
+from logs.file_kinds import SCENARIO, refuse_another_kind
 from logs.metrics import DEFAULT_ENCOUNTER_MARGIN_M
 from logs.settings import MAX_SEED, Table, finite_float, parse_toml, read_settings_text, shown
-from navigator.file_kinds import SCENARIO, refuse_another_kind
 from navigator.map_config import terrain_from_table
 from navigator.scan_tracker_config import MAX_MOUNT_OFFSET_M
 from navigator.sensor_mount import SensorMount

@@ -8,28 +8,20 @@ cut inside its magic: a recorder that died) is left to the reader, which says wh
 
 from __future__ import annotations
 
-import tomllib
 from pathlib import Path
 
+from logs.file_kinds import CAMPAIGN, ROVER_CONFIG, SCENARIO, evidence, kind_of
 from logs.frames import MCAP_MAGIC
+from logs.settings import ConfigError, Table, parse_toml
 
 # Enough to tell a scenario, a campaign or a config by its top-level keys; a larger text is not one of ours.
 _TOML_READ_LIMIT = 1 << 20
-_CONFIG_SECTIONS = frozenset(
-    {
-        "vehicle",
-        "vesc",
-        "can",
-        "mavlink",
-        "zenoh",
-        "estimator",
-        "planner",
-        "perception",
-        "follower",
-        "safety",
-        "map",
-    }
-)
+# What to do with a file of each kind instead of reporting on it.
+_INSTEAD = {
+    SCENARIO: "; `rover hil trial` records a run of it",
+    CAMPAIGN: "; give the folder it recorded its trials into",
+    ROVER_CONFIG: "",
+}
 
 
 def not_a_recording(path: Path) -> str | None:
@@ -50,25 +42,21 @@ def not_a_recording(path: Path) -> str | None:
 
 
 def _what_it_is(path: Path) -> str:
-    keys = _toml_keys(path)
-    if keys is None:
+    root = _toml_table(path)
+    if root is None:
         with path.open("rb") as stream:
             return f"not an MCAP file (it starts with {stream.read(len(MCAP_MAGIC))!r})"
-    if "terrains" in keys:
-        return "a TOML campaign (it has [[terrains]]; give the folder it recorded its trials into)"
-    if "terrain" in keys:
-        return "a TOML scenario (it has [terrain]; `rover hil trial` records a run of it)"
-    sections = sorted(keys & _CONFIG_SECTIONS)
-    if sections:
-        return f"a TOML rover config (it has {', '.join(f'[{key}]' for key in sections[:2])})"
-    return "a TOML file"
+    kind = kind_of(root)  # the settings loaders' own test (logs.file_kinds): one mechanism
+    if kind is None:
+        return "a TOML file"
+    return f"a TOML {kind.noun} (it has {evidence(root, kind, 2)}{_INSTEAD[kind]})"
 
 
-def _toml_keys(path: Path) -> set[str] | None:
-    """The top-level keys of ``path`` read as TOML; None when it is not TOML (or too large to be ours)."""
+def _toml_table(path: Path) -> Table | None:
+    """``path`` read as TOML; None when it is not TOML (or too large to be ours)."""
     try:
         if path.stat().st_size > _TOML_READ_LIMIT:
             return None
-        return set(tomllib.loads(path.read_text(encoding="utf-8")))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return parse_toml(path.read_text(encoding="utf-8"), str(path))
+    except (OSError, UnicodeDecodeError, ConfigError):
         return None

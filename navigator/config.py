@@ -16,11 +16,11 @@ from firmware_bridge.can_link import CanConfig
 from firmware_bridge.mavlink_link import MavlinkConfig
 from firmware_bridge.vesc import VescProfile
 from logs.clock import NS_PER_S
+from logs.file_kinds import ROVER_CONFIG, refuse_another_kind
 from logs.settings import Table, load_toml
 from logs.telemetry import ZenohSettings
 from navigator.astar import HEURISTICS
 from navigator.config_checks import check_cross_fields
-from navigator.file_kinds import ROVER_CONFIG, refuse_another_kind
 from navigator.follower import FollowerConfig
 from navigator.map_config import terrain_from_table
 from navigator.phase_locked_loop import DEFAULT_LATE_WAIT_NS, DEFAULT_OFFSET_NS

@@ -144,7 +144,7 @@ def _rovers_map(args: argparse.Namespace) -> PlanMap:
     if args.map.suffix.lower() != ".toml" or args.resolution_m is not None:
         return load_map(args.map, args.resolution_m)  # an image or a layer, or the --resolution-m refusal
     from hil.scenario import scenario_from_table
-    from navigator.file_kinds import SCENARIO, refuse_another_kind
+    from logs.file_kinds import SCENARIO, refuse_another_kind
 
     text = read_settings_text(args.map)
     root = parse_toml(text, str(args.map))

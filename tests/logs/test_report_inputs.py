@@ -26,9 +26,9 @@ def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
     ("given", "what"),
     [
         ("absent.mcap", "does not exist"),
-        (str(REPO / "scenarios" / "default.toml"), "is a TOML scenario (it has [terrain];"),
-        (str(REPO / "configs" / "rover.toml"), "is a TOML rover config (it has [can], [estimator])"),
-        (str(REPO / "campaigns" / "paper.toml"), "is a TOML campaign (it has [[terrains]];"),
+        (str(REPO / "scenarios" / "default.toml"), "is a TOML scenario (it has [terrain] and [start];"),
+        (str(REPO / "configs" / "rover.toml"), "is a TOML rover config (it has [vehicle] and [vesc])"),
+        (str(REPO / "campaigns" / "paper.toml"), "is a TOML campaign (it has [[terrains]] and [[variants]];"),
         ("notes.mcap", "is not an MCAP file (it starts with b'hello, n')"),
     ],
     ids=["missing", "scenario", "config", "campaign", "other bytes"],

@@ -11,9 +11,9 @@ import pytest
 
 from hil.campaign import load_campaign
 from hil.scenario import load_scenario
+from logs.file_kinds import CAMPAIGN, KINDS, ROVER_CONFIG, SCENARIO, FileKind, kind_of
 from logs.settings import ConfigError, load_toml
 from navigator.config import load_rover_config
-from navigator.file_kinds import CAMPAIGN, KINDS, ROVER_CONFIG, SCENARIO, FileKind, kind_of
 from navigator.rover_process import check_runnable
 from rover_cli.main import main
 

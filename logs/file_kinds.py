@@ -100,13 +100,17 @@ def refuse_another_kind(root: Table, expected: FileKind) -> None:
     found = kind_of(root)
     if found is None or found is expected:
         return
-    written = [_as_written(key, root.raw(key)) for key in found.keys if root.has(key)][:3]
     raise ConfigError(
         root.source,
         "",
-        f"this is a {found.noun} (it has {_listed(written)}), not a {expected.noun}: a {expected.noun} "
+        f"this is a {found.noun} (it has {evidence(root, found)}), not a {expected.noun}: a {expected.noun} "
         f"({expected.example}) goes here; {found.goes}",
     )
+
+
+def evidence(root: Table, kind: FileKind, most: int = 3) -> str:
+    """The first ``most`` of ``kind``'s keys ``root`` has, as TOML writes them: what shows it is one."""
+    return _listed([_as_written(key, root.raw(key)) for key in kind.keys if root.has(key)][:most])
 
 
 def _as_written(key: str, value: Any) -> str:
