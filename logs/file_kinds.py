@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from logs.settings import ConfigError, Table
+from logs.settings import ConfigError, Table, near_miss
 
 
 @dataclass(frozen=True)
@@ -99,6 +99,12 @@ def refuse_another_kind(root: Table, expected: FileKind) -> None:
     """Raise ``ConfigError`` naming the mix-up when ``root`` is a file of another kind than ``expected``."""
     found = kind_of(root)
     if found is None or found is expected:
+        return
+    present = set(root.keys())  # not root.has(): that marks a key asked, and a typo's key must stay unasked
+    shown = [key for key in found.keys if key in present]
+    if all(any(near_miss(key, meant) for meant in expected.keys) for key in shown):
+        # Every key that looks like the other kind is a typo of one of the expected kind's ([[terrain]] and
+        # seed in a campaign, for [[terrains]] and seeds): the loader names the typo, the likelier mistake.
         return
     raise ConfigError(
         root.source,

@@ -72,6 +72,11 @@ def recover(source: str | Path, output: str | Path) -> RecoverResult:
     src, dst = Path(source), Path(output)
     if src.resolve() == dst.resolve():
         raise RecordingError(f"recover writes a new file: give an output path other than {src}")
+    if dst.is_dir():
+        # Said at once: the copy goes to a temporary name first and would only fail at its rename.
+        raise RecordingError(
+            f"{dst} is a folder: give recover a file path for its output, e.g. {dst / src.name}"
+        )
     try:
         stream = src.open("rb")
     except OSError as err:

@@ -86,11 +86,11 @@ class Table:
         for "") is named first, as unknown. The typo is the likelier cause, and a message about the key
         meant never names it ("radius_m: required key is missing" when ``raduis_m`` is written)."""
         meant = [key] if key else sorted(self._used | self._asked)
-        # Not read nor asked about yet, and one slip only, not finish()'s looser match: a key not read yet
+        # Not read nor asked about yet, and a near miss only, not finish()'s looser match: a key not read yet
         # may be a real one read later, and two real keys differ by more (yield_max_m and yield_max_s
         # differ by one letter, but neither is ever missing: both have defaults).
         for written in sorted(set(self._data) - self._used - self._asked):
-            near = next((k for k in meant if _one_slip(written, k)), None)
+            near = next((k for k in meant if near_miss(written, k)), None)
             if near is not None:
                 where = f"{self.key_path(key)}: " if self.key_path(key) else ""
                 return ConfigError(
@@ -242,9 +242,24 @@ def did_you_mean(written: str, known: Sequence[str]) -> str:
     # difflib misses a slip in a short key ("di" for "id"): a one-slip match as well.
     nearest = (
         difflib.get_close_matches(written, known, n=1, cutoff=0.6)
-        or [k for k in known if _one_slip(written, k)][:1]
+        or [k for k in known if near_miss(written, k)][:1]
     )
     return f"did you mean {nearest[0]!r}? " if nearest else ""
+
+
+# Unit suffixes of our keys: a key written without its unit (radius for radius_m) is the key meant.
+_UNIT_SUFFIXES = frozenset({"m", "s", "ms", "ns", "deg", "rad", "hz", "mps", "mps2", "rps", "pct", "v", "a"})
+
+
+def near_miss(written: str, meant: str) -> bool:
+    """``written`` is ``meant`` with one slip (``_one_slip``), in other letter case (XY for xy), or without
+    its unit suffix (radius for radius_m, resolution for resolution_m): the likely typos of a key."""
+    if written == meant:
+        return False
+    if written.lower() == meant.lower() or _one_slip(written, meant):
+        return True
+    stem, _, unit = meant.rpartition("_")
+    return unit in _UNIT_SUFFIXES and written.lower() == stem.lower()
 
 
 def _one_slip(written: str, meant: str) -> bool:

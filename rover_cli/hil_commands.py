@@ -28,6 +28,8 @@ if TYPE_CHECKING:
 DEFAULT_TRIALS_DIR = Path("logs/trials")
 # What `rover hil trial` writes into its --out: the recording, the metrics, and with --report the report
 # (logs.report.write_report's three files). Any of them there already is an earlier trial's: refused.
+# Spelled out rather than imported (hil.trial's TRIAL_MCAP, METRICS_JSON): the CLI imports hil only when a
+# hil command runs (tests/system/test_cli_imports.py).
 TRIAL_FILES = ("trial.mcap", "metrics.json", "report.html", "report.md", "report.json")
 
 

@@ -12,6 +12,7 @@ import pytest
 from mcap.opcode import Opcode
 
 from logs.doctor import diagnose
+from logs.errors import RecordingError
 from logs.frames import FrameWalk
 from logs.recorder import McapRecorder
 from logs.recover import NothingRecoverable, recover
@@ -99,3 +100,13 @@ def test_recover_counts_what_the_output_holds(
     printed = " ".join(capsys.readouterr().out.split())
     assert f"kept {written.messages} messages" in printed
     assert f"from {result['chunks_kept']} complete chunks read; written as {written.chunks} chunks" in printed
+
+
+def test_recover_into_a_folder_is_refused_before_anything_is_copied(trial: Path, tmp_path: Path) -> None:
+    # The output goes to a temporary name first: a folder given as the output failed only at the rename,
+    # after the whole copy (a reviewer's case). Said at once now, and nothing is written.
+    folder = tmp_path / "out"
+    folder.mkdir()
+    with pytest.raises(RecordingError, match="is a folder: give recover a file path"):
+        recover(trial, folder)
+    assert list(tmp_path.iterdir()) == [folder] and not list(folder.iterdir())

@@ -69,3 +69,17 @@ def test_a_typo_in_a_key_read_only_when_present_names_it(tail: str, key: str, gu
         caught.value.problem
     )
     assert guess in caught.value.problem.partition("known here: ")[2]
+
+
+@pytest.mark.parametrize(
+    ("written", "meant"),
+    [("radius", "radius_m"), ("Radius_M", "radius_m"), ("XY", "xy"), ("resolution", "resolution_m")],
+)
+def test_a_key_without_its_unit_or_in_other_case_is_named_as_the_key_meant(written: str, meant: str) -> None:
+    # More than one slip apart, yet the likeliest mistakes: without them, "radius_m: required key is
+    # missing" never named what was written.
+    table = parse_toml(f"{written} = 1.0\n", "scenario.toml")
+    with pytest.raises(ConfigError) as caught:
+        table.number(meant)
+    assert caught.value.key == written
+    assert caught.value.problem.startswith(f"unknown key (did you mean {meant!r}? "), caught.value

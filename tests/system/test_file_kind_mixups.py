@@ -130,3 +130,17 @@ def test_a_campaign_variants_overrides_are_not_told_as_a_file(tmp_path: Path) ->
         load_campaign(campaign)
     assert caught.value.key == "variants[0].overrides.sensors", caught.value
     assert caught.value.problem.startswith("unknown key"), caught.value
+
+
+@pytest.mark.parametrize(
+    "slips",
+    ['[[terrain]]\nname = "rocky"\nscenario = "x.toml"\n', 'seed = [1]\n[[terrain]]\nname = "rocky"\n'],
+)
+def test_a_typo_of_the_expected_kinds_key_is_named_as_a_typo_not_a_mix_up(tmp_path: Path, slips: str) -> None:
+    # [[terrain]] for [[terrains]] (and seed for seeds) left a campaign with scenario keys alone: it was
+    # called "a scenario, not a campaign", which hides the slip (a reviewer's case).
+    campaign = tmp_path / "c.toml"
+    campaign.write_text(f'name = "mini"\n{slips}', encoding="utf-8")
+    with pytest.raises(ConfigError) as caught:
+        load_campaign(campaign)
+    assert "did you mean" in caught.value.problem and "this is a" not in caught.value.problem, caught.value
