@@ -9,6 +9,8 @@ wires differ.
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
 from types import TracebackType
 
 import can
@@ -126,7 +128,7 @@ class SimWorld:
         self.truth = TruthRecorder(sink, scenario)
         self.perception = PerceptionSim(
             clock,
-            lambda: (self.body.x, self.body.y),
+            self._perception_origin(sensors.perception_mount_forward_m, sensors.perception_mount_left_m),
             scenario.obstacles,
             scenario.moving_obstacles,
             perception_rng,
@@ -250,6 +252,23 @@ class SimWorld:
     @property
     def rolled_over(self) -> bool:
         return self.body.rolled_over
+
+    def _perception_origin(self, forward_m: float, left_m: float) -> Callable[[], tuple[float, float]]:
+        """Where the obstacle sensor is (ENU): the body's centre, or the mount's point on it. Range is
+        measured from there, as the lidar's scans are; a detector's field of view is not modelled (it sees
+        all round), so the mount's yaw does not matter here."""
+        if forward_m == 0.0 and left_m == 0.0:
+            return lambda: (self.body.x, self.body.y)
+
+        def mount_point() -> tuple[float, float]:
+            body = self.body
+            cos_yaw, sin_yaw = math.cos(body.yaw), math.sin(body.yaw)
+            return (
+                body.x + forward_m * cos_yaw - left_m * sin_yaw,
+                body.y + forward_m * sin_yaw + left_m * cos_yaw,
+            )
+
+        return mount_point
 
     def tick(self, dt_s: float) -> DynamicsStep:
         """One physics tick ending at the clock's now: commands in, body moves, status and sensors out."""

@@ -6,13 +6,18 @@ import can
 import numpy as np
 import pytest
 
+from firmware_bridge.vesc import VescCodec
 from hil.battery import Battery
+from hil.lockstep import lockstep_wires
 from hil.lockstep_bus import lockstep_bus_pair
 from hil.moving_obstacles import MovingObstacle
 from hil.perception_sim import PerceptionSim
 from hil.scenario import Obstacle
+from hil.world import SimWorld
 from logs.clock import SimClock, to_ns
-from logs.settings import ConfigError
+from logs.settings import ConfigError, parse_toml
+from logs.sink import MemorySink
+from navigator.config import rover_config_from_table
 from tests.hil.world_harness import run_world, scenario_with
 
 
@@ -122,3 +127,25 @@ def test_lockstep_bus_delivers_in_order_and_filters():
         sim.shutdown()
     with pytest.raises(can.CanOperationError):
         rover.send(can.Message(arbitration_id=1))
+
+
+@pytest.mark.parametrize(("forward_m", "seen"), [(0.0, set()), (3.0, {"rock"})])
+def test_object_perception_measures_its_range_from_the_sensors_mount(forward_m: float, seen: set) -> None:
+    # small_rocky's rover starts at (2, 2) facing 20 deg; its rock, radius 0.8 at (6.5, 4.5), is 4.35 m from
+    # the centre to its edge and 1.43 m from a point 3 m ahead: outside a 2 m range, then inside it.
+    extra = f"""
+[sensors]
+perception_range_m = 2.0
+perception_mount_forward_m = {forward_m}
+"""
+    scenario = scenario_with(extra)
+    assert {o.id for o in scenario.obstacles} == {"rock"}
+    config = rover_config_from_table(parse_toml("", "<defaults>"))
+    clock = SimClock()
+    with lockstep_wires(config.can, clock=clock) as wires:
+        codec = VescCodec.for_profile(config.vesc)
+        world = SimWorld(
+            scenario, config.vehicle, codec, clock, wires.sim_bus, wires.sim_mavlink, MemorySink(), 1
+        )
+        with world:
+            assert {o.obstacle_id for o in world.perception.poll()} == seen
