@@ -11,7 +11,7 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
 from estimator.geodesy import Datum, to_geodetic
-from navigator.mission import MissionState
+from navigator.mission import Mission, MissionState
 from tests.firmware_bridge.ground_station import change_speed, do_jump, nav_delay, waypoint
 from tests.navigator.test_onboard_mission import Station, set_current, state_records
 from tests.runtime.rig import DATUM
@@ -35,6 +35,16 @@ def at(seq: int, point: tuple[float, float]) -> Any:
 def reached(made: Station) -> list[int]:
     """The items the mission reported reached, in order (from its events: waypoints and delays)."""
     return [int(d.split(" of ")[0].removeprefix("item ")) for d in made.details("mission_item_reached")]
+
+
+def on_lap_two(station: Station) -> tuple[Any, Mission]:
+    """``A, B, jump to item 0 once, C`` uploaded, started and driven to its jump: the rover on lap 2."""
+    rig = station.rig
+    mission = rig.stack.mission
+    station.upload([at(0, A), at(1, B), do_jump(2, 0, 1), at(3, C)])
+    station.start()
+    rig.run_until(lambda: mission.jumps_done(2) == 1, 40.0, "the jump")
+    return rig, mission
 
 
 def test_a_two_waypoint_loop_jumped_twice_drives_a_b_a_b_a_b_then_the_item_after(station: Station) -> None:
@@ -71,11 +81,7 @@ def test_a_two_waypoint_loop_jumped_twice_drives_a_b_a_b_a_b_then_the_item_after
 def test_a_resume_after_a_single_goal_keeps_the_count_and_mission_start_begins_it_again(
     station: Station,
 ) -> None:
-    rig = station.rig
-    mission = rig.stack.mission
-    station.upload([at(0, A), at(1, B), do_jump(2, 0, 1), at(3, C)])
-    station.start()
-    rig.run_until(lambda: mission.jumps_done(2) == 1, 40.0, "the jump")
+    rig, mission = on_lap_two(station)
     rig.stack.set_goal(3.0, 3.0)  # the operator takes over on the second lap...
     rig.run_for(0.5)
     set_current(station, 0)  # ...and resumes it: the lap driven counts, one lap left, not two
@@ -110,11 +116,8 @@ def test_a_resume_on_lap_two_drives_at_the_speed_it_was_paused_at(station: Stati
 def test_mission_start_elsewhere_on_a_paused_mission_is_a_new_run(station: Station) -> None:
     # Paused on lap 2, then started at item 0 (not where it was paused): the laps again, not item 0 with
     # lap 2's count (which would drive one lap fewer than either a resume or a new run).
-    rig = station.rig
-    mission = rig.stack.mission
-    station.upload([at(0, A), at(1, B), do_jump(2, 0, 1), at(3, C)])
-    station.start()
-    rig.run_until(lambda: mission.jumps_done(2) == 1 and mission.current == 0, 40.0, "lap 2 under way")
+    rig, mission = on_lap_two(station)
+    assert mission.current == 0  # lap 2 under way
     rig.run_until(lambda: mission.current == 1, 40.0, "lap 2 at B")
     rig.stack.set_goal(3.0, 3.0)
     rig.run_for(0.5)
@@ -176,11 +179,7 @@ def test_a_delay_first_holds_a_parked_rover(station: Station) -> None:
 def test_set_current_within_a_mission_driven_keeps_the_count_and_on_a_complete_one_begins_it_again(
     station: Station,
 ) -> None:
-    rig = station.rig
-    mission = rig.stack.mission
-    station.upload([at(0, A), at(1, B), do_jump(2, 0, 1), at(3, C)])
-    station.start()
-    rig.run_until(lambda: mission.jumps_done(2) == 1, 40.0, "the jump")
+    rig, mission = on_lap_two(station)
     set_current(station, 1)  # the spec: MISSION_SET_CURRENT does not reset the jump counters
     assert mission.state is MissionState.ACTIVE and mission.jumps_done(2) == 1
     rig.run_until(lambda: mission.state is MissionState.COMPLETE, 40.0, "the mission's end")
