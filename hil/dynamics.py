@@ -42,7 +42,9 @@ The model, per step of ``dt`` (semi-implicit Euler, no randomness):
   ``DynamicsStep.collided_obstacle``; ``collided`` is true for as long as it touches.
 * Motors: wheel torque ``F r`` -> motor current ``F r / (gear k_t)`` (so never above the current limit; its
   sign is the force's); duty ``(k_t ω_motor + I R) / V``; electrical power ``k_t I ω_motor + I² R`` per
-  motor, a generating (braking) motor counting 0 (no regeneration), integrates to energy. Slip: from the
+  motor, integrated to energy; a generating (braking) motor's is negative, returned to the pack as a
+  VESC's regenerative braking does, down to ``-limit x V`` (``regen_current_limit_a``, each controller's
+  battery current floor; past it the rest is lost and the braking force kept). Slip: from the
   curve while a wheel pulls below its traction limit, from its surface and ground speeds once it spins or
   slides (or is held at zero pull by the sign of its slip).
 * Seized wheels (``stalled``, the simulated VESCs' stuck fault): the wheel is locked (surface speed 0, on
@@ -62,6 +64,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from hil import dynamics_kernel as k
+from hil.battery import REGEN_CURRENT_LIMIT_A
 from hil.dynamics_kernel import WHEELS, BodyState, DynamicsStep
 from navigator.footprint import CLEAR
 from navigator.ground_kernel import GroundUnder
@@ -93,6 +96,7 @@ class RoverDynamics:
         gear_ratio: float = 20.0,  # motor turns per wheel turn
         winding_resistance_ohm: float = 0.1,
         motor_current_limit_a: float = 10.0,  # the VESC's motor current limit (its l_current_max setting)
+        regen_current_limit_a: float = REGEN_CURRENT_LIMIT_A,
         drive_time_constant_s: float = 0.1,
         yaw_time_constant_s: float = 0.15,
     ) -> None:
@@ -105,8 +109,12 @@ class RoverDynamics:
         ):
             if not (math.isfinite(value) and value > 0.0):
                 raise DynamicsError(f"{name} must be a finite number > 0, got {value}")
-        if not (math.isfinite(winding_resistance_ohm) and winding_resistance_ohm >= 0.0):
-            raise DynamicsError(f"winding_resistance_ohm must be >= 0, got {winding_resistance_ohm}")
+        for name, value in (
+            ("winding_resistance_ohm", winding_resistance_ohm),
+            ("regen_current_limit_a", regen_current_limit_a),
+        ):
+            if not (math.isfinite(value) and value >= 0.0):
+                raise DynamicsError(f"{name} must be a finite number >= 0, got {value}")
         if not all(math.isfinite(v) for v in (x, y, yaw)) or not terrain.contains(x, y):
             raise DynamicsError(f"start pose ({x}, {y}, yaw {yaw}) must be finite and on the map")
         _check_classes(terrain, classes)
@@ -120,6 +128,7 @@ class RoverDynamics:
             gear_ratio=gear_ratio,
             winding_resistance_ohm=winding_resistance_ohm,
             motor_current_limit_a=motor_current_limit_a,
+            regen_current_limit_a=regen_current_limit_a,
             drive_time_constant_s=drive_time_constant_s,
             yaw_time_constant_s=yaw_time_constant_s,
         )
@@ -355,6 +364,7 @@ def _body_vector(
     gear_ratio: float,
     winding_resistance_ohm: float,
     motor_current_limit_a: float,
+    regen_current_limit_a: float,
     drive_time_constant_s: float,
     yaw_time_constant_s: float,
 ) -> np.ndarray:
@@ -381,6 +391,7 @@ def _body_vector(
         motor_torque_constant_nm_per_a,
         winding_resistance_ohm,
         params.effective_track_m,
+        regen_current_limit_a,
     )
     body[k.CG_HEIGHT] = params.cg_height_m
     body[k.TIP_ROLL], body[k.TIP_PITCH] = params.tip_roll_rad, params.tip_pitch_rad

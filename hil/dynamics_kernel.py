@@ -65,11 +65,11 @@ ELEVATION_LAYER, GRAD_X_LAYER, GRAD_Y_LAYER = 0, 1, 2
 
 # --- ``body``: the vehicle and motor constants, built once ---
 # drive_forces' ``vehicle`` vector (its docstring has the layout), then wheel_outputs' ``motor`` vector.
-VEHICLE, MOTOR, MOTOR_END = 0, 9, 14
+VEHICLE, MOTOR, MOTOR_END = 0, 9, 15
 MASS, TRACK, EFFECTIVE_TRACK, HALF_WHEELBASE = 0, 2, 3, 4
-RESISTANCE = 12  # the motor vector's winding resistance
-CG_HEIGHT, TIP_ROLL, TIP_PITCH, CURRENT_LIMIT, HALF_LENGTH, HALF_WIDTH = 14, 15, 16, 17, 18, 19
-BODY_SIZE = 20
+RESISTANCE, REGEN_LIMIT = 12, 14  # the motor vector's winding resistance; each controller's regen limit (A)
+CG_HEIGHT, TIP_ROLL, TIP_PITCH, CURRENT_LIMIT, HALF_LENGTH, HALF_WIDTH = 15, 16, 17, 18, 19, 20
+BODY_SIZE = 21
 
 # How ``step_kernel``'s step ended (the first of the three things it returns).
 STEPPED, OFF_MAP = 0, 1
@@ -503,11 +503,12 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
         values[ENERGY_J] += power * dt
         values[POWER_W] = power
         # What the motors draw from the pack: each I x duty; a braking motor (current against its duty)
-        # generates, and with no regeneration (hil.battery, the motor power above) it gives nothing back, nor
-        # draws. Summed left to right from 0, as Python's sum() of floats.
+        # generates and returns current to the pack, as far as its controller's regeneration limit lets it
+        # (the motor power above, wheel_outputs). Summed left to right from 0, as Python's sum() of floats.
         input_current = 0.0
+        regen_floor = -body[REGEN_LIMIT]
         for i in range(6):
-            input_current += max(currents[i] * duty[i], 0.0)
+            input_current += max(currents[i] * duty[i], regen_floor)
         values[INPUT_CURRENT_A] = input_current
         return STEPPED, state(values), _record(values, terrain_class, battery_voltage)
 

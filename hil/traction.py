@@ -405,13 +405,16 @@ def wheel_outputs(
     """Per-wheel slip, motor current (A) and duty, and the six motors' electrical power (W, returned).
 
     ``motor`` = [wheel radius m, gear ratio, torque constant N m/A, winding resistance ohm, effective
-    track m]. A wheel pulling below its traction limit slips as the class's curve says; a saturated or
-    lifted wheel, or one held at zero pull because its slip opposes its side's force, slips as its surface
-    and ground speeds say (it spins or slides). The current has the sign of the wheel's force (negative
-    when braking a forward-turning wheel); a motor that generates (braking, ``k_t omega I + I^2 R < 0``)
-    gives nothing back: no regeneration, as in ``hil.battery``, so the power is never negative.
+    track m, regeneration limit A]. A wheel pulling below its traction limit slips as the class's curve
+    says; a saturated or lifted wheel, or one held at zero pull because its slip opposes its side's force,
+    slips as its surface and ground speeds say (it spins or slides). The current has the sign of the
+    wheel's force (negative when braking a forward-turning wheel); a motor that generates (braking,
+    ``k_t omega I + I^2 R < 0``) gives it back to the pack, as a VESC does, up to its controller's
+    regeneration limit (its battery current floor, ``l_in_current_min``: at most ``limit x V`` W back; 0:
+    none); past the limit the rest is lost, the braking force kept.
     """
     radius, gear, k_t, resistance, effective_track = motor[0], motor[1], motor[2], motor[3], motor[4]
+    regen_floor_w = -motor[5] * battery_voltage
     mu, slip_k = ground[MU], ground[SLIP_K]
     power = 0.0
     for i in range(6):
@@ -432,5 +435,5 @@ def wheel_outputs(
             out_duty[i] = max(-1.0, min(1.0, (back_emf + current * resistance) / battery_voltage))
         else:
             out_duty[i] = 0.0
-        power += max(back_emf * current + current * current * resistance, 0.0)
+        power += max(back_emf * current + current * current * resistance, regen_floor_w)
     return power

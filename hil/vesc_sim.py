@@ -17,6 +17,7 @@ from firmware_bridge.can_bus import BatchBus
 from firmware_bridge.errors import BridgeError, FrameError
 from firmware_bridge.vesc import WHEEL_COUNT, FieldEncoder, VescCodec, VescFrame
 from firmware_bridge.wheel_names import wheel_label
+from hil.battery import REGEN_CURRENT_LIMIT_A
 from hil.first_sample import first_sample_withheld
 from logs.clock import Clock, to_ns
 
@@ -51,7 +52,10 @@ class SimVescBank:
         motor_time_constant_s: float = 0.05,
         max_erpm: float = 30_000.0,
         input_voltage_v: float = 24.0,
+        regen_current_limit_a: float = REGEN_CURRENT_LIMIT_A,
     ) -> None:
+        if not (math.isfinite(regen_current_limit_a) and regen_current_limit_a >= 0.0):
+            raise ValueError(f"SimVescBank regen_current_limit_a must be >= 0, got {regen_current_limit_a}")
         for name, value in (
             ("status_rate_hz", status_rate_hz),
             ("slow_status_rate_hz", slow_status_rate_hz),
@@ -85,6 +89,7 @@ class SimVescBank:
         self._motor_current_a = [0.0] * WHEEL_COUNT
         self._duty_cycle = [0.0] * WHEEL_COUNT  # the motors' duty from the physics (set_electrical)
         self._input_voltage_v = input_voltage_v
+        self._regen_floor_a = -regen_current_limit_a  # the input current's floor while braking
         # The latest set_electrical's loads, not yet clamped into the fields above (_take_loads); None: none.
         self._loads: tuple[tuple[float, ...], float, tuple[float, ...]] | None = None
         self.commands_applied = 0
@@ -344,8 +349,9 @@ class SimVescBank:
                 if self._rebooting[i]:
                     continue
                 # What the motor takes from the pack: I x duty, signed as power flows. A braking motor
-                # generates, and with no regeneration (hil.battery) the pack sees nothing.
-                current_in = max(self._motor_current_a[i] * self._duty_cycle[i], 0.0)
+                # generates and gives it back, down to the controller's regeneration floor (as the physics'
+                # battery current, hil.dynamics_kernel).
+                current_in = max(self._motor_current_a[i] * self._duty_cycle[i], self._regen_floor_a)
                 frames.append((status_4, (current_in,)))
                 frames.append((status_5, (_wrap_tacho(self._tacho_erev[i]), voltage)))
         self._send_all(frames)

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from hil import dynamics_kernel
+from hil.battery import REGEN_CURRENT_LIMIT_A
 from hil.dynamics import DynamicsError, DynamicsStep, RoverDynamics
 from hil.dynamics_kernel import BodyState
 from navigator.footprint import BOUNDARY, CLEAR, OBSTACLE
@@ -24,7 +25,8 @@ def slope(grade_x: float) -> TerrainMap:
 
 
 def test_motor_input_current_is_the_sum_of_the_drawing_motors_current_times_duty():
-    """The world charges the pack with it: each motor's I x duty, a braking (generating) motor adding 0."""
+    """The world charges the pack with it: each motor's I x duty, a braking (generating) motor's negative,
+    down to its controller's regeneration floor."""
     body = RoverDynamics(slope(-0.15), PARAMS, x=7.5, y=7.5, yaw=0.0)  # facing downhill
     braking = drawing = 0
     stalled = (0.0, 1.0, 0.0, 0.0, 0.0, -1.0)
@@ -32,7 +34,7 @@ def test_motor_input_current_is_the_sum_of_the_drawing_motors_current_times_duty
         wheels = [0.3] * 6 if i < 200 else [0.8, 0.8, 0.8, -0.2, -0.2, -0.2]
         step = body.step(0.01, wheels, 24.0, stalled if i >= 250 else ())
         terms = [current * duty for current, duty in zip(step.motor_currents_a, step.duty, strict=True)]
-        assert step.motor_input_current_a == sum([max(term, 0.0) for term in terms])
+        assert step.motor_input_current_a == sum([max(term, -REGEN_CURRENT_LIMIT_A) for term in terms])
         braking += any(term < 0.0 for term in terms)
         drawing += any(term > 0.0 for term in terms)
     assert braking > 0 and drawing > 0  # both kinds of motor were summed

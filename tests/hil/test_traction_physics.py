@@ -83,8 +83,8 @@ GEAR, K_T, WINDING_OHM = 20.0, 0.07, 0.1
 
 def test_descending_slower_than_gravity_would_go_the_wheels_brake_at_the_curves_slip():
     """Downhill with the wheels turning slower than the rover would roll: every wheel brakes with the curve's
-    force for its (negative) slip, the rover runs ahead of its tyres by that slip, the motors generate (so
-    with no regeneration they draw nothing) and the energy is the integral of V I."""
+    force for its (negative) slip, the rover runs ahead of its tyres by that slip, the motors generate and
+    return to the pack the braking power less the windings' loss, and the energy is the integral of V I."""
     firm = TERRAIN_CLASSES[FIRM]
     theta = math.radians(20.0)
     wheel = 0.6
@@ -103,17 +103,46 @@ def test_descending_slower_than_gravity_would_go_the_wheels_brake_at_the_curves_
         assert wheel_slip == pytest.approx(slip, rel=1e-6)
     assert body.speed == pytest.approx(wheel / (1.0 + slip), rel=1e-6)  # ground ahead of the tyre
     assert body.speed > wheel
-    # Braking current: the force's sign; the motor turns forward, so it generates and gives nothing back.
+    # Braking current: the force's sign; the motor turns forward, so it generates and gives it back: the
+    # pack takes the braking power at the tyres, sum F u, less the windings' I^2 R (within the default
+    # controllers' regeneration floor: ~0.3 A each here).
+    copper_w = 0.0
     for force, current, duty in zip(last.traction_forces_n, last.motor_currents_a, last.duty, strict=True):
         assert current == pytest.approx(force * PARAMS.wheel_radius_m / (GEAR * K_T), rel=1e-12)
         assert current < 0.0 < duty
         back_emf = K_T * GEAR * wheel / PARAMS.wheel_radius_m
         assert back_emf * current + current**2 * WINDING_OHM < 0.0
-    assert last.battery_current_a == 0.0
-    assert last.energy_wh == steps[-100].energy_wh  # nothing drawn once it brakes steadily
+        copper_w += current**2 * WINDING_OHM
+    returned_w = sum(last.traction_forces_n) * wheel + copper_w
+    assert returned_w < 0.0
+    assert last.battery_current_a == pytest.approx(returned_w / VOLTS, rel=1e-9)
+    assert last.energy_wh < steps[-100].energy_wh  # braking steadily charges the pack
     # Energy is the integral of V I over the whole run (the start drew a little while the wheels pulled).
     integral_wh = sum(s.battery_current_a * VOLTS * DT for s in steps) / 3600.0
     assert last.energy_wh == pytest.approx(integral_wh, rel=1e-12)
+
+
+@pytest.mark.parametrize("limit_a", [0.0, 0.1])
+def test_a_controllers_regeneration_floor_caps_what_the_pack_takes_not_the_braking(limit_a):
+    """Past each controller's battery current floor (0: no regeneration) the pack takes the floor, six
+    times over, and the braking force is what it was with room to spare."""
+    theta, wheel = math.radians(20.0), 0.6
+
+    def steady(**motor):
+        body = RoverDynamics(plane(-math.tan(theta)), PARAMS, x=3.0, y=10.0, yaw=0.0, **motor)
+        return [body.step(DT, [wheel] * 6, VOLTS) for _ in range(300)][-1]
+
+    free, capped = steady(), steady(regen_current_limit_a=limit_a)
+    assert free.battery_current_a < -6.0 * limit_a  # room to spare by default: the floor binds below
+    assert capped.battery_current_a == pytest.approx(-6.0 * limit_a, abs=1e-12)
+    assert capped.traction_forces_n == free.traction_forces_n
+
+
+def test_a_regeneration_floor_that_is_not_a_number_is_refused():
+    with pytest.raises(ValueError, match="regen_current_limit_a"):
+        RoverDynamics(plane(), PARAMS, x=3.0, y=10.0, yaw=0.0, regen_current_limit_a=math.nan)
+    with pytest.raises(ValueError, match="regen_current_limit_a"):
+        RoverDynamics(plane(), PARAMS, x=3.0, y=10.0, yaw=0.0, regen_current_limit_a=-1.0)
 
 
 def wrong_way_pulls(body, commands, seconds):

@@ -39,14 +39,23 @@ def make_pair(buses, clock, sink, **sim_kwargs):
 
 def test_input_current_is_what_the_motor_takes_from_the_pack(buses):
     # Driving forward and in reverse both take power (I x duty > 0); a braking motor (current against
-    # its duty) generates, and with no regeneration the pack sees no current either way.
+    # its duty) generates and gives it back either way, down to the controller's floor (2 A by default:
+    # -8 A at duty 0.3 returns 2 A, not 2.4).
     clock, sink = SimClock(), MemorySink()
     link, sim = make_pair(buses, clock, sink)
-    sim.set_electrical([4.0, -4.0, -3.0, 3.0, 0.0, 2.0], 24.0, [0.5, -0.5, 0.4, -0.4, 0.3, 0.0])
+    sim.set_electrical([4.0, -4.0, -3.0, 3.0, -8.0, 2.0], 24.0, [0.5, -0.5, 0.4, -0.4, 0.3, 0.0])
     run(link, sim, clock, 0.3, [0.0] * 6)
     readings = link.readings()
     assert [r.duty for r in readings] == pytest.approx([0.5, -0.5, 0.4, -0.4, 0.3, 0.0], abs=1e-3)
-    assert [r.input_current_a for r in readings] == pytest.approx([2.0, 2.0, 0.0, 0.0, 0.0, 0.0], abs=0.1)
+    assert [r.input_current_a for r in readings] == pytest.approx([2.0, 2.0, -1.2, -1.2, -2.0, 0.0], abs=0.1)
+
+
+def test_a_regeneration_floor_of_zero_returns_nothing(buses):
+    clock, sink = SimClock(), MemorySink()
+    link, sim = make_pair(buses, clock, sink, regen_current_limit_a=0.0)
+    sim.set_electrical([4.0, -3.0, 0.0, 0.0, 0.0, 0.0], 24.0, [0.5, 0.4, 0.0, 0.0, 0.0, 0.0])
+    run(link, sim, clock, 0.3, [0.0] * 6)
+    assert [r.input_current_a for r in link.readings()][:2] == pytest.approx([2.0, 0.0], abs=0.1)
 
 
 def test_commands_reach_the_motors_and_status_comes_back(buses):

@@ -32,6 +32,32 @@ def test_energy_is_the_integral_of_voltage_times_current():
     assert battery.voltage_v < battery.params.full_voltage_v  # charge used and sag under load
 
 
+def test_a_charging_current_gives_charge_and_energy_back_and_lifts_the_terminal_voltage():
+    battery = Battery()
+    battery.draw(10.0, 360.0)  # 1 Ah out
+    resting = battery.open_circuit_voltage()
+    used_wh = battery.energy_wh
+    volts = battery.draw(-5.0, 360.0)  # 0.5 Ah back
+    assert battery.charge_used_ah == pytest.approx(0.5, rel=1e-12)
+    assert volts == pytest.approx(resting + 5.0 * battery.params.internal_resistance_ohm, rel=1e-12)
+    assert battery.energy_wh == pytest.approx(used_wh - volts * 5.0 * 360.0 / 3600.0, rel=1e-12)
+
+
+def test_charge_returned_to_a_full_pack_reads_full():
+    battery = Battery()
+    battery.draw(-2.0, 36.0)
+    assert battery.state_of_charge == 1.0
+    assert battery.open_circuit_voltage() == battery.params.full_voltage_v
+    volts = battery.draw(0.0, 1.0)
+    assert volts == battery.params.full_voltage_v
+
+
+def test_a_current_that_is_not_a_number_reads_zero():
+    battery = Battery()
+    assert battery.draw(float("nan"), 1.0) == battery.params.full_voltage_v
+    assert battery.charge_used_ah == 0.0 and battery.energy_wh == 0.0
+
+
 def test_moving_obstacle_ping_pongs_along_its_waypoints():
     mover = MovingObstacle("walker", 0.5, ((0.0, 0.0), (4.0, 0.0), (4.0, 3.0)), speed_mps=1.0, start_s=1.0)
     assert mover.state_at(0.5) == (0.0, 0.0, 0.0, 0.0)
