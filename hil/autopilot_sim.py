@@ -317,7 +317,7 @@ class SimAutopilot:
             _SENSORS_PRESENT,
             0,
             max(0, min(65535, round(truth.battery_voltage_v * 1000.0))),
-            max(-1, min(_INT16_MAX, round(truth.battery_current_a * 100.0))),
+            _battery_centiamps(truth.battery_current_a),
             max(-1, min(100, truth.battery_remaining_pct)),
             0,
             0,
@@ -391,3 +391,10 @@ class SimAutopilot:
                 self.heartbeats_received += 1
                 self.last_heartbeat = msg
         return count
+
+
+def _battery_centiamps(current_a: float) -> int:
+    """SYS_STATUS's current_battery (cA): negative while the pack charges (braking motors regenerate), but
+    -1 means "not measured" there, so a charge of 0.01 A is sent as 0.02 A."""
+    centiamps = max(-_INT16_MAX, min(_INT16_MAX, round(current_a * 100.0)))
+    return -2 if centiamps == -1 else centiamps

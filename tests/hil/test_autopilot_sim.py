@@ -6,7 +6,7 @@ import pymap3d
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from firmware_bridge.mavlink_link import GpsFix, ImuSample, MavlinkLink
+from firmware_bridge.mavlink_link import BatteryState, GpsFix, ImuSample, MavlinkLink
 from firmware_bridge.mavlink_transport import memory_pipe_pair
 from hil.autopilot_sim import AutopilotTruth, SimAutopilot
 from hil.faults import FaultSchedule
@@ -239,3 +239,12 @@ def test_imu_fields_past_int16_are_clamped_each_on_its_own_side():
     # The fields within range keep their rounded values (FLU -> FRD: y and z change sign).
     assert (msg.yacc, msg.zacc) == (round(-0.2 * 1000 / 9.80665), -1000)
     assert (msg.xgyro, msg.ygyro) == (0, 0)
+
+
+@pytest.mark.parametrize(("current_a", "read_a"), [(-3.0, -3.0), (-0.01, -0.02), (2.5, 2.5), (-1e9, -327.67)])
+def test_a_charging_pack_reads_as_a_negative_current_never_as_not_measured(current_a, read_a):
+    clock, _sink, link, sim = make_pair()
+    truth = TRUTH._replace(battery_voltage_v=24.0, battery_current_a=current_a, battery_remaining_pct=90)
+    readings = run(clock, link, sim, truth, 0.1)
+    batteries = [r for r in readings if isinstance(r, BatteryState)]
+    assert batteries and batteries[0].current_a == pytest.approx(read_a, abs=1e-9)
