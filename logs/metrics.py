@@ -84,6 +84,8 @@ class TrialMetrics:
     # how near the rover came, where "encountered" only says whether it came within the margin.
     closest_obstacle_m: float | None = None
     closest_obstacle_id: str | None = None
+    # What braking gave back to the pack (Wh, >= 0; energy_wh is net of it): energy_wh + this is drawn.
+    energy_regenerated_wh: float | None = None
     truncated: bool = False
     skipped_messages: int = 0
     missing: tuple[str, ...] = ()
@@ -114,7 +116,8 @@ class _Trial:
     paths: list[tuple[int, FloatArray]] = field(default_factory=list)
     states: list[tuple[int, dict[str, Any]]] = field(default_factory=list)
     contacts: list[dict[str, Any]] = field(default_factory=list)
-    power: list[tuple[int, float]] = field(default_factory=list)
+    # t, the six controllers' net power (W), and what the braking ones among them gave back (W, >= 0)
+    power: list[tuple[int, float, float]] = field(default_factory=list)
     scenario: dict[str, str] | None = None
     world: dict[str, str] | None = None  # the simulated world's start (hil.world), when recorded
     seen: set[str] = field(default_factory=set)
@@ -222,8 +225,9 @@ def _take_power(trial: _Trial, topic: str, t_ns: int, message: dict[str, Any]) -
     # A non-finite voltage or current makes its product, and so the sum, non-finite (inf * 0 is NaN):
     # one check of the sum is the check of every value (the hot loop of the metrics pass). A list, not a
     # generator, for sum: the same additions in the same order, without a generator frame per message.
-    watts = sum([float(w["input_voltage_v"]) * float(w["input_current_a"]) for w in wheels])
-    trial.power.append((t_ns, _finite(watts)))
+    each = [float(w["input_voltage_v"]) * float(w["input_current_a"]) for w in wheels]
+    watts = _finite(sum(each))
+    trial.power.append((t_ns, watts, -sum([p for p in each if p < 0.0])))
 
 
 # Looked up once per message, instead of comparing its topic with each metrics topic in turn.
@@ -323,7 +327,7 @@ def metrics_from_entries(entries: Iterable[Entry], stats: ReadStats) -> TrialMet
     collisions, rollovers = _contact_counts(trial, trajectory_topic, notes)
     avoidance = _obstacle_avoidance(trial, scenario, times, xy, margin, notes)
     encountered, avoided, success = avoidance.encountered, avoidance.avoided, avoidance.success_pct
-    energy = _energy_wh(trial, notes)
+    energy, regenerated = _energy_wh(trial, notes)
     goal_reached, goal_distance = _goal(trial, xy, notes)
     xte_rms, xte_max = _cross_track(trial, drive_end_ns)
     route_length, route_accuracy = _route_accuracy(trial, xy, tolerance)
@@ -350,6 +354,7 @@ def metrics_from_entries(entries: Iterable[Entry], stats: ReadStats) -> TrialMet
         cross_track_error_max_m=xte_max,
         closest_obstacle_m=avoidance.closest_m,
         closest_obstacle_id=avoidance.closest_id,
+        energy_regenerated_wh=regenerated,
         truncated=stats.truncated,
         skipped_messages=stats.skipped + sum(trial.rejected.values()),
         missing=tuple(notes.missing),
@@ -570,18 +575,26 @@ def _obstacle_avoidance(
     return _Avoidance(len(encountered), avoided, success, closest_m, closest_id)
 
 
-def _energy_wh(trial: _Trial, notes: _Notes) -> float | None:
+def _energy_wh(trial: _Trial, notes: _Notes) -> tuple[float | None, float | None]:
+    """Net energy the six controllers drew (Wh), and what the braking ones gave back (Wh, >= 0): to the
+    pack, or to the motors pulling at the same time (a skid-steer turn's inner side brakes)."""
     if WHEELS_STATUS not in trial.seen:
         notes.missing.append(WHEELS_STATUS)
-        return None
+        return None, None
     samples = sorted(trial.power, key=lambda item: item[0])
     if len(samples) < 2:
         notes.problems.append(f"{WHEELS_STATUS}: energy needs at least two usable samples")
-        return None
-    times_s = np.array([t for t, _ in samples], dtype=np.float64) / 1e9
-    watts = np.array([p for _, p in samples], dtype=np.float64)
-    joules = float(np.sum(0.5 * (watts[1:] + watts[:-1]) * np.diff(times_s)))  # trapezoid rule
-    return joules / _J_PER_WH
+        return None, None
+    times_s = np.array([t for t, _, _ in samples], dtype=np.float64) / 1e9
+    watts = np.array([p for _, p, _ in samples], dtype=np.float64)
+    returned_w = np.array([r for _, _, r in samples], dtype=np.float64)
+    # The trapezoid rule is linear, and each sample's net is what the pulling motors drew less what the
+    # braking ones gave back: drawn = net + returned, exactly.
+    return _trapezoid_j(times_s, watts) / _J_PER_WH, _trapezoid_j(times_s, returned_w) / _J_PER_WH
+
+
+def _trapezoid_j(times_s: FloatArray, watts: FloatArray) -> float:
+    return float(np.sum(0.5 * (watts[1:] + watts[:-1]) * np.diff(times_s)))
 
 
 def _goal(trial: _Trial, xy: FloatArray, notes: _Notes) -> tuple[bool | None, float | None]:

@@ -365,3 +365,33 @@ def test_wheel_power_with_a_non_finite_value_is_skipped() -> None:
     assert metrics.skipped_messages == 2
     # the usable samples: 6 wheels x 24 V x {1, 2, 3} A = 144, 288, 432 W at t = 0, 2, 4 s (trapezoids)
     assert metrics.energy_wh == pytest.approx((2 * (144 + 288) / 2 + 2 * (288 + 432) / 2) / 3600.0)
+    assert metrics.energy_regenerated_wh == 0.0
+
+
+def test_braking_power_is_counted_in_the_net_energy_and_on_its_own() -> None:
+    buffer = io.BytesIO()
+    with McapRecorder(buffer) as rec:
+        # 6 wheels x 24 V x {2, -1, -1, 2} A: 288, -144, -144, 288 W at t = 0, 1, 2, 3 s.
+        for i, current in enumerate([2.0, -1.0, -1.0, 2.0]):
+            t_ns = to_ns(float(i))
+            rec.publish(TRUTH_POSE, t_ns, _pose(t_ns, float(i), 0.0))
+            rec.publish_bytes(WHEELS_STATUS, t_ns, json.dumps(_wheels(t_ns, current)).encode())
+    metrics = compute_metrics(io.BytesIO(buffer.getvalue()))
+    net_j = (288 - 144) / 2 + (-144 - 144) / 2 + (-144 + 288) / 2
+    assert metrics.energy_wh == pytest.approx(net_j / 3600.0)
+    assert metrics.energy_regenerated_wh == pytest.approx((144 / 2 + 144 + 144 / 2) / 3600.0)
+
+
+def test_a_turns_braking_side_counts_as_regenerated_though_the_six_draw() -> None:
+    buffer = io.BytesIO()
+    with McapRecorder(buffer) as rec:
+        for i in range(3):
+            t_ns = to_ns(float(i))
+            rec.publish(TRUTH_POSE, t_ns, _pose(t_ns, float(i), 0.0))
+            status = _wheels(t_ns, 2.0)
+            for wheel in status["wheels"][:3]:
+                wheel["input_current_a"] = -0.5  # the inner side brakes: 3 x 12 W back, 3 x 48 W drawn
+            rec.publish_bytes(WHEELS_STATUS, t_ns, json.dumps(status).encode())
+    metrics = compute_metrics(io.BytesIO(buffer.getvalue()))
+    assert metrics.energy_wh == pytest.approx(2.0 * 108.0 / 3600.0)
+    assert metrics.energy_regenerated_wh == pytest.approx(2.0 * 36.0 / 3600.0)
