@@ -26,6 +26,14 @@ from navigator.map_config import terrain_from_table
 from navigator.scan_tracker_config import MAX_MOUNT_OFFSET_M
 from navigator.sensor_mount import SensorMount
 from navigator.terrain import TerrainMap, disc_mask
+from navigator.terrain_class_settings import (
+    PHYSICS_FIELDS,
+    SCENARIO_REFUSALS,
+    ClassOverrides,
+    overrides_from_table,
+    with_overrides,
+)
+from navigator.terrain_classes import TerrainClass
 
 
 @dataclass(frozen=True)
@@ -261,6 +269,14 @@ class Scenario:
     success: SuccessCriteria = SuccessCriteria()
     # An obstacle whose edge came this close to the track was "in the way" (docs/metrics.md).
     encounter_margin_m: float = DEFAULT_ENCOUNTER_MARGIN_M
+    # [terrain_classes.<name>] as written: the true world's ground where it is not the built-in table's.
+    terrain_classes: ClassOverrides = field(default_factory=dict)
+
+    @property
+    def classes(self) -> dict[int, TerrainClass]:
+        """The terrain classes the true world is made of (the simulator's); the planner's beliefs are the
+        rover config's (``RoverConfig.classes``)."""
+        return with_overrides(self.terrain_classes)
 
 
 def load_scenario(path: str | Path) -> Scenario:
@@ -346,6 +362,7 @@ def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
     sensors = SensorSettings.from_table(root.table("sensors", optional=True))
     faults = faults_from_tables(root.tables("faults"), duration_s)
     success = SuccessCriteria.from_table(root.table("success", optional=True))
+    terrain_classes = overrides_from_table(root, PHYSICS_FIELDS, SCENARIO_REFUSALS)
     root.finish()
     return Scenario(
         name=name,
@@ -368,6 +385,7 @@ def scenario_from_table(root: Table, text: str, base_dir: Path) -> Scenario:
         faults=faults,
         success=success,
         encounter_margin_m=encounter_margin_m,
+        terrain_classes=terrain_classes,
     )
 
 

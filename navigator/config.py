@@ -28,6 +28,14 @@ from navigator.planner import COST_MODES, FOOTPRINT_INFLATIONS
 from navigator.safety_config import SafetyConfig
 from navigator.scan_tracker_config import ScanTrackerConfig
 from navigator.terrain import TerrainMap
+from navigator.terrain_class_settings import (
+    PHYSICS_FIELDS,
+    PLANNER_FIELDS,
+    ClassOverrides,
+    overrides_from_table,
+    with_overrides,
+)
+from navigator.terrain_classes import TerrainClass
 from navigator.vehicle import VehicleParams
 from navigator.yielding import YIELD_MARGIN_M, YIELD_MAX_M, YIELD_MAX_S, YIELD_SPEED_MPS
 
@@ -131,6 +139,15 @@ class RoverConfig:
     hil_peer_run: str | None = None
     # [map]: the terrain `rover run` plans on (HIL trials use the scenario's instead); None if absent.
     terrain: TerrainMap | None = dataclasses.field(default=None, compare=False, repr=False)
+    # [terrain_classes.<name>] as written: where the planner's and guidance's beliefs about the ground leave
+    # the built-in table (recorded as config.terrain_classes.<name>.<field>; navigator.config_record).
+    terrain_classes: ClassOverrides = dataclasses.field(default_factory=dict)
+
+    @property
+    def classes(self) -> dict[int, TerrainClass]:
+        """The terrain classes the onboard stack believes in (planner costs, climb limits, speed limits);
+        the simulated world's are the scenario's (``Scenario.classes``)."""
+        return with_overrides(self.terrain_classes)
 
 
 def load_rover_config(path: str | Path) -> RoverConfig:
@@ -202,6 +219,7 @@ def rover_config_from_table(root: Table, base_dir: Path | None = None) -> RoverC
         phase_late_wait_ms=phase_late_wait_ms,
         terrain=(terrain_from_table(root.table("map"), base_dir)[0] if root.has("map") else None),
         hil_peer_run=hil_peer_run,
+        terrain_classes=overrides_from_table(root, (*PHYSICS_FIELDS, *PLANNER_FIELDS), {}),
         source=root.source,
     )
     root.finish()
