@@ -8,10 +8,10 @@ the map, Zenoh off, the ``[vesc]`` table its simulated controllers speak (ids, d
 swapped-in DBC as an absolute path, so it reads the same from the peer's folder or wherever the file is
 copied), and where its simulated lidar sits when that is off the centre (``[perception]`` ``mount_*``,
 from the scenario's ``[sensors] perception_mount_*``), or where each simulated rangefinder sits
-(``[perception] rangefinders``, by id, for a scenario with ``perception = "rangefinders"``). Every other
-table is
-left at the built-in defaults (the ones the peer simulates when it has no ``--config``); with a custom
-vehicle, add its tables to the file.
+(``[perception] rangefinders``, by id, for a scenario with ``perception = "rangefinders"``), and the
+config's ``[terrain_classes.<name>]`` tables (what the planner believes of the ground: the peer's world is
+the scenario's). Every other table is left at the built-in defaults (the ones the peer simulates when it
+has no ``--config``); with a custom vehicle, add its tables to the file.
 """
 
 from __future__ import annotations
@@ -83,10 +83,20 @@ def write_peer_files(
         f"resolution_m = {terrain.resolution_m!r}",
         f"origin = [{float(origin_x)!r}, {float(origin_y)!r}]",
         "",
+        *_class_lines(config),
     ]
     path = out_dir / ROVER_CONFIG_NAME
     path.write_text("\n".join(lines), encoding="utf-8")
     return path
+
+
+def _class_lines(config: RoverConfig) -> list[str]:
+    """The config's ``[terrain_classes.<name>]`` tables as written: the rover plans with the beliefs it was
+    given, whatever ground the peer simulates (the scenario's)."""
+    lines: list[str] = []
+    for name, values in config.terrain_classes.items():
+        lines += [f"[terrain_classes.{name}]", *(f"{key} = {value!r}" for key, value in values.items()), ""]
+    return lines
 
 
 def _vesc_lines(config: RoverConfig) -> list[str]:

@@ -54,6 +54,7 @@ from navigator.config_record import record_config, software_version
 from navigator.mission import MissionState
 from navigator.onboard import OnboardStack
 from navigator.route_guidance import Mode
+from navigator.terrain_class_settings import overrides_flat
 from navigator.terrain_classes import TERRAIN_CLASSES
 from navigator.warm_up import warm_up
 
@@ -348,6 +349,9 @@ def write_header(
             # MAVLink, whatever the attached scenario file says (hil.peer.seen_through_lidar).
             "perception": scenario.sensors.perception,
             "perception_json": json.dumps(_perception_record(scenario), separators=(",", ":")),
+            # The true world's ground where the scenario retuned it (terrain_classes.sandy.friction_mu):
+            # the planner's beliefs are the config record's keys of the same names. None: as it always was.
+            **overrides_flat(scenario.terrain_classes),
         },
     )
     trial = {

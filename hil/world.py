@@ -119,6 +119,7 @@ class SimWorld:
         self.body = RoverDynamics(
             scenario.terrain,
             vehicle,
+            scenario.classes,  # the true world's ground; the rover's beliefs are its config's
             x=scenario.start_xy[0],
             y=scenario.start_xy[1],
             yaw=scenario.start_yaw_rad,
