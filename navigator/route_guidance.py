@@ -73,7 +73,9 @@ class RouteGuidance:
         event: EventSink,
         planning: Executor | None = None,
     ) -> None:
-        self.core = Guidance(terrain, config.vehicle, config.planner, config.follower, executor=planning)
+        self.core = Guidance(
+            terrain, config.vehicle, config.planner, config.follower, config.classes, executor=planning
+        )
         # The rover's own top speed: the mission's speed events name it.
         self.max_speed_mps = config.follower.max_speed_mps
         self._sink = sink

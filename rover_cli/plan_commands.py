@@ -1,8 +1,9 @@
 """``rover plan MAP [--start X,Y] [--goal X,Y] [--config rover.toml]``: plan once, print cost, length, nodes
 expanded and time (with ``--json`` also the path, as ``[x, y]`` points in metres from the start to the
-goal). A scenario's own ``[start]`` and first ``[[goals]]`` are the defaults. The vehicle and the planner
-settings are a rover config's (``--config``, read as ``rover hil trial --config`` reads it) or the built-in
-defaults; ``--heuristic``, ``--weight``, ``--cost-mode`` and ``--footprint-inflation`` override them."""
+goal). A scenario's own ``[start]`` and first ``[[goals]]`` are the defaults. The vehicle, the planner
+settings and the terrain classes it believes in are a rover config's (``--config``, read as ``rover hil
+trial --config`` reads it: ``[vehicle]``, ``[planner]``, ``[terrain_classes.*]``) or the built-in defaults;
+``--heuristic``, ``--weight``, ``--cost-mode`` and ``--footprint-inflation`` override them."""
 
 from __future__ import annotations
 
@@ -19,6 +20,7 @@ from navigator.config import HEURISTIC_WEIGHT_RANGE, PlannerConfig, load_rover_c
 from navigator.errors import NavigatorError
 from navigator.plan_tools import PlanMap, Point, draw_png, export_costs, load_map, map_from_table, plan_once
 from navigator.planner import COST_MODES, FOOTPRINT_INFLATIONS, Planner
+from navigator.terrain_classes import TERRAIN_CLASSES, TerrainClass
 from navigator.vehicle import VehicleParams
 from rover_cli.arg_types import bounded_float
 
@@ -125,15 +127,16 @@ def _given_or_named(map_path: Path, option: str, given: Point | None, named: Poi
     return named
 
 
-def _settings(args: argparse.Namespace) -> tuple[VehicleParams, PlannerConfig]:
-    """The vehicle and planner settings: the config's (or the defaults), with the options given on top."""
+def _settings(args: argparse.Namespace) -> tuple[VehicleParams, PlannerConfig, dict[int, TerrainClass]]:
+    """The vehicle, planner settings and terrain classes: the config's (or the defaults), with the options
+    given on top."""
     if args.config is None:
-        vehicle, planner = VehicleParams(), PlannerConfig()
+        vehicle, planner, classes = VehicleParams(), PlannerConfig(), dict(TERRAIN_CLASSES)
     else:
         config = load_rover_config(args.config)  # ConfigError names the file and the key
-        vehicle, planner = config.vehicle, config.planner
+        vehicle, planner, classes = config.vehicle, config.planner, config.classes
     given = {field: getattr(args, option) for option, field in _PLANNER_OPTIONS.items()}
-    return vehicle, dataclasses.replace(planner, **{k: v for k, v in given.items() if v is not None})
+    return vehicle, dataclasses.replace(planner, **{k: v for k, v in given.items() if v is not None}), classes
 
 
 def _rovers_map(args: argparse.Namespace) -> PlanMap:
@@ -162,12 +165,12 @@ def _rovers_map(args: argparse.Namespace) -> PlanMap:
 
 def run_plan(args: argparse.Namespace) -> int:
     try:
-        vehicle, settings = _settings(args)
+        vehicle, settings, classes = _settings(args)
         plan_map = _rovers_map(args)
         start, goal = _endpoints(args, plan_map)
         # As guidance builds it, but without the goal's cost-to-go field: that pays off over replans, and
         # one plan built on it would report a full Dijkstra's expansions and time.
-        planner = Planner.from_config(plan_map.terrain, vehicle, settings)
+        planner = Planner.from_config(plan_map.terrain, vehicle, settings, classes=classes)
         report = plan_once(planner, start, goal)
     except (NavigatorError, ConfigError) as err:
         print(f"rover plan: {err}", file=sys.stderr)  # stdout stays the figures (or JSON) only
