@@ -1,9 +1,10 @@
 """Scenario files: the world a trial runs in.
 
-Terrain, start, goals, static and moving obstacles, sensor settings, perception, faults over time,
-duration, seed and success criteria. A scenario is TOML, validated completely before anything starts, with
-errors that name the file and the key. The terrain comes from the paper's maze matrix, from .npy layers, or
-is procedural from a seed. See docs/hil.md for every key.
+Terrain (and the figures of its classes, where they are not the built-in table's), start, goals, static and
+moving obstacles, sensor settings, perception, faults over time, duration, seed and success criteria. A
+scenario is TOML, validated completely before anything starts, with errors that name the file and the key.
+The terrain comes from the paper's maze matrix, from .npy layers, or is procedural from a seed. See
+docs/hil.md for every key.
 """
 
 from __future__ import annotations

@@ -4,7 +4,9 @@ Each kind has top-level keys no other kind has (a scenario's ``[terrain]``, a ca
 rover config's ``[can]``). Each loader asks ``refuse_another_kind`` first, so a file of another kind is
 named as that mix-up ("this is a campaign, not a scenario") rather than by the first key it lacks
 ("terrain: required key is missing"), which names nothing the user got wrong. A table with keys of two
-kinds, or of none, is left to the loader: its own errors then say which key is wrong.
+kinds, or of none, is left to the loader: its own errors then say which key is wrong. A table both a scenario
+and a rover config take (``[terrain_classes.<name>]``: the world's ground, the planner's beliefs) is in
+neither kind's keys, so it tells no kind.
 """
 
 from __future__ import annotations

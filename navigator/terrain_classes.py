@@ -2,7 +2,9 @@
 
 Values are typical figures for a small rover on rubber tyres, rounded, not measurements of ours. The planner
 reads ``friction_mu``, ``rolling_resistance`` and ``cost_factor``; the simulator (``hil.traction``) reads
-all of them. docs/physics.md has the table with the sources.
+all of them. docs/physics.md has the table with the sources. This table is the default: a scenario's and a
+rover config's ``[terrain_classes.<name>]`` tables retune a class for the simulated world and for the
+planner's beliefs respectively (``navigator.terrain_class_settings``).
 
 * ``friction_mu``: peak traction coefficient (drawbar pull / weight at full slip). Firm soil and dry
   rock ~0.7-0.8, loose sand ~0.4, wet mud ~0.3 (Wong, *Theory of Ground Vehicles*, 4th ed., ch. 1-2;

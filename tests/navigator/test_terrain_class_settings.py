@@ -4,6 +4,8 @@ refused under its key path, and a table that is the default when nothing is writ
 from __future__ import annotations
 
 import dataclasses
+import re
+from pathlib import Path
 
 import pytest
 
@@ -134,3 +136,14 @@ def test_the_file_kinds_are_still_told_apart_with_class_tables() -> None:
     with pytest.raises(ConfigError, match="this is a rover config"):
         refuse_another_kind(config, SCENARIO)
     refuse_another_kind(Table({"terrain_classes": {}}, "x.toml", ""), ROVER_CONFIG)  # no mix-up named
+
+
+def test_the_shipped_configs_commented_example_loads_and_is_the_tables_sand() -> None:
+    shipped = Path(__file__).resolve().parents[2] / "configs" / "rover.toml"
+    text = shipped.read_text(encoding="utf-8")
+    example = text[text.index("# [terrain_classes.sandy]") :]
+    uncommented = re.sub(r"^# ", "", example, flags=re.MULTILINE)
+    config = config_of(text + "\n" + uncommented)
+    assert set(config.terrain_classes["sandy"]) == {*PHYSICS_FIELDS, *PLANNER_FIELDS}
+    sandy, table = config.classes[SANDY], TERRAIN_CLASSES[SANDY]
+    assert dataclasses.replace(sandy, source=table.source) == table
