@@ -71,12 +71,6 @@ class TerrainClass:
             raise TerrainError(
                 f"terrain class {self.name!r}: need sinkage_exponent > 0 and lateral_resistance >= 0"
             )
-        if self.lateral_resistance >= self.friction_mu:
-            # The scrub of a turn on the spot would take all of the wheels' grip: the rover could not turn.
-            raise TerrainError(
-                f"terrain class {self.name!r}: lateral_resistance must be below friction_mu (a turn on the "
-                f"spot must stay possible), got {self.lateral_resistance} >= {self.friction_mu}"
-            )
 
 
 _WONG = "Wong, Theory of Ground Vehicles (4th ed.), ch. 1-2 and 7; typical values"

@@ -91,17 +91,6 @@ BAD_TABLES = [
         "terrain_classes.sandy.rolling_resistance",
         "rolling_resistance >= 0",
     ),
-    # Friction left as the table's 0.4: the turn's scrub written is the one to blame, the table's named.
-    (
-        "[terrain_classes.sandy]\nlateral_resistance = 0.45",
-        "terrain_classes.sandy.lateral_resistance",
-        "the built-in table's friction_mu = 0.4",
-    ),
-    (
-        "[terrain_classes.muddy]\nfriction_mu = 0.15",
-        "terrain_classes.muddy.friction_mu",
-        "lateral_resistance must be below friction_mu",
-    ),
     ("[terrain_classes.sandy]\nfrictoin_mu = 0.3", "terrain_classes.sandy.frictoin_mu", "'friction_mu'"),
     ("[terrain_classes]\nsandy = 0.3", "terrain_classes.sandy", "expected a table"),
     ("terrain_classes = 1", "terrain_classes", "expected a table"),
