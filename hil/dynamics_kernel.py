@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil import traction
-from hil.traction import MU, drive_forces, sideways_grip, sideways_speed, wheel_outputs
+from hil.traction import MU, drive_forces, sideways_grip, sideways_speed, slide_yaw_moment, wheel_outputs
 from navigator import footprint, ground_kernel, vehicle
 from navigator.footprint import BOUNDARY, CLEAR, OBSTACLE, rectangle_contact
 from navigator.ground_kernel import ground_at_kernel
@@ -66,7 +66,7 @@ ELEVATION_LAYER, GRAD_X_LAYER, GRAD_Y_LAYER = 0, 1, 2
 # --- ``body``: the vehicle and motor constants, built once ---
 # drive_forces' ``vehicle`` vector (its docstring has the layout), then wheel_outputs' ``motor`` vector.
 VEHICLE, MOTOR, MOTOR_END = 0, 9, 15
-MASS, TRACK, EFFECTIVE_TRACK, HALF_WHEELBASE = 0, 2, 3, 4
+MASS, YAW_INERTIA, TRACK, EFFECTIVE_TRACK, HALF_WHEELBASE = 0, 1, 2, 3, 4
 RESISTANCE, REGEN_LIMIT = 12, 14  # the motor vector's winding resistance; each controller's regen limit (A)
 CG_HEIGHT, TIP_ROLL, TIP_PITCH, CURRENT_LIMIT, HALF_LENGTH, HALF_WIDTH = 15, 16, 17, 18, 19, 20
 BODY_SIZE = 21
@@ -362,8 +362,9 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
             values[LATERAL], normals,
         )  # fmt: skip
         accel, yaw_rate = drive_forces(
-            wheels, normals, ground, body[VEHICLE:MOTOR], speed0, yaw_rate0, pitch, dt, traction
-        )
+            wheels, normals, ground, body[VEHICLE:MOTOR], speed0, yaw_rate0, pitch, dt, traction,
+            lateral_speed0,
+        )  # fmt: skip
 
         speed = speed0 + accel * dt
         if lateral_speed0 != 0.0:
@@ -374,13 +375,26 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
         # Sideways: gravity's cross-slope part (roll positive lowers the right side, so it pulls to -y) less
         # the turn's centripetal need, against the wheels' sideways friction (sideways_grip, N, per kg).
         demand_mps2 = -G * math.cos(pitch) * math.sin(roll) - speed * yaw_rate
-        grip_mps2 = (
-            sideways_grip(
-                normals, traction, ground[MU], wheels, speed, yaw_rate, body[EFFECTIVE_TRACK], lateral_speed0
-            )
-            / body[MASS]
-        )
+        grip_n = sideways_grip(
+            normals, traction, ground[MU], wheels, speed, yaw_rate, body[EFFECTIVE_TRACK], lateral_speed0,
+            body[HALF_WHEELBASE],
+        )  # fmt: skip
+        grip_mps2 = grip_n / body[MASS]
         lateral_speed = sideways_speed(lateral_speed0, demand_mps2, grip_mps2, dt)
+        if lateral_speed0 != 0.0 or lateral_speed != 0.0:
+            # Sliding: the friction the Coulomb step applied (sideways_speed's, N) acts at each wheel's
+            # axle, and with unequal axle loads turns the body (only while sliding: a body held across a
+            # slope keeps its yaw rate's floats, as its static friction's distribution is not known).
+            free = lateral_speed0 + demand_mps2 * dt
+            friction_n = body[MASS] * (lateral_speed - free) / dt
+            yaw_rate += (
+                slide_yaw_moment(
+                    normals, traction, ground[MU], wheels, speed, yaw_rate, body[EFFECTIVE_TRACK],
+                    lateral_speed0, body[HALF_WHEELBASE], friction_n,
+                )
+                * dt
+                / body[YAW_INERTIA]
+            )  # fmt: skip
         mean_speed = 0.5 * (speed0 + speed)
         turn = 0.5 * (yaw_rate0 + yaw_rate) * dt
         heading = yaw + 0.5 * turn

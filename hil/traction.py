@@ -108,6 +108,25 @@ def sideways_share(lateral_speed: float, sliding_speed: float) -> float:
 
 
 @numba.njit(cache=True)
+def slide_share(lateral_speed: float, scrub_speed: float) -> float:
+    """The slide's part of a sliding end wheel's sideways friction: ``|v_y| / hypot(v_y, w x)``.
+
+    An end wheel's contact slides sideways with the body (``lateral_speed``, its ``v_y``) and with the turn
+    (``scrub_speed``, ``|w x_i|``, what the scrub resists); friction opposes the contact's sliding velocity
+    (Wong and Chiang's skid-steering theory, Wong ch. 7, as ``sideways_share``), so its sideways friction is
+    shared between the slide and the scrub in proportion to their speeds: the slide takes this part and the
+    scrub the rest of a friction circle, ``sqrt(1 - share^2) = |w x| / hypot(v_y, w x)``. 1 with no turn,
+    0 with no slide. The two speeds are collinear, so this is a smooth stand-in for the contact's exact
+    Coulomb law, under which the end wheel's whole friction goes to whichever of ``v_y + w x_i`` sets its
+    sign (the front and rear then switch between holding the slide and resisting the turn as ``|v_y|``
+    crosses ``|w x_i|``, a jump an explicit step chatters on).
+    """
+    if lateral_speed == 0.0:
+        return 0.0
+    return abs(lateral_speed) / math.hypot(lateral_speed, scrub_speed)
+
+
+@numba.njit(cache=True)
 def _share_side(
     force: float, loads: Array, first: int, mu: float, forward_caps: Array, backward_caps: Array, out: Array
 ) -> float:
@@ -202,6 +221,7 @@ def drive_forces(
     pitch: float,
     dt: float,
     out_forces: Array,
+    lateral_speed: float = 0.0,
 ) -> tuple[float, float]:
     """One step of the wheels' pull on the body: (longitudinal acceleration m/s^2, new yaw rate rad/s).
 
@@ -210,6 +230,14 @@ def drive_forces(
     ``vehicle`` = [mass kg, yaw inertia kg m^2, track m, effective track m, half wheelbase m,
     reference wheel load N, per-wheel force cap N (motor current limit), drive tau s, yaw tau s].
     Writes each wheel's drive force (N, forward positive) into ``out_forces``.
+
+    ``lateral_speed``: the body's sideways speed (m/s, y left). While it slides (not 0) the scrub shares
+    each end wheel's friction with the slide: it is at most what the slide leaves of ``mu N_i``,
+    ``mu N_i |w x_i| / hypot(v_y, w x_i)`` (``slide_share``), so a turn on the spot while sliding meets
+    ``sum N_i |x_i| min(mu_t' share_i, mu |w x_i| / hypot(v_y, w x_i))``: less than on the level with the
+    same loads, and none with no turn (a sliding contact has no static friction to hold the heading). The
+    cap is on ``mu N_i``, not on what the wheel's pull leaves: the scrub does not share with the
+    longitudinal force (Wong's ``mu_t`` is measured on driven tracks), as before.
     """
     mass, inertia, track, effective_track = vehicle[0], vehicle[1], vehicle[2], vehicle[3]
     half_base, reference_load, cap = vehicle[4], vehicle[5], vehicle[6]
@@ -251,10 +279,17 @@ def drive_forces(
     end_scrub_speed = abs(yaw_rate) * half_base  # the end wheels' sideways speed in the turn
     left_sliding = left - (speed - 0.5 * yaw_rate * effective_track)
     right_sliding = right - (speed + 0.5 * yaw_rate * effective_track)
-    scrub = scrub_coefficient(ground[MU_LAT], radius, track) * (
-        left_lever * sideways_share(end_scrub_speed, left_sliding)
-        + right_lever * sideways_share(end_scrub_speed, right_sliding)
-    )
+    if lateral_speed == 0.0:
+        scrub = scrub_coefficient(ground[MU_LAT], radius, track) * (
+            left_lever * sideways_share(end_scrub_speed, left_sliding)
+            + right_lever * sideways_share(end_scrub_speed, right_sliding)
+        )
+    else:
+        # Sliding: each end wheel's scrub within what the slide leaves of its friction (slide_share).
+        coefficient = scrub_coefficient(ground[MU_LAT], radius, track)
+        left_over = mu * math.sqrt(1.0 - slide_share(lateral_speed, end_scrub_speed) ** 2)
+        scrub = left_lever * min(coefficient * sideways_share(end_scrub_speed, left_sliding), left_over)
+        scrub += right_lever * min(coefficient * sideways_share(end_scrub_speed, right_sliding), left_over)
     turn_sign = 1.0 if yaw_cmd > 0.0 else (-1.0 if yaw_cmd < 0.0 else 0.0)
 
     # Steady state: the sides' forces that hold this speed and turn, and the ground speeds their slip gives.
@@ -321,6 +356,7 @@ def sideways_grip(
     yaw_rate: float,
     effective_track: float,
     lateral_speed: float,
+    half_wheelbase: float = 0.0,
 ) -> float:
     """The most sideways force the six wheels can hold the body with (N).
 
@@ -348,24 +384,97 @@ def sideways_grip(
     Its limits: the longitudinal force stays the one ``drive_forces`` gave it (it is not cut back to the
     sliding direction's share), so a wheel sliding obliquely has up to ``sqrt(2) mu N_i`` of friction in
     all; a locked rover whose wheels hold it along its heading while it slides sideways therefore slides
-    less than a block would (a locked-wheel body is a block: ``docs/physics.md``); and the yaw's own
-    sideways sliding of the end wheels is left out of the share (the body's ``lateral_speed`` is the same
-    at every wheel). A lifted wheel holds nothing.
+    less than a block would (a locked-wheel body is a block: ``docs/physics.md``); and the share's
+    sideways speed is the body's ``lateral_speed`` at every wheel. A lifted wheel holds nothing.
+
+    While the body slides, an end wheel (at ``+-half_wheelbase``) also scrubs sideways with the turn, at
+    ``|yaw_rate| half_wheelbase``: the slide has only its part ``slide_share`` of that wheel's sideways
+    friction, the scrub the rest (``drive_forces``), so a turn uses grip the slide needs. The default
+    ``half_wheelbase`` 0 leaves that out (every wheel at the middle axle).
     """
     grip = 0.0
-    sideways = abs(lateral_speed)
     for i in range(6):
-        limit = mu * normals[i]
-        if limit <= 0.0:
-            continue  # lifted
-        left_over = math.sqrt(max(limit * limit - forces[i] * forces[i], 0.0))
-        if sideways == 0.0:
-            grip += left_over  # share 0: the circle's rest (below the limit, the float it always was)
-            continue
-        side = 1.0 if i >= 3 else -1.0
-        sliding = wheels[i] - (speed + side * yaw_rate * 0.5 * effective_track)
-        grip += max(left_over, abs(forces[i]) * sideways / math.hypot(sideways, sliding))
+        grip += _wheel_sideways_grip(
+            i, normals, forces, mu, wheels, speed, yaw_rate, effective_track, lateral_speed, half_wheelbase
+        )
     return grip
+
+
+@numba.njit(cache=True)
+def _wheel_sideways_grip(
+    i: int,
+    normals: Array,
+    forces: Array,
+    mu: float,
+    wheels: Array,
+    speed: float,
+    yaw_rate: float,
+    effective_track: float,
+    lateral_speed: float,
+    half_wheelbase: float,
+) -> float:
+    """Wheel ``i``'s part of ``sideways_grip`` (N; its arguments, the law in its docstring)."""
+    limit = mu * normals[i]
+    if limit <= 0.0:
+        return 0.0  # lifted
+    left_over = math.sqrt(max(limit * limit - forces[i] * forces[i], 0.0))
+    sideways = abs(lateral_speed)
+    if sideways == 0.0:
+        return left_over  # share 0: the circle's rest (below the limit, the float it always was)
+    side = 1.0 if i >= 3 else -1.0
+    sliding = wheels[i] - (speed + side * yaw_rate * 0.5 * effective_track)
+    grip = max(left_over, abs(forces[i]) * sideways / math.hypot(sideways, sliding))
+    if i % 3 != 1:  # an end wheel (wheel order LF LM LR RF RM RR): the turn's scrub has the rest
+        grip *= slide_share(lateral_speed, yaw_rate * half_wheelbase)
+    return grip
+
+
+@numba.njit(cache=True)
+def slide_yaw_moment(
+    normals: Array,
+    forces: Array,
+    mu: float,
+    wheels: Array,
+    speed: float,
+    yaw_rate: float,
+    effective_track: float,
+    lateral_speed: float,
+    half_wheelbase: float,
+    friction_n: float,
+) -> float:
+    """The yaw moment (N m, counter-clockwise positive) of a sliding body's sideways friction.
+
+    ``friction_n`` (N, y left) is the sideways friction the Coulomb step applied (``sideways_speed``: all
+    of ``sideways_grip`` while the body keeps sliding, less on the step it stops); the other arguments are
+    ``sideways_grip``'s, as it was called for that step. Each wheel takes its part in proportion to its own
+    sideways grip (``_wheel_sideways_grip``) and applies it at its axle's x (front ``+half_wheelbase``,
+    middle 0, rear ``-half_wheelbase``): ``sum x_i F_y,i``. Gravity's cross-slope pull acts at the centre
+    of gravity (x = 0), so with equal axle loads the moment is 0; with unequal ones (pitch, a longitudinal
+    acceleration) the more loaded axle holds and the other slides ahead: a rover pitched nose-up across a
+    slope swings its nose downhill (Wong, *Theory of Ground Vehicles*, ch. 7: each contact's lateral
+    friction at its own lever).
+
+    The direction: every wheel's part opposes the body's slide ``v_y`` (the friction applied), and an end
+    wheel's part is its ``slide_share`` of its friction: the rest of its sideways sliding, ``w x_i``, is
+    the turn's, and its friction there is the scrub's (``drive_forces``). So the end wheels' own sideways
+    speed ``v_y + w x_i`` splits each one's friction between this moment and the scrub, rather than setting
+    its sign (see ``slide_share``).
+    """
+    total = 0.0
+    lever = 0.0
+    for i in range(6):
+        grip = _wheel_sideways_grip(
+            i, normals, forces, mu, wheels, speed, yaw_rate, effective_track, lateral_speed, half_wheelbase
+        )
+        total += grip
+        axle = i % 3  # wheel order LF LM LR RF RM RR: 0 front, 1 middle, 2 rear
+        if axle == 0:
+            lever += half_wheelbase * grip
+        elif axle == 2:
+            lever -= half_wheelbase * grip
+    if total <= 0.0:
+        return 0.0
+    return friction_n * lever / total
 
 
 @numba.njit(cache=True)
