@@ -26,8 +26,11 @@ The model, per step of ``dt`` (semi-implicit Euler, no randomness):
   what its longitudinal pull ``F_i`` uses (``hil.traction.sideways_grip``). Within that the sideways speed
   stays exactly 0; past it the body slides, the friction opposing the sliding until it stops (never
   reversing it). Parked across a slope steeper than ``atan μ`` it slides downhill at ``g (sin φ − μ cos φ)``.
-  Horizontal displacement is ``v cos(pitch) dt`` along the heading plus the sideways speed along the
-  body's y axis.
+  While it slides, each wheel's part of that friction acts at its axle and turns the body by
+  ``sum x_i F_y,i`` (``hil.traction.slide_yaw_moment``: with the rear axle loaded, nose up across a slope,
+  the nose swings downhill), and an end wheel's friction is shared between the slide and the turn's scrub
+  (``hil.traction.slide_share``). Horizontal displacement is ``v cos(pitch) dt`` along the heading plus the
+  sideways speed along the body's y axis.
 * Rollover when a stability margin (``navigator.vehicle.tilt_margins``: the tilt of the step's specific
   force, with the body's sideways acceleration, the turn's ``v ω`` and any sliding's change, and its
   acceleration along the heading) goes negative, or when an obstacle stops a slide at the critical sliding

@@ -26,6 +26,9 @@ The laws (parameters per class in ``navigator.terrain_classes``, sources in docs
   their longitudinal pull, ``sqrt((mu N_i)^2 - F_i^2)`` each; a wheel at its friction limit (spinning, or
   locked and sliding) resists sideways by the sideways part of its contact's sliding velocity,
   ``mu N_i share_i``; Coulomb friction, as the scrub's.
+* A sliding body's yaw (``slide_yaw_moment``, ``slide_share``): the slide's friction acts at each wheel's
+  axle, ``sum x_i F_y,i``, and an end wheel's friction is shared between the slide and the turn's scrub in
+  proportion to their sideways speeds at its contact.
 
 ``drive_forces`` turns these into one step of the body's motion (see ``hil.dynamics``): the body is pulled
 toward the ground speeds the wheel speeds give once the curve's steady-state slip is taken off, within the
@@ -285,9 +288,10 @@ def drive_forces(
             + right_lever * sideways_share(end_scrub_speed, right_sliding)
         )
     else:
-        # Sliding: each end wheel's scrub within what the slide leaves of its friction (slide_share).
+        # Sliding: each end wheel's scrub within what the slide leaves of its friction, the turn's part of
+        # its sideways sliding, sqrt(1 - slide_share^2) (written so, it keeps its digits when that is small).
         coefficient = scrub_coefficient(ground[MU_LAT], radius, track)
-        left_over = mu * math.sqrt(1.0 - slide_share(lateral_speed, end_scrub_speed) ** 2)
+        left_over = mu * end_scrub_speed / math.hypot(lateral_speed, end_scrub_speed)
         scrub = left_lever * min(coefficient * sideways_share(end_scrub_speed, left_sliding), left_over)
         scrub += right_lever * min(coefficient * sideways_share(end_scrub_speed, right_sliding), left_over)
     turn_sign = 1.0 if yaw_cmd > 0.0 else (-1.0 if yaw_cmd < 0.0 else 0.0)
