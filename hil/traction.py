@@ -239,8 +239,8 @@ def drive_forces(
     ``mu N_i |w x_i| / hypot(v_y, w x_i)`` (``slide_share``), so a turn on the spot while sliding meets
     ``sum N_i |x_i| min(mu_t' share_i, mu |w x_i| / hypot(v_y, w x_i))``: less than on the level with the
     same loads, and none with no turn (a sliding contact has no static friction to hold the heading). The
-    cap is on ``mu N_i``, not on what the wheel's pull leaves: the scrub does not share with the
-    longitudinal force (Wong's ``mu_t`` is measured on driven tracks), as before.
+    cap is on ``mu N_i``, not on what the wheel's pull leaves: the scrub has never shared with the
+    longitudinal force in this model, and still does not.
     """
     mass, inertia, track, effective_track = vehicle[0], vehicle[1], vehicle[2], vehicle[3]
     half_base, reference_load, cap = vehicle[4], vehicle[5], vehicle[6]
