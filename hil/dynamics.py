@@ -50,10 +50,13 @@ The model, per step of ``dt`` (semi-implicit Euler, no randomness):
   battery current floor; past it the rest is lost and the braking force kept). Slip: from the
   curve while a wheel pulls below its traction limit, from its surface and ground speeds once it spins or
   slides (or is held at zero pull by the sign of its slip).
-* Seized wheels (``stalled``, the simulated VESCs' stuck fault): the wheel is locked (surface speed 0, on
-  the ground as any wheel slower than its side), while its motor, commanded to turn, is stalled against
-  the lock: its controller drives it at the current limit (signed as the command), duty ``I R / V`` (no
-  back-EMF), and it burns ``I² R`` from the pack.
+* Seized wheels (``stalled``, the simulated VESCs' stuck fault): the wheel is locked (surface speed 0), so
+  while the rover moves it skids: full slip, dragging ``μ N`` against its motion over the ground (its lock
+  holds it, not its motor: no current limit on that), and its side's other wheels pull that on top of
+  their share, slipping more, so the rover slows and turns toward it (``hil.traction``: a wheel turning
+  apart from its side). Its motor, commanded to turn, is stalled against the lock: its controller drives
+  it at the current limit (signed as the command), duty ``I R / V`` (no back-EMF), and it burns ``I² R``
+  from the pack; the drag costs the motor nothing.
 
 Body axes: x forward, y left, z up; pitch positive nose up, roll positive when the right side is lower.
 """

@@ -362,7 +362,7 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
             values[LATERAL], normals,
         )  # fmt: skip
         accel, yaw_rate = drive_forces(
-            wheels, normals, ground, body[VEHICLE:MOTOR], speed0, yaw_rate0, pitch, dt, traction,
+            wheels, normals, ground, body[VEHICLE:MOTOR], speed0, yaw_rate0, pitch, dt, stalled, traction,
             lateral_speed0,
         )  # fmt: skip
 
@@ -506,6 +506,7 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
             ground,
             body[MOTOR:MOTOR_END],
             battery_voltage,
+            stalled,
             slip,
             currents,
             duty,

@@ -19,7 +19,11 @@ The laws (parameters per class in ``navigator.terrain_classes``, sources in docs
   little sideways, which is how a skid-steer still turns on slippery ground.
 * Sharing a side's force: the wheels on one side roll over the same ground speed, so at equal wheel speeds
   they slip alike and pull in proportion to their load, each at most ``mu N_i`` and at most the force its
-  motor's current limit gives; a wheel at its current limit pulls less and the others take the rest.
+  motor's current limit gives; a wheel at its current limit pulls less and the others take the rest. A
+  wheel turning apart from its side (a seized one while the others drive) has a slip of its own; where it
+  opposes the side's force it drags at the curve's force for that slip (a locked wheel on a moving rover:
+  ``mu N_i`` against its motion over the ground, Wong ch. 1) and the others share the side's force plus
+  that drag.
 
 * Sideways grip (``sideways_grip``, ``sideways_speed``): the body slides sideways when gravity's
   cross-slope part and the turn's centripetal need exceed what the wheels' friction circles leave after
@@ -178,20 +182,145 @@ def _wheel_caps(
     speed: float,
     yaw_rate: float,
     effective_track: float,
-    cap: float,
+    caps: Array,
     out_forward: Array,
     out_backward: Array,
 ) -> None:
-    """The most each wheel can pull forward and backward (N, magnitudes): its motor's cap (``mu N`` is
-    applied in the sharing), and nothing against the sign of its slip. The traction curve's force has the
-    sign of the slip, so a wheel turning slower than the ground under it brakes and never pulls forward,
-    and one turning faster never brakes; within ``SLIP_SIGN_EPS_MPS`` of the ground it holds either way
-    (static friction)."""
+    """The most each wheel can pull forward and backward (N, magnitudes): its cap in ``caps`` (its motor's,
+    or inf for a locked wheel, which its lock holds; ``mu N`` is applied in the sharing), and nothing
+    against the sign of its slip. The traction curve's force has the sign of the slip, so a wheel turning
+    slower than the ground under it brakes and never pulls forward, and one turning faster never brakes;
+    within ``SLIP_SIGN_EPS_MPS`` of the ground it holds either way (static friction). A 0 marks a wheel
+    whose slip opposes that direction: it gives nothing that way, or its own drag (``_own_slip_forces``)."""
     for i in range(6):
         side = 1.0 if i >= 3 else -1.0
         sliding = wheels[i] - (speed + side * 0.5 * yaw_rate * effective_track)
-        out_forward[i] = cap if sliding > -SLIP_SIGN_EPS_MPS else 0.0
-        out_backward[i] = cap if sliding < SLIP_SIGN_EPS_MPS else 0.0
+        out_forward[i] = caps[i] if sliding > -SLIP_SIGN_EPS_MPS else 0.0
+        out_backward[i] = caps[i] if sliding < SLIP_SIGN_EPS_MPS else 0.0
+
+
+@numba.njit(cache=True)
+def _median3(a: float, b: float, c: float) -> float:
+    """The middle one of three numbers."""
+    return max(min(a, b), min(max(a, b), c))
+
+
+@numba.njit(cache=True)
+def _own_slip_forces(
+    wheels: Array,
+    normals: Array,
+    speed: float,
+    yaw_rate: float,
+    effective_track: float,
+    mu: float,
+    slip_constant: float,
+    caps: Array,
+    locked: Array,
+    out: Array,
+) -> None:
+    """The force (N, signed as its slip) at which a wheel turning apart from its side drags where its slip
+    opposes its side's force: the traction curve's for its own slip. 0 for the others, and for a wheel
+    within ``SLIP_SIGN_EPS_MPS`` of the ground under it.
+
+    A side's wheels turn alike and slip alike, so they share its force (``_share_side``) and approach the
+    steady slip within the drive's time constant. A wheel turning apart from them has a slip of its own,
+    its surface and ground speeds', ``(u - v) / max(|u|, |v|, SLIP_SPEED_EPS_MPS)``, and where that
+    opposes the side's force it is not one of the wheels that give it: it drags at ``traction_ratio(slip)
+    N``. Apart: a ``locked`` (seized) wheel on a side with a turning one; on a side with none locked, or all,
+    a wheel not at the side's median surface speed (a controller rebooting, its wheel slowing). A locked
+    wheel on a moving rover slides at full slip and drags ``mu N`` against its motion over the ground
+    (Wong, *Theory of Ground Vehicles*, ch. 1: a locked, skidding tyre at 100 % slip), falling smoothly to
+    0 as the rover stops (below ``SLIP_SPEED_EPS_MPS`` the slip falls with the ground speed; at
+    ``SLIP_SIGN_EPS_MPS``, below which a wheel holds either way and shares, the force is 3e-4 of the load
+    on firm ground, less on the others). A turning wheel's motor holds it, so at most its cap in
+    ``caps``; a locked wheel's lock holds it (cap inf). A side of three locked wheels shares its force as
+    any side whose wheels turn alike (and so stops smoothly)."""
+    for first in (0, 3):
+        seized = (locked[first] != 0.0) + (locked[first + 1] != 0.0) + (locked[first + 2] != 0.0)
+        side_speed = _median3(wheels[first], wheels[first + 1], wheels[first + 2])
+        side = 1.0 if first else -1.0
+        ground_speed = speed + side * 0.5 * yaw_rate * effective_track
+        for i in range(first, first + 3):
+            apart = locked[i] != 0.0 if 0 < seized < 3 else wheels[i] != side_speed
+            sliding = wheels[i] - ground_speed
+            if not apart or abs(sliding) < SLIP_SIGN_EPS_MPS:
+                out[i] = 0.0
+                continue
+            scale = max(abs(wheels[i]), abs(ground_speed), SLIP_SPEED_EPS_MPS)
+            slip = max(-1.0, min(1.0, sliding / scale))
+            force = traction_ratio(slip, mu, slip_constant) * normals[i]
+            out[i] = max(-caps[i], min(caps[i], force))
+
+
+@numba.njit(cache=True)
+def _side_drags(first: int, forward_caps: Array, backward_caps: Array, drags: Array) -> tuple[float, float]:
+    """The drag (N) of the side's wheels from ``first`` that turn apart from it (``_own_slip_forces``) and
+    whose slip opposes a forward force (<= 0: slower than the ground), and a backward one (>= 0)."""
+    forward = backward = 0.0
+    for k in range(first, first + 3):
+        if forward_caps[k] == 0.0:
+            forward += drags[k]
+        if backward_caps[k] == 0.0:
+            backward += drags[k]
+    return forward, backward
+
+
+@numba.njit(cache=True)
+def _drags_forward(force: float, forward_drag: float, backward_drag: float) -> bool:
+    """Whether a side gives ``force`` (N) with its sharing wheels pulling forward, its wheels slower than
+    the ground and turning apart from it dragging at ``forward_drag`` (<= 0); else with them braking, the
+    faster ones dragging at ``backward_drag`` (>= 0).
+
+    Either way can give a force between the two drags (forward: the sharing wheels pull less than the drag;
+    backward: they brake less than the other one); there the larger drag is the one kept, as the wheel
+    turning apart is the one with a slip of its own: a seized wheel's ``mu N`` whether its side gives a
+    little forward or a little backward, and driving in reverse the same. With no drag: forward for
+    ``force >= 0``, as before drags were modelled."""
+    if -forward_drag >= backward_drag:
+        return force >= forward_drag
+    return force > backward_drag
+
+
+@numba.njit(cache=True)
+def _dragging_limits(
+    forward: float, backward: float, forward_drag: float, backward_drag: float
+) -> tuple[float, float]:
+    """A side's most forward and most backward force (N, magnitudes; the backward one may be < 0: the side
+    must pull), from what its sharing wheels can give each way (``forward``, ``backward``) and the drags
+    of its wheels turning apart (``_side_drags``), for the choice ``_drags_forward`` makes: forward, the
+    side gives ``forward_drag`` plus its sharing wheels' pull; backward, ``backward_drag`` less their
+    braking."""
+    most = forward_drag + forward
+    least = backward_drag - backward
+    if -forward_drag >= backward_drag:
+        return most, -min(least, forward_drag)
+    return max(most, backward_drag), -least
+
+
+@numba.njit(cache=True)
+def _share_side_dragging(
+    force: float,
+    side_drags: tuple[float, float],
+    loads: Array,
+    first: int,
+    mu: float,
+    forward_caps: Array,
+    backward_caps: Array,
+    drags: Array,
+    out: Array,
+) -> None:
+    """``_share_side`` with the side's wheels that turn apart from it and whose slip opposes the way it
+    gives ``force`` (``_drags_forward``) at their own slip's force (``drags``; ``side_drags`` the side's
+    sums, ``_side_drags``): they give that, and the rest share ``force`` less it, which keeps that way's
+    sign. Writes ``out``."""
+    forward_drag, backward_drag = side_drags
+    forward = _drags_forward(force, forward_drag, backward_drag)
+    caps = forward_caps if forward else backward_caps
+    dragging = forward_drag if forward else backward_drag
+    _share_side(force - dragging, loads, first, mu, forward_caps, backward_caps, out)
+    for k in range(first, first + 3):
+        if caps[k] == 0.0 and drags[k] != 0.0:
+            out[k] = drags[k]
 
 
 @numba.njit(cache=True)
@@ -201,7 +330,8 @@ def _side_ground_speed(
     """Ground speed a side's wheels at ``surface`` m/s settle at while transmitting ``force`` (N).
 
     In the steady state the slip has the force's sign by construction, so only the motor cap bounds it:
-    ``caps`` holds it for every wheel; ``scratch`` (six) takes the split, which is not kept."""
+    ``caps`` holds it for every wheel (inf for a locked one); ``scratch`` (six) takes the split, which is
+    not kept. A side with a wheel dragging: ``_dragging_ground_speed``."""
     ratio = _share_side(force, loads, first, mu, caps, caps, scratch)
     if ratio >= mu:
         return surface  # cannot hold it: the wheels spin; the force limit, not slip, sets the motion
@@ -214,6 +344,44 @@ def _side_ground_speed(
 
 
 @numba.njit(cache=True)
+def _dragging_ground_speed(
+    force: float,
+    side_drags: tuple[float, float],
+    wheels: Array,
+    loads: Array,
+    first: int,
+    mu: float,
+    k: float,
+    caps: Array,
+    forward_caps: Array,
+    backward_caps: Array,
+    drags: Array,
+    sharing_caps: Array,
+    scratch: Array,
+) -> float:
+    """``_side_ground_speed`` of a side with a wheel turning apart from it that drags now
+    (``_share_side_dragging``, ``side_drags`` not both 0), such as a seized wheel while the others drive.
+
+    It stays so in the steady state: the side's other wheels carry ``force`` less its drag, and they, not
+    the dragging wheel (it slides), set the ground speed, at their mean surface speed (there is one: a
+    wheel turns apart from others). ``sharing_caps`` (six) takes ``caps`` with 0 for the dragging wheels."""
+    forward_drag, backward_drag = side_drags
+    forward = _drags_forward(force, forward_drag, backward_drag)
+    direction = forward_caps if forward else backward_caps
+    sharing = 0
+    surface = 0.0
+    for j in range(first, first + 3):
+        dragging = direction[j] == 0.0 and drags[j] != 0.0
+        sharing_caps[j] = 0.0 if dragging else caps[j]
+        if not dragging:
+            sharing += 1
+            surface += wheels[j]
+    surface /= sharing
+    sharing_force = force - (forward_drag if forward else backward_drag)  # keeps its sign: _drags_forward
+    return _side_ground_speed(surface, sharing_force, loads, first, mu, k, sharing_caps, scratch)
+
+
+@numba.njit(cache=True)
 def drive_forces(
     wheels: Array,
     normals: Array,
@@ -223,6 +391,7 @@ def drive_forces(
     yaw_rate: float,
     pitch: float,
     dt: float,
+    locked: Array,
     out_forces: Array,
     lateral_speed: float = 0.0,
 ) -> tuple[float, float]:
@@ -232,7 +401,10 @@ def drive_forces(
     [mu, slip_constant, crr, sinkage_resistance, sinkage_exponent, lateral_resistance].
     ``vehicle`` = [mass kg, yaw inertia kg m^2, track m, effective track m, half wheelbase m,
     reference wheel load N, per-wheel force cap N (motor current limit), drive tau s, yaw tau s].
-    Writes each wheel's drive force (N, forward positive) into ``out_forces``.
+    ``locked``: per wheel, nonzero for a seized one (its lock, not its motor, holds it: no motor cap).
+    Writes each wheel's drive force (N, forward positive) into ``out_forces``: a wheel turning apart from
+    its side whose slip opposes the side's force (a seized wheel while the others drive) at the curve's
+    force for its own slip, the rest of the side sharing the side's force plus that drag.
 
     ``lateral_speed``: the body's sideways speed (m/s, y left). While it slides (not 0) the scrub shares
     each end wheel's friction with the slide: it is at most what the slide leaves of ``mu N_i``,
@@ -300,21 +472,39 @@ def drive_forces(
     hold_force = -gravity_along - resist_total
     hold_moment = turn_sign * scrub - resist_moment
     # One scratch allocation per step for every per-wheel vector below (slices are views).
-    work = np.empty(24)
+    work = np.empty(36)
     motor_caps, scratch, forward_caps, backward_caps = work[0:6], work[6:12], work[12:18], work[18:24]
-    motor_caps[:] = cap
-    left_ground = _side_ground_speed(
-        left, 0.5 * hold_force - hold_moment / track, normals, 0, mu, slip_k, motor_caps, scratch
-    )
-    right_ground = _side_ground_speed(
-        right, 0.5 * hold_force + hold_moment / track, normals, 3, mu, slip_k, motor_caps, scratch
-    )
+    drags, sharing_caps = work[24:30], work[30:36]
+    for i in range(6):
+        motor_caps[i] = math.inf if locked[i] != 0.0 else cap  # a locked wheel: its lock holds it
+    # Which way each wheel's slip lets it pull, and how a wheel turning apart from its side (a seized one
+    # while the others drive) drags where its slip opposes its side's force: the steady state counts it.
+    _wheel_caps(wheels, speed, yaw_rate, effective_track, motor_caps, forward_caps, backward_caps)
+    _own_slip_forces(wheels, normals, speed, yaw_rate, effective_track, mu, slip_k, motor_caps, locked, drags)
+    left_drags = _side_drags(0, forward_caps, backward_caps, drags)
+    right_drags = _side_drags(3, forward_caps, backward_caps, drags)
+    left_dragging = left_drags[0] != 0.0 or left_drags[1] != 0.0
+    right_dragging = right_drags[0] != 0.0 or right_drags[1] != 0.0
+    left_hold, right_hold = 0.5 * hold_force - hold_moment / track, 0.5 * hold_force + hold_moment / track
+    if left_dragging:
+        left_ground = _dragging_ground_speed(
+            left_hold, left_drags, wheels, normals, 0, mu, slip_k, motor_caps, forward_caps,
+            backward_caps, drags, sharing_caps, scratch,
+        )  # fmt: skip
+    else:
+        left_ground = _side_ground_speed(left, left_hold, normals, 0, mu, slip_k, motor_caps, scratch)
+    if right_dragging:
+        right_ground = _dragging_ground_speed(
+            right_hold, right_drags, wheels, normals, 3, mu, slip_k, motor_caps, forward_caps,
+            backward_caps, drags, sharing_caps, scratch,
+        )  # fmt: skip
+    else:
+        right_ground = _side_ground_speed(right, right_hold, normals, 3, mu, slip_k, motor_caps, scratch)
     v_target = 0.5 * (left_ground + right_ground)
     yaw_target = (right_ground - left_ground) / effective_track
 
     # Longitudinal: toward the target within tau, as far as the sides' traction and current limits and the
     # sign of each wheel's slip allow (a wheel slower than the ground brakes, one faster pulls).
-    _wheel_caps(wheels, speed, yaw_rate, effective_track, cap, forward_caps, backward_caps)
     left_forward = left_backward = right_forward = right_backward = 0.0
     for i in range(6):
         grip = mu * normals[i]
@@ -324,6 +514,11 @@ def drive_forces(
         else:
             right_forward += min(grip, forward_caps[i])
             right_backward += min(grip, backward_caps[i])
+    # A dragging wheel takes from what its side can give that way, and through the track makes a moment.
+    if left_dragging:
+        left_forward, left_backward = _dragging_limits(left_forward, left_backward, *left_drags)
+    if right_dragging:
+        right_forward, right_backward = _dragging_limits(right_forward, right_backward, *right_drags)
     required = mass * (v_target - speed) / tau_drive - gravity_along - resist_total
     drive = max(-(left_backward + right_backward), min(left_forward + right_forward, required))
     accel = (drive + gravity_along + resist_total) / mass
@@ -345,8 +540,19 @@ def drive_forces(
     else:
         new_yaw_rate = free_yaw_rate + scrub_change
 
-    _share_side(0.5 * drive - moment / track, normals, 0, mu, forward_caps, backward_caps, out_forces)
-    _share_side(0.5 * drive + moment / track, normals, 3, mu, forward_caps, backward_caps, out_forces)
+    left_force, right_force = 0.5 * drive - moment / track, 0.5 * drive + moment / track
+    if left_dragging:
+        _share_side_dragging(
+            left_force, left_drags, normals, 0, mu, forward_caps, backward_caps, drags, out_forces
+        )
+    else:
+        _share_side(left_force, normals, 0, mu, forward_caps, backward_caps, out_forces)
+    if right_dragging:
+        _share_side_dragging(
+            right_force, right_drags, normals, 3, mu, forward_caps, backward_caps, drags, out_forces
+        )
+    else:
+        _share_side(right_force, normals, 3, mu, forward_caps, backward_caps, out_forces)
     return accel, new_yaw_rate
 
 
@@ -511,6 +717,7 @@ def wheel_outputs(
     ground: Array,
     motor: Array,
     battery_voltage: float,
+    locked: Array,
     out_slip: Array,
     out_current: Array,
     out_duty: Array,
@@ -525,6 +732,12 @@ def wheel_outputs(
     ``k_t omega I + I^2 R < 0``) gives it back to the pack, as a VESC does, up to its controller's
     regeneration limit (its battery current floor, ``l_in_current_min``: at most ``limit x V`` W back; 0:
     none); past the limit the rest is lost, the braking force kept.
+
+    A wheel dragging at its own slip's force (``_own_slip_forces``) is on the curve as well: the curve
+    gives its slip back. A ``locked`` wheel (nonzero: seized) slips as its speeds say, -1 / +1 while the
+    rover moves over it at ``SLIP_SPEED_EPS_MPS`` or more, whatever force it has; its lock, not its motor,
+    takes that force, so it gives its motor no current, duty or power here (``out_current`` /
+    ``out_duty`` are left as they are: the caller sets the stall's, ``hil.dynamics_kernel._stall``).
     """
     radius, gear, k_t, resistance, effective_track = motor[0], motor[1], motor[2], motor[3], motor[4]
     regen_floor_w = -motor[5] * battery_voltage
@@ -536,11 +749,14 @@ def wheel_outputs(
         sliding = wheels[i] - ground_speed
         # A wheel held at zero pull by the sign of its slip (see _wheel_caps) is not on the curve either.
         held_off = forces[i] == 0.0 and abs(sliding) >= SLIP_SIGN_EPS_MPS
-        if normals[i] > 0.0 and abs(forces[i]) < mu * normals[i] * (1.0 - 1e-9) and not held_off:
+        on_curve = normals[i] > 0.0 and abs(forces[i]) < mu * normals[i] * (1.0 - 1e-9)
+        if on_curve and not held_off and locked[i] == 0.0:
             out_slip[i] = slip_for_ratio(forces[i] / normals[i], mu, slip_k)
         else:
             scale = max(abs(wheels[i]), abs(ground_speed), SLIP_SPEED_EPS_MPS)
             out_slip[i] = max(-1.0, min(1.0, sliding / scale))
+        if locked[i] != 0.0:
+            continue
         current = forces[i] * radius / (gear * k_t)
         back_emf = k_t * wheels[i] / radius * gear
         out_current[i] = current
