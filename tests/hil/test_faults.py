@@ -145,7 +145,13 @@ def test_controller_reboot_is_silent_then_starts_fresh():
     assert abs(last[2]["tachometer"]) < 0.8 * abs(last[1]["tachometer"])
 
 
-def test_stuck_wheel_does_not_turn_and_its_motor_stalls_at_the_current_limit():
+def mean_current(run: WorldRun, wheel: int, start_s: float = 2.0, end_s: float = 3.0) -> float:
+    """The motor current a wheel's controller reported, on average over the window (A)."""
+    status = run.on("wheels/status", start_s, end_s)
+    return sum(m["wheels"][wheel]["motor_current_a"] for m in status) / len(status)
+
+
+def test_stuck_wheel_does_not_turn_and_its_motor_stalls_at_the_current_limit(baseline):
     run = run_world(fault("vesc", "stuck", controller=4))
     inside = run.on("wheels/status", 1.5, 3.0)
     assert inside and all(m["wheels"][4]["erpm"] == 0 for m in inside)
@@ -159,6 +165,14 @@ def test_stuck_wheel_does_not_turn_and_its_motor_stalls_at_the_current_limit():
     assert all(w["input_current_a"] >= 0.3 for w in stalled[5:])  # STATUS_4 at 10 Hz: from its first one
     truth = run.on("truth/wheels", 1.5, 3.0)
     assert all(m["wheels"][4]["current_a"] == pytest.approx(limit) for m in truth)
+    # It skids against the ground (mu N against the rover's motion): the other wheels of its side pull that
+    # on top of the rolling resistance, so their controllers report several times the current they draw
+    # without the fault, and more than the other side's; its moment turns the rover toward it (right).
+    for wheel in (3, 5):
+        assert mean_current(run, wheel) > 3.0 * mean_current(baseline, wheel)
+        assert mean_current(run, wheel) > max(mean_current(run, other) for other in (0, 1, 2))
+    heading, base_heading = (r.on("truth/pose", 2.95, 3.0)[-1]["yaw_rad"] for r in (run, baseline))
+    assert heading < base_heading - 0.01
     # Free again after the fault: turning, at a driving current below the limit.
     after = run.on("wheels/status", 3.5, 4.0)
     assert after and all(m["wheels"][4]["erpm"] > 100 for m in after)
