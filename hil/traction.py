@@ -216,6 +216,7 @@ def _own_slip_forces(
     slip_constant: float,
     caps: Array,
     locked: Array,
+    stop_gain: float,
     out: Array,
 ) -> None:
     """The force (N, signed as its slip) at which a wheel turning apart from its side drags where its slip
@@ -234,7 +235,14 @@ def _own_slip_forces(
     ``SLIP_SIGN_EPS_MPS``, below which a wheel holds either way and shares, the force is 3e-4 of the load
     on firm ground, less on the others). A turning wheel's motor holds it, so at most its cap in
     ``caps``; a locked wheel's lock holds it (cap inf). A side of three locked wheels shares its force as
-    any side whose wheels turn alike (and so stops smoothly)."""
+    any side whose wheels turn alike (and so stops smoothly).
+
+    And at most ``stop_gain`` (N per m/s) times its sliding speed: half the force that would stop the
+    contact's sliding in one step (``drive_forces``: its effective mass / 2 dt). Coulomb friction stepped
+    explicitly reverses the sliding it opposes where the curve is steep (on firm ground it reaches
+    ``mu N`` by about 1 cm/s of sliding under a locked wheel): a rover pivoting about a seized wheel, its
+    contact near rest, had the drag flip between ``+-mu N`` every step. Above 4.4 cm/s of sliding (firm
+    ground, the default rover, 10 ms steps) the bound is above ``mu N`` and the curve's force is the drag."""
     for first in (0, 3):
         seized = (locked[first] != 0.0) + (locked[first + 1] != 0.0) + (locked[first + 2] != 0.0)
         side_speed = _median3(wheels[first], wheels[first + 1], wheels[first + 2])
@@ -249,7 +257,8 @@ def _own_slip_forces(
             scale = max(abs(wheels[i]), abs(ground_speed), SLIP_SPEED_EPS_MPS)
             slip = max(-1.0, min(1.0, sliding / scale))
             force = traction_ratio(slip, mu, slip_constant) * normals[i]
-            out[i] = max(-caps[i], min(caps[i], force))
+            limit = min(caps[i], stop_gain * abs(sliding))
+            out[i] = max(-limit, min(limit, force))
 
 
 @numba.njit(cache=True)
@@ -480,7 +489,12 @@ def drive_forces(
     # Which way each wheel's slip lets it pull, and how a wheel turning apart from its side (a seized one
     # while the others drive) drags where its slip opposes its side's force: the steady state counts it.
     _wheel_caps(wheels, speed, yaw_rate, effective_track, motor_caps, forward_caps, backward_caps)
-    _own_slip_forces(wheels, normals, speed, yaw_rate, effective_track, mu, slip_k, motor_caps, locked, drags)
+    # A drag's lever is half the track: its contact moves as a mass of m I / (I + m (track / 2)^2); half
+    # of what stops it in a step, as the body answers a side's changed limit through the yaw as well.
+    stop_gain = 0.5 * mass * inertia / (inertia + mass * (0.5 * track) ** 2) / dt
+    _own_slip_forces(
+        wheels, normals, speed, yaw_rate, effective_track, mu, slip_k, motor_caps, locked, stop_gain, drags
+    )
     left_drags = _side_drags(0, forward_caps, backward_caps, drags)
     right_drags = _side_drags(3, forward_caps, backward_caps, drags)
     left_dragging = left_drags[0] != 0.0 or left_drags[1] != 0.0

@@ -155,11 +155,14 @@ def test_two_seized_wheels_on_a_side_both_drag_and_turn_the_rover_harder():
 
 def test_the_drag_falls_smoothly_to_zero_as_the_rover_stops_over_a_locked_wheel():
     """A locked wheel's drag is the curve's force for its own slip, -v / max(v, SLIP_SPEED_EPS_MPS): mu N
-    at full slip, and toward 0 with the ground speed below SLIP_SPEED_EPS_MPS (no jump)."""
+    at full slip, and toward 0 with the ground speed below SLIP_SPEED_EPS_MPS (no jump); and near rest no
+    more than half what stops its contact in a step (explicit Coulomb friction would chatter)."""
     body = RoverDynamics(plane(), PARAMS, x=25.0, y=25.0, yaw=0.0)
     ground = body._ground_table[FIRM]
     vehicle = body._body[k.VEHICLE : k.MOTOR]
     mu, slip_constant = ground[0], ground[1]
+    mass, inertia, track = vehicle[0], vehicle[1], vehicle[2]
+    stop_gain = 0.5 * mass * inertia / (inertia + mass * (0.5 * track) ** 2) / DT
     normals = np.full(6, 73.5)
     wheels = np.array([0.0, 0.3, 0.3, 0.3, 0.3, 0.3])
     drags = []
@@ -167,9 +170,11 @@ def test_the_drag_falls_smoothly_to_zero_as_the_rover_stops_over_a_locked_wheel(
         out = np.zeros(6)
         drive_forces(wheels, normals, ground, vehicle, speed, 0.0, 0.0, DT, np.array(LF_SEIZED), out)
         slip = -speed / max(speed, SLIP_SPEED_EPS_MPS)
-        assert out[0] == pytest.approx(traction_ratio(slip, mu, slip_constant) * 73.5, rel=1e-12)
+        curve = -traction_ratio(slip, mu, slip_constant) * 73.5
+        assert -out[0] == pytest.approx(min(curve, stop_gain * speed), rel=1e-12)
         drags.append(-out[0])
-    assert drags[0] < 0.005 * 73.5  # 10 um/s over a locked wheel: 3e-3 of its load
+    assert drags[0] < 0.001 * 73.5  # 10 um/s over a locked wheel: 2e-4 of its load
+    assert drags[3] < 0.5 * mu * 73.5 < drags[4]  # the stop bound below 1 cm/s of sliding, the curve above
     assert all(a < b for a, b in itertools.pairwise(drags[:-1]))
     assert drags[-2] == drags[-1] == pytest.approx(mu * 73.5, rel=1e-12)
 
