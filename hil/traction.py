@@ -200,12 +200,6 @@ def _wheel_caps(
 
 
 @numba.njit(cache=True)
-def _median3(a: float, b: float, c: float) -> float:
-    """The middle one of three numbers."""
-    return max(min(a, b), min(max(a, b), c))
-
-
-@numba.njit(cache=True)
 def _own_slip_forces(
     wheels: Array,
     normals: Array,
@@ -227,8 +221,9 @@ def _own_slip_forces(
     steady slip within the drive's time constant. A wheel turning apart from them has a slip of its own,
     its surface and ground speeds', ``(u - v) / max(|u|, |v|, SLIP_SPEED_EPS_MPS)``, and where that
     opposes the side's force it is not one of the wheels that give it: it drags at ``traction_ratio(slip)
-    N``. Apart: a ``locked`` (seized) wheel on a side with a turning one; on a side with none locked, or all,
-    a wheel not at the side's median surface speed (a controller rebooting, its wheel slowing). A locked
+    N``. Apart: a ``locked`` (seized) wheel on a side with a turning one. Only a seized wheel: a wheel whose
+    controller let go of it (rebooting, or past its command timeout) rolls free in a real VESC, while the
+    simulated one slows it to 0, so one turning apart for that reason gives nothing, as before. A locked
     wheel on a moving rover slides at full slip and drags ``mu N`` against its motion over the ground
     (Wong, *Theory of Ground Vehicles*, ch. 1: a locked, skidding tyre at 100 % slip), falling smoothly to
     0 as the rover stops (below ``SLIP_SPEED_EPS_MPS`` the slip falls with the ground speed; at
@@ -245,11 +240,10 @@ def _own_slip_forces(
     ground, the default rover, 10 ms steps) the bound is above ``mu N`` and the curve's force is the drag."""
     for first in (0, 3):
         seized = (locked[first] != 0.0) + (locked[first + 1] != 0.0) + (locked[first + 2] != 0.0)
-        side_speed = _median3(wheels[first], wheels[first + 1], wheels[first + 2])
         side = 1.0 if first else -1.0
         ground_speed = speed + side * 0.5 * yaw_rate * effective_track
         for i in range(first, first + 3):
-            apart = locked[i] != 0.0 if 0 < seized < 3 else wheels[i] != side_speed
+            apart = locked[i] != 0.0 and seized < 3
             sliding = wheels[i] - ground_speed
             if not apart or abs(sliding) < SLIP_SIGN_EPS_MPS:
                 out[i] = 0.0

@@ -124,7 +124,7 @@ def test_a_turn_on_the_spot_while_sliding_meets_less_scrub(lateral, weaker):
 
     def scrub_moment(lateral_speed: float) -> float:
         _, new_yaw_rate = drive_forces(
-            wheels, normals, ground_vector, vehicle, 0.0, w, 0.0, DT, np.empty(6), lateral_speed
+            wheels, normals, ground_vector, vehicle, 0.0, w, 0.0, DT, np.zeros(6), np.empty(6), lateral_speed
         )
         free = w * (1.0 - DT / tau_yaw)  # after the motors' moment I (0 - w) / tau_yaw
         return (free - new_yaw_rate) * INERTIA / DT
