@@ -233,3 +233,32 @@ def test_with_no_wheel_seized_the_steps_are_bit_for_bit_the_ones_before_the_drag
     before the drag was modelled. A change to the physics that moves them on purpose re-pins them and
     says so."""
     assert step_digest(wheels, class_id, 400 if class_id == FIRM else 300) == expected
+
+
+def test_a_wheel_its_controller_let_go_of_does_not_drag_only_a_seized_one_does() -> None:
+    """A controller rebooting or past its command timeout slows its simulated wheel to 0, but a real VESC
+    lets the motor go and the wheel rolls free: turning apart from its side without being seized, it gives
+    nothing while its side pulls (held at zero pull by the sign of its slip), where the same wheel seized
+    drags ``mu N``. Climbing, so the sides keep pulling forward as the rover slows; both front wheels, so
+    neither side brakes to turn."""
+    firm = TERRAIN_CLASSES[FIRM]
+    grade = 0.2
+    size = (200, 200)
+    xs = (np.arange(size[1]) + 0.5) * 0.25
+    uphill = TerrainMap(
+        np.broadcast_to(grade * xs[np.newaxis, :], size).copy(),
+        np.full(size, FIRM, np.uint8),
+        np.zeros(size, bool),
+        0.25,
+    )
+    forces, loads = {}, {}
+    for seized in (False, True):
+        body = RoverDynamics(uphill, PARAMS, x=5.0, y=25.0, yaw=0.0)  # facing uphill
+        for _ in range(300):
+            body.step(DT, [0.5] * 6, VOLTS)
+        fronts_seized = (1.0, 0.0, 0.0, 1.0, 0.0, 0.0)
+        step = body.step(DT, [0.0, 0.5, 0.5, 0.0, 0.5, 0.5], VOLTS, fronts_seized if seized else ())
+        assert sum(step.traction_forces_n[1:3]) > 0.0  # its side pulls
+        forces[seized], loads[seized] = step.traction_forces_n[0], step.normal_forces_n[0]
+    assert forces[False] == 0.0
+    assert forces[True] == pytest.approx(-firm.friction_mu * loads[True], rel=1e-6)
