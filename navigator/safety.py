@@ -21,6 +21,7 @@ from typing import NamedTuple, cast
 from firmware_bridge.wheel_names import wheel_label, wheel_labels
 from logs.clock import NS_PER_S, to_ns
 from navigator.fence_shape import inside_polygon
+from navigator.progress_check import ProgressCheck
 from navigator.safety_config import SafetyConfig
 from navigator.vehicle import VehicleParams, stability_margins
 
@@ -43,6 +44,7 @@ _NEVER_ATTITUDE = (
     "ArduPilot: SRn_EXTRA1, in Hz)"
 )
 STUCK = "stuck"
+NO_PROGRESS = "no_progress"  # pushed, but the estimated position goes nowhere (navigator.progress_check)
 WHEEL_STALLED = "wheel_stalled"
 # A wheel that stalls this many times within the window is seized, not snagged: held until an operator acts.
 WHEEL_STALL_LATCH_TRIPS = 3
@@ -138,6 +140,7 @@ class SafetySupervisor:
         self._attitude_ns = to_ns(c.attitude_timeout_s)
         self._ground_ns = to_ns(c.ground_link_timeout_s)
         self._stuck_ns = to_ns(c.stuck_time_s)
+        self._progress = ProgressCheck(to_ns(c.progress_time_s)) if c.progress_time_s > 0.0 else None
         self._wheel_stall_ns = to_ns(c.wheel_stall_s)
         self._wheel_stall_hold_ns = to_ns(c.wheel_stall_hold_s)
         self._stall_held_since: int | None = None
@@ -167,13 +170,14 @@ class SafetySupervisor:
 
     def resume(self, source: str) -> None:
         """Clear the e-stop and the latched stuck and stall checks: the operator has looked and says go."""
-        for name in (ESTOP, STUCK, WHEEL_STALLED):
+        for name in (ESTOP, STUCK, NO_PROGRESS, WHEEL_STALLED):
             self._clear(name, f"resume from {source}")
         self._forget_stalls()
 
     def new_goal(self) -> None:
-        """A new goal clears the stuck and stall checks: the operator chose where to go next."""
+        """A new goal clears the stuck, progress and stall checks: the operator chose where to go next."""
         self._clear(STUCK, "new goal")
+        self._clear(NO_PROGRESS, "new goal")
         self._clear(WHEEL_STALLED, "new goal")
         self._forget_stalls()
 
@@ -285,6 +289,7 @@ class SafetySupervisor:
                 f"commanded {i.sent_speed_mps:.2f} m/s but moving < {c.stuck_max_speed_mps} m/s "
                 f"for {_ms(pushed)}",
             )
+        self._check_progress(i)
         # The tip-over check's input has an age like any link's: an AHRS gone quiet, or sending only NaN
         # or inf tilts, would leave it judging the last usable tilt forever, blind to a rover tipping now.
         # Never seen counts from the start, as for GPS and heartbeat: an autopilot that never streams
@@ -440,6 +445,27 @@ class SafetySupervisor:
         while len(keys) < wheels:
             keys.append(f"{WHEEL_STALLED}#{len(keys)}")
         return keys[:wheels] if len(keys) > wheels else keys
+
+    def _check_progress(self, i: SafetyInputs) -> None:
+        """``no_progress``: pushed for a whole window, the estimated position moved less than the radius.
+        Latched like ``stuck`` (HOLD until a new goal or a resume): the rover digging in at the foot of a
+        slope it cannot climb, its speed estimate wandering about zero, goes nowhere for minutes."""
+        progress = self._progress
+        if progress is None:
+            return
+        c = self._config
+        if abs(i.sent_speed_mps) < c.stuck_min_command_mps or i.position_xy is None:
+            progress.reset()
+            return
+        moved = progress.update(i.now_ns, *i.position_xy)
+        if moved is not None and moved < c.progress_radius_m:
+            self._trip(
+                NO_PROGRESS,
+                "error",
+                f"commanded {i.sent_speed_mps:.2f} m/s for {c.progress_time_s:g} s but moved {moved:.2f} m "
+                f"(limit {c.progress_radius_m:g} m)",
+            )
+            progress.reset()
 
     def _sustained(self, key: str, condition: bool, now_ns: int, start_ns: int | None = None) -> int:
         """How long ``condition`` has held (0 when it does not): from the first tick it was seen."""

@@ -15,6 +15,10 @@ from navigator.fence_shape import Polygon, first_crossing, polygon_area
 MIN_FENCE_VERTICES = 3
 
 
+# The progress check compares 2 s means at the two ends of its window: shorter ones would overlap.
+MIN_PROGRESS_TIME_S = 4.0
+
+
 @dataclass(frozen=True)
 class SafetyConfig:
     """Failsafe thresholds (seconds, metres, volts, degrees). A timeout of 0 turns that failsafe off."""
@@ -33,6 +37,10 @@ class SafetyConfig:
     stuck_time_s: float = 2.0
     stuck_min_command_mps: float = 0.2
     stuck_max_speed_mps: float = 0.05
+    # Pushed (commanded >= stuck_min_command_mps) for progress_time_s, the estimated position must move at
+    # least progress_radius_m (means over 2 s at each end): Nav2's progress checker's defaults, 0.5 m in 10 s.
+    progress_time_s: float = 10.0
+    progress_radius_m: float = 0.5
     # A wheel commanded >= min_command, turning < max_speed and drawing >= min_current for longer than
     # wheel_stall_s is a stalled (seized) motor: HOLD, retried after wheel_stall_hold_s.
     wheel_stall_s: float = 1.0
@@ -82,6 +90,8 @@ class SafetyConfig:
             stuck_time_s=seconds("stuck_time_s", d.stuck_time_s),
             stuck_min_command_mps=table.number("stuck_min_command_mps", d.stuck_min_command_mps, lo=0.0),
             stuck_max_speed_mps=table.number("stuck_max_speed_mps", d.stuck_max_speed_mps, lo=0.0),
+            progress_time_s=_progress_time(table, d.progress_time_s),
+            progress_radius_m=table.number("progress_radius_m", d.progress_radius_m, lo=0.0, hi=100.0),
             wheel_stall_s=seconds("wheel_stall_s", d.wheel_stall_s),
             wheel_stall_min_command_mps=table.number(
                 "wheel_stall_min_command_mps", d.wheel_stall_min_command_mps, lo=0.0, hi=100.0
@@ -131,3 +141,14 @@ def _check_fence_shape(table: Table, fence: Polygon) -> None:
         )
     if polygon_area(fence) <= 0.0:
         raise table.error("fence", f"the points {list(map(list, fence))} enclose no area (all on one line)")
+
+
+def _progress_time(table: Table, default: float) -> float:
+    """0 (off), or long enough for the check's two 2 s means not to overlap (4 s), at most an hour."""
+    value = table.number("progress_time_s", default, lo=0.0, hi=3600.0)
+    if 0.0 < value < MIN_PROGRESS_TIME_S:
+        raise table.error(
+            "progress_time_s",
+            f"must be 0 (off) or at least {MIN_PROGRESS_TIME_S} s (a mean over 2 s at each end), got {value}",
+        )
+    return value

@@ -1,0 +1,60 @@
+"""Progress while pushing: how far the rover's estimated position moved over a window of seconds.
+
+The ``stuck`` failsafe watches the estimated speed; a rover spinning its wheels at the foot of a slope it
+cannot climb can keep that estimate wandering around zero by more than its threshold (GPS noise and
+slipping odometry) for minutes, while it goes nowhere. This check looks at the position instead, as Nav2's
+progress checker does (``required_movement_radius`` within ``movement_time_allowance``), but on means over
+a couple of seconds at each end of the window, so GPS noise of half a metre neither hides a rover that
+goes nowhere nor trips one that creeps on.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+
+# Positions are averaged per bucket of this length; each end of the window is the mean of END_BUCKETS.
+BUCKET_NS = 500_000_000
+END_BUCKETS = 4
+
+
+class ProgressCheck:
+    """Feed it the estimated position each tick while the rover is pushed; ``reset`` when it is not."""
+
+    def __init__(self, window_ns: int) -> None:
+        # Buckets spanning the window (at least both ends' worth, so the two means never overlap).
+        self._buckets_needed = max(2 * END_BUCKETS, math.ceil(window_ns / BUCKET_NS))
+        self._means: deque[tuple[float, float]] = deque(maxlen=self._buckets_needed)
+        self._bucket_end_ns: int | None = None
+        self._sum_x = self._sum_y = 0.0
+        self._count = 0
+
+    def reset(self) -> None:
+        self._means.clear()
+        self._bucket_end_ns = None
+        self._sum_x = self._sum_y = 0.0
+        self._count = 0
+
+    def update(self, now_ns: int, x: float, y: float) -> float | None:
+        """The net movement (m) between the window's first and last seconds once the rover has been pushed
+        for a whole window, else None. Not finite positions are left out."""
+        if not (math.isfinite(x) and math.isfinite(y)):
+            return None
+        if self._bucket_end_ns is None:
+            self._bucket_end_ns = now_ns + BUCKET_NS
+        elif now_ns >= self._bucket_end_ns:
+            if self._count:
+                self._means.append((self._sum_x / self._count, self._sum_y / self._count))
+            self._sum_x = self._sum_y = 0.0
+            self._count = 0
+            self._bucket_end_ns = now_ns + BUCKET_NS
+        self._sum_x += x
+        self._sum_y += y
+        self._count += 1
+        if len(self._means) < self._buckets_needed:
+            return None
+        first = list(self._means)[:END_BUCKETS]
+        last = list(self._means)[-END_BUCKETS:]
+        dx = sum(p[0] for p in last) / END_BUCKETS - sum(p[0] for p in first) / END_BUCKETS
+        dy = sum(p[1] for p in last) / END_BUCKETS - sum(p[1] for p in first) / END_BUCKETS
+        return math.hypot(dx, dy)
