@@ -463,7 +463,7 @@ class SafetySupervisor:
                 NO_PROGRESS,
                 "error",
                 f"commanded {i.sent_speed_mps:.2f} m/s for {c.progress_time_s:g} s but moved {moved:.2f} m "
-                f"(limit {c.progress_radius_m:g} m)",
+                f"(limit {c.progress_radius_m:g} m){_wheels_while_stuck(i.wheel_speeds_mps)}",
             )
             progress.reset()
 
@@ -492,6 +492,17 @@ class SafetySupervisor:
     def _clear(self, name: str, why: str) -> None:
         if self._active.pop(name, None) is not None:
             self._emit(f"cleared.{name}", "info", why)
+
+
+def _wheels_while_stuck(speeds: Sequence[float]) -> str:
+    """What the wheels did while the rover went nowhere, for the operator: turning (slipping or dug in:
+    the ground does not carry the push) or not (held: an obstacle, a stall); "" with no wheel reports."""
+    known = [abs(v) for v in speeds if math.isfinite(v)]
+    if not known:
+        return ""
+    mean = sum(known) / len(known)
+    what = "slipping or dug in" if mean >= 0.1 else "not turning"
+    return f"; the wheels turn at {mean:.2f} m/s on average: {what}"
 
 
 def _over(what: str, limit_ns: int) -> str:

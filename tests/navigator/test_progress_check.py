@@ -39,6 +39,17 @@ def test_pushed_and_going_nowhere_holds_through_the_noise(seed: int) -> None:
     assert supervisor.mode is SafetyMode.HOLD
     tripped = [detail for kind, _, detail in events if kind == f"failsafe.{NO_PROGRESS}"]
     assert len(tripped) == 1 and "for 10 s" in tripped[0] and "limit 0.5 m" in tripped[0]
+    assert "the wheels turn at 0.50 m/s on average: slipping or dug in" in tripped[0]
+
+
+def test_its_event_says_when_the_wheels_are_not_turning() -> None:
+    events: list[tuple[str, str, str]] = []
+    supervisor = SafetySupervisor(SafetyConfig(), VehicleParams(), 0, lambda *e: events.append(e))
+    for k in range(1, 600):
+        tick = _inputs(k * TICK_NS, wheel_speeds_mps=(0.0,) * 6, wheel_currents_a=(0.0,) * 6)
+        supervisor.update(tick, True)
+    tripped = [detail for kind, _, detail in events if kind == f"failsafe.{NO_PROGRESS}"]
+    assert tripped and tripped[0].endswith("the wheels turn at 0.00 m/s on average: not turning")
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
