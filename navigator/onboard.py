@@ -44,6 +44,7 @@ from logs.commands import CommandSource, RoverCommand, command_record
 from logs.sink import MessageSink
 from navigator.config import RoverConfig
 from navigator.deferred_sink import DeferredSink
+from navigator.event_texts import mav_severity, status_text, told
 from navigator.guidance import GuidanceOutput
 from navigator.map_message import grid_message
 from navigator.mission import Mission, MissionState
@@ -76,11 +77,13 @@ _DRIVING_MODES = (Mode.DRIVING, Mode.YIELDING)
 
 
 class _EventFn:
-    """Publishes one ``safety/events`` message (and logs it) at the clock's now."""
+    """Publishes one ``safety/events`` message (and logs it) at the clock's now, and tells the ground
+    station the ones an operator must see (``navigator.event_texts``) as STATUSTEXT on ``links``."""
 
-    def __init__(self, clock: Clock, sink: MessageSink) -> None:
+    def __init__(self, clock: Clock, sink: MessageSink, links: Sequence[MavlinkLink] = ()) -> None:
         self._clock = clock
         self._sink = sink
+        self._links = tuple(links)
 
     def __call__(self, kind: str, severity: str, detail: str) -> None:
         now = self._clock.now_ns()
@@ -91,6 +94,10 @@ class _EventFn:
             now,
             {"timestamp": topics.stamp(now), "kind": kind, "severity": severity, "detail": detail},
         )
+        if told(kind):
+            text, mav_level = status_text(kind, detail), mav_severity(severity)
+            for link in self._links:  # a failed write is counted and logged by the link
+                link.send_status_text(text, mav_level)
 
 
 class OnboardStack:
@@ -147,7 +154,9 @@ class OnboardStack:
         self._wheels = WheelSnapshot.of(can_link.wheel_status())
         self._terrain = terrain
         self._map_published = False
-        self._event = _EventFn(clock, sink)
+        # Told to the ground station on its own link when there is one, else through the autopilot, which
+        # routes a companion's STATUSTEXT on to the ground station (not both: it would see each twice).
+        self._event = _EventFn(clock, sink, (mavlink if ground_station is None else ground_station,))
         self._scan_watch = ScanWatch(self._event)
         self._rangefinder_watch = RangefinderWatch(self._event)
         self.estimator = Estimator(config.estimator, clock, sink)
