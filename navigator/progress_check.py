@@ -36,22 +36,24 @@ class ProgressCheck:
         self._count = 0
 
     def update(self, now_ns: int, x: float, y: float) -> float | None:
-        """The net movement (m) between the window's first and last seconds once the rover has been pushed
-        for a whole window, else None. Not finite positions are left out."""
+        """The net movement (m) between the window's first and last seconds, on the tick a bucket closes
+        once the rover has been pushed for a whole window; else None. Not finite positions are left out."""
         if not (math.isfinite(x) and math.isfinite(y)):
             return None
+        closed = False
         if self._bucket_end_ns is None:
             self._bucket_end_ns = now_ns + BUCKET_NS
         elif now_ns >= self._bucket_end_ns:
             if self._count:
                 self._means.append((self._sum_x / self._count, self._sum_y / self._count))
+                closed = True
             self._sum_x = self._sum_y = 0.0
             self._count = 0
             self._bucket_end_ns = now_ns + BUCKET_NS
         self._sum_x += x
         self._sum_y += y
         self._count += 1
-        if len(self._means) < self._buckets_needed:
+        if not closed or len(self._means) < self._buckets_needed:
             return None
         first = list(self._means)[:END_BUCKETS]
         last = list(self._means)[-END_BUCKETS:]

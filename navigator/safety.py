@@ -45,6 +45,8 @@ _NEVER_ATTITUDE = (
 )
 STUCK = "stuck"
 NO_PROGRESS = "no_progress"  # pushed, but the estimated position goes nowhere (navigator.progress_check)
+# Unpushed for longer than this, the progress window starts again; shorter, it only pauses.
+PROGRESS_PAUSE_NS = 2_000_000_000
 WHEEL_STALLED = "wheel_stalled"
 # A wheel that stalls this many times within the window is seized, not snagged: held until an operator acts.
 WHEEL_STALL_LATCH_TRIPS = 3
@@ -141,6 +143,7 @@ class SafetySupervisor:
         self._ground_ns = to_ns(c.ground_link_timeout_s)
         self._stuck_ns = to_ns(c.stuck_time_s)
         self._progress = ProgressCheck(to_ns(c.progress_time_s)) if c.progress_time_s > 0.0 else None
+        self._unpushed_since_ns: int | None = None  # the first tick of the current run of unpushed ones
         self._wheel_stall_ns = to_ns(c.wheel_stall_s)
         self._wheel_stall_hold_ns = to_ns(c.wheel_stall_hold_s)
         self._stall_held_since: int | None = None
@@ -173,6 +176,7 @@ class SafetySupervisor:
         for name in (ESTOP, STUCK, NO_PROGRESS, WHEEL_STALLED):
             self._clear(name, f"resume from {source}")
         self._forget_stalls()
+        self._forget_progress()
 
     def new_goal(self) -> None:
         """A new goal clears the stuck, progress and stall checks: the operator chose where to go next."""
@@ -180,6 +184,13 @@ class SafetySupervisor:
         self._clear(NO_PROGRESS, "new goal")
         self._clear(WHEEL_STALLED, "new goal")
         self._forget_stalls()
+        self._forget_progress()
+
+    def _forget_progress(self) -> None:
+        """A new goal or a resume judges progress from then on: the window so far was toward the old one."""
+        if self._progress is not None:
+            self._progress.reset()
+        self._unpushed_since_ns = None
 
     def _forget_stalls(self) -> None:
         self._stall_trips.clear()
@@ -455,8 +466,15 @@ class SafetySupervisor:
             return
         c = self._config
         if abs(i.sent_speed_mps) < c.stuck_min_command_mps or i.position_xy is None:
-            progress.reset()
+            # A short dip (a tick turning on the spot, a brief BLOCKED, a wheel's retry) pauses the window;
+            # only a longer one starts it again: else a rover dug in, with a slow tick every few seconds,
+            # would never be judged.
+            if self._unpushed_since_ns is None:
+                self._unpushed_since_ns = i.now_ns
+            elif i.now_ns - self._unpushed_since_ns > PROGRESS_PAUSE_NS:
+                progress.reset()
             return
+        self._unpushed_since_ns = None
         moved = progress.update(i.now_ns, *i.position_xy)
         if moved is not None and moved < c.progress_radius_m:
             self._trip(
