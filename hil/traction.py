@@ -458,10 +458,17 @@ def drive_forces(
     left_sliding = left - (speed - 0.5 * yaw_rate * effective_track)
     right_sliding = right - (speed + 0.5 * yaw_rate * effective_track)
     if lateral_speed == 0.0:
-        scrub = scrub_coefficient(ground[MU_LAT], radius, track) * (
-            left_lever * sideways_share(end_scrub_speed, left_sliding)
-            + right_lever * sideways_share(end_scrub_speed, right_sliding)
-        )
+        coefficient = scrub_coefficient(ground[MU_LAT], radius, track)
+        left_share = sideways_share(end_scrub_speed, left_sliding)
+        right_share = sideways_share(end_scrub_speed, right_sliding)
+        if coefficient * max(left_share, right_share) <= mu:
+            scrub = coefficient * (left_lever * left_share + right_lever * right_share)
+        else:
+            # A class whose turn resistance passes its friction (mu_t > mu, as [terrain_classes] allows): an
+            # end wheel scrubs with at most mu N, the sliding branch's limit as v_y -> 0, so the scrub does
+            # not jump down when the body starts to slide. The table's classes never get here.
+            scrub = left_lever * min(coefficient * left_share, mu)
+            scrub += right_lever * min(coefficient * right_share, mu)
     else:
         # Sliding: each end wheel's scrub within what the slide leaves of its friction, the turn's part of
         # its sideways sliding, sqrt(1 - slide_share^2) (written so, it keeps its digits when that is small).

@@ -19,7 +19,7 @@ import numpy as np
 from firmware_bridge.mavlink_transport import Transport
 from firmware_bridge.vesc import WHEEL_COUNT, VescCodec
 from hil.autopilot_sim import AutopilotTruth, SimAutopilot
-from hil.battery import Battery
+from hil.battery import REGEN_CURRENT_LIMIT_A, Battery
 from hil.bus_off import BusOffAnnouncer, BusOffRoverEnd
 from hil.dynamics import DynamicsStep, RoverDynamics
 from hil.fault_links import FaultyCanBus, FaultyTransport
@@ -86,7 +86,10 @@ class SimWorld:
         self._battery_faults = "battery" in has
         self.can_bus = can_bus
         sensors = scenario.sensors
-        self.vescs = SimVescBank(can_bus, codec, clock)
+        # One regeneration floor for the physics (what the pack takes) and the controllers (what they report
+        # taking): set apart, the energy metric would differ from the pack's energy.
+        regen_current_limit_a = REGEN_CURRENT_LIMIT_A
+        self.vescs = SimVescBank(can_bus, codec, clock, regen_current_limit_a=regen_current_limit_a)
         self.autopilot = SimAutopilot(
             mavlink,
             clock,
@@ -123,6 +126,7 @@ class SimWorld:
             x=scenario.start_xy[0],
             y=scenario.start_xy[1],
             yaw=scenario.start_yaw_rad,
+            regen_current_limit_a=regen_current_limit_a,
         )
         self._footprint = Footprint.of(vehicle)
         self.battery = Battery()

@@ -143,3 +143,35 @@ def test_a_turn_on_the_spot_while_sliding_meets_less_scrub(lateral, weaker):
         assert scrub_moment(lateral) < 0.9 * level
     else:
         assert scrub_moment(lateral) == pytest.approx(level, rel=1e-12)
+
+
+def test_the_scrub_does_not_jump_as_a_slide_starts_on_ground_resisting_turns_past_its_grip() -> None:
+    """mu_t above mu (a [terrain_classes] override may set it): on the spot, an end wheel scrubs with at most
+    mu N whether or not the body slides, so the scrub at v_y = 0 is its limit as v_y -> 0 (it was 19.0 N m
+    held, 2.94 N m at v_y = 1e-9)."""
+    mu, mu_t, w, tau_yaw = 0.1, 0.4, 0.6, 0.15
+    ground_vector = np.array([mu, 0.2, 0.0, 0.0, 1.0, mu_t])
+    tracks = [PARAMS.track_m, PARAMS.effective_track_m]
+    vehicle = np.array([PARAMS.mass_kg, INERTIA, *tracks, HALF_BASE, 73.6, 1e3, 0.1, tau_yaw])
+    normals = np.full(6, PARAMS.mass_kg * 9.81 / 6.0)
+
+    def scrub_moment(lateral_speed: float) -> float:
+        _, new_yaw_rate = drive_forces(
+            np.zeros(6),
+            normals,
+            ground_vector,
+            vehicle,
+            0.0,
+            w,
+            0.0,
+            DT,
+            np.zeros(6),
+            np.empty(6),
+            lateral_speed,
+        )
+        return (w * (1.0 - DT / tau_yaw) - new_yaw_rate) * INERTIA / DT
+
+    held, sliding = scrub_moment(0.0), scrub_moment(1e-9)
+    assert held == pytest.approx(sliding, rel=1e-6)
+    ground_vector[0] = 0.5  # the same turn resistance on ground with grip to spare: the cap does not bind
+    assert held < 0.5 * scrub_moment(0.0)
