@@ -89,6 +89,9 @@ class PlannerConfig:
     yield_margin_m: float = YIELD_MARGIN_M
     yield_max_m: float = YIELD_MAX_M
     yield_max_s: float = YIELD_MAX_S
+    # Held for no progress while climbing with its wheels turning, the rover believes the class under it
+    # climbs less than that slope and plans again (navigator.climb_learning); false: it holds, as before.
+    learn_traction: bool = True
 
     @classmethod
     def from_table(cls, table: Table) -> PlannerConfig:
@@ -109,6 +112,7 @@ class PlannerConfig:
             yield_margin_m=table.number("yield_margin_m", cls.yield_margin_m, lo=0.0, hi=5.0),
             yield_max_m=table.number("yield_max_m", cls.yield_max_m, lo=0.0, hi=50.0),
             yield_max_s=table.number("yield_max_s", cls.yield_max_s, lo=0.0, hi=120.0),
+            learn_traction=table.flag("learn_traction", cls.learn_traction),
         )
         table.finish()
         return config

@@ -197,6 +197,10 @@ class Guidance:
         limit = self._mission_speed_mps
         return None if limit == math.inf else limit
 
+    def observations(self) -> list[ObstacleObservation]:
+        """The obstacles it knows, as their last sightings: in the map, waiting to go in, and moving."""
+        return [*self._in_map.values(), *self._pending.values(), *self._moving.values()]
+
     def limit_speed(self, limit_mps: float | None) -> None:
         """The mission's speed limit from now on (m/s, > 0 and finite), or None for none. It caps the
         target speed while following a path, whatever the goal, below the follower's and never above

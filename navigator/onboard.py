@@ -42,6 +42,7 @@ from logs import topics
 from logs.clock import NS_PER_S, Clock
 from logs.commands import CommandSource, RoverCommand, command_record
 from logs.sink import MessageSink
+from navigator.climb_learning import MAX_LEARNINGS_PER_GOAL, dug_in_climbing, learned_class, with_learned
 from navigator.config import RoverConfig
 from navigator.deferred_sink import DeferredSink
 from navigator.event_texts import mav_severity, status_text, told
@@ -54,7 +55,7 @@ from navigator.onboard_mission import MissionDriver
 from navigator.perception import ObstacleSource
 from navigator.planner import Path, Planner
 from navigator.route_guidance import Goal, GuidanceCommand, Mode, RouteGuidance
-from navigator.safety import SafetyInputs, SafetyMode, SafetySupervisor
+from navigator.safety import NO_PROGRESS, SafetyInputs, SafetyMode, SafetySupervisor
 from navigator.scan_tracker import ScanTracker
 from navigator.scan_watch import RangefinderWatch, ScanWatch
 from navigator.start_up_checks import StartUpChecks
@@ -183,6 +184,12 @@ class OnboardStack:
             autopilot=mavlink,
         )
         self._last_heartbeat_sent_ns: int | None = None
+        # Learning from digging in (navigator.climb_learning): the goal it was for and how many times.
+        self._learned_goal: Goal | None = None
+        self._learnings = 0
+        # The last speed commanded while pushing (>= the stuck check's): its sign says uphill or down once
+        # the hold has stopped the wheels.
+        self._sent_uphill_mps = 0.0
         self._start_up = StartUpChecks(self._event, start_up_report)
         self._last_tick_ns: int | None = None
         self._last_gps_ns: int | None = None
@@ -323,6 +330,8 @@ class OnboardStack:
                 driving,
                 "" if driving else route.why_stopped(start_up.not_ready),
             )
+            if decision.faults and NO_PROGRESS in decision.faults:
+                self._learn_from_digging_in(pose)
             speed = guidance.speed_mps * decision.speed_scale
             yaw_rate = guidance.yaw_rate_rps * decision.speed_scale
             self._last_tick_ns = now
@@ -338,6 +347,8 @@ class OnboardStack:
             elif self._send_failing_since_ns is None:
                 self._send_failing_since_ns = now
             self._sent_speed_mps, self._sent_at_ns = speed, now
+            if speed != 0.0:
+                self._sent_uphill_mps = speed
             erpm_per_mps = can.profile.erpm_per_mps  # computed once per profile
             self._sent_wheels_mps = tuple([e / erpm_per_mps for e in erpm])
             self.last_sensor_to_command_ns = None if trigger is None else self._clock.now_ns() - trigger
@@ -425,6 +436,36 @@ class OnboardStack:
         self._can.start_watch(now)
         if self._ground_station is not None:
             self._ground_station.start_watch(now)
+
+    def _learn_from_digging_in(self, pose: PoseEstimate | None) -> None:
+        """Held for no progress while climbing with its wheels turning: the ground under it could not carry
+        the climb the planner routed it up. Believe its class climbs less (``navigator.climb_learning``),
+        plan again and drive on; at most ``MAX_LEARNINGS_PER_GOAL`` times per goal, else stay held."""
+        route, attitude = self.guidance, self._attitude
+        if route.goal != self._learned_goal:
+            self._learned_goal, self._learnings = route.goal, 0
+        planner = self._config.planner
+        if not planner.learn_traction or planner.cost_mode != "terrain":
+            return  # classical A* reads no class figures: believing others would plan the same route
+        if pose is None or attitude is None or self._learnings >= MAX_LEARNINGS_PER_GOAL:
+            return
+        if not dug_in_climbing(attitude.pitch_rad, self._sent_uphill_mps, self._wheels.judged_speeds_mps):
+            return
+        class_id = self._terrain.class_at(pose.x, pose.y)
+        believed = route.classes.get(class_id)
+        learned = None if believed is None else learned_class(believed, attitude.pitch_rad)
+        if believed is None or learned is None:
+            return
+        self._learnings += 1
+        route.retune(with_learned(route.classes, class_id, learned))
+        limit_deg = math.degrees(math.atan(max(learned.friction_mu - learned.rolling_resistance, 0.0)))
+        detail = (
+            f"dug in climbing {math.degrees(abs(attitude.pitch_rad)):.1f} deg on {believed.name}: it climbs "
+            f"at most {limit_deg:.1f} deg there (friction_mu {learned.friction_mu:.2f}, believed "
+            f"{believed.friction_mu:.2f}); planning again"
+        )
+        self._event("learned.terrain", "warning", detail)
+        self.safety.progress_learned(f"learned {believed.name}'s traction; planning again")
 
     def _safety_inputs(self, now: int, pose: PoseEstimate | None) -> SafetyInputs:
         wheels = self._wheels

@@ -21,6 +21,7 @@ from navigator.perception import ObstacleObservation
 from navigator.planner import Path, Planner
 from navigator.safety import EventSink
 from navigator.terrain import TerrainMap
+from navigator.terrain_classes import TerrainClass
 
 
 class Mode(enum.StrEnum):
@@ -73,8 +74,12 @@ class RouteGuidance:
         event: EventSink,
         planning: Executor | None = None,
     ) -> None:
+        self.classes = config.classes
+        self._terrain = terrain
+        self._config = config
+        self._planning = planning
         self.core = Guidance(
-            terrain, config.vehicle, config.planner, config.follower, config.classes, executor=planning
+            terrain, config.vehicle, config.planner, config.follower, self.classes, executor=planning
         )
         # The rover's own top speed: the mission's speed events name it.
         self.max_speed_mps = config.follower.max_speed_mps
@@ -90,6 +95,20 @@ class RouteGuidance:
     @property
     def path(self) -> Path | None:
         return self.core.path if self.mode is not Mode.WAITING_ESTIMATE and self.goal is not None else None
+
+    def retune(self, classes: dict[int, TerrainClass]) -> None:
+        """Believe ``classes`` from now on (``navigator.climb_learning``): a new planner on them, with the
+        obstacles seen so far and the mission's speed limit; the goal is planned again on the next tick."""
+        old, config = self.core, self._config
+        core = Guidance(
+            self._terrain, config.vehicle, config.planner, config.follower, classes, executor=self._planning
+        )
+        core.limit_speed(old.mission_speed_mps)
+        core.observe(old.observations())
+        old.close()
+        self.core, self.classes = core, classes
+        if self.goal is not None:
+            self.mode = Mode.WAITING_ESTIMATE
 
     def set_goal(self, x: float, y: float) -> None:
         self.goal = Goal(x, y)

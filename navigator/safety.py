@@ -186,6 +186,12 @@ class SafetySupervisor:
         self._forget_stalls()
         self._forget_progress()
 
+    def progress_learned(self, why: str) -> None:
+        """Clear ``no_progress`` once the rover has learned why it went nowhere and planned anew
+        (``navigator.climb_learning``): the new route is judged from its start, as a new goal's."""
+        self._clear(NO_PROGRESS, why)
+        self._forget_progress()
+
     def _forget_progress(self) -> None:
         """A new goal or a resume judges progress from then on: the window so far was toward the old one."""
         if self._progress is not None:
