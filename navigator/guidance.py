@@ -197,9 +197,17 @@ class Guidance:
         limit = self._mission_speed_mps
         return None if limit == math.inf else limit
 
-    def observations(self) -> list[ObstacleObservation]:
-        """The obstacles it knows, as their last sightings: in the map, waiting to go in, and moving."""
-        return [*self._in_map.values(), *self._pending.values(), *self._moving.values()]
+    def take_over_from(self, old: Guidance) -> None:
+        """What ``old`` knew, as it knew it (a guidance on other beliefs taking over,
+        ``RouteGuidance.retune``): the static obstacles in its map (into this planner's map at once, however
+        far), the ones waiting to go in, the moving ones, and its mission speed limit. Before the first
+        planning job: the planner is this thread's until then."""
+        self._in_map, self._pending = dict(old._in_map), dict(old._pending)
+        self._moving, self._moved_off = dict(old._moving), set(old._moved_off)
+        added = old.planner.terrain.obstacles & ~self.planner.terrain.obstacles
+        if added.any():
+            self.planner.update_obstacles(added)
+        self.limit_speed(old.mission_speed_mps)
 
     def limit_speed(self, limit_mps: float | None) -> None:
         """The mission's speed limit from now on (m/s, > 0 and finite), or None for none. It caps the

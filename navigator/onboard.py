@@ -42,7 +42,7 @@ from logs import topics
 from logs.clock import NS_PER_S, Clock
 from logs.commands import CommandSource, RoverCommand, command_record
 from logs.sink import MessageSink
-from navigator.climb_learning import MAX_LEARNINGS_PER_GOAL, dug_in_climbing, learned_class, with_learned
+from navigator.climb_learning import MAX_LEARNINGS_PER_GOAL, learned_class, trustworthy_dig_in, with_learned
 from navigator.config import RoverConfig
 from navigator.deferred_sink import DeferredSink
 from navigator.event_texts import mav_severity, status_text, told
@@ -55,7 +55,7 @@ from navigator.onboard_mission import MissionDriver
 from navigator.perception import ObstacleSource
 from navigator.planner import Path, Planner
 from navigator.route_guidance import Goal, GuidanceCommand, Mode, RouteGuidance
-from navigator.safety import NO_PROGRESS, SafetyInputs, SafetyMode, SafetySupervisor
+from navigator.safety import NO_PROGRESS, TIP_OVER, SafetyInputs, SafetyMode, SafetySupervisor
 from navigator.scan_tracker import ScanTracker
 from navigator.scan_watch import RangefinderWatch, ScanWatch
 from navigator.start_up_checks import StartUpChecks
@@ -185,7 +185,7 @@ class OnboardStack:
         )
         self._last_heartbeat_sent_ns: int | None = None
         # Learning from digging in (navigator.climb_learning): the goal it was for and how many times.
-        self._learned_goal: Goal | None = None
+        self._learned_at_goal = 0  # SafetySupervisor.goals_given when the count below began
         self._learnings = 0
         # The last speed commanded while pushing (>= the stuck check's): its sign says uphill or down once
         # the hold has stopped the wheels.
@@ -331,7 +331,7 @@ class OnboardStack:
                 "" if driving else route.why_stopped(start_up.not_ready),
             )
             if decision.faults and NO_PROGRESS in decision.faults:
-                self._learn_from_digging_in(pose)
+                self._learn_from_digging_in(pose, decision.faults)
             speed = guidance.speed_mps * decision.speed_scale
             yaw_rate = guidance.yaw_rate_rps * decision.speed_scale
             self._last_tick_ns = now
@@ -437,32 +437,42 @@ class OnboardStack:
         if self._ground_station is not None:
             self._ground_station.start_watch(now)
 
-    def _learn_from_digging_in(self, pose: PoseEstimate | None) -> None:
-        """Held for no progress while climbing with its wheels turning: the ground under it could not carry
-        the climb the planner routed it up. Believe its class climbs less (``navigator.climb_learning``),
-        plan again and drive on; at most ``MAX_LEARNINGS_PER_GOAL`` times per goal, else stay held."""
-        route, attitude = self.guidance, self._attitude
-        if route.goal != self._learned_goal:
-            self._learned_goal, self._learnings = route.goal, 0
-        planner = self._config.planner
+    def _learn_from_digging_in(self, pose: PoseEstimate | None, faults: tuple[str, ...]) -> None:
+        """Held for no progress while driving its route up a slope the map shows, its wheels turning: the
+        ground could not carry the climb the planner routed it up. Believe its class climbs less
+        (``navigator.climb_learning``), plan again and drive on; at most ``MAX_LEARNINGS_PER_GOAL`` times a
+        goal, and only from what it can trust, else it stays held for the operator."""
+        planner, route, attitude = self._config.planner, self.guidance, self._attitude
         if not planner.learn_traction or planner.cost_mode != "terrain":
             return  # classical A* reads no class figures: believing others would plan the same route
+        if self.safety.goals_given != self._learned_at_goal:
+            self._learned_at_goal, self._learnings = self.safety.goals_given, 0
         if pose is None or attitude is None or self._learnings >= MAX_LEARNINGS_PER_GOAL:
             return
-        if not dug_in_climbing(attitude.pitch_rad, self._sent_uphill_mps, self._wheels.judged_speeds_mps):
+        if route.mode is not Mode.DRIVING or TIP_OVER in faults:
+            return  # backing out of a cart's way, or tipping: not a climb to learn from
+        terrain, half_base = self._terrain, 0.5 * self._config.vehicle.wheelbase_m
+        dx, dy = half_base * math.cos(pose.yaw), half_base * math.sin(pose.yaw)
+        axles = [terrain.ground_on_map(pose.x + k * dx, pose.y + k * dy, pose.yaw) for k in (-1.0, 0.0, 1.0)]
+        rear, ground, front = axles
+        if rear is None or ground is None or front is None or ground.terrain_class != front.terrain_class:
+            return  # off the map, or two classes under it: which one failed is not known
+        pitches = (rear.pitch_rad, ground.pitch_rad, front.pitch_rad)
+        pitch = attitude.pitch_rad
+        if not trustworthy_dig_in(pitch, pitches, self._sent_uphill_mps, self._wheels.judged_speeds_mps):
             return
-        class_id = self._terrain.class_at(pose.x, pose.y)
-        believed = route.classes.get(class_id)
-        learned = None if believed is None else learned_class(believed, attitude.pitch_rad)
+        believed = route.classes.get(ground.terrain_class)
+        margin = route.planner.climb_margin_rad
+        learned = None if believed is None else learned_class(believed, pitch, margin)
         if believed is None or learned is None:
             return
         self._learnings += 1
-        route.retune(with_learned(route.classes, class_id, learned))
-        limit_deg = math.degrees(math.atan(max(learned.friction_mu - learned.rolling_resistance, 0.0)))
+        route.retune(with_learned(route.classes, ground.terrain_class, learned))
+        plans_to = math.atan(learned.friction_mu - learned.rolling_resistance) - margin
         detail = (
-            f"dug in climbing {math.degrees(abs(attitude.pitch_rad)):.1f} deg on {believed.name}: it climbs "
-            f"at most {limit_deg:.1f} deg there (friction_mu {learned.friction_mu:.2f}, believed "
-            f"{believed.friction_mu:.2f}); planning again"
+            f"dug in climbing {math.degrees(abs(pitch)):.1f} deg on {believed.name}: friction_mu "
+            f"{learned.friction_mu:.2f} (believed {believed.friction_mu:.2f}), so it plans up to "
+            f"{math.degrees(plans_to):.1f} deg there; planning again"
         )
         self._event("learned.terrain", "warning", detail)
         self.safety.progress_learned(f"learned {believed.name}'s traction; planning again")

@@ -168,6 +168,11 @@ class Planner:
         return self._terrain
 
     @property
+    def climb_margin_rad(self) -> float:
+        """How far below each class's climb limit the cost grid forbids a slope (``CostModel``)."""
+        return self._cost_model.climb_margin_rad
+
+    @property
     def cost_grid(self) -> np.ndarray:
         """The cached ``(rows, cols)`` cost grid (read-only view; obstacle updates change it in place, so
         copy it to keep the costs of one moment)."""

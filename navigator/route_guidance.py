@@ -103,8 +103,7 @@ class RouteGuidance:
         core = Guidance(
             self._terrain, config.vehicle, config.planner, config.follower, classes, executor=self._planning
         )
-        core.limit_speed(old.mission_speed_mps)
-        core.observe(old.observations())
+        core.take_over_from(old)
         old.close()
         self.core, self.classes = core, classes
         if self.goal is not None:

@@ -144,6 +144,8 @@ class SafetySupervisor:
         self._stuck_ns = to_ns(c.stuck_time_s)
         self._progress = ProgressCheck(to_ns(c.progress_time_s)) if c.progress_time_s > 0.0 else None
         self._unpushed_since_ns: int | None = None  # the first tick of the current run of unpushed ones
+        # New goals and resumes so far: what is learned per goal (navigator.climb_learning) counts from one.
+        self.goals_given = 0
         self._wheel_stall_ns = to_ns(c.wheel_stall_s)
         self._wheel_stall_hold_ns = to_ns(c.wheel_stall_hold_s)
         self._stall_held_since: int | None = None
@@ -177,6 +179,7 @@ class SafetySupervisor:
             self._clear(name, f"resume from {source}")
         self._forget_stalls()
         self._forget_progress()
+        self.goals_given += 1
 
     def new_goal(self) -> None:
         """A new goal clears the stuck, progress and stall checks: the operator chose where to go next."""
@@ -185,6 +188,7 @@ class SafetySupervisor:
         self._clear(WHEEL_STALLED, "new goal")
         self._forget_stalls()
         self._forget_progress()
+        self.goals_given += 1
 
     def progress_learned(self, why: str) -> None:
         """Clear ``no_progress`` once the rover has learned why it went nowhere and planned anew
