@@ -187,8 +187,8 @@ class OnboardStack:
         # Learning from digging in (navigator.climb_learning): the goal it was for and how many times.
         self._learned_at_goal = 0  # SafetySupervisor.goals_given when the count below began
         self._learnings = 0
-        # The last speed commanded while pushing (>= the stuck check's): its sign says uphill or down once
-        # the hold has stopped the wheels.
+        # The last non-zero speed commanded: its sign says which way the rover was pushed once the hold has
+        # stopped the wheels (the learning above reads it).
         self._sent_uphill_mps = 0.0
         self._start_up = StartUpChecks(self._event, start_up_report)
         self._last_tick_ns: int | None = None

@@ -21,6 +21,7 @@ from navigator.config import rover_config_from_table
 ROOT = Path(__file__).resolve().parents[2]
 MEASURED = "[terrain_classes.sandy]\nfriction_mu = 0.25\nlateral_resistance = 0.2\n"
 NO_LEARNING = "[planner]\nlearn_traction = false\n"
+CLASSICAL = '[planner]\ncost_mode = "classical"\n'
 
 
 def _trial(config_text: str, out: Path) -> tuple[bool, list[str]]:
@@ -35,8 +36,13 @@ def _trial(config_text: str, out: Path) -> tuple[bool, list[str]]:
 
 @pytest.mark.parametrize(
     ("config_text", "arrives", "holds", "learns"),
-    [("", True, True, True), (NO_LEARNING, False, True, False), (MEASURED, True, False, False)],
-    ids=["believes-the-table", "believes-the-table-no-learning", "believes-measured"],
+    [
+        ("", True, True, True),
+        (NO_LEARNING, False, True, False),
+        (MEASURED, True, False, False),
+        (CLASSICAL, False, True, False),  # classical A* reads no class figures: nothing to learn
+    ],
+    ids=["believes-the-table", "believes-the-table-no-learning", "believes-measured", "classical"],
 )
 def test_what_the_planner_believes_and_learns_decides_the_route(
     tmp_path: Path, config_text: str, arrives: bool, holds: bool, learns: bool
