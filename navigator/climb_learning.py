@@ -22,14 +22,13 @@ import dataclasses
 import math
 from collections.abc import Mapping
 
+from navigator.progress_check import WHEELS_TURNING_MPS, mean_wheel_speed
 from navigator.terrain_classes import TerrainClass
 
 # The learned limit is this far below the slope it dug in on (as the planner applies it, its margin off).
 LEARN_BELOW_RAD = math.radians(1.0)
 # The AHRS's pitch and the map's slope must agree this well: else the pitch is not the ground's slope.
 PITCH_AGREEMENT_RAD = math.radians(2.0)
-# A rover whose wheels turn slower than this (mean of the reports, m/s) is held, not slipping.
-MIN_WHEEL_SPEED_MPS = 0.1
 MAX_LEARNINGS_PER_GOAL = 2
 
 
@@ -62,8 +61,8 @@ def trustworthy_dig_in(
     ``map_pitches_rad``: the map's pitch under the rover's axles (rear, centre, front): at the foot of a
     slope they differ, and the body's pitch lies between them; it must lie within ``PITCH_AGREEMENT_RAD``
     of that span, else it is not the ground's (a rock under the nose, sinking, a slope the map lacks)."""
-    known = [abs(v) for v in wheel_speeds_mps if math.isfinite(v)]
-    turning = bool(known) and sum(known) / len(known) >= MIN_WHEEL_SPEED_MPS
+    mean = mean_wheel_speed(wheel_speeds_mps)  # the no_progress event's own test of "turning"
+    turning = mean is not None and mean >= WHEELS_TURNING_MPS
     low, high = min(map_pitches_rad), max(map_pitches_rad)
     agrees = low - PITCH_AGREEMENT_RAD <= ahrs_pitch_rad <= high + PITCH_AGREEMENT_RAD
     climbing = ahrs_pitch_rad * commanded_mps > 0.0

@@ -12,10 +12,20 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Sequence
 
 # Positions are averaged per bucket of this length; each end of the window is the mean of END_BUCKETS.
 BUCKET_NS = 500_000_000
 END_BUCKETS = 4
+# Wheels whose reported speeds average at least this (m/s) turn: a rover going nowhere so is slipping or
+# dug in; below it, it is held by something, or stalled.
+WHEELS_TURNING_MPS = 0.1
+
+
+def mean_wheel_speed(speeds: Sequence[float]) -> float | None:
+    """The mean of the wheels' reported speeds' magnitudes (the finite ones), or None with none."""
+    known = [abs(v) for v in speeds if math.isfinite(v)]
+    return sum(known) / len(known) if known else None
 
 
 class ProgressCheck:

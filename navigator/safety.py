@@ -21,7 +21,7 @@ from typing import NamedTuple, cast
 from firmware_bridge.wheel_names import wheel_label, wheel_labels
 from logs.clock import NS_PER_S, to_ns
 from navigator.fence_shape import inside_polygon
-from navigator.progress_check import ProgressCheck
+from navigator.progress_check import WHEELS_TURNING_MPS, ProgressCheck, mean_wheel_speed
 from navigator.safety_config import SafetyConfig
 from navigator.vehicle import VehicleParams, stability_margins
 
@@ -525,11 +525,10 @@ class SafetySupervisor:
 def _wheels_while_stuck(speeds: Sequence[float]) -> str:
     """What the wheels did while the rover went nowhere, for the operator: turning (slipping or dug in:
     the ground does not carry the push) or not (held: an obstacle, a stall); "" with no wheel reports."""
-    known = [abs(v) for v in speeds if math.isfinite(v)]
-    if not known:
+    mean = mean_wheel_speed(speeds)
+    if mean is None:
         return ""
-    mean = sum(known) / len(known)
-    what = "slipping or dug in" if mean >= 0.1 else "not turning"
+    what = "slipping or dug in" if mean >= WHEELS_TURNING_MPS else "not turning"
     return f"; the wheels turn at {mean:.2f} m/s on average: {what}"
 
 
