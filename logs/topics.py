@@ -30,6 +30,7 @@ ESTIMATOR_INNOVATIONS = "estimator/innovations"
 NAVIGATOR_MAP = "navigator/map"
 NAVIGATOR_PATH = "navigator/path"
 NAVIGATOR_STATE = "navigator/state"
+NAVIGATOR_LEARNED = "navigator/learned"
 PERCEPTION_OBSTACLES = "perception/obstacles"
 SAFETY_EVENTS = "safety/events"
 GROUND_COMMANDS = "ground/commands"
@@ -385,6 +386,29 @@ _SPECS = [
         "Guidance's mode (what it is trying to do) and the safety supervisor's (what reaches the wheels: "
         "IDLE, DRIVING, HOLD, ESTOP) with its active failsafes, goal, cross-track error, speed limit and "
         "the reason for it; with a mission, which of its waypoints the goal is.",
+    ),
+    TopicSpec(
+        NAVIGATOR_LEARNED,
+        "rover.LearnedTerrain",
+        _obj(
+            {
+                "timestamp": _TIME,
+                # The class (its fixed name and id) and the field of it the rover now believes otherwise:
+                # what a rover config's [terrain_classes.<class_name>] <field> = <value> sets
+                # (`rover logs learned` writes those tables).
+                "class_name": _STR,
+                "class_id": _INT,
+                "field": _STR,
+                "value": _NUM,
+                "believed": _NUM,  # the field's value before
+                "slope_rad": _NUM,  # the slope it dug in on (the AHRS's pitch, its size)
+                "plans_up_to_rad": _NUM,  # the steepest slope of that class the planner now plans on
+                "x": _NUM,  # where it learned (the estimated position, ENU m)
+                "y": _NUM,
+            }
+        ),
+        "What the rover learned of its ground (navigator.climb_learning): a terrain class's figure it now "
+        "believes otherwise, one message a learning; the planner plans on it from then on.",
     ),
     TopicSpec(
         PERCEPTION_OBSTACLES,

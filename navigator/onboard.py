@@ -475,6 +475,23 @@ class OnboardStack:
             f"{math.degrees(plans_to):.1f} deg there; planning again"
         )
         self._event("learned.terrain", "warning", detail)
+        now = self._clock.now_ns()
+        self._sink.publish(
+            topics.NAVIGATOR_LEARNED,
+            now,
+            {
+                "timestamp": topics.stamp(now),
+                "class_name": believed.name,
+                "class_id": ground.terrain_class,
+                "field": "friction_mu",
+                "value": learned.friction_mu,
+                "believed": believed.friction_mu,
+                "slope_rad": abs(pitch),
+                "plans_up_to_rad": plans_to,
+                "x": pose.x,
+                "y": pose.y,
+            },
+        )
         self.safety.progress_learned(f"learned {believed.name}'s traction; planning again")
 
     def _safety_inputs(self, now: int, pose: PoseEstimate | None) -> SafetyInputs:

@@ -61,6 +61,14 @@ def register(families: Any) -> None:
         "--topics", type=lambda text: [t for t in text.split(",") if t], help="comma-separated (default: all)"
     )
     export.set_defaults(handler=csv_command)
+    learned_help = (
+        "what the rovers learned of their ground (navigator/learned), as [terrain_classes.<name>] tables "
+        "for the rover config: the next run plans on it from the start"
+    )
+    learned = commands.add_parser("learned", help=learned_help, description=learned_help)
+    learned.add_argument("files", type=Path, nargs="+", help="recordings (trial.mcap, a rover's recording)")
+    learned.add_argument("--out", type=Path, help="write the tables to this file (default: print them)")
+    learned.set_defaults(handler=learned_command)
     replay_commands.register(commands)
 
 
@@ -210,3 +218,33 @@ def csv_command(args: argparse.Namespace) -> int:
         print(f"rover logs csv: {partial_notice(args.file, result.stop, kept)}", file=sys.stderr)
         return 1
     return 0
+
+
+def learned_command(args: argparse.Namespace) -> int:
+    """Exit 0: every recording read whole; 1: tables written from what could be read (a recording cut or
+    damaged, or messages refused: stderr says which); 2: bad input, nothing written."""
+    from logs.learned_terrain import learned_tables, read_learned
+    from logs.read_stop import partial_notice
+
+    console = Console(stderr=True)
+    try:
+        read = read_learned(args.files)
+    except LogsError as err:
+        print_error(console, err)
+        return 2
+    tables = learned_tables(read)
+    if args.out is None:
+        sys.stdout.write(tables)
+    else:
+        try:
+            args.out.write_text(tables, encoding="utf-8")
+        except OSError as err:
+            print_error(console, f"cannot write {args.out}: {err.strerror or err}")
+            return 2
+        console.print(f"{len(read.learnings)} learning(s) -> {escape(str(args.out))}")
+    for source, stop in read.stops.items():
+        kept = "the tables hold what was learned before it"
+        print(f"rover logs learned: {partial_notice(source, stop, kept)}", file=sys.stderr)
+    for why in read.refused:
+        print(f"rover logs learned: refused a navigator/learned message: {why}", file=sys.stderr)
+    return 1 if read.stops or read.refused else 0
