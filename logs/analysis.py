@@ -105,6 +105,19 @@ MAVLINK_FIGURES = {
     "mission_timeouts": "mavlink_mission_timeouts",
 }
 EXPECTED_TOPICS = (ESTIMATOR_POSE, NAVIGATOR_PATH, NAVIGATOR_STATE, WHEELS_STATUS, CAN_FRAMES)
+# A report lists a run's safety/events up to this many (a soak's hour can hold thousands); the rest are
+# counted, and `rover logs csv FILE --topics safety/events` has them all.
+EVENTS_LISTED = 200
+
+
+@dataclass(frozen=True)
+class Event:
+    """One ``safety/events`` message as a report lists it: seconds from the recording's first message."""
+
+    t_s: float
+    severity: str
+    kind: str
+    detail: str
 
 
 @dataclass
@@ -167,6 +180,9 @@ class TrialAnalysis:
     truth_path: str | None = None
     truth_merged: bool = False  # False: the truth file was given but nothing of it merged (problems say why)
     sources: list[tuple[str, str]] = field(default_factory=list)
+    # safety/events in log order (the first EVENTS_LISTED; how many more there were).
+    events: list[Event] = field(default_factory=list)
+    events_unlisted: int = 0
 
     def _truth_dict(self) -> dict[str, Any]:
         sources = dict(self.sources)
@@ -185,6 +201,11 @@ class TrialAnalysis:
             "missing": self.missing,
             "metadata": self.metadata,
             "attachments": self.attachments,
+            "events": [
+                {"t_s": round(e.t_s, 3), "severity": e.severity, "kind": e.kind, "detail": e.detail}
+                for e in self.events
+            ],
+            "events_unlisted": self.events_unlisted,
         }
 
 
@@ -224,6 +245,8 @@ class _Collector:
     # mavlink/stats: each window's growth of these counters, summed over windows and links.
     mavlink: Counter[str] | None = None
     safety: Counter[str] = field(default_factory=Counter)
+    events: list[Event] = field(default_factory=list)  # the first EVENTS_LISTED
+    events_unlisted: int = 0
     log_levels: Counter[int] = field(default_factory=Counter)
     unusable: Counter[str] = field(default_factory=Counter)
     metadata: dict[str, dict[str, str]] = field(default_factory=dict)
@@ -316,7 +339,12 @@ class _Collector:
             self.innovations.setdefault(str(message["sensor"]), Series()).add(t, message["nis"])
             self.rejected_innovations += not message["accepted"]
         elif topic == SAFETY_EVENTS:
-            self.safety[str(message["severity"])] += 1
+            event = Event(t, str(message["severity"]), str(message["kind"]), str(message["detail"]))
+            self.safety[event.severity] += 1
+            if len(self.events) < EVENTS_LISTED:
+                self.events.append(event)
+            else:
+                self.events_unlisted += 1
         elif topic == LOG:
             self.log_levels[int(message["level"])] += 1
         elif topic == NAVIGATOR_MAP:
@@ -490,6 +518,8 @@ def _finish(
         terrain_class=_terrain_class(c),
         grid=c.grid,
         grid_extent=c.grid_extent,
+        events=c.events,
+        events_unlisted=c.events_unlisted,
     )
 
 

@@ -520,6 +520,24 @@ def _comparison_text(comparison: RunComparison) -> str:
     )
 
 
+EVENTS_HEADER = ("t (s)", "severity", "kind", "detail")
+
+
+def _event_rows(run: TrialAnalysis) -> list[tuple[str, str, str, str]]:
+    """The run's safety/events, a row each (time from the recording's first message)."""
+    return [(f"{e.t_s:.2f}", e.severity, e.kind, e.detail) for e in run.events]
+
+
+def _events_title(run: TrialAnalysis) -> str:
+    more = (
+        f"; {run.events_unlisted} more not listed (`rover logs csv {run.path} --out DIR --topics "
+        f"safety/events` has them all)"
+        if run.events_unlisted
+        else ""
+    )
+    return f"Events (safety/events: failsafes, modes, goals, what the rover learned){more}"
+
+
 def _count_rows(run: TrialAnalysis) -> list[tuple[str, str]]:
     """Messages per topic; the last row says where the counts come from."""
     rows = [(topic, str(n)) for topic, n in run.counts.items()]
@@ -558,6 +576,9 @@ def _markdown(result: ReportResult, plots: bool) -> str:
         for problem in run.metrics.problems:
             parts.append(f"- problem: {problem}\n")
         parts.append(_md_table(("metric", "value"), _run_rows(run)))
+        if run.events:
+            parts.append(f"### {_events_title(run)}\n")
+            parts.append(_md_table(EVENTS_HEADER, _event_rows(run)))
         parts.append(_md_table(("topic", "messages"), _count_rows(run)))
     for comparison in result.comparisons:
         parts.append(f"## Comparison: A = {comparison.a}, B = {comparison.b}\n")
@@ -581,14 +602,15 @@ def _markdown(result: ReportResult, plots: bool) -> str:
 _STYLE = (
     "body{font-family:sans-serif;max-width:62rem;margin:auto;padding:1rem}"
     "table{border-collapse:collapse;margin:.5rem 0}td,th{border:1px solid #ccc;padding:.2rem .5rem}"
-    "td:nth-child(n+2){text-align:right}.warn{color:#a40}"
+    "td:nth-child(n+2){text-align:right}.warn{color:#a40}table.text td{text-align:left}"
 )
 
 
-def _html_table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
+def _html_table(header: Sequence[str], rows: Sequence[Sequence[str]], *, text: bool = False) -> str:
+    """``text``: every column left-aligned (words, not figures)."""
     head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
     body = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in row) + "</tr>" for row in rows)
-    return f"<table><tr>{head}</tr>{body}</table>"
+    return f"<table{' class=text' if text else ''}><tr>{head}</tr>{body}</table>"
 
 
 def _html(result: ReportResult, plots: bool) -> str:
@@ -614,6 +636,9 @@ def _html(result: ReportResult, plots: bool) -> str:
         if plots:
             for draw in (plot.trajectory_svg, plot.cross_track_svg, plot.vehicle_svg, plot.innovations_svg):
                 parts.append(f"<div>{draw(run)}</div>")
+        if run.events:
+            parts.append(f"<h3>{html.escape(_events_title(run))}</h3>")
+            parts.append(_html_table(EVENTS_HEADER, _event_rows(run), text=True))
         parts.append(_html_table(("topic", "messages"), _count_rows(run)))
     for comparison in result.comparisons:
         parts.append(
