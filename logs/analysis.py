@@ -105,8 +105,9 @@ MAVLINK_FIGURES = {
     "mission_timeouts": "mavlink_mission_timeouts",
 }
 EXPECTED_TOPICS = (ESTIMATOR_POSE, NAVIGATOR_PATH, NAVIGATOR_STATE, WHEELS_STATUS, CAN_FRAMES)
-# A report lists a run's safety/events up to this many (a soak's hour can hold thousands); the rest are
-# counted, and `rover logs csv FILE --topics safety/events` has them all.
+# A report lists a run's safety/events up to this many of each kind, warnings and errors, and the rest (a
+# soak's hour can hold thousands of mode changes): a late failsafe is never pushed out by early chatter. The
+# rest are counted; `rover logs csv FILE --topics safety/events` has them all.
 EVENTS_LISTED = 200
 
 
@@ -245,7 +246,9 @@ class _Collector:
     # mavlink/stats: each window's growth of these counters, summed over windows and links.
     mavlink: Counter[str] | None = None
     safety: Counter[str] = field(default_factory=Counter)
-    events: list[Event] = field(default_factory=list)  # the first EVENTS_LISTED
+    # The first EVENTS_LISTED warnings and errors, and the first EVENTS_LISTED of the rest, in file order.
+    alarms: list[Event] = field(default_factory=list)
+    notices: list[Event] = field(default_factory=list)
     events_unlisted: int = 0
     log_levels: Counter[int] = field(default_factory=Counter)
     unusable: Counter[str] = field(default_factory=Counter)
@@ -339,10 +342,13 @@ class _Collector:
             self.innovations.setdefault(str(message["sensor"]), Series()).add(t, message["nis"])
             self.rejected_innovations += not message["accepted"]
         elif topic == SAFETY_EVENTS:
-            event = Event(t, str(message["severity"]), str(message["kind"]), str(message["detail"]))
-            self.safety[event.severity] += 1
-            if len(self.events) < EVENTS_LISTED:
-                self.events.append(event)
+            severity = str(message["severity"])
+            self.safety[severity] += 1  # counted whatever else the message lacks
+            listed = self.notices if severity == "info" else self.alarms
+            if len(listed) < EVENTS_LISTED:
+                listed.append(
+                    Event(t, severity, str(message.get("kind", "")), str(message.get("detail", "")))
+                )
             else:
                 self.events_unlisted += 1
         elif topic == LOG:
@@ -518,7 +524,9 @@ def _finish(
         terrain_class=_terrain_class(c),
         grid=c.grid,
         grid_extent=c.grid_extent,
-        events=c.events,
+        # By time: in a `rover run` recording an event of the CAN link's thread is recorded at the next
+        # poll, a little after events of the control tick it happened before (a stable sort keeps ties).
+        events=sorted(c.alarms + c.notices, key=lambda event: event.t_s),
         events_unlisted=c.events_unlisted,
     )
 

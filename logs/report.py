@@ -18,6 +18,7 @@ import html
 import json
 import logging
 import math
+import shlex
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -530,8 +531,8 @@ def _event_rows(run: TrialAnalysis) -> list[tuple[str, str, str, str]]:
 
 def _events_title(run: TrialAnalysis) -> str:
     more = (
-        f"; {run.events_unlisted} more not listed (`rover logs csv {run.path} --out DIR --topics "
-        f"safety/events` has them all)"
+        f"; {run.events_unlisted} more not listed (`rover logs csv {shlex.quote(run.path)} --out DIR "
+        f"--topics safety/events` has them all)"
         if run.events_unlisted
         else ""
     )
@@ -546,9 +547,17 @@ def _count_rows(run: TrialAnalysis) -> list[tuple[str, str]]:
 
 
 # --- Markdown -----------------------------------------------------------------------------------
+def _md_cell(text: str) -> str:
+    """``text`` as one Markdown table cell that shows it as written: backslashes, pipes and HTML's
+    characters escaped, a line break as ``<br>`` (a bare newline would end the row)."""
+    text = text.replace("\\", "\\\\").replace("|", "\\|")
+    text = text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+    return text.replace("\r\n", "<br>").replace("\n", "<br>").replace("\r", "<br>")
+
+
 def _md_table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(cell.replace("|", "\\|") for cell in row) + " |" for row in rows]
+    lines += ["| " + " | ".join(_md_cell(cell) for cell in row) + " |" for row in rows]
     return "\n".join(lines) + "\n"
 
 
@@ -602,7 +611,8 @@ def _markdown(result: ReportResult, plots: bool) -> str:
 _STYLE = (
     "body{font-family:sans-serif;max-width:62rem;margin:auto;padding:1rem}"
     "table{border-collapse:collapse;margin:.5rem 0}td,th{border:1px solid #ccc;padding:.2rem .5rem}"
-    "td:nth-child(n+2){text-align:right}.warn{color:#a40}table.text td{text-align:left}"
+    "td:nth-child(n+2){text-align:right}.warn{color:#a40}"
+    "table.text td{text-align:left;overflow-wrap:anywhere}"
 )
 
 

@@ -104,6 +104,19 @@ def _refusal(base: TerrainClass, values: Mapping[str, float]) -> str | None:
     return None
 
 
+def override_refusal(class_name: str, field: str, value: float) -> str | None:
+    """Why a rover config's ``[terrain_classes.<class_name>] <field> = <value>`` would be refused (an unknown
+    class or field, a value the class check refuses), or None when the config takes it: for tables written
+    by a tool (``rover logs learned``) from recordings another build may have made."""
+    known = {c.name: c for c in TERRAIN_CLASSES.values()}
+    if class_name not in known:
+        return f"no terrain class {class_name!r} (known: {', '.join(known)})"
+    fields = PHYSICS_FIELDS + PLANNER_FIELDS
+    if field not in fields:
+        return f"{field!r} is no field of a terrain class table (fields: {', '.join(fields)})"
+    return _refusal(known[class_name], {field: value})
+
+
 def with_overrides(
     overrides: ClassOverrides, base: Mapping[int, TerrainClass] = TERRAIN_CLASSES
 ) -> dict[int, TerrainClass]:

@@ -66,7 +66,12 @@ def register(families: Any) -> None:
         "for the rover config: the next run plans on it from the start"
     )
     learned = commands.add_parser("learned", help=learned_help, description=learned_help)
-    learned.add_argument("files", type=Path, nargs="+", help="recordings (trial.mcap, a rover's recording)")
+    learned.add_argument(
+        "files",
+        type=Path,
+        nargs="+",
+        help="recordings (trial.mcap, a rover's recording) and/or campaign folders",
+    )
     learned.add_argument("--out", type=Path, help="write the tables to this file (default: print them)")
     learned.set_defaults(handler=learned_command)
     replay_commands.register(commands)
@@ -225,10 +230,16 @@ def learned_command(args: argparse.Namespace) -> int:
     damaged, or messages refused: stderr says which); 2: bad input, nothing written."""
     from logs.learned_terrain import learned_tables, read_learned
     from logs.read_stop import partial_notice
+    from logs.report import expand_inputs
+    from navigator.terrain_class_settings import override_refusal
 
     console = Console(stderr=True)
+    files, _ = expand_inputs(args.files)  # a campaign's folder: every recording under it
+    if not files:
+        print_error(console, f"no recording (*.mcap) in {', '.join(str(f) for f in args.files)}")
+        return 2
     try:
-        read = read_learned(args.files)
+        read = read_learned(files, check=override_refusal)
     except LogsError as err:
         print_error(console, err)
         return 2

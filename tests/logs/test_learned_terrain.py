@@ -13,6 +13,7 @@ from logs.recorder import McapRecorder
 from logs.settings import parse_toml
 from logs.topics import NAVIGATOR_LEARNED, NAVIGATOR_STATE, stamp
 from navigator.config import rover_config_from_table
+from navigator.terrain_class_settings import override_refusal
 from navigator.terrain_classes import TERRAIN_CLASSES
 from rover_cli.main import main
 
@@ -137,3 +138,48 @@ def test_a_file_that_is_no_recording_writes_nothing(
     assert main(["logs", "learned", str(source), "--out", str(out)]) == 2
     assert not out.exists()
     assert "not.mcap" in " ".join(capsys.readouterr().err.split())
+
+
+@pytest.mark.parametrize(
+    ("bad", "named"),
+    [
+        ({"class_name": "gravel2"}, "no terrain class 'gravel2'"),  # a newer build's class
+        ({"field": "slip_limit"}, "'slip_limit' is no field of a terrain class table"),
+        ({"value": -0.1}, "a rover config would refuse it"),  # the class check's own refusal
+    ],
+    ids=["unknown-class", "unknown-field", "refused-value"],
+)
+def test_what_a_rover_config_would_refuse_is_refused_not_written(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], bad: dict[str, Any], named: str
+) -> None:
+    """Tables the config loader refuses are no tables: `rover logs learned` wrote them, exit 0."""
+    source = _recording(
+        tmp_path / "r.mcap",
+        [{**_learned(3, "sandy", SANDY.id, 0.2), **bad}, _learned(9, "sandy", SANDY.id, 0.33)],
+    )
+    read = read_learned([source], check=override_refusal)
+    assert len(read.refused) == 1 and named in read.refused[0]
+    out = tmp_path / "t.toml"
+    assert main(["logs", "learned", str(source), "--out", str(out)]) == 1
+    assert named in " ".join(capsys.readouterr().err.split())
+    assert _beliefs(out.read_text()) == {"sandy": 0.33}  # loads: the refused one is not in it
+
+
+def test_times_are_from_the_recordings_first_message_and_folders_are_read_whole(tmp_path: Path) -> None:
+    """A `rover run` recording's log time is the computer's monotonic clock: 1000 s into it here."""
+    late = 1_000_000_000_000
+    path = tmp_path / "campaign" / "sandy" / "run.mcap"
+    path.parent.mkdir(parents=True)
+    with McapRecorder(path) as recorder:
+        recorder.publish(NAVIGATOR_STATE, late, {"timestamp": stamp(late), "mode": "DRIVING"})
+        learned = _learned(0, "sandy", SANDY.id, 0.3)
+        recorder.publish(NAVIGATOR_LEARNED, late + 23_040_000_000, learned)
+    assert read_learned([path]).learnings[0].t_s == pytest.approx(23.04)
+    out = tmp_path / "t.toml"
+    assert main(["logs", "learned", str(tmp_path / "campaign"), "--out", str(out)]) == 0
+    assert f"# {path} at 23.04 s" in out.read_text() and _beliefs(out.read_text()) == {"sandy": 0.3}
+
+
+def test_a_path_with_a_line_break_stays_in_its_comment(tmp_path: Path) -> None:
+    source = _recording(tmp_path / "odd\nname.mcap", [_learned(5, "sandy", SANDY.id, 0.3)])
+    assert _beliefs(learned_tables(read_learned([source]))) == {"sandy": 0.3}
