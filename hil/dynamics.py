@@ -43,8 +43,12 @@ The model, per step of ``dt`` (semi-implicit Euler, no randomness):
   the turn alone is free it keeps turning (so it can turn in place and back away); if the turn is what hits
   (a corner swinging into a wall), the turn stops at the contact too. Reported once per entry in
   ``DynamicsStep.collided_obstacle``; ``collided`` is true for as long as it touches.
-* Motors: wheel torque ``F r`` -> motor current ``F r / (gear k_t)`` (so never above the current limit; its
-  sign is the force's); duty ``(k_t ω_motor + I R) / V``; electrical power ``k_t I ω_motor + I² R`` per
+* Motors: no wheel turns faster than its motor can at this step's pack voltage: ``k_t ω_motor + I R <=
+  max_duty V`` (back-EMF, the winding's drop with the last step's current, the controller's top duty; the
+  speeds given are capped there on their sign, ``hil.motor_voltage``, and the step reports the caps in
+  ``DynamicsStep.wheel_speed_limits_mps`` for the simulated VESCs). Wheel torque ``F r`` -> motor current
+  ``F r / (gear k_t)`` (so never above the current limit; its sign is the force's); duty
+  ``(k_t ω_motor + I R) / V``; electrical power ``k_t I ω_motor + I² R`` per
   motor, integrated to energy; a generating (braking) motor's is negative, returned to the pack as a
   VESC's regenerative braking does, down to ``-limit x V`` (``regen_current_limit_a``, each controller's
   battery current floor; past it the rest is lost and the braking force kept). Slip: from the
@@ -78,6 +82,10 @@ from navigator.terrain import TerrainMap
 from navigator.terrain_classes import REFERENCE_WHEEL_LOAD_N, TERRAIN_CLASSES, TerrainClass
 from navigator.vehicle import VehicleParams, stability_margins
 
+# The motor controllers' top duty cycle: VESC firmware's default l_max_duty (mcconf_default.h,
+# MCCONF_L_MAX_DUTY 0.95; VESC Tool's "Maximum Duty Cycle"). It caps each wheel's speed (hil.motor_voltage).
+DEFAULT_MAX_DUTY = 0.95
+
 
 class DynamicsError(ValueError):
     """The simulated body was given something it cannot use (bad time step, wheel speeds, start pose)."""
@@ -102,6 +110,7 @@ class RoverDynamics:
         gear_ratio: float = 20.0,  # motor turns per wheel turn
         winding_resistance_ohm: float = 0.1,
         motor_current_limit_a: float = 10.0,  # the VESC's motor current limit (its l_current_max setting)
+        max_duty: float = DEFAULT_MAX_DUTY,
         regen_current_limit_a: float = REGEN_CURRENT_LIMIT_A,
         drive_time_constant_s: float = 0.1,
         yaw_time_constant_s: float = 0.15,
@@ -121,6 +130,8 @@ class RoverDynamics:
         ):
             if not (math.isfinite(value) and value >= 0.0):
                 raise DynamicsError(f"{name} must be a finite number >= 0, got {value}")
+        if not 0.0 < max_duty <= 1.0:  # also refuses NaN
+            raise DynamicsError(f"max_duty must be in (0, 1], got {max_duty}")
         if not all(math.isfinite(v) for v in (x, y, yaw)) or not terrain.contains(x, y):
             raise DynamicsError(f"start pose ({x}, {y}, yaw {yaw}) must be finite and on the map")
         _check_classes(terrain, classes)
@@ -134,6 +145,7 @@ class RoverDynamics:
             gear_ratio=gear_ratio,
             winding_resistance_ohm=winding_resistance_ohm,
             motor_current_limit_a=motor_current_limit_a,
+            max_duty=max_duty,
             regen_current_limit_a=regen_current_limit_a,
             drive_time_constant_s=drive_time_constant_s,
             yaw_time_constant_s=yaw_time_constant_s,
@@ -247,7 +259,9 @@ class RoverDynamics:
         battery_voltage_v: float,
         stalled: Sequence[float] = (),
     ) -> DynamicsStep:
-        """Advance ``dt_s`` seconds with the six wheels turning at ``wheel_surface_speeds`` (m/s).
+        """Advance ``dt_s`` seconds with the six wheels turning at ``wheel_surface_speeds`` (m/s), each within
+        what its motor can turn at ``battery_voltage_v`` (``hil.motor_voltage``: the step's
+        ``wheel_speeds_mps`` are the speeds applied, ``wheel_speed_limits_mps`` the limits).
 
         ``stalled`` (optional, six values in wheel order): -1 / +1 for a seized wheel whose motor is
         commanded backwards / forwards (it stalls at the current limit), 0 for a wheel that turns freely
@@ -331,6 +345,8 @@ class RoverDynamics:
             energy_wh=self.energy_wh,
             battery_current_a=0.0,
             motor_input_current_a=0.0,
+            # The last step's: a rover on its side is stepped no further (its wheels spin in the air).
+            wheel_speed_limits_mps=tuple(v[k.SPEED_LIMITS : k.SPEED_LIMITS + 6]),
         )
 
     def _use_terrain(self, terrain: TerrainMap) -> None:
@@ -370,6 +386,7 @@ def _body_vector(
     gear_ratio: float,
     winding_resistance_ohm: float,
     motor_current_limit_a: float,
+    max_duty: float,
     regen_current_limit_a: float,
     drive_time_constant_s: float,
     yaw_time_constant_s: float,
@@ -402,6 +419,7 @@ def _body_vector(
     body[k.CG_HEIGHT] = params.cg_height_m
     body[k.TIP_ROLL], body[k.TIP_PITCH] = params.tip_roll_rad, params.tip_pitch_rad
     body[k.CURRENT_LIMIT] = motor_current_limit_a
+    body[k.MAX_DUTY] = max_duty
     body[k.HALF_LENGTH] = 0.5 * params.footprint_length_m
     body[k.HALF_WIDTH] = 0.5 * params.footprint_width_m
     return body

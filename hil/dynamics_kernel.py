@@ -24,7 +24,8 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from hil import traction
+from hil import motor_voltage, traction
+from hil.motor_voltage import limit_to_voltage
 from hil.traction import MU, drive_forces, sideways_grip, sideways_speed, slide_yaw_moment, wheel_outputs
 from navigator import footprint, ground_kernel, vehicle
 from navigator.footprint import BOUNDARY, CLEAR, OBSTACLE, rectangle_contact
@@ -52,13 +53,16 @@ STEP_ACCEL, LATERAL, ROLL_MARGIN, PITCH_MARGIN = 13, 14, 15, 16  # accel before 
 ROLLOVER_STARTED, TOUCHING, CONTACT_BEGAN, CONTACT_KIND = 17, 18, 19, 20
 POWER_W, INPUT_CURRENT_A = 21, 22
 FORCE_X, FORCE_Y, FORCE_Z = 23, 24, 25  # specific force in body axes
-# --- per wheel, six each in wheel order: the speeds given (an input), then the step's outputs ---
+# --- per wheel, six each in wheel order: the speeds given (an input, capped in place at the motors' voltage
+# limit), then the step's outputs ---
 WHEELS, SLIP, NORMALS, TRACTION, CURRENTS, DUTY = 26, 32, 38, 44, 50, 56
 # --- the map's frame (TerrainMap.origin_xy, resolution_m), set with the terrain ---
 ORIGIN_X, ORIGIN_Y, RESOLUTION = 62, 63, 64
 # --- more of the state: the body's sideways speed (m/s, y left)
 LATERAL_SPEED = 65
-VALUES_SIZE = 66
+# --- per wheel, six: the most surface speed its motor could turn at this step (m/s, >= 0; motor_voltage)
+SPEED_LIMITS = 66
+VALUES_SIZE = 72
 
 # --- ``surface``: the map's float layers stacked, one (rows, cols) plane each ---
 ELEVATION_LAYER, GRAD_X_LAYER, GRAD_Y_LAYER = 0, 1, 2
@@ -69,7 +73,8 @@ VEHICLE, MOTOR, MOTOR_END = 0, 9, 15
 MASS, YAW_INERTIA, TRACK, EFFECTIVE_TRACK, HALF_WHEELBASE = 0, 1, 2, 3, 4
 RESISTANCE, REGEN_LIMIT = 12, 14  # the motor vector's winding resistance; each controller's regen limit (A)
 CG_HEIGHT, TIP_ROLL, TIP_PITCH, CURRENT_LIMIT, HALF_LENGTH, HALF_WIDTH = 15, 16, 17, 18, 19, 20
-BODY_SIZE = 21
+MAX_DUTY = 21  # the controllers' top duty (VESC l_max_duty): the voltage limit on wheel speed
+BODY_SIZE = 22
 
 # How ``step_kernel``'s step ended (the first of the three things it returns).
 STEPPED, OFF_MAP = 0, 1
@@ -111,7 +116,8 @@ class DynamicsStep(NamedTuple):
     roll_rad: float
     pitch_rad: float
     terrain_class: int
-    wheel_speeds_mps: tuple[float, ...]  # wheel surface speeds applied this step
+    # Wheel surface speeds applied this step: the ones given, each within its motor's voltage limit.
+    wheel_speeds_mps: tuple[float, ...]
     # From the class's traction curve for each wheel's pull; (surface − ground) / max(|surface|, |ground|)
     # once it spins or slides; in [-1, 1].
     slip: tuple[float, ...]
@@ -134,6 +140,9 @@ class DynamicsStep(NamedTuple):
     # What the six motors draw from the pack: the sum of each one's current x duty that is positive (a
     # braking motor generates, and with no regeneration gives nothing back, nor draws).
     motor_input_current_a: float
+    # The most surface speed each wheel's motor could turn at this step, in the direction it was given (m/s,
+    # >= 0): duty max x the pack's voltage against back-EMF and the winding's drop (hil.motor_voltage).
+    wheel_speed_limits_mps: tuple[float, ...]
     # Last: the one field the compiled step leaves to Python (a str passed into a numba call costs about
     # as much as the rest of the call's arguments together).
     terrain_name: str
@@ -210,6 +219,7 @@ def _record(values: Array, terrain_class: int, battery_voltage: float) -> tuple[
         values[ENERGY_J] / 3600.0,  # energy_wh
         power / battery_voltage if battery_voltage > 0.0 else 0.0,  # battery_current_a
         values[INPUT_CURRENT_A],  # motor_input_current_a
+        _six(values, SPEED_LIMITS),  # wheel_speed_limits_mps
     )
 
 
@@ -354,6 +364,12 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
         )
         ground = ground_table[int(values[CLASS])]
         lateral_speed0 = values[LATERAL_SPEED]
+        # No wheel turns faster than its motor can at this pack voltage (back-EMF at the top duty), with the
+        # current its force drew a step ago (``currents`` still holds the last step's): motor_voltage.
+        limit_to_voltage(
+            wheels, currents, body[MOTOR:MOTOR_END], battery_voltage, body[MAX_DUTY],
+            values[SPEED_LIMITS : SPEED_LIMITS + 6],
+        )  # fmt: skip
 
         # The body's sideways acceleration at the end of the last step (LATERAL: the turn's v w and any
         # slide's change) loads the downhill / outer wheels.
@@ -531,7 +547,7 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
 
 
 # The modules whose compiled functions step_kernel calls (each calls only its own module's in turn).
-KERNEL_SOURCES = (traction, footprint, ground_kernel, vehicle)
+KERNEL_SOURCES = (traction, motor_voltage, footprint, ground_kernel, vehicle)
 step_kernel = _compile_step_kernel(sources_fingerprint(*KERNEL_SOURCES))
 
 

@@ -1,8 +1,10 @@
 """Six simulated VESC motor controllers: the far end of the rover's CAN bus in HIL.
 
-Each controller obeys only frames carrying its own id, follows SET_RPM with a first-order motor response,
-stops when commands stop arriving (the firmware's command timeout), and sends STATUS / STATUS_4 /
-STATUS_5 on a schedule read from the clock, in wheel order, so a lockstep run is deterministic.
+Each controller obeys only frames carrying its own id, follows SET_RPM with a first-order motor response
+no faster than the physics says its motor can turn at the pack's voltage (``set_electrical``), so STATUS
+reports the speed the wheel turns, stops when commands stop arriving (the firmware's command timeout), and
+sends STATUS / STATUS_4 / STATUS_5 on a schedule read from the clock, in wheel order, so a lockstep run is
+deterministic.
 """
 
 from __future__ import annotations
@@ -88,6 +90,8 @@ class SimVescBank:
         self._last_command_ns: list[int | None] = [None] * WHEEL_COUNT
         self._motor_current_a = [0.0] * WHEEL_COUNT
         self._duty_cycle = [0.0] * WHEEL_COUNT  # the motors' duty from the physics (set_electrical)
+        # Per wheel, the most ERPM its motor can turn at the pack's voltage (the physics': set_electrical).
+        self._erpm_limits: Sequence[float] = (math.inf,) * WHEEL_COUNT
         self._input_voltage_v = input_voltage_v
         self._regen_floor_a = -regen_current_limit_a  # the input current's floor while braking
         # The latest set_electrical's loads, not yet clamped into the fields above (_take_loads); None: none.
@@ -251,6 +255,7 @@ class SimVescBank:
         blend = self._blend
         # Every physics step, six wheels: the per-wheel lists held in locals (they are mutated in place).
         erpm, targets, stuck, tacho = self._erpm, self._targets, self._stuck, self._tacho_erev
+        limits = self._erpm_limits
         last_command_ns, timeout_ns = self._last_command_ns, self._timeout_ns
         for i in range(WHEEL_COUNT):
             last = last_command_ns[i]
@@ -262,6 +267,13 @@ class SimVescBank:
                 logger.debug("simulated VESC of %s: command timeout, stopping", wheel_label(i, self._ids))
             before = erpm[i]
             after = 0.0 if stuck[i] else before + (targets[i] - before) * blend
+            # The motor turns no faster than the pack's voltage lets it (back-EMF at the top duty), whatever
+            # the speed loop asks: the speed a real VESC measures, and the one the physics applies next.
+            top = limits[i]
+            if after > top:
+                after = top
+            elif after < -top:
+                after = -top
             erpm[i] = after
             # Trapezoid over the step; erev = ERPM x minutes.
             tacho[i] += 0.5 * (before + after) * dt_s / 60.0
@@ -272,18 +284,33 @@ class SimVescBank:
         motor_currents_a: Sequence[float],
         input_voltage_v: float,
         duties: Sequence[float],
+        speed_limits_mps: Sequence[float] | None = None,
     ) -> None:
         """Loads from the physics engine, reported in the next status frames: motor currents, the supply
-        voltage and the motors' duty cycles (signed, as ``DynamicsStep.duty``)."""
+        voltage and the motors' duty cycles (signed, as ``DynamicsStep.duty``); and, when given, the most
+        surface speed each wheel's motor can turn at (m/s, >= 0: ``DynamicsStep.wheel_speed_limits_mps``),
+        which the motors keep to from the next ``step`` on (None: no limit, or the last one given)."""
         if len(motor_currents_a) != WHEEL_COUNT:
             raise ValueError(f"need {WHEEL_COUNT} motor currents in wheel order, got {len(motor_currents_a)}")
         if len(duties) != WHEEL_COUNT:
             raise ValueError(f"need {WHEEL_COUNT} duty cycles in wheel order, got {len(duties)}")
+        if speed_limits_mps is not None:
+            self._set_speed_limits(speed_limits_mps)
         # Kept as given (tuple() of the physics' tuples is the tuple itself) and clamped only when a status
         # frame is next due (_take_loads): the physics gives them every step, while STATUS goes every other
         # step at the default rates and STATUS_4 / STATUS_5 every tenth, so half of the clamping was for
         # loads the next step replaced unread.
         self._loads = (tuple(motor_currents_a), input_voltage_v, tuple(duties))
+
+    def _set_speed_limits(self, speed_limits_mps: Sequence[float]) -> None:
+        """Keep the physics' speed limits as ERPM. Every physics step: the usual six non-negative numbers
+        settled by one comparison each (a NaN fails them); anything else is a ValueError naming it."""
+        if len(speed_limits_mps) != WHEEL_COUNT or not all(limit >= 0.0 for limit in speed_limits_mps):
+            raise ValueError(
+                f"need {WHEEL_COUNT} wheel speed limits >= 0 m/s in wheel order, got {list(speed_limits_mps)}"
+            )
+        erpm_per_mps = self.profile.erpm_per_mps
+        self._erpm_limits = [limit * erpm_per_mps for limit in speed_limits_mps]
 
     def _take_loads(self) -> None:
         """Clamp the latest loads (``set_electrical``) into the fields the status frames carry."""

@@ -205,6 +205,29 @@ def test_battery_sag_lowers_the_reported_voltage(baseline):
     assert max(status) < 22.5  # the controllers report the sagging pack (25.2 V when full)
 
 
+def _speeds(run: WorldRun, start_s: float, end_s: float) -> list[float]:
+    return [m["speed_mps"] for m in run.on("truth/pose", start_s, end_s)]
+
+
+def test_battery_sag_slows_a_rover_at_top_speed_only_while_it_sags():
+    """At 1.5 m/s the motors need ~20.1 V at the pack's terminals (back-EMF at duty 0.95, docs/physics.md).
+    The 3 V sag above leaves ~21.7 V and changes nothing; a 6 V sag leaves ~18.6 V, where the wheels turn
+    at most ~1.39 m/s: the rover slows in truth/pose and the VESCs report that speed at the top duty.
+    2.4 s, as the drive from small_rocky's start reaches its rock at ~2.7 s at this speed."""
+    base = run_world(seconds=2.4, speed_mps=1.5)
+    window = {"start": 0.5, "duration": 1.0, "extra_resistance_ohm": 0.2}
+    mild = run_world(fault("battery", "wrong", sag_v=3.0, **window), seconds=2.4, speed_mps=1.5)
+    assert _speeds(mild, 0.0, 2.4) == _speeds(base, 0.0, 2.4)
+    sagging = run_world(fault("battery", "wrong", sag_v=6.0, **window), seconds=2.4, speed_mps=1.5)
+    assert _speeds(sagging, 0.0, 0.5) == _speeds(base, 0.0, 0.5)
+    during, during_base = _speeds(sagging, 1.0, 1.5), _speeds(base, 1.0, 1.5)
+    assert max(during) < 1.39 < 1.49 < min(during_base)
+    wheels = [w for m in sagging.on("wheels/status", 1.0, 1.5) for w in m["wheels"]]
+    assert max(w["speed_mps"] for w in wheels) < 1.395
+    assert [w["duty"] for w in wheels] == pytest.approx([0.95] * len(wheels), abs=2e-3)
+    assert _speeds(sagging, 2.0, 2.4) == pytest.approx(_speeds(base, 2.0, 2.4), abs=2e-3)  # it sped up again
+
+
 @pytest.mark.parametrize(
     ("text", "key"),
     [
