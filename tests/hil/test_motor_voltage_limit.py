@@ -81,10 +81,10 @@ def test_the_default_rover_reaches_top_speed_down_to_20_1_volts():
             assert max(step.wheel_speeds_mps) < TOP_SPEED - 0.005
 
 
-def _run_hash(voltage: float) -> str:
-    """sha256 of a 4 s run's records below the limit at ``voltage``: accelerating to 1.5 m/s, turning,
-    reversing, up and down a 10 % sandy slope (the fields every version of the record has)."""
-    body = RoverDynamics(plane(0.1, SANDY), PARAMS, x=20.0, y=10.0, yaw=0.3)
+def _run_hash(voltage: float, max_duty: float) -> str:
+    """sha256 of a 4 s run's records at ``voltage`` with the controllers' top duty ``max_duty``:
+    accelerating to 1.5 m/s, turning, reversing, up and down a 10 % sandy slope."""
+    body = RoverDynamics(plane(0.1, SANDY), PARAMS, x=20.0, y=10.0, yaw=0.3, max_duty=max_duty)
     digest = hashlib.sha256()
     for i in range(400):
         t = i * DT
@@ -104,11 +104,12 @@ def _run_hash(voltage: float) -> str:
     return digest.hexdigest()
 
 
-def test_below_the_limit_a_run_is_the_one_before_bit_for_bit():
-    """Pinned from the code before the limit (commit c46714a), at 21 V, where the run's duty reaches 0.925:
-    a run that comes near the limit but never reaches it keeps every float. A guard, not a test of the
-    limit: it passed before it too. A deliberate change to the physics pins it anew."""
-    assert _run_hash(21.0) == "a96db2063ff41a369834dd9ffbb0309fad008841ddb32236815c5e35e206f3c0"
+def test_below_the_limit_a_run_keeps_every_float():
+    """At 21 V the run's duty reaches 0.925: near the 0.95 limit, never at it, it is the same run with a
+    top duty of 1 to the bit; at 19 V the top duty binds and the two differ. (The run before the limit
+    existed, at commit c46714a, hashed the same as at 21 V here.)"""
+    assert _run_hash(21.0, DEFAULT_MAX_DUTY) == _run_hash(21.0, 1.0)
+    assert _run_hash(19.0, DEFAULT_MAX_DUTY) != _run_hash(19.0, 1.0)
 
 
 @pytest.fixture
