@@ -3,7 +3,9 @@
 In a lockstep trial with "objects" perception the simulator hands the onboard stack its observations in
 process, and the stack records each batch on ``perception/obstacles`` at the tick that read it, every
 observation stamped with that tick's time. Those records are the stack's perception input, so a replay
-hands them back at the same ticks.
+hands them back at the same ticks. The marks the stack puts on the same topic where it dug in
+(``navigator.recovery``, ids ``dug-in-N``) are its own output, not perception: the replayed stack makes
+them again, so they are left out.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ import math
 from typing import Any
 
 from navigator.perception import ObstacleObservation
+from navigator.recovery import MARK_PREFIX
 
 _log = logging.getLogger(__name__)
 # Positions (m), radii (m) and speeds (m/s) beyond this are no obstacle of a rover's world: a unit mistake.
@@ -37,7 +40,7 @@ class RecordedObstacles:
             observation = _observation(t_ns, entry)
             if isinstance(observation, str):
                 self._reject(t_ns, observation)
-            else:
+            elif not observation.obstacle_id.startswith(MARK_PREFIX):
                 self._pending.append(observation)
 
     def poll(self) -> list[ObstacleObservation]:

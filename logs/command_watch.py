@@ -13,7 +13,7 @@ command (``navigator.onboard``):
   geofence is refused with a ``goal_rejected`` event naming it instead), then plans. Acceptance alone does
   not confirm: a goal off the map or inside a rock is accepted and then proved unreachable. What decides
   is the plan's outcome on ``navigator/state`` with goal (X, Y): ``DRIVING`` (or ``ARRIVED``, ``BLOCKED``,
-  ``YIELDING``: it has a path) confirms, ``NO_PATH`` refuses, with the rover's reason from its
+  ``YIELDING``, ``RECOVERING``: it has a path) confirms, ``NO_PATH`` refuses, with the rover's reason from its
   ``guidance.no_path`` event. Before the acceptance is seen, a state that already shows goal (X, Y) in
   ``DRIVING`` may be the answer to an earlier, identical goal, so it decides nothing.
 
@@ -45,7 +45,8 @@ GOAL_ACCEPTED = "goal"  # navigator.onboard.OnboardStack.set_goal: "new goal (X,
 NO_PATH_EVENT = "guidance.no_path"  # navigator.route_guidance.RouteGuidance.tick: the planner's reason
 # Guidance's modes (navigator.route_guidance.Mode) as navigator/state names them.
 GOAL_PENDING_MODES = frozenset({"WAITING_ESTIMATE", "PLANNING"})  # accepted, no plan outcome yet
-GOAL_PLANNED_MODES = frozenset({"DRIVING", "ARRIVED", "BLOCKED", "YIELDING"})  # a path to the goal exists
+# A path to the goal exists (RECOVERING: it had one, and plans again once backed out).
+GOAL_PLANNED_MODES = frozenset({"DRIVING", "ARRIVED", "BLOCKED", "YIELDING", "RECOVERING"})
 NO_PATH_MODE = "NO_PATH"
 # JSON carries a float exactly; the tolerance only forgives a rover that rounds its goal to a micrometre.
 GOAL_TOLERANCE_M = 1e-6

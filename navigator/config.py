@@ -25,6 +25,7 @@ from navigator.follower import FollowerConfig
 from navigator.map_config import terrain_from_table
 from navigator.phase_locked_loop import DEFAULT_LATE_WAIT_NS, DEFAULT_OFFSET_NS
 from navigator.planner import COST_MODES, FOOTPRINT_INFLATIONS
+from navigator.recovery import RECOVERY_ATTEMPTS, RECOVERY_BACK_M
 from navigator.safety_config import SafetyConfig
 from navigator.scan_tracker_config import ScanTrackerConfig
 from navigator.terrain import TerrainMap
@@ -92,6 +93,12 @@ class PlannerConfig:
     # Held for no progress while climbing with its wheels turning, the rover believes the class under it
     # climbs less than that slope and plans again (navigator.climb_learning); false: it holds, as before.
     learn_traction: bool = True
+    # Held for no progress while driving and learning does not explain it, the rover backs out straight
+    # (at yield_speed_mps, at most recovery_back_m), marks the spot it dug in on as an obstacle and plans
+    # round it (navigator.recovery): at most recovery_attempts times a goal or resume. false: it holds.
+    recover_when_stuck: bool = True
+    recovery_back_m: float = RECOVERY_BACK_M
+    recovery_attempts: int = RECOVERY_ATTEMPTS
 
     @classmethod
     def from_table(cls, table: Table) -> PlannerConfig:
@@ -113,6 +120,12 @@ class PlannerConfig:
             yield_max_m=table.number("yield_max_m", cls.yield_max_m, lo=0.0, hi=50.0),
             yield_max_s=table.number("yield_max_s", cls.yield_max_s, lo=0.0, hi=120.0),
             learn_traction=table.flag("learn_traction", cls.learn_traction),
+            recover_when_stuck=table.flag("recover_when_stuck", cls.recover_when_stuck),
+            # At least a rover's length back (else the mark would lie under it), at most a short stretch:
+            # it reverses blind but for the believed map.
+            recovery_back_m=table.number("recovery_back_m", cls.recovery_back_m, lo=0.5, hi=10.0),
+            # 0 would be recover_when_stuck = false under another name: refused.
+            recovery_attempts=table.integer("recovery_attempts", cls.recovery_attempts, lo=1, hi=10),
         )
         table.finish()
         return config

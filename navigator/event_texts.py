@@ -3,8 +3,8 @@
 An operator watching QGroundControl or Mission Planner sees STATUSTEXT, not our Zenoh topics: ArduPilot
 tells its failsafes there ("Failsafe: ..."), and a rover that holds on ``no_progress`` or ``gps_lost``
 without a word to the ground station looks merely stopped. The failsafes, their clearing, the mode changes,
-the start-up checks and what the rover learned of its ground go out (once per change, as they are
-emitted); planning chatter (a replan, a path) does not.
+the start-up checks, what the rover learned of its ground and its recoveries when dug in go out (once per
+change, as they are emitted); planning chatter (a replan, a path) does not.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from __future__ import annotations
 from pymavlink.dialects.v20 import common as mavlink2
 
 # Event kinds told, by prefix; the rest stay on safety/events and in the log.
-TOLD_PREFIXES = ("failsafe.", "cleared.", "mode", "startup_checks", "learned.")
+TOLD_PREFIXES = ("failsafe.", "cleared.", "mode", "startup_checks", "learned.", "recovery.")
 _SEVERITIES = {
     "error": mavlink2.MAV_SEVERITY_ERROR,
     "warning": mavlink2.MAV_SEVERITY_WARNING,

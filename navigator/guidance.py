@@ -19,6 +19,10 @@ so the plan is there within the same tick. Obstacles seen on the way come in thr
   reaches the rover's own footprint (it stands in the obstacle's lane), it backs off, bounded (mode
   ``YIELDING``, ``navigator.yielding``), then holds as ``BLOCKED``.
 
+Dug in (the stack says so: ``recover``), it backs out straight, bounded (mode ``RECOVERING``,
+``navigator.recovery``), then marks the spot it dug in on as a static obstacle and plans the goal again
+from where it stopped.
+
 Speed limits on top of the follower's (curvature, goal approach): the mission's (``limit_speed``: a
 MAV_CMD_DO_CHANGE_SPEED item, ``navigator.onboard_mission``), the slope under the rover, the terrain
 class, and the predicted tip-over margin: on a side slope of roll ``r`` the lateral acceleration ``v^2 k``
@@ -42,6 +46,7 @@ from navigator.footprint import Footprint
 from navigator.perception import ObstacleObservation
 from navigator.plan_worker import InlineExecutor, PlanOutcome, PlanRequest, in_range, run_plan_request
 from navigator.planner import Path, Planner
+from navigator.recovery import BackOut, BackOutLimits, mark_under
 from navigator.stanley import Stanley
 from navigator.terrain import TerrainMap
 from navigator.terrain_classes import TERRAIN_CLASSES, TerrainClass
@@ -57,6 +62,7 @@ NO_PATH = "NO_PATH"
 BLOCKED = "BLOCKED"
 PLANNING = "PLANNING"  # a goal, no path yet: the first plan is being made (wheels held)
 YIELDING = "YIELDING"  # backing off out of a moving obstacle's predicted track (navigator.yielding)
+RECOVERING = "RECOVERING"  # dug in: backing out the way it came, then marking the spot (navigator.recovery)
 
 REASON_MISSION_SPEED = "mission_speed"
 REASON_SLOPE = "slope"
@@ -64,6 +70,7 @@ REASON_TERRAIN = "terrain_class"
 REASON_TIP_MARGIN = "tip_margin"
 REASON_MOVING_OBSTACLE = "moving_obstacle"
 REASON_STOPPED = "stopped"
+REASON_RECOVERY = "recovery"
 
 # A rover further than this off its path replans from where it is (it was pushed, slid or mis-estimated).
 REPLAN_CROSS_TRACK_M = 2.0
@@ -169,6 +176,14 @@ class Guidance:
                 planner_config.yield_max_s,
             ),
         )
+        # Backing out when dug in (navigator.recovery): the back-out under way and the mark it leaves, the
+        # marks waiting for the next planning job (they go in whatever the sensing range: ground the rover
+        # stood on), and what the last back-out did, for the stack to tell (``take_recovered``).
+        self._back_out_limits = BackOutLimits(planner_config.yield_speed_mps, planner_config.recovery_back_m)
+        self._back_out: BackOut | None = None
+        self._mark: ObstacleObservation | None = None
+        self._marks_waiting: list[ObstacleObservation] = []
+        self._recovered: tuple[str, ObstacleObservation | None] | None = None
         self._last_xy: tuple[float, float] | None = None
         self.replans = 0
         self.repairs_kept = 0
@@ -203,6 +218,7 @@ class Guidance:
         far), the ones waiting to go in, the moving ones, and its mission speed limit. Before the first
         planning job: the planner is this thread's until then."""
         self._in_map, self._pending = dict(old._in_map), dict(old._pending)
+        self._marks_waiting = list(old._marks_waiting)
         self._moving, self._moved_off = dict(old._moving), set(old._moved_off)
         added = old.planner.terrain.obstacles & ~self.planner.terrain.obstacles
         if added.any():
@@ -232,7 +248,23 @@ class Guidance:
         self._blocker = None
         self._clear_since_ns = None
         self._back_off.reset()
+        self._back_out, self._mark = None, None  # the operator chose where to go: no back-out now
         self._follower.reset()
+
+    def recover(self, t_ns: int, pose: tuple[float, float, float], mark: ObstacleObservation) -> None:
+        """Dug in at ``pose`` (x, y, yaw): back out from here (mode ``RECOVERING``), then put ``mark`` into
+        the map and plan the goal again from where the back-out stopped (``navigator.recovery``)."""
+        x, y, _yaw = pose
+        self._back_out = BackOut(Footprint.of(self._params), self._back_out_limits, (t_ns, x, y))
+        self._mark = mark
+        self._mode = RECOVERING
+        self._blocker = None
+
+    def take_recovered(self) -> tuple[str, ObstacleObservation | None] | None:
+        """What the back-out that has just ended did and the mark it left (None: none, it lay under the
+        rover), once; else None."""
+        recovered, self._recovered = self._recovered, None
+        return recovered
 
     @property
     def planning(self) -> bool:
@@ -265,6 +297,10 @@ class Guidance:
         if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(yaw) and math.isfinite(speed)):
             raise ParameterError(f"pose must be finite, got x={x}, y={y}, yaw={yaw}, speed={speed}")
         self._last_xy = (x, y)
+        if self._back_out is not None:
+            backing = self._backing_out(t_ns, x, y, yaw)
+            if backing is not None:
+                return backing
         details: list[str] = []
         path_changed = self._collect(details) if self._job is not None else False
         if self._job is None:
@@ -322,15 +358,17 @@ class Guidance:
     def _submit(self, x: float, y: float, *, why: str = "", must_plan: bool = False) -> None:
         """Start a planning job if there is work: static obstacles now within range, obstacles in the map
         that have moved on, or a plan needed."""
-        if not (self._pending or self._moved_off or self._needs_plan or must_plan):
+        if not (self._pending or self._moved_off or self._needs_plan or must_plan or self._marks_waiting):
             return  # nothing asks for planning (nearly every tick): no list built, nothing filtered
         near = [o for o in self._pending.values() if in_range(o, (x, y), self._config.sensing_range_m)]
+        near.extend(self._marks_waiting)
+        self._marks_waiting = []
         must_plan = must_plan or (self._needs_plan and self._goal is not None and self._mode != ARRIVED)
         if not near and not must_plan and not self._moved_off:
             return
         # Obstacles not yet within sensing range wait until the rover is near.
         for obstacle in near:
-            del self._pending[obstacle.obstacle_id]
+            self._pending.pop(obstacle.obstacle_id, None)
         self._in_map.update((o.obstacle_id, o) for o in near)
         moved_off, self._moved_off = tuple(sorted(self._moved_off)), set()
         if must_plan:
@@ -373,6 +411,34 @@ class Guidance:
         self.replans += 1
         self._follower.reset()
         return True
+
+    # --- backing out when dug in ----------------------------------------------------------------------
+    def _backing_out(self, t_ns: int, x: float, y: float, yaw: float) -> GuidanceOutput | None:
+        """The back-out's command (``RECOVERING``), or None once it has ended: then the mark waits for the
+        planning job this tick starts, a plan from here to the goal (one for the old path, in flight,
+        counts as stale), and the mode is ``DRIVING`` again. A mark that would overlap the rover where the
+        back-out stopped (it could not back out) is left out: the planner could never start from inside it,
+        for this goal or any later one."""
+        back_out, mark = self._back_out, self._mark
+        assert back_out is not None and mark is not None  # set together by recover()
+        step = back_out.step(t_ns, (x, y, yaw), self.planner.terrain)
+        if not step.done:
+            return GuidanceOutput(
+                step.speed_mps, 0.0, RECOVERING, 0.0, self._back_out_limits.speed_mps, REASON_RECOVERY,
+                self._path, False, False, "",
+            )  # fmt: skip
+        self._back_out, self._mark = None, None
+        if mark_under(mark, (x, y, yaw), Footprint.of(self._params), self.planner.terrain):
+            self._recovered = (f"{step.why}; not marked: the spot it dug in on lies under it", None)
+        else:
+            self._marks_waiting.append(mark)
+            self._recovered = (step.why, mark)
+        self._generation += 1
+        self._path = None
+        self._needs_plan = True
+        self._mode = DRIVING
+        self._follower.reset()
+        return None
 
     # --- moving obstacles -----------------------------------------------------------------------------
     def _clear_long_enough(self, t_ns: int) -> bool:

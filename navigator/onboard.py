@@ -52,7 +52,8 @@ from navigator.mission import Mission, MissionState
 from navigator.mixing import mix_skid_steer
 from navigator.odometry_frame import OdometryFrame
 from navigator.onboard_mission import MissionDriver
-from navigator.perception import ObstacleSource
+from navigator.onboard_recovery import DigInRecovery
+from navigator.perception import ObstacleSource, obstacles_record
 from navigator.planner import Path, Planner
 from navigator.route_guidance import Goal, GuidanceCommand, Mode, RouteGuidance
 from navigator.safety import NO_PROGRESS, TIP_OVER, SafetyInputs, SafetyMode, SafetySupervisor
@@ -74,7 +75,7 @@ _LOG_EVERY = 100
 
 
 # Guidance's modes in which the wheels are meant to turn (read every tick).
-_DRIVING_MODES = (Mode.DRIVING, Mode.YIELDING)
+_DRIVING_MODES = (Mode.DRIVING, Mode.YIELDING, Mode.RECOVERING)
 
 
 class _EventFn:
@@ -190,6 +191,8 @@ class OnboardStack:
         # The last non-zero speed commanded: its sign says which way the rover was pushed once the hold has
         # stopped the wheels (the learning above reads it).
         self._sent_uphill_mps = 0.0
+        # Recovery when dug in and learning does not explain it (navigator.recovery): back out, mark, replan.
+        self._recovery = DigInRecovery(config, self.guidance, self.safety, self._event)
         self._start_up = StartUpChecks(self._event, start_up_report)
         self._last_tick_ns: int | None = None
         self._last_gps_ns: int | None = None
@@ -322,8 +325,8 @@ class OnboardStack:
                 start_up.report(ready)
             route = self.guidance
             guidance = route.tick(now, pose, ready)
-            # Backing off out of a moving obstacle's way is driving too: the supervisor must let the
-            # wheels turn (and judges stuck and stalls on it as on any commanded motion).
+            # Backing off out of a moving obstacle's way, or out of where it dug in, is driving too: the
+            # supervisor must let the wheels turn (and judges stuck and stalls on it as on any motion).
             driving = route.mode in _DRIVING_MODES
             decision = self.safety.update(
                 self._safety_inputs(now, pose),
@@ -331,7 +334,10 @@ class OnboardStack:
                 "" if driving else route.why_stopped(start_up.not_ready),
             )
             if decision.faults and NO_PROGRESS in decision.faults:
+                # Learning first: where it applies it explains the hold; else recovery, if it may.
                 self._learn_from_digging_in(pose, decision.faults)
+                if self.safety.fault_detail(NO_PROGRESS) is not None:
+                    self._recovery.consider(now, pose, decision.faults)
             speed = guidance.speed_mps * decision.speed_scale
             yaw_rate = guidance.yaw_rate_rps * decision.speed_scale
             self._last_tick_ns = now
@@ -558,17 +564,7 @@ class OnboardStack:
         if not seen:
             return
         self.guidance.observe(seen)
-        self._sink.publish(
-            topics.PERCEPTION_OBSTACLES,
-            now,
-            {
-                "timestamp": topics.stamp(now),
-                "obstacles": [
-                    {"id": o.obstacle_id, "x": o.x, "y": o.y, "radius_m": o.radius_m, "vx": o.vx, "vy": o.vy}
-                    for o in seen
-                ],
-            },
-        )
+        self._sink.publish(topics.PERCEPTION_OBSTACLES, now, obstacles_record(now, seen))
 
     def _read_ground_station(self) -> None:
         link = self._ground_station

@@ -7,8 +7,11 @@ plan and to stop or slow for moving obstacles in its way.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol
+
+from logs import topics
 
 
 @dataclass(frozen=True)
@@ -26,6 +29,17 @@ class ObstacleObservation:
     @property
     def moving(self) -> bool:
         return self.vx != 0.0 or self.vy != 0.0
+
+
+def obstacles_record(now_ns: int, seen: Sequence[ObstacleObservation]) -> dict[str, object]:
+    """A ``perception/obstacles`` message of ``seen`` at ``now_ns``."""
+    return {
+        "timestamp": topics.stamp(now_ns),
+        "obstacles": [
+            {"id": o.obstacle_id, "x": o.x, "y": o.y, "radius_m": o.radius_m, "vx": o.vx, "vy": o.vy}
+            for o in seen
+        ],
+    }
 
 
 class ObstacleSource(Protocol):

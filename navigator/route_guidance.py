@@ -17,7 +17,7 @@ from logs import topics
 from logs.sink import MessageSink
 from navigator.config import RoverConfig
 from navigator.guidance import Guidance, GuidanceOutput
-from navigator.perception import ObstacleObservation
+from navigator.perception import ObstacleObservation, obstacles_record
 from navigator.planner import Path, Planner
 from navigator.safety import EventSink
 from navigator.terrain import TerrainMap
@@ -35,6 +35,7 @@ class Mode(enum.StrEnum):
     NO_PATH = "NO_PATH"  # the planner proved the goal unreachable
     BLOCKED = "BLOCKED"  # stopped: a moving obstacle is predicted on the path
     YIELDING = "YIELDING"  # backing off slowly: a moving obstacle is predicted to reach the rover itself
+    RECOVERING = "RECOVERING"  # dug in: backing out the way it came, to mark the spot and plan round it
 
 
 # Guidance's mode names -> Mode, looked up every tick (a dict, not the enum's slower call).
@@ -109,6 +110,11 @@ class RouteGuidance:
         if self.goal is not None:
             self.mode = Mode.WAITING_ESTIMATE
 
+    def recover(self, now: int, pose: PoseEstimate, mark: ObstacleObservation) -> None:
+        """Dug in: back out, then mark the spot and plan round it (``Guidance.recover``)."""
+        self.core.recover(now, (pose.x, pose.y, pose.yaw), mark)
+        self.mode = Mode.RECOVERING
+
     def set_goal(self, x: float, y: float) -> None:
         self.goal = Goal(x, y)
         self.mode = Mode.WAITING_ESTIMATE
@@ -137,6 +143,7 @@ class RouteGuidance:
             Mode.NO_PATH: "no path to the goal",
             Mode.BLOCKED: f"moving obstacle {blocker} on the path",
             Mode.YIELDING: f"backing off from moving obstacle {blocker}",
+            Mode.RECOVERING: "backing out of where it dug in",
             Mode.DRIVING: "following the path",
         }[self.mode]
         return f"guidance {self.mode.value}: {reason}"
@@ -150,14 +157,36 @@ class RouteGuidance:
             if not ready or self.goal is None:
                 return STOPPED
             self.core.set_goal(self.goal.x, self.goal.y)
+        was_recovering = self.mode is Mode.RECOVERING
         out = self.core.update(now, pose.x, pose.y, pose.yaw, pose.speed)
         self.mode = _MODE_OF.get(out.mode) or Mode(out.mode)  # Mode(): the enum's own error if unknown
+        if was_recovering and self.mode is not Mode.RECOVERING:
+            self._tell_recovered(now, pose)
         if out.path_changed and out.path is not None:
             self._publish_path(now, out.path)
         if out.detail:
             severity = "error" if self.mode is Mode.NO_PATH else "info"
             self._event(f"guidance.{self.mode.value.lower()}", severity, out.detail)
         return out
+
+    def _tell_recovered(self, now: int, pose: PoseEstimate) -> None:
+        """The back-out has ended: its mark, now in the planner's map, goes on the obstacle topic like any
+        obstacle the planner knows (a replay leaves the stack's own marks out of its inputs), and is told."""
+        recovered = self.core.take_recovered()
+        if recovered is None:
+            return
+        why, mark = recovered
+        marked = ""
+        if mark is not None:
+            self._sink.publish(topics.PERCEPTION_OBSTACLES, now, obstacles_record(now, [mark]))
+            marked = (
+                f"; marked {mark.obstacle_id} at ({mark.x:.2f}, {mark.y:.2f}), radius {mark.radius_m:.2f} m, "
+                "where it dug in, as an obstacle"
+            )
+        outcome = "no path to the goal" if self.mode is Mode.NO_PATH else "planning the goal again"
+        self._event(
+            "recovery.replanned", "warning", f"{why}{marked}; {outcome} from ({pose.x:.2f}, {pose.y:.2f})"
+        )
 
     def _publish_path(self, now: int, path: Path) -> None:
         self._sink.publish(

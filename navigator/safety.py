@@ -196,6 +196,16 @@ class SafetySupervisor:
         self._clear(NO_PROGRESS, why)
         self._forget_progress()
 
+    def progress_recovering(self, why: str) -> None:
+        """Clear ``no_progress`` for a rover that backs out of where it dug in, to plan round it
+        (``navigator.recovery``): the back-out and the new route are judged from their start."""
+        self._clear(NO_PROGRESS, why)
+        self._forget_progress()
+
+    def fault_detail(self, name: str) -> str | None:
+        """What failsafe ``name`` said when it fired, while it is active; else None."""
+        return self._active.get(name)
+
     def _forget_progress(self) -> None:
         """A new goal or a resume judges progress from then on: the window so far was toward the old one."""
         if self._progress is not None:

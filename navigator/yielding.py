@@ -224,7 +224,9 @@ class BackOff:
         """Back (the way it came) if that gets further from the tracks, else forward if that does, else 0:
         a rover whose rear is in the lane would only back further into it (a 1 m/s cart hit one so)."""
         for direction in (-1.0, 1.0):
-            if self._opens(scene, _moved(pose, direction * YIELD_LOOK_M), gap):
+            if way_clear(scene.terrain, pose, self._footprint, direction) and self._further(
+                scene, moved_along(pose, direction * YIELD_LOOK_M), gap
+            ):
                 return direction
         return 0.0
 
@@ -232,27 +234,34 @@ class BackOff:
         """Why the rover may go no further its way ("" while it may)."""
         if not self._direction:
             return ""
-        ahead = _moved(pose, self._direction * YIELD_LOOK_M)
-        if footprint_collides(scene.terrain, ahead, self._footprint):
+        ahead = moved_along(pose, self._direction * YIELD_LOOK_M)
+        if not way_clear(scene.terrain, pose, self._footprint, self._direction):
             return f"an obstacle or the map edge within {YIELD_LOOK_M:g} m"
         if not self._gap(scene, ahead).further_than(gap):
             return f"{YIELD_LOOK_M:g} m further would be no further from the track"
         return ""
 
-    def _opens(self, scene: _Scene, pose: tuple[float, float, float], gap: TrackGap) -> bool:
-        """Whether ``pose`` is clear of the map's obstacles and further than ``gap`` from the tracks."""
-        if footprint_collides(scene.terrain, pose, self._footprint):
-            return False
+    def _further(self, scene: _Scene, pose: tuple[float, float, float], gap: TrackGap) -> bool:
+        """Whether ``pose`` is further than ``gap`` from the tracks."""
         return self._gap(scene, pose).further_than(gap)
 
     def _gap(self, scene: _Scene, pose: tuple[float, float, float]) -> TrackGap:
         return _gap_to_tracks(scene.tracks, pose, self._footprint, self._inflation_m)
 
 
-def _moved(pose: tuple[float, float, float], distance_m: float) -> tuple[float, float, float]:
+def moved_along(pose: tuple[float, float, float], distance_m: float) -> tuple[float, float, float]:
     """``pose`` moved ``distance_m`` along its heading (negative: backwards)."""
     x, y, yaw = pose
     return (x + distance_m * math.cos(yaw), y + distance_m * math.sin(yaw), yaw)
+
+
+def way_clear(
+    terrain: TerrainMap, pose: tuple[float, float, float], footprint: Footprint, direction: float
+) -> bool:
+    """Whether the footprint ``YIELD_LOOK_M`` along the heading from ``pose`` (``direction`` -1: back, +1:
+    on) is clear of ``terrain``'s obstacles and edge: the test every straight move off the path makes
+    before and while it moves (this back-off, and backing out when dug in, ``navigator.recovery``)."""
+    return not footprint_collides(terrain, moved_along(pose, direction * YIELD_LOOK_M), footprint)
 
 
 def _bound_reached(

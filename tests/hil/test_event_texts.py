@@ -47,7 +47,8 @@ def test_every_told_event_reaches_the_ground_station_once_in_order(trials: dict[
 
 def test_only_failsafes_clearing_modes_and_start_up_checks_are_told() -> None:
     assert told("failsafe.no_progress") and told("cleared.gps_lost") and told("mode")
-    assert told("startup_checks")
+    assert told("startup_checks") and told("learned.terrain")
+    assert told("recovery.backing_out") and told("recovery.replanned") and told("recovery.gave_up")
     assert not told("guidance.driving") and not told("goal") and not told("mission")
     assert mav_severity("error") == mavlink2.MAV_SEVERITY_ERROR
     assert mav_severity("nonsense") == mavlink2.MAV_SEVERITY_WARNING

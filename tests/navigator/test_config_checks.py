@@ -179,3 +179,19 @@ def test_the_back_off_settings_are_read_and_checked_in_range() -> None:
     with pytest.raises(ConfigError) as caught:
         load("[planner]\nyield_max_m = -1.0\n")
     assert caught.value.key == "planner.yield_max_m"
+
+
+def test_the_recovery_settings_are_read_and_checked() -> None:
+    planner = load(
+        "[planner]\nrecover_when_stuck = false\nrecovery_back_m = 2.5\nrecovery_attempts = 3\n"
+    ).planner
+    assert (planner.recover_when_stuck, planner.recovery_back_m, planner.recovery_attempts) == (False, 2.5, 3)
+    for text, key in [
+        ('recover_when_stuck = "yes"', "planner.recover_when_stuck"),
+        ("recovery_back_m = 0.2", "planner.recovery_back_m"),  # the mark would lie under the rover
+        ("recovery_attempts = 0", "planner.recovery_attempts"),  # that is recover_when_stuck = false
+        ("recovery_attempts = 1.5", "planner.recovery_attempts"),
+    ]:
+        with pytest.raises(ConfigError) as caught:
+            load(f"[planner]\n{text}\n")
+        assert caught.value.key == key

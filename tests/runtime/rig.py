@@ -132,14 +132,17 @@ class Rig:
         seed: int = 0,
         deferred: bool = False,
         ground_station: Transport | None = None,
+        resolution_m: float | None = None,
     ) -> None:
         """``deferred``: the links and the stack record through a ``DeferredSink`` (as ``rover run``).
-        ``ground_station``: the transport of a second MAVLink link, straight to a ground station."""
+        ``ground_station``: the transport of a second MAVLink link, straight to a ground station.
+        ``resolution_m``: the map's grid (default one 2 m cell per maze cell; finer where obstacles the
+        stack places must be resolved, e.g. a mark where it dug in)."""
         self.clock = SimClock()
         self.sink = MemorySink()
         self.deferred = DeferredSink(self.sink) if deferred else None
         onboard_sink = self.sink if self.deferred is None else self.deferred
-        self.terrain = from_maze(np.full((10, 10), 2), 2.0)
+        self.terrain = from_maze(np.full((10, 10), 2), 2.0, resolution_m=resolution_m)
         bus_config = dataclasses.replace(config.can, interface="virtual", channel=f"rig-{next(_channels)}")
         self.bus = FaultyBus(open_bus(bus_config))
         self._sim_bus = open_bus(bus_config)

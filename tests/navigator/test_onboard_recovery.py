@@ -1,0 +1,168 @@
+"""The onboard stack held for no progress recovers (navigator.onboard_recovery): it backs out, marks the spot
+and plans round it, at most ``recovery_attempts`` times a goal or resume, then holds with
+``recovery.gave_up``; learning goes first; off, it holds as before. On the lockstep rig (real stack,
+simulated rover, fake clock and links), with the supervisor shown a position that goes nowhere while
+guidance drives: the rover dug in, as the supervisor sees it."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+
+from navigator.route_guidance import Mode
+from navigator.safety import NO_PROGRESS, TIP_OVER, SafetyDecision, SafetyInputs
+from tests.runtime.rig import Rig, rig_config
+
+WINDOW_S = 4.0  # [safety] progress_time_s: the shortest it takes
+
+
+class DugIn:
+    """The supervisor's view of a rover that goes nowhere while guidance drives: the estimated position it
+    judges progress on stays where guidance's ``DRIVING`` began (backing out, it sees the real one)."""
+
+    def __init__(self, rig: Rig, monkeypatch: pytest.MonkeyPatch) -> None:
+        self.on = True
+        self._at: tuple[float, float] | None = None
+        stack = rig.stack
+        update = stack.safety.update
+
+        def frozen(inputs: SafetyInputs, *args: Any) -> SafetyDecision:
+            if not self.on or stack.mode is not Mode.DRIVING or inputs.position_xy is None:
+                self._at = None
+                return update(inputs, *args)
+            if self._at is None:
+                self._at = inputs.position_xy
+            return update(inputs._replace(position_xy=self._at), *args)
+
+        monkeypatch.setattr(stack.safety, "update", frozen)
+
+
+def _rig(**planner: Any) -> Rig:
+    config = rig_config(progress_time_s=WINDOW_S)
+    planner_config = dataclasses.replace(config.planner, **planner)
+    # A 0.25 m grid, as the shipped maps: on the rig's default 2 m cells a mark fills the cell it backed into.
+    return Rig(dataclasses.replace(config, planner=planner_config), resolution_m=0.25)
+
+
+@pytest.fixture
+def rig() -> Iterator[Rig]:
+    made = _rig()
+    yield made
+    made.close()
+
+
+def _kinds(rig: Rig) -> list[str]:
+    return [m["kind"] for topic, _t, m in rig.sink.records if topic == "safety/events"]
+
+
+def _recovery_kinds(rig: Rig) -> list[str]:
+    return [k for k in _kinds(rig) if k.startswith("recovery.") or k.endswith(NO_PROGRESS)]
+
+
+def test_dug_in_it_backs_out_marks_and_plans_round_twice_then_holds(
+    rig: Rig, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    DugIn(rig, monkeypatch)
+    rig.run_until(lambda: bool(rig.events("recovery.gave_up")), 40.0, "the recoveries given up")
+    round_trip = ["failsafe.no_progress", "recovery.backing_out", "cleared.no_progress", "recovery.replanned"]
+    assert _recovery_kinds(rig) == [*round_trip, *round_trip, "failsafe.no_progress", "recovery.gave_up"]
+    states = [m for topic, _t, m in rig.sink.records if topic == "navigator/state"]
+    backing = [s for s in states if s["mode"] == "RECOVERING"]
+    # Each back-out's first tick is the hold's (the wheels still held); from the next the supervisor lets
+    # it move, straight back.
+    moving = [s for s in backing if s["safety_mode"] == "DRIVING"]
+    assert [s["safety_mode"] for s in backing if s not in moving] == ["HOLD", "HOLD"] and len(moving) > 100
+    assert all(s["target_speed_mps"] < 0.0 and s["target_yaw_rate_rps"] == 0.0 for s in moving)
+    # Each mark went into the recording and the planner's map, and each new path goes round it.
+    marks = [
+        o for topic, _t, m in rig.sink.records if topic == "perception/obstacles" for o in m["obstacles"]
+    ]
+    assert [o["id"] for o in marks] == ["dug-in-1", "dug-in-2"]
+    terrain = rig.stack.planner.terrain
+    for mark in marks:
+        assert terrain.obstacles[int(mark["y"] / terrain.resolution_m), int(mark["x"] / terrain.resolution_m)]
+    (_t, replanned), _second = rig.events("recovery.replanned")
+    assert "marked dug-in-1" in replanned["detail"] and "planning the goal again" in replanned["detail"]
+    # Past the count it holds, latched, for the operator: no more backing out, said once.
+    rig.run_for(2 * WINDOW_S)
+    assert rig.stack.safety_mode.value == "HOLD" and NO_PROGRESS in rig.stack.safety.faults
+    assert _recovery_kinds(rig)[-1] == "recovery.gave_up" and len(rig.events("recovery.gave_up")) == 1
+
+
+def test_a_resume_gives_the_count_back(rig: Rig, monkeypatch: pytest.MonkeyPatch) -> None:
+    DugIn(rig, monkeypatch)
+    rig.run_until(lambda: bool(rig.events("recovery.gave_up")), 40.0, "the recoveries given up")
+    rig.stack.resume("operator")
+    rig.run_until(
+        lambda: len(rig.events("recovery.backing_out")) == 3, 2 * WINDOW_S + 2.0, "a third back-out"
+    )
+    (_t, third) = rig.events("recovery.backing_out")[-1]
+    assert "recovery 1 of 2 for this goal" in third["detail"]
+
+
+def test_a_new_goal_gives_the_count_back(rig: Rig, monkeypatch: pytest.MonkeyPatch) -> None:
+    DugIn(rig, monkeypatch)
+    rig.run_until(lambda: bool(rig.events("recovery.gave_up")), 40.0, "the recoveries given up")
+    rig.stack.set_goal(3.0, 17.0)
+    rig.run_until(
+        lambda: len(rig.events("recovery.backing_out")) == 3, 2 * WINDOW_S + 4.0, "a third back-out"
+    )
+    assert "recovery 1 of 2" in rig.events("recovery.backing_out")[-1][1]["detail"]
+
+
+def test_off_it_holds_as_before() -> None:
+    rig = _rig(recover_when_stuck=False)
+    try:
+        with pytest.MonkeyPatch.context() as monkeypatch:
+            DugIn(rig, monkeypatch)
+            rig.run_until(lambda: bool(rig.events("failsafe.no_progress")), 20.0, "the hold")
+            rig.run_for(2 * WINDOW_S)
+        assert _recovery_kinds(rig) == ["failsafe.no_progress"]
+        assert rig.stack.safety_mode.value == "HOLD" and rig.stack.mode is Mode.DRIVING
+        assert not rig.stack.planner.terrain.obstacles.any()
+    finally:
+        rig.close()
+
+
+def test_learning_goes_first_where_it_applies(rig: Rig, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A hold the learning explains (here: the first, which the stand-in clears as learning does) is not
+    recovered from; one it does not explain (the second) is."""
+    stack = rig.stack
+    holds: list[int] = []
+
+    def learns(pose: object, faults: tuple[str, ...]) -> None:
+        holds.append(rig.now_ns)
+        if len(holds) == 1:
+            stack.safety.progress_learned("learned (a stand-in)")
+
+    monkeypatch.setattr(stack, "_learn_from_digging_in", learns)
+    DugIn(rig, monkeypatch)
+    rig.run_until(lambda: bool(rig.events("recovery.backing_out")), 20.0, "a back-out")
+    assert _recovery_kinds(rig) == [
+        "failsafe.no_progress",
+        "cleared.no_progress",  # learned: driving on, no back-out
+        "failsafe.no_progress",
+        "recovery.backing_out",  # the learning's turn came first, and it did not take
+        "cleared.no_progress",
+    ]
+    assert holds[-1] == rig.events("recovery.backing_out")[0][0]
+
+
+def test_never_while_a_tip_over_margin_is_breached(rig: Rig, monkeypatch: pytest.MonkeyPatch) -> None:
+    stack = rig.stack
+    DugIn(rig, monkeypatch)
+    consider = stack._recovery.consider
+    tipping: list[tuple[str, ...]] = []
+
+    def with_tip_over(now: int, pose: Any, faults: tuple[str, ...]) -> None:
+        tipping.append(faults)
+        consider(now, pose, (*faults, TIP_OVER) if len(tipping) < 50 else faults)
+
+    monkeypatch.setattr(stack._recovery, "consider", with_tip_over)
+    rig.run_until(lambda: bool(tipping), 20.0, "the hold")
+    rig.run_until(lambda: len(tipping) == 49, 5.0, "a second of tipping")
+    assert not rig.events("recovery.backing_out") and stack.safety_mode.value == "HOLD"
+    rig.run_until(lambda: bool(rig.events("recovery.backing_out")), 1.0, "a back-out once it is not tipping")
