@@ -151,18 +151,29 @@ def test_learning_goes_first_where_it_applies(rig: Rig, monkeypatch: pytest.Monk
     assert holds[-1] == rig.events("recovery.backing_out")[0][0]
 
 
-def test_never_while_a_tip_over_margin_is_breached(rig: Rig, monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.mark.parametrize("why", ["tipping", "blocked", "yielding"])
+def test_never_while_tipping_or_stopped_for_a_mover(
+    rig: Rig, monkeypatch: pytest.MonkeyPatch, why: str
+) -> None:
+    """Held while a tip-over margin is breached, or while guidance is BLOCKED or YIELDING for a moving
+    obstacle (a second of ticks, each shown so): no back-out; it comes once that has passed."""
     stack = rig.stack
     DugIn(rig, monkeypatch)
     consider = stack._recovery.consider
-    tipping: list[tuple[str, ...]] = []
+    asked: list[int] = []
 
-    def with_tip_over(now: int, pose: Any, faults: tuple[str, ...]) -> None:
-        tipping.append(faults)
-        consider(now, pose, (*faults, TIP_OVER) if len(tipping) < 50 else faults)
+    def so(now: int, pose: Any, faults: tuple[str, ...]) -> None:
+        asked.append(now)
+        if len(asked) >= 50:
+            consider(now, pose, faults)
+        elif why == "tipping":
+            consider(now, pose, (*faults, TIP_OVER))
+        else:
+            mode, stack.guidance.mode = stack.guidance.mode, Mode(why.upper())
+            consider(now, pose, faults)
+            stack.guidance.mode = mode
 
-    monkeypatch.setattr(stack._recovery, "consider", with_tip_over)
-    rig.run_until(lambda: bool(tipping), 20.0, "the hold")
-    rig.run_until(lambda: len(tipping) == 49, 5.0, "a second of tipping")
+    monkeypatch.setattr(stack._recovery, "consider", so)
+    rig.run_until(lambda: len(asked) == 49, 20.0, "a second of the hold")
     assert not rig.events("recovery.backing_out") and stack.safety_mode.value == "HOLD"
-    rig.run_until(lambda: bool(rig.events("recovery.backing_out")), 1.0, "a back-out once it is not tipping")
+    rig.run_until(lambda: bool(rig.events("recovery.backing_out")), 0.1, "a back-out once that has passed")
