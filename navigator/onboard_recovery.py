@@ -33,6 +33,7 @@ class DigInRecovery:
         self._enabled = planner.recover_when_stuck
         self._attempts = planner.recovery_attempts
         self._back_m = planner.recovery_back_m
+        self._back_speed_mps = planner.yield_speed_mps  # 0: backing off (and out) is turned off
         self._vehicle = config.vehicle
         self._footprint = Footprint.of(config.vehicle)
         # The planner keeps the rover's centre this far from any obstacle (footprint circle and inflation).
@@ -68,6 +69,9 @@ class DigInRecovery:
             self._give_up(
                 f"dug in at the goal ({goal.x:.2f}, {goal.y:.2f}): a mark there would make it unreachable"
             )
+            return
+        if self._back_speed_mps <= 0.0:
+            self._give_up("no backing out: [planner] yield_speed_mps is 0")
             return
         if not way_clear(route.planner.terrain, at, self._footprint, -1.0):
             self._give_up(f"no clear way back: an obstacle or the map edge within {YIELD_LOOK_M:g} m behind")

@@ -7,13 +7,15 @@ guidance drives: the rover dug in, as the supervisor sees it."""
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Iterator
 from typing import Any
 
 import pytest
 
-from navigator.route_guidance import Mode
+from navigator.route_guidance import Goal, Mode
 from navigator.safety import NO_PROGRESS, TIP_OVER, SafetyDecision, SafetyInputs
+from navigator.terrain import disc_mask
 from tests.runtime.rig import Rig, rig_config
 
 WINDOW_S = 4.0  # [safety] progress_time_s: the shortest it takes
@@ -177,3 +179,36 @@ def test_never_while_tipping_or_stopped_for_a_mover(
     rig.run_until(lambda: len(asked) == 49, 20.0, "a second of the hold")
     assert not rig.events("recovery.backing_out") and stack.safety_mode.value == "HOLD"
     rig.run_until(lambda: bool(rig.events("recovery.backing_out")), 0.1, "a back-out once that has passed")
+
+
+@pytest.mark.parametrize("why", ["at the goal", "no clear way back", "no backing out"])
+def test_it_holds_with_recovery_gave_up_where_it_cannot_recover(
+    monkeypatch: pytest.MonkeyPatch, why: str
+) -> None:
+    """Dug in with the goal under the spot (a mark would make it unreachable), with the map's obstacles just
+    behind it, or with backing turned off: no back-out; it holds, told once."""
+    rig = _rig(yield_speed_mps=0.0) if why == "no backing out" else _rig()
+    try:
+        stack = rig.stack
+        DugIn(rig, monkeypatch)
+        consider = stack._recovery.consider
+
+        def so(now: int, pose: Any, faults: tuple[str, ...]) -> None:
+            if why == "at the goal":  # the goal where the front axle stands
+                stack.guidance.goal = Goal(
+                    pose.x + 0.35 * math.cos(pose.yaw), pose.y + 0.35 * math.sin(pose.yaw)
+                )
+            elif why == "no clear way back":  # a wall 1 m behind the rover's centre
+                behind = disc_mask(
+                    stack.planner.terrain, pose.x - math.cos(pose.yaw), pose.y - math.sin(pose.yaw), 0.3
+                )
+                stack.planner.update_obstacles(behind)
+            consider(now, pose, faults)
+
+        monkeypatch.setattr(stack._recovery, "consider", so)
+        rig.run_until(lambda: bool(rig.events("failsafe.no_progress")), 20.0, "the hold")
+        rig.run_for(1.0)
+        assert _recovery_kinds(rig) == ["failsafe.no_progress", "recovery.gave_up"]
+        assert why in rig.events("recovery.gave_up")[0][1]["detail"] and stack.safety_mode.value == "HOLD"
+    finally:
+        rig.close()
