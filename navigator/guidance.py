@@ -179,7 +179,12 @@ class Guidance:
         # Backing out when dug in (navigator.recovery): the back-out under way and the mark it leaves, the
         # marks waiting for the next planning job (they go in whatever the sensing range: ground the rover
         # stood on), and what the last back-out did, for the stack to tell (``take_recovered``).
-        self._back_out_limits = BackOutLimits(planner_config.yield_speed_mps, planner_config.recovery_back_m)
+        self._back_out_limits = BackOutLimits(
+            planner_config.yield_speed_mps,
+            planner_config.recovery_back_m,
+            planner_config.inflation_m,
+            planner_config.moving_horizon_s,
+        )
         self._back_out: BackOut | None = None
         self._mark: ObstacleObservation | None = None
         self._marks_waiting: list[ObstacleObservation] = []
@@ -421,7 +426,7 @@ class Guidance:
         for this goal or any later one."""
         back_out, mark = self._back_out, self._mark
         assert back_out is not None and mark is not None  # set together by recover()
-        step = back_out.step(t_ns, (x, y, yaw), self.planner.terrain)
+        step = back_out.step(t_ns, (x, y, yaw), self.planner.terrain, self._moving)
         if not step.done:
             return GuidanceOutput(
                 step.speed_mps, 0.0, RECOVERING, 0.0, self._back_out_limits.speed_mps, REASON_RECOVERY,

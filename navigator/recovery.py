@@ -7,9 +7,10 @@ lacks, a class learned twice already), the stack recovers (``navigator.onboard_r
 
 * guidance's mode is ``RECOVERING``: it reverses straight along its heading at ``[planner] yield_speed_mps``,
   no yaw rate, while the footprint ``YIELD_LOOK_M`` behind stays clear of the believed map's obstacles and
-  edge (``navigator.yielding.way_clear``, the back-off's own test), until it is ``recovery_back_m`` from
-  where it began (by the estimated pose), after ``recovery_back_m / speed + BACK_OUT_SPARE_S``, or with no
-  clear way further back;
+  edge (``navigator.yielding.way_clear``, the back-off's own test) and of the moving obstacles' predicted
+  tracks (within ``inflation_m`` over ``moving_horizon_s``: a cart coming up behind the rover), until it is
+  ``recovery_back_m`` from where it began (by the estimated pose), after ``recovery_back_m / speed +
+  BACK_OUT_SPARE_S``, or with no clear way further back;
 * then the spot it dug in on (``dig_in_mark``) goes into the planner's map as a static obstacle for the rest
   of the run, and the goal is planned again from where it stopped.
 """
@@ -17,13 +18,14 @@ lacks, a class learned twice already), the stack recovers (``navigator.onboard_r
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 from navigator.footprint import Footprint, disc_gap_m
 from navigator.perception import ObstacleObservation
 from navigator.terrain import TerrainMap, disc_mask
 from navigator.vehicle import VehicleParams
-from navigator.yielding import YIELD_LOOK_M, way_clear
+from navigator.yielding import YIELD_LOOK_M, moved_along, track_gap, way_clear
 
 RECOVERY_BACK_M = 1.5  # default [planner] recovery_back_m
 RECOVERY_ATTEMPTS = 2  # default [planner] recovery_attempts, per goal or resume
@@ -76,10 +78,14 @@ def mark_under(
 
 @dataclass(frozen=True)
 class BackOutLimits:
-    """How a back-out moves and where it stops: ``[planner] yield_speed_mps`` and ``recovery_back_m``."""
+    """How a back-out moves and where it stops: ``[planner] yield_speed_mps`` and ``recovery_back_m``; and
+    how near a moving obstacle's predicted track may come to the footprint behind it (``inflation_m``, over
+    ``moving_horizon_s``), as for the path ahead."""
 
     speed_mps: float
     back_m: float = RECOVERY_BACK_M
+    inflation_m: float = 0.1
+    horizon_s: float = 3.0
 
     @property
     def max_s(self) -> float:
@@ -107,8 +113,15 @@ class BackOut:
         _t, x0, y0 = self._start
         return math.hypot(pose[0] - x0, pose[1] - y0)
 
-    def step(self, t_ns: int, pose: tuple[float, float, float], terrain: TerrainMap) -> BackOutStep:
-        """The command at ``pose``: reverse, or done (and why) once a bound is reached."""
+    def step(
+        self,
+        t_ns: int,
+        pose: tuple[float, float, float],
+        terrain: TerrainMap,
+        moving: Mapping[str, ObstacleObservation],
+    ) -> BackOutStep:
+        """The command at ``pose``: reverse, or done (and why) once a bound is reached or the way behind is
+        not clear of ``terrain`` or of the ``moving`` obstacles' predicted tracks."""
         limits = self._limits
         moved_m = self.moved_m(pose)
         if moved_m >= limits.back_m:
@@ -122,4 +135,14 @@ class BackOut:
                 True,
                 f"backed out {moved_m:.1f} m: an obstacle or the map edge within {YIELD_LOOK_M:g} m behind",
             )
+        if moving:
+            behind = moved_along(pose, -YIELD_LOOK_M)
+            gap = track_gap(moving, t_ns, behind, self._footprint, limits.horizon_s, limits.inflation_m)
+            if gap.reach_s != math.inf:
+                return BackOutStep(
+                    0.0,
+                    True,
+                    f"backed out {moved_m:.1f} m: moving obstacle {gap.obstacle_id} predicted within "
+                    f"{YIELD_LOOK_M:g} m behind in {gap.reach_s:.1f} s",
+                )
         return BackOutStep(-limits.speed_mps, False)

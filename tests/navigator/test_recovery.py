@@ -122,3 +122,24 @@ def test_a_mark_covers_a_goal_within_the_planners_clearance() -> None:
     clearance = PARAMS.footprint_radius_m + 0.1
     assert mark_covers(mark, (5.0, 5.35 + 0.35 + clearance - 0.01), clearance)
     assert not mark_covers(mark, (5.0, 5.35 + 0.35 + clearance + 0.01), clearance)
+
+
+@pytest.mark.parametrize(
+    ("start_x", "stops"),
+    [(8.0, True), (-20.0, False)],  # 4 m behind, coming on at 1 m/s / 32 m off: out of the 3 s horizon
+    ids=["cart-behind", "cart-far-away"],
+)
+def test_a_cart_predicted_behind_ends_the_back_out(start_x: float, stops: bool) -> None:
+    """Reversing blind into a moving obstacle's lane is what the back-off for carts exists to avoid: a
+    cart coming up the path behind the rover ends the back-out (the spot is marked, the goal planned
+    again, and guidance's usual BLOCKED wait takes the cart from there)."""
+    guidance, _mark = _dug_in(_flat())
+    cart = ObstacleObservation(TICK_NS, "cart", start_x, 10.0, 0.4, vx=1.0)
+    guidance.observe([cart])
+    outputs, x = _back_out(guidance, 500)
+    why, _left = guidance.take_recovered() or ("", None)
+    if stops:
+        assert outputs[0].mode != RECOVERING and x == DUG_IN[0]
+        assert why.startswith("backed out 0.0 m: moving obstacle cart predicted within 0.5 m behind in 2.8 s")
+    else:
+        assert why == "backed out 1.5 m"
