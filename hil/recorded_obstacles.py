@@ -29,19 +29,24 @@ class RecordedObstacles:
         self._pending: list[ObstacleObservation] = []
         self.rejected = 0  # records or obstacles in them that were not observations (logged, skipped)
 
-    def add(self, t_ns: int, record: dict[str, Any]) -> None:
+    def add(self, t_ns: int, record: dict[str, Any]) -> bool:
         """One ``perception/obstacles`` record at log time ``t_ns``; a malformed entry is counted and
-        logged, the rest of the record kept."""
+        logged, the rest of the record kept. False for a record of the stack's own marks alone (where it
+        dug in: the replayed stack makes them again), which is no input."""
         obstacles = record.get("obstacles")
         if not isinstance(obstacles, list):
             self._reject(t_ns, f"'obstacles' is {type(obstacles).__name__}, not a list")
-            return
+            return True
+        own = 0
         for entry in obstacles:
             observation = _observation(t_ns, entry)
             if isinstance(observation, str):
                 self._reject(t_ns, observation)
-            elif not observation.obstacle_id.startswith(MARK_PREFIX):
+            elif observation.obstacle_id.startswith(MARK_PREFIX):
+                own += 1
+            else:
                 self._pending.append(observation)
+        return own < len(obstacles) or not obstacles
 
     def poll(self) -> list[ObstacleObservation]:
         seen, self._pending = self._pending, []

@@ -298,8 +298,8 @@ class _Replayer:
         if topic == GROUND_COMMANDS:
             self._take_command(t_ns, message)
         elif topic == PERCEPTION_OBSTACLES:
-            if self._setup.obstacles_are_input:  # else the stack's own output, from scans
-                self.obstacles.add(t_ns, message)
+            # Else the stack's own output, from scans; and a record of its own marks alone is no input.
+            if self._setup.obstacles_are_input and self.obstacles.add(t_ns, message):
                 self.obstacle_records += 1
         else:
             self._take_frame(topic, t_ns, message)

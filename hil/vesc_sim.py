@@ -90,8 +90,9 @@ class SimVescBank:
         self._last_command_ns: list[int | None] = [None] * WHEEL_COUNT
         self._motor_current_a = [0.0] * WHEEL_COUNT
         self._duty_cycle = [0.0] * WHEEL_COUNT  # the motors' duty from the physics (set_electrical)
-        # Per wheel, the most ERPM its motor can turn at the pack's voltage (the physics': set_electrical).
-        self._erpm_limits: Sequence[float] = (math.inf,) * WHEEL_COUNT
+        # Per wheel, the most surface speed (m/s) its motor can turn at the pack's voltage (the physics':
+        # set_electrical), as given; ERPM in step.
+        self._speed_limits_mps: Sequence[float] = (math.inf,) * WHEEL_COUNT
         self._input_voltage_v = input_voltage_v
         self._regen_floor_a = -regen_current_limit_a  # the input current's floor while braking
         # The latest set_electrical's loads, not yet clamped into the fields above (_take_loads); None: none.
@@ -255,7 +256,7 @@ class SimVescBank:
         blend = self._blend
         # Every physics step, six wheels: the per-wheel lists held in locals (they are mutated in place).
         erpm, targets, stuck, tacho = self._erpm, self._targets, self._stuck, self._tacho_erev
-        limits = self._erpm_limits
+        limits, erpm_per_mps = self._speed_limits_mps, self.profile.erpm_per_mps
         last_command_ns, timeout_ns = self._last_command_ns, self._timeout_ns
         for i in range(WHEEL_COUNT):
             last = last_command_ns[i]
@@ -269,7 +270,7 @@ class SimVescBank:
             after = 0.0 if stuck[i] else before + (targets[i] - before) * blend
             # The motor turns no faster than the pack's voltage lets it (back-EMF at the top duty), whatever
             # the speed loop asks: the speed a real VESC measures, and the one the physics applies next.
-            top = limits[i]
+            top = limits[i] * erpm_per_mps
             if after > top:
                 after = top
             elif after < -top:
@@ -303,14 +304,18 @@ class SimVescBank:
         self._loads = (tuple(motor_currents_a), input_voltage_v, tuple(duties))
 
     def _set_speed_limits(self, speed_limits_mps: Sequence[float]) -> None:
-        """Keep the physics' speed limits as ERPM. Every physics step: the usual six non-negative numbers
-        settled by one comparison each (a NaN fails them); anything else is a ValueError naming it."""
-        if len(speed_limits_mps) != WHEEL_COUNT or not all(limit >= 0.0 for limit in speed_limits_mps):
+        """Keep the physics' speed limits as given. Every physics step: six non-negative numbers, checked
+        with builtins only (their least >= 0; a NaN makes the sum unequal to itself: min() can pass one
+        over); anything else is a ValueError naming it."""
+        if (
+            len(speed_limits_mps) != WHEEL_COUNT
+            or not min(speed_limits_mps) >= 0.0
+            or sum(speed_limits_mps) != sum(speed_limits_mps)
+        ):
             raise ValueError(
                 f"need {WHEEL_COUNT} wheel speed limits >= 0 m/s in wheel order, got {list(speed_limits_mps)}"
             )
-        erpm_per_mps = self.profile.erpm_per_mps
-        self._erpm_limits = [limit * erpm_per_mps for limit in speed_limits_mps]
+        self._speed_limits_mps = speed_limits_mps
 
     def _take_loads(self) -> None:
         """Clamp the latest loads (``set_electrical``) into the fields the status frames carry."""

@@ -421,7 +421,8 @@ _SPECS = [
                 ),
             }
         ),
-        "Obstacles perceived in this tick (ENU discs with velocity), as the navigator received them.",
+        "Obstacles perceived in this tick (ENU discs with velocity), as the navigator received them; and "
+        "the spots the rover dug in on, marked as static obstacles when it recovered (ids dug-in-N).",
     ),
     TopicSpec(
         SAFETY_EVENTS,

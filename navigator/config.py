@@ -121,8 +121,8 @@ class PlannerConfig:
             yield_max_s=table.number("yield_max_s", cls.yield_max_s, lo=0.0, hi=120.0),
             learn_traction=table.flag("learn_traction", cls.learn_traction),
             recover_when_stuck=table.flag("recover_when_stuck", cls.recover_when_stuck),
-            # At least a rover's length back (else the mark would lie under it), at most a short stretch:
-            # it reverses blind but for the believed map.
+            # At least 0.5 m (less leaves a mark under the rover: not marked), at most a short stretch: it
+            # reverses seeing only the believed map and the moving obstacles it tracks.
             recovery_back_m=table.number("recovery_back_m", cls.recovery_back_m, lo=0.5, hi=10.0),
             # 0 would be recover_when_stuck = false under another name: refused.
             recovery_attempts=table.integer("recovery_attempts", cls.recovery_attempts, lo=1, hi=10),

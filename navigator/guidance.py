@@ -41,6 +41,7 @@ import numpy as np
 
 from navigator.config import PlannerConfig
 from navigator.errors import ParameterError
+from navigator.fence_shape import Polygon
 from navigator.follower import FollowCommand, FollowerConfig, PurePursuit
 from navigator.footprint import Footprint
 from navigator.perception import ObstacleObservation
@@ -186,7 +187,6 @@ class Guidance:
             planner_config.moving_horizon_s,
         )
         self._back_out: BackOut | None = None
-        self._mark: ObstacleObservation | None = None
         self._marks_waiting: list[ObstacleObservation] = []
         self._recovered: tuple[str, ObstacleObservation | None] | None = None
         self._last_xy: tuple[float, float] | None = None
@@ -253,17 +253,32 @@ class Guidance:
         self._blocker = None
         self._clear_since_ns = None
         self._back_off.reset()
-        self._back_out, self._mark = None, None  # the operator chose where to go: no back-out now
+        if self._back_out is not None:  # the operator chose where to go: the back-out ends here
+            self._end_back_out(self._back_out, self._back_out.pose, "a new goal ended the back-out")
         self._follower.reset()
 
-    def recover(self, t_ns: int, pose: tuple[float, float, float], mark: ObstacleObservation) -> None:
-        """Dug in at ``pose`` (x, y, yaw): back out from here (mode ``RECOVERING``), then put ``mark`` into
-        the map and plan the goal again from where the back-out stopped (``navigator.recovery``)."""
-        x, y, _yaw = pose
-        self._back_out = BackOut(Footprint.of(self._params), self._back_out_limits, (t_ns, x, y))
-        self._mark = mark
+    def recover(
+        self, t_ns: int, pose: tuple[float, float, float], mark: ObstacleObservation, fence: Polygon = ()
+    ) -> None:
+        """Dug in at ``pose`` (x, y, yaw): back out from here (mode ``RECOVERING``), within ``fence`` (the
+        geofence, empty: none), then put ``mark`` into the map and plan the goal again from where the
+        back-out stopped (``navigator.recovery``)."""
+        self._back_out = BackOut(
+            Footprint.of(self._params), self._back_out_limits, (t_ns, *pose), mark, fence
+        )
         self._mode = RECOVERING
         self._blocker = None
+
+    def end_back_out(self, why: str) -> None:
+        """End the back-out under way where the rover was last seen (the stack's word: a hold of the
+        supervisor's stops the wheels), as if it had ended by itself there; nothing if none is."""
+        if self._back_out is not None:
+            self._end_back_out(self._back_out, self._back_out.pose, why)
+
+    @property
+    def recovered_waiting(self) -> bool:
+        """Whether a back-out has ended whose outcome ``take_recovered`` has not yet given."""
+        return self._recovered is not None
 
     def take_recovered(self) -> tuple[str, ObstacleObservation | None] | None:
         """What the back-out that has just ended did and the mark it left (None: none, it lay under the
@@ -424,26 +439,33 @@ class Guidance:
         counts as stale), and the mode is ``DRIVING`` again. A mark that would overlap the rover where the
         back-out stopped (it could not back out) is left out: the planner could never start from inside it,
         for this goal or any later one."""
-        back_out, mark = self._back_out, self._mark
-        assert back_out is not None and mark is not None  # set together by recover()
+        back_out = self._back_out
+        if back_out is None:
+            return None
         step = back_out.step(t_ns, (x, y, yaw), self.planner.terrain, self._moving)
         if not step.done:
             return GuidanceOutput(
                 step.speed_mps, 0.0, RECOVERING, 0.0, self._back_out_limits.speed_mps, REASON_RECOVERY,
                 self._path, False, False, "",
             )  # fmt: skip
-        self._back_out, self._mark = None, None
-        if mark_under(mark, (x, y, yaw), Footprint.of(self._params), self.planner.terrain):
-            self._recovered = (f"{step.why}; not marked: the spot it dug in on lies under it", None)
+        self._end_back_out(back_out, (x, y, yaw), step.why)
+        return None
+
+    def _end_back_out(self, back_out: BackOut, pose: tuple[float, float, float], why: str) -> None:
+        """The back-out has ended at ``pose``, ``why``: its mark waits for the next planning job (unless it
+        lies under the rover), the goal is planned again from here, the mode is ``DRIVING``."""
+        self._back_out = None
+        mark = back_out.mark
+        if mark_under(mark, pose, Footprint.of(self._params), self.planner.terrain):
+            self._recovered = (f"{why}; not marked: the spot it dug in on lies under it", None)
         else:
             self._marks_waiting.append(mark)
-            self._recovered = (step.why, mark)
+            self._recovered = (why, mark)
         self._generation += 1
         self._path = None
         self._needs_plan = True
         self._mode = DRIVING
         self._follower.reset()
-        return None
 
     # --- moving obstacles -----------------------------------------------------------------------------
     def _clear_long_enough(self, t_ns: int) -> bool:

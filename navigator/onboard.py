@@ -333,6 +333,10 @@ class OnboardStack:
                 driving,
                 "" if driving else route.why_stopped(start_up.not_ready),
             )
+            if route.mode is Mode.RECOVERING and decision.mode is not SafetyMode.DRIVING:
+                # Another hold (an e-stop, stuck, gps_lost ...) stopped the wheels: the back-out ends where
+                # the rover is (its clock would run on while held, and a resume reverse at once).
+                route.end_recovery(f"held ({', '.join(decision.faults) or decision.mode._value_})")
             if decision.faults and NO_PROGRESS in decision.faults:
                 # Learning first: where it applies it explains the hold; else recovery, if it may.
                 self._learn_from_digging_in(pose, decision.faults)

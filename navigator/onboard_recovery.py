@@ -17,10 +17,9 @@ import math
 from estimator.pose import PoseEstimate
 from navigator.config import RoverConfig
 from navigator.footprint import Footprint
-from navigator.recovery import dig_in_mark, mark_covers
+from navigator.recovery import dig_in_mark, mark_covers, way_back_blocked
 from navigator.route_guidance import Mode, RouteGuidance
 from navigator.safety import NO_PROGRESS, TIP_OVER, EventSink, SafetySupervisor
-from navigator.yielding import YIELD_LOOK_M, way_clear
 
 
 class DigInRecovery:
@@ -36,6 +35,7 @@ class DigInRecovery:
         self._back_speed_mps = planner.yield_speed_mps  # 0: backing off (and out) is turned off
         self._vehicle = config.vehicle
         self._footprint = Footprint.of(config.vehicle)
+        self._fence = config.safety.fence
         # The planner keeps the rover's centre this far from any obstacle (footprint circle and inflation).
         self._clearance_m = config.vehicle.footprint_radius_m + planner.inflation_m
         self._route = route
@@ -73,8 +73,9 @@ class DigInRecovery:
         if self._back_speed_mps <= 0.0:
             self._give_up("no backing out: [planner] yield_speed_mps is 0")
             return
-        if not way_clear(route.planner.terrain, at, self._footprint, -1.0):
-            self._give_up(f"no clear way back: an obstacle or the map edge within {YIELD_LOOK_M:g} m behind")
+        blocked = way_back_blocked(route.planner.terrain, at, self._footprint, self._fence)
+        if blocked:
+            self._give_up(f"no clear way back: {blocked}")
             return
         self._recoveries += 1
         self._marks += 1
@@ -86,7 +87,7 @@ class DigInRecovery:
             f"backing out up to {self._back_m:g} m, then marking the spot as {mark.obstacle_id} and planning "
             f"round it (recovery {self._recoveries} of {self._attempts} for this goal)",
         )
-        route.recover(now, pose, mark)
+        route.recover(now, pose, mark, self._fence)
         safety.progress_recovering(f"backing out to plan round where it dug in ({mark.obstacle_id})")
 
     def _give_up(self, why: str) -> None:

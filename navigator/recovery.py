@@ -7,10 +7,12 @@ lacks, a class learned twice already), the stack recovers (``navigator.onboard_r
 
 * guidance's mode is ``RECOVERING``: it reverses straight along its heading at ``[planner] yield_speed_mps``,
   no yaw rate, while the footprint ``YIELD_LOOK_M`` behind stays clear of the believed map's obstacles and
-  edge (``navigator.yielding.way_clear``, the back-off's own test) and of the moving obstacles' predicted
+  edge (``navigator.yielding.way_clear``, the back-off's own test), its centre inside the geofence, and of
+  the moving obstacles' predicted
   tracks (within ``inflation_m`` over ``moving_horizon_s``: a cart coming up behind the rover), until it is
   ``recovery_back_m`` from where it began (by the estimated pose), after ``recovery_back_m / speed +
-  BACK_OUT_SPARE_S``, or with no clear way further back;
+  BACK_OUT_SPARE_S``, or with no clear way further back; a hold of the supervisor's (an e-stop, ``stuck``,
+  ``gps_lost`` ...) or a new goal ends it where the rover stands;
 * then the spot it dug in on (``dig_in_mark``) goes into the planner's map as a static obstacle for the rest
   of the run, and the goal is planned again from where it stopped.
 """
@@ -21,6 +23,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+from navigator.fence_shape import Polygon, inside_polygon
 from navigator.footprint import Footprint, disc_gap_m
 from navigator.perception import ObstacleObservation
 from navigator.terrain import TerrainMap, disc_mask
@@ -101,13 +104,41 @@ class BackOutStep:
     why: str = ""
 
 
-class BackOut:
-    """One back-out, begun at ``start`` (t_ns, x, y): straight back while the way is clear, bounded."""
+def way_back_blocked(
+    terrain: TerrainMap, pose: tuple[float, float, float], footprint: Footprint, fence: Polygon
+) -> str:
+    """Why the rover at ``pose`` may not back out further ("" while it may): the footprint ``YIELD_LOOK_M``
+    behind must be clear of the believed map's obstacles and edge, and its centre inside the geofence
+    (``[safety] fence``; empty: none) that the supervisor holds the estimated position to (outside, the
+    rover would hold until it was back inside: stranded by its own recovery)."""
+    if not way_clear(terrain, pose, footprint, -1.0):
+        return f"an obstacle or the map edge within {YIELD_LOOK_M:g} m behind"
+    if fence:
+        x, y, _yaw = moved_along(pose, -YIELD_LOOK_M)
+        if not inside_polygon(x, y, fence):
+            return f"the geofence within {YIELD_LOOK_M:g} m behind"
+    return ""
 
-    def __init__(self, footprint: Footprint, limits: BackOutLimits, start: tuple[int, float, float]) -> None:
+
+class BackOut:
+    """One back-out, begun at ``start`` (t_ns, x, y): straight back while the way is clear, bounded; then
+    ``mark`` (the spot it dug in on) is for the planner's map. ``pose``: where the rover was last seen."""
+
+    def __init__(
+        self,
+        footprint: Footprint,
+        limits: BackOutLimits,
+        start: tuple[int, float, float, float],
+        mark: ObstacleObservation,
+        fence: Polygon = (),
+    ) -> None:
         self._footprint = footprint
         self._limits = limits
-        self._start = start
+        t_ns, x, y, yaw = start
+        self._start = (t_ns, x, y)
+        self.pose = (x, y, yaw)
+        self.mark = mark
+        self._fence = fence
 
     def moved_m(self, pose: tuple[float, float, float]) -> float:
         _t, x0, y0 = self._start
@@ -123,18 +154,16 @@ class BackOut:
         """The command at ``pose``: reverse, or done (and why) once a bound is reached or the way behind is
         not clear of ``terrain`` or of the ``moving`` obstacles' predicted tracks."""
         limits = self._limits
+        self.pose = pose
         moved_m = self.moved_m(pose)
         if moved_m >= limits.back_m:
             return BackOutStep(0.0, True, f"backed out {moved_m:.1f} m")
         elapsed_s = (t_ns - self._start[0]) * 1e-9
         if elapsed_s >= limits.max_s:
             return BackOutStep(0.0, True, f"backed out {moved_m:.1f} m in {elapsed_s:.1f} s, the limit")
-        if not way_clear(terrain, pose, self._footprint, -1.0):
-            return BackOutStep(
-                0.0,
-                True,
-                f"backed out {moved_m:.1f} m: an obstacle or the map edge within {YIELD_LOOK_M:g} m behind",
-            )
+        blocked = way_back_blocked(terrain, pose, self._footprint, self._fence)
+        if blocked:
+            return BackOutStep(0.0, True, f"backed out {moved_m:.1f} m: {blocked}")
         if moving:
             behind = moved_along(pose, -YIELD_LOOK_M)
             gap = track_gap(moving, t_ns, behind, self._footprint, limits.horizon_s, limits.inflation_m)

@@ -16,6 +16,7 @@ from estimator.pose import PoseEstimate
 from logs import topics
 from logs.sink import MessageSink
 from navigator.config import RoverConfig
+from navigator.fence_shape import Polygon
 from navigator.guidance import Guidance, GuidanceOutput
 from navigator.perception import ObstacleObservation, obstacles_record
 from navigator.planner import Path, Planner
@@ -110,10 +111,16 @@ class RouteGuidance:
         if self.goal is not None:
             self.mode = Mode.WAITING_ESTIMATE
 
-    def recover(self, now: int, pose: PoseEstimate, mark: ObstacleObservation) -> None:
-        """Dug in: back out, then mark the spot and plan round it (``Guidance.recover``)."""
-        self.core.recover(now, (pose.x, pose.y, pose.yaw), mark)
+    def recover(self, now: int, pose: PoseEstimate, mark: ObstacleObservation, fence: Polygon = ()) -> None:
+        """Dug in: back out (within ``fence``), then mark the spot and plan round it (Guidance.recover)."""
+        self.core.recover(now, (pose.x, pose.y, pose.yaw), mark, fence)
         self.mode = Mode.RECOVERING
+
+    def end_recovery(self, why: str) -> None:
+        """A hold stopped the wheels while backing out: the back-out ends where the rover is
+        (``Guidance.end_back_out``); told at the next tick."""
+        self.core.end_back_out(why)
+        self.mode = Mode.DRIVING
 
     def set_goal(self, x: float, y: float) -> None:
         self.goal = Goal(x, y)
@@ -157,10 +164,9 @@ class RouteGuidance:
             if not ready or self.goal is None:
                 return STOPPED
             self.core.set_goal(self.goal.x, self.goal.y)
-        was_recovering = self.mode is Mode.RECOVERING
         out = self.core.update(now, pose.x, pose.y, pose.yaw, pose.speed)
         self.mode = _MODE_OF.get(out.mode) or Mode(out.mode)  # Mode(): the enum's own error if unknown
-        if was_recovering and self.mode is not Mode.RECOVERING:
+        if self.core.recovered_waiting:  # a back-out ended: by itself, a hold or a new goal
             self._tell_recovered(now, pose)
         if out.path_changed and out.path is not None:
             self._publish_path(now, out.path)

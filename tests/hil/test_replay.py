@@ -468,6 +468,18 @@ def test_recorded_obstacles_take_any_record_without_raising(record: dict[str, ob
     assert source.poll() == []
 
 
+def test_the_stacks_own_marks_are_no_input_and_a_record_of_them_alone_is_not_fed() -> None:
+    """Where the rover dug in (navigator.recovery) it marks the spot on perception/obstacles itself: the
+    replayed stack marks it again, so the mark is left out and a record of marks alone counts as nothing
+    fed (the replay said "2 obstacle records fed" of a map with no obstacles)."""
+    mark = {"id": "dug-in-1", "x": 15.4, "y": 3.1, "radius_m": 0.35, "vx": 0.0, "vy": 0.0}
+    cart = {"id": "cart", "x": 5.0, "y": 3.0, "radius_m": 0.4, "vx": 1.0, "vy": 0.0}
+    source = RecordedObstacles()
+    assert source.add(7, {"obstacles": [mark]}) is False and source.poll() == []
+    assert source.add(8, {"obstacles": [mark, cart]}) is True
+    assert [o.obstacle_id for o in source.poll()] == ["cart"]
+
+
 def _replay_cli(recording: Path, config: Path, out: Path, *extra: str) -> int:
     from rover_cli.main import main
 

@@ -212,3 +212,22 @@ def test_it_holds_with_recovery_gave_up_where_it_cannot_recover(
         assert why in rig.events("recovery.gave_up")[0][1]["detail"] and stack.safety_mode.value == "HOLD"
     finally:
         rig.close()
+
+
+def test_an_estop_ends_the_back_out_where_the_rover_is(rig: Rig, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Held by another failsafe, the back-out's clock would run on, and a resume would reverse at once:
+    the back-out ends where the rover stands, said, and after the resume the rover drives its new path."""
+    dug_in = DugIn(rig, monkeypatch)
+    rig.run_until(lambda: rig.stack.mode is Mode.RECOVERING, 20.0, "a back-out")
+    rig.run_for(0.5)
+    rig.stack.estop("operator")
+    rig.run_until(lambda: bool(rig.events("recovery.replanned")), 1.0, "the back-out's end")
+    (_t, ended) = rig.events("recovery.replanned")[-1]
+    assert ended["detail"].startswith("held (estop)")
+    assert rig.stack.mode is not Mode.RECOVERING
+    dug_in.on = False
+    rig.stack.resume("operator")
+    rig.run_for(2.0)
+    states = [m for topic, _t, m in rig.sink.records if topic == "navigator/state"]
+    assert states[-1]["mode"] == "DRIVING" and states[-1]["target_speed_mps"] > 0.0
+    assert len(rig.events("recovery.backing_out")) == 1

@@ -108,12 +108,33 @@ def test_a_rover_that_does_not_move_stops_backing_at_the_time_bound_and_leaves_n
     assert mark is None and why.endswith("not marked: the spot it dug in on lies under it")
 
 
-def test_a_new_goal_ends_the_back_out_and_leaves_no_mark() -> None:
-    guidance, _mark = _dug_in(_flat())
-    guidance.update(2 * TICK_NS, DUG_IN[0], 10.0, 0.0, 0.0)
+@pytest.mark.parametrize("backed_m", [0.0, 1.0])
+def test_a_new_goal_ends_the_back_out_where_the_rover_is_and_says_so(backed_m: float) -> None:
+    """The operator chose where to go: no more reversing. What the rover learned of the spot stays (marked
+    unless it lies under the rover), and the stack is told, as for any back-out that ends."""
+    guidance, mark = _dug_in(_flat())
+    x = DUG_IN[0] - backed_m
+    assert guidance.update(2 * TICK_NS, x, 10.0, 0.0, 0.0).mode == RECOVERING
     guidance.set_goal(2.0, 2.0)
-    assert guidance.update(3 * TICK_NS, DUG_IN[0], 10.0, 0.0, 0.0).mode == DRIVING
-    assert not guidance.planner.terrain.obstacles.any() and guidance.take_recovered() is None
+    assert guidance.update(3 * TICK_NS, x, 10.0, 0.0, 0.0).mode == DRIVING
+    why, left = guidance.take_recovered() or ("", None)
+    assert why.startswith("a new goal ended the back-out")
+    terrain = guidance.planner.terrain
+    marked = bool(terrain.obstacles[int(mark.y / terrain.resolution_m), int(mark.x / terrain.resolution_m)])
+    assert marked is (left is not None) is (backed_m > 0.0)
+
+
+def test_the_back_out_ends_at_the_geofence_behind() -> None:
+    """Reversed out of the fence, the rover would hold on `geofence` until back inside: stranded."""
+    guidance = Guidance(_flat(), PARAMS, PlannerConfig(), FollowerConfig())
+    guidance.set_goal(27.0, 10.0)
+    guidance.update(0, 2.0, 10.0, 0.0, 0.0)
+    fence = ((11.0, 5.0), (29.0, 5.0), (29.0, 15.0), (11.0, 15.0))  # 1 m behind where it dug in
+    guidance.recover(TICK_NS, DUG_IN, dig_in_mark(TICK_NS, DUG_IN, PARAMS, 1), fence)
+    _outputs, x = _back_out(guidance, 500)
+    assert DUG_IN[0] - x == pytest.approx(0.5, abs=YIELD_SPEED_MPS * TICK_S + 1e-9)
+    why, _left = guidance.take_recovered() or ("", None)
+    assert why.startswith("backed out 0.5 m: the geofence within 0.5 m behind")
 
 
 def test_a_mark_covers_a_goal_within_the_planners_clearance() -> None:
