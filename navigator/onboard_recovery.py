@@ -6,7 +6,10 @@ when ``[planner] recover_when_stuck`` is on, guidance was ``DRIVING`` (not stopp
 moving obstacle: ``BLOCKED`` / ``YIELDING``), no tip-over margin is breached, the footprint just behind is
 clear of the believed map (else it could not back out: it does not move), the spot it dug in on is not at
 the goal (a mark there would make the goal unreachable), and fewer than ``recovery_attempts`` recoveries
-were made for this goal or resume (counted as the learning counts: ``SafetySupervisor.goals_given``).
+were made since the last goal given or resume (counted as the learning counts,
+``SafetySupervisor.goals_given``: a goal, a mission started or an item made current, not a mission
+advancing by itself to its next waypoint, as for the ``stuck`` latch: a rover that digs in on the way to
+one waypoint digs in on the way to the next).
 Otherwise it holds, latched, for the operator as before; ``recovery.gave_up`` says why, once per hold.
 """
 
@@ -61,7 +64,8 @@ class DigInRecovery:
         at = (pose.x, pose.y, pose.yaw)
         if self._recoveries >= self._attempts:
             self._give_up(
-                f"{self._recoveries} recoveries for this goal, the limit ([planner] recovery_attempts)"
+                f"{self._recoveries} recoveries since the last goal given or resume, the limit "
+                "([planner] recovery_attempts)"
             )
             return
         mark = dig_in_mark(now, at, self._vehicle, self._marks + 1)
@@ -85,7 +89,7 @@ class DigInRecovery:
             "warning",
             f"dug in at ({pose.x:.2f}, {pose.y:.2f}) heading {math.degrees(pose.yaw):.0f} deg ({why}): "
             f"backing out up to {self._back_m:g} m, then marking the spot as {mark.obstacle_id} and planning "
-            f"round it (recovery {self._recoveries} of {self._attempts} for this goal)",
+            f"round it (recovery {self._recoveries} of {self._attempts} since the last goal given or resume)",
         )
         route.recover(now, pose, mark, self._fence)
         safety.progress_recovering(f"backing out to plan round where it dug in ({mark.obstacle_id})")

@@ -102,7 +102,7 @@ def test_a_resume_gives_the_count_back(rig: Rig, monkeypatch: pytest.MonkeyPatch
         lambda: len(rig.events("recovery.backing_out")) == 3, 2 * WINDOW_S + 2.0, "a third back-out"
     )
     (_t, third) = rig.events("recovery.backing_out")[-1]
-    assert "recovery 1 of 2 for this goal" in third["detail"]
+    assert "recovery 1 of 2 since the last goal given or resume" in third["detail"]
 
 
 def test_a_new_goal_gives_the_count_back(rig: Rig, monkeypatch: pytest.MonkeyPatch) -> None:
