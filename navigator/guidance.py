@@ -104,9 +104,12 @@ class Guidance:
         classes: dict[int, TerrainClass] = TERRAIN_CLASSES,
         *,
         executor: Executor | None = None,
+        fence: Polygon = (),
     ) -> None:
-        """``executor`` runs the planning jobs (default: inline, in ``update``; see the module doc)."""
+        """``executor`` runs the planning jobs (default: inline, in ``update``; see the module doc);
+        ``fence``, the ``[safety] fence`` (empty: none), which no back-off nor back-out leaves."""
         self._params = params
+        self._fence = fence
         self._executor: Executor = executor if executor is not None else InlineExecutor()
         self._job: Future[PlanOutcome] | None = None
         self._generation = 0  # counts goals: an outcome planned for an older goal is stale
@@ -176,6 +179,7 @@ class Guidance:
                 planner_config.yield_max_m,
                 planner_config.yield_max_s,
             ),
+            fence,
         )
         # Backing out when dug in (navigator.recovery): the back-out under way and the mark it leaves, the
         # marks waiting for the next planning job (they go in whatever the sensing range: ground the rover
@@ -257,14 +261,11 @@ class Guidance:
             self._end_back_out(self._back_out, self._back_out.pose, "a new goal ended the back-out")
         self._follower.reset()
 
-    def recover(
-        self, t_ns: int, pose: tuple[float, float, float], mark: ObstacleObservation, fence: Polygon = ()
-    ) -> None:
-        """Dug in at ``pose`` (x, y, yaw): back out from here (mode ``RECOVERING``), within ``fence`` (the
-        geofence, empty: none), then put ``mark`` into the map and plan the goal again from where the
-        back-out stopped (``navigator.recovery``)."""
+    def recover(self, t_ns: int, pose: tuple[float, float, float], mark: ObstacleObservation) -> None:
+        """Dug in at ``pose`` (x, y, yaw): back out from here (mode ``RECOVERING``), then put ``mark`` into
+        the map and plan the goal again from where the back-out stopped (``navigator.recovery``)."""
         self._back_out = BackOut(
-            Footprint.of(self._params), self._back_out_limits, (t_ns, *pose), mark, fence
+            Footprint.of(self._params), self._back_out_limits, (t_ns, *pose), mark, self._fence
         )
         self._mode = RECOVERING
         self._blocker = None

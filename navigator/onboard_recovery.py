@@ -20,9 +20,10 @@ import math
 from estimator.pose import PoseEstimate
 from navigator.config import RoverConfig
 from navigator.footprint import Footprint
-from navigator.recovery import dig_in_mark, mark_covers, way_back_blocked
+from navigator.recovery import dig_in_mark, mark_covers
 from navigator.route_guidance import Mode, RouteGuidance
 from navigator.safety import NO_PROGRESS, TIP_OVER, EventSink, SafetySupervisor
+from navigator.yielding import way_blocked
 
 
 class DigInRecovery:
@@ -77,9 +78,9 @@ class DigInRecovery:
         if self._back_speed_mps <= 0.0:
             self._give_up("no backing out: [planner] yield_speed_mps is 0")
             return
-        blocked = way_back_blocked(route.planner.terrain, at, self._footprint, self._fence)
+        blocked = way_blocked(route.planner.terrain, at, self._footprint, -1.0, self._fence)
         if blocked:
-            self._give_up(f"no clear way back: {blocked}")
+            self._give_up(f"no clear way back: {blocked} behind")
             return
         self._recoveries += 1
         self._marks += 1
@@ -91,7 +92,7 @@ class DigInRecovery:
             f"backing out up to {self._back_m:g} m, then marking the spot as {mark.obstacle_id} and planning "
             f"round it (recovery {self._recoveries} of {self._attempts} since the last goal given or resume)",
         )
-        route.recover(now, pose, mark, self._fence)
+        route.recover(now, pose, mark)
         safety.progress_recovering(f"backing out to plan round where it dug in ({mark.obstacle_id})")
 
     def _give_up(self, why: str) -> None:

@@ -7,12 +7,11 @@ lacks, a class learned twice already), the stack recovers (``navigator.onboard_r
 
 * guidance's mode is ``RECOVERING``: it reverses straight along its heading at ``[planner] yield_speed_mps``,
   no yaw rate, while the footprint ``YIELD_LOOK_M`` behind stays clear of the believed map's obstacles and
-  edge (``navigator.yielding.way_clear``, the back-off's own test), its centre inside the geofence, and of
-  the moving obstacles' predicted
-  tracks (within ``inflation_m`` over ``moving_horizon_s``: a cart coming up behind the rover), until it is
-  ``recovery_back_m`` from where it began (by the estimated pose), after ``recovery_back_m / speed +
-  BACK_OUT_SPARE_S``, or with no clear way further back; a hold of the supervisor's (an e-stop, ``stuck``,
-  ``gps_lost`` ...) or a new goal ends it where the rover stands;
+  edge, its centre inside the geofence (``navigator.yielding.way_blocked``, the back-off's own test), and
+  the moving obstacles' predicted tracks stay clear of it (within ``inflation_m`` over ``moving_horizon_s``:
+  a cart coming up behind the rover), until it is ``recovery_back_m`` from where it began (by the estimated
+  pose), after ``recovery_back_m / speed + BACK_OUT_SPARE_S``, or with no clear way further back; a hold of
+  the supervisor's (an e-stop, ``stuck``, ``gps_lost`` ...) or a new goal ends it where the rover stands;
 * then the spot it dug in on (``dig_in_mark``) goes into the planner's map as a static obstacle for the rest
   of the run, and the goal is planned again from where it stopped.
 """
@@ -23,12 +22,12 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from navigator.fence_shape import Polygon, inside_polygon
+from navigator.fence_shape import Polygon
 from navigator.footprint import Footprint, disc_gap_m
 from navigator.perception import ObstacleObservation
 from navigator.terrain import TerrainMap, disc_mask
 from navigator.vehicle import VehicleParams
-from navigator.yielding import YIELD_LOOK_M, moved_along, track_gap, way_clear
+from navigator.yielding import YIELD_LOOK_M, moved_along, track_gap, way_blocked
 
 RECOVERY_BACK_M = 1.5  # default [planner] recovery_back_m
 RECOVERY_ATTEMPTS = 2  # default [planner] recovery_attempts, per goal or resume
@@ -104,22 +103,6 @@ class BackOutStep:
     why: str = ""
 
 
-def way_back_blocked(
-    terrain: TerrainMap, pose: tuple[float, float, float], footprint: Footprint, fence: Polygon
-) -> str:
-    """Why the rover at ``pose`` may not back out further ("" while it may): the footprint ``YIELD_LOOK_M``
-    behind must be clear of the believed map's obstacles and edge, and its centre inside the geofence
-    (``[safety] fence``; empty: none) that the supervisor holds the estimated position to (outside, the
-    rover would hold until it was back inside: stranded by its own recovery)."""
-    if not way_clear(terrain, pose, footprint, -1.0):
-        return f"an obstacle or the map edge within {YIELD_LOOK_M:g} m behind"
-    if fence:
-        x, y, _yaw = moved_along(pose, -YIELD_LOOK_M)
-        if not inside_polygon(x, y, fence):
-            return f"the geofence within {YIELD_LOOK_M:g} m behind"
-    return ""
-
-
 class BackOut:
     """One back-out, begun at ``start`` (t_ns, x, y): straight back while the way is clear, bounded; then
     ``mark`` (the spot it dug in on) is for the planner's map. ``pose``: where the rover was last seen."""
@@ -161,9 +144,9 @@ class BackOut:
         elapsed_s = (t_ns - self._start[0]) * 1e-9
         if elapsed_s >= limits.max_s:
             return BackOutStep(0.0, True, f"backed out {moved_m:.1f} m in {elapsed_s:.1f} s, the limit")
-        blocked = way_back_blocked(terrain, pose, self._footprint, self._fence)
+        blocked = way_blocked(terrain, pose, self._footprint, -1.0, self._fence)
         if blocked:
-            return BackOutStep(0.0, True, f"backed out {moved_m:.1f} m: {blocked}")
+            return BackOutStep(0.0, True, f"backed out {moved_m:.1f} m: {blocked} behind")
         if moving:
             behind = moved_along(pose, -YIELD_LOOK_M)
             gap = track_gap(moving, t_ns, behind, self._footprint, limits.horizon_s, limits.inflation_m)

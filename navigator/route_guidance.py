@@ -16,7 +16,6 @@ from estimator.pose import PoseEstimate
 from logs import topics
 from logs.sink import MessageSink
 from navigator.config import RoverConfig
-from navigator.fence_shape import Polygon
 from navigator.guidance import Guidance, GuidanceOutput
 from navigator.perception import ObstacleObservation, obstacles_record
 from navigator.planner import Path, Planner
@@ -81,7 +80,13 @@ class RouteGuidance:
         self._config = config
         self._planning = planning
         self.core = Guidance(
-            terrain, config.vehicle, config.planner, config.follower, self.classes, executor=planning
+            terrain,
+            config.vehicle,
+            config.planner,
+            config.follower,
+            self.classes,
+            executor=planning,
+            fence=config.safety.fence,
         )
         # The rover's own top speed: the mission's speed events name it.
         self.max_speed_mps = config.follower.max_speed_mps
@@ -103,7 +108,13 @@ class RouteGuidance:
         obstacles seen so far and the mission's speed limit; the goal is planned again on the next tick."""
         old, config = self.core, self._config
         core = Guidance(
-            self._terrain, config.vehicle, config.planner, config.follower, classes, executor=self._planning
+            self._terrain,
+            config.vehicle,
+            config.planner,
+            config.follower,
+            classes,
+            executor=self._planning,
+            fence=config.safety.fence,
         )
         core.take_over_from(old)
         old.close()
@@ -111,9 +122,9 @@ class RouteGuidance:
         if self.goal is not None:
             self.mode = Mode.WAITING_ESTIMATE
 
-    def recover(self, now: int, pose: PoseEstimate, mark: ObstacleObservation, fence: Polygon = ()) -> None:
-        """Dug in: back out (within ``fence``), then mark the spot and plan round it (Guidance.recover)."""
-        self.core.recover(now, (pose.x, pose.y, pose.yaw), mark, fence)
+    def recover(self, now: int, pose: PoseEstimate, mark: ObstacleObservation) -> None:
+        """Dug in: back out, then mark the spot and plan round it (``Guidance.recover``)."""
+        self.core.recover(now, (pose.x, pose.y, pose.yaw), mark)
         self.mode = Mode.RECOVERING
 
     def end_recovery(self, why: str) -> None:

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from navigator.fence_shape import Polygon, inside_polygon
 from navigator.footprint import Footprint, disc_gap_m, footprint_collides
 from navigator.perception import ObstacleObservation
 from navigator.terrain import TerrainMap
@@ -163,10 +164,16 @@ class BackOff:
     """The back-off of one ``BLOCKED`` wait: started by a threat to the rover, bounded, then spent."""
 
     def __init__(
-        self, footprint: Footprint, inflation_m: float, horizon_s: float, limits: YieldLimits = YieldLimits()
+        self,
+        footprint: Footprint,
+        inflation_m: float,
+        horizon_s: float,
+        limits: YieldLimits = YieldLimits(),
+        fence: Polygon = (),
     ) -> None:
         self._footprint = footprint
         self._limits = limits
+        self._fence = fence  # [safety] fence (empty: none): the back-off never leaves it (way_blocked)
         self._inflation_m = inflation_m
         self._horizon_s = horizon_s
         self._start: tuple[int, float, float] | None = None  # (t_ns, x, y) where this wait's back-off began
@@ -224,9 +231,8 @@ class BackOff:
         """Back (the way it came) if that gets further from the tracks, else forward if that does, else 0:
         a rover whose rear is in the lane would only back further into it (a 1 m/s cart hit one so)."""
         for direction in (-1.0, 1.0):
-            if way_clear(scene.terrain, pose, self._footprint, direction) and self._further(
-                scene, moved_along(pose, direction * YIELD_LOOK_M), gap
-            ):
+            blocked = way_blocked(scene.terrain, pose, self._footprint, direction, self._fence)
+            if not blocked and self._further(scene, moved_along(pose, direction * YIELD_LOOK_M), gap):
                 return direction
         return 0.0
 
@@ -235,8 +241,9 @@ class BackOff:
         if not self._direction:
             return ""
         ahead = moved_along(pose, self._direction * YIELD_LOOK_M)
-        if not way_clear(scene.terrain, pose, self._footprint, self._direction):
-            return f"an obstacle or the map edge within {YIELD_LOOK_M:g} m"
+        blocked = way_blocked(scene.terrain, pose, self._footprint, self._direction, self._fence)
+        if blocked:
+            return blocked
         if not self._gap(scene, ahead).further_than(gap):
             return f"{YIELD_LOOK_M:g} m further would be no further from the track"
         return ""
@@ -255,13 +262,25 @@ def moved_along(pose: tuple[float, float, float], distance_m: float) -> tuple[fl
     return (x + distance_m * math.cos(yaw), y + distance_m * math.sin(yaw), yaw)
 
 
-def way_clear(
-    terrain: TerrainMap, pose: tuple[float, float, float], footprint: Footprint, direction: float
-) -> bool:
-    """Whether the footprint ``YIELD_LOOK_M`` along the heading from ``pose`` (``direction`` -1: back, +1:
-    on) is clear of ``terrain``'s obstacles and edge: the test every straight move off the path makes
-    before and while it moves (this back-off, and backing out when dug in, ``navigator.recovery``)."""
-    return not footprint_collides(terrain, moved_along(pose, direction * YIELD_LOOK_M), footprint)
+def way_blocked(
+    terrain: TerrainMap,
+    pose: tuple[float, float, float],
+    footprint: Footprint,
+    direction: float,
+    fence: Polygon = (),
+) -> str:
+    """Why the rover at ``pose`` may not move ``YIELD_LOOK_M`` along its heading (``direction`` -1: back,
+    +1: on), "" when it may: the footprint there must be clear of ``terrain``'s obstacles and edge, and its
+    centre inside ``fence`` (``[safety] fence``; empty: none), which the supervisor holds the estimated
+    position to: outside, the rover would hold until it was back inside, stranded by its own move. The test
+    every straight move off the path makes before and while it moves (this back-off, and backing out when
+    dug in, ``navigator.recovery``)."""
+    there = moved_along(pose, direction * YIELD_LOOK_M)
+    if footprint_collides(terrain, there, footprint):
+        return f"an obstacle or the map edge within {YIELD_LOOK_M:g} m"
+    if fence and not inside_polygon(there[0], there[1], fence):
+        return f"the geofence within {YIELD_LOOK_M:g} m"
+    return ""
 
 
 def _bound_reached(

@@ -210,3 +210,15 @@ def test_a_mission_speed_limit_does_not_slow_a_back_off() -> None:
     outputs, _ = _run(guidance, 5, 10.0, 10.3, 12.5)
     assert outputs[0].mode == YIELDING and outputs[0].speed_mps == pytest.approx(-YIELD_SPEED_MPS)
     assert YIELD_SPEED_MPS > 0.2 and outputs[0].speed_limit_reason == "moving_obstacle"
+
+
+def test_the_back_off_does_not_leave_the_geofence() -> None:
+    """The supervisor holds a rover outside `[safety] fence` until it is back inside: a back-off out of it
+    would strand the rover by its own move. The same cart as above, the fence's west edge 0.3 m behind."""
+    fence = ((9.7, 0.0), (30.0, 0.0), (30.0, 20.0), (9.7, 20.0))
+    guidance = Guidance(_flat(), PARAMS, PlannerConfig(), FollowerConfig(), fence=fence)
+    guidance.set_goal(27.0, 10.0)
+    assert guidance.update(0, 10.0, 10.0, 0.0, 0.0).mode == DRIVING
+    outputs, _rover_x = _run(guidance, 100, 10.0, 10.3, 12.5)
+    assert all(out.speed_mps >= 0.0 for out in outputs)  # never backing
+    assert "no back-off from moving obstacle cart" in outputs[0].detail

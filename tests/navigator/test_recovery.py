@@ -126,11 +126,11 @@ def test_a_new_goal_ends_the_back_out_where_the_rover_is_and_says_so(backed_m: f
 
 def test_the_back_out_ends_at_the_geofence_behind() -> None:
     """Reversed out of the fence, the rover would hold on `geofence` until back inside: stranded."""
-    guidance = Guidance(_flat(), PARAMS, PlannerConfig(), FollowerConfig())
+    fence = ((11.0, 5.0), (29.0, 5.0), (29.0, 15.0), (11.0, 15.0))  # 1 m behind where it dug in
+    guidance = Guidance(_flat(), PARAMS, PlannerConfig(), FollowerConfig(), fence=fence)
     guidance.set_goal(27.0, 10.0)
     guidance.update(0, 2.0, 10.0, 0.0, 0.0)
-    fence = ((11.0, 5.0), (29.0, 5.0), (29.0, 15.0), (11.0, 15.0))  # 1 m behind where it dug in
-    guidance.recover(TICK_NS, DUG_IN, dig_in_mark(TICK_NS, DUG_IN, PARAMS, 1), fence)
+    guidance.recover(TICK_NS, DUG_IN, dig_in_mark(TICK_NS, DUG_IN, PARAMS, 1))
     _outputs, x = _back_out(guidance, 500)
     assert DUG_IN[0] - x == pytest.approx(0.5, abs=YIELD_SPEED_MPS * TICK_S + 1e-9)
     why, _left = guidance.take_recovered() or ("", None)
