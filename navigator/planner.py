@@ -47,6 +47,11 @@ if TYPE_CHECKING:  # navigator.config imports this module for its choices
 _log = logging.getLogger(__name__)
 
 ESCAPE_RADIUS_M = 1.5
+# A start lethal by its slope alone, with nothing passable within ``ESCAPE_RADIUS_M``, plans from the nearest
+# passable cell within this: the rover stands on a slope its beliefs now forbid (it learned, on that slope,
+# that the class grips less: navigator.slide_learning) and the way off it is the plan's first leg, checked
+# for the footprint from where the rover is (a side-slope band, a dune's flank: a few metres across).
+SLOPE_ESCAPE_RADIUS_M = 5.0
 COST_MODES = ("terrain", "classical")
 FOOTPRINT_INFLATIONS = ("circumscribed", "inscribed")
 MAX_FOOTPRINT_RETRIES = 40
@@ -240,17 +245,28 @@ class Planner:
 
         A rover whose estimated position lies in the clearance band around an obstacle (estimation noise,
         or it was pushed there) starts from the nearest free cell within ``ESCAPE_RADIUS_M``: the path then
-        leads it out of the band. Inside an obstacle cell itself there is no such escape.
+        leads it out of the band. Inside an obstacle cell itself there is no such escape. A rover on a slope
+        too steep for its class's believed grip (and nothing passable within that radius) starts from the
+        nearest passable cell within ``SLOPE_ESCAPE_RADIUS_M``, the footprint checked all the way there.
         """
-        start_cell = self._escape(self._cell(start_xy, "start"))
+        asked = self._cell(start_xy, "start")
+        start_cell = self._escape(asked, ESCAPE_RADIUS_M)
+        off_slope = start_cell == asked and self._slope_lethal(asked)
+        if off_slope:
+            start_cell = self._escape(asked, SLOPE_ESCAPE_RADIUS_M)
         goal_cell = self._cell(goal_xy, "goal")
         result = self.plan_cells(start_cell, goal_cell)
         factors: np.ndarray | None = None  # a copy with the moves found impossible forbidden, once needed
         for attempt in range(MAX_FOOTPRINT_RETRIES + 1):
             path = self._path(result, start_xy, goal_xy)
             # The way from where the rover is to its first cell centre is not checked: the start is a fact.
+            # Off a slope, that way is metres long: it is checked (the start pose with it).
             first_centre = self._terrain.center_of(*result.cells[0])
-            skip_m = float(np.hypot(first_centre[0] - start_xy[0], first_centre[1] - start_xy[1]))
+            skip_m = (
+                0.0
+                if off_slope
+                else float(np.hypot(first_centre[0] - start_xy[0], first_centre[1] - start_xy[1]))
+            )
             collision = first_collision(path.points, self._terrain, self._footprint, skip_m=skip_m)
             if collision is None:
                 return dataclasses.replace(path, checked_from_m=skip_m)
@@ -307,11 +323,17 @@ class Planner:
         )
         return path
 
-    def _escape(self, cell: tuple[int, int]) -> tuple[int, int]:
+    def _slope_lethal(self, cell: tuple[int, int]) -> bool:
+        """Lethal by its slope for its class (an obstacle's clearance may reach it too: the way off is
+        checked for the footprint)."""
+        row, col = cell
+        return bool(self._ground.lethal[row, col]) and not self._terrain.obstacles[row, col]
+
+    def _escape(self, cell: tuple[int, int], radius_m: float) -> tuple[int, int]:
         row, col = cell
         if np.isfinite(self._cost[row, col]) or self._terrain.obstacles[row, col]:
             return cell
-        reach = int(np.ceil(ESCAPE_RADIUS_M / self._terrain.resolution_m))
+        reach = int(np.ceil(radius_m / self._terrain.resolution_m))
         rows = slice(max(0, row - reach), row + reach + 1)
         cols = slice(max(0, col - reach), col + reach + 1)
         window = self._cost[rows, cols]

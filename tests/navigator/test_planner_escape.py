@@ -1,6 +1,9 @@
-"""A start inside an obstacle's clearance band plans out of it; a start inside an obstacle does not."""
+"""A start inside an obstacle's clearance band plans out of it; a start inside an obstacle does not. A start
+on a slope too steep for its class plans off it, to the nearest passable ground within reach."""
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import pytest
@@ -8,6 +11,7 @@ import pytest
 from navigator.errors import PlanningError
 from navigator.planner import Planner
 from navigator.terrain import TerrainMap
+from navigator.terrain_classes import FIRM, SANDY
 from navigator.vehicle import VehicleParams
 
 
@@ -36,3 +40,30 @@ def test_start_inside_obstacle_is_refused():
     planner = Planner(_flat_map_with_block(), VehicleParams())
     with pytest.raises(PlanningError, match="lethal"):
         planner.plan((5.0, 5.0), (5.0, 1.5))
+
+
+def _hillside_with_sand(sand_x: tuple[float, float]) -> TerrainMap:
+    """10 x 10 m rising north at 14 deg (past the table's sand, 12.6 deg with the margin; firm takes it),
+    sandy for x in ``sand_x``, firm elsewhere."""
+    ys, xs = (np.mgrid[0:40, 0:40] + 0.5) * 0.25
+    classes = np.where((xs >= sand_x[0]) & (xs < sand_x[1]), SANDY, FIRM).astype(np.uint8)
+    return TerrainMap(ys * math.tan(math.radians(14.0)), classes, np.zeros((40, 40), dtype=bool), 0.25)
+
+
+def test_start_on_a_slope_too_steep_for_its_class_plans_off_it_to_the_nearest_passable_ground():
+    # A rover that learned, on this slope, that its sand grips less stands on ground its beliefs forbid:
+    # the nearest firm ground is 2.4 m away, past the clearance band's escape.
+    planner = Planner(_hillside_with_sand((2.5, 7.5)), VehicleParams())
+    start = (5.1, 5.0)
+    assert not np.isfinite(planner.cost_grid[planner.terrain.cell_of(*start)])
+    path = planner.plan(start, (9.0, 5.0))
+    assert tuple(path.points[0]) == start
+    assert path.points[1][0] >= 7.5  # off the sand, east, then on firm ground
+    assert all(np.isfinite(planner.cost_grid[planner.terrain.cell_of(*p)]) for p in path.points[1:])
+    assert path.checked_from_m == 0.0  # the way off is checked for the footprint from where it stands
+
+
+def test_start_on_a_slope_with_no_passable_ground_within_reach_is_refused():
+    planner = Planner(_hillside_with_sand((0.0, 10.0)), VehicleParams())
+    with pytest.raises(PlanningError, match="lethal"):
+        planner.plan((5.0, 5.0), (9.0, 5.0))
