@@ -234,6 +234,16 @@ class Guidance:
             self.planner.update_obstacles(added)
         self.limit_speed(old.mission_speed_mps)
 
+    def drive_on_from(self, old: Guidance) -> None:
+        """Take ``old``'s goal and path too, and plan that goal again at once on this guidance's beliefs,
+        following the old path until the new plan comes (``RouteGuidance.retune`` with ``drive_on``: a rover
+        that learned from a slide is moving; stopping for the plan would leave it sliding in place). After
+        ``take_over_from``; only while ``old`` drives its path."""
+        self._goal, self._path = old._goal, old._path
+        self._generation = old._generation + 1  # a plan ``old`` had in flight is for the old beliefs
+        self._needs_plan = self._goal is not None
+        self._mode = old._mode
+
     def limit_speed(self, limit_mps: float | None) -> None:
         """The mission's speed limit from now on (m/s, > 0 and finite), or None for none. It caps the
         target speed while following a path, whatever the goal, below the follower's and never above

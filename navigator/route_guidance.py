@@ -103,9 +103,12 @@ class RouteGuidance:
     def path(self) -> Path | None:
         return self.core.path if self.mode is not Mode.WAITING_ESTIMATE and self.goal is not None else None
 
-    def retune(self, classes: dict[int, TerrainClass]) -> None:
-        """Believe ``classes`` from now on (``navigator.climb_learning``): a new planner on them, with the
-        obstacles seen so far and the mission's speed limit; the goal is planned again on the next tick."""
+    def retune(self, classes: dict[int, TerrainClass], *, drive_on: bool = False) -> None:
+        """Believe ``classes`` from now on (``navigator.climb_learning``, ``navigator.slide_learning``): a
+        new planner on them, with the obstacles seen so far and the mission's speed limit; the goal is
+        planned again on the next tick. ``drive_on`` (while ``DRIVING``): the rover follows its old path
+        until the new plan comes (``Guidance.drive_on_from``), as a slide that is learned from does not hold
+        it; else (held, dug in) it waits for the new plan."""
         old, config = self.core, self._config
         core = Guidance(
             self._terrain,
@@ -117,9 +120,12 @@ class RouteGuidance:
             fence=config.safety.fence,
         )
         core.take_over_from(old)
+        driving_on = drive_on and self.mode is Mode.DRIVING and old.path is not None
+        if driving_on:
+            core.drive_on_from(old)
         old.close()
         self.core, self.classes = core, classes
-        if self.goal is not None:
+        if self.goal is not None and not driving_on:
             self.mode = Mode.WAITING_ESTIMATE
 
     def recover(self, now: int, pose: PoseEstimate, mark: ObstacleObservation) -> None:

@@ -153,3 +153,24 @@ def _request(**changes: Any) -> PlanRequest:
     )  # fmt: skip
     fields.update(changes)
     return PlanRequest(**fields)
+
+
+def test_a_guidance_on_new_beliefs_driving_on_follows_the_old_path_until_its_plan_arrives() -> None:
+    # Learned from a slide (navigator.slide_learning): the rover is moving, so it does not stop for the plan.
+    worker = HeldExecutor()
+    old = _guidance(_flat(), worker)
+    old.set_goal(27.0, 10.0)
+    old.update(0, 2.0, 10.0, 0.0, 0.0)
+    worker.run_all()
+    first = old.update(1, 2.0, 10.0, 0.0, 0.0)
+    assert first.path is not None
+    new = _guidance(_flat(), worker)
+    new.take_over_from(old)
+    new.drive_on_from(old)
+    out = new.update(2, 3.0, 10.0, 0.0, 0.8)
+    assert out.mode == DRIVING and out.speed_mps > 0.0 and out.path is first.path and new.planning
+    assert new.goal == (27.0, 10.0) and len(worker.queued) == 1  # the goal planned again, on the new beliefs
+    worker.run_all()
+    out = new.update(3, 3.0, 10.0, 0.0, 0.8)
+    assert out.path_changed and out.path is not None and out.path is not first.path
+    assert tuple(out.path.points[0]) == (3.0, 10.0)  # from where it was when the plan was asked for
