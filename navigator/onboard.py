@@ -42,7 +42,7 @@ from logs import topics
 from logs.clock import NS_PER_S, Clock
 from logs.commands import CommandSource, RoverCommand, command_record
 from logs.sink import MessageSink
-from navigator.climb_learning import MAX_LEARNINGS_PER_GOAL, learned_class, trustworthy_dig_in, with_learned
+from navigator.climb_learning import learned_class, trustworthy_dig_in
 from navigator.config import RoverConfig
 from navigator.deferred_sink import DeferredSink
 from navigator.event_texts import mav_severity, status_text, told
@@ -51,6 +51,7 @@ from navigator.map_message import grid_message
 from navigator.mission import Mission, MissionState
 from navigator.mixing import mix_skid_steer
 from navigator.odometry_frame import OdometryFrame
+from navigator.onboard_learning import TractionLearning
 from navigator.onboard_mission import MissionDriver
 from navigator.onboard_recovery import DigInRecovery
 from navigator.perception import ObstacleSource, obstacles_record
@@ -185,9 +186,11 @@ class OnboardStack:
             autopilot=mavlink,
         )
         self._last_heartbeat_sent_ns: int | None = None
-        # Learning from digging in (navigator.climb_learning): the goal it was for and how many times.
-        self._learned_at_goal = 0  # SafetySupervisor.goals_given when the count below began
-        self._learnings = 0
+        # Learning from digging in (navigator.climb_learning) and from sliding sideways
+        # (navigator.slide_learning): one count per goal or resume (navigator.onboard_learning).
+        self._learning = TractionLearning(
+            config, clock, terrain, self.guidance, self.safety, sink, self._event
+        )
         # The last non-zero speed commanded: its sign says which way the rover was pushed once the hold has
         # stopped the wheels (the learning above reads it).
         self._sent_uphill_mps = 0.0
@@ -342,6 +345,11 @@ class OnboardStack:
                 self._learn_from_digging_in(pose, decision.faults)
                 if self.safety.fault_detail(NO_PROGRESS) is not None:
                     self._recovery.consider(now, pose, decision.faults)
+            else:
+                # A slide is learned from while it drives (no hold): it plans again and follows the old
+                # path until the new plan comes.
+                wheels_free = decision.mode is SafetyMode.DRIVING
+                self._learning.watch_slide(now, pose, self._attitude, decision.faults, wheels_free)
             speed = guidance.speed_mps * decision.speed_scale
             yaw_rate = guidance.yaw_rate_rps * decision.speed_scale
             self._last_tick_ns = now
@@ -451,13 +459,10 @@ class OnboardStack:
         """Held for no progress while driving its route up a slope the map shows, its wheels turning: the
         ground could not carry the climb the planner routed it up. Believe its class climbs less
         (``navigator.climb_learning``), plan again and drive on; at most ``MAX_LEARNINGS_PER_GOAL`` times a
-        goal, and only from what it can trust, else it stays held for the operator."""
-        planner, route, attitude = self._config.planner, self.guidance, self._attitude
-        if not planner.learn_traction or planner.cost_mode != "terrain":
-            return  # classical A* reads no class figures: believing others would plan the same route
-        if self.safety.goals_given != self._learned_at_goal:
-            self._learned_at_goal, self._learnings = self.safety.goals_given, 0
-        if pose is None or attitude is None or self._learnings >= MAX_LEARNINGS_PER_GOAL:
+        goal or resume (with the slides learned from: ``navigator.onboard_learning``), and only from what it
+        can trust, else it stays held for the operator."""
+        route, attitude = self.guidance, self._attitude
+        if pose is None or attitude is None or not self._learning.may_learn():
             return
         if route.mode is not Mode.DRIVING or TIP_OVER in faults:
             return  # backing out of a cart's way, or tipping: not a climb to learn from
@@ -476,31 +481,8 @@ class OnboardStack:
         learned = None if believed is None else learned_class(believed, pitch, margin)
         if believed is None or learned is None:
             return
-        self._learnings += 1
-        route.retune(with_learned(route.classes, ground.terrain_class, learned))
-        plans_to = math.atan(learned.friction_mu - learned.rolling_resistance) - margin
-        detail = (
-            f"dug in climbing {math.degrees(abs(pitch)):.1f} deg on {believed.name}: friction_mu "
-            f"{learned.friction_mu:.2f} (believed {believed.friction_mu:.2f}), so it plans up to "
-            f"{math.degrees(plans_to):.1f} deg there; planning again"
-        )
-        self._event("learned.terrain", "warning", detail)
-        now = self._clock.now_ns()
-        self._sink.publish(
-            topics.NAVIGATOR_LEARNED,
-            now,
-            {
-                "timestamp": topics.stamp(now),
-                "class_name": believed.name,
-                "class_id": ground.terrain_class,
-                "field": "friction_mu",
-                "value": learned.friction_mu,
-                "believed": believed.friction_mu,
-                "slope_rad": abs(pitch),
-                "plans_up_to_rad": plans_to,
-                "x": pose.x,
-                "y": pose.y,
-            },
+        self._learning.learn(
+            pose, ground.terrain_class, believed, learned, pitch, "dug in climbing", drive_on=False
         )
         self.safety.progress_learned(f"learned {believed.name}'s traction; planning again")
 
@@ -611,6 +593,7 @@ class OnboardStack:
                     self._pacing_rx_ns = reading.t_ns
                 if reading.fix_type >= MIN_GPS_FIX_TYPE:
                     self._last_gps_ns = reading.t_ns
+                    self._learning.gps_velocity(reading.t_ns, reading.speed_mps, reading.course_rad)
                 eph_m = reading.eph_m
                 self.estimator.on_gps(
                     reading.t_ns,

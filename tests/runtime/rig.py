@@ -31,7 +31,7 @@ from logs.sink import MemorySink, Message
 from navigator.config import RoverConfig, rover_config_from_table
 from navigator.deferred_sink import DeferredSink
 from navigator.onboard import OnboardStack
-from navigator.terrain import from_maze
+from navigator.terrain import TerrainMap, from_maze
 
 PHYSICS_DT_NS = 10_000_000
 CONTROL_DIVIDER = 2
@@ -133,16 +133,20 @@ class Rig:
         deferred: bool = False,
         ground_station: Transport | None = None,
         resolution_m: float | None = None,
+        terrain: TerrainMap | None = None,
     ) -> None:
         """``deferred``: the links and the stack record through a ``DeferredSink`` (as ``rover run``).
         ``ground_station``: the transport of a second MAVLink link, straight to a ground station.
         ``resolution_m``: the map's grid (default one 2 m cell per maze cell; finer where obstacles the
-        stack places must be resolved, e.g. a mark where it dug in)."""
+        stack places must be resolved, e.g. a mark where it dug in). ``terrain``: the map itself instead (the
+        rover's world and the stack's map), e.g. a slope."""
         self.clock = SimClock()
         self.sink = MemorySink()
         self.deferred = DeferredSink(self.sink) if deferred else None
         onboard_sink = self.sink if self.deferred is None else self.deferred
-        self.terrain = from_maze(np.full((10, 10), 2), 2.0, resolution_m=resolution_m)
+        self.terrain = (
+            from_maze(np.full((10, 10), 2), 2.0, resolution_m=resolution_m) if terrain is None else terrain
+        )
         bus_config = dataclasses.replace(config.can, interface="virtual", channel=f"rig-{next(_channels)}")
         self.bus = FaultyBus(open_bus(bus_config))
         self._sim_bus = open_bus(bus_config)
