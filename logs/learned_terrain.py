@@ -1,10 +1,11 @@
 """What rovers learned of their ground, from their recordings, as rover-config tables for the next run.
 
-A rover that digs in learns that a terrain class climbs less than it believed (``navigator.climb_learning``)
-and records it on ``navigator/learned``; the learning ends with the run. ``learned_tables`` reads one or more
-recordings and writes what they learned as ``[terrain_classes.<name>]`` tables, the rover config's own
-overrides (``navigator.terrain_class_settings``), so the next run, in HIL or on the rover, plans on it from
-the start instead of digging in again to learn it.
+A rover that digs in learns that a terrain class climbs less than it believed (``navigator.climb_learning``),
+one that slides down a side slope that the class holds less (``navigator.slide_learning``), and records it
+on ``navigator/learned`` (the slope: the pitch it dug in on, or the roll it slid on); the learning ends with
+the run. ``learned_tables`` reads one or more recordings and writes what they learned as
+``[terrain_classes.<name>]`` tables, the rover config's own overrides (``navigator.terrain_class_settings``),
+so the next run, in HIL or on the rover, plans on it from the start instead of learning it again.
 
 Several recordings may have learned the same field of a class: the most cautious value is kept (for
 ``friction_mu``, the lowest: the learning only ever lowers it), and a comment above it names every learning.
@@ -155,7 +156,7 @@ def learned_tables(read: LearnedRead) -> str:
                 lines.append(
                     f"# {_shown(learning.source)} at {learning.t_s:.2f} s, "
                     f"at ({learning.x:.1f}, {learning.y:.1f}): "
-                    f"dug in climbing {math.degrees(learning.slope_rad):.1f} deg; {field_name} "
+                    f"learned on a {math.degrees(learning.slope_rad):.1f} deg slope; {field_name} "
                     f"{learning.believed:.4g} -> {learning.value:.4g}, plans up to "
                     f"{math.degrees(learning.plans_up_to_rad):.1f} deg"
                 )

@@ -401,7 +401,9 @@ _SPECS = [
                 "field": _STR,
                 "value": _NUM,
                 "believed": _NUM,  # the field's value before
-                "slope_rad": _NUM,  # the slope it dug in on (the AHRS's pitch, its size)
+                # The slope it learned on, its size: the AHRS's pitch it dug in on (navigator.climb_learning)
+                # or the window's mean roll it slid sideways on (navigator.slide_learning).
+                "slope_rad": _NUM,
                 "plans_up_to_rad": _NUM,  # the steepest slope of that class the planner now plans on
                 "x": _NUM,  # where it learned (the estimated position, ENU m)
                 "y": _NUM,

@@ -74,7 +74,8 @@ def test_the_tables_are_a_rover_config_that_believes_the_most_cautious_learning(
     tables = learned_tables(read)
     assert _beliefs(tables) == {"sandy": 0.30, "muddy": 0.21}  # the lowest sandy of the two runs
     # Each learning named above its value: where, when, and what it was before.
-    assert f"# {first} at 5.00 s, at (15.1, 3.1): dug in climbing 9.4 deg; friction_mu 0.4 -> 0.32" in tables
+    learned = "learned on a 9.4 deg slope; friction_mu 0.4 -> 0.32"
+    assert f"# {first} at 5.00 s, at (15.1, 3.1): {learned}" in tables
     assert f"# {second} at 8.00 s" in tables
     assert not read.refused and not read.stops
 
