@@ -1,14 +1,14 @@
 """Write the sand-side-slope scenario's layers (``scenarios/sand-side-slope.*.npy``): a hillside whose
 contour the direct line follows, across a strip of sand.
 
-40 x 30 m rising to the north at ``TILT_DEG`` between y = ``SLOPE_Y_M`` (flat below and above), so the
-start-goal line y = 15 m runs along a contour; firm ground but for a sandy strip at x ``SAND_X_M`` running
-the map's height. A side slope of ``TILT_DEG`` is within what sand of the built-in table lets the planner
-take (``atan(0.40 - 0.12)`` less its 3 deg margin = 12.6 deg) and past what the scenario's measured sand
-holds a driving rover on (``sqrt(mu^2 - crr^2)`` with mu 0.22: 10.4 deg, docs/physics.md): the planner that
-believes the table drives along the contour and slides downhill. The way round the slope, down to the
-flat and back up on firm ground either side of the strip, is 25 m longer. Deterministic: no randomness,
-same files every run.
+40 x 50 m rising to the north at ``TILT_DEG`` for y in ``SLOPE_Y_M`` (flat south and north of it), so the
+start-goal line y = 25 m runs along a contour; firm ground but for a sandy strip at x ``SAND_X_M`` running
+the map's height. A side slope of 12.5 deg is within what sand of the built-in table lets the planner take
+(``atan(0.40 - 0.12)`` less its 3 deg margin = 12.6 deg) and past what the scenario's measured sand (mu
+0.25) holds a driving rover on (``atan(sqrt(mu^2 - crr^2))`` = 12.4 deg, less where the downhill wheels sink
+more: docs/physics.md): the planner that believes the table drives along the contour and slides downhill.
+The way round the slope, down to the flat and back up, is 44 m longer than the direct line's 34 m: the
+planner takes the line while it believes the sand holds. Deterministic: no randomness, same files every run.
 
 Run from the repository root: ``.venv/bin/python scripts/make_sand_side_slope.py``.
 """
