@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 
+from estimator.ekf import YAW
 from estimator.pose import PoseEstimate
 from firmware_bridge.mavlink_link import AttitudeSample
 from logs import topics
@@ -121,6 +122,8 @@ class TractionLearning:
             return None  # off the map
         return slide_evidence(
             pose.speed,
+            pose.yaw_rate,
+            math.sqrt(max(float(pose.covariance[YAW, YAW]), 0.0)),
             TIP_OVER in faults,
             now - gps_ns,
             (ground_speed, course),

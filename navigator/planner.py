@@ -247,13 +247,15 @@ class Planner:
         or it was pushed there) starts from the nearest free cell within ``ESCAPE_RADIUS_M``: the path then
         leads it out of the band. Inside an obstacle cell itself there is no such escape. A rover on a slope
         too steep for its class's believed grip (and nothing passable within that radius) starts from the
-        nearest passable cell within ``SLOPE_ESCAPE_RADIUS_M``, the footprint checked all the way there.
+        nearest passable cell within ``SLOPE_ESCAPE_RADIUS_M`` whose straight way from the start crosses
+        only passable ground or the start's own class's too-steep slope (``_off_slope``); that way is then
+        checked for the footprint against obstacles like the rest of the path.
         """
         asked = self._cell(start_xy, "start")
         start_cell = self._escape(asked, ESCAPE_RADIUS_M)
         off_slope = start_cell == asked and self._slope_lethal(asked)
         if off_slope:
-            start_cell = self._escape(asked, SLOPE_ESCAPE_RADIUS_M)
+            start_cell = self._off_slope(asked)
         goal_cell = self._cell(goal_xy, "goal")
         result = self.plan_cells(start_cell, goal_cell)
         factors: np.ndarray | None = None  # a copy with the moves found impossible forbidden, once needed
@@ -328,6 +330,40 @@ class Planner:
         checked for the footprint)."""
         row, col = cell
         return bool(self._ground.lethal[row, col]) and not self._terrain.obstacles[row, col]
+
+    def _off_slope(self, cell: tuple[int, int]) -> tuple[int, int]:
+        """The nearest passable cell within ``SLOPE_ESCAPE_RADIUS_M`` of ``cell`` (lethal by its slope) whose
+        straight way from ``cell`` crosses only passable cells or ``cell``'s own class's lethal slope: not
+        another class's slope too steep for it (a strip of mud between the sand the rover stands on and the
+        firm ground), not an obstacle's clearance; ``cell`` itself when there is none (A* then says so)."""
+        row, col = cell
+        reach = int(np.ceil(SLOPE_ESCAPE_RADIUS_M / self._terrain.resolution_m))
+        rows = slice(max(0, row - reach), row + reach + 1)
+        cols = slice(max(0, col - reach), col + reach + 1)
+        free_rows, free_cols = np.nonzero(np.isfinite(self._cost[rows, cols]))
+        rr, cc = free_rows + rows.start, free_cols + cols.start
+        order = np.argsort((rr - row) ** 2 + (cc - col) ** 2, kind="stable")
+        own_class = self._terrain.terrain_class[row, col]
+        for index in order:
+            target = (int(rr[index]), int(cc[index]))
+            if self._way_stays_on(cell, target, own_class):
+                _log.info("start cell %s: a slope too steep for its class; starting from %s", cell, target)
+                return target
+        return cell
+
+    def _way_stays_on(self, start: tuple[int, int], end: tuple[int, int], own_class: int) -> bool:
+        """Whether every cell on the straight line from ``start`` to ``end`` (sampled at half a cell) is
+        passable or lethal only by its slope with ``own_class``."""
+        steps = 2 * max(abs(end[0] - start[0]), abs(end[1] - start[1])) + 1
+        for k in range(steps + 1):
+            f = k / steps
+            r = round(start[0] + f * (end[0] - start[0]))
+            c = round(start[1] + f * (end[1] - start[1]))
+            if np.isfinite(self._cost[r, c]):
+                continue
+            if not (self._ground.lethal[r, c] and self._terrain.terrain_class[r, c] == own_class):
+                return False
+        return True
 
     def _escape(self, cell: tuple[int, int], radius_m: float) -> tuple[int, int]:
         row, col = cell

@@ -42,6 +42,12 @@ MIN_SPEED_MPS = 0.3
 ROLL_AGREEMENT_RAD = math.radians(2.0)
 # The newest GPS fix's velocity stands for this long (5 Hz fixes: a tick without a fresh one ends the window).
 GPS_FRESH_NS = NS_PER_S // 2
+# A tick turning faster than this is no evidence: the fix's course lags the heading by its latency (a GPS
+# delayed 0.5 s in a 0.4 rad/s turn at 1 m/s shows 0.2 m/s across the heading, past SLIDE_MPS).
+MAX_YAW_RATE_RPS = 0.15
+# Ticks further apart than this are not one unbroken window (a tick the watch was not fed, a stalled loop):
+# the window starts again rather than read one late tick as 2 s of evidence.
+MAX_GAP_NS = NS_PER_S // 10
 
 
 def across_heading_mps(ground_speed_mps: float, course_rad: float, heading_rad: float) -> float:
@@ -69,6 +75,8 @@ def trustworthy_roll(ahrs_roll_rad: float, map_rolls_rad: tuple[float, ...]) -> 
 
 def slide_evidence(
     speed_mps: float,
+    yaw_rate_rps: float,
+    heading_std_rad: float,
     tipping: bool,
     gps_age_ns: int,
     ground_velocity: tuple[float, float],
@@ -79,12 +87,19 @@ def slide_evidence(
 ) -> SlideSample | None:
     """One driving tick's evidence of a slide, or None where the tick cannot show one it could trust.
 
-    ``speed_mps``: the estimated speed along the heading; ``tipping``: a tip-over margin is breached;
+    ``speed_mps``: the estimated speed along the heading; ``yaw_rate_rps``: the estimated yaw rate (a tick
+    turning faster than ``MAX_YAW_RATE_RPS`` is none); ``heading_std_rad``: the heading's standard
+    deviation: a tick whose speed times the sine of twice it reaches half of ``SLIDE_MPS`` is none (a heading
+    error of ``d`` reads as ``v sin d`` across it); ``tipping``: a tip-over margin is breached;
     ``gps_age_ns``: how old the newest fix is; ``ground_velocity``: its speed (m/s) and ENU course (rad)
     over ground; ``heading_rad``: the estimated heading; ``map_rolls_rad`` and ``classes``: the map's
     roll and class under the rover's axles (rear, centre, front). The sample's ``downhill_mps`` is signed
     (negative: uphill), so a window of drift uphill averages below any threshold."""
     if tipping or abs(speed_mps) < MIN_SPEED_MPS or gps_age_ns > GPS_FRESH_NS:
+        return None
+    if abs(yaw_rate_rps) > MAX_YAW_RATE_RPS:
+        return None
+    if abs(speed_mps) * math.sin(min(2.0 * heading_std_rad, 0.5 * math.pi)) >= 0.5 * SLIDE_MPS:
         return None
     if len(set(classes)) != 1 or not trustworthy_roll(ahrs_roll_rad, map_rolls_rad):
         return None
@@ -144,6 +159,8 @@ class SlideWatch:
 
     def feed(self, now_ns: int, sample: SlideSample | None) -> Slide | None:
         samples = self._samples
+        if samples and now_ns - samples[-1][0] > MAX_GAP_NS:
+            self.reset()  # not fed for a while: what came before is not this window's
         if sample is None or (samples and samples[-1][1].class_id != sample.class_id):
             self.reset()
             if sample is None:

@@ -11,7 +11,7 @@ import pytest
 from navigator.errors import PlanningError
 from navigator.planner import Planner
 from navigator.terrain import TerrainMap
-from navigator.terrain_classes import FIRM, SANDY
+from navigator.terrain_classes import FIRM, MUDDY, SANDY
 from navigator.vehicle import VehicleParams
 
 
@@ -67,3 +67,18 @@ def test_start_on_a_slope_with_no_passable_ground_within_reach_is_refused():
     planner = Planner(_hillside_with_sand((0.0, 10.0)), VehicleParams())
     with pytest.raises(PlanningError, match="lethal"):
         planner.plan((5.0, 5.0), (9.0, 5.0))
+
+
+def test_the_way_off_a_slope_does_not_cross_another_class_too_steep_for_it():
+    """A strip of mud (impassable at 14 deg) between the sand the rover stands on and the firm ground east:
+    the nearest firm ground, across the mud, is no way off; the firm ground west, across sand only, is."""
+    terrain = _hillside_with_sand((2.5, 7.0))
+    _ys, xs = (np.mgrid[0:40, 0:40] + 0.5) * 0.25
+    classes = terrain.terrain_class.copy()
+    classes[(xs >= 7.0) & (xs < 7.75)] = MUDDY
+    planner = Planner(TerrainMap(terrain.elevation_m, classes, terrain.obstacles, 0.25), VehicleParams())
+    start = (5.3, 5.0)  # 2.5 m of sand and mud east to firm ground, 2.8 m of sand west
+    path = planner.plan(start, (1.0, 5.0))  # west: the mud walls off the east
+    assert path.points[1][0] < 2.5  # off the sand to the west
+    leg = np.linspace(path.points[0], path.points[1], 50)
+    assert all(planner.terrain.terrain_class[planner.terrain.cell_of(*p)] != MUDDY for p in leg)

@@ -44,6 +44,8 @@ def _evidence(
     downhill: float = 0.3,
     *,
     speed: float = 1.0,
+    yaw_rate: float = 0.0,
+    heading_std: float = math.radians(1.0),
     tipping: bool = False,
     gps_age_ns: int = 0,
     ahrs_roll: float = ROLL,
@@ -51,7 +53,16 @@ def _evidence(
     classes: tuple[int, ...] = (SANDY, SANDY, SANDY),
 ) -> SlideSample | None:
     return slide_evidence(
-        speed, tipping, gps_age_ns, _course(downhill, speed), HEADING, ahrs_roll, map_rolls, classes
+        speed,
+        yaw_rate,
+        heading_std,
+        tipping,
+        gps_age_ns,
+        _course(downhill, speed),
+        HEADING,
+        ahrs_roll,
+        map_rolls,
+        classes,
     )
 
 
@@ -154,3 +165,28 @@ def test_a_slide_on_a_slope_the_belief_already_keeps_routes_off_says_nothing_new
     # Leaving the slope after learning, it slides on: a roll a little off gives no second learning.
     assert not routed_across(Slide(0.3, ROLL - math.radians(0.5), SANDY), learned, MARGIN)
     assert not routed_across(Slide(0.3, -ROLL, SANDY), learned, MARGIN)  # either side
+
+
+@pytest.mark.parametrize(
+    ("changes", "counts"),
+    [
+        ({}, True),
+        ({"yaw_rate": 0.2}, False),  # turning: the fix's course lags the heading (a delayed GPS in a turn)
+        ({"yaw_rate": -0.1}, True),
+        ({"heading_std": math.radians(5.0)}, False),  # 1 m/s x sin(10 deg) = 0.17 m/s: no slide to tell
+        ({"heading_std": math.radians(2.0)}, True),  # 1 m/s x sin(4 deg) = 0.07 m/s
+    ],
+    ids=["straight", "turning", "gentle-turn", "heading-unsure", "heading-known"],
+)
+def test_a_turn_or_an_unsure_heading_is_no_evidence(changes: dict[str, float], counts: bool) -> None:
+    yaw_rate, heading_std = changes.get("yaw_rate", 0.0), changes.get("heading_std", math.radians(1.0))
+    assert (_evidence(0.3, yaw_rate=yaw_rate, heading_std=heading_std) is not None) is counts
+
+
+def test_a_gap_in_the_ticks_starts_the_window_again() -> None:
+    """One tick, then a tick 5 s later (the watch not fed in between: a hold, a stalled loop) is not 2 s of
+    unbroken evidence."""
+    watch = SlideWatch()
+    sample = _evidence(0.3)
+    assert watch.feed(0, sample) is None
+    assert watch.feed(5 * WINDOW_NS, sample) is None
