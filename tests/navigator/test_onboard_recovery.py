@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
@@ -54,6 +54,20 @@ def rig() -> Iterator[Rig]:
     made = _rig()
     yield made
     made.close()
+
+
+@pytest.fixture
+def make_rig() -> Iterator[Callable[..., Rig]]:
+    """``_rig`` with planner settings of the test's own, each closed after the test."""
+    made: list[Rig] = []
+
+    def make(**planner: Any) -> Rig:
+        made.append(_rig(**planner))
+        return made[-1]
+
+    yield make
+    for each in made:
+        each.close()
 
 
 def _kinds(rig: Rig) -> list[str]:
@@ -115,18 +129,14 @@ def test_a_new_goal_gives_the_count_back(rig: Rig, monkeypatch: pytest.MonkeyPat
     assert "recovery 1 of 2" in rig.events("recovery.backing_out")[-1][1]["detail"]
 
 
-def test_off_it_holds_as_before() -> None:
-    rig = _rig(recover_when_stuck=False)
-    try:
-        with pytest.MonkeyPatch.context() as monkeypatch:
-            DugIn(rig, monkeypatch)
-            rig.run_until(lambda: bool(rig.events("failsafe.no_progress")), 20.0, "the hold")
-            rig.run_for(2 * WINDOW_S)
-        assert _recovery_kinds(rig) == ["failsafe.no_progress"]
-        assert rig.stack.safety_mode.value == "HOLD" and rig.stack.mode is Mode.DRIVING
-        assert not rig.stack.planner.terrain.obstacles.any()
-    finally:
-        rig.close()
+def test_off_it_holds_as_before(make_rig: Callable[..., Rig], monkeypatch: pytest.MonkeyPatch) -> None:
+    rig = make_rig(recover_when_stuck=False)
+    DugIn(rig, monkeypatch)
+    rig.run_until(lambda: bool(rig.events("failsafe.no_progress")), 20.0, "the hold")
+    rig.run_for(2 * WINDOW_S)
+    assert _recovery_kinds(rig) == ["failsafe.no_progress"]
+    assert rig.stack.safety_mode.value == "HOLD" and rig.stack.mode is Mode.DRIVING
+    assert not rig.stack.planner.terrain.obstacles.any()
 
 
 def test_learning_goes_first_where_it_applies(rig: Rig, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -183,35 +193,30 @@ def test_never_while_tipping_or_stopped_for_a_mover(
 
 @pytest.mark.parametrize("why", ["at the goal", "no clear way back", "no backing out"])
 def test_it_holds_with_recovery_gave_up_where_it_cannot_recover(
-    monkeypatch: pytest.MonkeyPatch, why: str
+    make_rig: Callable[..., Rig], monkeypatch: pytest.MonkeyPatch, why: str
 ) -> None:
     """Dug in with the goal under the spot (a mark would make it unreachable), with the map's obstacles just
     behind it, or with backing turned off: no back-out; it holds, told once."""
-    rig = _rig(yield_speed_mps=0.0) if why == "no backing out" else _rig()
-    try:
-        stack = rig.stack
-        DugIn(rig, monkeypatch)
-        consider = stack._recovery.consider
+    rig = make_rig(yield_speed_mps=0.0) if why == "no backing out" else make_rig()
+    stack = rig.stack
+    DugIn(rig, monkeypatch)
+    consider = stack._recovery.consider
 
-        def so(now: int, pose: Any, faults: tuple[str, ...]) -> None:
-            if why == "at the goal":  # the goal where the front axle stands
-                stack.guidance.goal = Goal(
-                    pose.x + 0.35 * math.cos(pose.yaw), pose.y + 0.35 * math.sin(pose.yaw)
-                )
-            elif why == "no clear way back":  # a wall 1 m behind the rover's centre
-                behind = disc_mask(
-                    stack.planner.terrain, pose.x - math.cos(pose.yaw), pose.y - math.sin(pose.yaw), 0.3
-                )
-                stack.planner.update_obstacles(behind)
-            consider(now, pose, faults)
+    def so(now: int, pose: Any, faults: tuple[str, ...]) -> None:
+        if why == "at the goal":  # the goal where the front axle stands
+            stack.guidance.goal = Goal(pose.x + 0.35 * math.cos(pose.yaw), pose.y + 0.35 * math.sin(pose.yaw))
+        elif why == "no clear way back":  # a wall 1 m behind the rover's centre
+            behind = disc_mask(
+                stack.planner.terrain, pose.x - math.cos(pose.yaw), pose.y - math.sin(pose.yaw), 0.3
+            )
+            stack.planner.update_obstacles(behind)
+        consider(now, pose, faults)
 
-        monkeypatch.setattr(stack._recovery, "consider", so)
-        rig.run_until(lambda: bool(rig.events("failsafe.no_progress")), 20.0, "the hold")
-        rig.run_for(1.0)
-        assert _recovery_kinds(rig) == ["failsafe.no_progress", "recovery.gave_up"]
-        assert why in rig.events("recovery.gave_up")[0][1]["detail"] and stack.safety_mode.value == "HOLD"
-    finally:
-        rig.close()
+    monkeypatch.setattr(stack._recovery, "consider", so)
+    rig.run_until(lambda: bool(rig.events("failsafe.no_progress")), 20.0, "the hold")
+    rig.run_for(1.0)
+    assert _recovery_kinds(rig) == ["failsafe.no_progress", "recovery.gave_up"]
+    assert why in rig.events("recovery.gave_up")[0][1]["detail"] and stack.safety_mode.value == "HOLD"
 
 
 def test_an_estop_ends_the_back_out_where_the_rover_is(rig: Rig, monkeypatch: pytest.MonkeyPatch) -> None:
