@@ -466,12 +466,11 @@ class OnboardStack:
             return
         if route.mode is not Mode.DRIVING or TIP_OVER in faults:
             return  # backing out of a cart's way, or tipping: not a climb to learn from
-        terrain, half_base = self._terrain, 0.5 * self._config.vehicle.wheelbase_m
-        dx, dy = half_base * math.cos(pose.yaw), half_base * math.sin(pose.yaw)
-        axles = [terrain.ground_on_map(pose.x + k * dx, pose.y + k * dy, pose.yaw) for k in (-1.0, 0.0, 1.0)]
-        rear, ground, front = axles
-        if rear is None or ground is None or front is None or ground.terrain_class != front.terrain_class:
+        half_base = 0.5 * self._config.vehicle.wheelbase_m
+        axles = self._terrain.ground_under_axles(pose.x, pose.y, pose.yaw, half_base)
+        if axles is None or axles[1].terrain_class != axles[2].terrain_class:
             return  # off the map, or two classes under it: which one failed is not known
+        rear, ground, front = axles
         pitches = (rear.pitch_rad, ground.pitch_rad, front.pitch_rad)
         pitch = attitude.pitch_rad
         if not trustworthy_dig_in(pitch, pitches, self._sent_uphill_mps, self._wheels.judged_speeds_mps):

@@ -114,12 +114,10 @@ class TractionLearning:
         if self._guidance.mode is not Mode.DRIVING:
             return None
         gps_ns, ground_speed, course = gps
-        dx, dy = self._half_base_m * math.cos(pose.yaw), self._half_base_m * math.sin(pose.yaw)
-        terrain = self._terrain
-        axles = [terrain.ground_on_map(pose.x + k * dx, pose.y + k * dy, pose.yaw) for k in (-1.0, 0.0, 1.0)]
-        rear, centre, front = axles
-        if rear is None or centre is None or front is None:
+        axles = self._terrain.ground_under_axles(pose.x, pose.y, pose.yaw, self._half_base_m)
+        if axles is None:
             return None  # off the map
+        rear, centre, front = axles
         return slide_evidence(
             pose.speed,
             pose.yaw_rate,

@@ -152,6 +152,20 @@ class TerrainMap:
         ground = self._ground(x, y, yaw)
         return None if ground.terrain_class < 0 else ground
 
+    def ground_under_axles(
+        self, x: float, y: float, yaw: float, half_base_m: float
+    ) -> tuple[GroundUnder, GroundUnder, GroundUnder] | None:
+        """The ground under a rover's rear axle, centre and front axle (``half_base_m`` either side of
+        (x, y) along ``yaw``), or None when any of them is off the map: what the learning from the ground
+        compares the AHRS's attitude and classes with (``navigator.onboard_learning``)."""
+        dx, dy = half_base_m * math.cos(yaw), half_base_m * math.sin(yaw)
+        rear = self.ground_on_map(x - dx, y - dy, yaw)
+        centre = self.ground_on_map(x, y, yaw)
+        front = self.ground_on_map(x + dx, y + dy, yaw)
+        if rear is None or centre is None or front is None:
+            return None
+        return rear, centre, front
+
     def _ground(self, x: float, y: float, yaw: float) -> GroundUnder:
         """The kernel's answer as it is: class id -1 off the map."""
         return GroundUnder._make(
