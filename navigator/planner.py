@@ -39,7 +39,7 @@ from navigator.footprint import Collision, Footprint, first_collision
 from navigator.replanning import RepairingPlanner
 from navigator.terrain import TerrainMap
 from navigator.terrain_classes import TERRAIN_CLASSES, TerrainClass
-from navigator.vehicle import VehicleParams
+from navigator.vehicle import VehicleParams, max_climbable_slope_rad
 
 if TYPE_CHECKING:  # navigator.config imports this module for its choices
     from navigator.config import PlannerConfig
@@ -335,21 +335,41 @@ class Planner:
         """The nearest passable cell within ``SLOPE_ESCAPE_RADIUS_M`` of ``cell`` (lethal by its slope) whose
         straight way from ``cell`` crosses only passable cells or ``cell``'s own class's lethal slope: not
         another class's slope too steep for it (a strip of mud between the sand the rover stands on and the
-        firm ground), not an obstacle's clearance; ``cell`` itself when there is none (A* then says so)."""
+        firm ground), not an obstacle's clearance; ``cell`` itself when there is none (A* then says so).
+        A way that climbs, on the whole, steeper than the class is believed to climb is taken only when no
+        other is (down or across the slope first, however much nearer the ground uphill is)."""
         row, col = cell
         reach = int(np.ceil(SLOPE_ESCAPE_RADIUS_M / self._terrain.resolution_m))
         rows = slice(max(0, row - reach), row + reach + 1)
         cols = slice(max(0, col - reach), col + reach + 1)
         free_rows, free_cols = np.nonzero(np.isfinite(self._cost[rows, cols]))
         rr, cc = free_rows + rows.start, free_cols + cols.start
-        order = np.argsort((rr - row) ** 2 + (cc - col) ** 2, kind="stable")
+        squared = (rr - row) ** 2 + (cc - col) ** 2
         own_class = self._terrain.terrain_class[row, col]
+        # Ground the rover climbs to only when there is no other way: its class's grip is believed too weak
+        # for this slope, so a way up it is the way it just failed on (or slid off). A way that climbs no
+        # steeper than the class is believed to climb comes first, the nearest of those; then the rest.
+        grade = (self._terrain.elevation_m[rr, cc] - self._terrain.elevation_m[row, col]) / (
+            np.sqrt(squared) * self._terrain.resolution_m
+        )
+        climbs = grade > math.tan(self._climb_limit_rad(int(own_class)))
+        order = np.lexsort((squared, climbs))
         for index in order:
             target = (int(rr[index]), int(cc[index]))
             if self._way_stays_on(cell, target, own_class):
                 _log.info("start cell %s: a slope too steep for its class; starting from %s", cell, target)
                 return target
         return cell
+
+    def _climb_limit_rad(self, class_id: int) -> float:
+        """The steepest slope ``class_id``'s believed grip climbs, less the cost model's margin: the slope
+        past which the planner calls it lethal (``costs.ground_cost``); 0 in classical mode (flat layers)."""
+        terrain_class = self._classes.get(class_id)
+        if terrain_class is None or self._cost_mode == "classical":
+            return 0.0
+        return max_climbable_slope_rad(
+            terrain_class.friction_mu, terrain_class.rolling_resistance, self._cost_model.climb_margin_rad
+        )
 
     def _way_stays_on(self, start: tuple[int, int], end: tuple[int, int], own_class: int) -> bool:
         """Whether every cell on the straight line from ``start`` to ``end`` (sampled at half a cell) is

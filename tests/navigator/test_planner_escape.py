@@ -82,3 +82,34 @@ def test_the_way_off_a_slope_does_not_cross_another_class_too_steep_for_it():
     assert path.points[1][0] < 2.5  # off the sand to the west
     leg = np.linspace(path.points[0], path.points[1], 50)
     assert all(planner.terrain.terrain_class[planner.terrain.cell_of(*p)] != MUDDY for p in leg)
+
+
+def _hillside_with_sand_band(sand_y: tuple[float, float]) -> TerrainMap:
+    """A 10 x 10 m hillside rising north at 20 deg, sandy across its whole width for y in ``sand_y`` (the
+    table's sand climbs 12.6 deg with the margin), firm above and below (firm takes 20 deg). Steep enough that
+    every way up to the firm ground within reach climbs past the sand's 12.6 deg, even slanting: a way
+    slanting up at a grade the sand climbs would be one (the planner's own model of the class)."""
+    ys, _xs = (np.mgrid[0:40, 0:40] + 0.5) * 0.25
+    classes = np.where((ys >= sand_y[0]) & (ys < sand_y[1]), SANDY, FIRM).astype(np.uint8)
+    return TerrainMap(ys * math.tan(math.radians(20.0)), classes, np.zeros((40, 40), dtype=bool), 0.25)
+
+
+def test_the_way_off_a_slope_goes_down_it_before_up_it():
+    """The firm ground uphill is nearer (2.1 m) than the firm ground downhill (2.9 m): a way up the sand is
+    the climb its believed grip cannot make (20 deg against 12.6 deg), so the way off goes down to the
+    firm ground south."""
+    planner = Planner(_hillside_with_sand_band((2.5, 7.5)), VehicleParams())
+    start = (5.0, 5.4)
+    assert not np.isfinite(planner.cost_grid[planner.terrain.cell_of(*start)])
+    path = planner.plan(start, (5.0, 1.0))
+    assert tuple(path.points[0]) == start
+    assert path.cells[0][0] < 10  # the first cell: off the sand to the south, downhill
+    assert planner.terrain.terrain_class[path.cells[0]] == FIRM
+
+
+def test_the_way_off_a_slope_climbs_when_no_other_is_within_reach():
+    """Firm ground only uphill within reach (the sand runs 5.5 m below the rover): the way off climbs to it,
+    as before, rather than no way at all."""
+    planner = Planner(_hillside_with_sand_band((0.0, 7.5)), VehicleParams())
+    path = planner.plan((5.0, 5.4), (5.0, 9.0))
+    assert path.cells[0][0] >= 30  # the first cell: the firm ground north, uphill
