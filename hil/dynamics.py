@@ -46,7 +46,12 @@ The model, per step of ``dt`` (semi-implicit Euler, no randomness):
 * Motors: no wheel turns faster than its motor can at this step's pack voltage: ``k_t ω_motor + I R <=
   max_duty V`` (back-EMF, the winding's drop with the last step's current, the controller's top duty; the
   speeds given are capped there on their sign, ``hil.motor_voltage``, and the step reports the caps in
-  ``DynamicsStep.wheel_speed_limits_mps`` for the simulated VESCs). Wheel torque ``F r`` -> motor current
+  ``DynamicsStep.wheel_speed_limits_mps`` for the simulated VESCs). Where the current limit, not the ground's
+  ``mu N``, caps a wheel's force, the wheel turns no further in the force's direction than the speed at
+  which the traction curve gives that force over the ground under it (``hil.motor_current``: a climb too
+  steep for the motors' torque stalls the rover with its wheels nearly still); the step applies it and
+  reports it in ``DynamicsStep.held_speeds_mps``, within which the simulated VESCs keep their motors and
+  which they report. Wheel torque ``F r`` -> motor current
   ``F r / (gear k_t)`` (so never above the current limit; its sign is the force's); duty
   ``(k_t ω_motor + I R) / V``; electrical power ``k_t I ω_motor + I² R`` per
   motor, integrated to energy; a generating (braking) motor's is negative, returned to the pack as a
@@ -157,6 +162,8 @@ class RoverDynamics:
 
         self._values = values = np.zeros(k.VALUES_SIZE)
         values[k.X], values[k.Y], values[k.YAW] = float(x), float(y), k.wrap_angle(float(yaw))
+        values[k.HELD_FLOORS : k.HELD_FLOORS + 6] = -math.inf  # no wheel held before the first step
+        values[k.HELD_CEILINGS : k.HELD_CEILINGS + 6] = math.inf
         self._rolled_over = False
         self._state: BodyState  # the state after the last step (plain numbers; _read_state)
         self._use_terrain(terrain)
@@ -347,6 +354,8 @@ class RoverDynamics:
             motor_input_current_a=0.0,
             # The last step's: a rover on its side is stepped no further (its wheels spin in the air).
             wheel_speed_limits_mps=tuple(v[k.SPEED_LIMITS : k.SPEED_LIMITS + 6]),
+            # On its side no wheel pulls: no current limit holds one.
+            held_speeds_mps=((-math.inf,) * 6, (math.inf,) * 6),
         )
 
     def _use_terrain(self, terrain: TerrainMap) -> None:

@@ -24,7 +24,8 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from hil import motor_voltage, traction
+from hil import motor_current, motor_voltage, traction
+from hil.motor_current import hold_at_current_limit, rolling_speeds
 from hil.motor_voltage import limit_to_voltage
 from hil.traction import MU, drive_forces, sideways_grip, sideways_speed, slide_yaw_moment, wheel_outputs
 from navigator import footprint, ground_kernel, vehicle
@@ -62,7 +63,13 @@ ORIGIN_X, ORIGIN_Y, RESOLUTION = 62, 63, 64
 LATERAL_SPEED = 65
 # --- per wheel, six: the most surface speed its motor could turn at this step (m/s, >= 0; motor_voltage)
 SPEED_LIMITS = 66
-VALUES_SIZE = 72
+# --- per wheel, six each: the slowest and the fastest its motor's current limit let it turn at this step
+# (m/s, signed; -inf / +inf where it did not hold it: motor_current)
+HELD_FLOORS, HELD_CEILINGS = 72, 78
+# --- per wheel, six: the speed it turns at, for its rolling resistance: as given, within the last step's
+# held speeds (motor_current.rolling_speeds)
+ROLLING = 84
+VALUES_SIZE = 90
 
 # --- ``surface``: the map's float layers stacked, one (rows, cols) plane each ---
 ELEVATION_LAYER, GRAD_X_LAYER, GRAD_Y_LAYER = 0, 1, 2
@@ -71,6 +78,7 @@ ELEVATION_LAYER, GRAD_X_LAYER, GRAD_Y_LAYER = 0, 1, 2
 # drive_forces' ``vehicle`` vector (its docstring has the layout), then wheel_outputs' ``motor`` vector.
 VEHICLE, MOTOR, MOTOR_END = 0, 9, 15
 MASS, YAW_INERTIA, TRACK, EFFECTIVE_TRACK, HALF_WHEELBASE = 0, 1, 2, 3, 4
+FORCE_CAP = 6  # the most a wheel's motor pulls with at its current limit (N)
 RESISTANCE, REGEN_LIMIT = 12, 14  # the motor vector's winding resistance; each controller's regen limit (A)
 CG_HEIGHT, TIP_ROLL, TIP_PITCH, CURRENT_LIMIT, HALF_LENGTH, HALF_WIDTH = 15, 16, 17, 18, 19, 20
 MAX_DUTY = 21  # the controllers' top duty (VESC l_max_duty): the voltage limit on wheel speed
@@ -116,7 +124,8 @@ class DynamicsStep(NamedTuple):
     roll_rad: float
     pitch_rad: float
     terrain_class: int
-    # Wheel surface speeds applied this step: the ones given, each within its motor's voltage limit.
+    # Wheel surface speeds applied this step: the ones given, each within its motor's voltage limit, and
+    # within what its current-limited torque turns it at (held_speeds_mps).
     wheel_speeds_mps: tuple[float, ...]
     # From the class's traction curve for each wheel's pull; (surface − ground) / max(|surface|, |ground|)
     # once it spins or slides; in [-1, 1].
@@ -143,6 +152,10 @@ class DynamicsStep(NamedTuple):
     # The most surface speed each wheel's motor could turn at this step, in the direction it was given (m/s,
     # >= 0): duty max x the pack's voltage against back-EMF and the winding's drop (hil.motor_voltage).
     wheel_speed_limits_mps: tuple[float, ...]
+    # (floors, ceilings): the slowest and the fastest each wheel turns at because its motor's current limit,
+    # not the ground, caps its force (m/s, signed; -inf / +inf where it does not): the held speed on the
+    # side the force pushes to, what the wheel turned at this step if given more (hil.motor_current).
+    held_speeds_mps: tuple[tuple[float, ...], tuple[float, ...]]
     # Last: the one field the compiled step leaves to Python (a str passed into a numba call costs about
     # as much as the rest of the call's arguments together).
     terrain_name: str
@@ -220,6 +233,7 @@ def _record(values: Array, terrain_class: int, battery_voltage: float) -> tuple[
         power / battery_voltage if battery_voltage > 0.0 else 0.0,  # battery_current_a
         values[INPUT_CURRENT_A],  # motor_input_current_a
         _six(values, SPEED_LIMITS),  # wheel_speed_limits_mps
+        (_six(values, HELD_FLOORS), _six(values, HELD_CEILINGS)),  # held_speeds_mps
     )
 
 
@@ -377,9 +391,15 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
             body[MASS], body[CG_HEIGHT], body[TRACK], body[HALF_WHEELBASE], roll, pitch, values[ACCEL],
             values[LATERAL], normals,
         )  # fmt: skip
+        # A wheel its motor's current limit held slower at the last step turns at that speed, and meets its
+        # rolling resistance there (its controller still asks for the speed given: the pull's target).
+        rolling = values[ROLLING : ROLLING + 6]
+        rolling_speeds(
+            wheels, values[HELD_FLOORS : HELD_FLOORS + 6], values[HELD_CEILINGS : HELD_CEILINGS + 6], rolling
+        )
         accel, yaw_rate = drive_forces(
             wheels, normals, ground, body[VEHICLE:MOTOR], speed0, yaw_rate0, pitch, dt, stalled, traction,
-            lateral_speed0,
+            lateral_speed0, rolling,
         )  # fmt: skip
 
         speed = speed0 + accel * dt
@@ -513,6 +533,12 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
             values[SPEED] = values[YAW_RATE] = values[ACCEL] = 0.0
             values[LATERAL_SPEED] = 0.0
 
+        # A wheel whose motor's current limit caps its force turns at the speed the traction curve gives
+        # that force at over the ground under it, not faster: its slip, duty and power below follow it.
+        hold_at_current_limit(
+            wheels, traction, normals, stalled, speed, yaw_rate, body[EFFECTIVE_TRACK], ground,
+            body[FORCE_CAP], values[HELD_FLOORS : HELD_FLOORS + 6], values[HELD_CEILINGS : HELD_CEILINGS + 6],
+        )  # fmt: skip
         power = wheel_outputs(
             wheels,
             normals,
@@ -547,7 +573,7 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
 
 
 # The modules whose compiled functions step_kernel calls (each calls only its own module's in turn).
-KERNEL_SOURCES = (traction, motor_voltage, footprint, ground_kernel, vehicle)
+KERNEL_SOURCES = (traction, motor_voltage, motor_current, footprint, ground_kernel, vehicle)
 step_kernel = _compile_step_kernel(sources_fingerprint(*KERNEL_SOURCES))
 
 

@@ -397,6 +397,7 @@ def drive_forces(
     locked: Array,
     out_forces: Array,
     lateral_speed: float = 0.0,
+    rolling: Array | None = None,
 ) -> tuple[float, float]:
     """One step of the wheels' pull on the body: (longitudinal acceleration m/s^2, new yaw rate rad/s).
 
@@ -416,7 +417,12 @@ def drive_forces(
     same loads, and none with no turn (a sliding contact has no static friction to hold the heading). The
     cap is on ``mu N_i``, not on what the wheel's pull leaves: the scrub has never shared with the
     longitudinal force in this model, and still does not.
+
+    ``rolling``: the speeds the wheels turn at (m/s), where they differ from ``wheels``, the speeds their
+    controllers drive them to (a wheel its motor's current limit holds slower: ``hil.motor_current``);
+    the rolling resistance opposes the turning. None: ``wheels``.
     """
+    turning = wheels if rolling is None else rolling
     mass, inertia, track, effective_track = vehicle[0], vehicle[1], vehicle[2], vehicle[3]
     half_base, reference_load, cap = vehicle[4], vehicle[5], vehicle[6]
     tau_drive, tau_yaw = max(vehicle[7], dt), max(vehicle[8], dt)
@@ -428,7 +434,7 @@ def drive_forces(
     left_lever = 0.0
     right_lever = 0.0
     for i in range(6):
-        fade = max(-1.0, min(1.0, wheels[i] / ROLLING_SPEED_EPS_MPS))
+        fade = max(-1.0, min(1.0, turning[i] / ROLLING_SPEED_EPS_MPS))
         coefficient = resistance_coefficient(
             normals[i], reference_load, ground[CRR], ground[SINK], ground[SINK_N]
         )

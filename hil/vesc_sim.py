@@ -1,8 +1,9 @@
 """Six simulated VESC motor controllers: the far end of the rover's CAN bus in HIL.
 
 Each controller obeys only frames carrying its own id, follows SET_RPM with a first-order motor response
-no faster than the physics says its motor can turn at the pack's voltage (``set_electrical``), so STATUS
-reports the speed the wheel turns, stops when commands stop arriving (the firmware's command timeout), and
+no faster than the physics says its motor can turn at the pack's voltage, nor further than its
+current-limited torque turns it against the ground (``set_electrical``), so STATUS reports the speed the
+wheel turns, stops when commands stop arriving (the firmware's command timeout), and
 sends STATUS / STATUS_4 / STATUS_5 on a schedule read from the clock, in wheel order, so a lockstep run is
 deterministic.
 """
@@ -11,6 +12,7 @@ from __future__ import annotations
 
 import logging
 import math
+import operator
 from collections.abc import Sequence
 
 import can
@@ -85,7 +87,10 @@ class SimVescBank:
         self._next_slow_ns = now
         self._status_sent = False  # before the first status: hil.first_sample decides what it sends
         self._targets = [0.0] * WHEEL_COUNT
-        self._erpm = [0.0] * WHEEL_COUNT
+        self._erpm = [0.0] * WHEEL_COUNT  # the speed each motor's speed loop drives it to
+        # The speed each motor turns at, which STATUS and the tachometer measure: its loop's, unless its
+        # current limit holds it (the physics' held speeds: set_electrical).
+        self._measured_erpm = [0.0] * WHEEL_COUNT
         self._tacho_erev = [0.0] * WHEEL_COUNT
         self._last_command_ns: list[int | None] = [None] * WHEEL_COUNT
         self._motor_current_a = [0.0] * WHEEL_COUNT
@@ -93,6 +98,10 @@ class SimVescBank:
         # Per wheel, the most surface speed (m/s) its motor can turn at the pack's voltage (the physics':
         # set_electrical), as given; ERPM in step.
         self._speed_limits_mps: Sequence[float] = (math.inf,) * WHEEL_COUNT
+        # Per wheel, the slowest and fastest (m/s, signed) its motor's current-limited torque turns it at
+        # (the physics': set_electrical), as given; none until told.
+        self._held_floors_mps: Sequence[float] = (-math.inf,) * WHEEL_COUNT
+        self._held_ceilings_mps: Sequence[float] = (math.inf,) * WHEEL_COUNT
         self._input_voltage_v = input_voltage_v
         self._regen_floor_a = -regen_current_limit_a  # the input current's floor while braking
         # The latest set_electrical's loads, not yet clamped into the fields above (_take_loads); None: none.
@@ -223,7 +232,7 @@ class SimVescBank:
         elif not rebooting and self._rebooting[wheel]:
             # Fresh firmware state: no target, tachometer from zero, waiting for its first command.
             self._targets[wheel] = 0.0
-            self._erpm[wheel] = 0.0
+            self._erpm[wheel] = self._measured_erpm[wheel] = 0.0
             self._tacho_erev[wheel] = 0.0
             self._last_command_ns[wheel] = None
         self._rebooting[wheel] = rebooting
@@ -256,7 +265,9 @@ class SimVescBank:
         blend = self._blend
         # Every physics step, six wheels: the per-wheel lists held in locals (they are mutated in place).
         erpm, targets, stuck, tacho = self._erpm, self._targets, self._stuck, self._tacho_erev
+        measured = self._measured_erpm
         limits, erpm_per_mps = self._speed_limits_mps, self.profile.erpm_per_mps
+        floors, ceilings = self._held_floors_mps, self._held_ceilings_mps
         last_command_ns, timeout_ns = self._last_command_ns, self._timeout_ns
         for i in range(WHEEL_COUNT):
             last = last_command_ns[i]
@@ -276,8 +287,17 @@ class SimVescBank:
             elif after < -top:
                 after = -top
             erpm[i] = after
+            # It turns no further than its current-limited torque turns it against the ground: the speed a
+            # real VESC measures while its loop asks for more than the limit gives (+-inf while the limit
+            # does not bind). The loop still asks (erpm), so the physics' next pull is again the limit's.
+            ceiling, floor = ceilings[i] * erpm_per_mps, floors[i] * erpm_per_mps
+            if after > ceiling:
+                after = ceiling
+            elif after < floor:
+                after = floor
             # Trapezoid over the step; erev = ERPM x minutes.
-            tacho[i] += 0.5 * (before + after) * dt_s / 60.0
+            tacho[i] += 0.5 * (measured[i] + after) * dt_s / 60.0
+            measured[i] = after
         self._send_due_status(now)
 
     def set_electrical(
@@ -286,17 +306,24 @@ class SimVescBank:
         input_voltage_v: float,
         duties: Sequence[float],
         speed_limits_mps: Sequence[float] | None = None,
+        held_speeds_mps: tuple[Sequence[float], Sequence[float]] | None = None,
     ) -> None:
         """Loads from the physics engine, reported in the next status frames: motor currents, the supply
         voltage and the motors' duty cycles (signed, as ``DynamicsStep.duty``); and, when given, the most
         surface speed each wheel's motor can turn at (m/s, >= 0: ``DynamicsStep.wheel_speed_limits_mps``),
-        which the motors keep to from the next ``step`` on (None: no limit, or the last one given)."""
+        which the motors keep to from the next ``step`` on (None: no limit, or the last one given); and the
+        slowest and fastest each wheel's current-limited torque turns it at, (floors, ceilings) (m/s,
+        signed, +-inf where the limit does not bind: ``DynamicsStep.held_speeds_mps``): what the motors
+        turn at, measure and report from the next ``step`` on while their speed loops ask for more (None:
+        the last ones given)."""
         if len(motor_currents_a) != WHEEL_COUNT:
             raise ValueError(f"need {WHEEL_COUNT} motor currents in wheel order, got {len(motor_currents_a)}")
         if len(duties) != WHEEL_COUNT:
             raise ValueError(f"need {WHEEL_COUNT} duty cycles in wheel order, got {len(duties)}")
         if speed_limits_mps is not None:
             self._set_speed_limits(speed_limits_mps)
+        if held_speeds_mps is not None:
+            self._set_held_speeds(*held_speeds_mps)
         # Kept as given (tuple() of the physics' tuples is the tuple itself) and clamped only when a status
         # frame is next due (_take_loads): the physics gives them every step, while STATUS goes every other
         # step at the default rates and STATUS_4 / STATUS_5 every tenth, so half of the clamping was for
@@ -316,6 +343,21 @@ class SimVescBank:
                 f"need {WHEEL_COUNT} wheel speed limits >= 0 m/s in wheel order, got {list(speed_limits_mps)}"
             )
         self._speed_limits_mps = speed_limits_mps
+
+    def _set_held_speeds(self, floors_mps: Sequence[float], ceilings_mps: Sequence[float]) -> None:
+        """Keep the physics' held-speed floors and ceilings as given. Every physics step: six of each,
+        each floor at most its ceiling (a NaN is neither, so fails), checked with builtins only; anything
+        else is a ValueError naming it."""
+        if (
+            len(floors_mps) != WHEEL_COUNT
+            or len(ceilings_mps) != WHEEL_COUNT
+            or not all(map(operator.le, floors_mps, ceilings_mps))
+        ):
+            raise ValueError(
+                f"need {WHEEL_COUNT} held-speed floors each at most its ceiling (m/s, wheel order), got "
+                f"{list(floors_mps)} and {list(ceilings_mps)}"
+            )
+        self._held_floors_mps, self._held_ceilings_mps = floors_mps, ceilings_mps
 
     def _take_loads(self) -> None:
         """Clamp the latest loads (``set_electrical``) into the fields the status frames carry."""
@@ -365,7 +407,7 @@ class SimVescBank:
             for status, rebooting, motor_erpm, current, duty in zip(
                 self._status_of_wheel,
                 self._rebooting,
-                self._erpm,
+                self._measured_erpm,
                 self._motor_current_a,
                 self._duty_cycle,
                 strict=True,
@@ -421,6 +463,7 @@ class SimVescBank:
         return self._timeout_ns
 
     def wheel_speeds_mps(self) -> list[float]:
+        """The speeds (m/s) the motors' speed loops drive the wheels to: the physics' wheel speeds given."""
         # VescProfile.speed_from_erpm's arithmetic, inline: every physics step asks, six wheels.
         erpm_per_mps = self.profile.erpm_per_mps
         return [e / erpm_per_mps for e in self._erpm]
@@ -429,7 +472,8 @@ class SimVescBank:
         return list(self._targets)
 
     def erpm(self) -> list[float]:
-        return list(self._erpm)
+        """The motors' speeds as measured (what STATUS reports)."""
+        return list(self._measured_erpm)
 
 
 def _next_due(previous_due: int, period: int, now: int) -> int:

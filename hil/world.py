@@ -289,8 +289,11 @@ class SimWorld:
         step = body.step(dt_s, vescs.wheel_speeds_mps(), battery.voltage_v, stalled)
         # The motors' draw (each I x duty, nothing back from a braking one) is summed in the physics kernel.
         voltage = battery.draw(step.motor_input_current_a + ELECTRONICS_CURRENT_A, dt_s)
-        # The motors' speed limits at this voltage too: the VESCs report the speed the wheels can turn.
-        vescs.set_electrical(step.motor_currents_a, voltage, step.duty, step.wheel_speed_limits_mps)
+        # The motors' speed limits at this voltage too, and where their current limit holds a wheel: the VESCs
+        # report the speed the wheels turn.
+        vescs.set_electrical(
+            step.motor_currents_a, voltage, step.duty, step.wheel_speed_limits_mps, step.held_speeds_mps
+        )
         vescs.step(dt_s)
         autopilot = self.autopilot
         # Every other tick at the default rates the autopilot has nothing to send and its GPS nothing to

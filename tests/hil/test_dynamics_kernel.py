@@ -116,6 +116,7 @@ def _record_read_back(body: RoverDynamics, before: BodyState, voltage: float) ->
         v[k.POWER_W] / voltage if voltage > 0.0 else 0.0,
         v[k.INPUT_CURRENT_A],
         tuple(v[k.SPEED_LIMITS : k.SPEED_LIMITS + 6]),
+        (tuple(v[k.HELD_FLOORS : k.HELD_FLOORS + 6]), tuple(v[k.HELD_CEILINGS : k.HELD_CEILINGS + 6])),
         body._class_names[before.class_id],
     )
 

@@ -205,7 +205,8 @@ class Rig:
         voltage = self.battery.draw(current + 0.5, dt_s)
         if self.voltage_override is not None:
             voltage = self.voltage_override
-        self.vescs.set_electrical(step.motor_currents_a, voltage, step.duty, step.wheel_speed_limits_mps)
+        limits = step.wheel_speed_limits_mps
+        self.vescs.set_electrical(step.motor_currents_a, voltage, step.duty, limits, step.held_speeds_mps)
         self.vescs.step(dt_s)
         self.autopilot.step(
             AutopilotTruth(
