@@ -31,66 +31,79 @@ at most ``crr N`` either way, which holds it where its motors' pull falls short 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from hil import traction
 from hil.traction import MU, SLIP_K, slip_for_ratio
+from navigator.kernel_cache import sources_fingerprint
 
 Array = NDArray[np.float64]
 
 
-@numba.njit(cache=True)
-def hold_at_current_limit(
-    wheels: Array,
-    forces: Array,
-    normals: Array,
-    locked: Array,
-    speed: float,
-    yaw_rate: float,
-    effective_track: float,
-    ground: Array,
-    cap: float,
-    out_floors: Array,
-    out_ceilings: Array,
-) -> None:
-    """Set each wheel (``wheels``, surface speeds m/s, in place) whose ``forces`` (N, signed) its motor's
-    current limit ``cap`` (N) holds, below the ground's ``mu N`` (``normals``, N), to the speed at which the
-    class's traction curve (``ground``: ``hil.traction.drive_forces``'s class vector) gives that force over
-    the ground under it (``speed``, ``yaw_rate`` and ``effective_track``: the body's motion after the
-    step), where the speed given is further in the force's direction. ``locked``: nonzero for a seized
-    wheel, left as it is.
+def _compile_hold(fingerprint: str) -> Callable[..., None]:
+    """``hold_at_current_limit``, with ``fingerprint`` (of ``hil.traction``, whose ``slip_for_ratio`` it
+    compiles in) in numba's cache key: see ``navigator.kernel_cache``."""
 
-    Writes the slowest and fastest each wheel's current limit lets it turn at (m/s, signed) into
-    ``out_floors`` and ``out_ceilings``: the held speed on the side the force pushes to (a pulling wheel's
-    ceiling, a braking one's floor), -inf / +inf elsewhere and for wheels not held.
-    """
-    mu, slip_constant = ground[MU], ground[SLIP_K]
-    for i in range(6):
-        out_floors[i] = -math.inf
-        out_ceilings[i] = math.inf
-        force = forces[i]
-        limit = mu * normals[i]
-        # At its motor's cap (hil.traction._share_side writes a capped wheel's +-cap; the last wheel of a
-        # side to reach it may get the side's force less the others' caps, an ulp or so off) and below
-        # the ground's limit, as hil.traction.wheel_outputs tells a wheel on the curve.
-        at_cap = abs(force) >= cap * (1.0 - 1e-9)
-        if locked[i] != 0.0 or not at_cap or not cap < limit * (1.0 - 1e-9):
-            continue
-        slip = abs(slip_for_ratio(cap / normals[i], mu, slip_constant))  # < 1: below mu N
-        side = 1.0 if i >= 3 else -1.0
-        ground_speed = speed + side * 0.5 * yaw_rate * effective_track
-        if force > 0.0:
-            held = ground_speed / (1.0 - slip) if ground_speed >= 0.0 else ground_speed * (1.0 - slip)
-            out_ceilings[i] = held
-            if wheels[i] > held:
-                wheels[i] = held
-        else:
-            held = ground_speed / (1.0 - slip) if ground_speed <= 0.0 else ground_speed * (1.0 - slip)
-            out_floors[i] = held
-            if wheels[i] < held:
-                wheels[i] = held
+    @numba.njit(cache=True)
+    def hold_at_current_limit(
+        wheels: Array,
+        forces: Array,
+        normals: Array,
+        locked: Array,
+        speed: float,
+        yaw_rate: float,
+        effective_track: float,
+        ground: Array,
+        cap: float,
+        out_floors: Array,
+        out_ceilings: Array,
+    ) -> None:
+        """Set each wheel (``wheels``, surface speeds m/s, in place) whose ``forces`` (N, signed) its
+        motor's current limit ``cap`` (N) holds, below the ground's ``mu N`` (``normals``, N), to the speed
+        at which the class's traction curve (``ground``: ``hil.traction.drive_forces``'s class vector) gives
+        that force over the ground under it (``speed``, ``yaw_rate`` and ``effective_track``: the body's
+        motion after the step), where the speed given is further in the force's direction. ``locked``:
+        nonzero for a seized wheel, left as it is.
+
+        Writes the slowest and fastest each wheel's current limit lets it turn at (m/s, signed) into
+        ``out_floors`` and ``out_ceilings``: the held speed on the side the force pushes to (a pulling
+        wheel's ceiling, a braking one's floor), -inf / +inf elsewhere and for wheels not held.
+        """
+        _ = fingerprint  # in the closure, so in numba's cache key (see _compile_hold)
+        mu, slip_constant = ground[MU], ground[SLIP_K]
+        for i in range(6):
+            out_floors[i] = -math.inf
+            out_ceilings[i] = math.inf
+            force = forces[i]
+            limit = mu * normals[i]
+            # At its motor's cap (hil.traction._share_side writes a capped wheel's +-cap; the last wheel of a
+            # side to reach it may get the side's force less the others' caps, an ulp or so off) and below
+            # the ground's limit, as hil.traction.wheel_outputs tells a wheel on the curve.
+            at_cap = abs(force) >= cap * (1.0 - 1e-9)
+            if locked[i] != 0.0 or not at_cap or not cap < limit * (1.0 - 1e-9):
+                continue
+            slip = abs(slip_for_ratio(cap / normals[i], mu, slip_constant))  # < 1: below mu N
+            side = 1.0 if i >= 3 else -1.0
+            ground_speed = speed + side * 0.5 * yaw_rate * effective_track
+            if force > 0.0:
+                held = ground_speed / (1.0 - slip) if ground_speed >= 0.0 else ground_speed * (1.0 - slip)
+                out_ceilings[i] = held
+                if wheels[i] > held:
+                    wheels[i] = held
+            else:
+                held = ground_speed / (1.0 - slip) if ground_speed <= 0.0 else ground_speed * (1.0 - slip)
+                out_floors[i] = held
+                if wheels[i] < held:
+                    wheels[i] = held
+
+    return hold_at_current_limit
+
+
+hold_at_current_limit = _compile_hold(sources_fingerprint(traction))
 
 
 @numba.njit(cache=True)
