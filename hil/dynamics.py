@@ -81,6 +81,8 @@ import numpy as np
 from hil import dynamics_kernel as k
 from hil.battery import REGEN_CURRENT_LIMIT_A
 from hil.dynamics_kernel import WHEELS, BodyState, DynamicsStep
+from hil.traction import released_controls
+from hil.vesc_limits import ALL_DRIVEN, DRIVEN
 from navigator.footprint import CLEAR
 from navigator.ground_kernel import GroundUnder
 from navigator.terrain import TerrainMap
@@ -156,6 +158,12 @@ class RoverDynamics:
             yaw_time_constant_s=yaw_time_constant_s,
         )
         self._ground_table = _ground_table(classes)
+        # The controllers' state for the kernel (hil.traction.drive_forces' controls, forces in N): every
+        # wheel driven at the motors' force cap, unless a step is given other controls.
+        self._newtons_per_amp = motor_torque_constant_nm_per_a * gear_ratio / params.wheel_radius_m
+        self._force_cap_n = float(self._body[k.VEHICLE + k.FORCE_CAP])
+        self._all_driven = released_controls(self._force_cap_n)
+        self._controls = released_controls(self._force_cap_n)
         # Per wheel -1 / 0 / +1 for the kernel: the seized wheels given to this step, or none.
         self._stalled = np.zeros(6)
         self._none_stalled = np.zeros(6)
@@ -265,6 +273,7 @@ class RoverDynamics:
         wheel_surface_speeds: Sequence[float],
         battery_voltage_v: float,
         stalled: Sequence[float] = (),
+        controls: Sequence[float] = (),
     ) -> DynamicsStep:
         """Advance ``dt_s`` seconds with the six wheels turning at ``wheel_surface_speeds`` (m/s), each within
         what its motor can turn at ``battery_voltage_v`` (``hil.motor_voltage``: the step's
@@ -272,7 +281,12 @@ class RoverDynamics:
 
         ``stalled`` (optional, six values in wheel order): -1 / +1 for a seized wheel whose motor is
         commanded backwards / forwards (it stalls at the current limit), 0 for a wheel that turns freely
-        or is not commanded."""
+        or is not commanded.
+
+        ``controls`` (optional, ``hil.vesc_limits.WheelControls``: twelve values): per wheel the brake
+        current (A, >= 0) of a motor its controller has let go of (it rolls with the ground, braked with at
+        most that current's force against its turning) or ``DRIVEN``; then per wheel the fraction (0-1) of
+        its motor current limit it may use (the battery cut-off). None given: every wheel driven in full."""
         if not (math.isfinite(dt_s) and dt_s > 0.0):
             raise DynamicsError(f"time step must be a finite number of seconds > 0, got {dt_s}")
         # The usual case settled here without a call, every physics step: six speeds with a finite sum (an
@@ -295,10 +309,13 @@ class RoverDynamics:
             return self._rolled_over_step(class_id, terrain_name)
         if seized:
             self._stalled[:] = stalled
+        wheel_controls = self._all_driven
+        if controls and controls is not ALL_DRIVEN and controls != ALL_DRIVEN:
+            wheel_controls = self._controls_in_newtons(controls)
         # The kernel hands back the state and the step's record as plain numbers and tuples it boxes itself.
         status, state_fields, fields = k.step_kernel(
             values, self._body, self._ground_table, self._stalled if seized else self._none_stalled,
-            self._obstacles, self._class_layer, self._surface, dt_s, battery_voltage_v,
+            wheel_controls, self._obstacles, self._class_layer, self._surface, dt_s, battery_voltage_v,
         )  # fmt: skip
         self._state = state = BodyState._make(state_fields)
         if status == k.OFF_MAP:
@@ -309,6 +326,22 @@ class RoverDynamics:
         return step
 
     # --- pieces -----------------------------------------------------------------------------------
+    def _controls_in_newtons(self, controls: Sequence[float]) -> np.ndarray:
+        """The controllers' state (A, fractions: ``step``'s ``controls``) as the kernel's forces (N), in
+        ``self._controls``; DynamicsError naming anything that cannot be."""
+        if len(controls) != 12:
+            raise DynamicsError(f"controls must be 12 values (brakes, then fractions), got {len(controls)}")
+        brakes, fractions = controls[:6], controls[6:]
+        if not all(b == DRIVEN or (math.isfinite(b) and b >= 0.0) for b in brakes):
+            raise DynamicsError(f"controls' brake currents must be >= 0 A or DRIVEN, got {list(brakes)}")
+        if not all(0.0 <= f <= 1.0 for f in fractions):  # also refuses NaN
+            raise DynamicsError(f"controls' current limit fractions must be in [0, 1], got {list(fractions)}")
+        out = self._controls
+        for i, (brake, fraction) in enumerate(zip(brakes, fractions, strict=True)):
+            out[i] = brake * self._newtons_per_amp if brake != DRIVEN else -1.0
+            out[6 + i] = fraction * self._force_cap_n
+        return out
+
     def _read_state(self) -> None:
         """Keep the state in the kernel's vector for the properties (after a change made outside a step)."""
         self._state = BodyState._make(k.state(self._values))

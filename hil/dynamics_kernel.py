@@ -27,7 +27,15 @@ from numpy.typing import NDArray
 from hil import motor_current, motor_voltage, traction
 from hil.motor_current import hold_at_current_limit, rolling_speeds
 from hil.motor_voltage import limit_to_voltage
-from hil.traction import MU, drive_forces, sideways_grip, sideways_speed, slide_yaw_moment, wheel_outputs
+from hil.traction import (
+    MU,
+    drive_forces,
+    roll_released,
+    sideways_grip,
+    sideways_speed,
+    slide_yaw_moment,
+    wheel_outputs,
+)
 from navigator import footprint, ground_kernel, vehicle
 from navigator.footprint import BOUNDARY, CLEAR, OBSTACLE, rectangle_contact
 from navigator.ground_kernel import ground_at_kernel
@@ -345,6 +353,7 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
         body: Array,
         ground_table: Array,
         stalled: Array,
+        controls: Array,
         obstacles: NDArray[np.bool_],
         classes: NDArray[np.uint8],
         surface: Array,
@@ -354,7 +363,9 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
         """One step of ``dt`` s of the rover (not rolled over) on ``values``'s state with its wheel speeds.
 
         ``ground_table`` row ``c``: class ``c``'s traction parameters (``hil.traction.drive_forces``'s
-        ``ground``). ``stalled``: per wheel -1 / 0 / +1 (``RoverDynamics.step``). The terrain's obstacle and
+        ``ground``). ``stalled``: per wheel -1 / 0 / +1 (``RoverDynamics.step``). ``controls``: what
+        each wheel's controller does (``hil.traction.drive_forces``' ``controls``: released with a brake
+        force, or driven within a force cap). The terrain's obstacle and
         class layers as ``TerrainMap``'s, its float layers stacked in ``surface`` (``ELEVATION_LAYER``, ...),
         its frame in ``values`` (``ORIGIN_X``, ...): few arguments, as each costs the call's dispatch time.
 
@@ -399,7 +410,7 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
         )
         accel, yaw_rate = drive_forces(
             wheels, normals, ground, body[VEHICLE:MOTOR], speed0, yaw_rate0, pitch, dt, stalled, traction,
-            lateral_speed0, rolling,
+            lateral_speed0, controls, rolling,
         )  # fmt: skip
 
         speed = speed0 + accel * dt
@@ -539,6 +550,14 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
             wheels, traction, normals, stalled, speed, yaw_rate, body[EFFECTIVE_TRACK], ground,
             body[FORCE_CAP], values[HELD_FLOORS : HELD_FLOORS + 6], values[HELD_CEILINGS : HELD_CEILINGS + 6],
         )  # fmt: skip
+        # A released wheel turns with the ground under it at the step's end too: the speed its encoder
+        # reads (recorded, and what its controller reports) and its back-EMF, with no slip against it.
+        if roll_released(wheels, controls, stalled, speed, yaw_rate, body[EFFECTIVE_TRACK]):
+            # Its controller lets it go: no current limit holds it (a brake at the limit's force included).
+            for i in range(6):
+                if controls[i] >= 0.0 and stalled[i] == 0.0:
+                    values[HELD_FLOORS + i] = -math.inf
+                    values[HELD_CEILINGS + i] = math.inf
         power = wheel_outputs(
             wheels,
             normals,
@@ -557,6 +576,11 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
             if stalled[i] != 0.0:
                 power += _stall(stalled, body, battery_voltage, currents, duty)
                 break
+        for i in range(6):
+            # A released motor its controller does not brake is not modulated at all: duty 0 (what a VESC
+            # reports with its motor released), whatever its back-EMF.
+            if controls[i] == 0.0 and stalled[i] == 0.0:
+                duty[i] = 0.0
         values[ENERGY_J] += power * dt
         values[POWER_W] = power
         # What the motors draw from the pack: each I x duty; a braking motor (current against its duty)

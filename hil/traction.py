@@ -222,8 +222,8 @@ def _own_slip_forces(
     its surface and ground speeds', ``(u - v) / max(|u|, |v|, SLIP_SPEED_EPS_MPS)``, and where that
     opposes the side's force it is not one of the wheels that give it: it drags at ``traction_ratio(slip)
     N``. Apart: a ``locked`` (seized) wheel on a side with a turning one. Only a seized wheel: a wheel whose
-    controller let go of it (rebooting, or past its command timeout) rolls free in a real VESC, while the
-    simulated one slows it to 0, so one turning apart for that reason gives nothing, as before. A locked
+    controller let go of it (rebooting, past its command timeout, under-voltage) rolls with the ground under
+    it (``drive_forces``' ``controls``), so it has no slip of its own. A locked
     wheel on a moving rover slides at full slip and drags ``mu N`` against its motion over the ground
     (Wong, *Theory of Ground Vehicles*, ch. 1: a locked, skidding tyre at 100 % slip), falling smoothly to
     0 as the rover stops (below ``SLIP_SPEED_EPS_MPS`` the slip falls with the ground speed; at
@@ -385,6 +385,73 @@ def _dragging_ground_speed(
 
 
 @numba.njit(cache=True)
+def released_controls(cap_n: float) -> Array:
+    """``drive_forces``' ``controls`` with every wheel driven at the force cap ``cap_n`` (N)."""
+    controls = np.full(12, -1.0)
+    controls[6:] = cap_n
+    return controls
+
+
+@numba.njit(cache=True)
+def roll_released(
+    wheels: Array, controls: Array, locked: Array, speed: float, yaw_rate: float, effective_track: float
+) -> bool:
+    """Set each released wheel's surface speed (``controls[i] >= 0``, not ``locked``: a seized wheel does
+    not roll) to the ground speed under it, as ``_wheel_caps`` reckons it (so its slip is exactly 0);
+    whether any wheel is released."""
+    any_released = False
+    for i in range(6):
+        if controls[i] >= 0.0 and locked[i] == 0.0:
+            side = 1.0 if i >= 3 else -1.0
+            wheels[i] = speed + side * 0.5 * yaw_rate * effective_track
+            any_released = True
+    return any_released
+
+
+@numba.njit(cache=True)
+def _none_driven(controls: Array) -> bool:
+    """Whether every wheel's controller has let go of its motor (``drive_forces``' ``controls``)."""
+    for i in range(6):  # noqa: SIM110 (a loop: numba compiles all() of a generator poorly)
+        if controls[i] < 0.0:
+            return False
+    return True
+
+
+@numba.njit(cache=True)
+def _side_command(wheels: Array, controls: Array, first: int, ground_speed: float) -> float:
+    """The surface speed (m/s) the motors of the side from ``first`` drive at: the mean of its driven
+    wheels'; with none driven, 0 if a wheel brakes (its brake aims to stop it) else ``ground_speed``."""
+    total = 0.0
+    driven = 0
+    braking = False
+    for i in range(first, first + 3):
+        if controls[i] < 0.0:
+            total += wheels[i]
+            driven += 1
+        elif controls[i] > 0.0:
+            braking = True
+    if driven:
+        return total / driven
+    return 0.0 if braking else ground_speed
+
+
+@numba.njit(cache=True)
+def _brake_against_turning(
+    wheels: Array, controls: Array, locked: Array, forward_caps: Array, backward_caps: Array
+) -> None:
+    """A released wheel's brake acts only against its turning: nothing forward while it turns forward,
+    nothing backward while it turns backward; within ``SLIP_SIGN_EPS_MPS`` of rest, either way (it holds).
+    A locked wheel keeps its lock's caps (a seized wheel does not roll, whatever its controller does)."""
+    for i in range(6):
+        if controls[i] < 0.0 or locked[i] != 0.0:
+            continue
+        if wheels[i] > SLIP_SIGN_EPS_MPS:
+            forward_caps[i] = 0.0
+        elif wheels[i] < -SLIP_SIGN_EPS_MPS:
+            backward_caps[i] = 0.0
+
+
+@numba.njit(cache=True)
 def drive_forces(
     wheels: Array,
     normals: Array,
@@ -396,7 +463,8 @@ def drive_forces(
     dt: float,
     locked: Array,
     out_forces: Array,
-    lateral_speed: float = 0.0,
+    lateral_speed: float,
+    controls: Array,
     rolling: Array | None = None,
 ) -> tuple[float, float]:
     """One step of the wheels' pull on the body: (longitudinal acceleration m/s^2, new yaw rate rad/s).
@@ -409,6 +477,19 @@ def drive_forces(
     Writes each wheel's drive force (N, forward positive) into ``out_forces``: a wheel turning apart from
     its side whose slip opposes the side's force (a seized wheel while the others drive) at the curve's
     force for its own slip, the rest of the side sharing the side's force plus that drag.
+
+    ``controls`` (12, ``released_controls``'s layout): per wheel its released motor's brake force (N, >= 0),
+    or < 0 for a wheel its controller drives; then per wheel its motor's force cap (N: its current limit's,
+    the battery cut-off's share of it). A released wheel (its controller gives no drive torque: timed out,
+    rebooting, under-voltage) turns at the ground speed under it (written into ``wheels``): no slip, no
+    drive force, its rolling resistance as any rolling wheel's; its brake force acts only against its
+    turning (at rest: either way, it holds), within ``mu N``. A side's motors drive at the mean speed of its
+    driven wheels; a side with none aims at 0 where a wheel brakes (the brake stops the body within the
+    drive's time constant, no harder than the brake forces), else at the ground speed (nothing drives it).
+    A released wheel shares its side's force as any wheel, so on a side that drives it gives nothing (with a
+    brake current it does not drag a driving side: not modelled). With every wheel released, the brakes
+    are Coulomb friction on the turning: they stop the body within a step if their force can, else they
+    give all of it against the turning.
 
     ``lateral_speed``: the body's sideways speed (m/s, y left). While it slides (not 0) the scrub shares
     each end wheel's friction with the slide: it is at most what the slide leaves of ``mu N_i``,
@@ -427,6 +508,21 @@ def drive_forces(
     half_base, reference_load, cap = vehicle[4], vehicle[5], vehicle[6]
     tau_drive, tau_yaw = max(vehicle[7], dt), max(vehicle[8], dt)
     mu, slip_k = ground[MU], ground[SLIP_K]
+
+    # A released wheel rolls with the ground under it (before its resistance, which needs its turning).
+    any_released = roll_released(wheels, controls, locked, speed, yaw_rate, effective_track)
+    if any_released and _none_driven(controls):
+        # Every controller has let go: a brake current is a torque against the wheel's turning, not a speed
+        # loop, so the brakes are Coulomb friction: they give what stops the body within this step, at most
+        # their force. Pulled toward rest within the drive's 0.1 s instead, gravity could outrun that pull
+        # and the brakes would give nothing while the wheels still turned (a rover coasting up a slope).
+        tau_drive = tau_yaw = dt
+    if any_released and rolling is not None:
+        # A released wheel turns with the ground: that, not a speed its current limit held, is what its
+        # rolling resistance opposes.
+        for i in range(6):
+            if controls[i] >= 0.0 and locked[i] == 0.0:
+                rolling[i] = wheels[i]
 
     # Motion resistance of each wheel against its own rolling, and its moment about the vertical axis.
     resist_total = 0.0
@@ -449,8 +545,12 @@ def drive_forces(
     gravity_along = -mass * G * math.sin(pitch)
 
     # The turn the wheels ask for, and the scrub resisting it at the tighter of the asked and actual radius.
-    left = (wheels[0] + wheels[1] + wheels[2]) / 3.0
-    right = (wheels[3] + wheels[4] + wheels[5]) / 3.0
+    if any_released:
+        left = _side_command(wheels, controls, 0, speed - 0.5 * yaw_rate * effective_track)
+        right = _side_command(wheels, controls, 3, speed + 0.5 * yaw_rate * effective_track)
+    else:
+        left = (wheels[0] + wheels[1] + wheels[2]) / 3.0
+        right = (wheels[3] + wheels[4] + wheels[5]) / 3.0
     v_cmd = 0.5 * (left + right)
     yaw_cmd = (right - left) / effective_track
     radius = math.inf
@@ -492,10 +592,19 @@ def drive_forces(
     motor_caps, scratch, forward_caps, backward_caps = work[0:6], work[6:12], work[12:18], work[18:24]
     drags, sharing_caps = work[24:30], work[30:36]
     for i in range(6):
-        motor_caps[i] = math.inf if locked[i] != 0.0 else cap  # a locked wheel: its lock holds it
+        # A locked wheel: its lock holds it. A released one: its brake. A driven one: its motor's cap (the
+        # vehicle's, unless the controls lower it: the battery cut-off).
+        if locked[i] != 0.0:
+            motor_caps[i] = math.inf
+        elif controls[i] >= 0.0:
+            motor_caps[i] = controls[i]
+        else:
+            motor_caps[i] = min(cap, controls[6 + i])
     # Which way each wheel's slip lets it pull, and how a wheel turning apart from its side (a seized one
     # while the others drive) drags where its slip opposes its side's force: the steady state counts it.
     _wheel_caps(wheels, speed, yaw_rate, effective_track, motor_caps, forward_caps, backward_caps)
+    if any_released:
+        _brake_against_turning(wheels, controls, locked, forward_caps, backward_caps)
     # A drag's lever is half the track: its contact moves as a mass of m I / (I + m (track / 2)^2); half
     # of what stops it in a step, as the body answers a side's changed limit through the yaw as well.
     stop_gain = 0.5 * mass * inertia / (inertia + mass * (0.5 * track) ** 2) / dt

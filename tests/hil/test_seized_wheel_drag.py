@@ -22,6 +22,7 @@ from hil.dynamics import DynamicsStep, RoverDynamics
 from hil.traction import (
     SLIP_SPEED_EPS_MPS,
     drive_forces,
+    released_controls,
     resistance_coefficient,
     slip_for_ratio,
     traction_ratio,
@@ -168,7 +169,10 @@ def test_the_drag_falls_smoothly_to_zero_as_the_rover_stops_over_a_locked_wheel(
     drags = []
     for speed in (1e-5, 1e-4, 1e-3, 0.01, 0.049, 0.05, 0.2):
         out = np.zeros(6)
-        drive_forces(wheels, normals, ground, vehicle, speed, 0.0, 0.0, DT, np.array(LF_SEIZED), out)
+        drive_forces(
+            wheels, normals, ground, vehicle, speed, 0.0, 0.0, DT, np.array(LF_SEIZED), out, 0.0,
+            released_controls(vehicle[6]),
+        )  # fmt: skip
         slip = -speed / max(speed, SLIP_SPEED_EPS_MPS)
         curve = -traction_ratio(slip, mu, slip_constant) * 73.5
         assert -out[0] == pytest.approx(min(curve, stop_gain * speed), rel=1e-12)

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from hil.dynamics import RoverDynamics
-from hil.traction import drive_forces, sideways_grip, sideways_share, slide_share
+from hil.traction import drive_forces, released_controls, sideways_grip, sideways_share, slide_share
 from navigator.terrain import TerrainMap
 from navigator.terrain_classes import TerrainClass
 from navigator.vehicle import VehicleParams
@@ -124,7 +124,18 @@ def test_a_turn_on_the_spot_while_sliding_meets_less_scrub(lateral, weaker):
 
     def scrub_moment(lateral_speed: float) -> float:
         _, new_yaw_rate = drive_forces(
-            wheels, normals, ground_vector, vehicle, 0.0, w, 0.0, DT, np.zeros(6), np.empty(6), lateral_speed
+            wheels,
+            normals,
+            ground_vector,
+            vehicle,
+            0.0,
+            w,
+            0.0,
+            DT,
+            np.zeros(6),
+            np.empty(6),
+            lateral_speed,
+            released_controls(vehicle[6]),
         )
         free = w * (1.0 - DT / tau_yaw)  # after the motors' moment I (0 - w) / tau_yaw
         return (free - new_yaw_rate) * INERTIA / DT
@@ -168,6 +179,7 @@ def test_the_scrub_does_not_jump_as_a_slide_starts_on_ground_resisting_turns_pas
             np.zeros(6),
             np.empty(6),
             lateral_speed,
+            released_controls(vehicle[6]),
         )
         return (w * (1.0 - DT / tau_yaw) - new_yaw_rate) * INERTIA / DT
 
