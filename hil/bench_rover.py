@@ -83,7 +83,8 @@ def run_sim_rover(
                 autopilot.step(truth)
             autopilot.poll()
             vescs.poll()
-            step = body.step(dt_s, vescs.wheel_speeds_mps(), 24.0)
+            step = body.step(dt_s, vescs.wheel_speeds_mps(), 24.0, (), vescs.wheel_controls())
+            vescs.set_rolling_speeds(step.wheel_speeds_mps)
             vescs.set_electrical(step.motor_currents_a, 24.0, step.duty)
             vescs.step(dt_s)
             truth = AutopilotTruth(

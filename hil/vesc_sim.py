@@ -23,6 +23,14 @@ from firmware_bridge.vesc import WHEEL_COUNT, FieldEncoder, VescCodec, VescFrame
 from firmware_bridge.wheel_names import wheel_label
 from hil.battery import REGEN_CURRENT_LIMIT_A
 from hil.first_sample import first_sample_withheld
+from hil.vesc_limits import (
+    ALL_DRIVEN,
+    DEFAULT_TIMEOUT_BRAKE_CURRENT_A,
+    DRIVEN,
+    SupplyLimits,
+    WheelControls,
+    check_brake_current,
+)
 from logs.clock import Clock, to_ns
 
 logger = logging.getLogger(__name__)
@@ -57,6 +65,8 @@ class SimVescBank:
         max_erpm: float = 30_000.0,
         input_voltage_v: float = 24.0,
         regen_current_limit_a: float = REGEN_CURRENT_LIMIT_A,
+        timeout_brake_current_a: float = DEFAULT_TIMEOUT_BRAKE_CURRENT_A,
+        supply: SupplyLimits | None = None,
     ) -> None:
         if not (math.isfinite(regen_current_limit_a) and regen_current_limit_a >= 0.0):
             raise ValueError(f"SimVescBank regen_current_limit_a must be >= 0, got {regen_current_limit_a}")
@@ -78,6 +88,15 @@ class SimVescBank:
         self._status_period_ns = to_ns(1.0 / status_rate_hz)
         self._slow_period_ns = to_ns(1.0 / slow_status_rate_hz)
         self._timeout_ns = to_ns(command_timeout_s)
+        # What a timed-out controller brakes its released motor with (hil.vesc_limits), and its supply limits.
+        self._timeout_brake_a = check_brake_current(timeout_brake_current_a)
+        self._supply = supply or SupplyLimits()
+        self._supply_voltage_v = input_voltage_v  # the latest from the physics (set_electrical), unclamped
+        self._timed_out = [False] * WHEEL_COUNT  # past the command timeout: released until the next command
+        self.under_voltage = False  # every controller in its under-voltage fault (one pack feeds them all)
+        self.under_voltage_faults = 0
+        # Per wheel, the speed the physics turned the wheel at (m/s): a released motor's encoder reads it.
+        self._rolling_mps: Sequence[float] = (0.0,) * WHEEL_COUNT
         self._tau_s = motor_time_constant_s
         self._blend_dt_s = math.nan  # the step length _blend is for (step): none yet
         self._blend = 0.0
@@ -201,6 +220,7 @@ class SimVescBank:
         top = self._max_erpm
         self._targets[wheel] = erpm if -top <= erpm <= top else (top if erpm > top else -top)
         self._last_command_ns[wheel] = now_ns
+        self._timed_out[wheel] = False
         self.commands_applied += 1
 
     def _apply(self, frame: VescFrame, now_ns: int) -> None:
@@ -221,20 +241,23 @@ class SimVescBank:
             return
         self._targets[wheel] = target
         self._last_command_ns[wheel] = now_ns
+        self._timed_out[wheel] = False
         self.commands_applied += 1
 
     # --- faults --------------------------------------------------------------------------------
     def set_rebooting(self, wheel: int, rebooting: bool) -> None:
-        """While rebooting a controller is silent and its motor coasts; it comes back with fresh state."""
+        """While rebooting a controller is silent and its motor is released (the wheel rolls free); it comes
+        back with fresh state."""
         if rebooting and not self._rebooting[wheel]:
             self.reboots += 1
             logger.info("simulated VESC of %s: rebooting", wheel_label(wheel, self._ids))
         elif not rebooting and self._rebooting[wheel]:
-            # Fresh firmware state: no target, tachometer from zero, waiting for its first command.
+            # Fresh firmware state: no target, tachometer from zero, waiting for its first command; its
+            # encoder reads the speed the wheel rolls at.
             self._targets[wheel] = 0.0
-            self._erpm[wheel] = self._measured_erpm[wheel] = 0.0
             self._tacho_erev[wheel] = 0.0
             self._last_command_ns[wheel] = None
+            self._timed_out[wheel] = False
         self._rebooting[wheel] = rebooting
         if rebooting:
             self._targets[wheel] = 0.0
@@ -252,6 +275,47 @@ class SimVescBank:
             math.copysign(1.0, target) if stuck and target != 0.0 else 0.0
             for stuck, target in zip(self._stuck, self._targets, strict=True)
         )
+
+    def released(self, wheel: int) -> bool:
+        """Whether ``wheel``'s controller has let go of its motor: rebooting, past its command timeout, or
+        in its under-voltage fault (``hil.vesc_limits``). A seized wheel is never released: its lock holds
+        it whatever its controller does."""
+        if self._stuck[wheel]:
+            return False
+        return self._rebooting[wheel] or self._timed_out[wheel] or self.under_voltage
+
+    def wheel_controls(self) -> WheelControls:
+        """What each controller does with its motor, for the physics (``RoverDynamics.step``'s
+        ``controls``): per wheel the brake current of a released motor (A: the timeout brake current past
+        the command timeout, 0 rebooting or under-voltage) or ``DRIVEN``; then per wheel the fraction of
+        its motor current limit the battery cut-off leaves (``SupplyLimits.current_limit_fraction``)."""
+        voltage = self._supply_voltage_v
+        supply = self._supply
+        # Every physics step: the usual case (nothing released, a pack above the cut-off) by comparisons.
+        if (
+            voltage >= supply.battery_cut_start_v
+            and True not in self._timed_out
+            and True not in self._rebooting
+        ):
+            return ALL_DRIVEN
+        brakes = tuple(
+            DRIVEN
+            if not self.released(i)
+            else (self._timeout_brake_a if self._timed_out[i] and not self._faulted(i) else 0.0)
+            for i in range(WHEEL_COUNT)
+        )
+        return brakes + (supply.current_limit_fraction(voltage),) * WHEEL_COUNT
+
+    def _faulted(self, wheel: int) -> bool:
+        """Rebooting or under-voltage: nothing drives or brakes the motor (a timeout's brake needs firmware
+        that runs and a supply above its minimum)."""
+        return self._rebooting[wheel] or self.under_voltage
+
+    def set_rolling_speeds(self, wheel_speeds_mps: Sequence[float]) -> None:
+        """The surface speeds (m/s, wheel order) the physics turned the wheels at this step
+        (``DynamicsStep.wheel_speeds_mps``): a released motor's encoder reads its wheel's, from the next
+        ``step`` on. Kept as given (every physics step)."""
+        self._rolling_mps = wheel_speeds_mps
 
     # --- physics -------------------------------------------------------------------------------
     def step(self, dt_s: float) -> None:
@@ -272,13 +336,24 @@ class SimVescBank:
         for i in range(WHEEL_COUNT):
             last = last_command_ns[i]
             if last is not None and now - last > timeout_ns:
-                # Firmware behaviour: no command within the timeout => release the motor (brake current 0).
+                # Firmware behaviour: no command within the timeout => release the motor, braked with the
+                # timeout brake current (hil.vesc_limits), until the next command.
                 targets[i] = 0.0
                 last_command_ns[i] = None
+                self._timed_out[i] = True
                 self.timeouts += 1
-                logger.debug("simulated VESC of %s: command timeout, stopping", wheel_label(i, self._ids))
+                logger.debug("simulated VESC of %s: command timeout, releasing", wheel_label(i, self._ids))
             before = erpm[i]
-            after = 0.0 if stuck[i] else before + (targets[i] - before) * blend
+            if stuck[i]:
+                after = 0.0
+            elif self.released(i):
+                # Nothing drives it: its encoder reads the speed the physics rolled the wheel at.
+                erpm[i] = after = self._rolling_mps[i] * erpm_per_mps
+                tacho[i] += 0.5 * (measured[i] + after) * dt_s / 60.0
+                measured[i] = after
+                continue
+            else:
+                after = before + (targets[i] - before) * blend
             # The motor turns no faster than the pack's voltage lets it (back-EMF at the top duty), whatever
             # the speed loop asks: the speed a real VESC measures, and the one the physics applies next.
             top = limits[i] * erpm_per_mps
@@ -324,11 +399,29 @@ class SimVescBank:
             self._set_speed_limits(speed_limits_mps)
         if held_speeds_mps is not None:
             self._set_held_speeds(*held_speeds_mps)
+        self._take_supply(input_voltage_v)
         # Kept as given (tuple() of the physics' tuples is the tuple itself) and clamped only when a status
         # frame is next due (_take_loads): the physics gives them every step, while STATUS goes every other
         # step at the default rates and STATUS_4 / STATUS_5 every tenth, so half of the clamping was for
         # loads the next step replaced unread.
         self._loads = (tuple(motor_currents_a), input_voltage_v, tuple(duties))
+
+    def _take_supply(self, input_voltage_v: float) -> None:
+        """The pack's voltage for the next step's controls; entering or leaving the under-voltage fault
+        (below ``l_min_vin``: every controller, as one pack feeds them all) is logged and counted."""
+        self._supply_voltage_v = input_voltage_v
+        under = self._supply.under_voltage(input_voltage_v)
+        if under != self.under_voltage:
+            self.under_voltage = under
+            if under:
+                self.under_voltage_faults += 1
+                logger.info(
+                    "simulated VESCs: under-voltage fault at %.2f V, motors released", input_voltage_v
+                )
+            else:
+                logger.info(
+                    "simulated VESCs: supply back at %.2f V, under-voltage fault cleared", input_voltage_v
+                )
 
     def _set_speed_limits(self, speed_limits_mps: Sequence[float]) -> None:
         """Keep the physics' speed limits as given. Every physics step: six non-negative numbers, checked

@@ -286,7 +286,10 @@ class SimWorld:
         # Only a scheduled vesc fault seizes a wheel (_apply_faults): without one, no wheel is stalled, and
         # the dynamics take "nothing given" as six freely turning wheels without asking the bank every tick.
         stalled = vescs.stalled() if self._vesc_faults else ()
-        step = body.step(dt_s, vescs.wheel_speeds_mps(), battery.voltage_v, stalled)
+        # A controller that has let go of its motor (timed out, rebooting, under-voltage) lets its wheel roll
+        # with the ground; the battery cut-off lowers the current limits (hil.vesc_limits).
+        step = body.step(dt_s, vescs.wheel_speeds_mps(), battery.voltage_v, stalled, vescs.wheel_controls())
+        vescs.set_rolling_speeds(step.wheel_speeds_mps)
         # The motors' draw (each I x duty, nothing back from a braking one) is summed in the physics kernel.
         voltage = battery.draw(step.motor_input_current_a + ELECTRONICS_CURRENT_A, dt_s)
         # The motors' speed limits at this voltage too, and where their current limit holds a wheel: the VESCs

@@ -198,9 +198,11 @@ class Rig:
         self._tick += 1
         dt_s = seconds(PHYSICS_DT_NS)
         self.vescs.poll()
+        vescs = self.vescs
         step = self.body.step(
-            dt_s, self.vescs.wheel_speeds_mps(), self.battery.voltage_v, self.vescs.stalled()
+            dt_s, vescs.wheel_speeds_mps(), self.battery.voltage_v, vescs.stalled(), vescs.wheel_controls()
         )
+        vescs.set_rolling_speeds(step.wheel_speeds_mps)
         current = float(np.sum(np.abs(step.motor_currents_a) * np.abs(step.duty)))
         voltage = self.battery.draw(current + 0.5, dt_s)
         if self.voltage_override is not None:
