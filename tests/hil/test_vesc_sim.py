@@ -88,7 +88,10 @@ def test_commands_reach_the_motors_and_status_comes_back(buses):
     assert len(rx) == link.counters.rx == pytest.approx(6 * 50 + 12 * 10, abs=18)
 
 
-def test_command_timeout_stops_the_motors(buses):
+def test_command_timeout_releases_the_motors(buses):
+    """Past the timeout the controllers let go (target 0, released): with no physics turning the wheels
+    (``set_rolling_speeds``), their encoders read the 0 m/s the bank was given (a rolling rover:
+    tests/hil/test_released_wheels.py)."""
     clock, sink = SimClock(), MemorySink()
     link, sim = make_pair(buses, clock, sink, command_timeout_s=0.5)
     run(link, sim, clock, 0.5, [1.0] * 6)
