@@ -552,12 +552,7 @@ def _compile_step_kernel(fingerprint: str) -> Callable[..., tuple[int, StateFiel
         )  # fmt: skip
         # A released wheel turns with the ground under it at the step's end too: the speed its encoder
         # reads (recorded, and what its controller reports) and its back-EMF, with no slip against it.
-        if roll_released(wheels, controls, stalled, speed, yaw_rate, body[EFFECTIVE_TRACK]):
-            # Its controller lets it go: no current limit holds it (a brake at the limit's force included).
-            for i in range(6):
-                if controls[i] >= 0.0 and stalled[i] == 0.0:
-                    values[HELD_FLOORS + i] = -math.inf
-                    values[HELD_CEILINGS + i] = math.inf
+        roll_released(wheels, controls, stalled, speed, yaw_rate, body[EFFECTIVE_TRACK])
         power = wheel_outputs(
             wheels,
             normals,

@@ -68,7 +68,10 @@ class Rover:
                 DT, bank.wheel_speeds_mps(), self.voltage_v, bank.stalled(), bank.wheel_controls()
             )
             bank.set_rolling_speeds(step.wheel_speeds_mps)
-            bank.set_electrical(step.motor_currents_a, self.voltage_v, step.duty, step.wheel_speed_limits_mps)
+            bank.set_electrical(
+                step.motor_currents_a, self.voltage_v, step.duty, step.wheel_speed_limits_mps,
+                step.held_speeds_mps,
+            )  # fmt: skip
             self.clock.advance(to_ns(DT))
             bank.step(DT)
             self.link.poll()
@@ -82,17 +85,21 @@ RoverMaker = Callable[..., Rover]  # rover_on's factory
 
 @pytest.fixture
 def rover_on(request: pytest.FixtureRequest) -> Iterator[RoverMaker]:
-    """A factory: ``rover_on(slope_deg, yaw, brake_a)`` gives a ``Rover`` at rest; its buses and links are
-    closed after the test."""
+    """A factory: ``rover_on(slope_deg, yaw, brake_a, current_limit_a)`` gives a ``Rover`` at rest; its
+    buses and links are closed after the test."""
     with ExitStack() as stack:
 
-        def make(slope_deg: float, yaw: float = 0.0, brake_a: float = 0.0) -> Rover:
+        def make(
+            slope_deg: float, yaw: float = 0.0, brake_a: float = 0.0, current_limit_a: float = 10.0
+        ) -> Rover:
             companion, sim = stack.enter_context(virtual_bus_pair(request.node.name))
             clock = SimClock()
             link = CanLink(companion, make_codec(), clock, MemorySink())
             stack.callback(link.close)
             bank = SimVescBank(sim, make_codec(), clock, timeout_brake_current_a=brake_a)
-            body = RoverDynamics(plane(slope_deg), PARAMS, x=50.0, y=50.0, yaw=yaw)
+            body = RoverDynamics(
+                plane(slope_deg), PARAMS, x=50.0, y=50.0, yaw=yaw, motor_current_limit_a=current_limit_a
+            )
             return Rover(body, bank, link, clock)
 
         yield make
@@ -273,3 +280,22 @@ def test_a_negative_timeout_brake_current_is_refused_by_name() -> None:
         pytest.raises(VescLimitsError, match="timeout_brake_current_a"),
     ):
         SimVescBank(sim, make_codec(), clock, timeout_brake_current_a=-1.0)
+
+
+def test_a_wheel_its_current_limit_held_rolls_free_once_released(rover_on: RoverMaker) -> None:
+    """Stalled on 15 deg at a 1.5 A limit (tests/hil/test_motor_current_limit.py: the wheels held nearly
+    still, at the curve's slip), then the link falls silent: released (brake 0), the wheels no longer held
+    roll back with the ground at the closed form, and the controllers report that rolling speed, not the
+    stall's held one."""
+    rover = rover_on(15.0, brake_a=0.0, current_limit_a=1.5)  # facing uphill
+    stalled = rover.run(3.0, [1.0] * 6)
+    assert abs(stalled[-1].speed_mps) < 0.01
+    assert max(abs(r.speed_mps) for r in rover.link.readings()) < 0.01
+    rolling = rover.run(1.5)
+    slope = math.radians(15.0)
+    assert accel_over(rolling, 0.5) == pytest.approx(-G * (math.sin(slope) - CRR * math.cos(slope)), rel=1e-9)
+    assert rolling[-1].held_speeds_mps == ((-math.inf,) * 6, (math.inf,) * 6)
+    speed = rolling[-1].speed_mps
+    assert speed < -0.5
+    erpm_step = 1.0 / make_codec().profile.erpm_per_mps
+    assert [r.speed_mps for r in rover.link.readings()] == pytest.approx([speed] * 6, abs=0.02 + erpm_step)
