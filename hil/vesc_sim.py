@@ -333,6 +333,7 @@ class SimVescBank:
         limits, erpm_per_mps = self._speed_limits_mps, self.profile.erpm_per_mps
         floors, ceilings = self._held_floors_mps, self._held_ceilings_mps
         last_command_ns, timeout_ns = self._last_command_ns, self._timeout_ns
+        timed_out, rebooting, under_voltage = self._timed_out, self._rebooting, self.under_voltage
         for i in range(WHEEL_COUNT):
             last = last_command_ns[i]
             if last is not None and now - last > timeout_ns:
@@ -346,7 +347,7 @@ class SimVescBank:
             before = erpm[i]
             if stuck[i]:
                 after = 0.0
-            elif self.released(i):
+            elif timed_out[i] or rebooting[i] or under_voltage:  # released(i), inline: every step, six wheels
                 # Nothing drives it: its encoder reads the speed the physics rolled the wheel at.
                 erpm[i] = after = self._rolling_mps[i] * erpm_per_mps
                 tacho[i] += 0.5 * (measured[i] + after) * dt_s / 60.0
